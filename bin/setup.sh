@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Idempotent set-up for raster-oracle on a Debian machine: system packages, a virtual
+# environment in .venv and an editable install with the test extras. Safe to run twice;
+# the second run only checks and returns.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+
+need_apt=()
+# libLLVM >= 16 for Dr.Jit's LLVM backend (Debian's default LLVM 15 aborts it).
+ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1 || need_apt+=(libllvm19)
+# Headless Chromium for the report tests.
+command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
+if [ "${#need_apt[@]}" -gt 0 ]; then
+    if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
+    echo "setup: installing system packages: ${need_apt[*]}" >&2
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >&2
+fi
+
+py="${PYTHON:-python3}"
+if [ ! -x .venv/bin/python ]; then
+    echo "setup: creating .venv" >&2
+    "$py" -m venv .venv
+fi
+stamp=".venv/.raster-oracle-stamp"
+want="$(sha256sum pyproject.toml | cut -d' ' -f1)"
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+    echo "setup: installing raster-oracle into .venv" >&2
+    .venv/bin/python -m pip install -q --upgrade pip >&2
+    .venv/bin/python -m pip install -q -e ".[test]" >&2
+    echo "$want" > "$stamp"
+fi

@@ -1,0 +1,96 @@
+"""Float32 EXR files with named channels, written atomically.
+
+Channels are a flat mapping ``name -> (H, W) array``; dotted names (``color.R``) are kept as
+they are, so the file lists exactly the channels given. Reading returns the same flat
+mapping. Writes go to a temporary name in the target folder and are renamed into place, so a
+reader never sees a half-written file.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["ExrError", "atomic_write_bytes", "read_exr", "write_exr"]
+
+
+class ExrError(ValueError):
+    """An EXR file that cannot be read or channels that cannot be written."""
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_exr(
+    path: str | os.PathLike,
+    channels: Mapping[str, np.ndarray],
+    *,
+    header: Mapping[str, str] | None = None,
+) -> None:
+    """Write float32 channels, each ``(H, W)``, to a ZIP-compressed scanline EXR atomically.
+
+    ``uint32`` arrays are written as UINT channels; every other dtype is cast to float32.
+    """
+    import OpenEXR
+
+    if not channels:
+        raise ExrError("no channels to write")
+    shapes = {name: np.shape(a) for name, a in channels.items()}
+    first = next(iter(shapes.values()))
+    if len(first) != 2 or any(s != first for s in shapes.values()):
+        raise ExrError(f"channels must all be 2-D arrays of one shape, got {shapes}")
+    data = {}
+    for name, arr in channels.items():
+        arr = np.asarray(arr)
+        arr = arr.astype(np.uint32 if arr.dtype == np.uint32 else np.float32, copy=False)
+        data[name] = np.ascontiguousarray(arr)
+    hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for key, value in (header or {}).items():
+        hdr[key] = str(value)
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".exr", dir=path.parent)
+    os.close(fd)
+    try:
+        with OpenEXR.File(hdr, data) as f:
+            f.write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read every channel of an EXR as a flat ``name -> (H, W)`` mapping.
+
+    Raises
+    ------
+    ExrError
+        When the file is missing, truncated or not an EXR.
+    """
+    import OpenEXR
+
+    path = Path(path)
+    if not path.is_file():
+        raise ExrError(f"EXR file not found: {path}")
+    try:
+        with OpenEXR.File(str(path), separate_channels=True) as f:
+            out = {name: np.array(ch.pixels) for name, ch in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises plain Exceptions for corrupt files
+        raise ExrError(f"cannot read EXR {path}: {exc}") from exc
+    if not out:
+        raise ExrError(f"EXR {path} has no channels")
+    return out

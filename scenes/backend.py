@@ -1,0 +1,201 @@
+"""Mitsuba variant selection and libLLVM discovery.
+
+Dr.Jit's LLVM backend needs libLLVM >= 16: Debian's default LLVM 15 aborts the process
+("LLVM ERROR: Cannot select ... fminimum"). This module finds a usable libLLVM, sets
+``DRJIT_LIBLLVM_PATH`` *before* Dr.Jit is imported, and picks the Mitsuba variant:
+
+1. ``cuda_ad_rgb`` when a CUDA device works,
+2. else ``llvm_ad_rgb`` with a libLLVM >= 16,
+3. else ``scalar_rgb`` with a warning that it is slow.
+
+``--backend`` on the command line and the ``RASTER_ORACLE_BACKEND`` environment variable
+override the choice. Nothing here imports Mitsuba or Dr.Jit at module import time.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = [
+    "BackendError",
+    "BackendInfo",
+    "INSTALL_HINT",
+    "MIN_LLVM_VERSION",
+    "VARIANTS",
+    "active",
+    "find_libllvm",
+    "llvm_version_of",
+    "mitsuba",
+    "select",
+]
+
+MIN_LLVM_VERSION = 16
+VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+INSTALL_HINT = "apt-get install -y libllvm19"
+DEFAULT_LIBRARY_DIRS = (
+    "/usr/lib/x86_64-linux-gnu",
+    "/usr/lib/aarch64-linux-gnu",
+    "/usr/lib64",
+    "/usr/lib",
+    "/usr/local/lib",
+    "/opt/homebrew/opt/llvm/lib",
+    "/usr/local/opt/llvm/lib",
+)
+_LLVM_NAME = re.compile(r"^libLLVM(?:-(\d+)(?:[.\d]*)?)?\.(?:so|dylib)(?:\.(\d+)[.\d]*)?$")
+
+
+class BackendError(RuntimeError):
+    """No usable Mitsuba variant, or a variant that was asked for cannot run."""
+
+
+@dataclass(frozen=True)
+class BackendInfo:
+    """The backend in use: Mitsuba variant and the libLLVM Dr.Jit loaded (if any)."""
+
+    variant: str
+    libllvm: str | None
+    reason: str
+
+
+def llvm_version_of(path: str | os.PathLike) -> int | None:
+    """Major LLVM version encoded in a library file name, or None if it is not libLLVM.
+
+    ``libLLVM-19.so`` -> 19, ``libLLVM.so.19.1`` -> 19, ``libLLVM-15.so.1`` -> 15,
+    ``libLLVM.so`` -> None (unversioned: unknown).
+    """
+    m = _LLVM_NAME.match(Path(path).name)
+    if not m:
+        return None
+    major = m.group(1) or m.group(2)
+    return int(major) if major else None
+
+
+def find_libllvm(
+    *, search_dirs: tuple[str, ...] | list[str] | None = None, env: dict | None = None
+) -> str | None:
+    """Path of a libLLVM usable by Dr.Jit, or None.
+
+    ``DRJIT_LIBLLVM_PATH`` in ``env`` wins when it names an existing file. Otherwise the
+    newest ``libLLVM*.so*`` of major version >= ``MIN_LLVM_VERSION`` in ``search_dirs``
+    (default: the usual system library folders) is returned; among files of the same
+    version the shortest name (the canonical one) is preferred.
+    """
+    env = os.environ if env is None else env
+    explicit = env.get("DRJIT_LIBLLVM_PATH")
+    if explicit and Path(explicit).is_file():
+        return explicit
+    dirs = DEFAULT_LIBRARY_DIRS if search_dirs is None else search_dirs
+    best: tuple[int, int, str] | None = None
+    for folder in dirs:
+        p = Path(folder)
+        if not p.is_dir():
+            continue
+        for f in sorted(p.glob("libLLVM*")):
+            version = llvm_version_of(f)
+            if version is None or version < MIN_LLVM_VERSION or not f.exists():
+                continue
+            key = (version, -len(f.name), str(f))
+            if best is None or key[:2] > best[:2]:
+                best = key
+    return best[2] if best else None
+
+
+def _cuda_works() -> bool:
+    """True when a CUDA driver and at least one device are present."""
+    import ctypes
+
+    for name in ("libcuda.so.1", "libcuda.so"):
+        try:
+            lib = ctypes.CDLL(name)
+        except OSError:
+            continue
+        if lib.cuInit(0) != 0:
+            return False
+        count = ctypes.c_int(0)
+        return lib.cuDeviceGetCount(ctypes.byref(count)) == 0 and count.value > 0
+    return False
+
+
+_ACTIVE: BackendInfo | None = None
+
+
+def select(requested: str | None = None, *, env: dict | None = None) -> BackendInfo:
+    """Choose the Mitsuba variant and configure Dr.Jit; idempotent.
+
+    Parameters
+    ----------
+    requested : str, optional
+        ``cuda_ad_rgb``, ``llvm_ad_rgb``, ``scalar_rgb`` or ``auto``; default: the
+        ``RASTER_ORACLE_BACKEND`` environment variable, else ``auto``.
+
+    Raises
+    ------
+    BackendError
+        When the requested variant cannot run, with the command to install what is missing.
+    """
+    global _ACTIVE
+    env = os.environ if env is None else env
+    requested = requested or env.get("RASTER_ORACLE_BACKEND") or "auto"
+    if requested not in (*VARIANTS, "auto"):
+        raise BackendError(
+            f"unknown backend {requested!r}; expected one of auto, {', '.join(VARIANTS)}"
+        )
+    if _ACTIVE is not None:
+        if requested in ("auto", _ACTIVE.variant):
+            return _ACTIVE
+        raise BackendError(
+            f"backend {_ACTIVE.variant} is already active in this process; cannot switch "
+            f"to {requested}"
+        )
+    libllvm = find_libllvm(env=env)
+    if requested == "auto":
+        if _cuda_works():
+            variant, reason = "cuda_ad_rgb", "a CUDA device is present"
+        elif libllvm:
+            variant, reason = "llvm_ad_rgb", f"libLLVM found at {libllvm}"
+        else:
+            variant, reason = "scalar_rgb", "no CUDA device and no libLLVM >= 16"
+            warnings.warn(
+                "raster-oracle: no vectorized backend (no CUDA device, no libLLVM >= 16); "
+                f"falling back to the slow scalar_rgb variant. Install one: {INSTALL_HINT}",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+    else:
+        variant, reason = requested, "requested"
+        if variant == "llvm_ad_rgb" and not libllvm:
+            raise BackendError(
+                "backend llvm_ad_rgb needs libLLVM >= 16 and none was found; "
+                f"install it with: {INSTALL_HINT}"
+            )
+        if variant == "cuda_ad_rgb" and not _cuda_works():
+            raise BackendError("backend cuda_ad_rgb needs a working CUDA device; none found")
+    if libllvm and variant != "cuda_ad_rgb":
+        os.environ["DRJIT_LIBLLVM_PATH"] = libllvm
+    import mitsuba as mi
+
+    try:
+        mi.set_variant(variant)
+    except (ImportError, AttributeError, RuntimeError) as exc:
+        raise BackendError(f"could not activate Mitsuba variant {variant}: {exc}") from exc
+    _ACTIVE = BackendInfo(
+        variant=variant, libllvm=libllvm if variant == "llvm_ad_rgb" else None, reason=reason
+    )
+    return _ACTIVE
+
+
+def active() -> BackendInfo:
+    """The active backend, selecting the default one on first use."""
+    return _ACTIVE or select()
+
+
+def mitsuba():
+    """The ``mitsuba`` module with the selected variant active."""
+    active()
+    import mitsuba as mi
+
+    return mi
