@@ -1,0 +1,400 @@
+"""Ground-truth rendering: supersampled visibility, coverage and a box-filtered shaded image.
+
+Sub-pixel samples are stratified: ``spp = m * n`` with ``m >= n`` as close as possible, one
+jittered sample per cell of an ``m x n`` grid over the pixel, jitter from a PCG32 stream per
+(pixel, sample) seeded by ``seed``, so results do not depend on chunking. Every cell is used,
+so the estimate is unbiased for any ``spp`` (a prime ``spp`` stratifies along x only).
+
+Standard errors are ``sqrt(s^2 / N)`` with the unbiased sample variance ``s^2`` of the pixel's
+``N`` samples; for stratified samples this is conservative (it overestimates). At ``N = 1``
+no variance can be estimated and the standard error channels are 0 (``reference.json`` says
+so).
+
+With ``adaptive``, a first pass at ``adaptive_spp`` samples covers every pixel; pixels whose
+standard error (visibility, coverage and colour) exceeds ``target_stderr`` get a further pass
+of as many samples again, doubling until they meet it or reach ``max_spp``. Pixels whose first
+pass is uniform (all samples agree) stop there.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from scenes import backend
+from scenes.raycast import trace_film_dr
+
+__all__ = [
+    "ALL_CHANNELS",
+    "CHANNEL_GROUPS",
+    "ReferenceError_",
+    "ReferenceSettings",
+    "channel_names",
+    "estimate_memory",
+    "grid_shape",
+    "render_reference",
+]
+
+#: Channel groups that can be asked for with ``--channels``; each expands to EXR channels.
+CHANNEL_GROUPS = {
+    "visibility": ["visibility", "visibility_stderr"],
+    "coverage": ["coverage", "coverage_stderr"],
+    "color": ["color.R", "color.G", "color.B", "color_stderr.R", "color_stderr.G",
+              "color_stderr.B"],
+    "edge": ["edge"],
+    "id": ["id"],
+    "depth": ["depth"],
+    "position": ["position.X", "position.Y", "position.Z"],
+    "normal": ["normal.X", "normal.Y", "normal.Z"],
+    "albedo": ["albedo.R", "albedo.G", "albedo.B"],
+}
+ALL_CHANNELS = tuple(CHANNEL_GROUPS)
+_CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
+#: Samples per Dr.Jit launch: bounds memory at about 1.5 GiB whatever the resolution and spp.
+SAMPLES_PER_CHUNK = 1 << 22
+_BYTES_PER_SAMPLE = 360
+_BYTES_PER_PIXEL = 8 * 24 + 4 * 30
+
+
+class ReferenceError_(ValueError):
+    """Invalid reference settings (bad spp, unknown channel, too much memory)."""
+
+
+@dataclass(frozen=True)
+class ReferenceSettings:
+    """How a reference is rendered; every field enters the cache key."""
+
+    spp: int = 64
+    seed: int = 0
+    channels: tuple[str, ...] = ALL_CHANNELS
+    adaptive: bool = False
+    adaptive_spp: int = 16
+    target_stderr: float = 0.01
+    max_spp: int = 4096
+
+    def validate(self) -> ReferenceSettings:
+        if int(self.spp) < 1:
+            raise ReferenceError_(f"spp must be >= 1, got {self.spp}")
+        if int(self.seed) < 0:
+            raise ReferenceError_(f"seed must be >= 0, got {self.seed}")
+        unknown = [c for c in self.channels if c not in CHANNEL_GROUPS]
+        if unknown or not self.channels:
+            raise ReferenceError_(
+                f"unknown channel(s) {', '.join(unknown) or '(none given)'}; choose from "
+                f"{', '.join(ALL_CHANNELS)}"
+            )
+        if self.adaptive:
+            if int(self.adaptive_spp) < 2:
+                raise ReferenceError_(f"adaptive_spp must be >= 2, got {self.adaptive_spp}")
+            if not self.target_stderr > 0:
+                raise ReferenceError_(f"target_stderr must be > 0, got {self.target_stderr}")
+            if int(self.max_spp) < int(self.adaptive_spp):
+                raise ReferenceError_("max_spp must be >= adaptive_spp")
+        ordered = tuple(c for c in ALL_CHANNELS if c in set(self.channels))
+        return ReferenceSettings(int(self.spp), int(self.seed), ordered, bool(self.adaptive),
+                                 int(self.adaptive_spp), float(self.target_stderr),
+                                 int(self.max_spp))
+
+    def key_record(self) -> dict:
+        rec = asdict(self)
+        rec["channels"] = list(self.channels)
+        if not self.adaptive:
+            for k in ("adaptive_spp", "target_stderr", "max_spp"):
+                rec.pop(k)
+        return rec
+
+
+def channel_names(groups) -> list[str]:
+    return [name for g in groups for name in CHANNEL_GROUPS[g]]
+
+
+def grid_shape(spp: int) -> tuple[int, int]:
+    """Stratification grid ``(m, n)``, ``m * n = spp``, ``m >= n``, as square as possible."""
+    n = int(math.isqrt(spp))
+    while spp % n:
+        n -= 1
+    return spp // n, n
+
+
+def estimate_memory(width: int, height: int) -> int:
+    """Peak bytes a reference of this size needs (chunk working set + per-pixel buffers)."""
+    return SAMPLES_PER_CHUNK * _BYTES_PER_SAMPLE + width * height * _BYTES_PER_PIXEL
+
+
+def available_memory() -> int:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+@dataclass
+class _Accum:
+    """Per-pixel running sums (float64) over all passes."""
+
+    npix: int
+    color: bool
+    n: np.ndarray = field(init=False)
+    vis: np.ndarray = field(init=False)
+    cov: np.ndarray = field(init=False)
+    rgb: np.ndarray | None = field(init=False)
+    rgb2: np.ndarray | None = field(init=False)
+    smin: np.ndarray = field(init=False)
+    smax: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        self.n = np.zeros(self.npix)
+        self.vis = np.zeros(self.npix)
+        self.cov = np.zeros(self.npix)
+        self.rgb = np.zeros((self.npix, 3)) if self.color else None
+        self.rgb2 = np.zeros((self.npix, 3)) if self.color else None
+        self.smin = np.full(self.npix, np.iinfo(np.int32).max, dtype=np.int64)
+        self.smax = np.full(self.npix, np.iinfo(np.int32).min, dtype=np.int64)
+
+    def stderr(self, s, s2, n):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            var = (s2 - s * s / n) / (n - 1)
+            se = np.sqrt(np.maximum(var, 0.0) / n)
+        return np.where(n > 1, se, 0.0)
+
+    def vis_stderr(self):
+        return self.stderr(self.vis, self.vis, self.n)
+
+    def cov_stderr(self):
+        return self.stderr(self.cov, self.cov, self.n)
+
+    def rgb_stderr(self):
+        n = self.n[:, None]
+        return self.stderr(self.rgb, self.rgb2, n)
+
+    def sample_variance(self):
+        """Largest per-pixel sample variance over the tracked quantities."""
+        n = np.maximum(self.n, 2)
+        parts = [(self.vis - self.vis**2 / n) / (n - 1), (self.cov - self.cov**2 / n) / (n - 1)]
+        if self.color:
+            parts.append(np.max((self.rgb2 - self.rgb**2 / n[:, None]) / (n[:, None] - 1), 1))
+        return np.maximum(np.max(parts, axis=0), 0.0)
+
+
+def _pass(loaded, acc: _Accum, pixels: np.ndarray, spp: int, offset: int, seed: int,
+          progress) -> tuple[int, int]:
+    """Trace ``spp`` stratified samples in each of ``pixels``; returns (primary, shadow) rays."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    width = loaded.width
+    m, n = grid_shape(spp)
+    per_chunk = max(1, SAMPLES_PER_CHUNK // spp)
+    primary = shadow = 0
+    seed_state = mi.UInt64(np.uint64(0x853C49E6748FEA9B) ^ np.uint64(seed * 0x9E3779B97F4A7C15
+                                                                      % (1 << 64)))
+    for start in range(0, len(pixels), per_chunk):
+        chunk = pixels[start:start + per_chunk]
+        count = len(chunk) * spp
+        idx = dr.arange(mi.UInt32, count)
+        local = idx // spp
+        s = idx - local * spp
+        pix = dr.gather(mi.UInt32, mi.UInt32(chunk), local)
+        stream = mi.UInt64(pix) * (1 << 24) + mi.UInt64(s + offset)
+        rng = mi.PCG32(size=count, initstate=seed_state, initseq=stream)
+        u = rng.next_float32()
+        v = rng.next_float32()
+        cx = s % m
+        cy = s // m
+        x = mi.Float(pix % width) + (mi.Float(cx) + u) * (1.0 / m)
+        y = mi.Float(pix // width) + (mi.Float(cy) + v) * (1.0 / n)
+        res = trace_film_dr(loaded, x, y, color=acc.color)
+        lit = dr.select(res["lit"], 1.0, 0.0)
+        cov = dr.select(res["valid"], 1.0, 0.0)
+        outs = [dr.block_reduce(dr.ReduceOp.Add, lit, spp, mode="evaluated"),
+                dr.block_reduce(dr.ReduceOp.Add, cov, spp, mode="evaluated"),
+                dr.block_reduce(dr.ReduceOp.Min, res["shape"], spp, mode="evaluated"),
+                dr.block_reduce(dr.ReduceOp.Max, res["shape"], spp, mode="evaluated")]
+        if acc.color:
+            c = res["color"]
+            outs.append(dr.block_reduce(dr.ReduceOp.Add, c, spp, mode="evaluated"))
+            outs.append(dr.block_reduce(dr.ReduceOp.Add, c * c, spp, mode="evaluated"))
+        shadow_count = dr.count(res["shadow_tested"])
+        dr.eval(*outs, shadow_count)
+        acc.n[chunk] += spp
+        acc.vis[chunk] += np.array(outs[0], dtype=np.float64)
+        acc.cov[chunk] += np.array(outs[1], dtype=np.float64)
+        acc.smin[chunk] = np.minimum(acc.smin[chunk], np.array(outs[2]))
+        acc.smax[chunk] = np.maximum(acc.smax[chunk], np.array(outs[3]))
+        if acc.color:
+            acc.rgb[chunk] += np.array(outs[4], dtype=np.float64).T
+            acc.rgb2[chunk] += np.array(outs[5], dtype=np.float64).T
+        primary += count
+        shadow += int(shadow_count[0])
+        if progress is not None:
+            progress.update(count)
+    return primary, shadow
+
+
+def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray]:
+    """G-buffer channels from one ray through each pixel centre."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    h, w = loaded.height, loaded.width
+    npix = w * h
+    out = {name: np.zeros(npix, dtype=np.float32) for name in channel_names(
+        [g for g in CHANNEL_GROUPS if g in groups and g in _CENTRE_GROUPS])}
+    for start in range(0, npix, SAMPLES_PER_CHUNK):
+        idx = dr.arange(mi.UInt32, start, min(npix, start + SAMPLES_PER_CHUNK))
+        x = mi.Float(idx % w) + 0.5
+        y = mi.Float(idx // w) + 0.5
+        res = trace_film_dr(loaded, x, y, color=False)
+        sl = slice(start, start + dr.width(idx))
+        if "id" in groups:
+            out["id"][sl] = np.array(res["shape"])
+        if "depth" in groups:
+            out["depth"][sl] = np.array(res["depth"])
+        for g, key, names in (("position", "position", "XYZ"), ("normal", "normal", "XYZ"),
+                              ("albedo", "albedo", "RGB")):
+            if g in groups:
+                arr = np.array(res[key])
+                valid = np.array(res["valid"])
+                for i, c in enumerate(names):
+                    out[f"{g}.{c}"][sl] = np.where(valid, arr[i], 0.0)
+        if progress is not None:
+            progress.update(dr.width(idx))
+    return {k: v.reshape(h, w) for k, v in out.items()}
+
+
+def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False):
+    """Render the reference channels of ``loaded`` (its current camera frame).
+
+    Returns
+    -------
+    channels : dict of ``(H, W)`` float32 arrays named as in the README's table.
+    stats : dict with rays cast, wall seconds, M rays/s, mean/max standard errors and, for
+        adaptive sampling, the rays uniform sampling would need for the same maximum error.
+    """
+    settings = settings.validate()
+    w, h = loaded.width, loaded.height
+    need = estimate_memory(w, h)
+    have = available_memory()
+    if need > have:
+        raise ReferenceError_(
+            f"a {w}x{h} reference needs about {need / 2**30:.1f} GiB; only "
+            f"{have / 2**30:.1f} GiB is available"
+        )
+    groups = set(settings.channels)
+    sampled = groups & {"visibility", "coverage", "color", "edge"}
+    npix = w * h
+    color = "color" in groups
+    acc = _Accum(npix, color)
+    t0 = time.perf_counter()
+    progress = None
+    if not quiet:
+        from tqdm import tqdm
+
+        total = npix * (settings.adaptive_spp if settings.adaptive else settings.spp)
+        progress = tqdm(total=total, unit="spl", unit_scale=True, desc=f"reference {loaded.name}",
+                        leave=False, mininterval=0.5)
+    primary = shadow = 0
+    passes = []
+    try:
+        if sampled:
+            all_pixels = np.arange(npix, dtype=np.uint32)
+            spp0 = settings.adaptive_spp if settings.adaptive else settings.spp
+            p, s = _pass(loaded, acc, all_pixels, spp0, 0, settings.seed, progress)
+            primary, shadow = primary + p, shadow + s
+            passes.append({"pixels": int(npix), "spp": spp0})
+            if settings.adaptive:
+                while True:
+                    se = np.maximum(acc.vis_stderr(), acc.cov_stderr())
+                    if color:
+                        se = np.maximum(se, acc.rgb_stderr().max(axis=1))
+                    active = np.nonzero((se > settings.target_stderr)
+                                        & (acc.n < settings.max_spp))[0].astype(np.uint32)
+                    if len(active) == 0:
+                        break
+                    spp_k = int(min(acc.n[active[0]], settings.max_spp - acc.n[active[0]]))
+                    if progress is not None:
+                        progress.total += len(active) * spp_k
+                    p, s = _pass(loaded, acc, active, spp_k, int(acc.n[active[0]]),
+                                 settings.seed, progress)
+                    primary, shadow = primary + p, shadow + s
+                    passes.append({"pixels": int(len(active)), "spp": spp_k})
+        centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}
+    finally:
+        if progress is not None:
+            progress.close()
+    wall = time.perf_counter() - t0
+    channels: dict[str, np.ndarray] = {}
+
+    def img(a):
+        return np.asarray(a, dtype=np.float32).reshape(h, w)
+
+    if "visibility" in groups:
+        channels["visibility"] = img(acc.vis / acc.n)
+        channels["visibility_stderr"] = img(acc.vis_stderr())
+    if "coverage" in groups:
+        channels["coverage"] = img(acc.cov / acc.n)
+        channels["coverage_stderr"] = img(acc.cov_stderr())
+    if color:
+        mean = acc.rgb / acc.n[:, None]
+        se = acc.rgb_stderr()
+        for i, c in enumerate("RGB"):
+            channels[f"color.{c}"] = img(mean[:, i])
+        for i, c in enumerate("RGB"):
+            channels[f"color_stderr.{c}"] = img(se[:, i])
+    if "edge" in groups:
+        mixed = (acc.vis > 0) & (acc.vis < acc.n)
+        channels["edge"] = img((acc.smin != acc.smax) | mixed)
+    channels.update(centre)
+    stats = _stats(settings, acc, channels, primary, shadow, wall, passes, npix, sampled)
+    return channels, stats
+
+
+def _stats(settings, acc, channels, primary, shadow, wall, passes, npix, sampled) -> dict:
+    rays = primary + shadow
+    stats = {
+        "rays_cast": int(rays),
+        "primary_rays": int(primary),
+        "shadow_rays": int(shadow),
+        "wall_seconds": wall,
+        "mrays_per_second": rays / wall / 1e6 if wall > 0 else 0.0,
+        "passes": passes,
+    }
+    if settings.spp == 1 and not settings.adaptive:
+        stats["stderr_note"] = "spp = 1: no variance can be estimated; stderr channels are 0"
+    for name in ("visibility_stderr", "coverage_stderr"):
+        if name in channels:
+            stats[f"{name}_mean"] = float(channels[name].mean())
+            stats[f"{name}_max"] = float(channels[name].max())
+    if "color_stderr.R" in channels:
+        cs = np.stack([channels[f"color_stderr.{c}"] for c in "RGB"])
+        stats["color_stderr_mean"] = float(cs.mean())
+        stats["color_stderr_max"] = float(cs.max())
+    if settings.adaptive and sampled:
+        se = np.maximum(acc.vis_stderr(), acc.cov_stderr())
+        if acc.color:
+            se = np.maximum(se, acc.rgb_stderr().max(axis=1))
+        max_se = float(se.max())
+        var = acc.sample_variance()
+        target = max(max_se, settings.target_stderr)
+        uniform_spp = max(settings.adaptive_spp, int(math.ceil(float(var.max()) / target**2)))
+        adaptive_samples = int(acc.n.sum())
+        stats["adaptive"] = {
+            "target_stderr": settings.target_stderr,
+            "achieved_max_stderr": max_se,
+            "samples": adaptive_samples,
+            "mean_spp": adaptive_samples / npix,
+            "max_spp_used": int(acc.n.max()),
+            "uniform_spp_for_same_max_stderr": uniform_spp,
+            "uniform_samples": int(uniform_spp * npix),
+            "rays_ratio_vs_uniform": adaptive_samples / float(uniform_spp * npix),
+            "pixels_refined": int((acc.n > settings.adaptive_spp).sum()),
+        }
+    return stats

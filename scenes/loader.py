@@ -1,0 +1,334 @@
+"""Load a scene (built-in name or Mitsuba XML path) into a :class:`LoadedScene`.
+
+Mitsuba merges shapes with identical BSDFs when it optimizes a scene, and the merged scene's
+bounding box is then wrong; scenes are therefore loaded with ``optimize=False`` (one Mitsuba
+shape per scene shape, so shape ids are meaningful) and bounds are computed here from the
+shapes' own geometry, never from ``scene.bbox()``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from . import backend
+from .builtin import BUILTIN_SCENES
+from .camera import Camera
+from .lights import Light
+from .paths import CAMERA_PATHS, path_camera
+from .shading import Specular
+
+__all__ = ["LoadedScene", "SceneError", "load", "scene_names"]
+
+MAX_PIXELS = 16384 * 16384
+
+
+class SceneError(ValueError):
+    """A scene that cannot be loaded or used (one clear line for the user)."""
+
+
+@dataclass
+class LoadedScene:
+    """A loaded scene with its camera, chosen light and provenance.
+
+    Attributes
+    ----------
+    mi_scene : the Mitsuba scene (loaded with the active variant, unoptimized).
+    camera : the camera of the requested frame (float64, see :mod:`scenes.camera`).
+    light : the chosen light; ``lights`` lists every usable light of the scene.
+    shape_names : Mitsuba shape ids, index = the ``id`` channel value.
+    content_hash : SHA-256 of the scene's content (XML and referenced files, or the built-in
+        dictionary) plus the resolution.
+    """
+
+    name: str
+    source: str
+    description: str
+    mi_scene: object
+    camera: Camera
+    base_camera: Camera
+    lights: list[Light]
+    light_index: int
+    shape_names: list[str]
+    content_hash: str
+    specular: Specular = field(default_factory=Specular)
+    camera_path: str | None = None
+    frame: int = 0
+    n_frames: int = 1
+    mesh_data: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def light(self) -> Light:
+        return self.lights[self.light_index]
+
+    @property
+    def width(self) -> int:
+        return self.camera.width
+
+    @property
+    def height(self) -> int:
+        return self.camera.height
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """World-space (lo, hi) of every shape, from the shapes' own bounding boxes."""
+        los, his = [], []
+        for sh in self.mi_scene.shapes():
+            bb = sh.bbox()
+            los.append(np.array(bb.min, dtype=np.float64).ravel()[:3])
+            his.append(np.array(bb.max, dtype=np.float64).ravel()[:3])
+        return np.min(los, axis=0), np.max(his, axis=0)
+
+    def with_frame(self, frame: int, *, path: str | None = None, n_frames: int | None = None):
+        """The same scene seen from frame ``frame`` of a camera path."""
+        path = path or self.camera_path or "dolly"
+        n = n_frames or self.n_frames or 8
+        cam = path_camera(self.base_camera, path, frame, n, scene=self)
+        return replace(self, camera=cam, camera_path=path, frame=frame, n_frames=n)
+
+    def provenance(self) -> dict:
+        return {
+            "name": self.name,
+            "source": self.source,
+            "content_hash": self.content_hash,
+            "light_index": self.light_index,
+            "light": self.light.to_json(),
+            "resolution": [self.width, self.height],
+            "camera_path": self.camera_path,
+            "frame": self.frame,
+            "n_frames": self.n_frames,
+        }
+
+
+def scene_names() -> list[str]:
+    return list(BUILTIN_SCENES)
+
+
+def _hash_obj(h, obj) -> None:
+    if isinstance(obj, dict):
+        for k in sorted(obj):
+            h.update(f"<{k}>".encode())
+            _hash_obj(h, obj[k])
+    elif isinstance(obj, list | tuple):
+        for v in obj:
+            _hash_obj(h, v)
+    elif isinstance(obj, np.ndarray):
+        h.update(str(obj.dtype).encode() + str(obj.shape).encode())
+        h.update(np.ascontiguousarray(obj).tobytes())
+    else:
+        h.update(repr(obj).encode())
+
+
+def _to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
+    """Replace ``ro_mesh`` entries by Mitsuba meshes and matrices by transforms."""
+    out = {}
+    for key, value in d.items():
+        if isinstance(value, dict) and value.get("type") == "ro_mesh":
+            v = np.asarray(value["vertices"], dtype=np.float32)
+            f = np.asarray(value["faces"], dtype=np.uint32)
+            mesh = mi.Mesh(key, vertex_count=len(v), face_count=len(f), has_vertex_normals=False)
+            params = mi.traverse(mesh)
+            params["vertex_positions"] = mi.Float(v.ravel())
+            params["faces"] = mi.UInt32(f.ravel())
+            params.update()
+            bsdf = mi.load_dict(value["bsdf"])
+            mesh.set_bsdf(bsdf)
+            meshes[key] = (v, f)
+            out[key] = mesh
+        elif isinstance(value, dict):
+            out[key] = _to_mitsuba_dict(mi, value, meshes)
+        elif isinstance(value, np.ndarray) and value.shape == (4, 4):
+            out[key] = mi.ScalarTransform4f(value.tolist())
+        else:
+            out[key] = value
+    return out
+
+
+def _xml_dependencies(path: Path, seen: set | None = None) -> list[Path]:
+    """The XML file and every file it references (``filename`` values, includes), recursively."""
+    seen = set() if seen is None else seen
+    path = path.resolve()
+    if path in seen:
+        return []
+    seen.add(path)
+    files = [path]
+    try:
+        text = path.read_text(errors="replace")
+    except OSError:
+        return files
+    for ref in re.findall(r'(?:name="filename"\s+value|filename)="([^"]+)"', text):
+        dep = (path.parent / ref).resolve()
+        if dep.is_file():
+            files.extend(_xml_dependencies(dep, seen) if dep.suffix == ".xml" else [dep])
+    return files
+
+
+def _camera_from_sensor(mi, sensor, width, height) -> Camera:
+    params = mi.traverse(sensor)
+    keys = set(params.keys())
+    size = [int(c) for c in params["film.size"]]
+    w = int(width or size[0])
+    h = int(height or size[1])
+    to_world = np.array(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    near, far = float(params["near_clip"]), float(params["far_clip"])
+    if "x_fov" in keys:
+        fov = float(np.ravel(params["x_fov"])[0])
+        for k in ("principal_point_offset_x", "principal_point_offset_y"):
+            if k in keys and abs(float(np.ravel(params[k])[0])) > 0:
+                raise SceneError(f"sensor {k} is not supported (must be 0)")
+        return Camera("perspective", to_world, w, h, near, far, fov)
+    if sensor.class_name() == "OrthographicCamera":
+        return Camera("orthographic", to_world, w, h, near, far)
+    raise SceneError(
+        f"sensor type {sensor.class_name()} is not supported; use a perspective or "
+        "orthographic sensor"
+    )
+
+
+def _light_from_emitter(mi, emitter, name: str) -> Light | None:
+    kind = emitter.class_name()
+    p = mi.traverse(emitter)
+
+    def rgb(key):
+        return tuple(float(c) for c in np.broadcast_to(np.array(p[key]).ravel(), (3,)))
+
+    def matrix():
+        return np.array(p["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+
+    if kind == "DirectionalEmitter":
+        d = matrix()[:3, 2]
+        return Light("directional", rgb("irradiance.value"), tuple(d / np.linalg.norm(d)),
+                     name=name)
+    if kind == "PointLight":
+        pos = tuple(float(c) for c in np.array(p["position"]).ravel()[:3])
+        return Light("point", rgb("intensity.value"), position=pos, name=name)
+    if kind == "SpotLight":
+        m = matrix()
+        d = m[:3, 2] / np.linalg.norm(m[:3, 2])
+        return Light("spot", rgb("intensity.value"), tuple(d), tuple(m[:3, 3]),
+                     cutoff_angle=float(np.ravel(p["cutoff_angle"])[0]),
+                     beam_width=float(np.ravel(p["beam_width"])[0]), name=name)
+    return None
+
+
+def _check_size(width, height) -> None:
+    for label, v in (("width", width), ("height", height)):
+        if v is not None and int(v) <= 0:
+            raise SceneError(f"{label} must be a positive number of pixels, got {v}")
+    if width and height and int(width) * int(height) > MAX_PIXELS:
+        raise SceneError(f"resolution {width}x{height} is larger than {MAX_PIXELS} pixels")
+
+
+def load(
+    scene: str | Path,
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    light: int = 0,
+    camera_path: str | None = None,
+    frame: int = 0,
+    n_frames: int = 8,
+) -> LoadedScene:
+    """Load a built-in scene by name or a Mitsuba XML file.
+
+    Parameters
+    ----------
+    scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
+    width, height : film size in pixels; default: the scene's own.
+    light : index of the light to use among the scene's punctual lights.
+    camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
+        frame of it to view (frame 0 is the scene's own camera).
+
+    Raises
+    ------
+    SceneError
+        Unknown name, missing or malformed file, no sensor, no usable light, bad sizes.
+    """
+    _check_size(width, height)
+    if camera_path is not None and camera_path not in CAMERA_PATHS:
+        raise SceneError(
+            f"unknown camera path {camera_path!r}; choose one of {', '.join(CAMERA_PATHS)}"
+        )
+    if not 0 <= int(frame) < max(int(n_frames), 1):
+        raise SceneError(f"frame must be in [0, {n_frames}), got {frame}")
+    mi = backend.mitsuba()
+    name = str(scene)
+    meshes: dict = {}
+    if name in BUILTIN_SCENES:
+        spec = BUILTIN_SCENES[name]
+        w, h = int(width or spec.width), int(height or spec.height)
+        raw = spec.factory(w, h)
+        digest = hashlib.sha256(b"builtin:" + name.encode())
+        _hash_obj(digest, raw)
+        try:
+            mi_scene = mi.load_dict(_to_mitsuba_dict(mi, raw, meshes), optimize=False)
+        except Exception as exc:  # Mitsuba raises RuntimeError subclasses
+            raise SceneError(f"built-in scene {name!r} failed to load: {exc}") from exc
+        source, description = "builtin", spec.description
+    else:
+        path = Path(name)
+        if path.suffix.lower() != ".xml" and not path.exists():
+            raise SceneError(
+                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}) "
+                "and not a Mitsuba XML file"
+            )
+        if not path.is_file():
+            raise SceneError(f"scene file not found: {path}")
+        digest = hashlib.sha256(b"xml:")
+        for dep in _xml_dependencies(path):
+            digest.update(dep.name.encode() + dep.read_bytes())
+        try:
+            mi_scene = mi.load_file(str(path), optimize=False)
+        except Exception as exc:
+            msg = str(exc).strip().splitlines()
+            raise SceneError(f"cannot load {path}: {msg[-1] if msg else exc}") from exc
+        source, description = str(path.resolve()), f"Mitsuba scene {path.name}"
+        name = path.stem
+    sensors = mi_scene.sensors()
+    if not sensors:
+        raise SceneError(f"scene {name!r} has no sensor (camera)")
+    cam = _camera_from_sensor(mi, sensors[0], width, height)
+    if width and height:
+        cam = cam.with_resolution(width, height)
+    digest.update(f"res:{cam.width}x{cam.height}".encode())
+    emitters = mi_scene.emitters()
+    lights = []
+    for i, e in enumerate(emitters):
+        lt = _light_from_emitter(mi, e, e.id() or f"emitter_{i}")
+        if lt is not None:
+            lights.append(lt)
+    if not lights:
+        kinds = ", ".join(e.class_name() for e in emitters) or "none"
+        raise SceneError(
+            f"scene {name!r} has no usable light (directional, point or spot); found: {kinds}"
+        )
+    if not 0 <= int(light) < len(lights):
+        raise SceneError(
+            f"light index {light} out of range: scene {name!r} has {len(lights)} usable "
+            f"light(s) (0..{len(lights) - 1})"
+        )
+    loaded = LoadedScene(
+        name=name,
+        source=source,
+        description=description,
+        mi_scene=mi_scene,
+        camera=cam,
+        base_camera=cam,
+        lights=lights,
+        light_index=int(light),
+        shape_names=[s.id() for s in mi_scene.shapes()],
+        content_hash=digest.hexdigest(),
+        mesh_data=meshes,
+    )
+    if camera_path is not None:
+        loaded = loaded.with_frame(int(frame), path=camera_path, n_frames=int(n_frames))
+    return loaded
+
+
+def describe(loaded: LoadedScene) -> str:
+    """One-line JSON summary (used by the CLI)."""
+    return json.dumps(loaded.provenance())

@@ -1,0 +1,68 @@
+"""Camera paths for temporal work: N frames each, frame 0 is the scene's own camera.
+
+- ``subpixel-pan``: the camera yaws by a quarter of a pixel's angle per frame (image content
+  moves 0.25 px a frame at the image centre); orthographic cameras translate 0.25 px.
+- ``subtexel-pan``: the camera translates along its right axis by a quarter of a shadow-map
+  texel per frame, the texel being the scene's horizontal extent / 2048 (a 2048^2 map fit
+  to the scene): the workload that stable cascades must not shimmer under.
+- ``rotate``: slow yaw of 0.5 degree per frame about the camera position.
+- ``dolly``: the camera moves forward by 4 % of the distance to the scene's centre a frame;
+  geometry newly enters the view, the workload for SDSM's readback latency.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .camera import Camera
+
+__all__ = ["CAMERA_PATHS", "path_camera"]
+
+CAMERA_PATHS = {
+    "subpixel-pan": "yaw by 1/4 pixel a frame (0.25 px image motion)",
+    "subtexel-pan": "translate right by 1/4 shadow-map texel (scene extent / 2048) a frame",
+    "rotate": "yaw by 0.5 degree a frame",
+    "dolly": "move forward by 4% of the distance to the scene centre a frame",
+}
+
+
+def _yaw(to_world: np.ndarray, angle: float) -> np.ndarray:
+    """Rotate the camera frame about its own up axis by ``angle`` radians."""
+    m = to_world.copy()
+    up = m[:3, 1] / np.linalg.norm(m[:3, 1])
+    c, s = math.cos(angle), math.sin(angle)
+    k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
+    rot = np.eye(3) + s * k + (1 - c) * (k @ k)
+    m[:3, :3] = rot @ m[:3, :3]
+    return m
+
+
+def path_camera(base: Camera, path: str, frame: int, n_frames: int, *, scene=None) -> Camera:
+    """The camera of ``frame`` (0-based) along ``path``."""
+    if path not in CAMERA_PATHS:
+        raise ValueError(f"unknown camera path {path!r}; choose one of {', '.join(CAMERA_PATHS)}")
+    m = np.asarray(base.to_world, dtype=np.float64)
+    k = float(frame)
+    if path == "subpixel-pan":
+        if base.kind == "perspective":
+            return base.with_to_world(_yaw(m, -0.25 * k * base.pixel_angle))
+        hw, _ = base.half_extent()
+        m = m.copy()
+        m[:3, 3] += base.right * (0.25 * k * 2 * hw / base.width)
+        return base.with_to_world(m)
+    if path == "rotate":
+        return base.with_to_world(_yaw(m, math.radians(-0.5 * k)))
+    lo, hi = scene.bounds() if scene is not None else (np.zeros(3) - 1, np.zeros(3) + 1)
+    m = m.copy()
+    if path == "subtexel-pan":
+        extent = float(np.max((hi - lo)[[0, 2]]))
+        m[:3, 3] += base.right * (0.25 * k * extent / 2048.0)
+        return base.with_to_world(m)
+    # dolly
+    centre = (lo + hi) / 2
+    dist = max(float((centre - base.position) @ base.forward), base.near * 10)
+    dist = min(dist, 0.25 * (base.far - base.near))
+    m[:3, 3] += base.forward * (0.04 * k * dist)
+    return base.with_to_world(m)

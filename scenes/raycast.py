@@ -1,0 +1,222 @@
+"""Ray queries on a loaded scene: the one intersection engine of oracle and models.
+
+Two levels:
+
+- :func:`trace_film_dr` works on Dr.Jit arrays (the oracle's hot path): primary rays through
+  film positions, the hit's G-buffer, the oracle's own shadow ray towards the chosen light and
+  the shaded colour. Shadow rays are unbounded for directional lights and end at the light
+  for point and spot lights (never Mitsuba's emitter sampling, whose directional emitters
+  trust the scene's bounding box).
+- :func:`trace_film`, :func:`intersect` and :func:`occluded` take and return NumPy arrays,
+  chunked so memory stays bounded; models use these to sample where a technique samples
+  (MSAA sample positions, shadow-map texel centres from the light, ...).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import backend
+from .shading import facing, shade
+
+__all__ = ["CHUNK", "intersect", "occluded", "trace_film", "trace_film_dr"]
+
+#: Rays per Dr.Jit launch in the NumPy-level helpers (bounded memory: ~0.5 GiB a launch).
+CHUNK = 1 << 21
+
+
+def _shape_table(mi, dr, loaded):
+    """Int32 array mapping Mitsuba shape registry ids to indices into ``loaded.shape_names``."""
+    cache = loaded.__dict__.setdefault("_shape_table", {})
+    if "table" not in cache:
+        shapes = loaded.mi_scene.shapes()
+        reg = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes]
+        table = np.full(max(reg) + 2, -1, dtype=np.int32)
+        table[reg] = np.arange(len(shapes), dtype=np.int32)
+        cache["table"] = table
+    return mi.Int32(cache["table"])
+
+
+def camera_rays_dr(camera, x, y):
+    """Mitsuba ``Ray3f`` through film positions ``x, y`` (Dr.Jit Float), as Mitsuba's sensor."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    (ox, oy, oz), (dx, dy, dz) = camera.local_ray(x, y)
+    m = np.asarray(camera.to_world, dtype=np.float64)
+    o_local = mi.Point3f(ox, oy, oz)
+    d_local = mi.Vector3f(dx, dy, dz)
+    r = [[float(m[i, j]) for j in range(3)] for i in range(3)]
+    d = mi.Vector3f(
+        r[0][0] * d_local.x + r[0][1] * d_local.y + r[0][2] * d_local.z,
+        r[1][0] * d_local.x + r[1][1] * d_local.y + r[1][2] * d_local.z,
+        r[2][0] * d_local.x + r[2][1] * d_local.y + r[2][2] * d_local.z,
+    )
+    o = mi.Point3f(
+        r[0][0] * o_local.x + r[0][1] * o_local.y + r[0][2] * o_local.z + float(m[0, 3]),
+        r[1][0] * o_local.x + r[1][1] * o_local.y + r[1][2] * o_local.z + float(m[1, 3]),
+        r[2][0] * o_local.x + r[2][1] * o_local.y + r[2][2] * o_local.z + float(m[2, 3]),
+    )
+    length = dr.norm(d)
+    d = d / length
+    if camera.kind == "perspective":
+        scale = length / float(np.linalg.norm(m[:3, 2]))
+        o = o + d * (camera.near * scale)
+        maxt = (camera.far - camera.near) * scale
+    else:
+        maxt = dr.full(mi.Float, camera.far - camera.near, dr.width(x))
+    return mi.Ray3f(o, d, maxt, 0.0, mi.Color0f())
+
+
+def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
+    """Trace primary and shadow rays through film positions (Dr.Jit ``Float`` pixels).
+
+    Returns a dict of Dr.Jit arrays: ``valid`` (hit geometry), ``lit`` (sees the light; True
+    for sky), ``shape`` (Int32 shape index, -1 sky), ``depth`` (view depth, 0 sky),
+    ``position``, ``normal`` (facing the viewer), ``albedo`` and, with ``color``, ``color``
+    (shaded linear RGB, 0 for sky).
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    camera = camera or loaded.camera
+    scene = loaded.mi_scene
+    light = loaded.light
+    ray = camera_rays_dr(camera, x, y)
+    si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True)
+    valid = si.is_valid()
+    to_eye = -ray.d
+    n = facing(si.sh_frame.n, to_eye)
+    wl, dist = light.to_light(si.p)
+    cos_l = dr.dot(n, wl)
+    candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+    if light.is_directional:
+        shadow_ray = si.spawn_ray(wl)
+    else:
+        shadow_ray = si.spawn_ray_to(mi.Point3f(*[float(c) for c in light.position]))
+    occluded_ = scene.ray_test(shadow_ray, candidate)
+    lit = dr.select(valid, candidate & ~occluded_, True)
+    fwd = camera.forward
+    depth = dr.select(
+        valid,
+        (si.p.x - float(camera.position[0])) * float(fwd[0])
+        + (si.p.y - float(camera.position[1])) * float(fwd[1])
+        + (si.p.z - float(camera.position[2])) * float(fwd[2]),
+        0.0,
+    )
+    shape_index = dr.gather(
+        mi.Int32, _shape_table(mi, dr, loaded), dr.reinterpret_array(mi.UInt32, si.shape)
+    )
+    shape_index = dr.select(valid, shape_index, -1)
+    bsdf = si.bsdf(ray)
+    albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
+    out = {
+        "valid": valid,
+        "lit": lit,
+        "shape": shape_index,
+        "depth": depth,
+        "position": si.p,
+        "normal": n,
+        "albedo": albedo,
+        "cos_l": cos_l,
+        "shadow_tested": candidate,
+    }
+    if color:
+        vis = dr.select(lit & valid, 1.0, 0.0)
+        rgb = shade(albedo=albedo, normal=n, to_light=wl, to_eye=to_eye,
+                    irradiance_scale=light.irradiance_scale(wl, dist), visibility=vis,
+                    light=light, specular=loaded.specular)
+        out["color"] = dr.select(valid, rgb, 0.0)
+    return out
+
+
+def _np(a, shape=None):
+    arr = np.array(a)
+    if shape is not None:
+        arr = arr.reshape(shape)
+    return arr
+
+
+def trace_film(loaded, x: np.ndarray, y: np.ndarray, *, camera=None, color: bool = False):
+    """NumPy G-buffer at film positions ``x, y`` (pixels), chunked.
+
+    Returns a dict of NumPy arrays of ``len(x)``: ``valid`` (bool), ``lit`` (bool), ``shape``
+    (int32), ``depth`` (float32), ``position``/``normal``/``albedo`` ((N, 3) float32),
+    ``cos_l`` and, with ``color``, ``color`` ((N, 3) float32).
+    """
+    mi = backend.mitsuba()
+    x = np.asarray(x, dtype=np.float32).ravel()
+    y = np.asarray(y, dtype=np.float32).ravel()
+    parts: dict[str, list] = {}
+    for start in range(0, len(x), CHUNK):
+        sl = slice(start, start + CHUNK)
+        res = trace_film_dr(loaded, mi.Float(x[sl]), mi.Float(y[sl]), color=color,
+                            camera=camera)
+        for k, v in res.items():
+            arr = np.array(v)
+            if arr.ndim == 2 and arr.shape[0] == 3:
+                arr = arr.T
+            parts.setdefault(k, []).append(arr)
+    if not parts:
+        return {}
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+def intersect(loaded, origins: np.ndarray, directions: np.ndarray, *, tmax=None):
+    """Closest hits of arbitrary rays (NumPy ``(N, 3)``), chunked.
+
+    Returns ``valid`` (bool), ``t`` (float32, inf on miss), ``position`` and geometric
+    ``normal`` ((N, 3) float32), ``shape`` (int32, -1 on miss).
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
+    tm = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float32), (len(o),))
+    table = _shape_table(mi, dr, loaded)
+    out: dict[str, list] = {"valid": [], "t": [], "position": [], "normal": [], "shape": []}
+    for start in range(0, len(o), CHUNK):
+        sl = slice(start, start + CHUNK)
+        ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[sl, i]) for i in range(3))),
+                       mi.Vector3f(*(mi.Float(d[sl, i]) for i in range(3))))
+        if tm is not None:
+            ray.maxt = mi.Float(np.ascontiguousarray(tm[sl]))
+        si = loaded.mi_scene.ray_intersect(ray)
+        valid = si.is_valid()
+        shape = dr.select(valid, dr.gather(mi.Int32, table,
+                                           dr.reinterpret_array(mi.UInt32, si.shape)), -1)
+        out["valid"].append(np.array(valid))
+        out["t"].append(np.where(np.array(valid), np.array(si.t), np.inf).astype(np.float32))
+        out["position"].append(np.array(si.p).T)
+        out["normal"].append(np.array(si.n).T)
+        out["shape"].append(np.array(shape))
+    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in out.items()}
+
+
+def occluded(loaded, points: np.ndarray, normals: np.ndarray | None = None):
+    """True where the segment from ``points`` towards the chosen light is blocked (NumPy).
+
+    Rays start at the points offset along ``normals`` (if given) by a relative epsilon; they
+    are unbounded for a directional light and end at the light otherwise.
+    """
+    mi = backend.mitsuba()
+    light = loaded.light
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    wl, dist = light.to_light(p)
+    eps = 1e-4 * (1.0 + np.max(np.abs(p), axis=-1))
+    if normals is not None:
+        nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        side = np.sign(np.sum(nrm * wl, axis=-1))[:, None]
+        p = p + nrm * side * eps[:, None]
+    else:
+        p = p + wl * eps[:, None]
+    tmax = np.where(np.isfinite(dist), dist * (1 - 1e-5), np.inf)
+    out = []
+    for start in range(0, len(p), CHUNK):
+        sl = slice(start, start + CHUNK)
+        ray = mi.Ray3f(mi.Point3f(*(mi.Float(p[sl, i].astype(np.float32)) for i in range(3))),
+                       mi.Vector3f(*(mi.Float(wl[sl, i].astype(np.float32)) for i in range(3))))
+        ray.maxt = mi.Float(np.ascontiguousarray(tmax[sl].astype(np.float32)))
+        out.append(np.array(loaded.mi_scene.ray_test(ray)))
+    return np.concatenate(out) if out else np.zeros(0, dtype=bool)
