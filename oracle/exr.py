@@ -15,7 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ExrError", "atomic_write_bytes", "read_exr", "write_exr"]
+__all__ = ["ExrError", "atomic_write_bytes", "make_readable", "read_exr", "write_exr"]
+
+
+def make_readable(path: str | os.PathLike) -> None:
+    """Give a ``mkstemp`` file (mode 0600) the usual mode of a new file (0666 & ~umask)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(path, 0o666 & ~mask)
 
 
 class ExrError(ValueError):
@@ -29,6 +36,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+        make_readable(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -67,6 +75,7 @@ def write_exr(
     try:
         with OpenEXR.File(hdr, data) as f:
             f.write(tmp)
+        make_readable(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

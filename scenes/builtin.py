@@ -90,9 +90,9 @@ def city(width: int, height: int) -> dict:
     rng = np.random.default_rng(7)
     scene = {
         "type": "scene",
-        "camera": _sensor(width, height, origin=(0, 1.7, 0), target=(40, 6, 120), fov=70,
+        "camera": _sensor(width, height, origin=(0.5, 4.0, -2.0), target=(14, 10, 300), fov=70,
                           near=0.1, far=2000),
-        "sun": _sun((-0.45, -0.8, 0.35)),
+        "sun": _sun((-0.3, -1.0, 0.3)),
         "ground": _ground(4000.0, 0.5),
     }
     xs = np.arange(-7, 7) * 24.0 + 12.0
@@ -144,7 +144,7 @@ def star(width: int, height: int) -> dict:
         "camera": _sensor(width, height, origin=(0, 0, -10), target=(0, 0, 0), fov=40,
                           near=0.1, far=100),
         "sun": _sun((0.2, -0.3, 1.0)),
-        "star": _mesh(_meshes.siemens_star((-1.2, 0, 0), 1.5, 36, right=(-1, 0, 0),
+        "star": _mesh(_meshes.siemens_star((-1.3, 0, 0), 1.5, 36, right=(-1, 0, 0),
                                            up=(0, 1, 0)), 0.8),
     }
     for k, deg in enumerate([0.5, 1.0, 2.0, 3.0]):
@@ -153,7 +153,7 @@ def star(width: int, height: int) -> dict:
         c, s = np.cos(a), np.sin(a)
         w, h = 0.35, 2.8
         corners = np.array([[0, 0], [w, 0], [w, h], [0, h]]) @ np.array([[c, s], [-s, c]])
-        pts = np.column_stack([-(x0 + corners[:, 0]), y0 + corners[:, 1], np.zeros(4)])
+        pts = np.column_stack([x0 + corners[:, 0], y0 + corners[:, 1], np.zeros(4)])
         scene[f"edge_{k}"] = _mesh(_meshes.quad(pts), (0.9, 0.5, 0.2))
     return scene
 

@@ -1,0 +1,317 @@
+"""``raster-oracle``: the command line, a thin layer over the library.
+
+Every command returns an exit code: 0 success, 1 a ``--fail-above`` threshold exceeded,
+2 bad input (one line on stderr, nothing written to the output folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["main"]
+
+
+class CliError(ValueError):
+    """Bad command-line input."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (raised, not printed with the usage)."""
+
+    def error(self, message):
+        where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
+        raise CliError(f"{where}{message}")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
+    return value
+
+
+def _nonneg_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
+    return value
+
+
+def _add_scene_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
+    p.add_argument("--light", type=_nonneg_int, default=0, help="index of the light (default 0)")
+    p.add_argument("--width", type=_positive_int, help="film width in pixels")
+    p.add_argument("--height", type=_positive_int, help="film height in pixels")
+    p.add_argument("--camera-path", choices=None, default=None,
+                   help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, "
+                   "dolly")
+    p.add_argument("--frame", type=_nonneg_int, default=0, help="frame of the camera path")
+    p.add_argument("--frames", type=_positive_int, default=8,
+                   help="frames in the camera path (default 8)")
+
+
+def _add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> None:
+    p.add_argument("--spp", type=_positive_int, default=default_spp,
+                   help=f"sub-pixel samples per pixel (default {default_spp})")
+    p.add_argument("--seed", type=_nonneg_int, default=0, help="random seed (default 0)")
+    p.add_argument("--adaptive", action="store_true",
+                   help="adaptive sampling: more samples only where pixels are not uniform")
+    p.add_argument("--target-stderr", type=_positive_float, default=0.01,
+                   help="adaptive: target standard error (default 0.01)")
+    p.add_argument("--max-spp", type=_positive_int, default=4096,
+                   help="adaptive: most samples a pixel gets (default 4096)")
+    p.add_argument("--cache-dir", type=Path, default=None,
+                   help="reference cache (default ~/.cache/raster-oracle)")
+    p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="raster-oracle",
+        description="Ground truth for real-time shadows and anti-aliasing.",
+    )
+    parser.add_argument("--backend", default=None,
+                        help="Mitsuba variant: auto, cuda_ad_rgb, llvm_ad_rgb or scalar_rgb "
+                        "(default: $RASTER_ORACLE_BACKEND or auto)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    sub.add_parser("doctor", help="print the backend, libLLVM, versions and cores")
+    sub.add_parser("scenes", help="list the built-in scenes and camera paths")
+
+    p = sub.add_parser("reference", help="render (or fetch from the cache) a reference")
+    _add_scene_args(p)
+    _add_reference_args(p)
+    p.add_argument("--channels", default=None,
+                   help="comma-separated channel groups (default: all): visibility, coverage, "
+                   "color, edge, id, depth, position, normal, albedo")
+    p.add_argument("--out", type=Path, default=Path("out/reference"), help="output folder")
+
+    p = sub.add_parser("export", help="write meshes (PLY), camera.json and lights.json")
+    _add_scene_args(p)
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+
+    p = sub.add_parser("main", help="the main job on the built-in default scenes")
+    p.add_argument("--out", type=Path, default=Path("out"), help="output folder")
+    p.add_argument("--spp", type=_positive_int, default=64)
+    p.add_argument("--scenes", default=None, help="comma-separated scenes (default: all)")
+    p.add_argument("--cache-dir", type=Path, default=None)
+    p.add_argument("--quiet", action="store_true")
+
+    p = sub.add_parser("bench", help="benchmarks that print JSON figures")
+    p.add_argument("what", choices=["oracle"], help="what to benchmark")
+    p.add_argument("--width", type=_positive_int, default=1920)
+    p.add_argument("--height", type=_positive_int, default=1080)
+    p.add_argument("--spp", type=_positive_int, default=32)
+    p.add_argument("--quiet", action="store_true")
+    return parser
+
+
+def _load_scene(args):
+    import scenes
+
+    return scenes.load(
+        args.scene,
+        width=args.width,
+        height=args.height,
+        light=args.light,
+        camera_path=args.camera_path,
+        frame=args.frame,
+        n_frames=args.frames,
+    )
+
+
+def _settings(args, channels=None):
+    from .reference import ALL_CHANNELS, ReferenceSettings
+
+    if channels is None:
+        channels = ALL_CHANNELS
+    return ReferenceSettings(
+        spp=args.spp,
+        seed=args.seed,
+        channels=tuple(channels),
+        adaptive=args.adaptive,
+        target_stderr=args.target_stderr,
+        max_spp=args.max_spp,
+    ).validate()
+
+
+def _cache(args):
+    from .cache import ReferenceCache
+
+    return None if getattr(args, "no_cache", False) else ReferenceCache(args.cache_dir)
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out} exists and is not a folder")
+
+
+def cmd_doctor(args) -> int:
+    from scenes import backend
+
+    from .pipeline import package_versions
+
+    info = {"cores": os.cpu_count(), "versions": package_versions()}
+    try:
+        b = backend.select(args.backend)
+        info.update(variant=b.variant, libllvm=b.libllvm, reason=b.reason)
+    except backend.BackendError as exc:
+        info.update(variant=None, error=str(exc))
+    info["libllvm_found"] = backend.find_libllvm()
+    print(json.dumps(info, indent=2))
+    if info.get("variant") in (None, "scalar_rgb"):
+        print(f"raster-oracle: no vectorized backend works; install one with: "
+              f"{backend.INSTALL_HINT}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def cmd_scenes(args) -> int:
+    from scenes import BUILTIN_SCENES, CAMERA_PATHS
+
+    width = max(len(n) for n in BUILTIN_SCENES)
+    for name, spec in BUILTIN_SCENES.items():
+        print(f"{name:<{width}}  {spec.width}x{spec.height}  {spec.description}")
+    print("\ncamera paths (--camera-path NAME --frame K --frames N):")
+    for name, text in CAMERA_PATHS.items():
+        print(f"  {name:<13} {text}")
+    return 0
+
+
+def cmd_reference(args) -> int:
+    from .pipeline import get_reference, publish
+
+    groups = None
+    if args.channels is not None:
+        groups = [c.strip() for c in args.channels.split(",") if c.strip()]
+    settings = _settings(args, groups)
+    _check_out(args.out)
+    loaded = _load_scene(args)
+    ref = get_reference(loaded, settings, cache=_cache(args), quiet=args.quiet)
+    publish(ref, args.out)
+    print(f"reference ({ref.cache_status}): {args.out / 'reference.exr'}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    from scenes.export import export
+
+    _check_out(args.out)
+    loaded = _load_scene(args)
+    summary = export(loaded, args.out)
+    tris = sum(s["triangles"] for s in summary["shapes"].values())
+    print(f"exported {len(summary['shapes'])} shapes ({tris} triangles) to {args.out}")
+    return 0
+
+
+def cmd_main(args) -> int:
+    import scenes
+
+    from .pipeline import get_reference, publish
+    from .reference import ReferenceSettings
+
+    names = scenes.DEFAULT_SCENES
+    if args.scenes:
+        names = tuple(n.strip() for n in args.scenes.split(",") if n.strip())
+        unknown = [n for n in names if n not in scenes.BUILTIN_SCENES]
+        if unknown:
+            raise CliError(f"unknown scene(s) {', '.join(unknown)}; choose from "
+                           f"{', '.join(scenes.BUILTIN_SCENES)}")
+    _check_out(args.out)
+    cache = _cache(args)
+    settings = ReferenceSettings(spp=args.spp).validate()
+    for name in names:
+        loaded = scenes.load(name)
+        ref = get_reference(loaded, settings, cache=cache, quiet=args.quiet)
+        folder = args.out / name
+        publish(ref, folder)
+        m = ref.meta
+        print(f"{name:<7} {loaded.width}x{loaded.height} {settings.spp} spp "
+              f"({ref.cache_status}, {m['wall_seconds']:.1f} s, "
+              f"{m['mrays_per_second']:.1f} M rays/s): {folder / 'reference.exr'}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import bench_oracle
+
+    print(json.dumps(bench_oracle(width=args.width, height=args.height, spp=args.spp,
+                                  quiet=args.quiet), indent=2))
+    return 0
+
+
+COMMANDS = {
+    "doctor": cmd_doctor,
+    "scenes": cmd_scenes,
+    "reference": cmd_reference,
+    "export": cmd_export,
+    "main": cmd_main,
+    "bench": cmd_bench,
+}
+
+
+def _known_errors() -> tuple[type[BaseException], ...]:
+    from scenes import SceneError
+    from scenes.backend import BackendError
+
+    from .exr import ExrError
+    from .reference import ReferenceError_
+
+    errors: list[type[BaseException]] = [CliError, SceneError, BackendError, ExrError,
+                                         ReferenceError_]
+    for mod, name in (("raster_models", "ModelError"), ("metrics", "MetricError"),
+                      ("oracle.candidates", "CandidateError")):
+        try:
+            module = __import__(mod, fromlist=[name])
+            errors.append(getattr(module, name))
+        except (ImportError, AttributeError):
+            pass
+    return tuple(errors)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except CliError as exc:
+        print(f"raster-oracle: error: {exc}", file=sys.stderr)
+        return 2
+    except SystemExit as exc:  # --help
+        return int(exc.code or 0)
+    try:
+        if args.command != "doctor":
+            from scenes import backend
+
+            backend.select(args.backend)
+        return COMMANDS[args.command](args)
+    except _known_errors() as exc:
+        print(f"raster-oracle: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("raster-oracle: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,72 @@
+"""libLLVM discovery and variant selection, with fake library folders."""
+
+from __future__ import annotations
+
+import pytest
+
+from scenes import backend
+
+
+def _touch(folder, *names):
+    folder.mkdir(parents=True, exist_ok=True)
+    for n in names:
+        (folder / n).write_bytes(b"")
+
+
+@pytest.mark.parametrize(
+    ("name", "version"),
+    [("libLLVM-19.so", 19), ("libLLVM.so.19.1", 19), ("libLLVM-15.so.1", 15),
+     ("libLLVM-14.0.6.so.1", 14), ("libLLVM.so", None), ("libLLVMSupport.a", None),
+     ("libfoo.so.19", None)],
+)
+def test_llvm_version_of(name, version):
+    assert backend.llvm_version_of(name) == version
+
+
+def test_finds_newest_usable_version(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    _touch(a, "libLLVM-15.so", "libLLVM-15.so.1", "libLLVM-14.so")
+    _touch(b, "libLLVM.so.17.0", "libLLVM-19.so", "libLLVM.so.19.1")
+    found = backend.find_libllvm(search_dirs=[str(a), str(b)], env={})
+    assert found == str(b / "libLLVM-19.so")
+
+
+def test_only_old_versions_finds_nothing(tmp_path):
+    _touch(tmp_path, "libLLVM-15.so.1", "libLLVM-14.0.6.so.1", "libLLVM.so")
+    assert backend.find_libllvm(search_dirs=[str(tmp_path)], env={}) is None
+
+
+def test_missing_folders_are_skipped(tmp_path):
+    _touch(tmp_path / "x", "libLLVM-16.so")
+    dirs = [str(tmp_path / "nope"), str(tmp_path / "x")]
+    assert backend.find_libllvm(search_dirs=dirs, env={}) == str(tmp_path / "x" / "libLLVM-16.so")
+
+
+def test_env_variable_wins(tmp_path):
+    _touch(tmp_path, "libLLVM-19.so", "custom-llvm.so")
+    env = {"DRJIT_LIBLLVM_PATH": str(tmp_path / "custom-llvm.so")}
+    assert backend.find_libllvm(search_dirs=[str(tmp_path)], env=env) == env["DRJIT_LIBLLVM_PATH"]
+
+
+def test_env_variable_naming_missing_file_is_ignored(tmp_path):
+    _touch(tmp_path, "libLLVM-18.so")
+    env = {"DRJIT_LIBLLVM_PATH": str(tmp_path / "gone.so")}
+    assert backend.find_libllvm(search_dirs=[str(tmp_path)], env=env) == str(
+        tmp_path / "libLLVM-18.so")
+
+
+def test_unknown_backend_is_a_clear_error():
+    with pytest.raises(backend.BackendError, match="unknown backend 'vulkan'.*llvm_ad_rgb"):
+        backend.select("vulkan")
+
+
+def test_cannot_switch_variant_in_process(_backend):
+    other = "scalar_rgb" if _backend.variant != "scalar_rgb" else "llvm_ad_rgb"
+    with pytest.raises(backend.BackendError, match="already active"):
+        backend.select(other)
+
+
+def test_active_backend_is_vectorized_here(_backend):
+    # The project's set-up installs libllvm19, so tests run on a vectorized variant.
+    assert _backend.variant in ("llvm_ad_rgb", "cuda_ad_rgb")
+    assert backend.select("auto") is _backend
