@@ -125,7 +125,7 @@ def thin(width: int, height: int) -> dict:
     # width and fov 60 deg one pixel spans 0.0036 * depth.
     px_per_unit = width / (2 * np.tan(np.radians(30)))
     for k, (depth, px) in enumerate([(4, 3.0), (8, 1.0), (15, 0.3), (30, 0.1), (45, 0.05)]):
-        r = px * depth / px_per_unit / 2
+        r = px * (depth + 6.0) / px_per_unit / 2  # view depth: the camera stands at z = -6
         y = 2.2 + 0.35 * k
         scene[f"wire_{k}"] = _mesh(_meshes.tube((-40, y, depth), (40, y + 0.3, depth), r),
                                    (0.15, 0.15, 0.15))
