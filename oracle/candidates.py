@@ -200,8 +200,10 @@ def _exr_visibility(chans: dict) -> np.ndarray | None:
     if len(data) == 1:
         return chans[data[0]]
     rgb = _group(chans, "")
-    if rgb is not None and np.array_equal(rgb[..., 0], rgb[..., 1]) and np.array_equal(
-        rgb[..., 0], rgb[..., 2]
+    if (
+        rgb is not None
+        and np.array_equal(rgb[..., 0], rgb[..., 1])
+        and np.array_equal(rgb[..., 0], rgb[..., 2])
     ):
         return rgb[..., 0]
     return None

@@ -62,26 +62,49 @@ def _add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--light", type=_nonneg_int, default=0, help="index of the light (default 0)")
     p.add_argument("--width", type=_positive_int, help="film width in pixels")
     p.add_argument("--height", type=_positive_int, help="film height in pixels")
-    p.add_argument("--camera-path", choices=None, default=None,
-                   help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, "
-                   "dolly")
+    p.add_argument(
+        "--camera-path",
+        choices=None,
+        default=None,
+        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly",
+    )
     p.add_argument("--frame", type=_nonneg_int, default=0, help="frame of the camera path")
-    p.add_argument("--frames", type=_positive_int, default=8,
-                   help="frames in the camera path (default 8)")
+    p.add_argument(
+        "--frames", type=_positive_int, default=8, help="frames in the camera path (default 8)"
+    )
 
 
 def _add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> None:
-    p.add_argument("--spp", type=_positive_int, default=default_spp,
-                   help=f"sub-pixel samples per pixel (default {default_spp})")
+    p.add_argument(
+        "--spp",
+        type=_positive_int,
+        default=default_spp,
+        help=f"sub-pixel samples per pixel (default {default_spp})",
+    )
     p.add_argument("--seed", type=_nonneg_int, default=0, help="random seed (default 0)")
-    p.add_argument("--adaptive", action="store_true",
-                   help="adaptive sampling: more samples only where pixels are not uniform")
-    p.add_argument("--target-stderr", type=_positive_float, default=0.01,
-                   help="adaptive: target standard error (default 0.01)")
-    p.add_argument("--max-spp", type=_positive_int, default=4096,
-                   help="adaptive: most samples a pixel gets (default 4096)")
-    p.add_argument("--cache-dir", type=Path, default=None,
-                   help="reference cache (default ~/.cache/raster-oracle)")
+    p.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="adaptive sampling: more samples only where pixels are not uniform",
+    )
+    p.add_argument(
+        "--target-stderr",
+        type=_positive_float,
+        default=0.01,
+        help="adaptive: target standard error (default 0.01)",
+    )
+    p.add_argument(
+        "--max-spp",
+        type=_positive_int,
+        default=4096,
+        help="adaptive: most samples a pixel gets (default 4096)",
+    )
+    p.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        help="reference cache (default ~/.cache/raster-oracle)",
+    )
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -91,9 +114,12 @@ def _parser() -> argparse.ArgumentParser:
         prog="raster-oracle",
         description="Ground truth for real-time shadows and anti-aliasing.",
     )
-    parser.add_argument("--backend", default=None,
-                        help="Mitsuba variant: auto, cuda_ad_rgb, llvm_ad_rgb or scalar_rgb "
-                        "(default: $RASTER_ORACLE_BACKEND or auto)")
+    parser.add_argument(
+        "--backend",
+        default=None,
+        help="Mitsuba variant: auto, cuda_ad_rgb, llvm_ad_rgb or scalar_rgb "
+        "(default: $RASTER_ORACLE_BACKEND or auto)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     sub.add_parser("doctor", help="print the backend, libLLVM, versions and cores")
@@ -102,9 +128,12 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("reference", help="render (or fetch from the cache) a reference")
     _add_scene_args(p)
     _add_reference_args(p)
-    p.add_argument("--channels", default=None,
-                   help="comma-separated channel groups (default: all): visibility, coverage, "
-                   "color, edge, id, depth, position, normal, albedo")
+    p.add_argument(
+        "--channels",
+        default=None,
+        help="comma-separated channel groups (default: all): visibility, coverage, "
+        "color, edge, id, depth, position, normal, albedo",
+    )
     p.add_argument("--out", type=Path, default=Path("out/reference"), help="output folder")
 
     p = sub.add_parser("export", help="write meshes (PLY), camera.json and lights.json")
@@ -181,8 +210,10 @@ def cmd_doctor(args) -> int:
     info["libllvm_found"] = backend.find_libllvm()
     print(json.dumps(info, indent=2))
     if info.get("variant") in (None, "scalar_rgb"):
-        print(f"raster-oracle: no vectorized backend works; install one with: "
-              f"{backend.INSTALL_HINT}", file=sys.stderr)
+        print(
+            f"raster-oracle: no vectorized backend works; install one with: {backend.INSTALL_HINT}",
+            file=sys.stderr,
+        )
         return 2
     return 0
 
@@ -236,8 +267,10 @@ def cmd_main(args) -> int:
         names = tuple(n.strip() for n in args.scenes.split(",") if n.strip())
         unknown = [n for n in names if n not in scenes.BUILTIN_SCENES]
         if unknown:
-            raise CliError(f"unknown scene(s) {', '.join(unknown)}; choose from "
-                           f"{', '.join(scenes.BUILTIN_SCENES)}")
+            raise CliError(
+                f"unknown scene(s) {', '.join(unknown)}; choose from "
+                f"{', '.join(scenes.BUILTIN_SCENES)}"
+            )
     _check_out(args.out)
     cache = _cache(args)
     settings = ReferenceSettings(spp=args.spp).validate()
@@ -247,17 +280,23 @@ def cmd_main(args) -> int:
         folder = args.out / name
         publish(ref, folder)
         m = ref.meta
-        print(f"{name:<7} {loaded.width}x{loaded.height} {settings.spp} spp "
-              f"({ref.cache_status}, {m['wall_seconds']:.1f} s, "
-              f"{m['mrays_per_second']:.1f} M rays/s): {folder / 'reference.exr'}")
+        print(
+            f"{name:<7} {loaded.width}x{loaded.height} {settings.spp} spp "
+            f"({ref.cache_status}, {m['wall_seconds']:.1f} s, "
+            f"{m['mrays_per_second']:.1f} M rays/s): {folder / 'reference.exr'}"
+        )
     return 0
 
 
 def cmd_bench(args) -> int:
     from .bench import bench_oracle
 
-    print(json.dumps(bench_oracle(width=args.width, height=args.height, spp=args.spp,
-                                  quiet=args.quiet), indent=2))
+    print(
+        json.dumps(
+            bench_oracle(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet),
+            indent=2,
+        )
+    )
     return 0
 
 
@@ -278,10 +317,18 @@ def _known_errors() -> tuple[type[BaseException], ...]:
     from .exr import ExrError
     from .reference import ReferenceError_
 
-    errors: list[type[BaseException]] = [CliError, SceneError, BackendError, ExrError,
-                                         ReferenceError_]
-    for mod, name in (("raster_models", "ModelError"), ("metrics", "MetricError"),
-                      ("oracle.candidates", "CandidateError")):
+    errors: list[type[BaseException]] = [
+        CliError,
+        SceneError,
+        BackendError,
+        ExrError,
+        ReferenceError_,
+    ]
+    for mod, name in (
+        ("raster_models", "ModelError"),
+        ("metrics", "MetricError"),
+        ("oracle.candidates", "CandidateError"),
+    ):
         try:
             module = __import__(mod, fromlist=[name])
             errors.append(getattr(module, name))

@@ -19,8 +19,16 @@ from .reference import ReferenceSettings, render_reference
 
 __all__ = ["Reference", "get_reference", "package_versions", "publish"]
 
-_PACKAGES = ("raster-oracle", "mitsuba", "drjit", "numpy", "OpenEXR", "scikit-image",
-             "colour-science", "flip-evaluator")
+_PACKAGES = (
+    "raster-oracle",
+    "mitsuba",
+    "drjit",
+    "numpy",
+    "OpenEXR",
+    "scikit-image",
+    "colour-science",
+    "flip-evaluator",
+)
 
 
 def package_versions() -> dict[str, str]:
@@ -49,8 +57,9 @@ class Reference:
         return read_exr(self.exr)
 
 
-def _render_into(folder: Path, loaded, settings: ReferenceSettings, *, quiet: bool,
-                 key: str) -> dict:
+def _render_into(
+    folder: Path, loaded, settings: ReferenceSettings, *, quiet: bool, key: str
+) -> dict:
     channels, stats = render_reference(loaded, settings, quiet=quiet)
     info = backend.active()
     meta = {
@@ -80,8 +89,9 @@ def _render_into(folder: Path, loaded, settings: ReferenceSettings, *, quiet: bo
     return meta
 
 
-def get_reference(loaded, settings: ReferenceSettings, *, cache: ReferenceCache | None = None,
-                  quiet: bool = False) -> Reference:
+def get_reference(
+    loaded, settings: ReferenceSettings, *, cache: ReferenceCache | None = None, quiet: bool = False
+) -> Reference:
     """The reference of ``loaded`` with ``settings``: from the cache, else rendered (and cached).
 
     With ``cache=None`` the reference is rendered into a fresh temporary folder.

@@ -43,8 +43,14 @@ __all__ = [
 CHANNEL_GROUPS = {
     "visibility": ["visibility", "visibility_stderr"],
     "coverage": ["coverage", "coverage_stderr"],
-    "color": ["color.R", "color.G", "color.B", "color_stderr.R", "color_stderr.G",
-              "color_stderr.B"],
+    "color": [
+        "color.R",
+        "color.G",
+        "color.B",
+        "color_stderr.R",
+        "color_stderr.G",
+        "color_stderr.B",
+    ],
     "edge": ["edge"],
     "id": ["id"],
     "depth": ["depth"],
@@ -95,9 +101,15 @@ class ReferenceSettings:
             if int(self.max_spp) < int(self.adaptive_spp):
                 raise ReferenceError_("max_spp must be >= adaptive_spp")
         ordered = tuple(c for c in ALL_CHANNELS if c in set(self.channels))
-        return ReferenceSettings(int(self.spp), int(self.seed), ordered, bool(self.adaptive),
-                                 int(self.adaptive_spp), float(self.target_stderr),
-                                 int(self.max_spp))
+        return ReferenceSettings(
+            int(self.spp),
+            int(self.seed),
+            ordered,
+            bool(self.adaptive),
+            int(self.adaptive_spp),
+            float(self.target_stderr),
+            int(self.max_spp),
+        )
 
     def key_record(self) -> dict:
         rec = asdict(self)
@@ -184,8 +196,9 @@ class _Accum:
         return np.maximum(np.max(parts, axis=0), 0.0)
 
 
-def _pass(loaded, acc: _Accum, pixels: np.ndarray, spp: int, offset: int, seed: int,
-          progress) -> tuple[int, int]:
+def _pass(
+    loaded, acc: _Accum, pixels: np.ndarray, spp: int, offset: int, seed: int, progress
+) -> tuple[int, int]:
     """Trace ``spp`` stratified samples in each of ``pixels``; returns (primary, shadow) rays."""
     mi = backend.mitsuba()
     import drjit as dr
@@ -194,10 +207,11 @@ def _pass(loaded, acc: _Accum, pixels: np.ndarray, spp: int, offset: int, seed: 
     m, n = grid_shape(spp)
     per_chunk = max(1, SAMPLES_PER_CHUNK // spp)
     primary = shadow = 0
-    seed_state = mi.UInt64(np.uint64(0x853C49E6748FEA9B) ^ np.uint64(seed * 0x9E3779B97F4A7C15
-                                                                      % (1 << 64)))
+    seed_state = mi.UInt64(
+        np.uint64(0x853C49E6748FEA9B) ^ np.uint64(seed * 0x9E3779B97F4A7C15 % (1 << 64))
+    )
     for start in range(0, len(pixels), per_chunk):
-        chunk = pixels[start:start + per_chunk]
+        chunk = pixels[start : start + per_chunk]
         count = len(chunk) * spp
         idx = dr.arange(mi.UInt32, count)
         local = idx // spp
@@ -214,15 +228,21 @@ def _pass(loaded, acc: _Accum, pixels: np.ndarray, spp: int, offset: int, seed: 
         res = trace_film_dr(loaded, x, y, color=acc.color)
         lit = dr.select(res["lit"], 1.0, 0.0)
         cov = dr.select(res["valid"], 1.0, 0.0)
-        outs = [dr.block_reduce(dr.ReduceOp.Add, lit, spp, mode="evaluated"),
-                dr.block_reduce(dr.ReduceOp.Add, cov, spp, mode="evaluated"),
-                dr.block_reduce(dr.ReduceOp.Min, res["shape"], spp, mode="evaluated"),
-                dr.block_reduce(dr.ReduceOp.Max, res["shape"], spp, mode="evaluated")]
+        per_sample = [lit, cov, res["shape"]]
         if acc.color:
-            c = res["color"]
-            outs.append(dr.block_reduce(dr.ReduceOp.Add, c, spp, mode="evaluated"))
-            outs.append(dr.block_reduce(dr.ReduceOp.Add, c * c, spp, mode="evaluated"))
+            per_sample += [res["color"], res["color"] * res["color"]]
+        # one kernel traces every sample; reductions then read the evaluated arrays
+        dr.eval(*per_sample, res["shadow_tested"])
         shadow_count = dr.count(res["shadow_tested"])
+        outs = [
+            dr.block_reduce(dr.ReduceOp.Add, lit, spp, mode="evaluated"),
+            dr.block_reduce(dr.ReduceOp.Add, cov, spp, mode="evaluated"),
+            dr.block_reduce(dr.ReduceOp.Min, res["shape"], spp, mode="evaluated"),
+            dr.block_reduce(dr.ReduceOp.Max, res["shape"], spp, mode="evaluated"),
+        ]
+        if acc.color:
+            outs.append(dr.block_reduce(dr.ReduceOp.Add, per_sample[3], spp, mode="evaluated"))
+            outs.append(dr.block_reduce(dr.ReduceOp.Add, per_sample[4], spp, mode="evaluated"))
         dr.eval(*outs, shadow_count)
         acc.n[chunk] += spp
         acc.vis[chunk] += np.array(outs[0], dtype=np.float64)
@@ -246,8 +266,12 @@ def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray
 
     h, w = loaded.height, loaded.width
     npix = w * h
-    out = {name: np.zeros(npix, dtype=np.float32) for name in channel_names(
-        [g for g in CHANNEL_GROUPS if g in groups and g in _CENTRE_GROUPS])}
+    out = {
+        name: np.zeros(npix, dtype=np.float32)
+        for name in channel_names(
+            [g for g in CHANNEL_GROUPS if g in groups and g in _CENTRE_GROUPS]
+        )
+    }
     for start in range(0, npix, SAMPLES_PER_CHUNK):
         idx = dr.arange(mi.UInt32, start, min(npix, start + SAMPLES_PER_CHUNK))
         x = mi.Float(idx % w) + 0.5
@@ -258,8 +282,11 @@ def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray
             out["id"][sl] = np.array(res["shape"])
         if "depth" in groups:
             out["depth"][sl] = np.array(res["depth"])
-        for g, key, names in (("position", "position", "XYZ"), ("normal", "normal", "XYZ"),
-                              ("albedo", "albedo", "RGB")):
+        for g, key, names in (
+            ("position", "position", "XYZ"),
+            ("normal", "normal", "XYZ"),
+            ("albedo", "albedo", "RGB"),
+        ):
             if g in groups:
                 arr = np.array(res[key])
                 valid = np.array(res["valid"])
@@ -299,8 +326,14 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
         from tqdm import tqdm
 
         total = npix * (settings.adaptive_spp if settings.adaptive else settings.spp)
-        progress = tqdm(total=total, unit="spl", unit_scale=True, desc=f"reference {loaded.name}",
-                        leave=False, mininterval=0.5)
+        progress = tqdm(
+            total=total,
+            unit="spl",
+            unit_scale=True,
+            desc=f"reference {loaded.name}",
+            leave=False,
+            mininterval=0.5,
+        )
     primary = shadow = 0
     passes = []
     try:
@@ -315,15 +348,17 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
                     se = np.maximum(acc.vis_stderr(), acc.cov_stderr())
                     if color:
                         se = np.maximum(se, acc.rgb_stderr().max(axis=1))
-                    active = np.nonzero((se > settings.target_stderr)
-                                        & (acc.n < settings.max_spp))[0].astype(np.uint32)
+                    active = np.nonzero((se > settings.target_stderr) & (acc.n < settings.max_spp))[
+                        0
+                    ].astype(np.uint32)
                     if len(active) == 0:
                         break
                     spp_k = int(min(acc.n[active[0]], settings.max_spp - acc.n[active[0]]))
                     if progress is not None:
                         progress.total += len(active) * spp_k
-                    p, s = _pass(loaded, acc, active, spp_k, int(acc.n[active[0]]),
-                                 settings.seed, progress)
+                    p, s = _pass(
+                        loaded, acc, active, spp_k, int(acc.n[active[0]]), settings.seed, progress
+                    )
                     primary, shadow = primary + p, shadow + s
                     passes.append({"pixels": int(len(active)), "spp": spp_k})
         centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}

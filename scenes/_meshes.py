@@ -36,9 +36,7 @@ def merge(parts) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(verts), np.concatenate(faces).astype(np.uint32)
 
 
-def siemens_star(
-    center, radius: float, spokes: int, *, right, up
-) -> tuple[np.ndarray, np.ndarray]:
+def siemens_star(center, radius: float, spokes: int, *, right, up) -> tuple[np.ndarray, np.ndarray]:
     """A Siemens star: ``spokes`` filled wedges (each one triangle) in the plane (right, up)."""
     center, right, up = (np.asarray(a, float) for a in (center, right, up))
     k = np.arange(spokes)
@@ -65,9 +63,7 @@ def tube(p0, p1, radius: float, *, sides: int = 6) -> tuple[np.ndarray, np.ndarr
     verts = np.concatenate([p0 + ring, p1 + ring])
     i = np.arange(sides)
     j = (i + 1) % sides
-    faces = np.concatenate(
-        [np.stack([i, j, sides + j], 1), np.stack([i, sides + j, sides + i], 1)]
-    )
+    faces = np.concatenate([np.stack([i, j, sides + j], 1), np.stack([i, sides + j, sides + i], 1)])
     return verts, faces.astype(np.uint32)
 
 

@@ -39,8 +39,9 @@ def _tessellate_sphere(center, radius, n_phi=512, n_theta=256):
     b = i * n_phi + (j + 1) % n_phi
     c = a + n_phi
     d = b + n_phi
-    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3),
-                            np.stack([b, c, d], -1).reshape(-1, 3)])
+    faces = np.concatenate(
+        [np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]
+    )
     return verts, faces.astype(np.uint32)
 
 
@@ -91,8 +92,9 @@ def _write_ply(path: Path, verts: np.ndarray, faces: np.ndarray) -> None:
     vert["x"], vert["y"], vert["z"] = verts.astype(np.float32).T
     face = np.empty(len(faces), dtype=[("vertex_indices", "i4", (3,))])
     face["vertex_indices"] = faces.astype(np.int32)
-    PlyData([PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")],
-            byte_order="<").write(str(path))
+    PlyData(
+        [PlyElement.describe(vert, "vertex"), PlyElement.describe(face, "face")], byte_order="<"
+    ).write(str(path))
 
 
 def _floats(values) -> str:
@@ -109,8 +111,9 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
         lines.append('    <string name="fov_axis" value="x"/>')
     lines.append(f'    <float name="near_clip" value="{cam.near!r}"/>')
     lines.append(f'    <float name="far_clip" value="{cam.far!r}"/>')
-    lines.append(f'    <transform name="to_world"><matrix value="{_floats(cam.to_world)}"/>'
-                 "</transform>")
+    lines.append(
+        f'    <transform name="to_world"><matrix value="{_floats(cam.to_world)}"/></transform>'
+    )
     lines.append('    <film type="hdrfilm">')
     lines.append(f'      <integer name="width" value="{cam.width}"/>')
     lines.append(f'      <integer name="height" value="{cam.height}"/>')
@@ -120,13 +123,17 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
     for i, lt in enumerate(loaded.lights):
         rgb = _floats(lt.color)
         if lt.kind == "directional":
-            lines.append(f'  <emitter type="directional" id="light_{i}">'
-                         f'<vector name="direction" value="{_floats(lt.direction)}"/>'
-                         f'<rgb name="irradiance" value="{rgb}"/></emitter>')
+            lines.append(
+                f'  <emitter type="directional" id="light_{i}">'
+                f'<vector name="direction" value="{_floats(lt.direction)}"/>'
+                f'<rgb name="irradiance" value="{rgb}"/></emitter>'
+            )
         elif lt.kind == "point":
-            lines.append(f'  <emitter type="point" id="light_{i}">'
-                         f'<point name="position" value="{_floats(lt.position)}"/>'
-                         f'<rgb name="intensity" value="{rgb}"/></emitter>')
+            lines.append(
+                f'  <emitter type="point" id="light_{i}">'
+                f'<point name="position" value="{_floats(lt.position)}"/>'
+                f'<rgb name="intensity" value="{rgb}"/></emitter>'
+            )
         else:
             d = np.asarray(lt.direction)
             up = np.array([0.0, 1.0, 0.0]) if abs(d[1]) < 0.99 else np.array([1.0, 0.0, 0.0])
@@ -137,14 +144,17 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
                 f'up="{_floats(up)}"/></transform>'
                 f'<rgb name="intensity" value="{rgb}"/>'
                 f'<float name="cutoff_angle" value="{lt.cutoff_angle!r}"/>'
-                f'<float name="beam_width" value="{lt.beam_width!r}"/></emitter>')
+                f'<float name="beam_width" value="{lt.beam_width!r}"/></emitter>'
+            )
     for name, rel, albedo in shapes:
-        lines.append(f'  <shape type="ply" id={quoteattr(name)}>'
-                     f'<string name="filename" value={quoteattr(rel)}/>'
-                     '<boolean name="face_normals" value="true"/>'
-                     '<bsdf type="twosided"><bsdf type="diffuse">'
-                     f'<rgb name="reflectance" value="{_floats(albedo)}"/></bsdf></bsdf>'
-                     "</shape>")
+        lines.append(
+            f'  <shape type="ply" id={quoteattr(name)}>'
+            f'<string name="filename" value={quoteattr(rel)}/>'
+            '<boolean name="face_normals" value="true"/>'
+            '<bsdf type="twosided"><bsdf type="diffuse">'
+            f'<rgb name="reflectance" value="{_floats(albedo)}"/></bsdf></bsdf>'
+            "</shape>"
+        )
     lines.append("</scene>\n")
     return "\n".join(lines)
 
@@ -169,15 +179,22 @@ def export(loaded, out_dir: str | Path) -> dict:
             _write_ply(tmp / rel, verts, faces)
             albedo = _albedo(mi, sh)
             shapes.append((name, rel, albedo))
-            summary["shapes"][name] = {"file": rel, "triangles": int(len(faces)),
-                                       "albedo": albedo, "id": idx,
-                                       "source_type": sh.class_name()}
+            summary["shapes"][name] = {
+                "file": rel,
+                "triangles": int(len(faces)),
+                "albedo": albedo,
+                "id": idx,
+                "source_type": sh.class_name(),
+            }
         (tmp / "camera.json").write_text(json.dumps(loaded.camera.to_json(), indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
         (tmp / "lights.json").write_text(json.dumps(lights, indent=2))
-        (tmp / "materials.json").write_text(json.dumps(
-            {"model": "two-sided diffuse (see scenes.shading)", "shapes": summary["shapes"]},
-            indent=2))
+        (tmp / "materials.json").write_text(
+            json.dumps(
+                {"model": "two-sided diffuse (see scenes.shading)", "shapes": summary["shapes"]},
+                indent=2,
+            )
+        )
         (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes))
         summary["scene"] = loaded.provenance()
         out_dir.mkdir(exist_ok=True)

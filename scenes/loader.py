@@ -201,17 +201,24 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
 
     if kind == "DirectionalEmitter":
         d = matrix()[:3, 2]
-        return Light("directional", rgb("irradiance.value"), tuple(d / np.linalg.norm(d)),
-                     name=name)
+        return Light(
+            "directional", rgb("irradiance.value"), tuple(d / np.linalg.norm(d)), name=name
+        )
     if kind == "PointLight":
         pos = tuple(float(c) for c in np.array(p["position"]).ravel()[:3])
         return Light("point", rgb("intensity.value"), position=pos, name=name)
     if kind == "SpotLight":
         m = matrix()
         d = m[:3, 2] / np.linalg.norm(m[:3, 2])
-        return Light("spot", rgb("intensity.value"), tuple(d), tuple(m[:3, 3]),
-                     cutoff_angle=float(np.ravel(p["cutoff_angle"])[0]),
-                     beam_width=float(np.ravel(p["beam_width"])[0]), name=name)
+        return Light(
+            "spot",
+            rgb("intensity.value"),
+            tuple(d),
+            tuple(m[:3, 3]),
+            cutoff_angle=float(np.ravel(p["cutoff_angle"])[0]),
+            beam_width=float(np.ravel(p["beam_width"])[0]),
+            name=name,
+        )
     return None
 
 

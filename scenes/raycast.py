@@ -123,9 +123,16 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
     }
     if color:
         vis = dr.select(lit & valid, 1.0, 0.0)
-        rgb = shade(albedo=albedo, normal=n, to_light=wl, to_eye=to_eye,
-                    irradiance_scale=light.irradiance_scale(wl, dist), visibility=vis,
-                    light=light, specular=loaded.specular)
+        rgb = shade(
+            albedo=albedo,
+            normal=n,
+            to_light=wl,
+            to_eye=to_eye,
+            irradiance_scale=light.irradiance_scale(wl, dist),
+            visibility=vis,
+            light=light,
+            specular=loaded.specular,
+        )
         out["color"] = dr.select(valid, rgb, 0.0)
     return out
 
@@ -150,8 +157,7 @@ def trace_film(loaded, x: np.ndarray, y: np.ndarray, *, camera=None, color: bool
     parts: dict[str, list] = {}
     for start in range(0, len(x), CHUNK):
         sl = slice(start, start + CHUNK)
-        res = trace_film_dr(loaded, mi.Float(x[sl]), mi.Float(y[sl]), color=color,
-                            camera=camera)
+        res = trace_film_dr(loaded, mi.Float(x[sl]), mi.Float(y[sl]), color=color, camera=camera)
         for k, v in res.items():
             arr = np.array(v)
             if arr.ndim == 2 and arr.shape[0] == 3:
@@ -178,14 +184,17 @@ def intersect(loaded, origins: np.ndarray, directions: np.ndarray, *, tmax=None)
     out: dict[str, list] = {"valid": [], "t": [], "position": [], "normal": [], "shape": []}
     for start in range(0, len(o), CHUNK):
         sl = slice(start, start + CHUNK)
-        ray = mi.Ray3f(mi.Point3f(*(mi.Float(o[sl, i]) for i in range(3))),
-                       mi.Vector3f(*(mi.Float(d[sl, i]) for i in range(3))))
+        ray = mi.Ray3f(
+            mi.Point3f(*(mi.Float(o[sl, i]) for i in range(3))),
+            mi.Vector3f(*(mi.Float(d[sl, i]) for i in range(3))),
+        )
         if tm is not None:
             ray.maxt = mi.Float(np.ascontiguousarray(tm[sl]))
         si = loaded.mi_scene.ray_intersect(ray)
         valid = si.is_valid()
-        shape = dr.select(valid, dr.gather(mi.Int32, table,
-                                           dr.reinterpret_array(mi.UInt32, si.shape)), -1)
+        shape = dr.select(
+            valid, dr.gather(mi.Int32, table, dr.reinterpret_array(mi.UInt32, si.shape)), -1
+        )
         out["valid"].append(np.array(valid))
         out["t"].append(np.where(np.array(valid), np.array(si.t), np.inf).astype(np.float32))
         out["position"].append(np.array(si.p).T)
@@ -215,8 +224,10 @@ def occluded(loaded, points: np.ndarray, normals: np.ndarray | None = None):
     out = []
     for start in range(0, len(p), CHUNK):
         sl = slice(start, start + CHUNK)
-        ray = mi.Ray3f(mi.Point3f(*(mi.Float(p[sl, i].astype(np.float32)) for i in range(3))),
-                       mi.Vector3f(*(mi.Float(wl[sl, i].astype(np.float32)) for i in range(3))))
+        ray = mi.Ray3f(
+            mi.Point3f(*(mi.Float(p[sl, i].astype(np.float32)) for i in range(3))),
+            mi.Vector3f(*(mi.Float(wl[sl, i].astype(np.float32)) for i in range(3))),
+        )
         ray.maxt = mi.Float(np.ascontiguousarray(tmax[sl].astype(np.float32)))
         out.append(np.array(loaded.mi_scene.ray_test(ray)))
     return np.concatenate(out) if out else np.zeros(0, dtype=bool)

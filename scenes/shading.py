@@ -55,8 +55,17 @@ def facing(normal, to_eye):
     return dr.select(d < 0.0, -normal, normal)
 
 
-def shade(*, albedo, normal, to_light, to_eye, irradiance_scale, visibility, light: Light,
-          specular: Specular | None = None):
+def shade(
+    *,
+    albedo,
+    normal,
+    to_light,
+    to_eye,
+    irradiance_scale,
+    visibility,
+    light: Light,
+    specular: Specular | None = None,
+):
     """Outgoing radiance (linear RGB) of the shading model above.
 
     Parameters

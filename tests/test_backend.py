@@ -15,9 +15,15 @@ def _touch(folder, *names):
 
 @pytest.mark.parametrize(
     ("name", "version"),
-    [("libLLVM-19.so", 19), ("libLLVM.so.19.1", 19), ("libLLVM-15.so.1", 15),
-     ("libLLVM-14.0.6.so.1", 14), ("libLLVM.so", None), ("libLLVMSupport.a", None),
-     ("libfoo.so.19", None)],
+    [
+        ("libLLVM-19.so", 19),
+        ("libLLVM.so.19.1", 19),
+        ("libLLVM-15.so.1", 15),
+        ("libLLVM-14.0.6.so.1", 14),
+        ("libLLVM.so", None),
+        ("libLLVMSupport.a", None),
+        ("libfoo.so.19", None),
+    ],
 )
 def test_llvm_version_of(name, version):
     assert backend.llvm_version_of(name) == version
@@ -52,7 +58,8 @@ def test_env_variable_naming_missing_file_is_ignored(tmp_path):
     _touch(tmp_path, "libLLVM-18.so")
     env = {"DRJIT_LIBLLVM_PATH": str(tmp_path / "gone.so")}
     assert backend.find_libllvm(search_dirs=[str(tmp_path)], env=env) == str(
-        tmp_path / "libLLVM-18.so")
+        tmp_path / "libLLVM-18.so"
+    )
 
 
 def test_unknown_backend_is_a_clear_error():

@@ -13,8 +13,9 @@ RAY_TOL = 2e-5
 
 
 def _mitsuba_rays(mi, sensor, x, y, w, h):
-    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(x / w), mi.Float(y / h)),
-                               mi.Point2f(0.5, 0.5))
+    ray, _ = sensor.sample_ray(
+        0.0, 0.5, mi.Point2f(mi.Float(x / w), mi.Float(y / h)), mi.Point2f(0.5, 0.5)
+    )
     n = len(x)
     o = np.broadcast_to(np.array(ray.o).T, (n, 3))
     d = np.broadcast_to(np.array(ray.d).T, (n, 3))
@@ -27,9 +28,13 @@ def test_rays_match_mitsuba_sensor(mi, kind):
     to_world = _look_at((1, 3, -4), (0.2, 0, 0.5), (0, 1, 0))
     if kind == "orthographic":
         to_world = to_world @ np.diag([2.0, 2.0, 1.0, 1.0])
-    d = {"type": kind, "near_clip": 0.3, "far_clip": 50.0,
-         "to_world": mi.ScalarTransform4f(to_world.tolist()),
-         "film": {"type": "hdrfilm", "width": w, "height": h}}
+    d = {
+        "type": kind,
+        "near_clip": 0.3,
+        "far_clip": 50.0,
+        "to_world": mi.ScalarTransform4f(to_world.tolist()),
+        "film": {"type": "hdrfilm", "width": w, "height": h},
+    }
     if kind == "perspective":
         d["fov"] = 47.0
     sensor = mi.load_dict(d)
@@ -59,8 +64,9 @@ def test_exported_matrices_project_like_the_camera(convention):
     x, y = rng.uniform(0, cam.width, 20), rng.uniform(0, cam.height, 20)
     o, d, _ = cam.rays(x, y)
     pts = o + d * rng.uniform(1, 100, (20, 1))
-    clip = (cam.projection(convention) @ cam.world_to_view(convention)
-            @ np.c_[pts, np.ones(20)].T).T
+    clip = (
+        cam.projection(convention) @ cam.world_to_view(convention) @ np.c_[pts, np.ones(20)].T
+    ).T
     ndc = clip[:, :3] / clip[:, 3:]
     film_x = (ndc[:, 0] + 1) / 2 * cam.width
     film_y = (1 - ndc[:, 1]) / 2 * cam.height

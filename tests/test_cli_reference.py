@@ -25,17 +25,39 @@ def test_reference_writes_every_channel(tmp_path):
     rc, out = _ref(tmp_path, "a", "--spp", "4", "--no-cache")
     assert rc == 0
     ch = read_exr(out / "reference.exr")
-    expected = {"visibility", "visibility_stderr", "coverage", "coverage_stderr", "id", "depth",
-                "edge", *(f"color.{c}" for c in "RGB"), *(f"color_stderr.{c}" for c in "RGB"),
-                *(f"position.{c}" for c in "XYZ"), *(f"normal.{c}" for c in "XYZ"),
-                *(f"albedo.{c}" for c in "RGB")}
+    expected = {
+        "visibility",
+        "visibility_stderr",
+        "coverage",
+        "coverage_stderr",
+        "id",
+        "depth",
+        "edge",
+        *(f"color.{c}" for c in "RGB"),
+        *(f"color_stderr.{c}" for c in "RGB"),
+        *(f"position.{c}" for c in "XYZ"),
+        *(f"normal.{c}" for c in "XYZ"),
+        *(f"albedo.{c}" for c in "RGB"),
+    }
     assert set(ch) == expected
     assert all(v.shape == (27, 48) and v.dtype == np.float32 for v in ch.values())
     assert all(np.isfinite(v).all() for v in ch.values())
     meta = json.loads((out / "reference.json").read_text())
-    for key in ("scene", "light", "resolution", "spp", "seed", "variant", "versions",
-                "wall_seconds", "rays_cast", "mrays_per_second", "visibility_stderr_mean",
-                "visibility_stderr_max", "color_stderr_max"):
+    for key in (
+        "scene",
+        "light",
+        "resolution",
+        "spp",
+        "seed",
+        "variant",
+        "versions",
+        "wall_seconds",
+        "rays_cast",
+        "mrays_per_second",
+        "visibility_stderr_mean",
+        "visibility_stderr_max",
+        "color_stderr_max",
+    ):
         assert key in meta
     assert meta["resolution"] == [48, 27] and meta["spp"] == 4
     assert meta["rays_cast"] >= 4 * 48 * 27
@@ -82,10 +104,14 @@ def test_cache_hit_and_corruption(tmp_path):
 
 
 BAD_XML = '<scene version="3.0.0"><shape type="sphere"></scene'
-NO_SENSOR = ('<scene version="3.0.0"><emitter type="directional"><vector name="direction" '
-             'value="0,-1,0"/></emitter><shape type="sphere"/></scene>')
-NO_LIGHT = ('<scene version="3.0.0"><sensor type="perspective"/><emitter type="constant"/>'
-            '<shape type="sphere"/></scene>')
+NO_SENSOR = (
+    '<scene version="3.0.0"><emitter type="directional"><vector name="direction" '
+    'value="0,-1,0"/></emitter><shape type="sphere"/></scene>'
+)
+NO_LIGHT = (
+    '<scene version="3.0.0"><sensor type="perspective"/><emitter type="constant"/>'
+    '<shape type="sphere"/></scene>'
+)
 
 
 @pytest.mark.parametrize(
@@ -107,8 +133,7 @@ NO_LIGHT = ('<scene version="3.0.0"><sensor type="perspective"/><emitter type="c
         (["plate", "--camera-path", "dolly", "--frame", "8"], "frame must be in"),
     ],
 )
-def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args,
-                                                      message):
+def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, message):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "bad.xml").write_text(BAD_XML)
     (tmp_path / "nosensor.xml").write_text(NO_SENSOR)
@@ -126,8 +151,12 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
 
 
 def test_real_process_exit_code_and_no_traceback(tmp_path):
-    res = subprocess.run([sys.executable, "-m", "oracle.cli", "reference", "nope", "--out",
-                          str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [sys.executable, "-m", "oracle.cli", "reference", "nope", "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 2
     assert res.stderr.strip().startswith("raster-oracle: error: unknown scene")
     assert "Traceback" not in res.stderr

@@ -23,13 +23,18 @@ VARIANCE_FLOOR = 1e-8  # pixels where both estimates are noiseless (sky, flat li
 @pytest.mark.parametrize("name", ["plate", "point", "spot"])
 def test_color_agrees_with_mitsuba_direct(mi, name):
     loaded = scenes.load(name, width=48, height=27)
-    ch, _ = render_reference(loaded, ReferenceSettings(spp=256, seed=3, channels=("color",)),
-                             quiet=True)
+    ch, _ = render_reference(
+        loaded, ReferenceSettings(spp=256, seed=3, channels=("color",)), quiet=True
+    )
     ours = np.stack([ch[f"color.{c}"] for c in "RGB"], -1).astype(np.float64)
     ours_se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1).astype(np.float64)
     integrator = mi.load_dict({"type": "direct", "emitter_samples": 1, "bsdf_samples": 0})
-    runs = np.stack([np.array(mi.render(loaded.mi_scene, integrator=integrator, spp=64, seed=k))
-                     for k in range(4)]).astype(np.float64)
+    runs = np.stack(
+        [
+            np.array(mi.render(loaded.mi_scene, integrator=integrator, spp=64, seed=k))
+            for k in range(4)
+        ]
+    ).astype(np.float64)
     theirs = runs.mean(0)
     theirs_se = runs.std(0, ddof=1) / np.sqrt(len(runs))
     assert theirs.shape == ours.shape

@@ -35,8 +35,7 @@ def test_plate_shadow_matches_exact_area(plate):
     assert shadow_cov.sum() > 50, "the shadow must be in view"
     assert np.sum(shadow_cov * plate_cov) == 0, "test geometry: shadow and plate must not overlap"
     exact = 1.0 - shadow_cov
-    ch, _ = render_reference(plate, ReferenceSettings(spp=64, channels=("visibility",)),
-                             quiet=True)
+    ch, _ = render_reference(plate, ReferenceSettings(spp=64, channels=("visibility",)), quiet=True)
     err = ch["visibility"] - exact
     edge = (exact > 0) & (exact < 1)
     assert np.abs(err).mean() < MEAN_ABS_TOL_64SPP
@@ -53,8 +52,9 @@ def test_plate_error_falls_with_samples(plate):
     exact = 1.0 - shadow_cov
     errs = []
     for spp in (4, 64, 256):
-        ch, _ = render_reference(plate, ReferenceSettings(spp=spp, channels=("visibility",)),
-                                 quiet=True)
+        ch, _ = render_reference(
+            plate, ReferenceSettings(spp=spp, channels=("visibility",)), quiet=True
+        )
         errs.append(np.abs(ch["visibility"] - exact).sum())
     assert errs[0] > errs[1] > errs[2]
 
@@ -63,13 +63,15 @@ def test_star_coverage_matches_exact_area():
     loaded = scenes.load("star", width=128, height=72)
     cam = loaded.camera
     exact = np.zeros((cam.height, cam.width))
-    for name, (verts, faces) in loaded.mesh_data.items():
+    for verts, faces in loaded.mesh_data.values():
         for tri in faces:  # a few dozen triangles: the per-pixel work is vectorized
-            exact += polygon_coverage(cam.project(verts[tri].astype(np.float64)), cam.width,
-                                      cam.height)
+            exact += polygon_coverage(
+                cam.project(verts[tri].astype(np.float64)), cam.width, cam.height
+            )
     assert exact.max() <= 1.0 + 1e-9
-    ch, stats = render_reference(loaded, ReferenceSettings(spp=64, channels=("coverage",)),
-                                 quiet=True)
+    ch, stats = render_reference(
+        loaded, ReferenceSettings(spp=64, channels=("coverage",)), quiet=True
+    )
     err = ch["coverage"] - exact
     edge = (exact > 0) & (exact < 1)
     assert edge.sum() > 200

@@ -18,7 +18,7 @@ from scenes import raycast
 def test_builtin_scene_loads_and_has_a_lit_receiver(name):
     s = scenes.load(name)
     assert s.description and s.width > 0
-    yy, xx = np.mgrid[0:s.height, 0:s.width]
+    yy, xx = np.mgrid[0 : s.height, 0 : s.width]
     g = raycast.trace_film(s, xx.ravel() + 0.5, yy.ravel() + 0.5, color=True)
     assert g["valid"].any()
     assert np.isfinite(g["color"]).all() and (g["color"] >= 0).all()
@@ -50,8 +50,9 @@ def test_thin_scene_wire_widths_in_pixels():
 
 def test_several_surfaces_per_pixel_in_thin_scene():
     s = scenes.load("thin")
-    ch, _ = render_reference(s, ReferenceSettings(spp=16, channels=("edge", "coverage")),
-                             quiet=True)
+    ch, _ = render_reference(
+        s, ReferenceSettings(spp=16, channels=("edge", "coverage")), quiet=True
+    )
     assert ch["edge"].mean() > 0.1
 
 
@@ -86,8 +87,22 @@ def test_export_round_trip(tmp_path):
     assert json.loads((out / "lights.json").read_text())["lights"][0]["kind"] == "directional"
     assert len(list((out / "meshes").glob("*.ply"))) == 2
     args = ["--spp", "16", "--seed", "2", "--no-cache", "--quiet"]
-    assert main(["reference", "plate", "--out", str(tmp_path / "a"), "--width", "48",
-                 "--height", "27", *args]) == 0
+    assert (
+        main(
+            [
+                "reference",
+                "plate",
+                "--out",
+                str(tmp_path / "a"),
+                "--width",
+                "48",
+                "--height",
+                "27",
+                *args,
+            ]
+        )
+        == 0
+    )
     assert main(["reference", str(out / "scene.xml"), "--out", str(tmp_path / "b"), *args]) == 0
     a, b = read_exr(tmp_path / "a" / "reference.exr"), read_exr(tmp_path / "b" / "reference.exr")
     for name in ("visibility", "coverage", "color.R", "depth"):
@@ -106,14 +121,16 @@ def test_export_tessellates_analytic_shapes(tmp_path):
 
 def test_adaptive_meets_target_with_fewer_rays():
     s = scenes.load("plate", width=64, height=36)
-    settings = ReferenceSettings(adaptive=True, adaptive_spp=16, target_stderr=0.03,
-                                 channels=("visibility",))
+    settings = ReferenceSettings(
+        adaptive=True, adaptive_spp=16, target_stderr=0.03, channels=("visibility",)
+    )
     ch, stats = render_reference(s, settings, quiet=True)
     a = stats["adaptive"]
     assert a["achieved_max_stderr"] <= 0.03 + 1e-9
     assert ch["visibility_stderr"].max() <= 0.03 + 1e-6
     assert a["rays_ratio_vs_uniform"] < 0.35
     assert a["pixels_refined"] > 0
-    uniform, _ = render_reference(s, ReferenceSettings(spp=256, channels=("visibility",)),
-                                  quiet=True)
+    uniform, _ = render_reference(
+        s, ReferenceSettings(spp=256, channels=("visibility",)), quiet=True
+    )
     assert np.abs(ch["visibility"] - uniform["visibility"]).max() < 0.2
