@@ -1,1 +1,67 @@
-"""raster-oracle: metrics."""
+"""raster-oracle metrics: plain functions of NumPy arrays, no rendering.
+
+Conventions: images are float ``(H, W)`` or ``(H, W, C)``, row 0 at the top, linear values;
+visibility and coverage are in [0, 1] with 1 = lit / covered. Invalid input raises
+:class:`MetricError` (a ``ValueError``) with a message naming the parameter.
+
+Modules: :mod:`metrics.tonemap` (the shared tone-mapping pipeline), :mod:`metrics.perceptual`
+(FLIP, SSIM, PSNR, CIEDE2000), :mod:`metrics.shadow` (visibility on receivers),
+:mod:`metrics.aliasing` (edge/interior and coverage error, straight-edge floor),
+:mod:`metrics.temporal` (flicker), :mod:`metrics.stats` (Z-test, noise floor).
+"""
+
+from metrics._validate import MetricError
+from metrics.aliasing import (
+    coverage_error,
+    edge_interior_error,
+    edges_from_id,
+    half_plane_square_area,
+    straight_edge_error_floor,
+)
+from metrics.perceptual import (
+    DEFAULT_PPD,
+    delta_e2000,
+    delta_e2000_lab,
+    flip,
+    hdr_exposure_range,
+    psnr_db,
+    ssim,
+)
+from metrics.shadow import SHADOW_KEYS, shadow_edges, shadow_metrics
+from metrics.stats import noise_floor, z_test
+from metrics.temporal import flicker, temporal_error
+from metrics.tonemap import (
+    exposure_from_reference,
+    luminance,
+    srgb_decode,
+    srgb_encode,
+    tonemap,
+)
+
+__all__ = [
+    "DEFAULT_PPD",
+    "SHADOW_KEYS",
+    "MetricError",
+    "coverage_error",
+    "delta_e2000",
+    "delta_e2000_lab",
+    "edge_interior_error",
+    "edges_from_id",
+    "exposure_from_reference",
+    "flicker",
+    "flip",
+    "half_plane_square_area",
+    "hdr_exposure_range",
+    "luminance",
+    "noise_floor",
+    "psnr_db",
+    "shadow_edges",
+    "shadow_metrics",
+    "srgb_decode",
+    "srgb_encode",
+    "ssim",
+    "straight_edge_error_floor",
+    "temporal_error",
+    "tonemap",
+    "z_test",
+]
