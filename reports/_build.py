@@ -1,0 +1,143 @@
+"""Assemble case records into one report record; read cases back from a report's JSON."""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import posixpath
+import urllib.parse
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from . import _images
+from ._case import CASE_SCHEMA
+from ._tradeoff import tradeoff_section
+from ._validate import check_name, to_jsonable
+
+__all__ = ["REPORT_SCHEMA", "build_report", "read_cases"]
+
+#: Value of the ``"schema"`` key of every report record.
+REPORT_SCHEMA = "raster-oracle.report/1"
+
+
+def _check_case(index: int, case: object) -> dict:
+    if not isinstance(case, Mapping) or case.get("schema") != CASE_SCHEMA:
+        got = case.get("schema") if isinstance(case, Mapping) else type(case).__name__
+        raise ValueError(
+            f"cases[{index}] must be a record from make_case ({CASE_SCHEMA}), got {got!r}"
+        )
+    return copy.deepcopy(dict(case))
+
+
+def _common(cases: Sequence[dict], field: str, names: Sequence[str]) -> dict:
+    """Per metric: the one value every case that sets it agrees on, or ``"varies"``."""
+    out = {}
+    for name in names:
+        values = [case[field][name] for case in cases if name in case[field]]
+        if values:
+            same = all(v == values[0] for v in values[1:])
+            out[name] = values[0] if same else "varies"
+    return out
+
+
+def build_report(
+    cases: Sequence[Mapping],
+    *,
+    title: str,
+    provenance: Mapping[str, object],
+    tradeoff_cost: str | None = None,
+    tradeoff_metric: str | None = None,
+) -> dict:
+    """Combine case records from :func:`make_case` into one JSON-safe report record.
+
+    Parameters
+    ----------
+    cases : sequence of dict
+        Records from :func:`make_case`, possibly read back from JSON (:func:`read_cases`).
+        They are copied; each gets an ``"id"`` (``"case-1"``, ...) by position.
+    title : str
+        Page title.
+    provenance : dict
+        How the results were made: scene, light, resolution, spp, seed, filter, ppd,
+        exposure, tone mapper, backend, package versions, times. Nested dicts are shown
+        with dotted keys.
+    tradeoff_cost : str, optional
+        Cost key on the x axis of the cost-versus-error plots. Default: the first of
+        ``memory_bytes``, ``texels_rendered``, ``texture_lookups_per_pixel`` that a case
+        carries, else the first cost key seen.
+    tradeoff_metric : str, optional
+        Metric on the y axis (lower is better). Default: the first metric seen in a case
+        that carries a cost.
+
+    Returns
+    -------
+    dict
+        The report record; its keys are documented in the :mod:`reports` module docstring.
+    """
+    check_name("title", title)
+    if not isinstance(provenance, Mapping):
+        raise TypeError(f"provenance must be a dict, got {type(provenance).__name__}")
+    if isinstance(cases, Mapping | str) or not isinstance(cases, Sequence):
+        raise TypeError(f"cases must be a list of case records, got {type(cases).__name__}")
+    records = [_check_case(i, case) for i, case in enumerate(cases)]
+    for i, case in enumerate(records):
+        case["id"] = f"case-{i + 1}"
+    metric_names = list(dict.fromkeys(k for case in records for k in case["metrics"]))
+    cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
+    styles = sorted({m["style"] for case in records for m in case["error_maps"]})
+    statuses = [case["status"] for case in records]
+    return {
+        "schema": REPORT_SCHEMA,
+        "title": title,
+        "provenance": to_jsonable(dict(provenance), "provenance"),
+        "metric_names": metric_names,
+        "cost_names": cost_names,
+        "summary": {
+            "n_cases": len(records),
+            "n_pass": statuses.count("pass"),
+            "n_fail": statuses.count("fail"),
+            "n_unchecked": statuses.count("unchecked"),
+            "thresholds": _common(records, "thresholds", metric_names),
+            "noise_floor": _common(records, "noise_floor", metric_names),
+        },
+        "tradeoff": tradeoff_section(records, cost_key=tradeoff_cost, metric=tradeoff_metric),
+        "colorbars": {style: _images.colorbar_uri(style) for style in styles},
+        "cases": records,
+    }
+
+
+def read_cases(path: str | os.PathLike, *, relative_to: str | os.PathLike) -> list[dict]:
+    """Read the case records of a report JSON written by :func:`write_report`.
+
+    Relative EXR links are rewritten so they stay valid from the folder ``relative_to``
+    (where the combined report will be written).
+
+    Parameters
+    ----------
+    path : path-like
+        A ``report.json`` written by :func:`write_report`.
+    relative_to : path-like
+        Folder of the report the cases will be shown in.
+    """
+    path = Path(path)
+    report = json.loads(path.read_text(encoding="utf-8"))
+    if not isinstance(report, dict) or report.get("schema") != REPORT_SCHEMA:
+        raise ValueError(f"{path} is not a report JSON ({REPORT_SCHEMA})")
+    source = path.parent.resolve()
+    target = Path(relative_to).resolve()
+    cases = []
+    for case in report["cases"]:
+        case = dict(case)
+        case.pop("id", None)
+        links = []
+        for link in case["exr_links"]:
+            link = dict(link)
+            if not posixpath.isabs(link["path"]):
+                moved = Path(os.path.relpath(source / link["path"], target)).as_posix()
+                link["path"] = moved
+                link["href"] = urllib.parse.quote(moved, safe="/")
+            links.append(link)
+        case["exr_links"] = links
+        cases.append(case)
+    return cases

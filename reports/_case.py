@@ -1,0 +1,266 @@
+"""One scored case (a technique or an engine image against a reference) as a report record."""
+
+from __future__ import annotations
+
+import math
+import urllib.parse
+from collections.abc import Mapping
+
+import numpy as np
+
+from . import _images, _stats
+from ._validate import (
+    KINDS,
+    check_cost,
+    check_error_maps,
+    check_image,
+    check_metrics,
+    check_name,
+    check_thresholds,
+    decode_float,
+    to_jsonable,
+)
+
+__all__ = ["CASE_SCHEMA", "MAX_THUMBNAIL_BYTES", "make_case"]
+
+#: Value of the ``"schema"`` key of every case record.
+CASE_SCHEMA = "raster-oracle.report-case/1"
+
+#: Default budget of one case's thumbnails, in data-URI characters: ten cases plus their
+#: full-resolution tile crops (12 crops of 32 x 32 px, under 70 kB) and the page stay under
+#: 15 MB whatever the content.
+MAX_THUMBNAIL_BYTES = 1_300_000
+
+
+def _default_error_maps(reference: np.ndarray, candidate: np.ndarray, kind: str) -> dict:
+    if kind == "visibility":
+        return {"visibility_error": {"data": candidate - reference, "style": "signed"}}
+    difference = np.abs(candidate - reference).mean(axis=2)
+    return {"abs_difference": {"data": difference, "style": "magma"}}
+
+
+def _failing(metrics: Mapping, thresholds: Mapping) -> list[str]:
+    failing = []
+    for name, bounds in thresholds.items():
+        value = decode_float(metrics[name])
+        too_low = "min" in bounds and not value >= bounds["min"]
+        too_high = "max" in bounds and not value <= bounds["max"]
+        if too_low or too_high or math.isnan(value):
+            failing.append(name)
+    return failing
+
+
+def _exr_links(value: object) -> list[dict]:
+    if value is None:
+        return []
+    if not isinstance(value, Mapping):
+        raise TypeError(f"exr_links must be a dict label -> relative path, got {value!r}")
+    links = []
+    for label, path in value.items():
+        check_name("exr_links key", label)
+        if not isinstance(path, str) and not hasattr(path, "__fspath__"):
+            raise TypeError(f"exr_links[{label!r}] must be a path, got {path!r}")
+        text = str(path).replace("\\", "/")
+        # Quote everything but "/": a "javascript:" or "http:" prefix becomes a harmless
+        # relative file name.
+        links.append({"label": label, "path": text, "href": urllib.parse.quote(text, safe="/")})
+    return links
+
+
+def _encode_image(values: np.ndarray, kind: str, *, lossless: bool = False) -> str:
+    if kind == "visibility":
+        return _images.encode_visibility(values)
+    return _images.encode_color(values, lossless=lossless)
+
+
+def _thumbnails(
+    reference: np.ndarray, candidate: np.ndarray, maps: dict, *, kind: str, factor: int
+) -> tuple[dict[str, str], dict[str, str]]:
+    """Encode the images and the error maps reduced by ``factor`` as data URIs."""
+    srgb = kind == "color"
+    images = {
+        "reference": _encode_image(_images.reduce_image(reference, factor, srgb=srgb), kind),
+        "candidate": _encode_image(_images.reduce_image(candidate, factor, srgb=srgb), kind),
+    }
+    heatmaps = {
+        name: _images.encode_heatmap(
+            _images.reduce_error(spec["data"], factor),
+            style=spec["style"],
+            value_range=tuple(spec["range"]),
+        )
+        for name, spec in maps.items()
+    }
+    return images, heatmaps
+
+
+def make_case(
+    *,
+    name: str,
+    scene: str,
+    reference: np.ndarray,
+    candidate: np.ndarray,
+    kind: str,
+    metrics: Mapping[str, float],
+    error_maps: Mapping[str, Mapping] | None = None,
+    noise_floor: Mapping[str, float] | None = None,
+    thresholds: Mapping[str, float | Mapping[str, float]] | None = None,
+    cost: Mapping[str, float] | None = None,
+    technique: str | None = None,
+    family: str | None = None,
+    params: Mapping[str, object] | None = None,
+    exr_links: Mapping[str, str] | None = None,
+    tile_size: int = 32,
+    n_tiles: int = 4,
+    max_size: int = 960,
+    max_bytes: int = MAX_THUMBNAIL_BYTES,
+) -> dict:
+    """Compute everything the report shows about one case and return it as a JSON-safe dict.
+
+    Parameters
+    ----------
+    name, scene : str
+        Case label and scene name (shown as text, never interpreted as HTML).
+    reference, candidate : ndarray, float32
+        ``kind="visibility"``: ``(H, W)`` hard-shadow visibility in [0, 1], 1 = lit.
+        ``kind="color"``: ``(H, W, 3)`` tone-mapped, sRGB-encoded colour in [0, 1].
+    kind : {"visibility", "color"}
+    metrics : dict str -> float
+        Scalar metrics of the candidate; NaN/inf are kept (encoded ``"nan"``/``"inf"``).
+    error_maps : dict str -> dict, optional
+        ``name -> {"data": (H, W) float array, "style": "signed" | "magma", "range": [lo, hi]
+        (optional; default [-1, 1] signed, [0, 1] magma), "primary": bool (optional)}``.
+        Signed: green = positive (false-lit), red = negative (false-shadowed). The worst
+        tiles come from the primary map (default: the first). Default when omitted:
+        ``candidate - reference`` (signed) for visibility, mean |candidate - reference| over
+        channels (magma) for colour.
+    noise_floor : dict str -> float, optional
+        Value of each metric for the reference's own noise (two independent references).
+    thresholds : dict str -> float or {"min": float, "max": float}, optional
+        A number is the largest passing value. NaN metrics fail.
+    cost : dict str -> number, optional
+        The technique's GPU budget (``memory_bytes``, ``texels_rendered``, ...).
+    technique, family : str, optional
+        Technique name and the family whose Pareto front it belongs to (default: technique).
+    params : dict, optional
+        Technique parameters (JSON-compatible values).
+    exr_links : dict str -> str, optional
+        ``label -> path`` of full-resolution EXRs, relative to the report's folder.
+    tile_size : int
+        Side of the square tiles, in pixels, ranked for the worst-tile crops.
+    n_tiles : int
+        Number of worst tiles kept.
+    max_size : int
+        Longest side of the embedded thumbnails, in pixels; larger images are reduced by an
+        integer factor (box filter in linear light for images, largest-magnitude value per
+        block for error maps, so thin errors stay visible). Tile crops stay full resolution.
+    max_bytes : int
+        Budget of the encoded thumbnails (images and error maps, data-URI characters); the
+        reduction factor grows until they fit. Only noise-like content needs it.
+
+    Returns
+    -------
+    dict
+        The case record; its keys are documented in the :mod:`reports` module docstring.
+    """
+    check_name("name", name)
+    if not isinstance(scene, str):
+        raise TypeError(f"scene must be a string, got {scene!r}")
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {list(KINDS)}, got {kind!r}")
+    for label, value in (("technique", technique), ("family", family)):
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"{label} must be a string or None, got {value!r}")
+    for label, value in (
+        ("tile_size", tile_size),
+        ("n_tiles", n_tiles),
+        ("max_size", max_size),
+        ("max_bytes", max_bytes),
+    ):
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise ValueError(f"{label} must be a positive integer, got {value!r}")
+    reference = check_image("reference", reference, kind=kind)
+    candidate = check_image("candidate", candidate, kind=kind)
+    if reference.shape != candidate.shape:
+        raise ValueError(
+            "reference and candidate must have the same shape, "
+            f"got {reference.shape} and {candidate.shape}"
+        )
+    height, width = reference.shape[:2]
+    if error_maps is None:
+        error_maps = _default_error_maps(reference, candidate, kind)
+    maps = check_error_maps(error_maps, shape=(height, width))
+    metrics = check_metrics("metrics", metrics, allow_nonfinite=True)
+    if not metrics:
+        raise ValueError("metrics must hold at least one metric, got an empty dict")
+    noise_floor = check_metrics("noise_floor", noise_floor, allow_nonfinite=False)
+    thresholds = check_thresholds(thresholds, metrics=metrics)
+    if params is not None and not isinstance(params, Mapping):
+        raise TypeError(f"params must be a dict or None, got {type(params).__name__}")
+
+    factor = _images.downscale_factor((height, width), max_size=max_size)
+    while True:
+        images, heatmaps = _thumbnails(reference, candidate, maps, kind=kind, factor=factor)
+        size = sum(map(len, images.values())) + sum(map(len, heatmaps.values()))
+        if size <= max_bytes or factor >= max(height, width):
+            break
+        # Encoded size scales roughly with the pixel count, i.e. with 1 / factor^2.
+        factor = max(factor + 1, math.ceil(factor * math.sqrt(size / max_bytes)))
+    map_records = [
+        {
+            "name": name,
+            "style": spec["style"],
+            "range": spec["range"],
+            "primary": spec["primary"],
+            "image": heatmaps[name],
+            "histogram": _stats.histogram(
+                spec["data"], style=spec["style"], value_range=tuple(spec["range"])
+            ),
+            "summary": _stats.error_summary(spec["data"]),
+        }
+        for name, spec in maps.items()
+    ]
+    map_name, spec = next((name, spec) for name, spec in maps.items() if spec["primary"])
+    tiles = _stats.worst_tiles(spec["data"], tile=tile_size, count=n_tiles)
+    for tile in tiles:
+        rows = slice(tile["y"], tile["y"] + tile["h"])
+        cols = slice(tile["x"], tile["x"] + tile["w"])
+        tile["reference"] = _encode_image(reference[rows, cols], kind, lossless=True)
+        tile["candidate"] = _encode_image(candidate[rows, cols], kind, lossless=True)
+        tile["error"] = _images.encode_heatmap(
+            spec["data"][rows, cols], style=spec["style"], value_range=tuple(spec["range"])
+        )
+
+    failing = _failing(metrics, thresholds)
+    within_noise = [
+        key
+        for key, floor in noise_floor.items()
+        if key in metrics and decode_float(metrics[key]) <= floor
+    ]
+    return {
+        "schema": CASE_SCHEMA,
+        "name": name,
+        "scene": scene,
+        "kind": kind,
+        "technique": technique,
+        "family": family if family is not None else technique,
+        "params": to_jsonable(dict(params or {}), "params"),
+        "width": int(width),
+        "height": int(height),
+        "thumbnail": {
+            "factor": factor,
+            "width": -(-width // factor),
+            "height": -(-height // factor),
+            "bytes": size,
+        },
+        "metrics": metrics,
+        "thresholds": thresholds,
+        "noise_floor": noise_floor,
+        "cost": check_cost(cost),
+        "failing": failing,
+        "within_noise": within_noise,
+        "status": "unchecked" if not thresholds else ("fail" if failing else "pass"),
+        "images": images,
+        "error_maps": map_records,
+        "worst_tiles": {"map": map_name, "tile_size": tile_size, "tiles": tiles},
+        "exr_links": _exr_links(exr_links),
+    }

@@ -1,0 +1,239 @@
+"""Boundary checks and conversion of user records to JSON-safe values.
+
+Every public function of the package validates its inputs here, once, and raises with a
+message that names the parameter, what was expected and what was received.
+
+Non-finite floats cannot be stored in strict JSON, so they are encoded as the strings
+``"nan"``, ``"inf"`` and ``"-inf"`` (:func:`encode_float`) and decoded back where numbers
+are compared (:func:`decode_float`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from numbers import Real
+
+import numpy as np
+
+__all__ = [
+    "KINDS",
+    "RANGE_TOLERANCE",
+    "STYLES",
+    "check_cost",
+    "check_error_maps",
+    "check_image",
+    "check_metrics",
+    "check_name",
+    "check_thresholds",
+    "decode_float",
+    "encode_float",
+    "to_jsonable",
+]
+
+#: Valid values of ``make_case(kind=...)``.
+KINDS = ("visibility", "color")
+
+#: Valid error-map styles and their default fixed display range.
+STYLES = {"signed": (-1.0, 1.0), "magma": (0.0, 1.0)}
+
+#: How far reference/candidate values may leave [0, 1] before they are rejected; tone mappers
+#: and reconstruction filters overshoot by float rounding (~1e-7), never by 1e-3.
+RANGE_TOLERANCE = 1e-3
+
+_NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+
+
+def encode_float(value: float) -> float | str:
+    """Return ``value`` as a float, or as ``"nan"``/``"inf"``/``"-inf"`` when not finite."""
+    value = float(value)
+    if math.isfinite(value):
+        return value
+    if math.isnan(value):
+        return "nan"
+    return "inf" if value > 0 else "-inf"
+
+
+def decode_float(value: object) -> float:
+    """Inverse of :func:`encode_float`; ``None`` and unknown strings decode to NaN."""
+    if isinstance(value, str):
+        return _NONFINITE.get(value, math.nan)
+    if value is None or isinstance(value, bool):
+        return math.nan
+    return float(value)
+
+
+def check_name(name: str, value: object) -> str:
+    """Check that ``value`` is a non-empty string."""
+    if not isinstance(value, str) or not value:
+        raise TypeError(f"{name} must be a non-empty string, got {value!r}")
+    return value
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, Real) and not isinstance(value, bool | np.bool_)
+
+
+def _check_array(name: str, value: object) -> np.ndarray:
+    if not isinstance(value, np.ndarray):
+        raise TypeError(f"{name} must be a numpy array, got {type(value).__name__}")
+    if not np.issubdtype(value.dtype, np.floating):
+        raise TypeError(f"{name} must be a float array (float32 expected), got dtype {value.dtype}")
+    if value.size == 0:
+        raise ValueError(f"{name} must not be empty, got shape {value.shape}")
+    if not np.isfinite(value).all():
+        raise ValueError(f"{name} must be finite, got {int((~np.isfinite(value)).sum())} NaN/inf")
+    return value
+
+
+def check_image(name: str, value: object, *, kind: str) -> np.ndarray:
+    """Check a reference or candidate image and return it as float32 clipped to [0, 1].
+
+    ``kind="visibility"`` expects ``(H, W)``; ``kind="color"`` expects ``(H, W, 3)``. Values
+    must lie in [0, 1] within :data:`RANGE_TOLERANCE`.
+    """
+    value = _check_array(name, value)
+    if kind == "visibility" and value.ndim != 2:
+        raise ValueError(f"{name} must have shape (H, W) for kind='visibility', got {value.shape}")
+    if kind == "color" and (value.ndim != 3 or value.shape[2] != 3):
+        raise ValueError(f"{name} must have shape (H, W, 3) for kind='color', got {value.shape}")
+    lo, hi = float(value.min()), float(value.max())
+    if lo < -RANGE_TOLERANCE or hi > 1.0 + RANGE_TOLERANCE:
+        raise ValueError(f"{name} must lie in [0, 1], got values in [{lo:.6g}, {hi:.6g}]")
+    return np.clip(value, 0.0, 1.0).astype(np.float32, copy=False)
+
+
+def check_error_maps(value: object, *, shape: tuple[int, int]) -> dict[str, dict]:
+    """Check ``error_maps`` and return ``name -> {"data", "style", "range", "primary"}``.
+
+    Each entry is a mapping with ``"data"`` (an ``(H, W)`` float array), ``"style"`` (one of
+    :data:`STYLES`) and optionally ``"range"`` (``[lo, hi]``, symmetric for ``"signed"``) and
+    ``"primary"`` (bool: the map the worst tiles are taken from; default: the first map).
+    """
+    if not isinstance(value, Mapping) or not value:
+        raise TypeError(f"error_maps must be a non-empty dict name -> spec, got {value!r}")
+    out: dict[str, dict] = {}
+    for key, spec in value.items():
+        name = f"error_maps[{key!r}]"
+        check_name(f"{name} key", key)
+        if not isinstance(spec, Mapping) or "data" not in spec or "style" not in spec:
+            raise TypeError(f"{name} must be a dict with 'data' and 'style', got {spec!r}")
+        unknown = set(spec) - {"data", "style", "range", "primary"}
+        if unknown:
+            raise ValueError(
+                f"{name} has unknown keys {sorted(unknown)}; "
+                "valid keys: 'data', 'style', 'range', 'primary'"
+            )
+        style = spec["style"]
+        if style not in STYLES:
+            raise ValueError(f"{name}['style'] must be one of {sorted(STYLES)}, got {style!r}")
+        data = _check_array(f"{name}['data']", spec["data"])
+        if data.shape != shape:
+            raise ValueError(f"{name}['data'] must have shape {shape}, got {data.shape}")
+        rng = spec.get("range", STYLES[style])
+        if (
+            not isinstance(rng, list | tuple)
+            or len(rng) != 2
+            or not all(_is_number(v) and math.isfinite(v) for v in rng)
+            or not rng[0] < rng[1]
+        ):
+            raise ValueError(f"{name}['range'] must be [lo, hi] with lo < hi, got {rng!r}")
+        if style == "signed" and rng[0] != -rng[1]:
+            raise ValueError(f"{name}['range'] must be symmetric for style 'signed', got {rng!r}")
+        out[key] = {
+            "data": data.astype(np.float32, copy=False),
+            "style": style,
+            "range": [float(rng[0]), float(rng[1])],
+            "primary": bool(spec.get("primary", False)),
+        }
+    if sum(spec["primary"] for spec in out.values()) > 1:
+        raise ValueError("error_maps may mark at most one map as 'primary'")
+    if not any(spec["primary"] for spec in out.values()):
+        next(iter(out.values()))["primary"] = True
+    return out
+
+
+def check_metrics(name: str, value: object, *, allow_nonfinite: bool) -> dict[str, float | str]:
+    """Check a mapping ``str -> number``; return it with floats encoded by :func:`encode_float`."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"{name} must be a dict name -> number, got {type(value).__name__}")
+    out: dict[str, float | str] = {}
+    for key, v in value.items():
+        check_name(f"{name} key", key)
+        if not _is_number(v):
+            raise TypeError(f"{name}[{key!r}] must be a number, got {v!r}")
+        if not allow_nonfinite and not math.isfinite(v):
+            raise ValueError(f"{name}[{key!r}] must be finite, got {v!r}")
+        out[key] = encode_float(v)
+    return out
+
+
+def check_thresholds(value: object, *, metrics: Mapping[str, object]) -> dict[str, dict]:
+    """Check ``thresholds``: ``name -> max`` or ``name -> {"min": lo, "max": hi}``.
+
+    A bare number is the largest value that passes. Returns ``name -> {"min"?, "max"?}``.
+    """
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"thresholds must be a dict name -> number, got {type(value).__name__}")
+    out: dict[str, dict] = {}
+    for key, v in value.items():
+        name = f"thresholds[{key!r}]"
+        if key not in metrics:
+            raise ValueError(f"{name} names no metric; metrics are {sorted(metrics)}")
+        spec = {"max": v} if not isinstance(v, Mapping) else dict(v)
+        if not spec or set(spec) - {"min", "max"}:
+            raise ValueError(f"{name} must be a number or a dict with 'min'/'max', got {v!r}")
+        for bound, number in spec.items():
+            if not _is_number(number) or not math.isfinite(number):
+                raise ValueError(f"{name}[{bound!r}] must be a finite number, got {number!r}")
+            spec[bound] = float(number)
+        out[key] = spec
+    return out
+
+
+def check_cost(value: object) -> dict[str, int | float] | None:
+    """Check ``cost``: ``name -> finite number``; integers stay integers (bytes, counts)."""
+    if value is None:
+        return None
+    if not isinstance(value, Mapping):
+        raise TypeError(f"cost must be a dict name -> number or None, got {type(value).__name__}")
+    out: dict[str, int | float] = {}
+    for key, v in value.items():
+        check_name("cost key", key)
+        if not _is_number(v) or not math.isfinite(v):
+            raise ValueError(f"cost[{key!r}] must be a finite number, got {v!r}")
+        out[key] = int(v) if isinstance(v, int | np.integer) else float(v)
+    return out
+
+
+def to_jsonable(value: object, name: str) -> object:
+    """Convert a plain record (params, provenance) to JSON-compatible values.
+
+    numpy scalars become Python numbers, tuples and small arrays become lists, paths become
+    strings and non-finite floats become ``"nan"``/``"inf"``/``"-inf"``.
+    """
+    if value is None or isinstance(value, str | bool):
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return encode_float(value)
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    if isinstance(value, Mapping):
+        return {str(k): to_jsonable(v, f"{name}[{k!r}]") for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_jsonable(v, f"{name}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, np.ndarray) and value.size <= 64:
+        return to_jsonable(value.tolist(), name)
+    raise TypeError(
+        f"{name} must hold only str, number, bool, None, list or dict values, "
+        f"got {type(value).__name__}"
+    )
