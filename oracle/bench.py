@@ -114,3 +114,38 @@ def bench_oracle(
             "seconds": astats["wall_seconds"],
         },
     }
+
+
+def bench_models(
+    *, width: int = 1920, height: int = 1080, spp: int = 32, quiet: bool = True
+) -> dict:
+    """SDSM (4 partitions of 2048^2, PCF 3x3) against the oracle's 32-spp visibility."""
+    import raster_models
+    import scenes
+
+    from .reference import ReferenceSettings, render_reference
+
+    params = {"partitions": 4, "resolution": 2048, "filter": "pcf", "pcf_size": 3}
+    warm = scenes.load("city", width=64, height=36)
+    raster_models.run("sdsm", warm, **params)
+    render_reference(warm, ReferenceSettings(spp=spp, channels=("visibility",)), quiet=True)
+    loaded = scenes.load("city", width=width, height=height)
+    t0 = time.perf_counter()
+    res = raster_models.run("sdsm", loaded, **params)
+    model_s = time.perf_counter() - t0
+    _, stats = render_reference(
+        loaded, ReferenceSettings(spp=spp, channels=("visibility",)), quiet=quiet
+    )
+    return {
+        "scene": "city",
+        "resolution": [width, height],
+        "sdsm": {"params": params, "seconds": model_s, "cost": res.cost},
+        "oracle_visibility": {
+            "spp": spp,
+            "seconds": stats["wall_seconds"],
+            "rays": stats["rays_cast"],
+        },
+        "sdsm_over_oracle_ratio": model_s / stats["wall_seconds"],
+        "target": "<= 1.0",
+        "variant": backend.active().variant,
+    }

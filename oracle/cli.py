@@ -70,7 +70,11 @@ def _add_scene_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--frame", type=_nonneg_int, default=0, help="frame of the camera path")
     p.add_argument(
-        "--frames", type=_positive_int, default=8, help="frames in the camera path (default 8)"
+        "--frames",
+        type=_positive_int,
+        default=None,
+        help="frames in the camera path (default 8); for `score`: score that many frames of "
+        "the path (default dolly) and add the temporal metrics",
     )
 
 
@@ -140,6 +144,67 @@ def _parser() -> argparse.ArgumentParser:
     _add_scene_args(p)
     p.add_argument("--out", type=Path, required=True, help="output folder")
 
+    sub.add_parser("techniques", help="list the technique models with their parameters")
+
+    p = sub.add_parser("model", help="run a technique model: output.exr + model.json")
+    p.add_argument("technique", metavar="TECHNIQUE")
+    _add_scene_args(p)
+    p.add_argument(
+        "--set",
+        dest="params",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="technique parameter (repeatable)",
+    )
+    p.add_argument("--out", type=Path, default=Path("out/model"), help="output folder")
+
+    p = sub.add_parser("score", help="score a model or an engine image against the reference")
+    _add_scene_args(p)
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--technique", help="a technique model (see `techniques`)")
+    what.add_argument(
+        "--candidate",
+        help="an EXR or PNG from your engine; with --frames use "
+        "a pattern such as frame_{frame:03d}.exr",
+    )
+    p.add_argument(
+        "--set",
+        dest="params",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="technique parameter (repeatable)",
+    )
+    p.add_argument(
+        "--channel",
+        choices=["visibility", "color"],
+        default=None,
+        help="what the candidate holds (default: color; visibility for models)",
+    )
+    p.add_argument("--spp", type=_positive_int, default=64, help="reference spp (default 64)")
+    p.add_argument("--seed", type=_nonneg_int, default=0, help="reference seed (default 0)")
+    p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
+    p.add_argument(
+        "--ppd", type=_positive_float, default=None, help="FLIP pixels per degree (default 67.02)"
+    )
+    p.add_argument(
+        "--fail-above",
+        action="append",
+        default=[],
+        metavar="METRIC=VALUE",
+        help="exit 1 when METRIC exceeds VALUE (repeatable)",
+    )
+    p.add_argument("--cache-dir", type=Path, default=None)
+    p.add_argument("--no-cache", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out", type=Path, default=Path("out/score"), help="output folder")
+
+    p = sub.add_parser("report", help="combine score folders into one HTML report")
+    p.add_argument("folders", nargs="+", type=Path, metavar="DIR")
+    p.add_argument("--out", type=Path, required=True, help="the report.html to write")
+    p.add_argument("--title", default="raster-oracle report")
+
     p = sub.add_parser("main", help="the main job on the built-in default scenes")
     p.add_argument("--out", type=Path, default=Path("out"), help="output folder")
     p.add_argument("--spp", type=_positive_int, default=64)
@@ -148,7 +213,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
 
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
-    p.add_argument("what", choices=["oracle"], help="what to benchmark")
+    p.add_argument("what", choices=["oracle", "models"], help="what to benchmark")
     p.add_argument("--width", type=_positive_int, default=1920)
     p.add_argument("--height", type=_positive_int, default=1080)
     p.add_argument("--spp", type=_positive_int, default=32)
@@ -166,7 +231,7 @@ def _load_scene(args):
         light=args.light,
         camera_path=args.camera_path,
         frame=args.frame,
-        n_frames=args.frames,
+        n_frames=args.frames or 8,
     )
 
 
@@ -289,14 +354,53 @@ def cmd_main(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import bench_oracle
+    from .bench import bench_models, bench_oracle
 
-    print(
-        json.dumps(
-            bench_oracle(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet),
-            indent=2,
-        )
-    )
+    fn = bench_oracle if args.what == "oracle" else bench_models
+    figures = fn(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet)
+    print(json.dumps(figures, indent=2))
+    return 0
+
+
+def cmd_techniques(args) -> int:
+    import raster_models
+
+    for tech in raster_models.list_techniques():
+        print(f"{tech['name']}: {tech['description']}")
+        for prm in tech["params"]:
+            choices = f" {{{', '.join(map(str, prm['choices']))}}}" if prm.get("choices") else ""
+            print(f"  {prm['name']} = {prm['default']!r}{choices}  [{prm['source']}]")
+        print()
+    return 0
+
+
+def cmd_model(args) -> int:
+    from .modelrun import run_model_to_folder
+
+    _check_out(args.out)
+    loaded = _load_scene(args)
+    run_model_to_folder(args.technique, loaded, args.params, args.out)
+    print(f"model {args.technique}: {args.out / 'output.exr'}")
+    return 0
+
+
+def cmd_score(args) -> int:
+    from .scoring import score_command
+
+    _check_out(args.out)
+    failed = score_command(args, _load_scene(args), _cache(args))
+    print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
+    if failed:
+        print(f"raster-oracle: above threshold: {', '.join(failed)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .scoring import combine_reports
+
+    n = combine_reports(args.folders, args.out, title=args.title)
+    print(f"report of {n} case(s): {args.out}")
     return 0
 
 
@@ -307,33 +411,40 @@ COMMANDS = {
     "export": cmd_export,
     "main": cmd_main,
     "bench": cmd_bench,
+    "techniques": cmd_techniques,
+    "model": cmd_model,
+    "score": cmd_score,
+    "report": cmd_report,
 }
 
 
 def _known_errors() -> tuple[type[BaseException], ...]:
+    """Exceptions that mean bad input: reported in one line with exit code 2."""
+    from metrics import MetricError
     from scenes import SceneError
     from scenes.backend import BackendError
 
+    from .candidates import CandidateError
     from .exr import ExrError
     from .reference import ReferenceError_
+    from .score import ScoreError
 
-    errors: list[type[BaseException]] = [
+    errors = [
         CliError,
         SceneError,
         BackendError,
         ExrError,
         ReferenceError_,
+        ScoreError,
+        CandidateError,
+        MetricError,
     ]
-    for mod, name in (
-        ("raster_models", "ModelError"),
-        ("metrics", "MetricError"),
-        ("oracle.candidates", "CandidateError"),
-    ):
-        try:
-            module = __import__(mod, fromlist=[name])
-            errors.append(getattr(module, name))
-        except (ImportError, AttributeError):
-            pass
+    try:
+        from raster_models import ModelError
+
+        errors.append(ModelError)
+    except ImportError:  # the models package is optional for the reference commands
+        pass
     return tuple(errors)
 
 

@@ -85,6 +85,7 @@ Report record (``build_report``)
 
 from ._build import REPORT_SCHEMA, build_report, read_cases
 from ._case import CASE_SCHEMA, make_case
+from ._images import colorize
 from ._tradeoff import pareto_front
 from ._write import render_html, write_report
 
@@ -92,6 +93,7 @@ __all__ = [
     "CASE_SCHEMA",
     "REPORT_SCHEMA",
     "build_report",
+    "colorize",
     "make_case",
     "pareto_front",
     "read_cases",
