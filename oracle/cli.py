@@ -27,34 +27,26 @@ class _Parser(argparse.ArgumentParser):
         raise CliError(f"{where}{message}")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
-    return value
+def _number(kind: type, *, minimum: float, strict: bool):
+    """An argparse type: ``kind`` parsed from text, bounded below by ``minimum``."""
+    noun = "an integer" if kind is int else "a number"
+    relation = ">" if strict else ">="
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
+        if not (value > minimum if strict else value >= minimum):
+            raise argparse.ArgumentTypeError(f"must be {relation} {minimum:g}, got {value}")
+        return value
+
+    return parse
 
 
-def _nonneg_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
-    return value
+_positive_int = _number(int, minimum=0, strict=True)
+_nonneg_int = _number(int, minimum=0, strict=False)
+_positive_float = _number(float, minimum=0.0, strict=True)
 
 
 def _add_scene_args(p: argparse.ArgumentParser) -> None:
@@ -324,8 +316,7 @@ def cmd_export(args) -> int:
 def cmd_main(args) -> int:
     import scenes
 
-    from .pipeline import get_reference, publish
-    from .reference import ReferenceSettings
+    from .mainjob import run_main
 
     names = scenes.DEFAULT_SCENES
     if args.scenes:
@@ -337,19 +328,8 @@ def cmd_main(args) -> int:
                 f"{', '.join(scenes.BUILTIN_SCENES)}"
             )
     _check_out(args.out)
-    cache = _cache(args)
-    settings = ReferenceSettings(spp=args.spp).validate()
-    for name in names:
-        loaded = scenes.load(name)
-        ref = get_reference(loaded, settings, cache=cache, quiet=args.quiet)
-        folder = args.out / name
-        publish(ref, folder)
-        m = ref.meta
-        print(
-            f"{name:<7} {loaded.width}x{loaded.height} {settings.spp} spp "
-            f"({ref.cache_status}, {m['wall_seconds']:.1f} s, "
-            f"{m['mrays_per_second']:.1f} M rays/s): {folder / 'reference.exr'}"
-        )
+    report = run_main(names, args.out, spp=args.spp, cache=_cache(args), quiet=args.quiet)
+    print(f"report: {report.resolve()}")
     return 0
 
 

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from .exr import atomic_write_bytes, write_exr
+from .score import to_json
 
 __all__ = ["run_model_to_folder"]
 
@@ -26,21 +26,9 @@ def run_model_to_folder(technique: str, loaded, pairs: list[str], out: Path) -> 
         "wall_seconds": res.wall_seconds,
         "scene": loaded.provenance(),
     }
-    data = json.dumps(record, indent=2, default=_plain).encode()
+    data = to_json(record)
     channels = {k: np.asarray(v, dtype=np.float32) for k, v in res.outputs.items()}
     out.mkdir(parents=True, exist_ok=True)
     write_exr(out / "output.exr", channels)
     atomic_write_bytes(out / "model.json", data)
     return record
-
-
-def _plain(obj):
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.floating):
-        return float(obj)
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, tuple | set):
-        return list(obj)
-    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")

@@ -308,4 +308,6 @@ def _json_default(obj):
         return float(obj)
     if isinstance(obj, np.ndarray):
         return obj.tolist()
+    if isinstance(obj, tuple | set | frozenset):
+        return list(obj)
     raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")

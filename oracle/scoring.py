@@ -13,7 +13,7 @@ from .candidates import load_candidate
 from .score import ScoreError, parse_thresholds, score
 from .score_output import write_score_folder
 
-__all__ = ["combine_reports", "model_candidate", "score_command"]
+__all__ = ["combine_reports", "model_candidate", "score_command", "score_technique"]
 
 _FRAME_PATTERN = re.compile(r"\{frame(?::[^}]*)?\}")
 
@@ -28,6 +28,7 @@ def model_candidate(technique: str, params: dict):
             "frame": k,
             "technique": technique,
             "cost": res.cost,
+            "params": res.params,
             "diagnostics": res.diagnostics,
             "model_seconds": res.wall_seconds,
         }
@@ -100,9 +101,8 @@ def score_command(args, loaded, cache) -> list[str]:
         ppd=args.ppd or M.DEFAULT_PPD,
     )
     if args.technique:
-        infos = result.record["candidate_info"]
-        cost = infos[0]["cost"]
-        params = {**params, **_model_params(args.technique, params)}
+        info = result.record["candidate_info"][0]
+        cost, params = info["cost"], info["params"]
     return write_score_folder(
         result,
         args.out,
@@ -115,13 +115,40 @@ def score_command(args, loaded, cache) -> list[str]:
     )
 
 
-def _model_params(technique: str, params: dict) -> dict:
-    import raster_models
-
-    for tech in raster_models.list_techniques():
-        if tech["name"] == technique:
-            return {p["name"]: params.get(p["name"], p["default"]) for p in tech["params"]}
-    return {}
+def score_technique(
+    loaded,
+    technique: str,
+    params: dict,
+    *,
+    out: Path,
+    spp: int,
+    seed: int,
+    cache,
+    quiet: bool,
+    name: str | None = None,
+    thresholds: dict | None = None,
+) -> list[str]:
+    """Score one technique model on one scene frame into ``out`` (the main job's unit)."""
+    result = score(
+        loaded,
+        channel="visibility",
+        candidate_frames=model_candidate(technique, params),
+        spp=spp,
+        seed=seed,
+        cache=cache,
+        quiet=quiet,
+    )
+    info = result.record["candidate_info"][0]
+    return write_score_folder(
+        result,
+        out,
+        loaded=loaded,
+        name=name or technique,
+        thresholds=thresholds or {},
+        technique=technique,
+        params=info["params"],
+        cost=info["cost"],
+    )
 
 
 def combine_reports(folders: list[Path], out: Path, *, title: str) -> int:
