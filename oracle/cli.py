@@ -265,10 +265,12 @@ def cmd_doctor(args) -> int:
     except backend.BackendError as exc:
         info.update(variant=None, error=str(exc))
     info["libllvm_found"] = backend.find_libllvm()
+    info["cuda_device"] = backend.cuda_works()
     print(json.dumps(info, indent=2))
-    if info.get("variant") in (None, "scalar_rgb"):
+    if not (info["libllvm_found"] or info["cuda_device"]):
         print(
-            f"raster-oracle: no vectorized backend works; install one with: {backend.INSTALL_HINT}",
+            "raster-oracle: no vectorized backend works (no CUDA device, no libLLVM >= 16); "
+            f"install one with: {backend.INSTALL_HINT}",
             file=sys.stderr,
         )
         return 2

@@ -23,6 +23,7 @@ from pathlib import Path
 __all__ = [
     "BackendError",
     "BackendInfo",
+    "cuda_works",
     "INSTALL_HINT",
     "MIN_LLVM_VERSION",
     "VARIANTS",
@@ -104,7 +105,7 @@ def find_libllvm(
     return best[2] if best else None
 
 
-def _cuda_works() -> bool:
+def cuda_works() -> bool:
     """True when a CUDA driver and at least one device are present."""
     import ctypes
 
@@ -153,7 +154,7 @@ def select(requested: str | None = None, *, env: dict | None = None) -> BackendI
         )
     libllvm = find_libllvm(env=env)
     if requested == "auto":
-        if _cuda_works():
+        if cuda_works():
             variant, reason = "cuda_ad_rgb", "a CUDA device is present"
         elif libllvm:
             variant, reason = "llvm_ad_rgb", f"libLLVM found at {libllvm}"
@@ -172,7 +173,7 @@ def select(requested: str | None = None, *, env: dict | None = None) -> BackendI
                 "backend llvm_ad_rgb needs libLLVM >= 16 and none was found; "
                 f"install it with: {INSTALL_HINT}"
             )
-        if variant == "cuda_ad_rgb" and not _cuda_works():
+        if variant == "cuda_ad_rgb" and not cuda_works():
             raise BackendError("backend cuda_ad_rgb needs a working CUDA device; none found")
     if libllvm and variant != "cuda_ad_rgb":
         os.environ["DRJIT_LIBLLVM_PATH"] = libllvm

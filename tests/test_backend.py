@@ -77,3 +77,44 @@ def test_active_backend_is_vectorized_here(_backend):
     # The project's set-up installs libllvm19, so tests run on a vectorized variant.
     assert _backend.variant in ("llvm_ad_rgb", "cuda_ad_rgb")
     assert backend.select("auto") is _backend
+
+
+def test_doctor_exits_2_with_install_hint_without_a_vectorized_backend(tmp_path):
+    """In a child process whose library search finds no libLLVM >= 16 and no CUDA."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from scenes import backend\n"
+        "backend.DEFAULT_LIBRARY_DIRS = ()\n"
+        "backend.cuda_works = lambda: False\n"
+        "from oracle.cli import main\n"
+        "sys.exit(main(['--backend', 'scalar_rgb', 'doctor']))\n"
+    )
+    env = {k: v for k, v in __import__("os").environ.items() if k != "DRJIT_LIBLLVM_PATH"}
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert res.returncode == 2, res.stderr
+    assert "apt-get install -y libllvm19" in res.stderr
+    assert '"variant": "scalar_rgb"' in res.stdout
+
+
+def test_auto_without_llvm_falls_back_to_scalar_with_warning():
+    import subprocess
+    import sys
+
+    code = (
+        "import warnings, sys; from scenes import backend\n"
+        "backend.DEFAULT_LIBRARY_DIRS = ()\n"
+        "backend.cuda_works = lambda: False\n"
+        "with warnings.catch_warnings(record=True) as w:\n"
+        "    warnings.simplefilter('always')\n"
+        "    info = backend.select('auto', env={})\n"
+        "print(info.variant, any('slow scalar_rgb' in str(x.message) for x in w))\n"
+    )
+    env = {k: v for k, v in __import__("os").environ.items() if k != "DRJIT_LIBLLVM_PATH"}
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert res.stdout.split() == ["scalar_rgb", "True"], res.stderr
