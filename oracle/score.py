@@ -145,7 +145,6 @@ def _metrics_for(channel, ref_ch, cand, *, light, exposure, flip_mode, flip_rang
         out["delta_e2000_mean"] = de[0] if full else de
         if full:
             maps["delta_e2000"] = de[1]
-            maps["color_error"] = np.mean(cand - ref, axis=-1)
     if full:
         out["flip_mean"], maps["flip"] = fl[0], fl[1]
     else:
@@ -156,7 +155,9 @@ def _metrics_for(channel, ref_ch, cand, *, light, exposure, flip_mode, flip_rang
     out["significant_fraction"] = zt["significant_fraction"]
     if full:
         p = zt["p_value"]
-        maps["p_value"] = p if p.ndim == 2 else p.min(axis=-1)
+        p = p if p.ndim == 2 else p.min(axis=-1)
+        # -log10 p: 0 where the difference is pure noise, large where it is significant
+        maps["neg_log10_p"] = -np.log10(np.maximum(p, 1e-300))
     return {k: _finite(v) if k in METRIC_KEYS else v for k, v in out.items()}, maps, ref, rec
 
 

@@ -27,10 +27,9 @@ __all__ = ["MAP_STYLES", "write_score_folder"]
 MAP_STYLES = {
     "visibility_error": ("signed", (-1.0, 1.0)),
     "misclassified": ("signed", (-1.0, 1.0)),
-    "color_error": ("signed", (-0.25, 0.25)),
     "flip": ("magma", (0.0, 1.0)),
     "delta_e2000": ("magma", (0.0, 20.0)),
-    "p_value": ("magma", (0.0, 1.0)),
+    "neg_log10_p": ("magma", (0.0, 10.0)),
 }
 
 

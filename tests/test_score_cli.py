@@ -112,7 +112,7 @@ def test_color_candidate_metrics_and_files(tmp_path, refs):
         "delta_e2000.png",
     ):
         assert (out / name).is_file(), name
-    assert set(read_exr(out / "error_maps.exr")) >= {"flip", "delta_e2000", "p_value"}
+    assert set(read_exr(out / "error_maps.exr")) >= {"flip", "delta_e2000", "neg_log10_p"}
 
 
 def test_visibility_candidate_renders_only_needed_channels(tmp_path, refs):
