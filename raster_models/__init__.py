@@ -1,1 +1,40 @@
-"""raster-oracle: raster_models."""
+"""raster-oracle's technique models: real-time shadow techniques reproduced in NumPy.
+
+Each model samples the scene where the real technique samples (shadow-map texel centres from
+the light, pixel centres from the camera) with the same intersection engine as the oracle,
+and reconstructs the way the technique does: depth formats and their quantization, depth
+clamp, constant / slope-scaled / receiver-plane / normal-offset bias, point / PCF / Poisson /
+VSM / EVSM filters, cascade selection and blending.
+
+>>> import scenes, raster_models
+>>> s = scenes.load("city")                                            # doctest: +SKIP
+>>> r = raster_models.run("sdsm", s, partitions=4, resolution=2048,
+...                       filter="pcf", pcf_size=3)                    # doctest: +SKIP
+>>> r.outputs["visibility"].shape, r.cost["shadow_map_bytes"]          # doctest: +SKIP
+
+Layering: depends on :mod:`scenes` only.
+"""
+
+from ._engine import ModelResult
+from ._errors import ModelError
+from ._registry import TECHNIQUES, Technique, list_techniques, parse_params, run
+from .csm import CsmParams
+from .sdsm import SdsmParams
+from .shadow_map import ShadowMapParams
+
+#: Names of the output channels every model writes (``output.exr``).
+OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_error", "uncovered")
+
+__all__ = [
+    "OUTPUT_CHANNELS",
+    "TECHNIQUES",
+    "CsmParams",
+    "ModelError",
+    "ModelResult",
+    "SdsmParams",
+    "ShadowMapParams",
+    "Technique",
+    "list_techniques",
+    "parse_params",
+    "run",
+]

@@ -1,0 +1,79 @@
+"""Depth-buffer formats, their quantization, and depth bias as hardware and shaders apply it.
+
+Normalized depth ``d`` is in ``[0, 1]`` (D3D: 0 at the near plane). Stored values:
+
+- ``D16``, ``D24``: UNORM, ``round(d * (2^n - 1)) / (2^n - 1)`` after clamping to [0, 1];
+- ``D32F``: ``float32(d)``.
+
+Hardware depth bias (D3D11 rasterizer, applied to every fragment written to the map):
+``bias = DepthBias * r + SlopeScaledDepthBias * MaxDepthSlope``, clamped to
+``DepthBiasClamp`` when that is non-zero; ``r = 2^-n`` for an n-bit UNORM format and
+``2^(exponent(z) - 23)`` for D32F (exponent of the primitive's maximum depth; here of the
+texel's own depth, a per-texel stand-in for the primitive's maximum). ``MaxDepthSlope`` is
+``max(|dz/dx|, |dz/dy|)`` of the primitive in normalized depth per texel.
+
+Shader-side biases (constant, receiver-plane, normal offset) live in :mod:`_shade`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["FORMATS", "bytes_per_texel", "hardware_bias", "quantize", "quantum"]
+
+#: Format name -> (kind, bits).
+FORMATS = {"D16": ("unorm", 16), "D24": ("unorm", 24), "D32F": ("float", 32)}
+
+#: Largest MaxDepthSlope used when a surface is almost parallel to the light (the slope is
+#: then infinite in theory; a rasterizer never produces fragments of a zero-area triangle).
+MAX_DEPTH_SLOPE = 1e3
+
+
+def quantize(d: np.ndarray, fmt: str) -> np.ndarray:
+    """Stored depth of normalized depths ``d`` (float64 in, float64 out)."""
+    kind, bits = FORMATS[fmt]
+    d = np.asarray(d, dtype=np.float64)
+    if kind == "unorm":
+        scale = float((1 << bits) - 1)
+        return np.round(np.clip(d, 0.0, 1.0) * scale) / scale
+    return d.astype(np.float32).astype(np.float64)
+
+
+def quantum(fmt: str, d: np.ndarray | float = 1.0) -> np.ndarray | float:
+    """Spacing of representable depths near ``d`` (the UNORM step, or the float32 ulp)."""
+    kind, bits = FORMATS[fmt]
+    if kind == "unorm":
+        return 1.0 / float((1 << bits) - 1)
+    return np.spacing(np.asarray(d, dtype=np.float32)).astype(np.float64)
+
+
+def hardware_bias(
+    d: np.ndarray,
+    max_slope: np.ndarray | None,
+    fmt: str,
+    *,
+    depth_bias: int,
+    slope_scaled: float,
+    clamp: float,
+) -> np.ndarray:
+    """D3D11 rasterizer depth bias for fragments at normalized depth ``d``."""
+    kind, bits = FORMATS[fmt]
+    d = np.asarray(d, dtype=np.float64)
+    if kind == "unorm":
+        r = np.full_like(d, 2.0**-bits)
+    else:
+        safe = np.where(d > 0.0, d, 1.0)
+        r = np.where(d > 0.0, np.exp2(np.floor(np.log2(safe)) - 23.0), 2.0**-149)
+    bias = depth_bias * r
+    if slope_scaled != 0.0 and max_slope is not None:
+        bias = bias + slope_scaled * np.minimum(max_slope, MAX_DEPTH_SLOPE)
+    if clamp > 0.0:
+        bias = np.minimum(bias, clamp)
+    elif clamp < 0.0:
+        bias = np.maximum(bias, clamp)
+    return bias
+
+
+def bytes_per_texel(fmt: str) -> int:
+    """Bytes of one depth texel (D24 is stored as D24S8, 4 bytes)."""
+    return {"D16": 2, "D24": 4, "D32F": 4}[fmt]

@@ -1,0 +1,319 @@
+"""Shadow-map filters, vectorized over receivers: depth compare (point, PCF) and moments.
+
+Texture conventions: a map is ``(R, R)`` (row ``j``, column ``i``); texel ``(i, j)`` covers
+``u in [i, i+1)/R``, ``v in [j, j+1)/R``; its centre is ``((i + 0.5)/R, (j + 0.5)/R)``.
+A compare returns 1 (lit) when ``reference <= stored`` (D3D ``COMPARISON_LESS_EQUAL``, the
+Intel SDSM and Falcor samplers); the reference is clamped to [0, 1] first.
+
+Address modes: ``clamp`` repeats the edge texels (D3D ``ADDRESS_CLAMP``: Intel sample, MJP);
+``border`` returns stored depth 1, i.e. lit (Falcor's border colour 1).
+
+- ``point``: nearest texel.
+- ``hw_pcf``: D3D11 ``SampleCmp`` with a linear comparison filter: the 4 texels around the
+  sample are compared, then the results are interpolated bilinearly; the weights have the
+  hardware's ``subtexel_bits`` of sub-texel precision (D3D11 requires 8).
+- ``pcf``: ``N x N`` hardware-PCF taps spaced one texel apart, centred on the sample (a box of
+  bilinear taps: support ``N + 1`` texels; ``N^2`` lookups).
+- ``poisson``: ``taps`` hardware-PCF taps on a fixed Poisson disc of diameter ``filter_size``
+  texels (MJP's "random disc PCF"), optionally rotated per pixel by a seeded random angle.
+- ``vsm``, ``evsm2``, ``evsm4``: moments of the stored depth (optionally exponentially warped,
+  MJP's ``WarpDepth``), box-blurred, sampled bilinearly and turned into visibility by the
+  one-tailed Chebyshev bound with a minimum variance and light-bleeding reduction.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from scipy import ndimage
+
+__all__ = [
+    "FILTERS",
+    "MOMENT_FILTERS",
+    "blur_moments",
+    "chebyshev",
+    "compare_bilinear",
+    "compare_point",
+    "evsm_exponents",
+    "lookups_per_pixel",
+    "moment_lookup",
+    "moments_from_depth",
+    "pcf_grid",
+    "pcf_poisson",
+    "poisson_disc",
+]
+
+FILTERS = ("point", "hw_pcf", "pcf", "poisson", "vsm", "evsm2", "evsm4")
+MOMENT_FILTERS = ("vsm", "evsm2", "evsm4")
+
+#: Largest EVSM exponent that does not overflow the moment format (MJP, Intel).
+EVSM_MAX_EXPONENT = {"float32": 42.0, "float16": 5.54}
+
+
+def _fetch(depth_map: np.ndarray, ix: np.ndarray, iy: np.ndarray, address: str) -> np.ndarray:
+    r = depth_map.shape[0]
+    flat = depth_map.reshape(-1)
+    if address == "border":
+        inside = (ix >= 0) & (ix < r) & (iy >= 0) & (iy < r)
+        vals = flat.take(np.clip(iy, 0, r - 1) * r + np.clip(ix, 0, r - 1))
+        return np.where(inside, vals, 1.0)
+    return flat.take(np.clip(iy, 0, r - 1) * r + np.clip(ix, 0, r - 1))
+
+
+def compare_point(depth_map, u, v, ref, *, address: str = "clamp") -> np.ndarray:
+    """Nearest-texel depth compare: 1.0 where lit, 0.0 where shadowed."""
+    r = depth_map.shape[0]
+    ix = np.floor(np.asarray(u) * r).astype(np.int64)
+    iy = np.floor(np.asarray(v) * r).astype(np.int64)
+    stored = _fetch(depth_map, ix, iy, address)
+    return (np.clip(ref, 0.0, 1.0) <= stored).astype(np.float64)
+
+
+def _subtexel(frac: np.ndarray, bits: int) -> np.ndarray:
+    if bits <= 0:
+        return frac
+    scale = float(1 << bits)
+    return np.round(frac * scale) / scale
+
+
+def compare_bilinear(
+    depth_map, u, v, ref, *, address: str = "clamp", subtexel_bits: int = 8
+) -> np.ndarray:
+    """Hardware 2x2 PCF (compare four texels, then bilinear weights)."""
+    r = depth_map.shape[0]
+    x = np.asarray(u) * r - 0.5
+    y = np.asarray(v) * r - 0.5
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = _subtexel(x - x0, subtexel_bits)
+    fy = _subtexel(y - y0, subtexel_bits)
+    ix = x0.astype(np.int64)
+    iy = y0.astype(np.int64)
+    refc = np.clip(ref, 0.0, 1.0)
+    c00 = refc <= _fetch(depth_map, ix, iy, address)
+    c10 = refc <= _fetch(depth_map, ix + 1, iy, address)
+    c01 = refc <= _fetch(depth_map, ix, iy + 1, address)
+    c11 = refc <= _fetch(depth_map, ix + 1, iy + 1, address)
+    top = c00 * (1.0 - fx) + c10 * fx
+    bottom = c01 * (1.0 - fx) + c11 * fx
+    return top * (1.0 - fy) + bottom * fy
+
+
+def _tap_ref(ref, du, dv, plane):
+    if plane is None:
+        return ref
+    return ref + du * plane[0] + dv * plane[1]
+
+
+def pcf_grid(
+    depth_map, u, v, ref, size: int, *, address="clamp", subtexel_bits=8, plane=None
+) -> np.ndarray:
+    """``size x size`` hardware-PCF taps one texel apart (``plane``: receiver-plane slopes
+    ``(dz/du, dz/dv)`` applied per tap).
+
+    All taps share the same sub-texel position, so without a receiver plane the kernel is
+    evaluated exactly on its ``(size + 1)^2`` texel footprint with separable tent weights
+    (each texel compared once) instead of ``4 size^2`` fetches.
+    """
+    r = depth_map.shape[0]
+    if plane is not None:
+        offsets = (np.arange(size) - (size - 1) / 2.0) / r
+        acc = np.zeros(np.shape(u), dtype=np.float64)
+        for oy in offsets:
+            for ox in offsets:
+                acc += compare_bilinear(
+                    depth_map,
+                    u + ox,
+                    v + oy,
+                    _tap_ref(ref, ox, oy, plane),
+                    address=address,
+                    subtexel_bits=subtexel_bits,
+                )
+        return acc / float(size * size)
+    half = (size - 1) / 2.0
+    # First tap centre, in texel units with texel centres at integers.
+    x = np.asarray(u) * r - 0.5 - half
+    y = np.asarray(v) * r - 0.5 - half
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = _subtexel(x - x0, subtexel_bits)
+    fy = _subtexel(y - y0, subtexel_bits)
+    ix0 = x0.astype(np.int64)
+    iy0 = y0.astype(np.int64)
+    refc = np.clip(ref, 0.0, 1.0)
+
+    def weights(f, m):
+        # Footprint texel m in 0..size gets (1 - f) from tap m and f from tap m - 1.
+        w = np.zeros_like(f)
+        if m < size:
+            w = w + (1.0 - f)
+        if m > 0:
+            w = w + f
+        return w
+
+    wx = [weights(fx, m) for m in range(size + 1)]
+    acc = np.zeros(np.shape(u), dtype=np.float64)
+    for my in range(size + 1):
+        wy = weights(fy, my)
+        row = np.zeros_like(acc)
+        for mx in range(size + 1):
+            lit = refc <= _fetch(depth_map, ix0 + mx, iy0 + my, address)
+            row += wx[mx] * lit
+        acc += wy * row
+    return acc / float(size * size)
+
+
+@lru_cache(maxsize=16)
+def poisson_disc(taps: int, seed: int = 0) -> np.ndarray:
+    """``taps`` points in the unit disc with a large minimum distance (seeded dart throwing).
+
+    Deterministic for a given ``(taps, seed)``; ``(taps, 2)`` float64, radius <= 1.
+    """
+    rng = np.random.default_rng(seed + 7919 * taps)
+    cand = rng.uniform(-1.0, 1.0, size=(20000, 2))
+    cand = cand[np.einsum("ij,ij->i", cand, cand) <= 1.0]
+    radius = 2.0 / np.sqrt(taps)
+    while True:
+        pts = [cand[0]]
+        for c in cand[1:]:
+            if np.min(np.sum((np.asarray(pts) - c) ** 2, axis=1)) >= radius * radius:
+                pts.append(c)
+                if len(pts) == taps:
+                    return np.asarray(pts)
+        radius *= 0.9
+
+
+def pcf_poisson(
+    depth_map,
+    u,
+    v,
+    ref,
+    *,
+    taps: int,
+    diameter: float,
+    rotation: np.ndarray | None = None,
+    address="clamp",
+    subtexel_bits=8,
+    plane=None,
+    seed: int = 0,
+) -> np.ndarray:
+    """Poisson-disc PCF: ``taps`` hardware-PCF taps in a disc of ``diameter`` texels."""
+    r = depth_map.shape[0]
+    disc = poisson_disc(int(taps), int(seed)) * (0.5 * diameter / r)
+    acc = np.zeros(np.shape(u), dtype=np.float64)
+    if rotation is not None:
+        c, s = np.cos(rotation), np.sin(rotation)
+    for ox, oy in disc:
+        if rotation is not None:
+            dx, dy = c * ox - s * oy, s * ox + c * oy
+        else:
+            dx, dy = ox, oy
+        acc += compare_bilinear(
+            depth_map,
+            u + dx,
+            v + dy,
+            _tap_ref(ref, dx, dy, plane),
+            address=address,
+            subtexel_bits=subtexel_bits,
+        )
+    return acc / float(len(disc))
+
+
+# ---------------------------------------------------------------------- moment filters
+def evsm_exponents(positive: float, negative: float, fmt: str, scale: float = 1.0):
+    """Exponents actually used: ``min(c * scale, max)`` with the format's overflow limit."""
+    cap = EVSM_MAX_EXPONENT[fmt]
+    return min(positive * scale, cap), min(negative * scale, cap)
+
+
+def _warp(d: np.ndarray, exponents) -> tuple[np.ndarray, np.ndarray]:
+    d = 2.0 * d - 1.0
+    return np.exp(exponents[0] * d), -np.exp(-exponents[1] * d)
+
+
+def moments_from_depth(depth_map: np.ndarray, kind: str, exponents=(0.0, 0.0)) -> np.ndarray:
+    """``(R, R, C)`` float64 moments: VSM ``(d, d^2)``, EVSM2 ``(p, p^2)``, EVSM4 adds
+    ``(n, n^2)`` of the negative warp."""
+    d = np.asarray(depth_map, dtype=np.float64)
+    if kind == "vsm":
+        return np.stack([d, d * d], axis=-1)
+    pos, neg = _warp(d, exponents)
+    if kind == "evsm2":
+        return np.stack([pos, pos * pos], axis=-1)
+    return np.stack([pos, pos * pos, neg, neg * neg], axis=-1)
+
+
+def blur_moments(moments: np.ndarray, size: int, fmt: str) -> np.ndarray:
+    """Separable box blur of ``size`` texels (clamp to edge), stored in ``fmt``."""
+    store = np.float16 if fmt == "float16" else np.float32
+    m = moments.astype(store).astype(np.float64)
+    if size > 1:
+        m = ndimage.uniform_filter1d(m, size, axis=0, mode="nearest")
+        m = m.astype(store).astype(np.float64)
+        m = ndimage.uniform_filter1d(m, size, axis=1, mode="nearest")
+    return m.astype(store)
+
+
+def _bilinear(tex: np.ndarray, u, v, subtexel_bits: int) -> np.ndarray:
+    """Bilinear sample of an ``(R, R, C)`` texture with clamp addressing -> ``(N, C)``."""
+    r = tex.shape[0]
+    x = np.asarray(u) * r - 0.5
+    y = np.asarray(v) * r - 0.5
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = _subtexel(x - x0, subtexel_bits)[:, None]
+    fy = _subtexel(y - y0, subtexel_bits)[:, None]
+    ix0 = np.clip(x0.astype(np.int64), 0, r - 1)
+    iy0 = np.clip(y0.astype(np.int64), 0, r - 1)
+    ix1 = np.clip(x0.astype(np.int64) + 1, 0, r - 1)
+    iy1 = np.clip(y0.astype(np.int64) + 1, 0, r - 1)
+    t = tex
+    top = t[iy0, ix0].astype(np.float64) * (1 - fx) + t[iy0, ix1].astype(np.float64) * fx
+    bot = t[iy1, ix0].astype(np.float64) * (1 - fx) + t[iy1, ix1].astype(np.float64) * fx
+    return top * (1 - fy) + bot * fy
+
+
+def chebyshev(m1, m2, mean, min_variance, bleed_reduction) -> np.ndarray:
+    """One-tailed Chebyshev upper bound with light-bleeding reduction (MJP's form)."""
+    variance = np.maximum(m2 - m1 * m1, min_variance)
+    d = mean - m1
+    p = variance / (variance + d * d)
+    if bleed_reduction > 0.0:
+        p = np.clip((p - bleed_reduction) / (1.0 - bleed_reduction), 0.0, 1.0)
+    return np.where(mean <= m1, 1.0, p)
+
+
+def moment_lookup(
+    moments: np.ndarray,
+    u,
+    v,
+    depth,
+    kind: str,
+    *,
+    exponents=(0.0, 0.0),
+    min_variance: float,
+    bleed_reduction: float,
+    subtexel_bits: int = 8,
+) -> np.ndarray:
+    """Visibility from a moment map at receiver depths ``depth`` (normalized, clamped)."""
+    s = _bilinear(moments, u, v, subtexel_bits)
+    d = np.clip(np.asarray(depth, dtype=np.float64), 0.0, 1.0)
+    if kind == "vsm":
+        return chebyshev(s[:, 0], s[:, 1], d, min_variance, bleed_reduction)
+    pos, neg = _warp(d, exponents)
+    mv_pos = (min_variance * exponents[0] * pos) ** 2
+    vis = chebyshev(s[:, 0], s[:, 1], pos, mv_pos, bleed_reduction)
+    if kind == "evsm4":
+        mv_neg = (min_variance * exponents[1] * neg) ** 2
+        vis = np.minimum(vis, chebyshev(s[:, 2], s[:, 3], neg, mv_neg, bleed_reduction))
+    return vis
+
+
+def lookups_per_pixel(kind: str, *, pcf_size: int = 3, taps: int = 16) -> int:
+    """Texture sample instructions one shadow lookup issues."""
+    if kind == "pcf":
+        return int(pcf_size) ** 2
+    if kind == "poisson":
+        return int(taps)
+    return 1

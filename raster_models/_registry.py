@@ -1,0 +1,135 @@
+"""The technique registry and the one dispatch function, :func:`run`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import _params, csm, sdsm, shadow_map
+from ._errors import ModelError
+
+__all__ = ["TECHNIQUES", "Technique", "list_techniques", "parse_params", "run"]
+
+
+@dataclass(frozen=True)
+class Technique:
+    """A registered technique: its parameter dataclass and entry point."""
+
+    name: str
+    description: str
+    references: tuple[str, ...]
+    params: type
+    runner: object
+    lights: tuple[str, ...]
+
+
+TECHNIQUES: dict[str, Technique] = {
+    t.name: t
+    for t in (
+        Technique(
+            "shadow-map",
+            "one shadow map (six cube faces for a point light) fit to the scene bounds or "
+            "the view frustum; orthographic for directional, perspective for spot lights",
+            (
+                "L. Williams, Casting curved shadows on curved surfaces, SIGGRAPH 1978, "
+                "doi:10.1145/965139.807402",
+                "D. Scherzer, M. Wimmer, W. Purgathofer, A Survey of Real-Time Hard Shadow "
+                "Mapping Methods, CGF 30(1) 2011, doi:10.1111/j.1467-8659.2010.01841.x",
+            ),
+            shadow_map.ShadowMapParams,
+            shadow_map.run,
+            ("directional", "spot", "point"),
+        ),
+        Technique(
+            "csm",
+            "cascaded shadow maps: uniform/log/practical/manual splits, frustum-slice or "
+            "stable (sphere, texel-snapped) fits, selection by depth or projection, blend band",
+            (
+                "F. Zhang, H. Sun, L. Xu, L. K. Lun, Parallel-Split Shadow Maps for Large-scale "
+                "Virtual Environments, VRCIA 2006, doi:10.1145/1128923.1128975",
+                "W. Engel, Cascaded Shadow Maps, ShaderX5, 2006",
+                "M. Pettineo, TheRealMJP/Shadows (A Sampling of Shadow Techniques), 2013",
+                "NVIDIA Falcor, CSM render pass",
+            ),
+            csm.CsmParams,
+            csm.run,
+            ("directional",),
+        ),
+        Technique(
+            "sdsm",
+            "sample distribution shadow maps: min/max depth reduction, log/histogram/"
+            "adaptive-log/K-means partitions, tight light-space bounds; current-frame depth "
+            "or a CPU readback k frames late",
+            (
+                "A. Lauritzen, M. Salvi, A. Lefohn, Sample Distribution Shadow Maps, I3D 2011, "
+                "doi:10.1145/1944745.1944761",
+                "Intel Corporation, Sample Distribution Shadow Maps DX11 sample",
+            ),
+            sdsm.SdsmParams,
+            sdsm.run,
+            ("directional",),
+        ),
+    )
+}
+
+
+def _technique(name: str) -> Technique:
+    if name not in TECHNIQUES:
+        raise ModelError(f"unknown technique {name!r}; choose one of {', '.join(TECHNIQUES)}")
+    return TECHNIQUES[name]
+
+
+def list_techniques() -> list[dict]:
+    """Every technique with its description, references and parameter records.
+
+    Each parameter record: ``name``, ``default``, ``type`` (bool, int, float, str, floats),
+    ``choices`` (or None), ``range`` (``[lo, hi]`` or None), ``source`` and ``help``.
+    """
+    return [
+        {
+            "name": t.name,
+            "description": t.description,
+            "references": list(t.references),
+            "lights": list(t.lights),
+            "params": _params.describe(t.params),
+        }
+        for t in TECHNIQUES.values()
+    ]
+
+
+def parse_params(technique: str, pairs: list[str]) -> dict:
+    """Typed, validated values from ``"key=value"`` strings (for ``--set``).
+
+    Raises
+    ------
+    ModelError
+        Unknown technique (lists them), unknown parameter (lists the valid ones), or a value
+        of the wrong type, range or choice (says what was expected).
+    """
+    t = _technique(technique)
+    return _params.parse_pairs(t.name, t.params, list(pairs))
+
+
+def run(technique: str, scene, **params):
+    """Run a technique on a loaded scene (its current camera frame and light).
+
+    Parameters
+    ----------
+    technique : a name of :data:`TECHNIQUES`.
+    scene : :class:`scenes.LoadedScene`.
+    **params : parameter values (Python types; see :func:`list_techniques`).
+
+    Returns
+    -------
+    ModelResult
+        ``outputs`` (``visibility``, ``cascade``, ``texels_per_pixel``, ``resolution_error``,
+        ``uncovered``: ``(H, W)`` float32), ``cost``, ``diagnostics``, ``params``,
+        ``wall_seconds``.
+    """
+    t = _technique(technique)
+    p = _params.make(t.name, t.params, params)
+    if scene.light.kind not in t.lights:
+        raise ModelError(
+            f"{t.name} needs a {' or '.join(t.lights)} light; the scene's light is a "
+            f"{scene.light.kind} light (use shadow-map)"
+        )
+    return t.runner(scene, p)

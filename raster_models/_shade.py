@@ -1,0 +1,293 @@
+"""Shading a G-buffer with rendered maps: map selection, shader biases, filters, cascade
+blending, and the diagnostic images.
+
+Outputs (all ``(H, W)`` float32, row 0 at the top):
+
+- ``visibility``: 1 = lit. Sky is 1; valid pixels facing away from the light (N.L <= 0) or
+  outside a spot light's cone are 0, as in the oracle's definition of visibility.
+- ``cascade``: index of the partition a pixel looks up (cube face for point lights), -1 for
+  sky and for pixels in no partition.
+- ``texels_per_pixel``: shadow-map texels per screen pixel along the worst-sampled screen
+  direction: the smallest singular value of the Jacobian ``J = d(texel) / d(pixel)`` of the
+  selected map; its inverse is the texel-to-pixel ratio of the aliasing literature. 0 where
+  no map is selected.
+- ``resolution_error``: the Intel SDSM sample's metric, ``max(0, -log2(sqrt(fw_u fw_v)))``
+  with ``fw = max(|J dx|, |J dy|)`` per texel axis (0 = at least one texel per pixel).
+- ``uncovered``: 1 on receivers whose selected map does not contain them (outside its
+  texture, an empty partition, or outside every partition's depth range).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _filters
+from ._types import MapData, Setup
+
+__all__ = ["shade"]
+
+
+def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
+    """Partition index per pixel of ``idx`` (-1: none)."""
+    parts = setup.partitions
+    k = len(parts)
+    z = gbuf.depth[idx]
+    if setup.selection == "single":
+        return np.zeros(len(idx), dtype=np.int64)
+    if setup.selection == "depth":
+        ends = np.array([p.z_end for p in parts[:-1]])
+        sel = np.sum(z[:, None] >= ends[None, :], axis=1).astype(np.int64)
+        if setup.outside == "discard":
+            outside = (z < parts[0].z_begin) | (z >= parts[-1].z_end)
+            sel[outside] = -1
+        return sel
+    if setup.selection == "cube":
+        # The face of the lookup direction, normal offset included (a cube-map fetch is
+        # seamless: the offset may carry a lookup onto the neighbouring face).
+        proj0 = parts[0].projection
+        d = gbuf.position[idx] - proj0.frame.origin
+        if params.normal_offset > 0.0:
+            texel = 2.0 * float(proj0.extent[0]) * np.max(np.abs(d), axis=1) / proj0.resolution
+            n_dot_l = np.clip(gbuf.cos_l[idx], 0.0, 1.0)
+            scale = params.normal_offset * texel * (1.0 - n_dot_l)
+            d = d + gbuf.normal[idx] * scale[:, None]
+        axis = np.argmax(np.abs(d), axis=1)
+        sign = np.take_along_axis(d, axis[:, None], axis=1)[:, 0] < 0
+        return (2 * axis + sign).astype(np.int64)
+    # projection: first map whose texture contains the pixel
+    sel = np.full(len(idx), -1, dtype=np.int64)
+    pos = gbuf.position[idx]
+    for i in range(k - 1, -1, -1):
+        proj = parts[i].projection
+        if proj is None:
+            continue
+        u, v, _, w = proj.project(pos)
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0)
+        sel[inside] = i
+    return sel
+
+
+def _receiver_plane(j3: np.ndarray):
+    """MJP's ComputeReceiverPlaneDepthBias: (dz/du, dz/dv) from the (u, v, z) derivatives."""
+    dx, dy = j3[:, :, 0], j3[:, :, 1]
+    det = dx[:, 0] * dy[:, 1] - dx[:, 1] * dy[:, 0]
+    ok = np.abs(det) > 1e-30
+    safe = np.where(ok, det, 1.0)
+    bu = (dy[:, 1] * dx[:, 2] - dx[:, 1] * dy[:, 2]) / safe
+    bv = (dx[:, 0] * dy[:, 2] - dy[:, 0] * dx[:, 2]) / safe
+    bu = np.where(ok & np.isfinite(bu), bu, 0.0)
+    bv = np.where(ok & np.isfinite(bv), bv, 0.0)
+    return bu, bv
+
+
+def _lookup(params, data: MapData, u, v, z, plane, rotation) -> np.ndarray:
+    """Visibility of receivers from one map (the filter of ``params``)."""
+    kind = params.filter
+    if kind in _filters.MOMENT_FILTERS:
+        return _filters.moment_lookup(
+            data.moments,
+            u,
+            v,
+            z,
+            kind,
+            exponents=data.exponents,
+            min_variance=params.vsm_bias,
+            bleed_reduction=params.light_bleeding_reduction,
+            subtexel_bits=params.subtexel_bits,
+        )
+    r = data.depth.shape[0]
+    if params.receiver_plane_bias:
+        frac = np.minimum((np.abs(plane[0]) + np.abs(plane[1])) / r, 0.01)
+        ref = z - frac
+    else:
+        ref = z - params.bias
+        plane = None
+    common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
+    if kind == "point":
+        return _filters.compare_point(data.depth, u, v, ref, address=params.address_mode)
+    if kind == "hw_pcf":
+        return _filters.compare_bilinear(data.depth, u, v, ref, **common)
+    if kind == "pcf":
+        return _filters.pcf_grid(data.depth, u, v, ref, params.pcf_size, plane=plane, **common)
+    return _filters.pcf_poisson(
+        data.depth,
+        u,
+        v,
+        ref,
+        taps=params.poisson_taps,
+        diameter=params.filter_size,
+        rotation=rotation,
+        plane=plane,
+        seed=params.seed,
+        **common,
+    )
+
+
+def _singular_min(ju, jv):
+    """Smallest singular value of the 2x2 Jacobians with rows ``ju``, ``jv`` (N, 2)."""
+    a, b = ju[:, 0], ju[:, 1]
+    c, d = jv[:, 0], jv[:, 1]
+    fro = a * a + b * b + c * c + d * d
+    det = np.abs(a * d - b * c)
+    smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(smax > 0, det / smax, 0.0)
+
+
+def _partition_geometry(params, part, gbuf, pix):
+    """Shadow coordinates (with the normal offset) and Jacobian for pixels ``pix``."""
+    proj = part.projection
+    pos = gbuf.position[pix]
+    u, v, z, w = proj.project(pos)
+    if params.normal_offset > 0.0:
+        texel = np.broadcast_to(np.asarray(proj.texel_world_size(w), dtype=np.float64), u.shape)
+        n_dot_l = np.clip(gbuf.cos_l[pix], 0.0, 1.0)
+        scale = params.normal_offset * texel * (1.0 - n_dot_l)
+        u, v, z, w = proj.project(pos + gbuf.normal[pix] * scale[:, None])
+    dpdx, dpdy = gbuf.dpdx[pix], gbuf.dpdy[pix]
+    m = proj.matrix
+    if proj.kind == "ortho":
+        # Affine map: d(u, v, z)/dP is the matrix itself.
+        j3 = np.stack([dpdx @ m[:3, :3].T, dpdy @ m[:3, :3].T], axis=-1)
+    else:
+        # d(q / w) = (dq - (q / w) dw) / w for homogeneous q = M P.
+        t = np.stack([u, v, z], axis=-1)
+        cols = []
+        for dp in (dpdx, dpdy):
+            dq = dp @ m[:3, :3].T
+            dw = dp @ m[3, :3]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                cols.append((dq - t * dw[:, None]) / w[:, None])
+        j3 = np.stack(cols, axis=-1)  # (N, 3, 2): rows u, v, z; columns x, y
+    res = proj.resolution
+    with np.errstate(invalid="ignore"):
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & np.isfinite(u + v)
+    return {
+        "u": np.where(np.isfinite(u), u, 0.0),
+        "v": np.where(np.isfinite(v), v, 0.0),
+        "z": np.where(np.isfinite(z), z, 1.0),
+        "j3": j3,
+        "ju": j3[:, 0, :] * res,
+        "jv": j3[:, 1, :] * res,
+        "inside": inside,
+    }
+
+
+def _lookup_subset(params, data, geo, mask, rotation):
+    """Visibility of the pixels ``mask`` of a :func:`_partition_geometry` record."""
+    plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
+    return _lookup(params, data, geo["u"][mask], geo["v"][mask], geo["z"][mask], plane, rotation)
+
+
+def _smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
+    """Outputs (see module docstring) and per-partition statistics."""
+    n = gbuf.size
+    vis = np.ones(n)
+    cascade = np.full(n, -1.0)
+    tpp = np.zeros(n)
+    err = np.zeros(n)
+    uncovered = np.zeros(n)
+    lookups = np.zeros(n)
+    valid_idx = np.nonzero(gbuf.valid)[0]
+    vis[valid_idx] = 0.0
+    sel = _select(setup, gbuf, valid_idx, params) if len(valid_idx) else np.zeros(0, np.int64)
+    cascade[valid_idx] = sel
+    receiver = gbuf.receiver
+    rotation_all = None
+    if params.filter == "poisson" and params.poisson_rotate:
+        rng = np.random.default_rng(params.seed)
+        rotation_all = rng.uniform(0.0, 2.0 * np.pi, n)
+    per_lookup = _filters.lookups_per_pixel(
+        params.filter, pcf_size=params.pcf_size, taps=params.poisson_taps
+    )
+    stats = []
+    k = len(setup.partitions)
+    for i, part in enumerate(setup.partitions):
+        pix = valid_idx[sel == i]
+        rec = pix[receiver[pix]]
+        st = {"index": i, "pixels": int(len(pix)), "receivers": int(len(rec))}
+        if part.projection is None:
+            uncovered[rec] = 1.0
+            vis[rec] = 0.0 if setup.outside == "discard" else 1.0
+            st.update(empty=True, uncovered=int(len(rec)))
+            stats.append(st)
+            continue
+        data = maps[i]
+        geo = _partition_geometry(params, part, gbuf, pix)
+        smin = _singular_min(geo["ju"], geo["jv"])
+        fw_u = np.maximum(np.abs(geo["ju"][:, 0]), np.abs(geo["ju"][:, 1]))
+        fw_v = np.maximum(np.abs(geo["jv"][:, 0]), np.abs(geo["jv"][:, 1]))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lod = np.log2(np.sqrt(fw_u * fw_v))
+        e = np.where(np.isfinite(lod), np.maximum(-lod, 0.0), 0.0)
+        tpp[pix] = np.where(np.isfinite(smin), smin, 0.0)
+        err[pix] = e
+        rmask = receiver[pix]
+        if len(rec) and data is not None:
+            rot = rotation_all[rec] if rotation_all is not None else None
+            vis[rec] = _lookup_subset(params, data, geo, rmask, rot)
+            uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
+            lookups[rec] = per_lookup
+        st.update(
+            empty=False,
+            uncovered=int(uncovered[rec].sum()) if len(rec) else 0,
+            texels_per_pixel_min=float(tpp[pix][rmask].min()) if rmask.any() else None,
+            texels_per_pixel_mean=float(tpp[pix][rmask].mean()) if rmask.any() else None,
+            resolution_error_mean=float(e[rmask].mean()) if rmask.any() else None,
+            texels_covered=int(data.texels_covered) if data is not None else 0,
+        )
+        stats.append(st)
+    # Outside every depth range (Intel: the lighting pass discards the pixel).
+    none = valid_idx[sel < 0]
+    rec_none = none[receiver[none]]
+    uncovered[rec_none] = 1.0
+    vis[rec_none] = 0.0 if setup.outside == "discard" else 1.0
+    # Blend band between consecutive cascades (MJP FilterAcrossCascades).
+    blended = 0
+    if setup.blend_band > 0.0 and setup.selection == "depth" and k > 1:
+        for i in range(k - 1):
+            part, nxt = setup.partitions[i], setup.partitions[i + 1]
+            if part.projection is None or nxt.projection is None or maps[i + 1] is None:
+                continue
+            rec = valid_idx[(sel == i) & receiver[valid_idx]]
+            z = gbuf.depth[rec]
+            start = 0.0 if i == 0 else setup.partitions[i - 1].z_end
+            size = part.z_end - start
+            split_dist = (part.z_end - z) / size
+            band = rec[split_dist <= setup.blend_band]
+            if len(band) == 0:
+                continue
+            rot = rotation_all[band] if rotation_all is not None else None
+            geo = _partition_geometry(params, nxt, gbuf, band)
+            nxt_vis = _lookup_subset(params, maps[i + 1], geo, np.ones(len(band), bool), rot)
+            amt = _smoothstep(0.0, setup.blend_band, (part.z_end - gbuf.depth[band]) / size)
+            vis[band] = nxt_vis * (1.0 - amt) + vis[band] * amt
+            lookups[band] += per_lookup
+            blended += len(band)
+    # Receivers only see the light where the oracle says the light reaches them.
+    non_rec = gbuf.valid & ~receiver
+    vis[non_rec] = 0.0
+    vis = np.clip(vis, 0.0, 1.0)
+    vis[~gbuf.valid] = 1.0
+    outputs = {
+        "visibility": gbuf.image(vis),
+        "cascade": gbuf.image(cascade),
+        "texels_per_pixel": gbuf.image(tpp),
+        "resolution_error": gbuf.image(err),
+        "uncovered": gbuf.image(uncovered),
+    }
+    n_rec = int(receiver.sum())
+    summary = {
+        "partitions": stats,
+        "receivers": n_rec,
+        "uncovered_receivers": int(uncovered.sum()),
+        "blended_receivers": blended,
+        "outside_all_partitions": int(len(rec_none)),
+        "lookups_mean": float(lookups[receiver].mean()) if n_rec else 0.0,
+    }
+    return outputs, summary
