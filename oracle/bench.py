@@ -22,7 +22,7 @@ def _bare_loop(loaded, spp: int, seed: int) -> tuple[float, int]:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from scenes.raycast import camera_rays_dr
+    from scenes.raycast import camera_rays_dr, shadow_ray_dr
 
     from .reference import SAMPLES_PER_CHUNK, grid_shape
 
@@ -56,7 +56,7 @@ def _bare_loop(loaded, spp: int, seed: int) -> tuple[float, int]:
         nrm = si.sh_frame.n
         nrm = dr.select(dr.dot(nrm, ray.d) > 0, -nrm, nrm)
         active = si.is_valid() & (dr.dot(nrm, wl) > 0.0)  # the oracle's shadow-ray candidates
-        hit = loaded.mi_scene.ray_test(si.spawn_ray(wl), active)
+        hit = loaded.mi_scene.ray_test(shadow_ray_dr(light, si.p, si.n, wl), active)
         dr.eval(hit, active)
         dr.sync_thread()
         seconds += time.perf_counter() - t0

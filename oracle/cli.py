@@ -448,6 +448,9 @@ def main(argv: list[str] | None = None) -> int:
     except _known_errors() as exc:
         print(f"raster-oracle: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into `head`: not an error
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         print("raster-oracle: interrupted", file=sys.stderr)
         return 130

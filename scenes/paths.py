@@ -6,7 +6,8 @@
   texel per frame, the texel being the scene's horizontal extent / 2048 (a 2048^2 map fit
   to the scene): the workload that stable cascades must not shimmer under.
 - ``rotate``: slow yaw of 0.5 degree per frame about the camera position.
-- ``dolly``: the camera moves forward by 4 % of the distance to the scene's centre a frame;
+- ``dolly``: the camera moves forward by 4 % of the distance to what the image centre sees
+  (the scene's extent / 4 when that is sky) a frame;
   geometry newly enters the view, the workload for SDSM's readback latency.
 """
 
@@ -24,7 +25,7 @@ CAMERA_PATHS = {
     "subpixel-pan": "yaw by 1/4 pixel a frame (0.25 px image motion)",
     "subtexel-pan": "translate right by 1/4 shadow-map texel (scene extent / 2048) a frame",
     "rotate": "yaw by 0.5 degree a frame",
-    "dolly": "move forward by 4% of the distance to the scene centre a frame",
+    "dolly": "move forward by 4% of the distance to the geometry at the image centre a frame",
 }
 
 
@@ -60,9 +61,20 @@ def path_camera(base: Camera, path: str, frame: int, n_frames: int, *, scene=Non
         extent = float(np.max((hi - lo)[[0, 2]]))
         m[:3, 3] += base.right * (0.25 * k * extent / 2048.0)
         return base.with_to_world(m)
-    # dolly
-    centre = (lo + hi) / 2
-    dist = max(float((centre - base.position) @ base.forward), base.near * 10)
-    dist = min(dist, 0.25 * (base.far - base.near))
+    # dolly: 4 % of the distance to what the centre of the view sees, per frame
+    dist = _centre_distance(base, scene) if scene is not None else None
+    if dist is None:
+        dist = float(np.linalg.norm(hi - lo)) / 4
     m[:3, 3] += base.forward * (0.04 * k * dist)
     return base.with_to_world(m)
+
+
+def _centre_distance(base: Camera, scene) -> float | None:
+    """Distance along the view axis to the geometry at the image centre (None: sky)."""
+    from .raycast import intersect
+
+    o, d, tmax = base.rays(np.array([base.width / 2]), np.array([base.height / 2]))
+    hit = intersect(scene, o, d, tmax=tmax)
+    if not bool(hit["valid"][0]):
+        return None
+    return float(hit["t"][0] * (d[0] @ base.forward))

@@ -68,6 +68,29 @@ def camera_rays_dr(camera, x, y):
     return mi.Ray3f(o, d, maxt, 0.0, mi.Color0f())
 
 
+#: Shadow-ray origins move off the surface by this many units of the largest coordinate
+#: (about four float32 ulps): enough to clear the surface's own rounding, small enough not
+#: to jump over nearby casters 1e5 units from the origin (Mitsuba's ``spawn_ray`` offset,
+#: ``(1 + max|p|) * 89 * 2^-24`` plus its error bound, misses casters there).
+SHADOW_OFFSET = 2.0**-19
+
+
+def shadow_ray_dr(light, p, ng, wl):
+    """The oracle's shadow ray from surface points ``p`` (geometric normal ``ng``) towards
+    ``light``: unbounded for a directional light, ending just short of a point or spot light."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    side = dr.select(dr.dot(ng, wl) >= 0.0, 1.0, -1.0)
+    size = dr.maximum(dr.maximum(dr.abs(p.x), dr.abs(p.y)), dr.abs(p.z))
+    origin = p + ng * (side * (1.0 + size) * SHADOW_OFFSET)
+    if light.is_directional:
+        return mi.Ray3f(origin, wl)
+    to = mi.Point3f(*[float(c) for c in light.position]) - origin
+    dist = dr.norm(to)
+    return mi.Ray3f(origin, to / dist, dist * (1.0 - 1e-5), 0.0, mi.Color0f())
+
+
 def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
     """Trace primary and shadow rays through film positions (Dr.Jit ``Float`` pixels).
 
@@ -90,10 +113,7 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
     wl, dist = light.to_light(si.p)
     cos_l = dr.dot(n, wl)
     candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
-    if light.is_directional:
-        shadow_ray = si.spawn_ray(wl)
-    else:
-        shadow_ray = si.spawn_ray_to(mi.Point3f(*[float(c) for c in light.position]))
+    shadow_ray = shadow_ray_dr(light, si.p, si.n, wl)
     occluded_ = scene.ray_test(shadow_ray, candidate)
     lit = dr.select(valid, candidate & ~occluded_, True)
     fwd = camera.forward
@@ -213,7 +233,7 @@ def occluded(loaded, points: np.ndarray, normals: np.ndarray | None = None):
     light = loaded.light
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     wl, dist = light.to_light(p)
-    eps = 1e-4 * (1.0 + np.max(np.abs(p), axis=-1))
+    eps = SHADOW_OFFSET * (1.0 + np.max(np.abs(p), axis=-1))
     if normals is not None:
         nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         side = np.sign(np.sum(nrm * wl, axis=-1))[:, None]
