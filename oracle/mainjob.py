@@ -22,7 +22,7 @@ def run_main(names, out: Path, *, spp: int, cache, quiet: bool, echo=print) -> P
     from .scoring import combine_reports, score_technique
 
     settings = ReferenceSettings(spp=spp).validate()
-    techniques = [t["name"] for t in raster_models.list_techniques()]
+    techniques = raster_models.list_techniques()
     folders = []
     for name in names:
         loaded = scenes.load(name)
@@ -33,7 +33,8 @@ def run_main(names, out: Path, *, spp: int, cache, quiet: bool, echo=print) -> P
             f"{name:<7} {loaded.width}x{loaded.height} {spp} spp reference ({ref.cache_status}, "
             f"{m['wall_seconds']:.1f} s): {out / name / 'reference' / 'reference.exr'}"
         )
-        for tech in techniques:
+        usable = [t["name"] for t in techniques if loaded.light.kind in t.get("lights", ())]
+        for tech in usable:
             for res in MAIN_RESOLUTIONS:
                 folder = out / name / f"{tech}-{res}"
                 params = raster_models.parse_params(tech, [f"resolution={res}"])
@@ -46,10 +47,12 @@ def run_main(names, out: Path, *, spp: int, cache, quiet: bool, echo=print) -> P
                     seed=0,
                     cache=cache,
                     quiet=True,
-                    name=f"{tech} {res}",
+                    name=f"{tech} {res} @ {name}",
                 )
                 folders.append(folder)
-        echo(f"{name:<7} scored {len(techniques) * len(MAIN_RESOLUTIONS)} technique runs")
+        echo(
+            f"{name:<7} scored {', '.join(usable)} at {MAIN_RESOLUTIONS} ({loaded.light.kind} light)"
+        )
     report = out / "report.html"
     combine_reports(folders, report, title="raster-oracle: built-in scenes, every technique")
     return report
