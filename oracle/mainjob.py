@@ -50,9 +50,8 @@ def run_main(names, out: Path, *, spp: int, cache, quiet: bool, echo=print) -> P
                     name=f"{tech} {res} @ {name}",
                 )
                 folders.append(folder)
-        echo(
-            f"{name:<7} scored {', '.join(usable)} at {MAIN_RESOLUTIONS} ({loaded.light.kind} light)"
-        )
+        kinds = ", ".join(usable)
+        echo(f"{name:<7} scored {kinds} at {MAIN_RESOLUTIONS} ({loaded.light.kind} light)")
     report = out / "report.html"
     combine_reports(folders, report, title="raster-oracle: built-in scenes, every technique")
     return report
