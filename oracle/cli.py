@@ -70,6 +70,17 @@ def _add_scene_args(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_set_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--set",
+        dest="params",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="technique parameter (repeatable)",
+    )
+
+
 def _add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> None:
     p.add_argument(
         "--spp",
@@ -141,14 +152,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("model", help="run a technique model: output.exr + model.json")
     p.add_argument("technique", metavar="TECHNIQUE")
     _add_scene_args(p)
-    p.add_argument(
-        "--set",
-        dest="params",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="technique parameter (repeatable)",
-    )
+    _add_set_arg(p)
     p.add_argument("--out", type=Path, default=Path("out/model"), help="output folder")
 
     p = sub.add_parser("score", help="score a model or an engine image against the reference")
@@ -160,14 +164,7 @@ def _parser() -> argparse.ArgumentParser:
         help="an EXR or PNG from your engine; with --frames use "
         "a pattern such as frame_{frame:03d}.exr",
     )
-    p.add_argument(
-        "--set",
-        dest="params",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="technique parameter (repeatable)",
-    )
+    _add_set_arg(p)
     p.add_argument(
         "--channel",
         choices=["visibility", "color"],

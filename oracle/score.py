@@ -33,14 +33,9 @@ from .reference import ReferenceSettings
 __all__ = ["METRIC_KEYS", "ScoreError", "ScoreResult", "score"]
 
 #: Every metric key of ``metrics.json`` (None where it does not apply to the channel).
+_SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
 METRIC_KEYS = (
-    "visibility_mae",
-    "visibility_rmse",
-    "misclassified_fraction",
-    "false_lit_fraction",
-    "false_shadow_fraction",
-    "edge_band_mae",
-    "edge_band_misclassified_fraction",
+    *_SHADOW_VALUES,
     "edge_mae",
     "interior_mae",
     "flip_mean",
@@ -112,15 +107,7 @@ def _metrics_for(channel, ref_ch, cand, *, light, exposure, flip_mode, flip_rang
         ref = ref_ch["visibility"]
         rec = _receivers(ref_ch, light)
         sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
-        for k in (
-            "visibility_mae",
-            "visibility_rmse",
-            "misclassified_fraction",
-            "false_lit_fraction",
-            "false_shadow_fraction",
-            "edge_band_mae",
-            "edge_band_misclassified_fraction",
-        ):
+        for k in _SHADOW_VALUES:
             out[k] = sm[k]
         out["receiver_count"] = sm["receiver_count"]
         ref_se = ref_ch["visibility_stderr"]
