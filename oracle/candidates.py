@@ -6,11 +6,11 @@ Supported files:
   :func:`oracle.exr.read_exr`): ``R/G/B``, a layer ``name.R/name.G/name.B``, luminance
   ``Y``, or named channels such as ``visibility``. Half, float and uint channels are
   returned as float32. Values are taken as linear.
-- **PNG** (via Pillow): 8-bit grey/grey+alpha/RGB/RGBA/palette and 16-bit grey. Colour is
+- **PNG**: 8-bit grey/grey+alpha/RGB/RGBA/palette and 16-bit grey (via Pillow), 16-bit
+  RGB/RGBA (via pypng: Pillow would reduce them to 8 bits a channel). Colour is
   taken as sRGB-encoded (what engines write to PNG) and decoded to linear. A grey PNG read
   as ``visibility`` is *data*, not colour: its values are scaled to [0, 1] (``v / 255`` or
   ``v / 65535``) and **not** sRGB-decoded, so 50 % visibility is stored as 128 (8-bit).
-  16-bit colour PNGs are refused: Pillow silently reduces them to 8 bits per channel.
 
 ``channel`` picks what to read: ``"color"`` returns ``(H, W, 3)`` linear radiance,
 ``"visibility"`` returns ``(H, W)`` in [0, 1]; any other name is looked up in an EXR as a
@@ -25,6 +25,7 @@ import struct
 from pathlib import Path
 
 import numpy as np
+import png
 
 from oracle.exr import ExrError, read_exr
 
@@ -76,7 +77,7 @@ def load_candidate(
         With one line saying what is wrong: file missing, unknown extension, truncated or
         unreadable file, missing channel (the available ones are listed), wrong size
         (``candidate is 640x360, the reference is 960x540``), NaN or inf values (counted),
-        negative radiance, visibility outside [0, 1], or a 16-bit colour PNG.
+        negative radiance or visibility outside [0, 1].
     """
     path = Path(path)
     if not isinstance(channel, str) or not channel:
@@ -237,18 +238,17 @@ def _load_png(path: Path, channel: str) -> np.ndarray:
             f"'color' or 'visibility', got {channel!r}"
         )
     bit_depth, colour_type = _png_header(path)
-    if bit_depth == 16 and colour_type in _PNG_COLOUR_TYPES:
-        raise CandidateError(
-            f"candidate {path.name} is a 16-bit colour PNG, which Pillow reduces to 8 bits "
-            "per channel; write an EXR (or an 8-bit or 16-bit grey PNG) instead"
-        )
     try:
-        with Image.open(path) as im:
-            im.load()
-            pixels, scale = _png_pixels(im)
+        if bit_depth == 16 and colour_type in _PNG_COLOUR_TYPES:
+            # Pillow reduces 16-bit colour to 8 bits a channel; pypng keeps all 16
+            pixels, scale = _png16_colour(path)
+        else:
+            with Image.open(path) as im:
+                im.load()
+                pixels, scale = _png_pixels(im)
     except CandidateError:
         raise
-    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError) as exc:
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError, png.Error) as exc:
         raise CandidateError(
             f"candidate {path.name} is truncated or not a readable PNG ({exc})"
         ) from exc
@@ -260,6 +260,15 @@ def _load_png(path: Path, channel: str) -> np.ndarray:
     if values.ndim == 2:
         values = np.repeat(values[..., None], 3, axis=-1)
     return np.ascontiguousarray(srgb_decode(values), dtype=np.float32)
+
+
+def _png16_colour(path: Path) -> tuple[np.ndarray, float]:
+    """A 16-bit RGB(A) PNG as ``(H, W, 3)`` uint16 (rows decoded by pypng, one per scanline)."""
+    with open(path, "rb") as f:
+        width, height, rows, info = png.Reader(file=f).asDirect()
+        planes = info["planes"]
+        data = np.vstack([np.asarray(row, dtype=np.uint16) for row in rows])
+    return data.reshape(height, width, planes)[..., :3], 65535.0
 
 
 def _png_pixels(im) -> tuple[np.ndarray, float]:

@@ -135,11 +135,17 @@ def test_png_16bit_grey(tmp_path):
     assert vis.max() == 1.0
 
 
-def test_png_16bit_colour_is_refused(tmp_path):
+def test_png_16bit_colour_keeps_16_bits(tmp_path):
+    from metrics.tonemap import srgb_decode
+
+    rng = np.random.default_rng(4)
+    values = rng.integers(0, 65536, (H, W, 3))
+    values[0, 0] = [40000, 40001, 40002]  # differ only below 8 bits
     path = tmp_path / "c16.png"
-    _write_png_raw(path, np.full((H, W, 3), 40000), 16, 2)
-    with pytest.raises(CandidateError, match="16-bit colour PNG, which Pillow reduces to 8 bits"):
-        load_candidate(path)
+    _write_png_raw(path, values, 16, 2)
+    rgb = load_candidate(path)
+    np.testing.assert_allclose(rgb, srgb_decode(values / 65535.0), atol=1e-6)
+    assert len(set(rgb[0, 0].tolist())) == 3
 
 
 def test_png_colour_as_visibility_needs_grey(tmp_path):
