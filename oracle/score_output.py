@@ -75,7 +75,7 @@ def _case(
         thresholds={k: v for k, v in thresholds.items() if k in values} or None,
         cost=cost,
         technique=technique,
-        family=_family(technique),
+        family=_family(technique, scene),
         params=params,
         exr_links={
             "reference": "reference.exr",
@@ -85,10 +85,12 @@ def _case(
     )
 
 
-def _family(technique: str | None) -> str | None:
+def _family(technique: str | None, scene: str) -> str | None:
+    """Pareto fronts compare techniques of one family on one scene."""
     if technique is None:
         return None
-    return "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
+    family = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
+    return f"{family} on {scene}"
 
 
 def provenance(result: ScoreResult, loaded) -> dict:
