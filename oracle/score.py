@@ -205,6 +205,7 @@ def score(
         values, maps, ref_img, rec = _metrics_for(channel, ref_ch, cand, full=True, **kw)
         floor = None
         if k == 0:
+            ref_meta = ref.meta
             ref2 = get_reference(frame_scene, noise_settings, cache=cache, quiet=quiet)
             ref2_ch = ref2.channels()
             second = ref2_ch["visibility"] if channel == "visibility" else _rgb(ref2_ch, "color")
@@ -222,12 +223,6 @@ def score(
         cands = np.stack([f.candidate for f in result.frames])
         summary["flicker"] = M.flicker(refs, cands)
         summary["temporal_error"] = M.temporal_error(refs, cands)
-    ref_meta = get_reference(
-        loaded.with_frame(0, path=camera_path, n_frames=n) if frames else loaded,
-        settings,
-        cache=cache,
-        quiet=True,
-    ).meta
     result.record = {
         "schema": "raster-oracle/metrics/1",
         "channel": channel,
