@@ -28,7 +28,7 @@ from metrics.perceptual import (
     ssim,
 )
 from metrics.shadow import SHADOW_KEYS, shadow_edges, shadow_metrics
-from metrics.stats import noise_floor, z_test
+from metrics.stats import binomial_stderr_floor, exact_surrogate, noise_floor, z_test
 from metrics.temporal import flicker, temporal_error
 from metrics.tonemap import (
     exposure_from_reference,
@@ -54,6 +54,8 @@ __all__ = [
     "hdr_exposure_range",
     "luminance",
     "noise_floor",
+    "binomial_stderr_floor",
+    "exact_surrogate",
     "psnr_db",
     "shadow_edges",
     "shadow_metrics",

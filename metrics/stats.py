@@ -16,10 +16,45 @@ from scipy import special
 
 from metrics._validate import MetricError, check_images
 
-__all__ = ["CORRECTIONS", "noise_floor", "z_test"]
+__all__ = ["CORRECTIONS", "binomial_stderr_floor", "exact_surrogate", "noise_floor", "z_test"]
 
 #: Multiple-comparison corrections accepted by :func:`z_test`.
 CORRECTIONS = ("sidak", "none")
+
+
+def binomial_stderr_floor(samples, scale=1.0):
+    """Smallest standard error a pixel estimated from ``samples`` samples can honestly claim.
+
+    A pixel whose ``N`` samples all agree has sample variance 0, yet a feature covering a
+    fraction ``p`` of it is missed with probability ``(1 - p)^N``: the estimate is not exact.
+    The Jeffreys prior Beta(1/2, 1/2) gives, after ``N`` agreeing samples, the posterior mean
+    ``p = 0.5 / (N + 1)`` for the unseen outcome; its binomial standard error
+    ``sqrt(p (1 - p) / N)`` is the floor (0.042 at N = 16, 0.011 at 64, 0.0014 at 1024).
+    ``scale`` converts it to the image's units (1 for visibility and coverage; for radiance
+    the range a missed feature could have).
+
+    References
+    ----------
+    .. [1] L. D. Brown, T. T. Cai, A. DasGupta, "Interval Estimation for a Binomial
+       Proportion", Statistical Science 16(2), 2001. doi:10.1214/ss/1009213286
+    """
+    n = np.maximum(np.asarray(samples, dtype=np.float64), 1.0)
+    p = 0.5 / (n + 1.0)
+    return np.sqrt(p * (1.0 - p) / n) * np.asarray(scale, dtype=np.float64)
+
+
+def exact_surrogate(reference_a, reference_b):
+    """An image that differs from ``reference_a`` as an exact candidate would.
+
+    Two independent references ``A`` and ``B`` of the same settings differ by noise of
+    variance ``2 sigma^2``; an exact candidate (the truth ``T``) differs from ``A`` by noise of
+    variance ``sigma^2``. ``A + (B - A) / sqrt(2)`` differs from ``A`` by ``(B - A) / sqrt(2)``,
+    which has variance ``sigma^2``: scoring it gives the metrics an exact candidate would get
+    (in distribution), where scoring ``B`` itself overstates them by about ``sqrt(2)``.
+    """
+    a = np.asarray(reference_a, dtype=np.float64)
+    b = np.asarray(reference_b, dtype=np.float64)
+    return (a + (b - a) / np.sqrt(2.0)).astype(np.float32)
 
 
 def z_test(
@@ -29,6 +64,9 @@ def z_test(
     *,
     alpha: float = 0.01,
     stderr_floor: float = 1e-4,
+    samples=None,
+    floor_scale=1.0,
+    binary: bool = False,
     candidate_stderr=None,
     correction: str = "sidak",
     full: bool = False,
@@ -36,9 +74,11 @@ def z_test(
     """Per pixel-channel two-sided Z-test of candidate against a Monte Carlo reference.
 
     ``z = |candidate - reference| / sigma`` with ``sigma = max(reference_stderr,
-    stderr_floor)`` (or ``sqrt(max(s_ref, floor)^2 + s_cand^2)`` when the candidate is
-    itself a Monte Carlo estimate with ``candidate_stderr``), ``p = 2 (1 - Phi(z))``. A
-    pixel-channel is significant when ``p < alpha_per_pixel``; with the Sidak correction
+    stderr_floor, binomial_stderr_floor(samples, floor_scale))`` (or
+    ``sqrt(max(s_ref, floor)^2 + s_cand^2)`` when the candidate is itself a Monte Carlo
+    estimate with ``candidate_stderr``), ``p = 2 (1 - Phi(z))`` (or the exact binomial test,
+    ``binary``). A pixel-channel is significant when ``p < alpha_per_pixel``; with the Sidak
+    correction
     ``alpha_per_pixel = 1 - (1 - alpha)^(1/n)`` over the ``n`` tested values, so that the
     probability that any value of a candidate equal in expectation to the reference is
     flagged is ``alpha``.
@@ -95,18 +135,28 @@ def z_test(
     stderr, _ = check_images(
         "reference_stderr", reference_stderr, "reference", ref, allow_negative=False
     )
-    variance = np.square(np.maximum(stderr, stderr_floor))
+    sigma = np.maximum(stderr, stderr_floor)
+    if samples is not None:
+        floor = binomial_stderr_floor(samples, floor_scale)
+        if not np.all(np.isfinite(floor)):
+            raise MetricError("samples and floor_scale must be finite")
+        sigma = np.maximum(sigma, floor)
+    variance = np.square(sigma)
     if candidate_stderr is not None:
         cand_stderr, _ = check_images(
             "candidate_stderr", candidate_stderr, "candidate", cand, allow_negative=False
         )
         variance = variance + np.square(cand_stderr)
 
-    diff = np.abs(cand - ref)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(diff == 0, 0.0, diff / np.sqrt(variance))
-    # 2 (1 - Phi(z)) = erfc(z / sqrt 2), without the cancellation of 1 - Phi for large z.
-    p_value = special.erfc(z / np.sqrt(2.0))
+    if binary and samples is not None and candidate_stderr is None:
+        p_value = _binomial_p_value(ref, cand, samples)
+        z = special.erfcinv(np.clip(p_value, 1e-300, 1.0)) * np.sqrt(2.0)
+    else:
+        diff = np.abs(cand - ref)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(diff == 0, 0.0, diff / np.sqrt(variance))
+        # 2 (1 - Phi(z)) = erfc(z / sqrt 2), without the cancellation of 1 - Phi for large z.
+        p_value = special.erfc(z / np.sqrt(2.0))
     n = int(p_value.size)
     if correction == "sidak":
         alpha_per_pixel = float(-np.expm1(np.log1p(-alpha) / n))
@@ -126,6 +176,21 @@ def z_test(
         result["p_value"] = p_value
         result["z"] = z
     return result
+
+
+def _binomial_p_value(ref, cand, samples) -> np.ndarray:
+    """Two-sided exact binomial p-value of ``k = round(ref * N)`` under ``Binomial(N, cand)``."""
+    from scipy import stats
+
+    n = np.broadcast_to(np.rint(np.asarray(samples, dtype=np.float64)), ref.shape)
+    k = np.clip(np.rint(ref * n), 0, n)
+    # a hypothesised truth of exactly 0 or 1 would make one stray sample infinitely
+    # significant; differences below the Jeffreys floor p = 0.5 / (N + 1) carry no meaning
+    delta = 0.5 / (n + 1.0)
+    c = np.clip(cand, delta, 1.0 - delta)
+    lower = stats.binom.cdf(k, n, c)
+    upper = stats.binom.sf(k - 1, n, c)
+    return np.minimum(1.0, 2.0 * np.minimum(lower, upper))
 
 
 def noise_floor(metric: Callable, reference_a, reference_b, **kw):

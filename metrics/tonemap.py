@@ -81,8 +81,9 @@ def exposure_from_reference(reference, *, key: float = 0.18) -> float:
     """Exposure (in stops) that maps the reference's log-average luminance to ``key``.
 
     Reinhard's "key value" auto-exposure: with the log-average luminance
-    ``L_avg = exp(mean(log(delta + Y)))`` over all pixels (``delta = 1e-4``),
-    the exposure is ``log2(key / L_avg)``, so that ``2**exposure * L_avg == key``.
+    ``L_avg = exp(mean(log(delta + Y)))`` over the non-black pixels (``Y > 0``;
+    ``delta = 1e-4``): black sky and shadow pixels would drag the average down and over-expose
+    every lit pixel. The exposure is ``log2(key / L_avg)``, so that ``2**exposure * L_avg == key``.
     The same exposure must then be used for the reference and every candidate.
 
     Parameters
@@ -107,9 +108,13 @@ def exposure_from_reference(reference, *, key: float = 0.18) -> float:
         raise MetricError(f"key must be in (0, 1), got {key!r}")
     ref = _rgb(check_image("reference", reference, allow_negative=False), "reference")
     y = ref if ref.ndim == 2 else ref @ np.asarray(LUMINANCE_WEIGHTS)
-    if not (y > 0).any():
+    lit = y > 0
+    if not lit.any():
         return 0.0
-    log_average = float(np.exp(np.mean(np.log(_LOG_AVERAGE_DELTA + y))))
+    # black pixels (sky, hard shadow: this renderer has no ambient term) are not part of the
+    # exposure: on `star` (mostly sky) they pushed the exposure up 6.8 stops and saturated
+    # every lit pixel, so colour metrics hardly saw errors there
+    log_average = float(np.exp(np.mean(np.log(_LOG_AVERAGE_DELTA + y[lit]))))
     return float(np.log2(key / log_average))
 
 
