@@ -215,8 +215,8 @@ def sample_jitter(pix, sample, seed: int):
     mi = backend.mitsuba()
     import drjit as dr
 
-    key = mi.sample_tea_32(mi.UInt32(int(seed) & 0xFFFFFFFF), mi.UInt32(pix), 8)[0]
-    state = mi.sample_tea_64(key, mi.UInt32(sample), 8)
+    key = mi.sample_tea_32(mi.UInt32(int(seed) & 0xFFFFFFFF), mi.UInt32(pix))[0]
+    state = mi.sample_tea_64(key, mi.UInt32(sample))
     rng = mi.PCG32(size=dr.width(state))
     # PCG32's constructor adds the lane index to state and stream (results would depend on
     # how samples are laid out in a launch); seed() does not
