@@ -31,7 +31,11 @@ class CommonParams:
     format: str = param(
         "D32F",
         source="TheRealMJP/Shadows default DepthBufferFormat (32-bit float); Falcor D32Float",
-        help="depth format: D16 / D24 UNORM (quantum 1/(2^n - 1)) or D32F (float32)",
+        help="depth format: D16 / D24 UNORM (quantum 1/(2^n - 1)) or D32F (float32). The "
+        "compare reference is clamped to [0, 1] for every format (hardware clamps it for UNORM "
+        "only): for D32F this differs only for a receiver beyond a map's far plane (reference "
+        "> 1: hardware shadows it, the model compares 1 and lights it), e.g. SDSM receivers "
+        "outside a late partition (latency > 0)",
         choices=tuple(FORMATS),
     )
     depth_clamp: bool = param(
@@ -52,8 +56,8 @@ class CommonParams:
     depth_bias: int = param(
         0,
         source="D3D11 rasterizer default DepthBias 0",
-        help="hardware DepthBias (integer units of r: 2^-n for UNORM, 2^(e-23) for D32F) "
-        "added to every texel when the map is rendered",
+        help="hardware DepthBias (integer units of r: 1/(2^n - 1) for UNORM, 2^(e-23) for "
+        "D32F) added to every texel when the map is rendered, before the viewport clamp",
         lo=-(1 << 24),
         hi=1 << 24,
     )

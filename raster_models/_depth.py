@@ -7,10 +7,13 @@ Normalized depth ``d`` is in ``[0, 1]`` (D3D: 0 at the near plane). Stored value
 
 Hardware depth bias (D3D11 rasterizer, applied to every fragment written to the map):
 ``bias = DepthBias * r + SlopeScaledDepthBias * MaxDepthSlope``, clamped to
-``DepthBiasClamp`` when that is non-zero; ``r = 2^-n`` for an n-bit UNORM format and
+``DepthBiasClamp`` when that is non-zero; ``r = 1 / (2^n - 1)`` for an n-bit UNORM format
+(D3D11 functional spec: the minimum representable value > 0 of the format) and
 ``2^(exponent(z) - 23)`` for D32F (exponent of the primitive's maximum depth; here of the
 texel's own depth, a per-texel stand-in for the primitive's maximum). ``MaxDepthSlope`` is
-``max(|dz/dx|, |dz/dy|)`` of the primitive in normalized depth per texel.
+``max(|dz/dx|, |dz/dy|)`` of the primitive in normalized depth per texel. The bias is added
+to the fragment's depth before the viewport depth clamp to ``[0, 1]`` (D3D11 order: bias,
+then clamp), see :func:`rasterized_depth`.
 
 Shader-side biases (constant, receiver-plane, normal offset) live in :mod:`_shade`.
 """
@@ -19,7 +22,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORMATS", "bytes_per_texel", "hardware_bias", "quantize", "quantum"]
+__all__ = [
+    "FORMATS",
+    "bytes_per_texel",
+    "hardware_bias",
+    "quantize",
+    "quantum",
+    "rasterized_depth",
+]
 
 #: Format name -> (kind, bits).
 FORMATS = {"D16": ("unorm", 16), "D24": ("unorm", 24), "D32F": ("float", 32)}
@@ -60,10 +70,11 @@ def hardware_bias(
     kind, bits = FORMATS[fmt]
     d = np.asarray(d, dtype=np.float64)
     if kind == "unorm":
-        r = np.full_like(d, 2.0**-bits)
+        r = np.full_like(d, 1.0 / float((1 << bits) - 1))
     else:
-        safe = np.where(d > 0.0, d, 1.0)
-        r = np.where(d > 0.0, np.exp2(np.floor(np.log2(safe)) - 23.0), 2.0**-149)
+        a = np.abs(d)
+        safe = np.where(a > 0.0, a, 1.0)
+        r = np.where(a > 0.0, np.exp2(np.floor(np.log2(safe)) - 23.0), 2.0**-149)
     bias = depth_bias * r
     if slope_scaled != 0.0 and max_slope is not None:
         bias = bias + slope_scaled * np.minimum(max_slope, MAX_DEPTH_SLOPE)
@@ -72,6 +83,26 @@ def hardware_bias(
     elif clamp < 0.0:
         bias = np.maximum(bias, clamp)
     return bias
+
+
+def rasterized_depth(
+    z: np.ndarray,
+    max_slope: np.ndarray | None,
+    fmt: str,
+    *,
+    depth_bias: int = 0,
+    slope_scaled: float = 0.0,
+    clamp: float = 0.0,
+) -> np.ndarray:
+    """Depth a rasterizer writes for fragments at unclamped normalized depth ``z``: the
+    hardware bias added first, then the viewport clamp to ``[0, 1]`` (pancaked casters in
+    front of the near plane end at 0 whatever their bias). Not yet quantized."""
+    z = np.asarray(z, dtype=np.float64)
+    if depth_bias != 0 or slope_scaled != 0.0:
+        z = z + hardware_bias(
+            z, max_slope, fmt, depth_bias=depth_bias, slope_scaled=slope_scaled, clamp=clamp
+        )
+    return np.clip(z, 0.0, 1.0)
 
 
 def bytes_per_texel(fmt: str) -> int:

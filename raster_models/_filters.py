@@ -35,6 +35,7 @@ __all__ = [
     "chebyshev",
     "compare_bilinear",
     "compare_point",
+    "compare_taps_drjit",
     "evsm_exponents",
     "lookups_per_pixel",
     "moment_lookup",
@@ -61,8 +62,101 @@ def _fetch(depth_map: np.ndarray, ix: np.ndarray, iy: np.ndarray, address: str) 
     return flat.take(np.clip(iy, 0, r - 1) * r + np.clip(ix, 0, r - 1))
 
 
+#: Receivers from which the compare filters run as one Dr.Jit kernel (LLVM backend) instead
+#: of NumPy; both give the same float64 results (tests/test_models_filters.py checks it).
+DRJIT_MIN_LOOKUPS = 1 << 14
+
+#: Lookups per Dr.Jit launch (bounded memory: a few hundred MiB at most).
+DRJIT_CHUNK = 1 << 22
+
+
+def _use_drjit(n: int) -> bool:
+    if n < DRJIT_MIN_LOOKUPS:
+        return False
+    from scenes import backend
+
+    return not backend.active().variant.startswith("scalar")
+
+
+def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexel_bits: int):
+    """Depth compares on Dr.Jit: nearest texel (``size=0``) or ``size x size`` hardware-PCF
+    taps one texel apart (``size=1``: one 2x2 hardware-PCF tap), as :func:`compare_point` and
+    :func:`pcf_grid` compute them (float64 coordinates and weights, float32 texels).
+
+    All gathers, compares and weights of a chunk are one fused kernel.
+    """
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    r = depth_map.shape[0]
+    tex = mi.Float(np.ascontiguousarray(depth_map, dtype=np.float32).ravel())
+    f64, i32 = mi.Float64, mi.Int32
+    # Resolution as a kernel parameter (not a literal): one compiled kernel per filter shape.
+    r_i, r_f = dr.opaque(i32, r), dr.opaque(f64, float(r))
+    u = np.asarray(u, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    ref = np.clip(np.asarray(ref, dtype=np.float64), 0.0, 1.0)
+    out = np.empty(u.shape, dtype=np.float64)
+    # Index range that decides every fetch (clamp and border alike); keeps int32 safe.
+    lo_idx = -float(size) - 2.0
+
+    def fetch(ix, iy, rr):
+        inside = (ix >= 0) & (ix < r_i) & (iy >= 0) & (iy < r_i)
+        idx = dr.clip(iy, 0, r_i - 1) * r_i + dr.clip(ix, 0, r_i - 1)
+        val = f64(dr.gather(mi.Float, tex, idx))
+        if address == "border":
+            val = dr.select(inside, val, 1.0)
+        return dr.select(rr <= val, f64(1.0), f64(0.0))
+
+    def sub(frac):
+        if subtexel_bits <= 0:
+            return frac
+        scale = float(1 << subtexel_bits)
+        return dr.round(frac * scale) / scale
+
+    for start in range(0, u.size, DRJIT_CHUNK):
+        sl = slice(start, min(u.size, start + DRJIT_CHUNK))
+        uu, vv, rr = f64(u[sl]), f64(v[sl]), f64(ref[sl])
+        if size == 0:
+            ix = i32(dr.clip(dr.floor(uu * r_f), lo_idx, r_f + 1.0))
+            iy = i32(dr.clip(dr.floor(vv * r_f), lo_idx, r_f + 1.0))
+            acc = fetch(ix, iy, rr)
+        else:
+            half = (size - 1) / 2.0
+            x = uu * r_f - 0.5 - half
+            y = vv * r_f - 0.5 - half
+            x0, y0 = dr.floor(x), dr.floor(y)
+            fx, fy = sub(x - x0), sub(y - y0)
+            ix0 = i32(dr.clip(x0, lo_idx, r_f + 1.0))
+            iy0 = i32(dr.clip(y0, lo_idx, r_f + 1.0))
+
+            def weight(f, m):
+                w = f64(0.0)
+                if m < size:
+                    w = w + (1.0 - f)
+                if m > 0:
+                    w = w + f
+                return w
+
+            wx = [weight(fx, m) for m in range(size + 1)]
+            acc = f64(0.0)
+            for my in range(size + 1):
+                row = f64(0.0)
+                for mx in range(size + 1):
+                    row = row + wx[mx] * fetch(ix0 + mx, iy0 + my, rr)
+                acc = acc + weight(fy, my) * row
+            acc = acc / float(size * size)
+        dr.eval(acc)
+        out[sl] = acc.numpy()
+    return out
+
+
 def compare_point(depth_map, u, v, ref, *, address: str = "clamp") -> np.ndarray:
     """Nearest-texel depth compare: 1.0 where lit, 0.0 where shadowed."""
+    if _use_drjit(np.size(u)):
+        return compare_taps_drjit(depth_map, u, v, ref, 0, address=address, subtexel_bits=0)
     r = depth_map.shape[0]
     ix = np.floor(np.asarray(u) * r).astype(np.int64)
     iy = np.floor(np.asarray(v) * r).astype(np.int64)
@@ -81,6 +175,10 @@ def compare_bilinear(
     depth_map, u, v, ref, *, address: str = "clamp", subtexel_bits: int = 8
 ) -> np.ndarray:
     """Hardware 2x2 PCF (compare four texels, then bilinear weights)."""
+    if _use_drjit(np.size(u)):
+        return compare_taps_drjit(
+            depth_map, u, v, ref, 1, address=address, subtexel_bits=subtexel_bits
+        )
     r = depth_map.shape[0]
     x = np.asarray(u) * r - 0.5
     y = np.asarray(v) * r - 0.5
@@ -131,6 +229,10 @@ def pcf_grid(
                     subtexel_bits=subtexel_bits,
                 )
         return acc / float(size * size)
+    if _use_drjit(np.size(u)):
+        return compare_taps_drjit(
+            depth_map, u, v, ref, size, address=address, subtexel_bits=subtexel_bits
+        )
     half = (size - 1) / 2.0
     # First tap centre, in texel units with texel centres at integers.
     x = np.asarray(u) * r - 0.5 - half

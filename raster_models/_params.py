@@ -30,11 +30,14 @@ def param(
     lo: float | None = None,
     hi: float | None = None,
     kind: str | None = None,
+    allow_inf: bool = False,
 ) -> Any:
     """A dataclass field with its provenance and validity in the metadata.
 
     ``lo``/``hi`` are inclusive bounds for numbers (``floats``: for every element); ``kind``
     is inferred from the default (``bool``, ``int``, ``float``, ``str``; a tuple is ``floats``).
+    Numbers must be finite: NaN and infinities are refused, except ``+inf`` for a ``float``
+    declared with ``allow_inf=True`` (documented as "no limit" in its help).
     """
     if kind is None:
         if isinstance(default, bool):
@@ -51,7 +54,15 @@ def param(
             raise TypeError(f"unsupported parameter default {default!r}")
     if kind not in _KINDS:  # pragma: no cover - programming error
         raise TypeError(f"unknown parameter kind {kind!r}")
-    meta = {"source": source, "help": help, "choices": choices, "lo": lo, "hi": hi, "kind": kind}
+    meta = {
+        "source": source,
+        "help": help,
+        "choices": choices,
+        "lo": lo,
+        "hi": hi,
+        "kind": kind,
+        "allow_inf": allow_inf,
+    }
     return dataclasses.field(default=default, metadata=meta)
 
 
@@ -79,7 +90,10 @@ def _expected(meta) -> str:
     if kind == "bool":
         return "a boolean (true/false)"
     word = "an integer" if kind == "int" else "a number"
-    return word + _range_text(meta)
+    text = word + _range_text(meta)
+    if kind == "float" and meta.get("allow_inf"):
+        text += " (inf = no limit)"
+    return text
 
 
 def _check(technique: str, f: dataclasses.Field, value: Any) -> Any:
@@ -87,6 +101,11 @@ def _check(technique: str, f: dataclasses.Field, value: Any) -> Any:
     meta = f.metadata
     kind = meta["kind"]
     bad = ModelError(f"{technique}: parameter {f.name} must be {_expected(meta)}, got {value!r}")
+    # NaN and infinities: refused by name ("a finite number"), unless documented.
+    not_finite = ModelError(
+        f"{technique}: parameter {f.name} must be "
+        f"{_expected(meta).replace('number', 'finite number', 1)}, got {value!r}"
+    )
     if kind == "bool":
         if not isinstance(value, bool):
             raise bad
@@ -101,10 +120,10 @@ def _check(technique: str, f: dataclasses.Field, value: Any) -> Any:
         except (TypeError, ValueError):
             raise bad from None
         for v in items:
-            if (
-                not math.isfinite(v)
-                or (meta["lo"] is not None and v < meta["lo"])
-                or (meta["hi"] is not None and v > meta["hi"])
+            if not math.isfinite(v):
+                raise not_finite
+            if (meta["lo"] is not None and v < meta["lo"]) or (
+                meta["hi"] is not None and v > meta["hi"]
             ):
                 raise bad
         return items
@@ -119,10 +138,8 @@ def _check(technique: str, f: dataclasses.Field, value: Any) -> Any:
         if not isinstance(value, int | float):
             raise bad
         value = float(value)
-        if math.isnan(value):
-            raise bad
-        if math.isinf(value) and not (value > 0 and meta["hi"] is None):
-            raise bad
+        if math.isnan(value) or (math.isinf(value) and not (value > 0 and meta.get("allow_inf"))):
+            raise bad if meta.get("allow_inf") else not_finite
     if (meta["lo"] is not None and value < meta["lo"]) or (
         meta["hi"] is not None and value > meta["hi"]
     ):

@@ -22,6 +22,12 @@ __all__ = ["GRID_CHUNK", "cast_grid"]
 GRID_CHUNK = 1 << 22
 
 
+def _np(a) -> np.ndarray:
+    """NumPy copy of an evaluated Dr.Jit array (one memory copy; a Vector3f gives (3, N))."""
+    to_numpy = getattr(a, "numpy", None)
+    return np.array(to_numpy() if to_numpy is not None else a)
+
+
 def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool = False) -> dict:
     """Cast one ray per texel centre of a ``resolution``-square map.
 
@@ -60,18 +66,23 @@ def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool
         }
     f64 = mi.Float64
 
+    def const(x):
+        # Kernel parameters, not literals: one compiled kernel serves every map.
+        return dr.opaque(f64, float(x))
+
     def vec(name):
-        return [float(c) for c in np.asarray(grid[name], dtype=np.float64)]
+        return [const(c) for c in np.asarray(grid[name], dtype=np.float64)]
 
     A, U, V, D, DS, DT = (vec(k) for k in ("A", "U", "V", "D", "DS", "DT"))
     along = bool(grid["origin_along_dir"])
-    zs = float(grid["z_start"])
-    coef = [float(c) for c in depth[1:]]
+    zs = const(grid["z_start"])
+    coef = [const(c) for c in depth[1:]]
+    r_u, inv_r, span_k = dr.opaque(mi.UInt32, r), const(1.0 / r), const(span)
     for start in range(0, n_total, GRID_CHUNK):
         stop = min(n_total, start + GRID_CHUNK)
         idx = dr.arange(mi.UInt32, start, stop)
-        s = (f64(idx % r) + 0.5) * (1.0 / r)
-        t = (f64(idx // r) + 0.5) * (1.0 / r)
+        s = (f64(idx % r_u) + 0.5) * inv_r
+        t = (f64(idx // r_u) + 0.5) * inv_r
         d = [D[k] + s * DS[k] + t * DT[k] for k in range(3)]
         dnorm = dr.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         o = [A[k] + s * U[k] + t * V[k] for k in range(3)]
@@ -82,7 +93,7 @@ def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool
             mi.Point3f(mi.Float(o[0]), mi.Float(o[1]), mi.Float(o[2])),
             mi.Vector3f(mi.Float(d[0] * inv), mi.Float(d[1] * inv), mi.Float(d[2] * inv)),
         )
-        ray.maxt = mi.Float(span * dnorm)
+        ray.maxt = mi.Float(span_k * dnorm)
         if normals:
             si = scene.mi_scene.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
             valid, th = si.is_valid(), si.t
@@ -99,12 +110,12 @@ def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool
         sl = slice(start, stop)
         if normals:
             dr.eval(z, si.n, dist, dnorm, valid)
-            extra["normal"][sl] = np.array(si.n).T
-            extra["t"][sl] = np.where(np.array(valid), np.array(dist), np.inf)
-            extra["dir_norm"][sl] = np.array(dnorm)
+            extra["normal"][sl] = _np(si.n).T
+            extra["t"][sl] = np.where(_np(valid), _np(dist), np.inf)
+            extra["dir_norm"][sl] = _np(dnorm)
         else:
             dr.eval(z)
-        z_out[sl] = np.array(z)
+        z_out[sl] = _np(z)
     out = {"z": z_out.reshape(r, r)}
     for k, v in extra.items():
         out[k] = v.reshape((r, r) + v.shape[1:])

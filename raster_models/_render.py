@@ -80,7 +80,7 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     hits = cast_grid(scene, grid, r, depth, normals=need_slope)
     z = hits["z"].ravel()
     hit = np.isfinite(z)
-    z = np.clip(np.where(hit, z, 1.0), 0.0, 1.0)
+    z = np.where(hit, z, 1.0)
     slope = None
     if need_slope:
         idx = np.nonzero(hit)[0]
@@ -96,16 +96,15 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
             hits["t"].ravel()[idx],
             hits["dir_norm"].ravel()[idx],
         )
-    if params.depth_bias != 0 or params.slope_scaled_bias != 0.0:
-        z = z + _depth.hardware_bias(
-            z,
-            slope,
-            params.format,
-            depth_bias=params.depth_bias,
-            slope_scaled=params.slope_scaled_bias,
-            clamp=params.depth_bias_clamp,
-        )
-        z = np.clip(z, 0.0, 1.0)
+    # Bias first, then the viewport clamp (D3D11 order).
+    z = _depth.rasterized_depth(
+        z,
+        slope,
+        params.format,
+        depth_bias=params.depth_bias,
+        slope_scaled=params.slope_scaled_bias,
+        clamp=params.depth_bias_clamp,
+    )
     # Stored as float32: D3D compares a depth texel converted to float32.
     stored = np.where(hit, _depth.quantize(z, params.format), 1.0).astype(np.float32)
     stored = stored.reshape(r, r)

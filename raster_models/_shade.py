@@ -27,6 +27,38 @@ from ._types import MapData, Setup
 __all__ = ["shade"]
 
 
+def normal_offset_texels(params, proj) -> float:
+    """Normal offset (texels) of a map: ``perspective_normal_offset`` on spot/point maps of
+    techniques that have it, else ``normal_offset``."""
+    if proj is not None and proj.kind == "persp":
+        persp = getattr(params, "perspective_normal_offset", None)
+        if persp is not None:
+            return float(persp)
+    return float(params.normal_offset)
+
+
+def perspective_reference(params, proj, z):
+    """Compare reference of perspective maps with a linear-depth bias, or ``None``.
+
+    ``tau = b / (a - z)`` is the receiver's light-view depth; the reference is the
+    hyperbolic depth of ``tau (1 - k)`` with ``k = perspective_bias * 2 tan(fov/2) / R``:
+    ``perspective_bias`` texel footprints at the receiver's distance, in world units along
+    the light's axis. ``None`` where the technique has no such bias (the constant ``bias`` is
+    subtracted from normalized depth instead).
+    """
+    k_texels = getattr(params, "perspective_bias", None)
+    if proj is None or proj.kind != "persp" or not k_texels:
+        return None
+    tan_half, near, far = (float(x) for x in proj.extent)
+    a, b = far / (far - near), far * near / (far - near)
+    k = float(k_texels) * 2.0 * tan_half / proj.resolution
+    z = np.asarray(z, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = b / (a - z)
+        ref = a - b / (tau * max(1.0 - k, 1e-6))
+    return np.where(np.isfinite(ref), ref, z)
+
+
 def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
     """Partition index per pixel of ``idx`` (-1: none)."""
     parts = setup.partitions
@@ -36,7 +68,11 @@ def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
         return np.zeros(len(idx), dtype=np.int64)
     if setup.selection == "depth":
         ends = np.array([p.z_end for p in parts[:-1]])
-        sel = np.sum(z[:, None] >= ends[None, :], axis=1).astype(np.int64)
+        if np.all(np.diff(ends) >= 0):
+            # Number of interior ends at or below z (the same count, without an (N, k) mask).
+            sel = np.searchsorted(ends, z, side="right").astype(np.int64)
+        else:
+            sel = np.sum(z[:, None] >= ends[None, :], axis=1).astype(np.int64)
         if setup.outside == "discard":
             outside = (z < parts[0].z_begin) | (z >= parts[-1].z_end)
             sel[outside] = -1
@@ -46,23 +82,26 @@ def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
         # seamless: the offset may carry a lookup onto the neighbouring face).
         proj0 = parts[0].projection
         d = gbuf.position[idx] - proj0.frame.origin
-        if params.normal_offset > 0.0:
+        offset = normal_offset_texels(params, proj0)
+        if offset > 0.0:
             texel = 2.0 * float(proj0.extent[0]) * np.max(np.abs(d), axis=1) / proj0.resolution
             n_dot_l = np.clip(gbuf.cos_l[idx], 0.0, 1.0)
-            scale = params.normal_offset * texel * (1.0 - n_dot_l)
+            scale = offset * texel * (1.0 - n_dot_l)
             d = d + gbuf.normal[idx] * scale[:, None]
         axis = np.argmax(np.abs(d), axis=1)
         sign = np.take_along_axis(d, axis[:, None], axis=1)[:, 0] < 0
         return (2 * axis + sign).astype(np.int64)
-    # projection: first map whose texture contains the pixel
+    # projection: first map whose texture volume ([0, 1]^3) contains the pixel
     sel = np.full(len(idx), -1, dtype=np.int64)
     pos = gbuf.position[idx]
     for i in range(k - 1, -1, -1):
         proj = parts[i].projection
         if proj is None:
             continue
-        u, v, _, w = proj.project(pos)
-        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0)
+        u, v, z, w = proj.project(pos)
+        # The whole texture volume: x, y and depth (a pixel beyond a cascade's depth range
+        # is not represented by its map even where x, y fall inside).
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (z >= 0) & (z <= 1) & (w > 0)
         sel[inside] = i
     return sel
 
@@ -80,8 +119,9 @@ def _receiver_plane(j3: np.ndarray):
     return bu, bv
 
 
-def _lookup(params, data: MapData, u, v, z, plane, rotation) -> np.ndarray:
-    """Visibility of receivers from one map (the filter of ``params``)."""
+def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.ndarray:
+    """Visibility of receivers from one map (the filter of ``params``); ``ref``: a compare
+    reference replacing ``z - bias`` (perspective linear-depth bias)."""
     kind = params.filter
     if kind in _filters.MOMENT_FILTERS:
         return _filters.moment_lookup(
@@ -100,7 +140,7 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation) -> np.ndarray:
         frac = np.minimum((np.abs(plane[0]) + np.abs(plane[1])) / r, 0.01)
         ref = z - frac
     else:
-        ref = z - params.bias
+        ref = z - params.bias if ref is None else ref
         plane = None
     common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
     if kind == "point":
@@ -134,15 +174,50 @@ def _singular_min(ju, jv):
         return np.where(smax > 0, det / smax, 0.0)
 
 
+#: Pixels from which a partition's geometry runs as one Dr.Jit kernel (LLVM backend, float64)
+#: instead of NumPy (same formulas; results agree to a few ulps, FMA contraction).
+DRJIT_MIN_PIXELS = 1 << 14
+
+#: Pixels per Dr.Jit launch of :func:`_geometry_drjit` (bounded memory).
+DRJIT_CHUNK = 1 << 21
+
+
 def _partition_geometry(params, part, gbuf, pix):
-    """Shadow coordinates (with the normal offset) and Jacobian for pixels ``pix``."""
+    """Shadow coordinates (with the normal offset), Jacobian, texel density and resolution
+    error for pixels ``pix`` (Dr.Jit for large float64 sets, else NumPy)."""
     proj = part.projection
+    geo = None
+    if proj.precision == "float64" and len(pix) >= DRJIT_MIN_PIXELS:
+        from scenes import backend
+
+        if not backend.active().variant.startswith("scalar"):
+            geo = _geometry_drjit(params, proj, gbuf, pix)
+    if geo is None:
+        geo = _geometry_numpy(params, proj, gbuf, pix)
+    geo["proj"] = proj
+    return geo
+
+
+def _density(geo: dict) -> dict:
+    """Add ``tpp`` (smallest singular value of J) and ``err`` (Intel resolution error)."""
+    smin = _singular_min(geo["ju"], geo["jv"])
+    fw_u = np.maximum(np.abs(geo["ju"][:, 0]), np.abs(geo["ju"][:, 1]))
+    fw_v = np.maximum(np.abs(geo["jv"][:, 0]), np.abs(geo["jv"][:, 1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lod = np.log2(np.sqrt(fw_u * fw_v))
+    geo["err"] = np.where(np.isfinite(lod), np.maximum(-lod, 0.0), 0.0)
+    geo["tpp"] = np.where(np.isfinite(smin), smin, 0.0)
+    return geo
+
+
+def _geometry_numpy(params, proj, gbuf, pix):
     pos = gbuf.position[pix]
     u, v, z, w = proj.project(pos)
-    if params.normal_offset > 0.0:
+    offset = normal_offset_texels(params, proj)
+    if offset > 0.0:
         texel = np.broadcast_to(np.asarray(proj.texel_world_size(w), dtype=np.float64), u.shape)
         n_dot_l = np.clip(gbuf.cos_l[pix], 0.0, 1.0)
-        scale = params.normal_offset * texel * (1.0 - n_dot_l)
+        scale = offset * texel * (1.0 - n_dot_l)
         u, v, z, w = proj.project(pos + gbuf.normal[pix] * scale[:, None])
     dpdx, dpdy = gbuf.dpdx[pix], gbuf.dpdy[pix]
     m = proj.matrix
@@ -162,21 +237,126 @@ def _partition_geometry(params, part, gbuf, pix):
     res = proj.resolution
     with np.errstate(invalid="ignore"):
         inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & np.isfinite(u + v)
-    return {
-        "u": np.where(np.isfinite(u), u, 0.0),
-        "v": np.where(np.isfinite(v), v, 0.0),
-        "z": np.where(np.isfinite(z), z, 1.0),
-        "j3": j3,
-        "ju": j3[:, 0, :] * res,
-        "jv": j3[:, 1, :] * res,
-        "inside": inside,
+    return _density(
+        {
+            "u": np.where(np.isfinite(u), u, 0.0),
+            "v": np.where(np.isfinite(v), v, 0.0),
+            "z": np.where(np.isfinite(z), z, 1.0),
+            "j3": j3,
+            "ju": j3[:, 0, :] * res,
+            "jv": j3[:, 1, :] * res,
+            "inside": inside,
+        }
+    )
+
+
+def _geometry_drjit(params, proj, gbuf, pix):
+    """:func:`_geometry_numpy` as one fused Dr.Jit float64 kernel per chunk of pixels."""
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    f64 = mi.Float64
+
+    def const(x):
+        # Kernel parameters, not literals: one compiled kernel serves every projection.
+        return dr.opaque(f64, float(x))
+
+    m = [[const(c) for c in row] for row in np.asarray(proj.matrix, dtype=np.float64)]
+    res = float(proj.resolution)
+    res_k = const(res)
+    persp = proj.kind != "ortho"
+    offset = normal_offset_texels(params, proj)
+    n = len(pix)
+    need_j = bool(params.receiver_plane_bias)
+    keys = ("u", "v", "z", "tpp", "err")
+    if need_j:
+        keys += ("jux", "juy", "jvx", "jvy", "jzx", "jzy")
+    out = {k: np.empty(n) for k in keys}
+    inside_out = np.empty(n, dtype=bool)
+    tan2 = const(2.0 * float(proj.extent[0]) / res if persp else 0.0)
+    texel_ortho = const(0.0 if persp else float(proj.texel_world_size()))
+    offset_k = const(offset)
+
+    def col(a, sl, k):
+        return f64(np.ascontiguousarray(a[sl, k]))
+
+    def project(p):
+        rows = [m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3] for i in range(4)]
+        if not persp:
+            return rows[0], rows[1], rows[2], f64(1.0)
+        w = rows[3]
+        return rows[0] / w, rows[1] / w, rows[2] / w, w
+
+    for start in range(0, n, DRJIT_CHUNK):
+        sl = slice(start, min(n, start + DRJIT_CHUNK))
+        idx = pix[sl]
+        pos = gbuf.position[idx]
+        p = [col(pos, slice(None), k) for k in range(3)]
+        u, v, z, w = project(p)
+        if offset > 0.0:
+            nrm = gbuf.normal[idx]
+            texel = tan2 * w if persp else texel_ortho
+            n_dot_l = dr.clip(f64(gbuf.cos_l[idx]), 0.0, 1.0)
+            scale = offset_k * texel * (1.0 - n_dot_l)
+            p = [p[k] + col(nrm, slice(None), k) * scale for k in range(3)]
+            u, v, z, w = project(p)
+        jac = []
+        for dp_np in (gbuf.dpdx[idx], gbuf.dpdy[idx]):
+            dp = [col(dp_np, slice(None), k) for k in range(3)]
+            dq = [m[i][0] * dp[0] + m[i][1] * dp[1] + m[i][2] * dp[2] for i in range(3)]
+            if persp:
+                dw = m[3][0] * dp[0] + m[3][1] * dp[1] + m[3][2] * dp[2]
+                dq = [(dq[i] - t * dw) / w for i, t in enumerate((u, v, z))]
+            jac.append(dq)
+        (ux, vx, zx), (uy, vy, zy) = jac
+        a, b, c, d = ux * res_k, uy * res_k, vx * res_k, vy * res_k
+        fro = a * a + b * b + c * c + d * d
+        det = dr.abs(a * d - b * c)
+        smax = dr.sqrt(0.5 * (fro + dr.sqrt(dr.maximum(fro * fro - 4.0 * det * det, 0.0))))
+        smin = dr.select(smax > 0, det / smax, 0.0)
+        fw_u = dr.maximum(dr.abs(a), dr.abs(b))
+        fw_v = dr.maximum(dr.abs(c), dr.abs(d))
+        lod = dr.log2(dr.sqrt(fw_u * fw_v))
+        err = dr.select(dr.isfinite(lod), dr.maximum(-lod, 0.0), 0.0)
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & dr.isfinite(u + v)
+        vals = {
+            "u": dr.select(dr.isfinite(u), u, 0.0),
+            "v": dr.select(dr.isfinite(v), v, 0.0),
+            "z": dr.select(dr.isfinite(z), z, 1.0),
+            "tpp": dr.select(dr.isfinite(smin), smin, 0.0),
+            "err": err,
+        }
+        if need_j:
+            vals.update(jux=ux, juy=uy, jvx=vx, jvy=vy, jzx=zx, jzy=zy)
+        dr.eval(inside, *vals.values())
+        for k, val in vals.items():
+            out[k][sl] = val.numpy()
+        inside_out[sl] = inside.numpy()
+    geo = {
+        "u": out["u"],
+        "v": out["v"],
+        "z": out["z"],
+        "inside": inside_out,
+        "tpp": out["tpp"],
+        "err": out["err"],
     }
+    if need_j:
+        # The Jacobian itself only feeds the receiver-plane bias (tpp, err are done above).
+        j_u = np.stack([out["jux"], out["juy"]], axis=-1)
+        j_v = np.stack([out["jvx"], out["jvy"]], axis=-1)
+        jz = np.stack([out["jzx"], out["jzy"]], axis=-1)
+        geo.update(ju=j_u * res, jv=j_v * res, j3=np.stack([j_u, j_v, jz], axis=1))
+    return geo
 
 
 def _lookup_subset(params, data, geo, mask, rotation):
     """Visibility of the pixels ``mask`` of a :func:`_partition_geometry` record."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
-    return _lookup(params, data, geo["u"][mask], geo["v"][mask], geo["z"][mask], plane, rotation)
+    z = geo["z"][mask]
+    ref = perspective_reference(params, geo.get("proj"), z)
+    return _lookup(params, data, geo["u"][mask], geo["v"][mask], z, plane, rotation, ref=ref)
 
 
 def _smoothstep(e0, e1, x):
@@ -219,13 +399,8 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             continue
         data = maps[i]
         geo = _partition_geometry(params, part, gbuf, pix)
-        smin = _singular_min(geo["ju"], geo["jv"])
-        fw_u = np.maximum(np.abs(geo["ju"][:, 0]), np.abs(geo["ju"][:, 1]))
-        fw_v = np.maximum(np.abs(geo["jv"][:, 0]), np.abs(geo["jv"][:, 1]))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lod = np.log2(np.sqrt(fw_u * fw_v))
-        e = np.where(np.isfinite(lod), np.maximum(-lod, 0.0), 0.0)
-        tpp[pix] = np.where(np.isfinite(smin), smin, 0.0)
+        e = geo["err"]
+        tpp[pix] = geo["tpp"]
         err[pix] = e
         rmask = receiver[pix]
         if len(rec) and data is not None:

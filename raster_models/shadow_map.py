@@ -4,7 +4,15 @@
   the AABB of the whole view frustum in light space (``fit="frustum"``).
 - Spot light: a perspective map on the light's axis covering its cutoff cone.
 - Point light: six 90-degree perspective cube faces; a pixel uses the face of the major axis
-  of its direction from the light.
+  of its direction from the light (normal offset included). Not seamless: filter taps near
+  a face edge clamp to that face's edge texels (``address_mode``) instead of reading the
+  neighbouring face, as D3D10+/GL seamless cube filtering would; the difference is
+  confined to a filter width at the seams.
+- Spot and point maps bias in linear light depth (``perspective_bias`` texel footprints at
+  the receiver) and offset along the normal (``perspective_normal_offset``), after Unity
+  URP's texel-scaled depth and normal bias; the constant ``bias`` on hyperbolic depth with
+  the near plane at far/1000 (the fallback near when the light is inside the scene bounds)
+  would erase every spot shadow (``perspective_bias=0`` reproduces that configuration).
 
 References
 ----------
@@ -64,6 +72,26 @@ class ShadowMapParams(CommonParams):
         source="MJP / Falcor LookAt up (0, 1, 0)",
         help="light frame up vector: world (+Y) or camera_right (Intel's align to frustum)",
         choices=("world", "camera_right"),
+    )
+    perspective_bias: float = param(
+        1.0,
+        source="Unity URP ShadowUtils.GetShadowBias: depth bias 1 shadow texel in world units "
+        "(URP light default Depth Bias 1); here per receiver, at its own distance",
+        help="spot/point maps: receiver-side bias in linear light-view depth of this many "
+        "texel footprints at the receiver (2 tan(fov/2) tau / R), replacing 'bias'; 0 = the "
+        "constant 'bias' on hyperbolic depth (a GL/D3D default that erases spot shadows "
+        "when near = far/1000)",
+        lo=0.0,
+        hi=1e3,
+    )
+    perspective_normal_offset: float = param(
+        1.0,
+        source="Unity URP ShadowUtils.GetShadowBias / ApplyShadowBias: normal bias 1 shadow "
+        "texel, scaled by 1 - N.L (URP light default Normal Bias 1)",
+        help="spot/point maps: normal offset in texel footprints at the receiver, times "
+        "saturate(1 - N.L) (replaces normal_offset, which applies to orthographic maps)",
+        lo=0.0,
+        hi=1e3,
     )
     light_near: float = param(
         0.0,

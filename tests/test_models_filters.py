@@ -32,19 +32,21 @@ def test_float_quantization_is_float32_rounding():
 
 
 def test_hardware_bias_units():
-    # D24: r = 2^-24; D16: r = 2^-16; D32F: r = 2^(exponent(z) - 23)
-    assert (
-        _depth.hardware_bias(
-            np.array([0.3]), None, "D24", depth_bias=1, slope_scaled=0.0, clamp=0.0
-        )[0]
-        == 2.0**-24
-    )
+    # UNORM: r = 1 / (2^n - 1), the format's smallest value > 0 (D3D11 functional spec; was
+    # 2^-n before issue 8); D32F: r = 2^(exponent(z) - 23)
+    assert _depth.hardware_bias(
+        np.array([0.3]), None, "D24", depth_bias=1, slope_scaled=0.0, clamp=0.0
+    )[0] == 1.0 / (2**24 - 1)
     assert (
         _depth.hardware_bias(
             np.array([0.3]), None, "D16", depth_bias=3, slope_scaled=0.0, clamp=0.0
         )[0]
-        == 3 * 2.0**-16
+        == 3.0 / 65535.0
     )
+    # One UNORM step: a biased depth moves exactly one representable value.
+    d = _depth.quantize(np.array([0.5]), "D16")
+    b = _depth.hardware_bias(d, None, "D16", depth_bias=1, slope_scaled=0.0, clamp=0.0)
+    assert _depth.quantize(d + b, "D16")[0] == d[0] + 1.0 / 65535.0
     b = _depth.hardware_bias(
         np.array([0.5, 0.3, 0.9]), None, "D32F", depth_bias=1, slope_scaled=0.0, clamp=0.0
     )
@@ -58,6 +60,17 @@ def test_hardware_bias_units():
         np.array([0.5]), np.array([0.01]), "D24", depth_bias=0, slope_scaled=2.0, clamp=0.005
     )
     assert b[0] == 0.005
+
+
+def test_depth_bias_is_added_before_the_viewport_clamp():
+    # A pancaked caster (z < 0, in front of the near plane) stays at 0 whatever its bias: the
+    # rasterizer adds the bias, then clamps (before issue 8 the clamp came first and the
+    # caster was pushed to the bias). Values above 1 stay at 1.
+    z = np.array([-0.5, -1e-3, 0.3, 0.99999, 1.5])
+    out = _depth.rasterized_depth(z, None, "D24", depth_bias=1000)
+    r = 1.0 / (2**24 - 1)
+    np.testing.assert_array_equal(out, [0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0])
+    np.testing.assert_array_equal(_depth.rasterized_depth(z, None, "D24"), np.clip(z, 0, 1))
 
 
 # ---------------------------------------------------------------------- filters

@@ -150,10 +150,13 @@ def test_perspective_maps_converge(name):
     rec, exact, _ = _truth(s)
     errors = []
     for res in (256, 1024):
-        r = rm.run("shadow-map", s, resolution=res, bias=1e-4, filter="hw_pcf")
+        # The default linear-depth bias and normal offset (1 texel each, Unity URP); the
+        # offset may carry a lookup at the cone's rim just outside the spot map.
+        r = rm.run("shadow-map", s, resolution=res, filter="hw_pcf")
         errors.append(_misclassified(r.outputs["visibility"], exact, rec))
-        assert r.diagnostics["uncovered_receivers"] == 0
+        assert r.diagnostics["uncovered_receivers"] <= 0.001 * rec.sum()
     assert errors[-1] < 0.002
+    assert errors[-1] <= errors[0]
     if name == "point":
         assert r.cost["render_passes"] == 6
         assert set(np.unique(r.outputs["cascade"])) >= {1, 3, 5}
