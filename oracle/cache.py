@@ -6,29 +6,63 @@ field (spp, seed, channels, adaptive settings), the Mitsuba variant and :data:`O
 An entry is a folder ``<root>/<key[:2]>/<key>/`` holding ``reference.exr``,
 ``reference.json`` and ``checksums.json``; it is written under a temporary name and renamed
 into place, so readers never see a partial entry. An entry whose checksums do not match is
-reported as corrupted, removed and rendered again.
+reported as corrupted, removed and rendered again; so is an entry that is not a folder (a
+file, a broken link).
+
+The cache folder is ``$RASTER_ORACLE_CACHE`` (``$RASTER_ORACLE_CACHE_DIR`` is accepted too),
+else ``$XDG_CACHE_HOME/raster-oracle``, else ``~/.cache/raster-oracle``.
+
+References rendered without the cache live in scratch folders ``raster-oracle-ref-<pid>-*`` of
+the system temporary folder (:func:`scratch_dir`); :func:`remove_scratch` deletes this
+process's folders (the CLI calls it when a command ends, whatever the outcome) and
+:func:`sweep_stale_scratch` deletes those left by killed processes (dead PID, older than a day).
 """
 
 from __future__ import annotations
 
+import atexit
 import hashlib
 import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
-__all__ = ["ORACLE_VERSION", "ReferenceCache", "default_cache_dir", "reference_key"]
+__all__ = [
+    "CACHE_ENV",
+    "ORACLE_VERSION",
+    "ReferenceCache",
+    "default_cache_dir",
+    "reference_key",
+    "remove_scratch",
+    "scratch_dir",
+    "scratch_mark",
+    "sweep_stale_scratch",
+]
 
 #: Bump when the meaning of a reference channel changes: old cache entries become misses.
-ORACLE_VERSION = "1"
+#: 2: TEA-hashed sampling streams and binomial stderr floors.
+ORACLE_VERSION = "2"
 FILES = ("reference.exr", "reference.json")
+
+#: Environment variables naming the cache folder, first set wins (the first is documented).
+CACHE_ENV = ("RASTER_ORACLE_CACHE", "RASTER_ORACLE_CACHE_DIR")
+
+#: Prefix of scratch folders in the system temporary folder.
+SCRATCH_PREFIX = "raster-oracle-ref-"
+
+#: Age after which a scratch folder of a dead process is swept: one day.
+STALE_SECONDS = 86400.0
+
+_scratch: list[Path] = []
 
 
 def default_cache_dir() -> Path:
-    env = os.environ.get("RASTER_ORACLE_CACHE")
-    if env:
-        return Path(env)
+    for name in CACHE_ENV:
+        env = os.environ.get(name)
+        if env:
+            return Path(env)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return Path(base) / "raster-oracle"
 
@@ -47,6 +81,63 @@ def reference_key(loaded, settings, variant: str) -> str:
         "oracle_version": ORACLE_VERSION,
     }
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
+
+
+def scratch_dir() -> Path:
+    """A new scratch folder ``raster-oracle-ref-<pid>-*`` that :func:`remove_scratch` deletes."""
+    folder = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-"))
+    _scratch.append(folder)
+    return folder
+
+
+def scratch_mark() -> int:
+    """How many scratch folders this process has made: pass to :func:`remove_scratch`."""
+    return len(_scratch)
+
+
+def remove_scratch(since: int = 0) -> None:
+    """Delete the scratch folders this process made after mark ``since`` (default: all)."""
+    while len(_scratch) > since:
+        shutil.rmtree(_scratch.pop(), ignore_errors=True)
+
+
+atexit.register(remove_scratch)
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def sweep_stale_scratch(*, now: float | None = None, tmp: str | os.PathLike | None = None) -> int:
+    """Delete scratch folders of dead processes older than a day; returns how many went."""
+    root = Path(tmp if tmp is not None else tempfile.gettempdir())
+    now = time.time() if now is None else now
+    removed = 0
+    try:
+        candidates = list(root.glob(f"{SCRATCH_PREFIX}*"))
+    except OSError:
+        return 0
+    for folder in candidates:
+        pid_text = folder.name[len(SCRATCH_PREFIX) :].split("-", 1)[0]
+        try:
+            st = folder.lstat()
+        except OSError:
+            continue
+        if not folder.is_dir() or folder.is_symlink() or st.st_uid != os.getuid():
+            continue
+        if now - st.st_mtime < STALE_SECONDS:
+            continue
+        if pid_text.isdigit() and _pid_alive(int(pid_text)):
+            continue
+        shutil.rmtree(folder, ignore_errors=True)
+        removed += 1
+    return removed
 
 
 def _sha256(path: Path) -> str:
@@ -69,8 +160,11 @@ class ReferenceCache:
     def lookup(self, key: str) -> tuple[Path | None, str]:
         """``(folder, status)``: status is ``hit``, ``miss`` or ``corrupted`` (entry removed)."""
         folder = self.entry(key)
-        if not folder.is_dir():
+        if not os.path.lexists(folder):
             return None, "miss"
+        if folder.is_symlink() or not folder.is_dir():
+            _remove(folder)
+            return None, "corrupted"
         try:
             sums = json.loads((folder / "checksums.json").read_text())
             ok = all(_sha256(folder / name) == sums[name] for name in FILES)
@@ -78,12 +172,14 @@ class ReferenceCache:
             ok = False
         if ok:
             return folder, "hit"
-        shutil.rmtree(folder, ignore_errors=True)
+        _remove(folder)
         return None, "corrupted"
 
     def store(self, key: str, source_dir: Path) -> Path:
         """Copy ``reference.exr`` and ``reference.json`` from ``source_dir`` into the cache."""
         folder = self.entry(key)
+        if os.path.lexists(folder.parent) and not folder.parent.is_dir():
+            _remove(folder.parent)  # a file where the shard folder belongs: corrupted
         folder.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{key[:8]}.", dir=folder.parent))
         try:
@@ -91,10 +187,18 @@ class ReferenceCache:
                 shutil.copyfile(source_dir / name, tmp / name)
             sums = {name: _sha256(tmp / name) for name in FILES}
             (tmp / "checksums.json").write_text(json.dumps(sums))
-            if folder.exists():
-                shutil.rmtree(folder, ignore_errors=True)
+            if os.path.lexists(folder):
+                _remove(folder)
             os.replace(tmp, folder)
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
         return folder
+
+
+def _remove(path: Path) -> None:
+    """Delete a file, link or folder tree at ``path``; a missing path is fine."""
+    if path.is_symlink() or (os.path.lexists(path) and not path.is_dir()):
+        path.unlink(missing_ok=True)
+    else:
+        shutil.rmtree(path, ignore_errors=True)

@@ -48,6 +48,27 @@ _positive_int = _number(int, minimum=0, strict=True)
 _nonneg_int = _number(int, minimum=0, strict=False)
 _positive_float = _number(float, minimum=0.0, strict=True)
 
+#: Largest ``--spp`` / ``--max-spp``: 2^20 samples per pixel (a 1-pixel reference then takes
+#: seconds; beyond it the standard error, 0.0005 at worst, stops mattering).
+MAX_SPP = 2**20
+
+
+def _spp(text: str) -> int:
+    """An argparse type: samples per pixel, an integer in [1, MAX_SPP]."""
+    value = _positive_int(text)
+    if value > MAX_SPP:
+        raise argparse.ArgumentTypeError(f"must be <= {MAX_SPP} (2^20), got {value}")
+    return value
+
+
+def _path(text: str) -> Path:
+    """An argparse type: a non-empty path without control characters."""
+    if not text:
+        raise argparse.ArgumentTypeError("expected a path, got ''")
+    if any(ord(c) < 32 for c in text):
+        raise argparse.ArgumentTypeError(f"path contains control characters: {text!r}")
+    return Path(text)
+
 
 def _add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
@@ -84,7 +105,7 @@ def _add_set_arg(p: argparse.ArgumentParser) -> None:
 def _add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> None:
     p.add_argument(
         "--spp",
-        type=_positive_int,
+        type=_spp,
         default=default_spp,
         help=f"sub-pixel samples per pixel (default {default_spp})",
     )
@@ -102,13 +123,13 @@ def _add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) ->
     )
     p.add_argument(
         "--max-spp",
-        type=_positive_int,
+        type=_spp,
         default=4096,
         help="adaptive: most samples a pixel gets (default 4096)",
     )
     p.add_argument(
         "--cache-dir",
-        type=Path,
+        type=_path,
         default=None,
         help="reference cache (default ~/.cache/raster-oracle)",
     )
@@ -141,11 +162,11 @@ def _parser() -> argparse.ArgumentParser:
         help="comma-separated channel groups (default: all): visibility, coverage, "
         "color, edge, id, depth, position, normal, albedo",
     )
-    p.add_argument("--out", type=Path, default=Path("out/reference"), help="output folder")
+    p.add_argument("--out", type=_path, default=Path("out/reference"), help="output folder")
 
     p = sub.add_parser("export", help="write meshes (PLY), camera.json and lights.json")
     _add_scene_args(p)
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--out", type=_path, required=True, help="output folder")
 
     sub.add_parser("techniques", help="list the technique models with their parameters")
 
@@ -153,7 +174,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("technique", metavar="TECHNIQUE")
     _add_scene_args(p)
     _add_set_arg(p)
-    p.add_argument("--out", type=Path, default=Path("out/model"), help="output folder")
+    p.add_argument("--out", type=_path, default=Path("out/model"), help="output folder")
 
     p = sub.add_parser("score", help="score a model or an engine image against the reference")
     _add_scene_args(p)
@@ -167,11 +188,12 @@ def _parser() -> argparse.ArgumentParser:
     _add_set_arg(p)
     p.add_argument(
         "--channel",
-        choices=["visibility", "color"],
+        choices=["visibility", "color", "coverage"],
         default=None,
-        help="what the candidate holds (default: color; visibility for models)",
+        help="what the candidate holds (default: color; visibility for shadow models, "
+        "color and coverage for anti-aliasing models)",
     )
-    p.add_argument("--spp", type=_positive_int, default=64, help="reference spp (default 64)")
+    p.add_argument("--spp", type=_spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=_nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
     p.add_argument(
@@ -184,21 +206,21 @@ def _parser() -> argparse.ArgumentParser:
         metavar="METRIC=VALUE",
         help="exit 1 when METRIC exceeds VALUE (repeatable)",
     )
-    p.add_argument("--cache-dir", type=Path, default=None)
+    p.add_argument("--cache-dir", type=_path, default=None)
     p.add_argument("--no-cache", action="store_true")
     p.add_argument("--quiet", action="store_true")
-    p.add_argument("--out", type=Path, default=Path("out/score"), help="output folder")
+    p.add_argument("--out", type=_path, default=Path("out/score"), help="output folder")
 
     p = sub.add_parser("report", help="combine score folders into one HTML report")
     p.add_argument("folders", nargs="+", type=Path, metavar="DIR")
-    p.add_argument("--out", type=Path, required=True, help="the report.html to write")
+    p.add_argument("--out", type=_path, required=True, help="the report.html to write")
     p.add_argument("--title", default="raster-oracle report")
 
     p = sub.add_parser("main", help="the main job on the built-in default scenes")
-    p.add_argument("--out", type=Path, default=Path("out"), help="output folder")
-    p.add_argument("--spp", type=_positive_int, default=64)
+    p.add_argument("--out", type=_path, default=Path("out"), help="output folder")
+    p.add_argument("--spp", type=_spp, default=64)
     p.add_argument("--scenes", default=None, help="comma-separated scenes (default: all)")
-    p.add_argument("--cache-dir", type=Path, default=None)
+    p.add_argument("--cache-dir", type=_path, default=None)
     p.add_argument("--quiet", action="store_true")
 
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
@@ -212,6 +234,11 @@ def _parser() -> argparse.ArgumentParser:
 
 def _load_scene(args):
     import scenes
+
+    if args.frame and args.camera_path is None and not getattr(args, "frames", None):
+        raise CliError(
+            f"--frame {args.frame} needs --camera-path (frame 0 is the scene's own camera)"
+        )
 
     return scenes.load(
         args.scene,
@@ -240,14 +267,39 @@ def _settings(args, channels=None):
 
 
 def _cache(args):
-    from .cache import ReferenceCache
+    from .cache import ReferenceCache, default_cache_dir
 
-    return None if getattr(args, "no_cache", False) else ReferenceCache(args.cache_dir)
+    if getattr(args, "no_cache", False):
+        return None
+    root = args.cache_dir if args.cache_dir is not None else default_cache_dir()
+    _check_dir(root, label="--cache-dir" if args.cache_dir is not None else "cache folder")
+    return ReferenceCache(root)
+
+
+def _check_dir(path: Path, *, label: str) -> None:
+    """``path`` is a writable folder, or can be created: its nearest existing ancestor is one."""
+    text = os.fspath(path)
+    if not text:
+        raise CliError(f"{label}: expected a path, got ''")
+    if os.path.exists(text) or os.path.islink(text):
+        if not os.path.isdir(text):
+            raise CliError(f"{label} {path} exists and is not a folder")
+        if not os.access(text, os.W_OK | os.X_OK):
+            raise CliError(f"{label} {path} is not writable")
+        return
+    parent = os.path.dirname(os.path.abspath(text))
+    while not os.path.exists(parent):
+        if os.path.islink(parent):  # a dangling link: nothing can be created under it
+            raise CliError(f"{label} {path}: {parent} is a broken link")
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise CliError(f"{label} {path}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise CliError(f"{label} {path}: {parent} is not writable")
 
 
 def _check_out(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out} exists and is not a folder")
+    _check_dir(out, label="--out")
 
 
 def cmd_doctor(args) -> int:
@@ -296,6 +348,8 @@ def cmd_reference(args) -> int:
     _check_out(args.out)
     loaded = _load_scene(args)
     ref = get_reference(loaded, settings, cache=_cache(args), quiet=args.quiet)
+    if ref.cache_status == "corrupted":
+        print("raster-oracle: warning: corrupted cache entry replaced", file=sys.stderr)
     publish(ref, args.out)
     print(f"reference ({ref.cache_status}): {args.out / 'reference.exr'}")
     return 0
@@ -363,9 +417,29 @@ def cmd_model(args) -> int:
     return 0
 
 
+def _check_frame_pattern(pattern: str | None) -> None:
+    """A ``--candidate`` pattern with a ``{frame}`` field is a ``str.format`` pattern: it may
+    hold ``{frame}`` fields only, with an integer format (a name without one is literal)."""
+    import re
+
+    if pattern is None or not re.search(r"\{frame(?::[^}]*)?\}", pattern):
+        return
+    try:
+        for k in (0, 1):
+            pattern.format(frame=k)
+    except (KeyError, IndexError, ValueError, AttributeError) as exc:
+        raise CliError(
+            f"--candidate pattern {pattern!r} is not valid ({type(exc).__name__}: {exc}); "
+            "use {frame} or e.g. {frame:03d} (write a literal brace as {{ or }})"
+        ) from None
+
+
 def cmd_score(args) -> int:
+    from .score import parse_thresholds
     from .scoring import score_command
 
+    parse_thresholds(args.fail_above)
+    _check_frame_pattern(args.candidate)
     _check_out(args.out)
     failed = score_command(args, _load_scene(args), _cache(args))
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
@@ -378,7 +452,22 @@ def cmd_score(args) -> int:
 def cmd_report(args) -> int:
     from .scoring import combine_reports
 
-    n = combine_reports(args.folders, args.out, title=args.title)
+    if not args.title.strip():
+        raise CliError("--title must not be empty")
+    out = args.out
+    if out.suffix.lower() == ".json":
+        raise CliError(f"--out must name the HTML file (its JSON goes beside it), got {out}")
+    if out.is_dir():
+        raise CliError(f"--out {out} is a folder; give the report file to write")
+    _check_dir(out.parent, label=f"--out {out}: folder")
+    try:
+        n = combine_reports(args.folders, out, title=args.title)
+    except (ValueError, TypeError, KeyError, AttributeError) as exc:
+        # Score folders are user data: a wrong schema, missing keys or unsafe links.
+        if isinstance(exc, _known_errors()):
+            raise
+        detail = f"missing key {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise CliError(f"report: bad score folder data: {detail}") from None
     print(f"report of {n} case(s): {args.out}")
     return 0
 
@@ -427,23 +516,49 @@ def _known_errors() -> tuple[type[BaseException], ...]:
     return tuple(errors)
 
 
+def _one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line: newlines (e.g. in file names) are escaped."""
+    text = str(exc)
+    return "".join(c if c >= " " or c == "\t" else repr(c)[1:-1] for c in text)
+
+
+def _terminate(signum, frame):  # SIGTERM: unwind so that `finally` blocks clean up
+    raise SystemExit(128 + signum)
+
+
 def main(argv: list[str] | None = None) -> int:
+    import signal
+    import warnings
+
+    from .cache import remove_scratch, scratch_mark, sweep_stale_scratch
+
     parser = _parser()
     try:
         args = parser.parse_args(argv)
     except CliError as exc:
-        print(f"raster-oracle: error: {exc}", file=sys.stderr)
+        print(f"raster-oracle: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
+    previous = None
     try:
-        if args.command != "doctor":
-            from scenes import backend
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread
+        pass
+    mark = scratch_mark()
+    try:
+        sweep_stale_scratch()
+        with warnings.catch_warnings():
+            # NumPy's RuntimeWarnings (0/0 on empty masks, ...) are not the user's business;
+            # results are checked for NaN/inf where they are made.
+            warnings.simplefilter("ignore", RuntimeWarning)
+            if args.command != "doctor":
+                from scenes import backend
 
-            backend.select(args.backend)
-        return COMMANDS[args.command](args)
+                backend.select(args.backend)
+            return COMMANDS[args.command](args)
     except _known_errors() as exc:
-        print(f"raster-oracle: error: {exc}", file=sys.stderr)
+        print(f"raster-oracle: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head`: not an error
         sys.stderr.close()
@@ -451,6 +566,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("raster-oracle: interrupted", file=sys.stderr)
         return 130
+    finally:
+        remove_scratch(mark)
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

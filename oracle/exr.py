@@ -8,7 +8,10 @@ reader never sees a half-written file.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
+import sys
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -82,6 +85,31 @@ def write_exr(
         raise
 
 
+@contextlib.contextmanager
+def _silenced_stdio():
+    """Send file descriptors 1 and 2 to /dev/null: the OpenEXR C/C++ library prints its own
+    messages about a corrupt file (on stdout and stderr) before raising, and the exception
+    already says what went wrong."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = []
+    try:
+        for fd in (1, 2):
+            try:
+                saved.append((fd, os.dup(fd)))
+            except OSError:  # that stream is closed
+                continue
+        with open(os.devnull, "wb") as null:
+            for fd, _ in saved:
+                os.dup2(null.fileno(), fd)
+        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+            yield
+    finally:
+        for fd, copy in saved:
+            os.dup2(copy, fd)
+            os.close(copy)
+
+
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read every channel of an EXR as a flat ``name -> (H, W)`` mapping.
 
@@ -96,7 +124,7 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     if not path.is_file():
         raise ExrError(f"EXR file not found: {path}")
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
+        with _silenced_stdio(), OpenEXR.File(str(path), separate_channels=True) as f:
             out = {name: np.array(ch.pixels) for name, ch in f.channels().items()}
     except Exception as exc:  # OpenEXR raises plain Exceptions for corrupt files
         raise ExrError(f"cannot read EXR {path}: {exc}") from exc

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from scenes import backend
 
-from .cache import ORACLE_VERSION, ReferenceCache, reference_key
+from .cache import ORACLE_VERSION, ReferenceCache, reference_key, scratch_dir
 from .exr import atomic_write_bytes, make_readable, read_exr, write_exr
 from .reference import ReferenceSettings, render_reference
 
@@ -104,12 +104,17 @@ def get_reference(
         if folder is not None:
             meta = json.loads((folder / "reference.json").read_text())
             return Reference(folder, meta, status)
-    tmp = Path(tempfile.mkdtemp(prefix="raster-oracle-ref-"))
+    # A scratch folder (deleted by remove_scratch when the CLI command ends), or at once when
+    # the render fails or the reference goes into the cache.
+    tmp = scratch_dir()
     try:
         meta = _render_into(tmp, loaded, settings, quiet=quiet, key=key)
         if cache is None:
             return Reference(tmp, meta, status)
         folder = cache.store(key, tmp)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     finally:
         if cache is not None:
             shutil.rmtree(tmp, ignore_errors=True)

@@ -13,7 +13,7 @@ from pathlib import Path
 from . import _images
 from ._case import CASE_SCHEMA
 from ._tradeoff import tradeoff_section
-from ._validate import check_name, to_jsonable
+from ._validate import check_case_record, check_name, to_jsonable
 
 __all__ = ["REPORT_SCHEMA", "build_report", "read_cases"]
 
@@ -124,11 +124,14 @@ def read_cases(path: str | os.PathLike, *, relative_to: str | os.PathLike) -> li
     report = json.loads(path.read_text(encoding="utf-8"))
     if not isinstance(report, dict) or report.get("schema") != REPORT_SCHEMA:
         raise ValueError(f"{path} is not a report JSON ({REPORT_SCHEMA})")
+    if not isinstance(report.get("cases"), list):
+        raise ValueError(f"{path}: 'cases' must be a list of case records")
     source = path.parent.resolve()
     target = Path(relative_to).resolve()
     cases = []
-    for case in report["cases"]:
-        case = dict(case)
+    for i, case in enumerate(report["cases"]):
+        # Untrusted data: every key, every image URI and link (inside the folder) is checked.
+        case = check_case_record(f"{path} cases[{i}]", case, schema=CASE_SCHEMA)
         case.pop("id", None)
         links = []
         for link in case["exr_links"]:

@@ -6,12 +6,21 @@ message that names the parameter, what was expected and what was received.
 Non-finite floats cannot be stored in strict JSON, so they are encoded as the strings
 ``"nan"``, ``"inf"`` and ``"-inf"`` (:func:`encode_float`) and decoded back where numbers
 are compared (:func:`decode_float`).
+
+URL safety: a report embeds only ``data:image/...;base64`` URIs (:func:`check_image_uri`) and
+links relative to its own folder (:func:`check_link`); case records read back from a score
+folder's JSON are checked key by key (:func:`check_case_record`) and their links must stay
+inside that folder, so a crafted ``report.json`` cannot make a combined report load remote
+content or carry a script link.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import posixpath
+import re
+import urllib.parse
 from collections.abc import Mapping
 from numbers import Real
 
@@ -21,11 +30,15 @@ __all__ = [
     "KINDS",
     "RANGE_TOLERANCE",
     "STYLES",
+    "check_case_record",
     "check_cost",
     "check_error_maps",
     "check_image",
+    "check_image_uri",
+    "check_link",
     "check_metrics",
     "check_name",
+    "check_report_urls",
     "check_thresholds",
     "decode_float",
     "encode_float",
@@ -237,3 +250,177 @@ def to_jsonable(value: object, name: str) -> object:
         f"{name} must hold only str, number, bool, None, list or dict values, "
         f"got {type(value).__name__}"
     )
+
+
+#: The only URIs a report embeds: base64 PNG, WebP or JPEG images.
+_IMAGE_URI = re.compile(r"data:image/(?:png|webp|jpeg);base64,[A-Za-z0-9+/]*={0,2}")
+
+
+def check_image_uri(name: str, value: object) -> str:
+    """Check that ``value`` is a ``data:image/(png|webp|jpeg);base64,...`` URI."""
+    if not isinstance(value, str) or not _IMAGE_URI.fullmatch(value):
+        shown = value[:60] + "..." if isinstance(value, str) and len(value) > 60 else value
+        raise ValueError(f"{name} must be a data:image/...;base64 URI, got {shown!r}")
+    return value
+
+
+def check_link(name: str, link: object, *, inside: bool) -> dict:
+    """Check an EXR link ``{"label", "path", "href"}``: a relative link to a local file.
+
+    ``href`` must be the URL-quoted ``path`` (only ``[A-Za-z0-9_.~/%-]`` then remain) and
+    must not start with ``/`` (``//host`` loads remote content, ``/x`` leaves the report).
+    With ``inside=True`` (a score folder's own links) ``path`` must also have no URL scheme,
+    be relative and not leave the folder through ``..``.
+    """
+    if not isinstance(link, Mapping) or not {"label", "path", "href"} <= set(link):
+        raise ValueError(f"{name} must be a dict with 'label', 'path' and 'href', got {link!r}")
+    check_name(f"{name}['label']", link["label"])
+    path, href = link["path"], link["href"]
+    check_name(f"{name}['path']", path)
+    if not isinstance(href, str) or href != urllib.parse.quote(path, safe="/"):
+        raise ValueError(f"{name}['href'] must be the URL-quoted path {path!r}, got {href!r}")
+    if href.startswith("/"):
+        raise ValueError(f"{name} must be a relative link, got {path!r}")
+    if inside:
+        split = urllib.parse.urlsplit(path)
+        normal = posixpath.normpath(path)
+        if split.scheme or split.netloc or posixpath.isabs(path) or "\\" in path:
+            raise ValueError(f"{name} must be a relative file path, got {path!r}")
+        if normal == ".." or normal.startswith("../"):
+            raise ValueError(f"{name} must stay inside the report's folder, got {path!r}")
+    return dict(link)
+
+
+def check_report_urls(report: Mapping) -> None:
+    """Check every URI and link of a report record before it is rendered (see module doc)."""
+    for style, uri in dict(report.get("colorbars") or {}).items():
+        check_image_uri(f"colorbars[{style!r}]", uri)
+    for i, case in enumerate(report.get("cases") or []):
+        _check_case_urls(f"cases[{i}]", case, inside=False)
+
+
+def _check_case_urls(name: str, case: Mapping, *, inside: bool) -> None:
+    images = case["images"]
+    if not isinstance(images, Mapping):
+        raise ValueError(f"{name}['images'] must be a dict, got {images!r}")
+    for key in ("reference", "candidate"):
+        check_image_uri(f"{name}['images'][{key!r}]", images.get(key))
+    for j, m in enumerate(case["error_maps"]):
+        check_image_uri(f"{name}['error_maps'][{j}]['image']", m.get("image"))
+    for j, tile in enumerate(case["worst_tiles"]["tiles"]):
+        for key in ("reference", "candidate", "error"):
+            check_image_uri(f"{name}['worst_tiles']['tiles'][{j}][{key!r}]", tile.get(key))
+    for j, link in enumerate(case["exr_links"]):
+        check_link(f"{name}['exr_links'][{j}]", link, inside=inside)
+
+
+def _expect(name: str, value: object, types, what: str) -> None:
+    if not isinstance(value, types) or isinstance(value, bool) and bool not in types:
+        raise ValueError(f"{name} must be {what}, got {value!r:.80}")
+
+
+def _check_number_map(name: str, value: object) -> None:
+    _expect(name, value, (dict,), "a dict name -> number")
+    for key, v in value.items():
+        if isinstance(v, str) and v in _NONFINITE:
+            continue
+        _expect(f"{name}[{key!r}]", v, (int, float), "a number")
+
+
+def check_case_record(name: str, case: object, *, schema: str) -> dict:
+    """Check a case record read back from JSON: every key :func:`make_case` writes, with its
+    type, and every URI and link (links must stay inside the folder the JSON came from).
+
+    Returns a shallow copy; raises ``ValueError`` naming the first bad key.
+    """
+    if not isinstance(case, Mapping) or case.get("schema") != schema:
+        got = case.get("schema") if isinstance(case, Mapping) else type(case).__name__
+        raise ValueError(f"{name} must be a case record ({schema}), got {got!r}")
+    missing = [k for k in _CASE_KEYS if k not in case]
+    if missing:
+        raise ValueError(f"{name} lacks the key(s) {', '.join(missing)}")
+    for key in ("name", "scene"):
+        check_name(f"{name}[{key!r}]", case[key])
+    if case["kind"] not in KINDS:
+        raise ValueError(f"{name}['kind'] must be one of {list(KINDS)}, got {case['kind']!r}")
+    for key in ("technique", "family"):
+        _expect(f"{name}[{key!r}]", case[key], (str, type(None)), "a string or null")
+    _expect(f"{name}['params']", case["params"], (dict,), "a dict")
+    for key in ("width", "height"):
+        _expect(f"{name}[{key!r}]", case[key], (int,), "a positive integer")
+        if case[key] <= 0:
+            raise ValueError(f"{name}[{key!r}] must be a positive integer, got {case[key]!r}")
+    thumb = case["thumbnail"]
+    _expect(f"{name}['thumbnail']", thumb, (dict,), "a dict")
+    for key in ("factor", "width", "height"):
+        _expect(f"{name}['thumbnail'][{key!r}]", thumb.get(key), (int,), "an integer")
+    _check_number_map(f"{name}['metrics']", case["metrics"])
+    _check_number_map(f"{name}['noise_floor']", case["noise_floor"])
+    _expect(f"{name}['thresholds']", case["thresholds"], (dict,), "a dict")
+    for key, bounds in case["thresholds"].items():
+        _check_number_map(f"{name}['thresholds'][{key!r}]", bounds)
+    if case["cost"] is not None:
+        _check_number_map(f"{name}['cost']", case["cost"])
+    for key in ("failing", "within_noise"):
+        _expect(f"{name}[{key!r}]", case[key], (list,), "a list of names")
+        for v in case[key]:
+            check_name(f"{name}[{key!r}] item", v)
+    if case["status"] not in ("pass", "fail", "unchecked"):
+        raise ValueError(
+            f"{name}['status'] must be pass, fail or unchecked, got {case['status']!r}"
+        )
+    _expect(f"{name}['error_maps']", case["error_maps"], (list,), "a list")
+    for j, m in enumerate(case["error_maps"]):
+        where = f"{name}['error_maps'][{j}]"
+        _expect(where, m, (dict,), "a dict")
+        check_name(f"{where}['name']", m.get("name"))
+        if m.get("style") not in STYLES:
+            raise ValueError(
+                f"{where}['style'] must be one of {sorted(STYLES)}, got {m.get('style')!r}"
+            )
+        for key in ("range", "histogram", "summary"):
+            if key not in m:
+                raise ValueError(f"{where} lacks the key {key}")
+        hist = m["histogram"]
+        _expect(f"{where}['histogram']", hist, (dict,), "a dict")
+        for key in ("edges", "counts"):
+            _expect(f"{where}['histogram'][{key!r}]", hist.get(key), (list,), "a list")
+    tiles = case["worst_tiles"]
+    _expect(f"{name}['worst_tiles']", tiles, (dict,), "a dict")
+    _expect(f"{name}['worst_tiles']['tiles']", tiles.get("tiles"), (list,), "a list")
+    for j, tile in enumerate(tiles["tiles"]):
+        where = f"{name}['worst_tiles']['tiles'][{j}]"
+        _expect(where, tile, (dict,), "a dict")
+        for key in ("rank", "x", "y", "w", "h"):
+            _expect(f"{where}[{key!r}]", tile.get(key), (int,), "an integer")
+        _expect(f"{where}['mean_abs_error']", tile.get("mean_abs_error"), (int, float), "a number")
+    _expect(f"{name}['images']", case["images"], (dict,), "a dict")
+    _expect(f"{name}['exr_links']", case["exr_links"], (list,), "a list")
+    _check_case_urls(name, case, inside=True)
+    return dict(case)
+
+
+#: Keys of a case record (see the :mod:`reports` module docstring).
+_CASE_KEYS = (
+    "schema",
+    "name",
+    "scene",
+    "kind",
+    "technique",
+    "family",
+    "params",
+    "width",
+    "height",
+    "thumbnail",
+    "metrics",
+    "thresholds",
+    "noise_floor",
+    "cost",
+    "failing",
+    "within_noise",
+    "status",
+    "images",
+    "error_maps",
+    "worst_tiles",
+    "exr_links",
+)

@@ -14,6 +14,7 @@ from markupsafe import Markup
 
 from . import _format, _svg
 from ._build import REPORT_SCHEMA
+from ._validate import check_report_urls
 
 __all__ = ["json_script", "render_html", "write_report"]
 
@@ -86,6 +87,7 @@ def render_html(report: Mapping) -> str:
         raise ValueError(
             f"report must be a record from build_report ({REPORT_SCHEMA}), got {got!r}"
         )
+    check_report_urls(report)  # only data: images and relative links reach the page
     template = _environment().get_template("report.html")
     return template.render(report=report, page_data=_page_data(report))
 

@@ -13,6 +13,7 @@ import json
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -148,22 +149,60 @@ def _to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
     return out
 
 
-def _xml_dependencies(path: Path, seen: set | None = None) -> list[Path]:
-    """The XML file and every file it references (``filename`` values, includes), recursively."""
+_PARAM = re.compile(r"\$(\w+)")
+
+
+def _xml_dependencies(
+    path: Path, seen: set | None = None, *, root: Path | None = None, params: dict | None = None
+) -> list[Path]:
+    """The XML file and every file it references, recursively, as Mitsuba resolves them.
+
+    The XML is parsed (any quoting or attribute order); ``$name`` references are replaced by
+    the ``<default name=... value=...>`` values (included files see the includer's defaults);
+    references are the ``filename`` attribute of any element (``<include>``, spectra) and the
+    ``value`` of every ``<string>`` property (``filename`` of meshes and bitmaps, ...), resolved
+    against the referencing file's folder and then the scene's folder. Only existing files count:
+    a missing one makes Mitsuba's own load fail.
+    """
     seen = set() if seen is None else seen
     path = path.resolve()
+    root = path.parent if root is None else root
+    params = {} if params is None else params
     if path in seen:
         return []
     seen.add(path)
     files = [path]
     try:
-        text = path.read_text(errors="replace")
-    except OSError:
-        return files
-    for ref in re.findall(r'(?:name="filename"\s+value|filename)="([^"]+)"', text):
-        dep = (path.parent / ref).resolve()
-        if dep.is_file():
-            files.extend(_xml_dependencies(dep, seen) if dep.suffix == ".xml" else [dep])
+        tree = ElementTree.parse(path)
+    except (OSError, ElementTree.ParseError):
+        return files  # Mitsuba's own load reports the error
+    elements = list(tree.getroot().iter())
+    for el in elements:
+        if el.tag == "default" and "name" in el.attrib and "value" in el.attrib:
+            params.setdefault(el.attrib["name"], el.attrib["value"])
+
+    def subst(text: str) -> str:
+        return _PARAM.sub(lambda m: params.get(m.group(1), m.group(0)), text)
+
+    for el in elements:
+        refs = []
+        if "filename" in el.attrib:
+            refs.append(el.attrib["filename"])
+        if el.tag == "string" and "value" in el.attrib:
+            refs.append(el.attrib["value"])
+        for ref in refs:
+            ref = subst(ref)
+            if not ref:
+                continue
+            for base in (path.parent, root):
+                dep = (base / ref).resolve()
+                if dep.is_file():
+                    if dep.suffix.lower() == ".xml":
+                        files.extend(_xml_dependencies(dep, seen, root=root, params=params))
+                    elif dep not in seen:
+                        seen.add(dep)
+                        files.append(dep)
+                    break
     return files
 
 
@@ -201,6 +240,12 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
 
     if kind == "DirectionalEmitter":
         d = matrix()[:3, 2]
+        norm = float(np.linalg.norm(d))
+        if not (np.isfinite(d).all() and norm > 1e-12):
+            raise SceneError(
+                f"directional light {name!r} has no direction (got {tuple(d.tolist())}); "
+                "give a non-zero direction"
+            )
         return Light(
             "directional", rgb("irradiance.value"), tuple(d / np.linalg.norm(d)), name=name
         )
@@ -209,6 +254,8 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
         return Light("point", rgb("intensity.value"), position=pos, name=name)
     if kind == "SpotLight":
         m = matrix()
+        if not (np.isfinite(m).all() and np.linalg.norm(m[:3, 2]) > 1e-12):
+            raise SceneError(f"spot light {name!r} has no valid direction (to_world is degenerate)")
         d = m[:3, 2] / np.linalg.norm(m[:3, 2])
         return Light(
             "spot",

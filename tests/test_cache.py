@@ -1,0 +1,193 @@
+"""The reference cache: content keys of XML scenes, corrupted entries, scratch folders."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+
+import scenes
+from oracle import cache as cache_mod
+from oracle.cli import main
+
+SMALL = ["--width", "8", "--height", "6", "--spp", "1", "--quiet"]
+
+HEAD = """<scene version="3.0.0">
+  {defaults}
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0,3,5" target="0,0,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/>
+    </film>
+  </sensor>
+  <emitter type="directional"><vector name="direction" value="0,-1,-0.2"/></emitter>
+  {body}
+</scene>
+"""
+
+#: How the mesh is referenced: the forms a regex over ``name="filename" value="..."`` missed.
+REFERENCES = {
+    "single quotes, value first": (
+        "",
+        "<shape type='ply'><string value='mesh.ply' name='filename'/></shape>",
+    ),
+    "$param default": (
+        '<default name="meshfile" value="mesh.ply"/>',
+        '<shape type="ply"><string name="filename" value="$meshfile"/></shape>',
+    ),
+    "include": ("", "<include filename='inc.xml'/>"),
+    "spaces around =": (
+        "",
+        '<shape type="ply"><string name = "filename" value = "mesh.ply" /></shape>',
+    ),
+}
+
+
+def _mesh(y: float) -> str:
+    """An ASCII PLY quad (two triangles) at height ``y``."""
+    return (
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n"
+        f"-1 {y} -1\n1 {y} -1\n1 {y} 1\n-1 {y} 1\n3 0 1 2\n3 0 2 3\n"
+    )
+
+
+def _scene(folder, form):
+    defaults, body = REFERENCES[form]
+    (folder / "mesh.ply").write_text(_mesh(0.0))
+    (folder / "inc.xml").write_text(
+        '<scene version="3.0.0"><shape type="ply">'
+        '<string name="filename" value="mesh.ply"/></shape></scene>'
+    )
+    path = folder / "scene.xml"
+    path.write_text(HEAD.format(defaults=defaults, body=body))
+    return path
+
+
+@pytest.mark.parametrize("form", list(REFERENCES))
+def test_edited_mesh_changes_the_content_hash(tmp_path, form):
+    path = _scene(tmp_path, form)
+    before = scenes.load(path).content_hash
+    assert scenes.load(path).content_hash == before  # same files, same key
+    (tmp_path / "mesh.ply").write_text(_mesh(0.25))
+    assert scenes.load(path).content_hash != before
+
+
+def test_edited_mesh_misses_the_cache(tmp_path, capsys):
+    path = _scene(tmp_path, "single quotes, value first")
+    args = ["reference", str(path), *SMALL, "--cache-dir", str(tmp_path / "c")]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    (tmp_path / "mesh.ply").write_text(_mesh(0.25))
+    assert main([*args, "--out", str(tmp_path / "c2")]) == 0
+    status = [
+        json.loads((tmp_path / n / "reference.json").read_text())["cache_status"]
+        for n in ("a", "b", "c2")
+    ]
+    assert status == ["miss", "hit", "miss"]
+
+
+def _status(folder):
+    return json.loads((folder / "reference.json").read_text())["cache_status"]
+
+
+def test_entry_replaced_by_a_file_is_corrupted_and_rendered_again(tmp_path, capfd):
+    args = ["reference", "plate", *SMALL, "--cache-dir", str(tmp_path / "c")]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    entry = next((tmp_path / "c").glob("*/*"))
+    shutil.rmtree(entry)
+    entry.write_text("not an entry")
+    capfd.readouterr()
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    out, err = capfd.readouterr()
+    assert "(corrupted)" in out
+    assert err.strip() == "raster-oracle: warning: corrupted cache entry replaced"
+    assert _status(tmp_path / "b") == "corrupted"
+    exr = "reference.exr"
+    assert (tmp_path / "b" / exr).read_bytes() == (tmp_path / "a" / exr).read_bytes()
+    assert main([*args, "--out", str(tmp_path / "c2")]) == 0
+    assert _status(tmp_path / "c2") == "hit"
+    # its shard folder replaced by a file: a miss, and the store replaces the file
+    shutil.rmtree(entry.parent)
+    entry.parent.write_text("not a folder")
+    assert main([*args, "--out", str(tmp_path / "d")]) == 0
+    assert main([*args, "--out", str(tmp_path / "e")]) == 0
+    assert [_status(tmp_path / n) for n in "de"] == ["miss", "hit"]
+
+
+@pytest.mark.parametrize("name", cache_mod.CACHE_ENV)
+def test_both_cache_variables_are_accepted(monkeypatch, tmp_path, name):
+    for other in cache_mod.CACHE_ENV:
+        monkeypatch.delenv(other, raising=False)
+    monkeypatch.setenv(name, str(tmp_path / name))
+    assert cache_mod.default_cache_dir() == tmp_path / name
+    assert cache_mod.ReferenceCache().root == tmp_path / name
+
+
+def test_no_cache_and_failed_runs_leave_no_scratch_folder(tmp_path, monkeypatch):
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    assert main(["reference", "plate", *SMALL, "--no-cache", "--out", str(tmp_path / "a")]) == 0
+    assert (tmp_path / "a" / "reference.exr").is_file()
+    assert list(scratch.iterdir()) == []
+
+    from oracle import pipeline
+    from oracle.exr import ExrError
+
+    def broken(*a, **k):
+        raise ExrError("disk full (simulated)")
+
+    monkeypatch.setattr(pipeline, "write_exr", broken)
+    for extra in (["--no-cache"], ["--cache-dir", str(tmp_path / "c")]):
+        assert main(["reference", "plate", *SMALL, *extra, "--out", str(tmp_path / "b")]) == 2
+        assert list(scratch.iterdir()) == []
+    assert not (tmp_path / "b").exists()
+
+
+def test_sweep_removes_only_old_scratch_of_dead_processes(tmp_path):
+    dead = 2**22 + 12345  # above the default pid_max: no such process
+    old = time.time() - 2 * cache_mod.STALE_SECONDS
+    folders = {
+        "dead_old": f"{cache_mod.SCRATCH_PREFIX}{dead}-a",
+        "dead_new": f"{cache_mod.SCRATCH_PREFIX}{dead}-b",
+        "alive_old": f"{cache_mod.SCRATCH_PREFIX}{os.getpid()}-c",
+        "other": "something-else",
+    }
+    for key, name in folders.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "reference.exr").write_bytes(b"x")
+        if key != "dead_new":
+            os.utime(tmp_path / name, (old, old))
+    assert cache_mod.sweep_stale_scratch(tmp=tmp_path) == 1
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted(v for k, v in folders.items() if k != "dead_old")
+
+
+def test_sigterm_during_a_render_leaves_no_scratch_folder(tmp_path):
+    """A terminated run unwinds (SIGTERM -> SystemExit) and deletes its scratch folder."""
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    env = dict(os.environ, TMPDIR=str(scratch))
+    argv = ["reference", "plate", "--no-cache", "--spp", "65536", "--width", "64"]
+    argv += ["--height", "64", "--quiet", "--out", str(tmp_path / "o")]
+    proc = subprocess.Popen([sys.executable, "-m", "oracle.cli", *argv], env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(scratch.iterdir()) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert list(scratch.iterdir()), "the render never started"
+        proc.send_signal(signal.SIGTERM)
+        rc = proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert rc == 128 + signal.SIGTERM
+    assert list(scratch.iterdir()) == []
+    assert not (tmp_path / "o").exists()
