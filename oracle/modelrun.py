@@ -9,7 +9,28 @@ import numpy as np
 from .exr import atomic_write_bytes, write_exr
 from .score import to_json
 
-__all__ = ["run_model_to_folder"]
+__all__ = ["output_channels", "run_model_to_folder"]
+
+
+def output_channels(outputs: dict) -> dict[str, np.ndarray]:
+    """EXR channels of a model's outputs: ``(H, W, 3)`` images as ``name.R/G/B``.
+
+    ``color`` of the anti-aliasing models becomes ``color.R``, ``color.G``, ``color.B``
+    (linear radiance, float32); ``(H, W)`` outputs keep their names.
+    """
+    channels = {}
+    for name, value in outputs.items():
+        arr = np.asarray(value, dtype=np.float32)
+        if arr.ndim == 3 and arr.shape[-1] == 3:
+            for i, c in enumerate("RGB"):
+                channels[f"{name}.{c}"] = np.ascontiguousarray(arr[..., i])
+        elif arr.ndim == 2:
+            channels[name] = arr
+        else:
+            raise ValueError(
+                f"model output {name!r} must be (H, W) or (H, W, 3), got shape {arr.shape}"
+            )
+    return channels
 
 
 def run_model_to_folder(technique: str, loaded, pairs: list[str], out: Path) -> dict:
@@ -27,7 +48,7 @@ def run_model_to_folder(technique: str, loaded, pairs: list[str], out: Path) -> 
         "scene": loaded.provenance(),
     }
     data = to_json(record)
-    channels = {k: np.asarray(v, dtype=np.float32) for k, v in res.outputs.items()}
+    channels = output_channels(res.outputs)
     out.mkdir(parents=True, exist_ok=True)
     write_exr(out / "output.exr", channels)
     atomic_write_bytes(out / "model.json", data)

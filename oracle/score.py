@@ -19,6 +19,7 @@ against the first: its noise floor. With ``frames`` the camera path is scored fr
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,8 +31,25 @@ import metrics as M
 from .pipeline import get_reference
 from .reference import ReferenceSettings
 
-__all__ = ["METRIC_KEYS", "ScoreError", "ScoreResult", "score"]
+__all__ = [
+    "COVERAGE_FLOOR_RMS",
+    "COVERAGE_KEYS",
+    "METRIC_KEYS",
+    "ScoreError",
+    "ScoreResult",
+    "score",
+]
 
+#: Coverage metrics (anti-aliasing techniques, or an engine's MSAA coverage mask).
+COVERAGE_KEYS = (
+    "coverage_mae",
+    "coverage_rmse",
+    "coverage_bias",
+    "coverage_edge_rmse",
+    "coverage_interior_mae",
+    "coverage_floor_rms",
+    "coverage_edge_rmse_over_floor",
+)
 #: Every metric key of ``metrics.json`` (None where it does not apply to the channel).
 _SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
 METRIC_KEYS = (
@@ -45,10 +63,15 @@ METRIC_KEYS = (
     "significant_fraction",
     "flicker",
     "temporal_error",
+    *COVERAGE_KEYS,
 )
+#: RMS coverage error of a box-resolved N-sample standard pattern on one straight edge
+#: (TECHNIQUES.md table; ``metrics.straight_edge_error_floor`` reproduces it).
+COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
 _REF_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
+    "coverage": ("coverage", "edge", "id"),
 }
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
 
@@ -102,7 +125,18 @@ def _finite(value):
 
 
 def _metrics_for(
-    channel, ref_ch, cand, *, light, exposure, flip_mode, flip_range, ppd, full: bool, samples
+    channel,
+    ref_ch,
+    cand,
+    *,
+    light,
+    exposure,
+    flip_mode,
+    flip_range,
+    ppd,
+    full: bool,
+    samples,
+    aa_samples=None,
 ):
     """Metric values (and, with ``full``, error maps) of one candidate frame."""
     out = dict.fromkeys(METRIC_KEYS)
@@ -123,6 +157,19 @@ def _metrics_for(
         if full:
             maps["visibility_error"] = sm["signed_error"]
             maps["misclassified"] = sm["misclassified"].astype(np.float32)
+    elif channel == "coverage":
+        ref = ref_ch["coverage"]
+        rec = None
+        ref_se = ref_ch["coverage_stderr"]
+        out.update(_coverage_metrics(ref, cand, edge, aa_samples))
+        # silhouettes against the sky are edges of coverage even where one shape is seen
+        edge = edge | ((ref > 0) & (ref < 1))
+        lin = dict(tone_mapper="clip", exposure=0.0)
+        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
+        out["ssim"] = M.ssim(ref, cand, **lin)
+        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
+        if full:
+            maps["coverage_error"] = (cand - ref).astype(np.float32)
     else:
         ref = _rgb(ref_ch, "color")
         rec = None
@@ -156,6 +203,32 @@ def _metrics_for(
     return {k: _finite(v) if k in METRIC_KEYS else v for k, v in out.items()}, maps, ref, rec
 
 
+def _coverage_metrics(ref, cand, edge, aa_samples) -> dict:
+    """Coverage error overall, on edge and interior pixels, and against the N-sample floor.
+
+    Edge pixels: the reference's ``edge`` channel or fractional reference coverage.
+    The floor is the RMS error of N box-resolved standard samples on one straight edge;
+    ``coverage_edge_rmse_over_floor`` near 1 means the technique is as good as its pattern
+    allows (above 1 also where an edge pixel holds more than one edge, or the reference's
+    own noise adds to the error).
+    """
+    edge = edge | ((ref > 0) & (ref < 1))
+    every = M.coverage_error(ref, cand)
+    on_edge = M.coverage_error(ref, cand, mask=edge)
+    inside = M.coverage_error(ref, cand, mask=~edge)
+    floor = COVERAGE_FLOOR_RMS.get(int(aa_samples)) if aa_samples else None
+    ratio = on_edge["rmse"] / floor if floor and on_edge["count"] else None
+    return {
+        "coverage_mae": every["mae"],
+        "coverage_rmse": every["rmse"],
+        "coverage_bias": every["bias"],
+        "coverage_edge_rmse": on_edge["rmse"] if on_edge["count"] else None,
+        "coverage_interior_mae": inside["mae"] if inside["count"] else None,
+        "coverage_floor_rms": floor,
+        "coverage_edge_rmse_over_floor": ratio,
+    }
+
+
 def score(
     loaded,
     *,
@@ -169,19 +242,22 @@ def score(
     quiet: bool = True,
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
+    aa_samples: int | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
     Parameters
     ----------
-    channel : ``"visibility"`` or ``"color"``.
+    channel : ``"visibility"``, ``"color"`` or ``"coverage"``.
     candidate_frames : callable ``(frame_scene, k) -> (image, info)`` giving the candidate of
         frame ``k`` (a model run, or an image file read and validated) and a plain record
         (cost, diagnostics, file name) for the report.
     frames : score ``frames`` frames of ``camera_path`` (None: the scene's own camera only).
+    aa_samples : samples per pixel of an anti-aliasing technique: picks the straight-edge
+        coverage floor ``coverage_floor_rms`` (None: no floor).
     """
     if channel not in _REF_GROUPS:
-        raise ScoreError(f"channel must be 'visibility' or 'color', got {channel!r}")
+        raise ScoreError(f"channel must be 'visibility', 'color' or 'coverage', got {channel!r}")
     flip_mode = flip_mode.upper()
     if flip_mode not in ("LDR", "HDR"):
         raise ScoreError(f"flip mode must be LDR or HDR, got {flip_mode!r}")
@@ -210,6 +286,7 @@ def score(
             flip_range=flip_range,
             ppd=ppd,
             samples=spp,
+            aa_samples=aa_samples,
         )
         values, maps, ref_img, rec = _metrics_for(channel, ref_ch, cand, full=True, **kw)
         floor = None
@@ -217,7 +294,7 @@ def score(
             ref_meta = ref.meta
             ref2 = get_reference(frame_scene, noise_settings, cache=cache, quiet=quiet)
             ref2_ch = ref2.channels()
-            second = ref2_ch["visibility"] if channel == "visibility" else _rgb(ref2_ch, "color")
+            second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
             # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by
             # noise of A's variance (B itself would overstate the floor by about sqrt(2))
             exact = M.exact_surrogate(ref_img, second)
@@ -243,7 +320,7 @@ def score(
         "frames": per_frame if frames else None,
         "camera_path": camera_path if frames else None,
         "tone_mapping": None
-        if channel == "visibility"
+        if channel != "color"
         else {
             "exposure_stops": exposure,
             "tone_mapper": "aces",
@@ -281,9 +358,12 @@ def parse_thresholds(pairs: list[str] | None) -> dict[str, float]:
                 f"--fail-above: unknown metric {key!r}; choose from {', '.join(METRIC_KEYS)}"
             )
         try:
-            out[key] = float(value)
+            limit = float(value)
         except ValueError:
             raise ScoreError(f"--fail-above {key}: expected a number, got {value!r}") from None
+        if not math.isfinite(limit):
+            raise ScoreError(f"--fail-above {key}: expected a finite number, got {value!r}")
+        out[key] = limit
     return out
 
 

@@ -21,12 +21,13 @@ from .exr import atomic_write_bytes, make_readable, write_exr
 from .pipeline import package_versions
 from .score import METRIC_KEYS, ScoreResult, failures, to_json
 
-__all__ = ["MAP_STYLES", "write_score_folder"]
+__all__ = ["MAP_STYLES", "MEMORY_RESOLUTIONS", "report_cost", "write_score_folder"]
 
 #: How each error map is drawn: palette and fixed range (the same in PNG and report).
 MAP_STYLES = {
     "visibility_error": ("signed", (-1.0, 1.0)),
     "misclassified": ("signed", (-1.0, 1.0)),
+    "coverage_error": ("signed", (-1.0, 1.0)),
     "flip": ("magma", (0.0, 1.0)),
     "delta_e2000": ("magma", (0.0, 20.0)),
     "neg_log10_p": ("magma", (0.0, 10.0)),
@@ -68,12 +69,13 @@ def _case(
         scene=scene,
         reference=_display(result, frame.reference),
         candidate=_display(result, frame.candidate),
-        kind=record["channel"],
+        # a coverage mask is (H, W) data in [0, 1]: drawn as visibility images are
+        kind="color" if record["channel"] == "color" else "visibility",
         metrics=values,
         error_maps=maps,
         noise_floor=record.get("noise_floor") or None,
         thresholds={k: v for k, v in thresholds.items() if k in values} or None,
-        cost=cost,
+        cost=report_cost(cost, technique),
         technique=technique,
         family=_family(technique, scene),
         params=params,
@@ -90,7 +92,55 @@ def _family(technique: str | None, scene: str) -> str | None:
     if technique is None:
         return None
     family = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
+    if _technique_family(technique) == "aa":
+        family = "anti-aliasing"
     return f"{family} on {scene}"
+
+
+#: Resolutions at which the report restates an anti-aliasing model's framebuffer memory: the
+#: AGAA seed slides' 1280x736 (41 / 71 / 112 MB for 1 aggregate / 2 aggregates / deferred 8x)
+#: and 1080p.
+MEMORY_RESOLUTIONS = ((1280, 736), (1920, 1080))
+
+
+def report_cost(cost: dict | None, technique: str | None) -> dict | None:
+    """The cost entries the report shows: numbers, per-buffer bytes, restated memory.
+
+    Lists (histograms) stay in ``metrics.json`` only; a ``name -> number`` dict such as
+    ``framebuffer_bytes_by_buffer`` becomes one entry per buffer (``"color framebuffer_bytes"``).
+    For the anti-aliasing family, whose buffers are all per pixel or per sample, the model's
+    ``framebuffer_bytes`` at its ``width`` x ``height`` is restated at each of
+    :data:`MEMORY_RESOLUTIONS` as ``framebuffer_WxH_bytes`` (bytes per pixel times pixels;
+    only when the bytes are a whole number per pixel, i.e. the accounting is per pixel).
+    """
+    if cost is None:
+        return None
+    out = {}
+    for key, value in cost.items():
+        if isinstance(value, bool):
+            continue
+        if isinstance(value, int | float | np.integer | np.floating) and np.isfinite(value):
+            out[key] = value
+        elif isinstance(value, dict):
+            stem = key.split("_by_")[0]
+            for sub, v in value.items():
+                if isinstance(v, int | float | np.integer | np.floating) and np.isfinite(v):
+                    out[f"{sub} {stem}"] = v
+    if technique is not None and _technique_family(technique) == "aa":
+        total, w, h = cost.get("framebuffer_bytes"), cost.get("width"), cost.get("height")
+        if all(isinstance(v, int | np.integer) and v > 0 for v in (total, w, h)):
+            per_pixel, rest = divmod(int(total), int(w) * int(h))
+            if rest == 0:
+                for rw, rh in MEMORY_RESOLUTIONS:
+                    out[f"framebuffer_{rw}x{rh}_bytes"] = per_pixel * rw * rh
+    return out
+
+
+def _technique_family(technique: str) -> str:
+    import raster_models
+
+    t = raster_models.TECHNIQUES.get(technique)
+    return getattr(t, "family", "shadow") if t is not None else "shadow"
 
 
 def provenance(result: ScoreResult, loaded) -> dict:
@@ -132,6 +182,15 @@ def write_score_folder(
     record["technique"] = technique
     record["params"] = params
     record["cost"] = cost
+    restated = {
+        k: v
+        for k, v in (report_cost(cost, technique) or {}).items()
+        if k.startswith("framebuffer_")
+        and k[len("framebuffer_") : len("framebuffer_") + 1].isdigit()
+    }
+    if restated:
+        # the model's own memory accounting at the seed slides' resolutions (see report_cost)
+        record["framebuffer_bytes_restated"] = restated
     record["maps"] = {
         k: {"exr": f"error_maps.exr:{k}", "png": f"{k}.png"} for k in result.frames[0].maps
     }
@@ -156,9 +215,9 @@ def write_score_folder(
         )
     cand = frame.candidate
     cand_channels = (
-        {"visibility": cand}
+        {"coverage" if record["channel"] == "coverage" else "visibility": cand}
         if cand.ndim == 2
-        else {f"color.{c}": cand[..., i] for i, c in enumerate("RGB")}
+        else {f"color.{c}": np.ascontiguousarray(cand[..., i]) for i, c in enumerate("RGB")}
     )
     out_dir.mkdir(parents=True, exist_ok=True)
     write_exr(out_dir / "candidate.exr", cand_channels)
