@@ -18,7 +18,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from . import backend
-from .builtin import BUILTIN_SCENES
+from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
 from .lights import Light
 from .paths import CAMERA_PATHS, path_camera
@@ -292,6 +292,8 @@ def load(
     Parameters
     ----------
     scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
+        A :class:`scenes.builtin.BuiltinScene` (e.g. a built-in scene's factory wrapped by a
+        transformation, as ``oracle.extremes`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
     light : index of the light to use among the scene's punctual lights.
     camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
@@ -310,10 +312,10 @@ def load(
     if not 0 <= int(frame) < max(int(n_frames), 1):
         raise SceneError(f"frame must be in [0, {n_frames}), got {frame}")
     mi = backend.mitsuba()
-    name = str(scene)
+    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
-    if name in BUILTIN_SCENES:
-        spec = BUILTIN_SCENES[name]
+    if isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
+        spec = scene if isinstance(scene, BuiltinScene) else BUILTIN_SCENES[name]
         w, h = int(width or spec.width), int(height or spec.height)
         raw = spec.factory(w, h)
         digest = hashlib.sha256(b"builtin:" + name.encode())
