@@ -71,6 +71,9 @@ def reference_key(loaded, settings, variant: str) -> str:
     record = {
         "scene": loaded.content_hash,
         "light": loaded.light_index,
+        # The light actually used (a light path moves it from frame to frame).
+        "light_used": loaded.light.to_json(),
+        "light_path": getattr(loaded, "light_path", None),
         "camera_path": loaded.camera_path,
         "frame": loaded.frame,
         "n_frames": loaded.n_frames,

@@ -81,7 +81,15 @@ def _add_scene_args(p: argparse.ArgumentParser) -> None:
         default=None,
         help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly",
     )
-    p.add_argument("--frame", type=_nonneg_int, default=0, help="frame of the camera path")
+    p.add_argument(
+        "--light-path",
+        default=None,
+        help="light path for moving-light work: orbit-sun (directional), moving-point "
+        "(point/spot); --frame K picks its frame",
+    )
+    p.add_argument(
+        "--frame", type=_nonneg_int, default=0, help="frame of the camera and/or light path"
+    )
     p.add_argument(
         "--frames",
         type=_positive_int,
@@ -235,9 +243,16 @@ def _parser() -> argparse.ArgumentParser:
 def _load_scene(args):
     import scenes
 
-    if args.frame and args.camera_path is None and not getattr(args, "frames", None):
+    light_path = getattr(args, "light_path", None)
+    if (
+        args.frame
+        and args.camera_path is None
+        and light_path is None
+        and not getattr(args, "frames", None)
+    ):
         raise CliError(
-            f"--frame {args.frame} needs --camera-path (frame 0 is the scene's own camera)"
+            f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
+            "scene's own camera and light)"
         )
 
     return scenes.load(
@@ -248,6 +263,7 @@ def _load_scene(args):
         camera_path=args.camera_path,
         frame=args.frame,
         n_frames=args.frames or 8,
+        light_path=light_path,
     )
 
 
@@ -334,6 +350,11 @@ def cmd_scenes(args) -> int:
         print(f"{name:<{width}}  {spec.width}x{spec.height}  {spec.description}")
     print("\ncamera paths (--camera-path NAME --frame K --frames N):")
     for name, text in CAMERA_PATHS.items():
+        print(f"  {name:<13} {text}")
+    from scenes.light_paths import LIGHT_PATHS
+
+    print("\nlight paths (--light-path NAME --frame K --frames N):")
+    for name, text in LIGHT_PATHS.items():
         print(f"  {name:<13} {text}")
     return 0
 

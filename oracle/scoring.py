@@ -147,7 +147,8 @@ def _check_candidates(fn, loaded, frames, camera_path):
 def score_command(args, loaded, cache) -> list[str]:
     """Run ``raster-oracle score``; returns the metrics above their thresholds."""
     thresholds = parse_thresholds(args.fail_above)
-    camera_path = args.camera_path or "dolly"
+    # A light path alone keeps the scene's camera still (frames move the light only).
+    camera_path = args.camera_path or (None if getattr(args, "light_path", None) else "dolly")
     frames = args.frames if args.frames and args.frames > 1 else None
     params, cost = None, None
     aa_samples = None

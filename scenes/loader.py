@@ -20,6 +20,7 @@ import numpy as np
 from . import backend
 from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
+from .light_paths import LIGHT_PATHS, check_light_path, path_light
 from .lights import Light
 from .paths import CAMERA_PATHS, path_camera
 from .shading import Specular
@@ -61,6 +62,8 @@ class LoadedScene:
     camera_path: str | None = None
     frame: int = 0
     n_frames: int = 1
+    light_path: str | None = None
+    base_lights: list[Light] = field(default_factory=list)
     mesh_data: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -85,11 +88,39 @@ class LoadedScene:
         return np.min(los, axis=0), np.max(his, axis=0)
 
     def with_frame(self, frame: int, *, path: str | None = None, n_frames: int | None = None):
-        """The same scene seen from frame ``frame`` of a camera path."""
-        path = path or self.camera_path or "dolly"
+        """The same scene seen from frame ``frame`` of a camera path (and, with a light path,
+        lit by that frame's light; a light path alone keeps the scene's own camera)."""
         n = n_frames or self.n_frames or 8
-        cam = path_camera(self.base_camera, path, frame, n, scene=self)
-        return replace(self, camera=cam, camera_path=path, frame=frame, n_frames=n)
+        if path is None and self.camera_path is None and self.light_path is not None:
+            moved = replace(self, frame=frame, n_frames=n)
+        else:
+            path = path or self.camera_path or "dolly"
+            cam = path_camera(self.base_camera, path, frame, n, scene=self)
+            moved = replace(self, camera=cam, camera_path=path, frame=frame, n_frames=n)
+        if self.light_path is not None:
+            moved = moved.with_light_frame(frame, path=self.light_path, n_frames=n)
+        return moved
+
+    def with_light_frame(self, frame: int, *, path: str, n_frames: int | None = None):
+        """The same scene lit by frame ``frame`` of light path ``path`` (see
+        :mod:`scenes.light_paths`); the chosen light moves, the others stay.
+
+        Raises
+        ------
+        SceneError
+            Unknown path, or a path that does not fit the chosen light's kind.
+        """
+        base = list(self.base_lights or self.lights)
+        try:
+            moved = path_light(base[self.light_index], path, frame, scene=self)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+        lights = list(base)
+        lights[self.light_index] = moved
+        n = n_frames or self.n_frames or 8
+        return replace(
+            self, lights=lights, base_lights=base, light_path=path, frame=frame, n_frames=n
+        )
 
     def provenance(self) -> dict:
         return {
@@ -100,6 +131,7 @@ class LoadedScene:
             "light": self.light.to_json(),
             "resolution": [self.width, self.height],
             "camera_path": self.camera_path,
+            "light_path": self.light_path,
             "frame": self.frame,
             "n_frames": self.n_frames,
         }
@@ -286,6 +318,7 @@ def load(
     camera_path: str | None = None,
     frame: int = 0,
     n_frames: int = 8,
+    light_path: str | None = None,
 ) -> LoadedScene:
     """Load a built-in scene by name or a Mitsuba XML file.
 
@@ -298,13 +331,20 @@ def load(
     light : index of the light to use among the scene's punctual lights.
     camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
         frame of it to view (frame 0 is the scene's own camera).
+    light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
+        that of ``frame`` (frame 0 is the scene's own light).
 
     Raises
     ------
     SceneError
-        Unknown name, missing or malformed file, no sensor, no usable light, bad sizes.
+        Unknown name, missing or malformed file, no sensor, no usable light, bad sizes, an
+        unknown light path or one that does not fit the chosen light.
     """
     _check_size(width, height)
+    if light_path is not None and light_path not in LIGHT_PATHS:
+        raise SceneError(
+            f"unknown light path {light_path!r}; choose one of {', '.join(LIGHT_PATHS)}"
+        )
     if camera_path is not None and camera_path not in CAMERA_PATHS:
         raise SceneError(
             f"unknown camera path {camera_path!r}; choose one of {', '.join(CAMERA_PATHS)}"
@@ -382,6 +422,12 @@ def load(
     )
     if camera_path is not None:
         loaded = loaded.with_frame(int(frame), path=camera_path, n_frames=int(n_frames))
+    if light_path is not None:
+        try:
+            check_light_path(light_path, loaded.light)
+        except ValueError as exc:
+            raise SceneError(f"scene {name!r}: {exc}") from None
+        loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
     return loaded
 
 
