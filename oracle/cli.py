@@ -237,6 +237,24 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--height", type=_positive_int, default=1080)
     p.add_argument("--spp", type=_positive_int, default=32)
     p.add_argument("--quiet", action="store_true")
+
+    p = sub.add_parser("converge", help="oracle true error against spp (and adaptive)")
+    p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
+    p.add_argument("--width", type=_positive_int, help="film width in pixels")
+    p.add_argument("--height", type=_positive_int, help="film height in pixels")
+    p.add_argument("--max-spp", type=_spp, default=4096, help="largest spp (default 4096)")
+    p.add_argument("--truth-spp", type=_spp, default=None, help="truth spp (default 4x max)")
+    p.add_argument(
+        "--target",
+        type=_positive_float,
+        action="append",
+        default=None,
+        help="true RMS visibility error to find the spp for (repeatable; default 0.01)",
+    )
+    p.add_argument("--seed", type=_nonneg_int, default=0)
+    p.add_argument("--no-adaptive", action="store_true", help="skip the adaptive rendering")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out", type=_path, default=Path("out/converge"), help="output folder")
     return parser
 
 
@@ -493,6 +511,31 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_converge(args) -> int:
+    from .converge import run_converge
+
+    if args.truth_spp is not None and args.truth_spp <= args.max_spp:
+        raise CliError(f"--truth-spp ({args.truth_spp}) must be larger than --max-spp")
+    _check_out(args.out)
+    data = run_converge(
+        args.scene,
+        out=args.out,
+        max_spp=args.max_spp,
+        truth_spp=args.truth_spp,
+        targets=tuple(args.target or (0.01,)),
+        adaptive=not args.no_adaptive,
+        width=args.width,
+        height=args.height,
+        seed=args.seed,
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+    )
+    for t in data["targets"]:
+        print(f"target RMS {t['target_rms']:g}: {t['spp_measured']} spp (fit {t['spp_fitted']})")
+    print(f"converge: {args.out / 'converge.json'} and {args.out / 'converge.html'}")
+    return 0
+
+
 COMMANDS = {
     "doctor": cmd_doctor,
     "scenes": cmd_scenes,
@@ -504,6 +547,7 @@ COMMANDS = {
     "model": cmd_model,
     "score": cmd_score,
     "report": cmd_report,
+    "converge": cmd_converge,
 }
 
 
@@ -514,6 +558,7 @@ def _known_errors() -> tuple[type[BaseException], ...]:
     from scenes.backend import BackendError
 
     from .candidates import CandidateError
+    from .converge import ConvergeError
     from .exr import ExrError
     from .reference import ReferenceError_
     from .score import ScoreError
@@ -527,6 +572,7 @@ def _known_errors() -> tuple[type[BaseException], ...]:
         ScoreError,
         CandidateError,
         MetricError,
+        ConvergeError,
     ]
     try:
         from raster_models import ModelError
