@@ -64,8 +64,11 @@ CHANNEL_GROUPS = {
     "position": ["position.X", "position.Y", "position.Z"],
     "normal": ["normal.X", "normal.Y", "normal.Z"],
     "albedo": ["albedo.R", "albedo.G", "albedo.B"],
+    "tangent32": ["visibility_tangent32"],
 }
-ALL_CHANNELS = tuple(CHANNEL_GROUPS)
+#: Groups rendered only when asked for (``--channels ...,tangent32``), never by default.
+OPTIONAL_GROUPS = ("tangent32",)
+ALL_CHANNELS = tuple(g for g in CHANNEL_GROUPS if g not in OPTIONAL_GROUPS)
 _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
 #: Samples per Dr.Jit launch: bounds memory at about 1.5 GiB whatever the resolution and spp.
 SAMPLES_PER_CHUNK = 1 << 22
@@ -98,7 +101,7 @@ class ReferenceSettings:
         if unknown or not self.channels:
             raise ReferenceError_(
                 f"unknown channel(s) {', '.join(unknown) or '(none given)'}; choose from "
-                f"{', '.join(ALL_CHANNELS)}"
+                f"{', '.join(CHANNEL_GROUPS)}"
             )
         if self.adaptive:
             if int(self.adaptive_spp) < 2:
@@ -107,7 +110,7 @@ class ReferenceSettings:
                 raise ReferenceError_(f"target_stderr must be > 0, got {self.target_stderr}")
             if int(self.max_spp) < int(self.adaptive_spp):
                 raise ReferenceError_("max_spp must be >= adaptive_spp")
-        ordered = tuple(c for c in ALL_CHANNELS if c in set(self.channels))
+        ordered = tuple(c for c in CHANNEL_GROUPS if c in set(self.channels))
         return ReferenceSettings(
             int(self.spp),
             int(self.seed),
@@ -337,6 +340,55 @@ def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray
     return {k: v.reshape(h, w) for k, v in out.items()}
 
 
+def _tangent32_channel(loaded) -> np.ndarray:
+    """Lit fraction of the 32 FTIZB points on the tangent plane at each pixel centre.
+
+    The points ``P + a dP/dx + b dP/dy`` (:data:`scenes.tangent32.TANGENT_POINTS_32`, the
+    table the ``izb`` model uses) of the surface seen through the pixel centre, each with the
+    oracle's exact shadow ray (offset along the centre's normal as for a surface point of the
+    same shape); N.L and the spot cone are evaluated per point with the centre's normal. Sky
+    pixels are 1. Exact for those points: no sampling noise.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    from scenes.raycast import SHADOW_OFFSET, SHADOW_OFFSET_MESH, camera_rays_dr, shadow_ray_dr
+    from scenes.shading import facing
+    from scenes.tangent32 import tangent_derivatives_dr, tangent_offsets
+
+    w, h = loaded.width, loaded.height
+    npix = w * h
+    a_np, b_np = tangent_offsets()
+    k_n = len(a_np)
+    out = np.zeros(npix, dtype=np.float64)
+    per_chunk = max(1, SAMPLES_PER_CHUNK // k_n)
+    light = loaded.light
+    for start in range(0, npix, per_chunk):
+        stop = min(npix, start + per_chunk)
+        idx = dr.arange(mi.UInt32, (stop - start) * k_n)
+        pix = idx // k_n + start
+        k = idx % k_n
+        x = mi.Float(pix % w) + 0.5
+        y = mi.Float(pix // w) + 0.5
+        ray = camera_rays_dr(loaded.camera, x, y)
+        si = loaded.mi_scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True)
+        valid = si.is_valid()
+        n = facing(si.sh_frame.n, -ray.d)
+        dpdx, dpdy = tangent_derivatives_dr(loaded.camera, x, y, si.p, n)
+        a = dr.gather(mi.Float, mi.Float(a_np), k)
+        b = dr.gather(mi.Float, mi.Float(b_np), k)
+        q = si.p + dpdx * a + dpdy * b
+        wl, _ = light.to_light(q)
+        candidate = valid & (dr.dot(n, wl) > 0.0) & light.in_cone(wl)
+        offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
+        blocked = loaded.mi_scene.ray_test(shadow_ray_dr(light, q, si.n, wl, offset), candidate)
+        lit = dr.select(valid, dr.select(candidate & ~blocked, 1.0, 0.0), 1.0)
+        total = dr.block_reduce(dr.ReduceOp.Add, lit, k_n, mode="evaluated")
+        dr.eval(total)
+        out[start:stop] = np.array(total, dtype=np.float64) / k_n
+    return out.reshape(h, w).astype(np.float32)
+
+
 def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False):
     """Render the reference channels of ``loaded`` (its current camera frame).
 
@@ -402,6 +454,8 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
                     primary, shadow = primary + p, shadow + s
                     passes.append({"pixels": int(len(active)), "spp": spp_k})
         centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}
+        if "tangent32" in groups:
+            centre["visibility_tangent32"] = _tangent32_channel(loaded)
     finally:
         if progress is not None:
             progress.close()

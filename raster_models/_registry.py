@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import _params, csm, sdsm, shadow_map
+from . import _params, csm, izb, sdsm, shadow_map
 from ._errors import ModelError
 
 __all__ = ["TECHNIQUES", "Technique", "list_techniques", "parse_params", "run"]
@@ -66,6 +66,21 @@ TECHNIQUES: dict[str, Technique] = {
             ),
             sdsm.SdsmParams,
             sdsm.run,
+            ("directional",),
+        ),
+        Technique(
+            "izb",
+            "irregular z-buffer: receivers listed in a light-space grid, occluders "
+            "conservatively rasterized and tested against exact shadow volumes; samples=32 "
+            "is FTIZB (32 tangent-plane points, 32-bit mask); cascades split the grid by depth",
+            (
+                "C. Wyman, R. Hoetzlein, A. Lefohn, Frustum-Traced Raster Shadows: Revisiting "
+                "Irregular Z-Buffers, I3D 2015, doi:10.1145/2699276.2699282",
+                "G. S. Johnson, J. Lee, C. A. Burns, W. R. Mark, The irregular Z-buffer, "
+                "ACM TOG 24(4) 2005, doi:10.1145/1095878.1095889",
+            ),
+            izb.IzbParams,
+            izb.run,
             ("directional",),
         ),
     )

@@ -1,0 +1,164 @@
+"""IZB geometry: the scene's occluder triangles, their shadow volumes, and conservative
+rasterization of triangles over a light-space grid (all vectorized, chunked by rows).
+
+Shadow volume of a triangle under a directional light travelling along ``d`` (unit): the
+three edge planes through each edge and ``d`` (normals ``(v_j - v_i) x d`` turned to face
+the third vertex) and the triangle's own plane (unit normal turned along ``d``, pushed away
+from the light by ``epsilon`` world units). A point ``q`` is in shadow of the triangle when
+every edge plane has ``q`` on its inner side (``>= 0``: closed) and ``n . (q - v0) > eps``.
+Triangles whose plane contains ``d`` (zero projected area) cast no shadow and are culled.
+
+Conservative rasterization: a texel square ``[i, i+1] x [j, j+1]`` (texel units) overlaps a
+2D triangle exactly when it overlaps its bounding box and, for each edge, the square's corner
+farthest inside the edge's half-plane is inside (the separating axis theorem for a triangle
+and a box in 2D: the box axes and the three edge normals). A margin of
+:data:`CONSERVATIVE_MARGIN` texels keeps rounding from dropping a touched texel (an extra
+fragment costs tests, never a wrong answer).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "CONSERVATIVE_MARGIN",
+    "RASTER_CHUNK",
+    "conservative_fragments",
+    "scene_triangles",
+    "shadow_volumes",
+]
+
+#: Texels of slack in the conservative overlap test (float64 rounding of edge functions is
+#: ~1e-12 texels at 16384^2; a million times that keeps every touched texel).
+CONSERVATIVE_MARGIN = 1e-6
+
+#: Candidate (texel) tests per rasterization chunk: bounds memory (~100 MiB a chunk).
+RASTER_CHUNK = 1 << 22
+
+#: Triangles whose unit normal has ``|n . d|`` below this are edge-on to the light: zero
+#: projected area, no shadow (their neighbours' volumes cover the same rays).
+EDGE_ON = 1e-9
+
+
+def scene_triangles(scene) -> np.ndarray:
+    """World-space triangles ``(T, 3, 3)`` float64 of every shape of the scene, in the
+    scene's shape order (analytic shapes tessellated as :func:`scenes.export.shape_mesh`
+    does). Cached on the scene object."""
+    cache = scene.__dict__.setdefault("_izb_triangles", {})
+    if "tris" not in cache:
+        from scenes import backend
+        from scenes.export import shape_mesh
+
+        mi = backend.mitsuba()
+        parts = []
+        for shape in scene.mi_scene.shapes():  # a loop over shapes, not triangles
+            v, f = shape_mesh(mi, shape)
+            parts.append(np.asarray(v, dtype=np.float64)[np.asarray(f, dtype=np.int64)])
+        tris = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+        cache["tris"] = tris
+    return cache["tris"]
+
+
+def shadow_volumes(tris: np.ndarray, direction, epsilon: float):
+    """Planes of each triangle's shadow volume (directional light along ``direction``).
+
+    Returns
+    -------
+    keep : ``(T,)`` bool, False for edge-on (culled) triangles.
+    planes : ``(K, 4, 4)`` float64 for the kept triangles: rows are three edge planes and the
+        triangle plane, each ``(nx, ny, nz, c)``; a point ``q`` is shadowed when
+        ``n . q + c >= 0`` for the edge rows and ``> 0`` for the triangle row (whose ``c``
+        includes ``-epsilon``; its normal is unit length).
+    """
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    v0, v1, v2 = tris[:, 0], tris[:, 1], tris[:, 2]
+    nt = np.cross(v1 - v0, v2 - v0)
+    norm = np.linalg.norm(nt, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        nt = nt / norm[:, None]
+    facing = nt @ d
+    keep = np.isfinite(facing) & (np.abs(facing) > EDGE_ON) & (norm > 0)
+    v0, v1, v2, nt, facing = v0[keep], v1[keep], v2[keep], nt[keep], facing[keep]
+    nt = nt * np.sign(facing)[:, None]
+    planes = np.empty((len(v0), 4, 4))
+    for row, (a, b, c) in enumerate(((v0, v1, v2), (v1, v2, v0), (v2, v0, v1))):
+        ne = np.cross(b - a, d)
+        s = np.sign(np.einsum("ij,ij->i", ne, c - a))
+        ne = ne * s[:, None]
+        planes[:, row, :3] = ne
+        planes[:, row, 3] = -np.einsum("ij,ij->i", ne, a)
+    planes[:, 3, :3] = nt
+    planes[:, 3, 3] = -np.einsum("ij,ij->i", nt, v0) - epsilon
+    return keep, planes
+
+
+def _edge_functions(uv: np.ndarray):
+    """Inward edge functions ``e(u, v) = a u + b v + c`` of 2D triangles ``(T, 3, 2)``."""
+    p = uv
+    area = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (
+        p[:, 2, 0] - p[:, 0, 0]
+    )
+    sgn = np.where(area >= 0, 1.0, -1.0)
+    coef = np.empty((len(p), 3, 3))
+    for row, (i, j) in enumerate(((0, 1), (1, 2), (2, 0))):
+        a = -(p[:, j, 1] - p[:, i, 1])
+        b = p[:, j, 0] - p[:, i, 0]
+        c = -(a * p[:, i, 0] + b * p[:, i, 1])
+        coef[:, row] = np.stack([a, b, c], axis=1) * sgn[:, None]
+    return coef
+
+
+def conservative_fragments(uv: np.ndarray, resolution: int):
+    """Texels every 2D triangle touches (conservative rasterization), chunk by chunk.
+
+    Parameters
+    ----------
+    uv : ``(T, 3, 2)`` triangle vertices in texel units (``u`` right, ``v`` down: texel
+        ``(i, j)`` covers ``[i, i+1) x [j, j+1)``).
+    resolution : texels per side ``R``; texels outside ``[0, R)^2`` are clipped.
+
+    Yields
+    ------
+    (tri, texel) : int64 arrays, triangle index into ``uv`` and texel id ``j * R + i``, for
+    chunks of at most about :data:`RASTER_CHUNK` candidate texels (one triangle's bounding
+    box is split by rows, so memory is bounded for any triangle size).
+    """
+    r = int(resolution)
+    if len(uv) == 0:
+        return
+    lo = np.floor(uv.min(axis=1)).astype(np.int64)
+    hi = np.floor(uv.max(axis=1)).astype(np.int64)
+    lo = np.maximum(lo, 0)
+    hi = np.minimum(hi, r - 1)
+    ok = np.all(hi >= lo, axis=1)
+    idx = np.nonzero(ok)[0]
+    if len(idx) == 0:
+        return
+    lo, hi = lo[idx], hi[idx]
+    coef = _edge_functions(uv[idx])
+    width = hi[:, 0] - lo[:, 0] + 1
+    height = hi[:, 1] - lo[:, 1] + 1
+    # Work units: one (triangle, bounding-box row) each, at most R candidates.
+    row_tri = np.repeat(np.arange(len(idx)), height)
+    row_start = np.cumsum(height) - height
+    row_j = lo[row_tri, 1] + (np.arange(len(row_tri)) - row_start[row_tri])
+    row_w = width[row_tri]
+    ends = np.cumsum(row_w)
+    cut = 0
+    while cut < len(row_tri):  # chunks of rows
+        base = ends[cut - 1] if cut else 0
+        stop = int(np.searchsorted(ends, base + RASTER_CHUNK, side="right"))
+        stop = max(stop, cut + 1)
+        sl = slice(cut, stop)
+        t = np.repeat(row_tri[sl], row_w[sl])
+        j = np.repeat(row_j[sl], row_w[sl])
+        first = np.cumsum(row_w[sl]) - row_w[sl]
+        i = lo[t, 0] + (np.arange(len(t)) - np.repeat(first, row_w[sl]))
+        inside = np.ones(len(t), dtype=bool)
+        for e in range(3):  # the three edges
+            a, b, c = coef[t, e, 0], coef[t, e, 1], coef[t, e, 2]
+            best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
+            inside &= best >= -CONSERVATIVE_MARGIN * (np.abs(a) + np.abs(b))
+        yield idx[t[inside]], j[inside] * r + i[inside]
+        cut = stop

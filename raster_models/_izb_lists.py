@@ -1,0 +1,197 @@
+"""IZB lists and traversal: the grid of per-texel sample lists, built by sorting, and the join
+of conservative fragments with those lists, chunk by chunk.
+
+A GPU IZB keeps a head pointer per texel and a next pointer per node; here the lists are the
+nodes sorted by texel (``node_texel`` increasing, ties by receiver index), a list being the
+run of one texel: the same lists in the same order. A fragment ``(triangle, texel)`` walks
+its texel's list and tests each node's sample(s) against the triangle's shadow volume
+(:func:`raster_models._izb_geometry.shadow_volumes`). Fully shadowed receivers are removed
+from the lists after each round of triangles (the seed's "remove fully shadowed pixels",
+which gradually shortens the lists over the frame).
+
+One sample per pixel: a node is a receiver's G-buffer point. 32 samples (FTIZB): a node is a
+receiver inserted once in each texel that at least one of its 32 tangent-plane points falls
+in (duplicates removed, "avoid duplicate nodes"); a node's test is one frustum-triangle test
+covering the 32 points and yields a 32-bit mask, OR-ed into the receiver's mask. Inserting
+into the texels of the points is exact for those points (a triangle can shadow a point only
+if it touches the point's texel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["FULL_MASK", "PAIR_CHUNK", "IzbLists", "JoinStats", "build_lists", "join", "list_nodes"]
+
+#: (fragment, node) pairs tested per chunk: bounds memory at about 250 MiB for 32 samples
+#: ((pairs, 4, 32) float64 working arrays are only made for pairs that straddle a plane).
+PAIR_CHUNK = 1 << 18
+
+#: All 32 bits of an FTIZB mask.
+FULL_MASK = np.uint32(0xFFFFFFFF)
+
+
+@dataclass
+class IzbLists:
+    """Grid-of-lists: ``node_texel`` (sorted, global texel id = cascade * R^2 + j * R + i)
+    and ``node_recv`` (receiver index) per node."""
+
+    node_texel: np.ndarray
+    node_recv: np.ndarray
+
+    def lengths(self) -> np.ndarray:
+        """Lengths of the non-empty lists."""
+        if len(self.node_texel) == 0:
+            return np.zeros(0, dtype=np.int64)
+        edges = np.flatnonzero(np.diff(self.node_texel)) + 1
+        bounds = np.concatenate([[0], edges, [len(self.node_texel)]])
+        return np.diff(bounds)
+
+    def length_at(self, texels: np.ndarray) -> np.ndarray:
+        """List length of each of ``texels``."""
+        lo = np.searchsorted(self.node_texel, texels, side="left")
+        hi = np.searchsorted(self.node_texel, texels, side="right")
+        return hi - lo
+
+    def compact(self, dead: np.ndarray) -> int:
+        """Remove the nodes of ``dead`` receivers; returns how many nodes were removed."""
+        keep = ~dead[self.node_recv]
+        removed = int(len(keep) - keep.sum())
+        if removed:
+            self.node_texel = self.node_texel[keep]
+            self.node_recv = self.node_recv[keep]
+        return removed
+
+
+def list_nodes(texels: np.ndarray, recv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes ``(texel, receiver)`` of receivers ``recv`` whose samples fall in ``texels``
+    ``(n, S)`` (int64 global texel ids): one node per distinct texel of a row."""
+    if texels.shape[1] == 1:
+        return texels[:, 0], recv
+    srt = np.sort(texels, axis=1)
+    first = np.ones_like(srt, dtype=bool)
+    first[:, 1:] = srt[:, 1:] != srt[:, :-1]
+    return srt[first], np.repeat(recv, first.sum(axis=1))
+
+
+def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
+    """Lists from the nodes of :func:`list_nodes` (any number of parts).
+
+    Nodes are sorted by texel, then by receiver index (a deterministic order, as a GPU's
+    would be for a fixed insertion order).
+    """
+    if not parts:
+        return IzbLists(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
+    node_texel = np.concatenate([t for t, _ in parts])
+    node_recv = np.concatenate([r for _, r in parts])
+    order = np.lexsort((node_recv, node_texel))
+    return IzbLists(node_texel[order], node_recv[order])
+
+
+@dataclass
+class JoinStats:
+    """Counters of the traversal: fragments, tests, list lengths seen by fragments."""
+
+    fragments: int = 0
+    fragments_with_list: int = 0
+    tests: int = 0
+    list_max: int = 0
+    nodes_removed: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def _pairs(lo: np.ndarray, n: np.ndarray):
+    """Node index of every (fragment, node) pair: ``lo[f] + 0 .. n[f] - 1``."""
+    first = np.cumsum(n) - n
+    f = np.repeat(np.arange(len(n)), n)
+    return f, lo[f] + (np.arange(len(f)) - first[f])
+
+
+def _test_single(planes, p):
+    """Shadowed flags of points ``p (P, 3)`` against ``planes (P, 4, 4)``."""
+    v = np.einsum("pkj,pj->pk", planes[:, :, :3], p) + planes[:, :, 3]
+    return (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > 0)
+
+
+def _test_32(planes, p, dpdx, dpdy, a, b, bits):
+    """32-bit masks of the tangent-plane points ``p + a dpdx + b dpdy`` inside the volumes.
+
+    The value of each plane is affine in ``(a, b)``; bounds over the pixel's points decide
+    most pairs without evaluating the 32 points (all outside one plane: mask 0; all inside
+    every plane: mask full), the rest are evaluated point by point.
+    """
+    n = planes[:, :, :3]
+    base = np.einsum("pkj,pj->pk", n, p) + planes[:, :, 3]
+    da = np.einsum("pkj,pj->pk", n, dpdx)
+    db = np.einsum("pkj,pj->pk", n, dpdy)
+    spread = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
+    hi = base + spread
+    lo = base - spread
+    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= 0)
+    full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
+    masks = np.zeros(len(p), dtype=np.uint32)
+    masks[full & ~none] = FULL_MASK
+    mixed = np.flatnonzero(~none & ~full)
+    if len(mixed):
+        v = (
+            base[mixed, :, None]
+            + da[mixed, :, None] * a[None, None, :]
+            + db[mixed, :, None] * b[None, None, :]
+        )
+        inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > 0)
+        masks[mixed] = (inside.astype(np.uint64) @ bits).astype(np.uint32)
+    return masks
+
+
+def join(
+    lists: IzbLists,
+    frag_tri: np.ndarray,
+    frag_texel: np.ndarray,
+    planes: np.ndarray,
+    recv: dict,
+    state: dict,
+    stats: JoinStats,
+) -> None:
+    """Test every node of every fragment's list against the fragment's triangle.
+
+    ``recv``: ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy`` and the offsets ``a``,
+    ``b`` ``(32,)``. ``state``: ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)``
+    uint32 (32 samples), updated in place. Fragments are processed in chunks of at most
+    :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own).
+    """
+    stats.fragments += len(frag_tri)
+    if len(frag_tri) == 0 or len(lists.node_texel) == 0:
+        return
+    lo = np.searchsorted(lists.node_texel, frag_texel, side="left")
+    hi = np.searchsorted(lists.node_texel, frag_texel, side="right")
+    n = hi - lo
+    has = n > 0
+    stats.fragments_with_list += int(has.sum())
+    frag_tri, lo, n = frag_tri[has], lo[has], n[has]
+    if len(n) == 0:
+        return
+    stats.tests += int(n.sum())
+    stats.list_max = max(stats.list_max, int(n.max()))
+    ends = np.cumsum(n)
+    thirty_two = "mask" in state
+    if thirty_two:
+        bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
+    cut = 0
+    while cut < len(n):  # chunks of fragments
+        base = ends[cut - 1] if cut else 0
+        stop = max(int(np.searchsorted(ends, base + PAIR_CHUNK, side="right")), cut + 1)
+        f, node = _pairs(lo[cut:stop], n[cut:stop])
+        r = lists.node_recv[node]
+        pl = planes[frag_tri[cut:stop][f]]
+        if thirty_two:
+            m = _test_32(
+                pl, recv["p"][r], recv["dpdx"][r], recv["dpdy"][r], recv["a"], recv["b"], bits
+            )
+            hit = m != 0
+            np.bitwise_or.at(state["mask"], r[hit], m[hit])
+        else:
+            hit = _test_single(pl, recv["p"][r])
+            state["shadowed"][r[hit]] = True
+        cut = stop
