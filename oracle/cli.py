@@ -219,10 +219,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out", type=_path, default=Path("out/score"), help="output folder")
 
-    p = sub.add_parser("report", help="combine score folders into one HTML report")
-    p.add_argument("folders", nargs="+", type=Path, metavar="DIR")
+    p = sub.add_parser("report", help="combine score folders (or a sweep) into one HTML report")
+    p.add_argument("folders", nargs="*", type=Path, metavar="DIR")
     p.add_argument("--out", type=_path, required=True, help="the report.html to write")
     p.add_argument("--title", default="raster-oracle report")
+    from .sweepcli import add_parsers, report_sweep_args
+
+    report_sweep_args(p)
+    add_parsers(sub)
 
     p = sub.add_parser("main", help="the main job on the built-in default scenes")
     p.add_argument("--out", type=_path, default=Path("out"), help="output folder")
@@ -493,12 +497,21 @@ def cmd_report(args) -> int:
 
     if not args.title.strip():
         raise CliError("--title must not be empty")
+    if (args.sweep is None) == (not args.folders):
+        raise CliError("report: give score folders or --sweep DB (one of them)")
     out = args.out
     if out.suffix.lower() == ".json":
         raise CliError(f"--out must name the HTML file (its JSON goes beside it), got {out}")
     if out.is_dir():
         raise CliError(f"--out {out} is a folder; give the report file to write")
     _check_dir(out.parent, label=f"--out {out}: folder")
+    if args.sweep is not None:
+        from .sweepcli import sweep_report
+
+        title = None if args.title == "raster-oracle report" else args.title
+        sweep_report(args.sweep, out, title=title, costs=args.cost, metrics=args.metric)
+        print(f"sweep report: {out}")
+        return 0
     try:
         n = combine_reports(args.folders, out, title=args.title)
     except (ValueError, TypeError, KeyError, AttributeError) as exc:
@@ -547,8 +560,16 @@ COMMANDS = {
     "model": cmd_model,
     "score": cmd_score,
     "report": cmd_report,
+    "sweep": lambda args: _sweep_cli().cmd_sweep(args),
+    "tune": lambda args: _sweep_cli().cmd_tune(args),
     "converge": cmd_converge,
 }
+
+
+def _sweep_cli():
+    from . import sweepcli
+
+    return sweepcli
 
 
 def _known_errors() -> tuple[type[BaseException], ...]:
@@ -565,6 +586,7 @@ def _known_errors() -> tuple[type[BaseException], ...]:
 
     errors = [
         CliError,
+        *_sweep_cli().known_errors(),
         SceneError,
         BackendError,
         ExrError,

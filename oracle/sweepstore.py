@@ -1,0 +1,221 @@
+"""The sweep store: one SQLite file (WAL mode) with a row per case.
+
+Only the sweep's client process writes, one transaction per finished case, so a ``kill -9``
+at any moment loses at most the cases in flight: SQLite's write-ahead log makes every
+committed row durable and an interrupted transaction invisible, and the next run finds every
+committed row and skips it. Optuna studies of ``raster-oracle tune`` live in the same file
+(their own tables).
+
+Table ``sweep_cases``: ``key`` (primary key, :func:`case_key`), ``sweep`` (spec name),
+``scene``, ``technique``, ``family``, ``params`` (JSON, every parameter with its value),
+``frame``, ``path`` (camera or light path, or NULL), ``width``, ``height``, ``spp``, ``seed``,
+``metrics`` (JSON: every metric key, the noise floor under ``noise_floor``), ``cost`` (JSON),
+``wall_seconds`` (the case's own time on its worker), ``status`` (``done`` or ``failed``),
+``error`` (one line, or NULL), ``finished`` (Unix time the row was written) and ``run_id``
+(the run that wrote it).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import sqlite3
+import time
+from pathlib import Path
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "SweepStore",
+    "StoreError",
+    "case_key",
+]
+
+#: Version of the table layout and of the key's meaning; part of every key.
+SCHEMA_VERSION = 1
+#: How long a connection waits for a lock held by another process (an Optuna study, a
+#: reader) before failing, in seconds.
+BUSY_TIMEOUT_S = 30.0
+
+_COLUMNS = (
+    "key",
+    "sweep",
+    "scene",
+    "technique",
+    "family",
+    "params",
+    "frame",
+    "path",
+    "width",
+    "height",
+    "spp",
+    "seed",
+    "metrics",
+    "cost",
+    "wall_seconds",
+    "status",
+    "error",
+    "finished",
+    "run_id",
+)
+
+_CREATE = """
+CREATE TABLE IF NOT EXISTS sweep_meta (name TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS sweep_cases (
+    key TEXT PRIMARY KEY,
+    sweep TEXT NOT NULL,
+    scene TEXT NOT NULL,
+    technique TEXT NOT NULL,
+    family TEXT NOT NULL,
+    params TEXT NOT NULL,
+    frame INTEGER NOT NULL,
+    path TEXT,
+    width INTEGER NOT NULL,
+    height INTEGER NOT NULL,
+    spp INTEGER NOT NULL,
+    seed INTEGER NOT NULL,
+    metrics TEXT,
+    cost TEXT,
+    wall_seconds REAL,
+    status TEXT NOT NULL CHECK (status IN ('done', 'failed')),
+    error TEXT,
+    finished REAL NOT NULL,
+    run_id TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS sweep_cases_by_sweep ON sweep_cases (sweep);
+"""
+
+
+class StoreError(ValueError):
+    """The store file cannot be used (not SQLite, another schema, not writable)."""
+
+
+def _jsonable(value):
+    """JSON value with non-finite floats as the strings ``"nan"``, ``"inf"``, ``"-inf"``."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):  # NumPy scalars
+        return _jsonable(value.item())
+    return value
+
+
+def dumps(value) -> str:
+    """Canonical JSON (sorted keys, no NaN literals)."""
+    return json.dumps(_jsonable(value), sort_keys=True, allow_nan=False)
+
+
+def case_key(record: dict) -> str:
+    """SHA-256 of a case's identity: scene content, technique, every parameter, frame, spp,
+    seed, backend variant and versions (``record`` is built by the sweep)."""
+    return hashlib.sha256(dumps({"schema": SCHEMA_VERSION, **record}).encode()).hexdigest()
+
+
+class SweepStore:
+    """The SQLite file of a sweep (created when missing).
+
+    Parameters
+    ----------
+    path : the database file.
+    readonly : open an existing file for reading only (reports).
+    """
+
+    def __init__(self, path: str | os.PathLike, *, readonly: bool = False):
+        self.path = Path(path)
+        if readonly and not self.path.is_file():
+            raise StoreError(f"sweep database {self.path}: no such file")
+        if self.path.exists() and not self.path.is_file():
+            raise StoreError(f"sweep database {self.path} exists and is not a file")
+        try:
+            if readonly:
+                uri = f"file:{self.path.resolve()}?mode=ro"
+                self.conn = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S)
+            else:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self.conn = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S)
+                self.conn.execute("PRAGMA journal_mode=WAL")
+                # WAL + NORMAL: a committed row survives a killed process (only an OS crash
+                # may lose the last transactions); the file never corrupts.
+                self.conn.execute("PRAGMA synchronous=NORMAL")
+                self.conn.executescript(_CREATE)
+                self.conn.execute(
+                    "INSERT OR IGNORE INTO sweep_meta VALUES ('schema', ?)", (str(SCHEMA_VERSION),)
+                )
+                self.conn.commit()
+            row = self.conn.execute("SELECT value FROM sweep_meta WHERE name = 'schema'").fetchone()
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        if row is None or row[0] != str(SCHEMA_VERSION):
+            found = row[0] if row else "none"
+            raise StoreError(
+                f"sweep database {self.path}: schema {found}, expected {SCHEMA_VERSION}"
+            )
+
+    def close(self) -> None:
+        self.conn.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def url(self) -> str:
+        """SQLAlchemy URL of the file (Optuna's storage)."""
+        return f"sqlite:///{self.path.resolve()}"
+
+    def finished_keys(self, *, include_failed: bool = True) -> set[str]:
+        """Keys of the rows already written (failed ones too unless ``include_failed=False``)."""
+        sql = "SELECT key FROM sweep_cases"
+        if not include_failed:
+            sql += " WHERE status = 'done'"
+        return {r[0] for r in self.conn.execute(sql)}
+
+    def put(self, row: dict) -> None:
+        """Write (or replace) one case row and commit it."""
+        values = dict(row)
+        for name in ("params", "metrics", "cost"):
+            if values.get(name) is not None:
+                values[name] = dumps(values[name])
+        values.setdefault("finished", time.time())
+        missing = [c for c in _COLUMNS if c not in values and c not in ("error", "path")]
+        if missing:
+            raise StoreError(f"sweep row lacks {', '.join(missing)}")
+        cols = ", ".join(_COLUMNS)
+        marks = ", ".join("?" for _ in _COLUMNS)
+        with self.conn:  # one transaction per case
+            self.conn.execute(
+                f"INSERT OR REPLACE INTO sweep_cases ({cols}) VALUES ({marks})",
+                [values.get(c) for c in _COLUMNS],
+            )
+
+    def get(self, key: str) -> dict | None:
+        rows = self.rows(where="key = ?", args=(key,))
+        return rows[0] if rows else None
+
+    def rows(self, *, sweep: str | None = None, where: str = "", args=()) -> list[dict]:
+        """Every row (of ``sweep``), JSON columns decoded, in the order they were written."""
+        clauses, params = [], list(args)
+        if where:
+            clauses.append(where)
+        if sweep is not None:
+            clauses.append("sweep = ?")
+            params.append(sweep)
+        sql = f"SELECT {', '.join(_COLUMNS)} FROM sweep_cases"
+        if clauses:
+            sql += " WHERE " + " AND ".join(clauses)
+        sql += " ORDER BY finished, key"
+        out = []
+        for r in self.conn.execute(sql, params):
+            row = dict(zip(_COLUMNS, r, strict=True))
+            for name in ("params", "metrics", "cost"):
+                row[name] = json.loads(row[name]) if row[name] is not None else None
+            out.append(row)
+        return out
+
+    def integrity_ok(self) -> bool:
+        return self.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
