@@ -3,7 +3,8 @@
 Every factory takes the film size and returns a plain dictionary for ``mitsuba.load_dict``;
 custom triangle meshes appear as ``{"type": "ro_mesh", "vertices": (V, 3), "faces": (F, 3)}``
 entries that :mod:`scenes.loader` turns into Mitsuba meshes. World up is +Y. All materials are
-two-sided diffuse (see :mod:`scenes.shading`).
+two-sided diffuse (see :mod:`scenes.shading`); a top-level ``"ro_specular"`` entry (used by
+:mod:`scenes.aa_scenes`' glossy scene) switches on the shared Blinn-Phong lobe.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _meshes
+from . import _meshes, aa_scenes
 
 __all__ = ["BUILTIN_SCENES", "BuiltinScene", "DEFAULT_SCENES"]
 
@@ -292,6 +293,11 @@ BUILTIN_SCENES: dict[str, BuiltinScene] = {
         BuiltinScene("point", point, "boxes and a sphere around a point light"),
     ]
 }
+
+# The anti-aliasing scenes (decal, stripes, glossy, foliage, hdr-edge): see scenes.aa_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in aa_scenes.AA_SCENES.items()}
+)
 
 #: The scenes the main job runs by default.
 DEFAULT_SCENES = ("plate", "city", "thin", "star", "curved", "spot", "point")

@@ -360,6 +360,8 @@ def load(
         raw = spec.factory(w, h)
         digest = hashlib.sha256(b"builtin:" + name.encode())
         _hash_obj(digest, raw)
+        # a scene-wide Blinn-Phong lobe (scenes.aa_scenes' glossy); hashed above with the rest
+        specular = Specular(**raw.pop("ro_specular", {}))
         try:
             mi_scene = mi.load_dict(_to_mitsuba_dict(mi, raw, meshes), optimize=False)
         except Exception as exc:  # Mitsuba raises RuntimeError subclasses
@@ -383,6 +385,7 @@ def load(
             msg = str(exc).strip().splitlines()
             raise SceneError(f"cannot load {path}: {msg[-1] if msg else exc}") from exc
         source, description = str(path.resolve()), f"Mitsuba scene {path.name}"
+        specular = Specular()
         name = path.stem
     sensors = mi_scene.sensors()
     if not sensors:
@@ -418,6 +421,7 @@ def load(
         light_index=int(light),
         shape_names=[s.id() for s in mi_scene.shapes()],
         content_hash=digest.hexdigest(),
+        specular=specular,
         mesh_data=meshes,
     )
     if camera_path is not None:
