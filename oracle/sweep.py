@@ -80,9 +80,7 @@ def case_scene(rec: dict):
     """The loaded scene of a case record: its frame of its camera or light path."""
     base = _base_scene(rec)
     if rec.get("light_path"):
-        return base.with_light_frame(
-            rec["frame"], path=rec["light_path"], n_frames=rec["n_frames"]
-        )
+        return base.with_light_frame(rec["frame"], path=rec["light_path"], n_frames=rec["n_frames"])
     if rec.get("camera_path"):
         return base.with_frame(rec["frame"], path=rec["camera_path"], n_frames=rec["n_frames"])
     return base

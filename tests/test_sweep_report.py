@@ -1,0 +1,108 @@
+"""The sweep report from hand-made rows: fronts, best-at-equal-cost, sensitivity, escaping."""
+
+from __future__ import annotations
+
+import json
+
+from reports._sweep import best_at_equal_cost, sweep_record, write_sweep_report
+
+
+def _row(i, technique, resolution, cost, error, *, scene="plate", status="done", family="shadow"):
+    return {
+        "key": f"{i:012x}" + "0" * 52,
+        "scene": scene,
+        "technique": technique,
+        "family": family,
+        "params": {"resolution": resolution, "filter": "pcf"},
+        "frame": 0,
+        "path": None,
+        "width": 48,
+        "height": 27,
+        "spp": 4,
+        "metrics": None
+        if status != "done"
+        else {"misclassified_fraction": error, "visibility_mae": error / 2, "noise_floor": {}},
+        "cost": None if status != "done" else {"shadow_map_bytes": cost, "texels_rendered": cost},
+        "status": status,
+        "error": None if status == "done" else "RuntimeError: boom",
+        "wall_seconds": 0.1,
+    }
+
+
+ROWS = [
+    _row(1, "shadow-map", 256, 100, 0.30),
+    _row(2, "shadow-map", 512, 400, 0.10),
+    _row(3, "shadow-map", 1024, 1600, 0.12),  # dominated by row 2 (dearer and worse)
+    _row(4, "csm", 256, 400, 0.05),  # dominates row 2 at equal cost
+    _row(5, "csm", 512, 1600, 0.02),
+    _row(6, "csm", 1024, 6400, 0.02),  # equal error, dearer: dominated by row 5
+    _row(7, "sdsm", 2048, 0, 0.0, status="failed"),
+    _row(8, "shadow-map", 256, 100, 0.01, scene="city"),
+]
+
+
+def test_fronts_hold_exactly_the_non_dominated_cases():
+    rec = sweep_record(ROWS, title="t")
+    plate = next(g for g in rec["groups"] if g["scene"] == "plate")
+    assert plate["n_cases"] == 7 and plate["n_done"] == 6
+    front = next(
+        f
+        for f in plate["fronts"]
+        if f["cost_key"] == "shadow_map_bytes" and f["metric"] == "misclassified_fraction"
+    )
+    on = sorted(p["case_id"] for p in front["points"] if p["on_front"])
+    assert on == sorted(f"row-{i:012x}" for i in (1, 4, 5))
+    # the front's indices run by increasing cost
+    assert [front["points"][i]["cost"] for i in front["front"]] == [100, 400, 1600]
+    # city is its own group: its single case is its front
+    city = next(g for g in rec["groups"] if g["scene"] == "city")
+    assert city["fronts"][0]["points"][0]["on_front"]
+
+
+def test_best_at_equal_cost_picks_the_lowest_error_per_technique():
+    rows = best_at_equal_cost(
+        [
+            {"cost": 400, "error": 0.10, "technique": "a", "case_id": "x"},
+            {"cost": 400, "error": 0.05, "technique": "b", "case_id": "y"},
+            {"cost": 400, "error": 0.07, "technique": "b", "case_id": "z"},
+            {"cost": 100, "error": 0.30, "technique": "a", "case_id": "w"},
+        ]
+    )
+    assert [(r["cost_lo"], sorted(r["best"])) for r in rows] == [(100, ["a"]), (400, ["a", "b"])]
+    assert rows[1]["best"]["b"]["case_id"] == "y"
+    # more distinct costs than table rows: power-of-two bins [2^k, 2^(k+1))
+    many = [
+        {"cost": c, "error": 1.0 / c, "technique": "a", "case_id": str(c)} for c in range(1, 40)
+    ]
+    binned = best_at_equal_cost(many)
+    assert [(r["cost_lo"], r["cost_hi"]) for r in binned][:3] == [(1, 2), (2, 4), (4, 8)]
+    assert binned[-1]["best"]["a"]["cost"] == 39  # lowest error in [32, 64) is the dearest
+
+
+def test_sensitivity_lists_the_varying_parameter_only():
+    rec = sweep_record(ROWS, title="t")
+    plate = next(g for g in rec["groups"] if g["scene"] == "plate")
+    items = {(s["technique"], s["param"]) for s in plate["sensitivity"]}
+    assert items == {("shadow-map", "resolution"), ("csm", "resolution")}
+    sm = next(s for s in plate["sensitivity"] if s["technique"] == "shadow-map")
+    assert [lv["x"] for lv in sm["levels"]] == [256, 512, 1024]
+    assert [lv["mean"] for lv in sm["levels"]] == [0.30, 0.10, 0.12]
+
+
+def test_page_escapes_text_and_holds_every_section(tmp_path):
+    rows = [dict(r) for r in ROWS]
+    rows[0]["scene"] = "<script>alert(1)</script>"
+    out = tmp_path / "r.html"
+    write_sweep_report(
+        rows,
+        out,
+        title="a <b>title</b>",
+        extra_sections=[{"id": "claims", "title": "Claims", "html": "<p>claims here</p>"}],
+    )
+    html = out.read_text()
+    assert "<script>alert(1)</script>" not in html and "&lt;script&gt;" in html
+    assert "a &lt;b&gt;title&lt;/b&gt;" in html
+    assert '<section id="claims" class="card"><h2>Claims</h2><p>claims here</p>' in html
+    assert "RuntimeError: boom" in html
+    assert json.loads(out.with_suffix(".json").read_text())["summary"]["n_failed"] == 1
+    assert "http://" not in html.replace("http://www.w3.org/2000/svg", "")
