@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from . import _params, csm, izb, sdsm, shadow_map
 from ._errors import ModelError
+from .aa import acaa, agaa, fxaa_model, msaa, ssaa
 
 __all__ = ["TECHNIQUES", "Technique", "list_techniques", "parse_params", "run"]
 
@@ -20,7 +21,11 @@ class Technique:
     params: type
     runner: object
     lights: tuple[str, ...]
+    family: str = "shadow"
 
+
+#: Light kinds the anti-aliasing models accept (they shade with any light).
+_ALL_LIGHTS = ("directional", "spot", "point")
 
 TECHNIQUES: dict[str, Technique] = {
     t.name: t
@@ -82,6 +87,78 @@ TECHNIQUES: dict[str, Technique] = {
             izb.IzbParams,
             izb.run,
             ("directional",),
+        ),
+        # anti-aliasing family (issue 9): colour and coverage, scored against the reference
+        Technique(
+            "noaa",
+            "no anti-aliasing: one sample at each pixel centre, shaded there",
+            ("F. C. Crow, The aliasing problem in computer-generated shaded images, CACM 1977",),
+            ssaa.NoAAParams,
+            ssaa.run_noaa,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "ssaa",
+            "supersampling: N standard or ordered-grid samples per pixel, every one shaded, "
+            "box or wide resolve",
+            ("T. Akenine-Moller et al., Real-Time Rendering, 4th ed., 2018, section 5.4",),
+            ssaa.SsaaParams,
+            ssaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "msaa",
+            "multisampling: N standard sample positions (coverage + depth), one shade per "
+            "primitive and pixel at the centre (or centroid), box or wide resolve",
+            (
+                "K. Akeley, Reality Engine graphics, SIGGRAPH 1993, doi:10.1145/166117.166131",
+                "Khronos, Vulkan specification, standard sample locations",
+            ),
+            msaa.MsaaParams,
+            msaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "acaa",
+            "accumulative AA: N-sample depth prepass, shading pass with LEQUAL and additive "
+            "blending weighted by post-depth coverage into one colour (float or RGBA8); "
+            "coplanar surfaces tie and count twice",
+            (
+                "E. Enderton, E. Lum, C. Rouet, O. Kouznetsov, Accumulative anti-aliasing, "
+                "NVIDIA (HPG 2015 poster; GameWorks BlendedAA sample)",
+                "C. Wyman, High-quality rasterization (NVIDIA slides), 2015",
+            ),
+            acaa.AcaaParams,
+            acaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "agaa",
+            "aggregate G-buffer AA: N-sample depth+normal prepass, K <= 2 aggregates a pixel "
+            "by clustering, coverage-weighted material accumulation, one shade per aggregate "
+            "(Toksvig-filtered normal)",
+            (
+                "C. Crassin, M. McGuire, K. Fatahalian, A. Lefohn, Aggregate G-Buffer "
+                "Anti-Aliasing, I3D 2015, doi:10.1145/2699276.2699285",
+                "M. Toksvig, Mipmapping normal maps, JGT 10(3) 2005",
+            ),
+            agaa.AgaaParams,
+            agaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "fxaa",
+            "FXAA 3.11 quality path on the one-sample image (luma in gamma space)",
+            ("T. Lottes, FXAA 3.11 (Fxaa3_11.h), NVIDIA, 2011",),
+            fxaa_model.FxaaParams,
+            fxaa_model.run,
+            _ALL_LIGHTS,
+            "aa",
         ),
     )
 }

@@ -1,0 +1,30 @@
+"""Anti-aliasing models: no AA, SSAA, MSAA, ACAA, AGAA and FXAA (issue 9).
+
+Every model samples where the technique samples (sub-sample positions, pixel centres) with
+the intersection engine the oracle uses, shades with the oracle's shading model and exact
+shadow rays (or a shadow technique), and writes ``color`` (linear, (H, W, 3)), ``coverage``,
+``shading_events`` and its diagnostics, with a cost record of framebuffer bytes, shading
+events, passes, samples tested and bandwidth.
+"""
+
+from . import _resolve, _samples
+from .fxaa import FXAA_PRESETS, fxaa, fxaa_luma
+from .fxaa_model import FxaaParams
+from .msaa import MsaaParams
+from .ssaa import NoAAParams, SsaaParams
+
+#: Output channels of the anti-aliasing models (``ties``: ACAA, ``aggregates``: AGAA).
+AA_OUTPUT_CHANNELS = ("color", "coverage", "shading_events")
+
+__all__ = [
+    "AA_OUTPUT_CHANNELS",
+    "FXAA_PRESETS",
+    "FxaaParams",
+    "MsaaParams",
+    "NoAAParams",
+    "SsaaParams",
+    "_resolve",
+    "_samples",
+    "fxaa",
+    "fxaa_luma",
+]

@@ -1,0 +1,361 @@
+"""Ray work of the anti-aliasing models: sample G-buffers, fragment attributes, shading.
+
+Three Dr.Jit kernels, each chunked (at most :data:`CHUNK` rays a launch), on the scene's own
+intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engine"):
+
+- :func:`trace_samples`: one primary ray through every sub-sample position of every pixel
+  (the depth prepass of MSAA/ACAA/AGAA): hit or sky, shape and primitive, view depth and,
+  on request, the geometric normal;
+- :func:`fragment_attributes`: for a fragment (a primitive in a pixel) given by one of its
+  samples, the attributes a pixel shader sees at the shading position (pixel centre or
+  centroid): the position where the ray through that position meets the *triangle's plane*
+  and the surface parameters extrapolated linearly from the sample's hit (``uv``, shading
+  normal), as a rasterizer's attribute interpolation does beyond a triangle's edge; the
+  albedo is evaluated at the extrapolated ``uv``;
+- :func:`shade_points`: the oracle's shading (:func:`scenes.shading.shade`) at those points,
+  with an exact shadow ray from each (:func:`scenes.raycast.shadow_ray_dr`, the oracle's own
+  offsets) or with a given visibility, and optionally an unnormalized (filtered) normal:
+  diffuse with the normal's length as a factor (the linear average of Lambert terms) and the
+  specular exponent scaled by Toksvig's factor.
+
+Values are float32 (Mitsuba's ``Float``), as a GPU computes them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from scenes import backend
+from scenes.raycast import (
+    SHADOW_OFFSET,
+    SHADOW_OFFSET_MESH,
+    _shape_table,
+    camera_rays_dr,
+    shadow_ray_dr,
+)
+from scenes.shading import facing, shade
+
+__all__ = ["CHUNK", "fragment_attributes", "shade_points", "sample_colors", "trace_samples"]
+
+#: Rays per Dr.Jit launch (bounded memory; ~0.5 GiB a launch at most).
+CHUNK = 1 << 21
+
+
+def _np(a) -> np.ndarray:
+    """NumPy copy of an evaluated Dr.Jit array (a vector gives ``(3, N)``)."""
+    to_numpy = getattr(a, "numpy", None)
+    return np.array(to_numpy() if to_numpy is not None else a)
+
+
+def _view_depth(camera, p):
+    fwd, pos = camera.forward, camera.position
+    return (
+        (p.x - float(pos[0])) * float(fwd[0])
+        + (p.y - float(pos[1])) * float(fwd[1])
+        + (p.z - float(pos[2])) * float(fwd[2])
+    )
+
+
+def trace_samples(
+    scene, offsets: np.ndarray, *, normals: bool = False, mi_scene=None, pixels=None
+) -> dict:
+    """Nearest surface at every sub-sample of every pixel (a depth prepass).
+
+    Parameters
+    ----------
+    scene : scenes.LoadedScene
+    offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`._samples`).
+    normals : also return the geometric normal turned towards the viewer.
+    mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: one shape).
+    pixels : pixel indices (row-major) to trace; default every pixel.
+
+    Returns
+    -------
+    dict of ``(P, N)`` arrays: ``valid`` (bool), ``shape`` (int32, index into
+    ``scene.shape_names``, -1 sky; with ``mi_scene`` -1 or 0), ``prim`` (int64, -1 sky),
+    ``depth`` (float32 view depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    w = cam.width
+    target = mi_scene if mi_scene is not None else scene.mi_scene
+    offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
+    n = len(offs)
+    pix_all = np.arange(cam.width * cam.height) if pixels is None else np.asarray(pixels)
+    n_pix = len(pix_all)
+    total = n_pix * n
+    out = {
+        "valid": np.empty(total, bool),
+        "shape": np.empty(total, np.int32),
+        "prim": np.empty(total, np.int64),
+        "depth": np.empty(total, np.float32),
+    }
+    if normals:
+        out["normal"] = np.empty((total, 3), np.float32)
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    table = _shape_table(mi, dr, scene) if mi_scene is None else None
+    step = max(n, (CHUNK // n) * n)
+    for start in range(0, total, step):
+        stop = min(total, start + step)
+        idx = dr.arange(mi.UInt32, start, stop)
+        local = idx // n
+        s = idx - local * n
+        pix = mi.UInt32(pix_all[start // n : stop // n].astype(np.uint32))
+        pix = dr.gather(mi.UInt32, pix, local)
+        x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
+        y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
+        ray = camera_rays_dr(cam, x, y)
+        if normals:
+            si = target.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
+            valid, t, prim, shape_ptr = si.is_valid(), si.t, si.prim_index, si.shape
+            nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
+        else:
+            pi = target.ray_intersect_preliminary(ray, coherent=True)
+            valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
+        depth = dr.select(valid, _view_depth(cam, ray.o + ray.d * t), 0.0)
+        if table is not None:
+            shape = dr.gather(mi.Int32, table, dr.reinterpret_array(mi.UInt32, shape_ptr))
+            shape = dr.select(valid, shape, -1)
+        else:
+            shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
+        evals = [valid, depth, prim, shape] + ([nrm] if normals else [])
+        dr.eval(*evals)
+        sl = slice(start, stop)
+        v = _np(valid)
+        out["valid"][sl] = v
+        out["depth"][sl] = _np(depth)
+        out["shape"][sl] = _np(shape)
+        out["prim"][sl] = np.where(v, _np(prim).astype(np.int64), -1)
+        if normals:
+            out["normal"][sl] = _np(nrm).T
+    res = {k: v.reshape((n_pix, n) + v.shape[1:]) for k, v in out.items()}
+    return res
+
+
+def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
+    """What a pixel shader sees for fragments given by one covered sample each.
+
+    Parameters
+    ----------
+    sx, sy : film positions of a sample the fragment covers (its primitive is found again by
+        the ray through it; ``mi_scene`` restricts the search to one shape, for fragments
+        that are not the nearest surface there).
+    cx, cy : film positions where the fragment is shaded (pixel centre, or centroid).
+
+    Returns
+    -------
+    dict of NumPy arrays (F rows): ``valid``, ``position`` (on the primitive's plane, under
+    ``(cx, cy)``), ``normal`` (shading normal extrapolated to that point, unit, facing the
+    viewer), ``geo_normal``, ``albedo``, ``to_eye``, ``offset`` (the oracle's shadow-ray
+    offset for the shape type), ``depth`` (view depth of ``position``); ``float32``.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    target = mi_scene if mi_scene is not None else scene.mi_scene
+    sx, sy, cx, cy = (np.asarray(a, np.float32).ravel() for a in (sx, sy, cx, cy))
+    total = len(sx)
+    out = {
+        "valid": np.zeros(total, bool),
+        "depth": np.zeros(total, np.float32),
+        "offset": np.zeros(total, np.float32),
+    }
+    for k in ("position", "normal", "geo_normal", "albedo", "to_eye"):
+        out[k] = np.zeros((total, 3), np.float32)
+    for start in range(0, total, CHUNK):
+        sl = slice(start, min(total, start + CHUNK))
+        ray_s = camera_rays_dr(cam, mi.Float(sx[sl]), mi.Float(sy[sl]))
+        si = target.ray_intersect(ray_s, mi.RayFlags.All, coherent=True)
+        valid = si.is_valid()
+        ray_c = camera_rays_dr(cam, mi.Float(cx[sl]), mi.Float(cy[sl]))
+        ng = si.n
+        den = dr.dot(ng, ray_c.d)
+        ok = dr.abs(den) > 1e-12
+        tc = dr.dot(ng, si.p - ray_c.o) / dr.select(ok, den, 1.0)
+        xc = dr.select(ok, ray_c.o + ray_c.d * tc, si.p)
+        delta = xc - si.p
+        a11, a12, a22 = (
+            dr.dot(si.dp_du, si.dp_du),
+            dr.dot(si.dp_du, si.dp_dv),
+            dr.dot(si.dp_dv, si.dp_dv),
+        )
+        b1, b2 = dr.dot(delta, si.dp_du), dr.dot(delta, si.dp_dv)
+        det = a11 * a22 - a12 * a12
+        good = det > 1e-12 * a11 * a22
+        inv = dr.select(good, 1.0 / det, 0.0)
+        du = (a22 * b1 - a12 * b2) * inv
+        dv = (a11 * b2 - a12 * b1) * inv
+        ns = dr.normalize(si.sh_frame.n + si.dn_du * du + si.dn_dv * dv)
+        to_eye = -ray_c.d
+        ns = facing(ns, to_eye)
+        si.uv = si.uv + mi.Point2f(du, dv)
+        si.p = xc
+        bsdf = si.bsdf(ray_s)
+        albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
+        offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
+        depth = _view_depth(cam, xc)
+        vals = {
+            "valid": valid,
+            "position": xc,
+            "normal": ns,
+            "geo_normal": facing(ng, to_eye),
+            "albedo": albedo,
+            "to_eye": to_eye,
+            "offset": offset,
+            "depth": depth,
+        }
+        dr.eval(*vals.values())
+        v = _np(valid)
+        for key, val in vals.items():
+            arr = _np(val)
+            if arr.ndim == 2:
+                arr = arr.T
+            if key != "valid":
+                arr = np.where(v.reshape((-1,) + (1,) * (arr.ndim - 1)), arr, 0)
+            out[key][sl] = arr
+    return out
+
+
+def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool = False):
+    """Shade surface points with the oracle's model (:func:`scenes.shading.shade`).
+
+    Parameters
+    ----------
+    attrs : ``position``, ``normal``, ``geo_normal``, ``albedo``, ``to_eye``, ``offset``
+        ``(F, ...)`` arrays (as from :func:`fragment_attributes`); ``valid`` rows only shaded.
+    visibility : ``(F,)`` light visibility in [0, 1] from a shadow technique; default: one
+        exact shadow ray from each point (the oracle's ray, offsets and light tests).
+    filtered_normal : ``normal`` is an average of unit normals (length <= 1): the diffuse
+        term uses it unnormalized (the average of the fragments' Lambert terms where they
+        all face the light) and the specular exponent ``s`` becomes ``ft * s`` with
+        Toksvig's ``ft = |n| / (|n| + s (1 - |n|))``.
+
+    Returns
+    -------
+    rgb : ``(F, 3)`` float32 linear radiance (0 where not valid).
+    shadow_rays : number of shadow rays cast.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    light = scene.light
+    spec = scene.specular
+    total = len(attrs["position"])
+    rgb_out = np.zeros((total, 3), np.float32)
+    rays = 0
+    valid_all = np.asarray(attrs.get("valid", np.ones(total, bool)), bool)
+
+    def vec(key, sl):
+        a = np.asarray(attrs[key][sl], np.float32)
+        return mi.Vector3f(*(mi.Float(np.ascontiguousarray(a[:, i])) for i in range(3)))
+
+    for start in range(0, total, CHUNK):
+        sl = slice(start, min(total, start + CHUNK))
+        valid = mi.Bool(valid_all[sl])
+        p = mi.Point3f(vec("position", sl))
+        n = vec("normal", sl)
+        ng = vec("geo_normal", sl)
+        albedo = mi.Color3f(vec("albedo", sl))
+        to_eye = vec("to_eye", sl)
+        wl, dist = light.to_light(p)
+        if filtered_normal:
+            length = dr.norm(n)
+            nh = n / dr.maximum(length, 1e-30)
+        else:
+            length, nh = mi.Float(1.0), n
+        cos_l = dr.dot(nh, wl)
+        candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+        if visibility is None:
+            offset = mi.Float(np.asarray(attrs["offset"][sl], np.float32))
+            ray = shadow_ray_dr(light, p, ng, wl, offset)
+            occ = scene.mi_scene.ray_test(ray, candidate)
+            vis = dr.select(candidate & ~occ, 1.0, 0.0)
+            count = dr.count(candidate)
+        else:
+            vis = dr.select(candidate, mi.Float(np.asarray(visibility[sl], np.float32)), 0.0)
+            count = None
+        irr = light.irradiance_scale(wl, dist)
+        if filtered_normal:
+            rgb = shade(
+                albedo=albedo * length,
+                normal=nh,
+                to_light=wl,
+                to_eye=to_eye,
+                irradiance_scale=irr,
+                visibility=vis,
+                light=light,
+                specular=None,
+            )
+            if spec is not None and spec.ks > 0.0:
+                s = spec.shininess
+                ft = length / (length + s * (1.0 - length))
+                s_eff = ft * s
+                h = dr.normalize(wl + to_eye)
+                cos_h = dr.maximum(dr.dot(nh, h), 0.0)
+                lobe = spec.ks * (s_eff + 8.0) / (8.0 * math.pi) * dr.power(cos_h, s_eff)
+                rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
+        else:
+            rgb = shade(
+                albedo=albedo,
+                normal=nh,
+                to_light=wl,
+                to_eye=to_eye,
+                irradiance_scale=irr,
+                visibility=vis,
+                light=light,
+                specular=spec,
+            )
+        rgb = dr.select(valid, rgb, 0.0)
+        if count is not None:
+            dr.eval(rgb, count)
+            rays += int(count[0])
+        else:
+            dr.eval(rgb)
+        rgb_out[sl] = _np(rgb).T
+    return rgb_out, rays
+
+
+def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
+    """Every sample shaded where it lies (supersampling): the oracle's own
+    :func:`scenes.raycast.trace_film_dr` at each sub-sample position.
+
+    Returns ``({"valid": (P, N), "shape": (P, N), "color": (P, N, 3)}, shadow_rays)``.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    from scenes.raycast import trace_film_dr
+
+    cam = scene.camera
+    w = cam.width
+    offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
+    n = len(offs)
+    n_pix = cam.width * cam.height
+    total = n_pix * n
+    valid_out = np.empty(total, bool)
+    color_out = np.empty((total, 3), np.float32)
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    step = max(n, (CHUNK // n) * n)
+    rays = 0
+    for start in range(0, total, step):
+        stop = min(total, start + step)
+        idx = dr.arange(mi.UInt32, start, stop)
+        pix = idx // n
+        s = idx - pix * n
+        x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
+        y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
+        res = trace_film_dr(scene, x, y, color=True)
+        count = dr.count(res["shadow_tested"])
+        dr.eval(res["valid"], res["color"], count)
+        valid_out[start:stop] = _np(res["valid"])
+        color_out[start:stop] = _np(res["color"]).T
+        rays += int(count[0])
+    return {
+        "valid": valid_out.reshape(n_pix, n),
+        "color": color_out.reshape(n_pix, n, 3),
+    }, rays

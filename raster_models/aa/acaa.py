@@ -1,0 +1,239 @@
+"""Accumulative anti-aliasing (ACAA): a depth prepass at N samples, then one shading pass
+that blends each fragment, weighted by its post-depth coverage, into a 1x colour target.
+
+1. Depth prepass (depth test LESS) at the ``N`` standard positions: the nearest surface's
+   depth per sample, stored in ``depth_format`` (D24 UNORM or D32F of the D3D-style
+   ``[0, 1]`` depth ``f/(f-n) (1 - n/z)``; orthographic ``(z-n)/(f-n)``).
+2. Shading pass, depth test LEQUAL, depth writes off: every fragment (primitive, pixel) is
+   shaded once (pixel centre on its plane, or centroid, as :mod:`.msaa`) and added to the
+   colour target with weight ``popcount(post-depth coverage) / N``, in submission order
+   (shape, then primitive index). A fragment passes at a sample when its stored-format depth
+   equals the prepass value there: the nearest surface, and any surface of another shape
+   lying at the same quantized depth (coplanar decals, duplicated geometry), which is
+   therefore counted twice, too bright, as on GPUs. The surfaces at each sample are found
+   per shape (one ray per sample into a scene holding only that shape); two coplanar
+   triangles of one mesh are not told apart.
+3. ``accumulation="rgba8"`` rounds the target to 8-bit UNORM (``round(255 x) / 255`` of the
+   saturated sum) at every addition; ``float32`` adds in float32.
+
+Where no depths tie the result equals :mod:`.msaa`'s box resolve up to float32 summation
+order. Memory = N x depth + one colour per pixel.
+
+References
+----------
+E. Enderton, E. Lum, C. Rouet, O. Kouznetsov, Accumulative Anti-Aliasing, NVIDIA (HPG 2015
+poster); NVIDIA GameWorks OpenGL samples, "Blended Anti-Aliasing".
+C. Wyman, High-quality rasterization (NVIDIA slides, 2015): ACAA caveats (z-fighting).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _depth, _params
+from .._errors import ModelError
+from . import _samples
+from ._base import COLOR_FORMATS, DEPTH_FORMATS, ShadowParams, package, shadow_visibility
+from ._trace import fragment_attributes, shade_points, trace_samples
+
+__all__ = ["ACCUMULATIONS", "AcaaParams", "normalized_depth", "rgba8_accumulate", "run"]
+
+NAME = "acaa"
+#: Accumulation target formats and their bytes per pixel.
+ACCUMULATIONS = {"float32": 16, "rgba8": 4}
+
+
+@dataclass(frozen=True)
+class AcaaParams(ShadowParams):
+    """Parameters of :func:`run`."""
+
+    samples: int = _params.param(
+        8,
+        source="NVIDIA HQ rasterization slides (Wyman 2015): ACAA at 8x",
+        help="depth samples per pixel at the standard positions: 1, 2, 4, 8 or 16",
+        lo=1,
+        hi=16,
+    )
+    depth_format: str = _params.param(
+        "D24",
+        source="Wyman 2015 slides: z-fighting 'usually not an issue at 24-bit depths'",
+        help="prepass depth format (D24 UNORM or D32F); ties are equal stored values",
+        choices=tuple(DEPTH_FORMATS),
+    )
+    accumulation: str = _params.param(
+        "float32",
+        source="issue 9: float accumulation (RGBA8 as an option, rounding every addition)",
+        help="colour target: float32 or rgba8 (linear UNORM, rounded at every blend)",
+        choices=tuple(ACCUMULATIONS),
+    )
+    centroid: bool = _params.param(
+        False,
+        source="hardware default: attributes at the pixel centre",
+        help="shade at the centroid of a fragment's covered samples",
+    )
+
+    def check(self, technique: str) -> None:
+        if self.samples not in _samples.STANDARD_COUNTS:
+            raise ModelError(
+                f"{technique}: parameter samples must be one of "
+                f"{', '.join(map(str, _samples.STANDARD_COUNTS))} (standard patterns), "
+                f"got {self.samples}"
+            )
+
+
+def normalized_depth(camera, view_depth) -> np.ndarray:
+    """D3D-style window depth in [0, 1] of view depths (float64)."""
+    z = np.asarray(view_depth, np.float64)
+    n, f = camera.near, camera.far
+    if camera.kind == "perspective":
+        return f / (f - n) * (1.0 - n / np.maximum(z, 1e-300))
+    return (z - n) / (f - n)
+
+
+def rgba8_accumulate(values: np.ndarray, slot: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Blend ``values`` (F, 3) additively into ``target`` (P, 3) at ``slot`` (F,) pixels, one
+    blend at a time per pixel (fragments of one pixel in order), rounding the saturated sum
+    to 8-bit UNORM after each addition. Returns the target (float64, multiples of 1/255)."""
+    return _blend(values, slot, target, rgba8=True)
+
+
+def _blend(values, pixel, target, *, rgba8: bool):
+    values = np.asarray(values, np.float64 if rgba8 else np.float32)
+    out = np.array(target, dtype=np.float64 if rgba8 else np.float32)
+    if len(pixel) == 0:
+        return out
+    order = np.argsort(pixel, kind="stable")
+    pix = pixel[order]
+    rank = np.arange(len(pix)) - np.searchsorted(pix, pix, side="left")
+    for j in range(int(rank.max()) + 1):
+        sel = order[rank == j]
+        p = pixel[sel]
+        s = out[p] + values[sel]
+        if rgba8:
+            s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
+        out[p] = s
+    return out
+
+
+def _shape_scenes(scene) -> list:
+    """One Mitsuba scene per shape (cached on the loaded scene)."""
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    cache = scene.__dict__.setdefault("_aa_shape_scenes", {})
+    if "scenes" not in cache:
+        cache["scenes"] = [
+            mi.load_dict({"type": "scene", "shape": sh}) for sh in scene.mi_scene.shapes()
+        ]
+    return cache["scenes"]
+
+
+def run(scene, params: AcaaParams | None = None, **kwargs):
+    """Run ``acaa`` on a loaded scene; see :func:`raster_models.run`."""
+    t0 = time.perf_counter()
+    p = params or _params.make(NAME, AcaaParams, kwargs)
+    offsets = _samples.positions(p.samples)
+    n = p.samples
+    w, h = scene.width, scene.height
+    n_pix = w * h
+    cam = scene.camera
+    buf = trace_samples(scene, offsets)
+    valid = buf["valid"]
+    stored = np.where(
+        valid, _depth.quantize(normalized_depth(cam, buf["depth"]), p.depth_format), 2.0
+    )
+    # fragment-samples: (pixel, sample, shape, prim) passing LEQUAL
+    pv, sv = np.nonzero(valid)
+    ent = [(pv, sv, buf["shape"][pv, sv].astype(np.int64), buf["prim"][pv, sv])]
+    subs = _shape_scenes(scene)
+    any_valid = np.nonzero(valid.any(axis=1))[0]
+    extra_rays = 0
+    tie_samples = np.zeros((n_pix, n), bool)
+    for k, sub in enumerate(subs):
+        if len(any_valid) == 0:
+            break
+        hk = trace_samples(scene, offsets, mi_scene=sub, pixels=any_valid)
+        extra_rays += hk["valid"].size
+        zk = _depth.quantize(normalized_depth(cam, hk["depth"]), p.depth_format)
+        v = valid[any_valid]
+        tie = hk["valid"] & v & (buf["shape"][any_valid] != k) & (zk <= stored[any_valid])
+        ti, ts = np.nonzero(tie)
+        if len(ti):
+            pix = any_valid[ti]
+            tie_samples[pix, ts] = True
+            ent.append((pix, ts, np.full(len(ti), k, np.int64), hk["prim"][ti, ts]))
+    e_pix = np.concatenate([e[0] for e in ent])
+    e_smp = np.concatenate([e[1] for e in ent])
+    e_shape = np.concatenate([e[2] for e in ent])
+    e_prim = np.concatenate([e[3] for e in ent])
+    order = np.lexsort((e_smp, e_prim, e_shape, e_pix))
+    e_pix, e_smp, e_shape, e_prim = e_pix[order], e_smp[order], e_shape[order], e_prim[order]
+    new = np.ones(len(e_pix), bool)
+    new[1:] = (
+        (e_pix[1:] != e_pix[:-1]) | (e_shape[1:] != e_shape[:-1]) | (e_prim[1:] != e_prim[:-1])
+    )
+    frag_of_entry = np.cumsum(new) - 1
+    f_first = np.nonzero(new)[0]
+    n_frag = len(f_first)
+    f_pix, f_smp, f_shape = e_pix[f_first], e_smp[f_first], e_shape[f_first]
+    count = np.bincount(frag_of_entry, minlength=n_frag)
+    # shading positions (centre, or centroid of the fragment's passing samples)
+    cx = (f_pix % w) + 0.5
+    cy = (f_pix // w) + 0.5
+    if p.centroid and n_frag:
+        sum_x = np.bincount(frag_of_entry, weights=offsets[e_smp, 0], minlength=n_frag)
+        sum_y = np.bincount(frag_of_entry, weights=offsets[e_smp, 1], minlength=n_frag)
+        partial = count < n
+        cx = np.where(partial, (f_pix % w) + sum_x / count, cx)
+        cy = np.where(partial, (f_pix // w) + sum_y / count, cy)
+    sx = (f_pix % w) + offsets[f_smp, 0]
+    sy = (f_pix // w) + offsets[f_smp, 1]
+    attrs = None
+    for k, sub in enumerate(subs):
+        sel = np.nonzero(f_shape == k)[0]
+        if len(sel) == 0:
+            continue
+        a = fragment_attributes(scene, sx[sel], sy[sel], cx[sel], cy[sel], mi_scene=sub)
+        if attrs is None:
+            attrs = {key: np.zeros((n_frag,) + v.shape[1:], v.dtype) for key, v in a.items()}
+        for key, v in a.items():
+            attrs[key][sel] = v
+    target = np.zeros((n_pix, 3))
+    rays = 0
+    if attrs is not None:
+        vis = shadow_visibility(scene, attrs, p.shadows)
+        rgb, rays = shade_points(scene, attrs, visibility=vis)
+        weighted = rgb * (count / np.float32(n)).astype(np.float32)[:, None]
+        target = _blend(weighted, f_pix, target, rgba8=p.accumulation == "rgba8")
+    events = np.bincount(f_pix, minlength=n_pix)
+    ties = tie_samples.sum(axis=1)
+    db = DEPTH_FORMATS[p.depth_format]
+    cb = ACCUMULATIONS[p.accumulation]
+    return package(
+        NAME,
+        scene,
+        p,
+        color=target.reshape(h, w, 3),
+        coverage=valid.mean(axis=1),
+        events=events,
+        extra_outputs={"ties": ties},
+        samples=n,
+        buffers={"color": n_pix * cb, "depth": n_pix * n * db},
+        resolve_target_bytes=0,
+        geometry_passes=2,
+        samples_tested=2 * n_pix * n,
+        bandwidth_bytes=n_pix * n * 2 * db + n_pix * n * db + n_frag * 2 * cb,
+        shadow_rays=rays,
+        diagnostics={
+            "sample_positions": offsets.tolist(),
+            "fragments": int(n_frag),
+            "tie_samples": int(tie_samples.sum()),
+            "pixels_with_ties": int((ties > 0).sum()),
+            "per_shape_rays": int(extra_rays),
+            "color_target_bytes_per_pixel": COLOR_FORMATS.get(p.accumulation, cb),
+        },
+        t0=t0,
+    )

@@ -1,0 +1,248 @@
+"""Aggregate G-buffer anti-aliasing (AGAA): N visibility samples, K <= 2 shades a pixel.
+
+1. Depth + normal prepass at the ``N`` standard positions (the nearest surface per sample;
+   its geometric normal stored in ``normal_format``).
+2. Aggregates, per pixel, by the published clustering rule: the first seed is the covered
+   sample farthest from the mean of the pixel's samples, the second the sample farthest from
+   the first; if their distance exceeds the threshold ``t`` (and ``K = 2``) every covered
+   sample joins the nearer seed, else all form one aggregate. The distance between samples
+   ``a`` and ``b`` is ``depth_weight |z_a - z_b| / z_mean + (1 - n_a . n_b)`` (view depths
+   relative to the pixel's mean depth; normals from the prepass; the mean normal is the
+   unnormalized average).
+3. Material accumulation (a second geometry pass): every fragment (primitive, pixel) adds its
+   attributes at the shading position (pixel centre on its plane, as :mod:`.msaa`) to the
+   aggregate of each sample it owns, weighted by those samples: albedo, shading normal,
+   position. Each aggregate's average albedo and position, and its *unnormalized* average
+   normal, are shaded once (:func:`._trace.shade_points` with ``filtered_normal``: diffuse
+   with the normal's length as the Lambert average, Toksvig's factor on the specular
+   exponent); the exact shadow ray starts at the aggregate's average position.
+4. The pixel is the coverage-weighted sum of its aggregates (sky samples add 0).
+
+With ``K`` at least the number of distinct surfaces in every pixel each aggregate holds one
+surface and the result equals :mod:`.msaa`; with more surfaces (foliage) albedo/normal
+correlation is lost and shadows are tested at a blended position.
+
+Memory per pixel: N x (depth + normal) + K x aggregate (albedo RGBA8, normal RGBA16F,
+depth R32F, sample mask R32UI: 20 bytes) + the 1x colour target.
+
+References
+----------
+C. Crassin, M. McGuire, K. Fatahalian, A. Lefohn, Aggregate G-Buffer Anti-Aliasing, I3D 2015,
+doi:10.1145/2699276.2699285 (extended: IEEE TVCG 22(10) 2016).
+M. Toksvig, Mipmapping normal maps, Journal of Graphics Tools 10(3), 2005.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import _params
+from .._errors import ModelError
+from . import _samples
+from ._base import ShadowParams, package, shadow_visibility
+from ._fragments import group_fragments, sample_film_positions, shading_positions
+from ._trace import fragment_attributes, shade_points, trace_samples
+
+__all__ = ["AGGREGATE_BYTES", "NORMAL_FORMATS", "AgaaParams", "cluster", "quantize_normals", "run"]
+
+NAME = "agaa"
+#: Bytes per stored prepass normal of each format.
+NORMAL_FORMATS = {"rgba16f": 8, "rgb10a2": 4, "oct16": 4}
+#: Bytes of one aggregate record (albedo RGBA8 + normal RGBA16F + depth R32F + mask R32UI).
+AGGREGATE_BYTES = 20
+
+
+@dataclass(frozen=True)
+class AgaaParams(ShadowParams):
+    """Parameters of :func:`run`."""
+
+    samples: int = _params.param(
+        8,
+        source="Crassin et al. 2015: AGAA at 8 visibility samples (vs 8x MSAA)",
+        help="visibility samples per pixel at the standard positions: 1, 2, 4, 8 or 16",
+        lo=1,
+        hi=16,
+    )
+    aggregates: int = _params.param(
+        2,
+        source="Crassin et al. 2015: 2 aggregates comparable to 8x MSAA",
+        help="aggregates per pixel K (1 or 2)",
+        lo=1,
+        hi=2,
+    )
+    threshold: float = _params.param(
+        0.1,
+        source="unverified (TECHNIQUES.md): chosen so one surface never splits "
+        "(distance 0) and a 10 % depth gap or 25 deg crease does",
+        help="seed distance above which a pixel gets a second aggregate",
+        lo=0.0,
+        hi=10.0,
+    )
+    depth_weight: float = _params.param(
+        1.0,
+        source="unverified (TECHNIQUES.md): relative depth and (1 - cos) of normals weigh equally",
+        help="weight of the relative depth difference in the sample distance",
+        lo=0.0,
+        hi=1e6,
+    )
+    normal_format: str = _params.param(
+        "rgb10a2",
+        source="a common G-buffer normal format (10 bits a component)",
+        help="prepass normal storage: rgba16f, rgb10a2 (UNORM 10 bits) or oct16 "
+        "(octahedral, 2 x 16-bit SNORM)",
+        choices=tuple(NORMAL_FORMATS),
+    )
+
+    def check(self, technique: str) -> None:
+        if self.samples not in _samples.STANDARD_COUNTS:
+            raise ModelError(
+                f"{technique}: parameter samples must be one of "
+                f"{', '.join(map(str, _samples.STANDARD_COUNTS))} (standard patterns), "
+                f"got {self.samples}"
+            )
+
+
+def quantize_normals(n: np.ndarray, fmt: str) -> np.ndarray:
+    """Unit normals ``(..., 3)`` as stored in ``fmt`` and read back (float64)."""
+    n = np.asarray(n, np.float64)
+    if fmt == "rgba16f":
+        return n.astype(np.float16).astype(np.float64)
+    if fmt == "rgb10a2":
+        q = np.floor(np.clip(n * 0.5 + 0.5, 0.0, 1.0) * 1023.0 + 0.5) / 1023.0
+        return q * 2.0 - 1.0
+    if fmt == "oct16":
+        l1 = np.sum(np.abs(n), axis=-1, keepdims=True)
+        p = n / np.where(l1 > 0, l1, 1.0)
+        x, y, z = p[..., 0], p[..., 1], p[..., 2]
+        sx, sy = np.where(x >= 0, 1.0, -1.0), np.where(y >= 0, 1.0, -1.0)
+        u = np.where(z < 0, (1 - np.abs(y)) * sx, x)
+        v = np.where(z < 0, (1 - np.abs(x)) * sy, y)
+        u = np.round(np.clip(u, -1, 1) * 32767.0) / 32767.0
+        v = np.round(np.clip(v, -1, 1) * 32767.0) / 32767.0
+        zz = 1.0 - np.abs(u) - np.abs(v)
+        t = np.maximum(-zz, 0.0)
+        u = u - np.where(u >= 0, t, -t)
+        v = v - np.where(v >= 0, t, -t)
+        out = np.stack([u, v, zz], axis=-1)
+        return out / np.linalg.norm(out, axis=-1, keepdims=True)
+    raise ModelError(f"unknown normal format {fmt!r}")
+
+
+def _distance(z_a, n_a, z_b, n_b, z_mean, weight):
+    return weight * np.abs(z_a - z_b) / z_mean + (1.0 - np.sum(n_a * n_b, axis=-1))
+
+
+def cluster(valid, depth, normal, k: int, threshold: float, depth_weight: float):
+    """Aggregate index ``(P, N)`` of every sample (-1: sky) by the rule in the module doc."""
+    v = np.asarray(valid, bool)
+    z = np.asarray(depth, np.float64)
+    nrm = np.asarray(normal, np.float64)
+    cnt = np.maximum(v.sum(axis=1), 1)
+    z_mean = np.sum(np.where(v, z, 0.0), axis=1) / cnt
+    z_mean = np.where(z_mean > 0, z_mean, 1.0)[:, None]
+    n_mean = np.sum(np.where(v[..., None], nrm, 0.0), axis=1) / cnt[:, None]
+    d_mean = _distance(z, nrm, z_mean, n_mean[:, None, :], z_mean, depth_weight)
+    seed1 = np.argmax(np.where(v, d_mean, -np.inf), axis=1)
+    take = np.arange(len(v))
+    z1, n1 = z[take, seed1][:, None], nrm[take, seed1][:, None, :]
+    d1 = _distance(z, nrm, z1, n1, z_mean, depth_weight)
+    seed2 = np.argmax(np.where(v, d1, -np.inf), axis=1)
+    z2, n2 = z[take, seed2][:, None], nrm[take, seed2][:, None, :]
+    d2 = _distance(z, nrm, z2, n2, z_mean, depth_weight)
+    split = (k >= 2) & (d1[take, seed2] > threshold)
+    agg = np.where(split[:, None] & (d2 < d1), 1, 0)
+    return np.where(v, agg, -1)
+
+
+def run(scene, params: AgaaParams | None = None, **kwargs):
+    """Run ``agaa`` on a loaded scene; see :func:`raster_models.run`."""
+    t0 = time.perf_counter()
+    p = params or _params.make(NAME, AgaaParams, kwargs)
+    offsets = _samples.positions(p.samples)
+    n, k = p.samples, p.aggregates
+    w, h = scene.width, scene.height
+    n_pix = w * h
+    buf = trace_samples(scene, offsets, normals=True)
+    valid = buf["valid"]
+    stored_n = quantize_normals(buf["normal"], p.normal_format)
+    agg = cluster(valid, buf["depth"], stored_n, k, p.threshold, p.depth_weight)
+    frags = group_fragments(valid, buf["shape"], buf["prim"])
+    sx, sy = sample_film_positions(frags, offsets, w)
+    cx, cy = shading_positions(frags, offsets, w, False, n)
+    attrs = fragment_attributes(scene, sx, sy, cx, cy)
+    # accumulate each sample's fragment attributes into its aggregate
+    ps, ss = np.nonzero(valid)
+    f = frags.of_sample[ps, ss]
+    slot = ps * k + agg[ps, ss]
+    n_slot = n_pix * k
+    weight = np.bincount(slot, minlength=n_slot).astype(np.float64)
+    has = weight > 0
+    safe = np.where(has, weight, 1.0)
+
+    def mean(key):
+        a = np.asarray(attrs[key], np.float64)[f]
+        return (
+            np.stack(
+                [np.bincount(slot, weights=a[:, c], minlength=n_slot) for c in range(3)], axis=1
+            )
+            / safe[:, None]
+        )
+
+    agg_attrs = {key: mean(key) for key in ("albedo", "normal", "position", "to_eye")}
+    g = mean("geo_normal")
+    g_len = np.linalg.norm(g, axis=1, keepdims=True)
+    agg_attrs["geo_normal"] = np.where(
+        g_len > 1e-6, g / np.maximum(g_len, 1e-30), agg_attrs["normal"]
+    )
+    e = agg_attrs["to_eye"]
+    agg_attrs["to_eye"] = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-30)
+    off = np.zeros(n_slot)
+    np.maximum.at(off, slot, np.asarray(attrs["offset"], np.float64)[f])
+    agg_attrs["offset"] = off
+    agg_attrs["valid"] = has
+    view = scene.camera
+    agg_attrs["depth"] = (agg_attrs["position"] - view.position) @ view.forward
+    idx = np.nonzero(has)[0]
+    sub = {key: np.asarray(v)[idx] for key, v in agg_attrs.items()}
+    vis = shadow_visibility(scene, sub, p.shadows)
+    rgb, rays = shade_points(scene, sub, visibility=vis, filtered_normal=True)
+    contrib = np.zeros((n_slot, 3))
+    contrib[idx] = rgb.astype(np.float64) * (weight[idx] / n)[:, None]
+    color = contrib.reshape(n_pix, k, 3).sum(axis=1)
+    n_agg = has.reshape(n_pix, k).sum(axis=1)
+    nb = NORMAL_FORMATS[p.normal_format]
+    n_frag = len(frags)
+    return package(
+        NAME,
+        scene,
+        p,
+        color=color.reshape(h, w, 3),
+        coverage=valid.mean(axis=1),
+        events=n_agg,
+        extra_outputs={"aggregates": n_agg, "surfaces": frags.per_pixel(n_pix)},
+        samples=n,
+        buffers={
+            "depth": n_pix * n * 4,
+            "normal": n_pix * n * nb,
+            "aggregates": n_pix * k * AGGREGATE_BYTES,
+        },
+        resolve_target_bytes=n_pix * 4,
+        geometry_passes=2,
+        samples_tested=2 * n_pix * n,
+        bandwidth_bytes=n_pix * n * (2 * 4 + nb)
+        + n_pix * n * 4
+        + n_frag * 2 * AGGREGATE_BYTES
+        + n_pix * k * AGGREGATE_BYTES
+        + n_pix * 4,
+        shadow_rays=rays,
+        diagnostics={
+            "sample_positions": offsets.tolist(),
+            "fragments": int(n_frag),
+            "aggregates_total": int(has.sum()),
+            "pixels_split": int((n_agg > 1).sum()),
+        },
+        t0=t0,
+    )
