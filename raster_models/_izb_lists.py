@@ -29,6 +29,11 @@ __all__ = ["FULL_MASK", "PAIR_CHUNK", "IzbLists", "JoinStats", "build_lists", "j
 #: ((pairs, 4, 32) float64 working arrays are only made for pairs that straddle a plane).
 PAIR_CHUNK = 1 << 18
 
+#: Distances to a triangle's plane below ``BAND_FLOOR * (1 + max|p|)`` are float32 rounding
+#: (a receiver on its own triangle or a coplanar neighbour; the G-buffer position is float32,
+#: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps.
+BAND_FLOOR = 2.0**-18
+
 #: All 32 bits of an FTIZB mask.
 FULL_MASK = np.uint32(0xFFFFFFFF)
 
@@ -109,18 +114,34 @@ def _pairs(lo: np.ndarray, n: np.ndarray):
     return f, lo[f] + (np.arange(len(f)) - first[f])
 
 
-def _test_single(planes, p):
-    """Shadowed flags of points ``p (P, 3)`` against ``planes (P, 4, 4)``."""
+def _band_floor(p, eps):
+    """Lower end of the epsilon band below the pushed plane, per pair: ``floor - eps``."""
+    return BAND_FLOOR * (1.0 + np.abs(p).max(axis=1)) - eps
+
+
+def _test_single(planes, p, eps):
+    """Shadowed flags of points ``p (P, 3)`` against ``planes (P, 4, 4)``, and the flags of
+    points inside the edge planes and beyond the triangle's plane by more than float32
+    rounding but by at most ``eps`` (the band the epsilon lights: an exact shadow ray may
+    still see the triangle there; see :data:`BAND_FLOOR`)."""
     v = np.einsum("pkj,pj->pk", planes[:, :, :3], p) + planes[:, :, 3]
-    return (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > 0)
+    edges = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0)
+    return edges & (v[:, 3] > 0), edges & (v[:, 3] <= 0) & (v[:, 3] > _band_floor(p, eps))
 
 
-def _test_32(planes, p, dpdx, dpdy, a, b, bits):
-    """32-bit masks of the tangent-plane points ``p + a dpdx + b dpdy`` inside the volumes.
+def _masks(v, threshold, bits):
+    inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > threshold[:, None])
+    return (inside.astype(np.uint64) @ bits).astype(np.uint32)
+
+
+def _test_32(planes, p, dpdx, dpdy, a, b, bits, eps):
+    """32-bit masks of the tangent-plane points ``p + a dpdx + b dpdy`` inside the volumes,
+    and the masks of the points in the epsilon band (see :func:`_test_single`).
 
     The value of each plane is affine in ``(a, b)``; bounds over the pixel's points decide
-    most pairs without evaluating the 32 points (all outside one plane: mask 0; all inside
-    every plane: mask full), the rest are evaluated point by point.
+    most pairs without evaluating the 32 points (all outside one plane, the band included:
+    both masks 0; all inside every plane: mask full, band empty), the rest are evaluated
+    point by point.
     """
     n = planes[:, :, :3]
     base = np.einsum("pkj,pj->pk", n, p) + planes[:, :, 3]
@@ -129,9 +150,11 @@ def _test_32(planes, p, dpdx, dpdy, a, b, bits):
     spread = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
     hi = base + spread
     lo = base - spread
-    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= 0)
+    floor = _band_floor(p, eps)
+    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= floor)
     full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
     masks = np.zeros(len(p), dtype=np.uint32)
+    band = np.zeros(len(p), dtype=np.uint32)
     masks[full & ~none] = FULL_MASK
     mixed = np.flatnonzero(~none & ~full)
     if len(mixed):
@@ -140,9 +163,9 @@ def _test_32(planes, p, dpdx, dpdy, a, b, bits):
             + da[mixed, :, None] * a[None, None, :]
             + db[mixed, :, None] * b[None, None, :]
         )
-        inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > 0)
-        masks[mixed] = (inside.astype(np.uint64) @ bits).astype(np.uint32)
-    return masks
+        masks[mixed] = _masks(v, np.zeros(len(mixed)), bits)
+        band[mixed] = _masks(v, floor[mixed], bits) & ~masks[mixed]
+    return masks, band
 
 
 def join(
@@ -153,13 +176,17 @@ def join(
     recv: dict,
     state: dict,
     stats: JoinStats,
+    *,
+    epsilon: float,
 ) -> None:
     """Test every node of every fragment's list against the fragment's triangle.
 
     ``recv``: ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy`` and the offsets ``a``,
     ``b`` ``(32,)``. ``state``: ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)``
-    uint32 (32 samples), updated in place. Fragments are processed in chunks of at most
-    :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own).
+    uint32 (32 samples), and ``band`` (same type: samples inside a volume's edge planes
+    within ``epsilon`` of its triangle plane, lit by the epsilon), updated in place.
+    Fragments are processed in chunks of at most :data:`PAIR_CHUNK` pairs (a fragment with
+    a longer list is a chunk of its own).
     """
     stats.fragments += len(frag_tri)
     if len(frag_tri) == 0 or len(lists.node_texel) == 0:
@@ -176,6 +203,7 @@ def join(
     stats.list_max = max(stats.list_max, int(n.max()))
     ends = np.cumsum(n)
     thirty_two = "mask" in state
+    eps = float(epsilon)
     if thirty_two:
         bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
     cut = 0
@@ -186,12 +214,15 @@ def join(
         r = lists.node_recv[node]
         pl = planes[frag_tri[cut:stop][f]]
         if thirty_two:
-            m = _test_32(
-                pl, recv["p"][r], recv["dpdx"][r], recv["dpdy"][r], recv["a"], recv["b"], bits
+            m, band = _test_32(
+                pl, recv["p"][r], recv["dpdx"][r], recv["dpdy"][r], recv["a"], recv["b"], bits, eps
             )
             hit = m != 0
+            near = band != 0
+            np.bitwise_or.at(state["band"], r[near], band[near])
             np.bitwise_or.at(state["mask"], r[hit], m[hit])
         else:
-            hit = _test_single(pl, recv["p"][r])
+            hit, near = _test_single(pl, recv["p"][r], eps)
             state["shadowed"][r[hit]] = True
+            state["band"][r[near]] = True
         cut = stop

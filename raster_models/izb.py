@@ -21,8 +21,10 @@ per partition fit tightly around its samples (SDSM's tight light-space bounds); 
 triangle is rasterized into every grid.
 
 Cost record (the technique's GPU budget, after the seed slides): ``f_ls`` (light-space
-fragments), ``list_length_avg`` (``L_avg``: nodes tested per fragment that had a list),
-``list_length_max`` (``L_max``: the longest list a fragment walked), the histogram of the
+fragments), ``list_length_avg`` (``L_avg``: nodes tested per fragment, so that
+``f_ls * L_avg`` is the number of tests, the seed's ``O(N)``; ``list_length_avg_nonempty``
+over fragments whose list was not empty), ``list_length_max`` (``L_max``: the longest list a
+fragment walked, "the pixels tested by the slowest thread"), the histogram of the
 built list lengths, ``sample_triangle_tests`` (fragment-node tests; ``point_tests`` counts
 the 32 points of each FTIZB test), both cost models ``f_ls * L_avg`` and ``f_ls * L_max``,
 and ``memory_bytes`` (heads ``4 R^2`` per grid, nodes 8 bytes: next pointer and receiver
@@ -233,9 +235,9 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     tris = tris[keep]
     tri_lc = frame.to_light(tris.reshape(-1, 3)).reshape(-1, 3, 3)
     if s == 32:
-        state = {"mask": np.zeros(m, dtype=np.uint32)}
+        state = {"mask": np.zeros(m, dtype=np.uint32), "band": np.zeros(m, dtype=np.uint32)}
     else:
-        state = {"shadowed": np.zeros(m, dtype=bool)}
+        state = {"shadowed": np.zeros(m, dtype=bool), "band": np.zeros(m, dtype=bool)}
     stats = JoinStats()
     rounds = 0
     for start in range(0, len(tris), ROUND_TRIANGLES):  # rounds of triangles
@@ -255,7 +257,16 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             uv[..., 0] = (t_lc[idx, :, 0] - x0) / ((x1 - x0) / r)
             uv[..., 1] = (y1 - t_lc[idx, :, 1]) / ((y1 - y0) / r)
             for ft, fx in conservative_fragments(uv, r):  # chunks
-                join(lists, start + idx[ft], c * r * r + fx, planes, recv, state, stats)
+                join(
+                    lists,
+                    start + idx[ft],
+                    c * r * r + fx,
+                    planes,
+                    recv,
+                    state,
+                    stats,
+                    epsilon=p.epsilon,
+                )
         dead = state["shadowed"] if s == 1 else state["mask"] == FULL_MASK
         stats.nodes_removed += lists.compact(dead)
 
@@ -272,17 +283,25 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         fully = int(state["shadowed"].sum())
     cascade = np.full(n_pix, -1.0)
     cascade[rec] = part
+    if s == 32:
+        band = (state["band"] & ~state["mask"]) != 0
+    else:
+        band = state["band"] & ~state["shadowed"]
+    band_img = np.zeros(n_pix)
+    band_img[rec] = band
     list_img = np.zeros(n_pix)
     list_img[rec] = centre_len
     outputs = {
         "visibility": gbuf.image(vis),
         "cascade": gbuf.image(cascade),
         "list_length": gbuf.image(list_img),
+        "epsilon_band": gbuf.image(band_img),
     }
 
     # ---- cost record and diagnostics
     f_ls = stats.fragments
-    l_avg = stats.tests / stats.fragments_with_list if stats.fragments_with_list else 0.0
+    l_avg = stats.tests / f_ls if f_ls else 0.0
+    l_avg_nonempty = stats.tests / stats.fragments_with_list if stats.fragments_with_list else 0.0
     n_nodes = int(len(built) and built.sum())
     word = 4 if s == 32 else 1
     grids = sum(1 for box in boxes if box is not None)
@@ -296,6 +315,7 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         "f_ls": int(f_ls),
         "fragments_with_list": int(stats.fragments_with_list),
         "list_length_avg": float(l_avg),
+        "list_length_avg_nonempty": float(l_avg_nonempty),
         "list_length_max": int(stats.list_max),
         "sample_triangle_tests": int(stats.tests),
         "point_tests": int(stats.tests * s),
@@ -314,6 +334,7 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         "light_frame": frame.to_json(),
         "receivers": int(m),
         "fully_shadowed_receivers": fully,
+        "epsilon_band_receivers": int(band.sum()),
         "nodes_removed": int(stats.nodes_removed),
         "rounds": rounds,
         "round_triangles": ROUND_TRIANGLES,

@@ -1,0 +1,325 @@
+"""The ``izb`` model: exactness against the oracle's rays (pixel centre and the 32 FTIZB
+tangent-plane points), the analytic plate shadow, invariance of the answer to the grid and
+cascades, list lengths, test counts, and bad parameters."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import raster_models as rm
+import scenes
+from oracle.cli import main
+from oracle.exr import read_exr
+from oracle.reference import ALL_CHANNELS, ReferenceSettings, render_reference
+from raster_models import izb
+from raster_models._gbuffer import trace_gbuffer
+from scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
+
+SMALL = {"width": 160, "height": 90}
+MEDIUM = {"width": 320, "height": 180}
+
+#: The issue's requirement: the 1-sample IZB equals the oracle's pixel-centre shadow ray on
+#: at least 99.99 % of receivers outside the epsilon band (samples whose answer depends on
+#: the 0.001 epsilon: an occluder beyond float32 rounding but within epsilon of the plane).
+CENTRE_AGREEMENT = 0.9999
+
+#: 32 samples against the tangent-plane reference, outside the epsilon band: at least this
+#: fraction of pixels identical (measured 0.99995 on city and 0.99991 on thin at 320x180);
+#: the rest differ by one point of 32, a point within the float32 rounding of the oracle's
+#: ray origin (1e-4 at 2000 units on city) of a shadow edge.
+TANGENT_IDENTICAL = 0.9995
+ONE_POINT = 1.0 / 32.0
+
+#: Ground points within this distance of the plate shadow's edge are not scored against the
+#: closed form (float32 G-buffer positions: about 1e-6 at the scene's scale of 10 units).
+EDGE_TOLERANCE = 1e-5
+
+#: Plate scene: quad y = 1.5, |x|, |z| <= 1; sun direction (0.55, -1, 0.2).
+PLATE_Y = 1.5
+PLATE_SHIFT = np.array([0.55, 0.2]) * PLATE_Y
+
+
+@pytest.fixture(scope="module")
+def plate():
+    return scenes.load("plate", **SMALL)
+
+
+@pytest.fixture(scope="module")
+def thin():
+    return scenes.load("thin", **MEDIUM)
+
+
+@pytest.fixture(scope="module")
+def city():
+    return scenes.load("city", **MEDIUM)
+
+
+def _plate_lit(xz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closed-form visibility of ground points (x, z) under the plate, and a mask of the
+    points far enough from the shadow's edge to be scored."""
+    u = np.abs(xz - PLATE_SHIFT)
+    edge = np.abs(np.max(u, axis=-1) - 1.0)
+    return ~np.all(u <= 1.0, axis=-1), edge > EDGE_TOLERANCE
+
+
+def test_point_table_is_a_32_rooks_net():
+    pts = TANGENT_POINTS_32
+    assert pts.shape == (32, 2)
+    assert ((pts >= 0) & (pts < 1)).all()
+    # one point in each column and each row of a 32x32 grid, and in each 2x16 / 16x2 box
+    for nx in (1, 2, 4, 8, 16, 32):
+        cells = np.floor(pts[:, 0] * nx) * (32 // nx) + np.floor(pts[:, 1] * (32 // nx))
+        assert len(np.unique(cells)) == 32, nx
+    a, b = tangent_offsets()
+    assert abs(a.mean()) < 1e-12 and abs(b.mean()) < 1e-12
+
+
+def test_conservative_rasterization_hand_count():
+    from raster_models._izb_geometry import conservative_fragments
+
+    # x >= 0.5, y >= 0.5, x + y <= 5: texel (i, j) touches it when max(i, .5) + max(j, .5)
+    # <= 5 (the hypotenuse passes through the corners (4, 1) and (1, 4)): 5+5+4+3+2 = 19.
+    uv = np.array([[[0.5, 0.5], [4.5, 0.5], [0.5, 4.5]]])
+    parts = list(conservative_fragments(uv, 8))
+    texels = np.concatenate([t for _, t in parts])
+    got = {(int(t % 8), int(t // 8)) for t in texels}
+    want = {(i, j) for i in range(5) for j in range(5) if max(i, 0.5) + max(j, 0.5) <= 5}
+    assert len(want) == 19 and got == want
+
+
+def test_conservative_rasterization_covers_every_interior_point(monkeypatch):
+    from raster_models import _izb_geometry
+
+    monkeypatch.setattr(_izb_geometry, "RASTER_CHUNK", 97)  # many chunks, rows split
+    rng = np.random.default_rng(3)
+    r = 32
+    uv = rng.uniform(-4, r + 4, (60, 3, 2))
+    uv[:20] = uv[:20, :1] + rng.uniform(-0.3, 0.3, (20, 3, 2))  # sub-texel triangles
+    frags = set()
+    for t, x in _izb_geometry.conservative_fragments(uv, r):
+        frags.update(zip(t.tolist(), x.tolist(), strict=True))
+    w = rng.dirichlet(np.ones(3), (60, 400))
+    pts = np.einsum("tkv,tnk->tnv", uv, w)
+    i, j = np.floor(pts[..., 0]).astype(int), np.floor(pts[..., 1]).astype(int)
+    inside = (i >= 0) & (i < r) & (j >= 0) & (j < r)
+    t_idx = np.broadcast_to(np.arange(60)[:, None], i.shape)
+    need = set(zip(t_idx[inside].tolist(), (j * r + i)[inside].tolist(), strict=True))
+    assert need and need <= frags
+    # and nothing outside a triangle's texel bounding box
+    for t, x in frags:
+        lo, hi = np.floor(uv[t].min(0)), np.floor(uv[t].max(0))
+        assert lo[0] <= x % r <= hi[0] and lo[1] <= x // r <= hi[1]
+
+
+def test_shadow_volume_equals_ray_triangle_intersection():
+    from raster_models._izb_geometry import shadow_volumes
+
+    rng = np.random.default_rng(5)
+    d = np.array([0.3, -1.0, 0.2])
+    d /= np.linalg.norm(d)
+    tris = rng.uniform(-1, 1, (200, 3, 3))
+    # points near each triangle's projection along d, some in front of it, some behind
+    bary = rng.uniform(-0.3, 1.0, (200, 3))
+    bary /= bary.sum(axis=1, keepdims=True)
+    q = np.einsum("tk,tkj->tj", bary, tris) + d * rng.uniform(-0.5, 1.0, (200, 1))
+    eps = 1e-3
+    keep, planes = shadow_volumes(tris, d, eps)
+    assert keep.all()
+    v = np.einsum("tkj,tj->tk", planes[:, :, :3], q) + planes[:, :, 3]
+    vol = (v[:, :3] >= 0).all(1) & (v[:, 3] > 0)
+    # Moller-Trumbore from q towards the light (-d): hit at distance t > eps / |n . d|
+    v0, e1, e2 = tris[:, 0], tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    pv = np.cross(-d, e2)
+    det = np.einsum("ij,ij->i", e1, pv)
+    tv = q - v0
+    u = np.einsum("ij,ij->i", tv, pv) / det
+    qv = np.cross(tv, e1)
+    w = (-d @ qv.T) / det
+    t = np.einsum("ij,ij->i", e2, qv) / det
+    n = np.cross(e1, e2)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    hit = (u >= 0) & (w >= 0) & (u + w <= 1) & (t * np.abs(n @ d) > eps)
+    margin = np.minimum(np.minimum(u, w), 1 - u - w)
+    clear = (np.abs(margin) > 1e-9) & (np.abs(t * np.abs(n @ d) - eps) > 1e-9)
+    assert hit.sum() > 30 and (~hit).sum() > 30
+    np.testing.assert_array_equal(vol[clear], hit[clear])
+
+
+def test_plate_shadow_is_exact(plate):
+    g = trace_gbuffer(plate)
+    ground = g.receiver & (np.abs(g.position[:, 1]) < 1e-4)
+    assert ground.sum() > 1000
+    want, scored = _plate_lit(g.position[:, [0, 2]])
+    one = rm.run("izb", plate).outputs["visibility"].ravel()
+    sel = ground & scored
+    assert 0 < (~want[sel]).sum() < sel.sum()  # both shadow and light on the ground
+    np.testing.assert_array_equal(one[sel] == 1.0, want[sel])
+    # 32 points of the tangent plane: the lit fraction in closed form
+    a, b = tangent_offsets()
+    q = g.position[:, None, :] + g.dpdx[:, None, :] * a[:, None] + g.dpdy[:, None, :] * b[:, None]
+    lit_k, ok_k = _plate_lit(q[..., [0, 2]])
+    sel = ground & ok_k.all(axis=1)
+    frac = lit_k.mean(axis=1)
+    thirty_two = rm.run("izb", plate, samples=32).outputs["visibility"].ravel()
+    assert ((frac[sel] > 0) & (frac[sel] < 1)).sum() > 20  # penumbra pixels of the mask
+    np.testing.assert_array_equal(thirty_two[sel], frac[sel].astype(np.float32))
+    # the oracle's tangent-plane reference is the same closed form
+    ref, _ = render_reference(plate, ReferenceSettings(spp=1, channels=("tangent32",)), quiet=True)
+    np.testing.assert_array_equal(ref["visibility_tangent32"].ravel()[sel], frac[sel])
+
+
+@pytest.mark.parametrize("name", ["plate", "city", "thin"])
+def test_one_sample_equals_the_oracle_centre_ray(name):
+    s = scenes.load(name, **MEDIUM)
+    g = trace_gbuffer(s, with_lit=True)
+    r = rm.run("izb", s)
+    vis = r.outputs["visibility"].ravel()
+    band = r.outputs["epsilon_band"].ravel() > 0
+    assert set(np.unique(vis)) <= {0.0, 1.0}
+    wrong = (vis == 1.0) != g.lit
+    assert not wrong[~g.receiver].any()  # sky lit, back faces dark, as the oracle
+    scored = g.receiver & ~band
+    assert 1.0 - wrong[scored].sum() / scored.sum() >= CENTRE_AGREEMENT
+    assert band.sum() <= 1e-3 * g.receiver.sum()
+    assert r.diagnostics["epsilon_band_receivers"] == int(band.sum())
+
+
+@pytest.mark.parametrize("name", ["city", "thin"])
+def test_32_samples_equal_the_tangent_plane_reference(name):
+    s = scenes.load(name, **MEDIUM)
+    ch, _ = render_reference(
+        s, ReferenceSettings(spp=64, channels=("tangent32", "visibility", "edge")), quiet=True
+    )
+    ref = ch["visibility_tangent32"].ravel()
+    r = rm.run("izb", s, samples=32)
+    vis = r.outputs["visibility"].ravel()
+    band = r.outputs["epsilon_band"].ravel() > 0
+    diff = np.abs(vis - ref)[~band]
+    assert (diff == 0).mean() >= TANGENT_IDENTICAL
+    assert diff.max() <= ONE_POINT
+    # against the supersampled reference: differences beyond noise only at edges
+    ss, se = ch["visibility"].ravel(), ch["visibility_stderr"].ravel()
+    big = np.abs(vis - ss) > 3 * se + ONE_POINT
+    assert big.sum() > 0 and (ch["edge"].ravel()[big] > 0).all()
+
+
+def test_answer_does_not_depend_on_grid_or_cascades(thin):
+    base = rm.run("izb", thin, samples=32)
+    for kw in ({"resolution": 48}, {"resolution": 1024}, {"cascades": 3}):
+        other = rm.run("izb", thin, samples=32, **kw)
+        np.testing.assert_array_equal(other.outputs["visibility"], base.outputs["visibility"])
+    again = rm.run("izb", thin, samples=32)
+    for key, img in base.outputs.items():
+        assert img.tobytes() == again.outputs[key].tobytes(), key
+    assert json.dumps(again.cost, sort_keys=True) == json.dumps(base.cost, sort_keys=True)
+
+
+def test_removing_shadowed_receivers_saves_tests_only(thin, monkeypatch):
+    rounds = rm.run("izb", thin)
+    monkeypatch.setattr(izb, "ROUND_TRIANGLES", 1 << 30)  # one round: nothing removed early
+    once = rm.run("izb", thin)
+    np.testing.assert_array_equal(rounds.outputs["visibility"], once.outputs["visibility"])
+    assert rounds.diagnostics["rounds"] > 1 and once.diagnostics["rounds"] == 1
+    assert rounds.diagnostics["nodes_removed"] > 0
+    assert rounds.cost["sample_triangle_tests"] < once.cost["sample_triangle_tests"]
+
+
+def test_cascades_lower_the_longest_list_on_city(city):
+    one = rm.run("izb", city)
+    four = rm.run("izb", city, cascades=4)
+    np.testing.assert_array_equal(one.outputs["visibility"], four.outputs["visibility"])
+    assert four.cost["list_length_max"] * 4 < one.cost["list_length_max"]
+    assert four.cost["built_list_length_max"] < one.cost["built_list_length_max"]
+    assert four.cost["grids"] == 4 and four.cost["f_ls"] > one.cost["f_ls"]
+    assert set(np.unique(four.outputs["cascade"])) <= {-1.0, 0.0, 1.0, 2.0, 3.0}
+
+
+def test_cost_record_is_consistent(city):
+    r = rm.run("izb", city, samples=32)
+    c = r.cost
+    assert c["point_tests"] == 32 * c["sample_triangle_tests"]
+    assert c["cost_model_avg"] == pytest.approx(c["sample_triangle_tests"])
+    assert c["cost_model_max"] == c["f_ls"] * c["list_length_max"]
+    assert c["list_length_max"] <= c["built_list_length_max"]
+    assert sum(c["texels_by_list_length"].values()) > 0
+    assert c["nodes"] >= r.diagnostics["receivers"]
+    heads = 4 * 512 * 512
+    assert c["memory_bytes_by_buffer"]["list_heads"] == heads
+    assert c["memory_bytes"] == heads + 8 * c["nodes"] + 4 * city.width * city.height
+    hist = c["texels_by_list_length"]
+    assert list(hist)[0] == "1" and all(v >= 0 for v in hist.values())
+    json.dumps(r.to_json())
+
+
+@pytest.mark.parametrize("name", ["city", "thin"])
+def test_32_samples_cost_under_twice_one_sample_in_frustum_tests(name):
+    """The seed's "32 spp under 2x the cost of 1 spp", in test counts, at the 1080p ratio of
+    pixels to grid texels (1920x1080 on 512^2: 7.9; here 320x180 on 96^2: 6.3): the
+    frustum-triangle tests (one per fragment and node) stay under 2x; the point tests, 32
+    per frustum test, do not (the claim rests on testing the 32 points at once)."""
+    s = scenes.load(name, **MEDIUM)
+    one = rm.run("izb", s, resolution=96).cost
+    many = rm.run("izb", s, resolution=96, samples=32).cost
+    ratio = many["sample_triangle_tests"] / one["sample_triangle_tests"]
+    assert 1.0 < ratio < 2.0
+    assert many["point_tests"] / one["point_tests"] > 2.0
+
+
+def test_reference_tangent_channel_is_opt_in():
+    assert "tangent32" not in ALL_CHANNELS
+    assert "tangent32" not in ReferenceSettings().validate().channels
+    assert ReferenceSettings(channels=("tangent32", "id")).validate().channels == (
+        "id",
+        "tangent32",
+    )
+
+
+def test_cli_reference_writes_the_tangent_channel(tmp_path):
+    out = tmp_path / "ref"
+    argv = ["reference", "plate", "--width", "48", "--height", "27", "--spp", "4"]
+    argv += ["--channels", "visibility,tangent32", "--no-cache", "--quiet", "--out", str(out)]
+    assert main(argv) == 0
+    ch = read_exr(out / "reference.exr")
+    assert "visibility_tangent32" in ch and "visibility" in ch
+    assert 0.0 < ch["visibility_tangent32"].mean() < 1.0
+
+
+def test_cli_model_izb(tmp_path):
+    out = tmp_path / "m"
+    argv = ["model", "izb", "plate", "--width", "48", "--height", "27", "--set", "samples=32"]
+    assert main([*argv, "--out", str(out)]) == 0
+    rec = json.loads((out / "model.json").read_text())
+    assert rec["params"]["samples"] == 32 and rec["cost"]["f_ls"] > 0
+    assert set(read_exr(out / "output.exr")) >= {"visibility", "cascade", "epsilon_band"}
+
+
+@pytest.mark.parametrize(
+    ("pair", "message"),
+    [
+        ("samples=16", "samples must be 1 or 32"),
+        ("samples=0", "samples must be an integer in"),
+        ("resolution=0", "resolution must be an integer in"),
+        ("cascades=9", "cascades must be an integer in"),
+        ("epsilon=nan", "epsilon must be a finite number"),
+        ("epsilon=-1", "epsilon must be a number in"),
+        ("light_up=sideways", "light_up must be one of"),
+        ("bias=0.1", "unknown parameter 'bias'"),
+    ],
+)
+def test_bad_parameters_exit_2(tmp_path, capsys, pair, message):
+    out = tmp_path / "m"
+    argv = ["model", "izb", "plate", "--width", "48", "--height", "27", "--set", pair]
+    rc = main([*argv, "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and not out.exists()
+    assert len(err) == 1 and message in err[0]
+
+
+def test_spot_light_is_refused(tmp_path, capsys):
+    out = tmp_path / "m"
+    rc = main(["model", "izb", "spot", "--width", "48", "--height", "27", "--out", str(out)])
+    assert rc == 2 and not out.exists()
+    assert "directional light" in capsys.readouterr().err
