@@ -1,12 +1,12 @@
 """``raster-oracle tune``: the cheapest configuration of a technique that meets an error target.
 
-The search is Optuna's: a constrained TPE study (objective: the cost key, constraint:
-``metric - target <= 0``), or, when the search space is discrete and no larger than the
-trial budget, Optuna's grid sampler, which tries every configuration once (the answer is then
-exact). The study is stored in the sweep store's SQLite file (Optuna's own tables), so a
-second run with the same arguments continues it; every evaluated configuration is also a row
-of the store (sweep ``tune:<study>``), so repeated configurations are not scored twice and
-``report --sweep`` shows them.
+The search is Optuna's: a constrained TPE study (objective: the cost key; constraint
+``metric - target <= 0``, set with ``Trial.set_constraint``), or, when the search space is
+discrete and no larger than the trial budget, Optuna's grid sampler, which tries every
+configuration once (the answer is then exact). The study is stored in the sweep store's
+SQLite file (Optuna's own tables), so a second run with the same arguments continues it;
+every evaluated configuration is also a row of the store (sweep ``tune:<study>``), so
+repeated configurations are not scored twice and ``report --sweep`` shows them.
 
 References
 ----------
@@ -259,12 +259,14 @@ def run_tune(
         except raster_models.ModelError as exc:
             trial.set_user_attr("error", str(exc))
             trial.set_user_attr("constraint", FAILED_CONSTRAINT)
+            trial.set_constraint("target", FAILED_CONSTRAINT)
             raise optuna.TrialPruned(str(exc)) from None
         row = evaluate(params)
         trial.set_user_attr("key", row["key"])
         if row["status"] != "done":
             trial.set_user_attr("error", row["error"])
             trial.set_user_attr("constraint", FAILED_CONSTRAINT)
+            trial.set_constraint("target", FAILED_CONSTRAINT)
             raise optuna.TrialPruned(row["error"])
         value = row["metrics"].get(metric)
         if value is None:
@@ -282,10 +284,9 @@ def run_tune(
             )
         trial.set_user_attr("metric", float(value))
         trial.set_user_attr("constraint", float(value) - limit)
+        # Optuna's constrained TPE reads this: feasible when <= 0
+        trial.set_constraint("target", float(value) - limit)
         return float(cost)
-
-    def constraints(trial):
-        return [trial.user_attrs.get("constraint", FAILED_CONSTRAINT)]
 
     grid = _grid(space)
     n_grid = math.prod(len(v) for v in grid.values()) if grid is not None else None
@@ -293,12 +294,13 @@ def run_tune(
         sampler = optuna.samplers.GridSampler(grid, seed=seed)
         sampler_name = "grid"
     else:
-        sampler = optuna.samplers.TPESampler(seed=seed, constraints_func=constraints)
+        sampler = optuna.samplers.TPESampler(seed=seed)
         sampler_name = "tpe"
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # Optuna's ExperimentalWarning and friends
+            # GridSampler and the SQLite storage are marked experimental by Optuna
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             study = optuna.create_study(
                 study_name=name,
                 storage=store.url(),
