@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import _params, csm, izb, sdsm, shadow_map
+from . import _params, coherent, csm, izb, sdsm, shadow_map
 from ._errors import ModelError
 from .aa import acaa, agaa, fxaa_model, msaa, ssaa
 
@@ -87,6 +87,19 @@ TECHNIQUES: dict[str, Technique] = {
             izb.IzbParams,
             izb.run,
             ("directional",),
+        ),
+        Technique(
+            "coherent-shadow-map",
+            "coherent shadow maps: N precomputed orthographic depth maps over the bounding "
+            "sphere, ids along a Hilbert curve over (phi, cos theta); lookup direction -> id "
+            "texture -> matrix -> depth test; lossless run compression ratios per ordering",
+            (
+                "T. Ritschel, T. Grosch, J. Kautz, S. Mueller, Interactive Illumination with "
+                "Coherent Shadow Maps, EGSR 2007, doi:10.2312/EGWR/EGSR07/061-072",
+            ),
+            coherent.CoherentParams,
+            coherent.run,
+            ("directional", "point"),
         ),
         # anti-aliasing family (issue 9): colour and coverage, scored against the reference
         Technique(

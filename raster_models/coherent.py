@@ -1,0 +1,516 @@
+"""Coherent shadow maps: many precomputed orthographic depth maps over the bounding sphere,
+numbered along a Hilbert curve, with the paper's lossless visibility compression.
+
+The scene is treated as the paper's one rigid object: ``directions`` orthographic maps of it
+are rendered (once, a precomputation) from directions spread over the sphere of directions,
+each map a square of side ``2R`` (``R`` the radius of the scene's bounding sphere) looking
+along its direction, depth normalized to ``[0, 1]`` across the sphere's diameter.
+
+- Directions: a ``g x g`` grid (``g = sqrt(directions)``) over ``[0, 1]^2``, ``u = phi / 2pi``,
+  ``v = (1 - cos(theta)) / 2`` (equal-area: every cell covers ``4 pi / N`` steradians; theta
+  from +Y), each cell's centre giving the map's travel direction. Map ids run along the
+  Hilbert curve over the grid (:mod:`_hilbert`): consecutive ids, neighbouring directions.
+- Lookup per receiver (the paper's shader): its light travel direction (the directional
+  light's direction; from a point light to the receiver) -> ``(u, v)`` -> the id texture
+  (``g x g``) -> that map's matrix (a ``4 g x 4 g`` matrix texture in the paper) -> a point
+  depth test ``z - bias <= stored``. Receivers outside the map's square are lit (the sphere
+  holds every caster). Point lights: a stored depth nearer than the light's own depth in the
+  map does not shadow (the light is inside the sphere); a caster hidden behind such a
+  surface is then missed (the paper's objects lie outside the light).
+- Compression (the paper's lossless scheme): every texel's visibility along its ray is the
+  same for any stored value ``c`` in ``[s1, h)``, ``s1`` the stored first depth and ``h`` the
+  smallest compare reference (``z - bias``) of a surface on the ray above ``s1`` (the second
+  surface's, or the first's own when it is acned): receivers on the first surface stay lit
+  and those on or behind the second stay shadowed. Consecutive maps, in a given order, whose
+  intervals intersect share one value (greedy runs, which is optimal for interval runs);
+  the stored value is the run's largest ``s1``. The ratio ``N R^2 / runs`` is reported for
+  the Hilbert order, row-major (rows of constant theta, periodic in phi) and column-major
+  order of the direction grid, and a seeded random order;
+  decompressed maps are shaded again and the receivers whose visibility differs counted
+  (``decompressed_mismatches``; 0 at texel centres by construction).
+
+Error sources: direction quantization (spacing about ``sqrt(4 pi / N)``), map resolution
+(texel ``2R / r``) and bias.
+
+References
+----------
+.. [1] T. Ritschel, T. Grosch, J. Kautz, S. Mueller, "Interactive Illumination with Coherent
+   Shadow Maps", EGSR 2007. DOI: 10.2312/EGWR/EGSR07/061-072
+.. [2] X. Tijsen (xaviert.be), "Coherent Shadow Maps: Uncompressed Algorithm", 2010 (lookup:
+   direction -> id texture -> matrix texture -> depth test).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _params
+from ._engine import _jsonable, _provenance
+from ._errors import ModelError
+from ._gbuffer import trace_gbuffer
+from ._hilbert import hilbert_cell, hilbert_index
+from ._light_frame import Projection, make_frame
+from ._params import param
+from ._raycast import GRID_CHUNK
+from ._types import ModelResult
+
+__all__ = [
+    "CoherentParams",
+    "compress_runs",
+    "map_directions",
+    "run",
+]
+
+NAME = "coherent-shadow-map"
+
+#: Relative margin on the bounding sphere's radius (geometry on the sphere stays inside).
+SPHERE_MARGIN = 1e-4
+
+#: Texture lookups per receiver: one id texel, four float4 texels of the matrix, one depth.
+LOOKUPS_PER_RECEIVER = 6
+
+#: Bytes per id texel (16-bit ids: at most 65536 maps).
+ID_TEXEL_BYTES = 2
+
+#: Bytes of a stored run in the compressed maps: a float32 depth and a 16-bit map index
+#: where the run ends.
+RUN_BYTES = 6
+
+ORDERINGS = ("hilbert", "row_major", "column_major", "random")
+
+#: Maps per block when turning depths into visibility intervals (bounded temporaries).
+INTERVAL_CHUNK = 64
+
+#: Most texels (directions x resolution^2) held for compression: about 0.6 GB of work
+#: arrays (float32 bounds, run values, decoded maps, run starts).
+MAX_COMPRESSED_TEXELS = 1 << 25
+
+
+def _power_of_four(n: int) -> bool:
+    return n >= 1 and (n & (n - 1)) == 0 and (n.bit_length() - 1) % 2 == 0
+
+
+@dataclass(frozen=True)
+class CoherentParams:
+    """Parameters of ``coherent-shadow-map``."""
+
+    directions: int = param(
+        1024,
+        source="1024 maps: the CSM re-implementation of the seed blog (xaviert.be, 'Stanford "
+        "Bunny, 1024 shadow maps'); Ritschel et al. use about a thousand (count unverified)",
+        help="number of maps N, a power of 4 (the id texture is sqrt(N) x sqrt(N) and the "
+        "Hilbert curve needs a power-of-two side); direction spacing about sqrt(4 pi / N)",
+        lo=4,
+        hi=65536,
+    )
+    resolution: int = param(
+        128,
+        source="raster-oracle default (the paper's map size is not verified here; "
+        "N x r^2 two-surface rays bound the precomputation)",
+        help="texels per side r of every map (texel = 2R / r, R the bounding sphere radius)",
+        lo=8,
+        hi=4096,
+    )
+    bias: float = param(
+        0.005,
+        source="TheRealMJP/Shadows Bias 0.005 (the paper gives none)",
+        help="constant bias subtracted from the receiver's normalized depth (fraction of the "
+        "bounding sphere's diameter) before the depth test",
+        lo=0.0,
+        hi=1.0,
+    )
+    normal_offset: float = param(
+        0.0,
+        source="TheRealMJP/Shadows OffsetScale 0",
+        help="normal offset in texels: the lookup moves by normal_offset * texel * "
+        "saturate(1 - N.L) * N",
+        lo=0.0,
+        hi=1e3,
+    )
+    compression: bool = param(
+        True,
+        source="Ritschel et al. 2007 (lossless compression)",
+        help="render every map with its first and second surfaces and report the lossless "
+        "compression ratio per ordering (off: only the maps receivers look up, first surface)",
+    )
+    seed: int = param(
+        0,
+        source="raster-oracle default",
+        help="seed of the random map ordering compared against the Hilbert ordering",
+        lo=0,
+        hi=2**31 - 1,
+    )
+
+    def check(self, technique: str) -> None:
+        """Cross-field validation (raises :class:`ModelError`)."""
+        if not _power_of_four(int(self.directions)):
+            raise ModelError(
+                f"{technique}: parameter directions must be a power of 4 (4, 16, 64, 256, "
+                f"1024, 4096, 16384, 65536), got {self.directions}"
+            )
+
+
+# ---------------------------------------------------------------------------- directions
+def map_directions(n_maps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Travel directions of the maps, by map id, and the id texture.
+
+    Returns ``(directions, id_texture)``: ``(N, 3)`` unit vectors (map ``m`` looks along
+    ``directions[m]``) and the ``(g, g)`` int64 id texture (row = v cell, column = u cell).
+    """
+    g = math.isqrt(n_maps)
+    cx, cy = hilbert_cell(g, np.arange(n_maps))
+    u = (cx + 0.5) / g
+    v = (cy + 0.5) / g
+    ids = hilbert_index(g, *np.meshgrid(np.arange(g), np.arange(g)))
+    return _direction(u, v), ids
+
+
+def _direction(u, v) -> np.ndarray:
+    """Unit vectors of ``(u, v)`` in ``[0, 1]^2`` (see module docstring)."""
+    phi = 2.0 * math.pi * np.asarray(u, dtype=np.float64)
+    cos_t = 1.0 - 2.0 * np.asarray(v, dtype=np.float64)
+    sin_t = np.sqrt(np.clip(1.0 - cos_t * cos_t, 0.0, 1.0))
+    return np.stack([sin_t * np.cos(phi), cos_t, sin_t * np.sin(phi)], axis=-1)
+
+
+def _uv(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(u, v)`` of unit vectors ``(M, 3)`` (inverse of :func:`_direction`)."""
+    u = np.mod(np.arctan2(w[:, 2], w[:, 0]) / (2.0 * math.pi), 1.0)
+    v = 0.5 * (1.0 - np.clip(w[:, 1], -1.0, 1.0))
+    return u, v
+
+
+class _Projections:
+    """The orthographic projection of each map over the bounding sphere, built on demand
+    (a map's matrix, the paper's matrix texture entry)."""
+
+    def __init__(self, scene, dirs: np.ndarray, resolution: int):
+        lo, hi = scene.bounds()
+        self.centre = 0.5 * (lo + hi)
+        radius = 0.5 * float(np.linalg.norm(hi - lo)) * (1.0 + SPHERE_MARGIN)
+        self.radius = max(radius, 1e-9)
+        self.resolution = int(resolution)
+        self._dirs = dirs
+        self._cache: dict[int, Projection] = {}
+
+    def __getitem__(self, m) -> Projection:
+        m = int(m)
+        if m not in self._cache:
+            frame = make_frame(self._dirs[m], [("world_y", (0.0, 1.0, 0.0))])
+            c = frame.to_light(self.centre[None, :])[0]
+            rad = self.radius
+            extent = (c[0] - rad, c[0] + rad, c[1] - rad, c[1] + rad, c[2] - rad, c[2] + rad)
+            self._cache[m] = Projection("ortho", frame, extent, self.resolution)
+        return self._cache[m]
+
+
+# ---------------------------------------------------------------------------- rendering
+def _render(scene, projs, ids, *, second: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """First (and second) surface depth of every texel of maps ``ids``, batched over maps.
+
+    Rays are those of :meth:`Projection.grid_rays` (texel centres, from the sphere's near
+    plane along the map's direction); depth is normalized over the sphere's diameter
+    (``inf``: no surface). The second surface is found by continuing from the first hit
+    with Mitsuba's ``spawn_ray`` (its self-intersection offset).
+    """
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    r = projs.resolution
+    rr = r * r
+    k = len(ids)
+    params = np.zeros((k, 13))
+    for row, m in enumerate(ids):
+        p = projs[m]
+        grid = p.grid_rays(float(p.extent[4]), float(p.extent[5]))
+        params[row, :3] = grid["A"]
+        params[row, 3:6] = grid["U"]
+        params[row, 6:9] = grid["V"]
+        params[row, 9:12] = grid["D"]
+        params[row, 12] = grid["z_end"] - grid["z_start"]
+    f64 = mi.Float64
+    cols = [f64(np.ascontiguousarray(params[:, c])) for c in range(13)]
+    total = k * rr
+    z1 = np.empty(total, dtype=np.float64)
+    z2 = np.empty(total, dtype=np.float64) if second else None
+    r_u, rr_u = dr.opaque(mi.UInt32, r), dr.opaque(mi.UInt32, rr)
+    inv_r = dr.opaque(f64, 1.0 / r)
+    for start in range(0, total, GRID_CHUNK):
+        stop = min(total, start + GRID_CHUNK)
+        idx = dr.arange(mi.UInt32, start, stop)
+        mid = idx // rr_u
+        tex = idx - mid * rr_u
+        s = (f64(tex % r_u) + 0.5) * inv_r
+        t = (f64(tex // r_u) + 0.5) * inv_r
+        g = [dr.gather(f64, c, mid) for c in cols]
+        o = [g[i] + s * g[3 + i] + t * g[6 + i] for i in range(3)]
+        span = g[12]
+        ray = mi.Ray3f(
+            mi.Point3f(mi.Float(o[0]), mi.Float(o[1]), mi.Float(o[2])),
+            mi.Vector3f(mi.Float(g[9]), mi.Float(g[10]), mi.Float(g[11])),
+        )
+        ray.maxt = mi.Float(span)
+        if second:
+            si = scene.mi_scene.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
+            valid = si.is_valid()
+            t1 = f64(si.t)
+            ray2 = si.spawn_ray(ray.d)
+            ray2.maxt = dr.maximum(mi.Float(span - t1), 0.0)
+            pi2 = scene.mi_scene.ray_intersect_preliminary(ray2, coherent=False, active=valid)
+            valid2 = valid & pi2.is_valid()
+            d1 = dr.select(valid, t1 / span, dr.inf)
+            d2 = dr.select(valid2, (t1 + f64(pi2.t)) / span, dr.inf)
+            dr.eval(d1, d2)
+            z1[start:stop] = d1.numpy()
+            z2[start:stop] = d2.numpy()
+        else:
+            pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
+            d1 = dr.select(pi.is_valid(), f64(pi.t) / span, dr.inf)
+            dr.eval(d1)
+            z1[start:stop] = d1.numpy()
+    z1 = z1.reshape(k, rr)
+    return z1, (z2.reshape(k, rr) if second else None)
+
+
+def _stored(z1: np.ndarray) -> np.ndarray:
+    """Stored depth: float32 of the first surface, 1 (cleared) where no surface."""
+    return np.where(np.isfinite(z1), z1, 1.0).astype(np.float32)
+
+
+def _below(x: np.ndarray) -> np.ndarray:
+    """Largest float32 strictly below each float64 ``x`` (``inf`` stays ``inf``)."""
+    f = x.astype(np.float32)
+    f = np.where(f.astype(np.float64) >= x, np.nextafter(f, np.float32(-np.inf)), f)
+    return np.where(np.isinf(x), np.float32(np.inf), f).astype(np.float32)
+
+
+def visibility_intervals(z1: np.ndarray, z2: np.ndarray, bias: float):
+    """Per texel, the stored values ``[lo, hi]`` (float32, inclusive) that give every surface
+    on the texel's ray the visibility of the uncompressed map (see module docstring)."""
+    lo = _stored(z1)
+    s1 = lo.astype(np.float64)
+    refs = np.stack([z1 - bias, z2 - bias])  # compare references of the two surfaces
+    above = np.where(refs > s1[None], refs, np.inf)
+    hi = _below(np.min(above, axis=0))
+    return lo, np.maximum(hi, lo)
+
+
+def compress_runs(lo: np.ndarray, hi: np.ndarray, order: np.ndarray):
+    """Greedy runs of consecutive maps (in ``order``) whose intervals intersect.
+
+    Parameters
+    ----------
+    lo, hi : ``(N, T)`` float32 interval bounds per map id and texel.
+    order : the map ids in storage order (a permutation of ``range(N)``).
+
+    Returns
+    -------
+    runs : total number of stored values (runs summed over texels).
+    decoded : ``(N, T)`` float32 value each map id reads after decompression (the run's
+        largest ``lo``), by map id.
+    """
+    n, t = lo.shape
+    starts = np.zeros((n, t), dtype=bool)  # a run starts at this position
+    prefix = np.empty((n, t), dtype=np.float32)  # largest lo of the run so far
+    cur_lo = lo[order[0]].copy()
+    cur_hi = hi[order[0]].copy()
+    starts[0] = True
+    prefix[0] = cur_lo
+    for pos in range(1, n):
+        m = order[pos]
+        new_lo = np.maximum(cur_lo, lo[m])
+        new_hi = np.minimum(cur_hi, hi[m])
+        brk = new_lo > new_hi
+        cur_lo = np.where(brk, lo[m], new_lo)
+        cur_hi = np.where(brk, hi[m], new_hi)
+        starts[pos], prefix[pos] = brk, cur_lo
+    runs = int(starts.sum())
+    # Backward: every member of a run reads the run's final (largest) lo.
+    value = prefix
+    for pos in range(n - 2, -1, -1):
+        value[pos] = np.where(starts[pos + 1], prefix[pos], value[pos + 1])
+    decoded = np.empty_like(value)
+    decoded[order] = value
+    return runs, decoded
+
+
+# ---------------------------------------------------------------------------- shading
+def _travel(scene, pos: np.ndarray) -> np.ndarray:
+    light = scene.light
+    if light.kind == "directional":
+        d = np.asarray(light.direction, dtype=np.float64)
+        return np.broadcast_to(d / np.linalg.norm(d), pos.shape).copy()
+    w = pos - np.asarray(light.position, dtype=np.float64)
+    return w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
+
+
+def _shade(scene, gbuf, p, projs, id_tex, maps: dict, rec: np.ndarray):
+    """Visibility, selected map and texel coordinates of the receivers ``rec``."""
+    g = id_tex.shape[0]
+    pos = gbuf.position[rec]
+    w = _travel(scene, pos)
+    u, v = _uv(w)
+    ci = np.minimum((u * g).astype(np.int64), g - 1)
+    cj = np.minimum((v * g).astype(np.int64), g - 1)
+    sel = id_tex[cj, ci]
+    n_dot_l = np.clip(gbuf.cos_l[rec], 0.0, 1.0)
+    vis = {k: np.ones(len(rec)) for k in maps}
+    outside = np.zeros(len(rec), dtype=bool)
+    r = projs.resolution
+    for m in np.unique(sel):
+        mask = sel == m
+        proj = projs[int(m)]
+        q = pos[mask]
+        if p.normal_offset > 0.0:
+            scale = p.normal_offset * proj.texel_world_size() * (1.0 - n_dot_l[mask])
+            q = q + gbuf.normal[rec[mask]] * scale[:, None]
+        tu, tv, tz, _ = proj.project(q)
+        inside = (tu >= 0) & (tu < 1) & (tv >= 0) & (tv < 1)
+        outside[mask] = ~inside
+        texel = np.clip((tv * r).astype(np.int64), 0, r - 1) * r + np.clip(
+            (tu * r).astype(np.int64), 0, r - 1
+        )
+        ref = tz - p.bias
+        zl = -np.inf
+        if scene.light.kind != "directional":
+            zl = float(proj.project(np.asarray(scene.light.position, dtype=np.float64)[None])[2][0])
+        for key, depth in maps.items():
+            stored = depth[int(m)][texel].astype(np.float64)
+            shadow = (ref > stored) & (stored > zl) & inside
+            vis[key][mask] = np.where(shadow, 0.0, 1.0)
+    return vis, sel, outside, w
+
+
+def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
+    """Run ``coherent-shadow-map`` on a loaded scene; see :func:`raster_models.run`.
+
+    Outputs (``(H, W)`` float32): ``visibility`` (1 = lit), ``map_id`` (the map a receiver
+    looks up, -1 elsewhere), ``direction_error_deg`` (angle between the receiver's light
+    direction and its map's direction), ``uncovered`` (receivers outside their map).
+    """
+    t0 = time.perf_counter()
+    p = params or _params.make(NAME, CoherentParams, kwargs)
+    n = int(p.directions)
+    r = int(p.resolution)
+    gbuf = trace_gbuffer(scene)
+    dirs, id_tex = map_directions(n)
+    projs = _Projections(scene, dirs, r)
+    centre, radius = projs.centre, projs.radius
+    if p.compression and n * r * r > MAX_COMPRESSED_TEXELS:
+        raise ModelError(
+            f"{NAME}: compression needs every map in memory: directions x resolution^2 = "
+            f"{n * r * r} texels is above {MAX_COMPRESSED_TEXELS}; lower them or set "
+            "compression=false"
+        )
+    rec = np.nonzero(gbuf.receiver)[0]
+    # Which maps the receivers look up (the lookup is redone with the maps below).
+    w = _travel(scene, gbuf.position[rec]) if len(rec) else np.zeros((0, 3))
+    u, v = _uv(w)
+    g = id_tex.shape[0]
+    used = np.unique(
+        id_tex[
+            np.minimum((v * g).astype(np.int64), g - 1), np.minimum((u * g).astype(np.int64), g - 1)
+        ]
+    )
+    cost: dict = {}
+    if p.compression:
+        z1, z2 = _render(scene, projs, np.arange(n), second=True)
+        lo = np.empty(z1.shape, dtype=np.float32)
+        hi = np.empty(z1.shape, dtype=np.float32)
+        for a in range(0, n, INTERVAL_CHUNK):  # bounded float64 temporaries
+            sl = slice(a, a + INTERVAL_CHUNK)
+            lo[sl], hi[sl] = visibility_intervals(z1[sl], z2[sl], p.bias)
+        del z1, z2
+        rng = np.random.default_rng(p.seed)
+        orders = {
+            "hilbert": np.arange(n),
+            # Row-major over the direction grid (row v, then column u): the ids of the id
+            # texture read row by row.
+            "row_major": id_tex.ravel(),
+            # Column-major (column u, then row v): rows along theta, a pole-to-pole jump
+            # at every column.
+            "column_major": id_tex.T.ravel(),
+            "random": rng.permutation(n),
+        }
+        comp = {}
+        decoded = None
+        for name, order in orders.items():
+            runs, dec = compress_runs(lo, hi, order)
+            comp[name] = {
+                "stored_values": runs,
+                "ratio": float(n * r * r) / runs,
+                "bytes": runs * RUN_BYTES,
+            }
+            if name == "hilbert":
+                decoded = dec
+        maps = {"uncompressed": lo, "decompressed": decoded}
+        cost["compression"] = comp
+    else:
+        z1, _ = _render(scene, projs, used, second=False)
+        stored = _stored(z1)
+        maps = {"uncompressed": {int(m): stored[i] for i, m in enumerate(used)}}
+    vis_all = np.ones(gbuf.size)
+    vis_all[gbuf.valid] = 0.0
+    map_id = np.full(gbuf.size, -1.0)
+    err = np.zeros(gbuf.size)
+    uncovered = np.zeros(gbuf.size)
+    mismatches = 0
+    if len(rec):
+        vis, sel, outside, w = _shade(scene, gbuf, p, projs, id_tex, maps, rec)
+        vis_all[rec] = vis["uncompressed"]
+        map_id[rec] = sel
+        cosang = np.clip(np.sum(w * dirs[sel], axis=1), -1.0, 1.0)
+        err[rec] = np.degrees(np.arccos(cosang))
+        uncovered[rec] = outside
+        if "decompressed" in vis:
+            mismatches = int(np.sum(vis["decompressed"] != vis["uncompressed"]))
+    vis_all[~gbuf.valid] = 1.0
+    cost.update(
+        {
+            "maps": n,
+            "map_resolution": r,
+            "shadow_map_bytes": int(n * r * r * 4),
+            "id_texture_bytes": int(n * ID_TEXEL_BYTES),
+            "matrix_texture_bytes": int(n * 16 * 4),
+            "texels_rendered": int(n * r * r),
+            "render_passes": n,
+            "texture_lookups_per_pixel": float(LOOKUPS_PER_RECEIVER if len(rec) else 0),
+            "precomputed": True,
+        }
+    )
+    if p.compression:
+        cost["decompressed_mismatches"] = mismatches
+    spacing = math.degrees(math.sqrt(4.0 * math.pi / n))
+    diagnostics = {
+        "light": scene.light.to_json(),
+        "sphere": {"centre": centre.tolist(), "radius": radius},
+        "texel_world_size": 2.0 * radius / r,
+        "direction_spacing_deg": spacing,
+        "maps_looked_up": int(len(used)),
+        "direction_error_deg_mean": float(err[rec].mean()) if len(rec) else 0.0,
+        "direction_error_deg_max": float(err[rec].max()) if len(rec) else 0.0,
+        "receivers": int(len(rec)),
+        "uncovered_receivers": int(uncovered.sum()),
+        "scene": scene.provenance(),
+        "provenance": _provenance(),
+    }
+    outputs = {
+        "visibility": gbuf.image(np.clip(vis_all, 0.0, 1.0)),
+        "map_id": gbuf.image(map_id),
+        "direction_error_deg": gbuf.image(err),
+        "uncovered": gbuf.image(uncovered),
+    }
+    return ModelResult(
+        technique=NAME,
+        outputs=outputs,
+        cost=_jsonable(cost),
+        diagnostics=_jsonable(diagnostics),
+        params=_params.as_dict(p),
+        wall_seconds=time.perf_counter() - t0,
+    )
