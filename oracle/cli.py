@@ -242,6 +242,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=_positive_int, default=32)
     p.add_argument("--quiet", action="store_true")
 
+    p = sub.add_parser(
+        "aa-memory", help="AA framebuffer memory (models' accounting) vs the quoted figures"
+    )
+    p.add_argument("--out", type=_path, default=Path("out/aa-memory"), help="output folder")
+
     p = sub.add_parser("converge", help="oracle true error against spp (and adaptive)")
     p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
     p.add_argument("--width", type=_positive_int, help="film width in pixels")
@@ -563,7 +568,15 @@ COMMANDS = {
     "sweep": lambda args: _sweep_cli().cmd_sweep(args),
     "tune": lambda args: _sweep_cli().cmd_tune(args),
     "converge": cmd_converge,
+    "aa-memory": lambda args: _aa_memory(args),
 }
+
+
+def _aa_memory(args) -> int:
+    from .aa_memory import cmd_aa_memory
+
+    _check_out(args.out)
+    return cmd_aa_memory(args)
 
 
 def _sweep_cli():
