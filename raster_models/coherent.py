@@ -17,17 +17,20 @@ along its direction, depth normalized to ``[0, 1]`` across the sphere's diameter
   holds every caster). Point lights: a stored depth nearer than the light's own depth in the
   map does not shadow (the light is inside the sphere); a caster hidden behind such a
   surface is then missed (the paper's objects lie outside the light).
-- Compression (the paper's lossless scheme): every texel's visibility along its ray is the
-  same for any stored value ``c`` in ``[s1, h)``, ``s1`` the stored first depth and ``h`` the
-  smallest compare reference (``z - bias``) of a surface on the ray above ``s1`` (the second
-  surface's, or the first's own when it is acned): receivers on the first surface stay lit
-  and those on or behind the second stay shadowed. Consecutive maps, in a given order, whose
-  intervals intersect share one value (greedy runs, which is optimal for interval runs);
-  the stored value is the run's largest ``s1``. The ratio ``N R^2 / runs`` is reported for
-  the Hilbert order, row-major (rows of constant theta, periodic in phi) and column-major
-  order of the direction grid, and a seeded random order;
-  decompressed maps are shaded again and the receivers whose visibility differs counted
-  (``decompressed_mismatches``; 0 at texel centres by construction).
+- Compression (the paper's lossless scheme): a texel's depth test gives the same answer for
+  any stored value ``c`` in ``[s1, h)``, ``s1`` the stored first depth and ``h`` the smallest
+  compare reference (``z - bias``) above ``s1`` of a receiver the texel answers for: those
+  on the first surface stay lit (or acned), those on or behind the second stay shadowed.
+  ``lossless="texel_centre"`` (the paper's criterion) takes the surfaces at the texel
+  centre; ``"footprint"`` every point of the first and second surfaces' planes over the
+  whole texel (their depth spread to the texel corners, from the hit normals): then a map
+  that acnes a surface anywhere in a texel cannot share that texel, and receivers in the
+  image get exactly the uncompressed answer. Consecutive maps, in a given order, whose
+  intervals intersect share one value (greedy runs, optimal for interval runs); the stored
+  value is the run's largest ``s1``. The ratio ``N R^2 / runs`` is reported for the Hilbert
+  order, row-major (rows of constant theta, periodic in phi) and column-major order of the
+  direction grid, and a seeded random order; the Hilbert-decompressed maps are shaded again
+  and the receivers whose visibility differs counted (``decompressed_mismatches``).
 
 Error sources: direction quantization (spacing about ``sqrt(4 pi / N)``), map resolution
 (texel ``2R / r``) and bias.
@@ -82,8 +85,10 @@ RUN_BYTES = 6
 
 ORDERINGS = ("hilbert", "row_major", "column_major", "random")
 
-#: Maps per block when turning depths into visibility intervals (bounded temporaries).
-INTERVAL_CHUNK = 64
+#: Safety factor on the depth spreads of :func:`visibility_intervals`: curved surfaces bend
+#: away from their tangent plane within a texel (1.01 left one mismatching receiver on
+#: ``curved`` at 1024 maps of 64^2; 1.5 none on the built-in scenes).
+SPREAD_GUARD = 1.5
 
 #: Most texels (directions x resolution^2) held for compression: about 0.6 GB of work
 #: arrays (float32 bounds, run values, decoded maps, run starts).
@@ -136,6 +141,16 @@ class CoherentParams:
         source="Ritschel et al. 2007 (lossless compression)",
         help="render every map with its first and second surfaces and report the lossless "
         "compression ratio per ordering (off: only the maps receivers look up, first surface)",
+    )
+    lossless: str = param(
+        "footprint",
+        source="raster-oracle default (issue 10: decompressed visibility equals uncompressed); "
+        "texel_centre is the paper's criterion",
+        help="what compression keeps exact: footprint = every receiver on the planes of a "
+        "texel's first and second surfaces anywhere in the texel (acne included), "
+        "texel_centre = surfaces at texel centres only (far higher ratios; image receivers "
+        "may differ: decompressed_mismatches)",
+        choices=("footprint", "texel_centre"),
     )
     seed: int = param(
         0,
@@ -209,13 +224,18 @@ class _Projections:
 
 
 # ---------------------------------------------------------------------------- rendering
-def _render(scene, projs, ids, *, second: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """First (and second) surface depth of every texel of maps ``ids``, batched over maps.
+def _surfaces(scene, projs, ids, *, second: bool):
+    """First (and second) surfaces of every texel of maps ``ids``, batched over maps.
 
     Rays are those of :meth:`Projection.grid_rays` (texel centres, from the sphere's near
-    plane along the map's direction); depth is normalized over the sphere's diameter
-    (``inf``: no surface). The second surface is found by continuing from the first hit
-    with Mitsuba's ``spawn_ray`` (its self-intersection offset).
+    plane along the map's direction). Yields ``(start, stop, record)`` per chunk of the
+    flattened ``(len(ids), R^2)`` texels; ``record`` holds ``z1`` (and ``z2``): depth
+    normalized over the sphere's diameter (``inf``: no surface), and with ``second`` the
+    half-footprint depth spreads ``dz1``, ``dz2``: how far the depth of the hit surface's
+    plane moves from the texel centre to a texel corner, ``(|n.U| + |n.V|) / (2 r |n.D|)``
+    in normalized depth (``inf`` for a surface seen edge-on). The second surface is found by
+    continuing from the first hit with Mitsuba's ``spawn_ray`` (its self-intersection
+    offset).
     """
     from scenes import backend
 
@@ -237,10 +257,17 @@ def _render(scene, projs, ids, *, second: bool) -> tuple[np.ndarray, np.ndarray 
     f64 = mi.Float64
     cols = [f64(np.ascontiguousarray(params[:, c])) for c in range(13)]
     total = k * rr
-    z1 = np.empty(total, dtype=np.float64)
-    z2 = np.empty(total, dtype=np.float64) if second else None
     r_u, rr_u = dr.opaque(mi.UInt32, r), dr.opaque(mi.UInt32, rr)
     inv_r = dr.opaque(f64, 1.0 / r)
+    half_inv_r = dr.opaque(f64, 0.5 / r)
+
+    def spread(n, g, span):
+        nf = [f64(n[i]) for i in range(3)]
+        nu = dr.abs(nf[0] * g[3] + nf[1] * g[4] + nf[2] * g[5])
+        nv = dr.abs(nf[0] * g[6] + nf[1] * g[7] + nf[2] * g[8])
+        nd = dr.abs(nf[0] * g[9] + nf[1] * g[10] + nf[2] * g[11])
+        return dr.select(nd > 1e-12, (nu + nv) * half_inv_r / (nd * span), dr.inf)
+
     for start in range(0, total, GRID_CHUNK):
         stop = min(total, start + GRID_CHUNK)
         idx = dr.arange(mi.UInt32, start, stop)
@@ -262,20 +289,45 @@ def _render(scene, projs, ids, *, second: bool) -> tuple[np.ndarray, np.ndarray 
             t1 = f64(si.t)
             ray2 = si.spawn_ray(ray.d)
             ray2.maxt = dr.maximum(mi.Float(span - t1), 0.0)
-            pi2 = scene.mi_scene.ray_intersect_preliminary(ray2, coherent=False, active=valid)
-            valid2 = valid & pi2.is_valid()
-            d1 = dr.select(valid, t1 / span, dr.inf)
-            d2 = dr.select(valid2, (t1 + f64(pi2.t)) / span, dr.inf)
-            dr.eval(d1, d2)
-            z1[start:stop] = d1.numpy()
-            z2[start:stop] = d2.numpy()
+            si2 = scene.mi_scene.ray_intersect(
+                ray2, mi.RayFlags.Minimal, coherent=False, active=valid
+            )
+            valid2 = valid & si2.is_valid()
+            out = {
+                "z1": dr.select(valid, t1 / span, dr.inf),
+                "z2": dr.select(valid2, (t1 + f64(si2.t)) / span, dr.inf),
+                "dz1": dr.select(valid, spread(si.n, g, span), 0.0),
+                "dz2": dr.select(valid2, spread(si2.n, g, span), 0.0),
+            }
         else:
             pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
-            d1 = dr.select(pi.is_valid(), f64(pi.t) / span, dr.inf)
-            dr.eval(d1)
-            z1[start:stop] = d1.numpy()
-    z1 = z1.reshape(k, rr)
-    return z1, (z2.reshape(k, rr) if second else None)
+            out = {"z1": dr.select(pi.is_valid(), f64(pi.t) / span, dr.inf)}
+        dr.eval(*out.values())
+        yield start, stop, {key: val.numpy() for key, val in out.items()}
+
+
+def _render(scene, projs, ids) -> np.ndarray:
+    """First-surface depth ``(len(ids), R^2)`` (see :func:`_surfaces`)."""
+    rr = projs.resolution**2
+    z1 = np.empty(len(ids) * rr, dtype=np.float64)
+    for start, stop, rec in _surfaces(scene, projs, ids, second=False):
+        z1[start:stop] = rec["z1"]
+    return z1.reshape(len(ids), rr)
+
+
+def _render_intervals(
+    scene, projs, ids, bias: float, *, footprint: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """Visibility intervals ``(lo, hi)`` of every texel of maps ``ids`` (float32,
+    ``(len(ids), R^2)``), computed chunk by chunk (see :func:`visibility_intervals`;
+    ``footprint=False``: texel centres only, spreads 0)."""
+    rr = projs.resolution**2
+    lo = np.empty(len(ids) * rr, dtype=np.float32)
+    hi = np.empty(len(ids) * rr, dtype=np.float32)
+    for start, stop, rec in _surfaces(scene, projs, ids, second=True):
+        spreads = {"dz1": rec["dz1"], "dz2": rec["dz2"]} if footprint else {}
+        lo[start:stop], hi[start:stop] = visibility_intervals(rec["z1"], rec["z2"], bias, **spreads)
+    return lo.reshape(len(ids), rr), hi.reshape(len(ids), rr)
 
 
 def _stored(z1: np.ndarray) -> np.ndarray:
@@ -290,15 +342,34 @@ def _below(x: np.ndarray) -> np.ndarray:
     return np.where(np.isinf(x), np.float32(np.inf), f).astype(np.float32)
 
 
-def visibility_intervals(z1: np.ndarray, z2: np.ndarray, bias: float):
-    """Per texel, the stored values ``[lo, hi]`` (float32, inclusive) that give every surface
-    on the texel's ray the visibility of the uncompressed map (see module docstring)."""
+def visibility_intervals(z1, z2, bias: float, *, dz1=None, dz2=None):
+    """Per texel, the stored values ``[lo, hi]`` (float32, inclusive) that give the
+    uncompressed map's answer to every receiver on the texel's first or second surface.
+
+    ``lo`` is the stored first depth ``s1``. A receiver is compared as ``z - bias <=
+    stored``; on a surface of depth ``z`` at the texel centre and depth spread ``dz`` to the
+    texel's corners (its plane), its reference lies in ``[z - dz - bias, z + dz - bias]``.
+    First surface: if any of its references exceeds ``s1`` (acne: the uncompressed map
+    shadows it there) no other value is safe, ``hi = s1``. Second surface: its references
+    must stay above the stored value, ``hi`` = the largest float32 below
+    ``z2 - dz2 - bias`` (``s1`` when that is not above ``s1``). Without ``dz`` (texel
+    centres only) the spreads are 0. No first surface: the map is cleared to 1, every
+    receiver inside the sphere is lit by any value >= 1 (``hi = inf``).
+    """
+    z1 = np.asarray(z1, dtype=np.float64)
+    z2 = np.asarray(z2, dtype=np.float64)
+    dz1 = np.zeros_like(z1) if dz1 is None else np.asarray(dz1, dtype=np.float64)
+    dz2 = np.zeros_like(z2) if dz2 is None else np.asarray(dz2, dtype=np.float64)
     lo = _stored(z1)
     s1 = lo.astype(np.float64)
-    refs = np.stack([z1 - bias, z2 - bias])  # compare references of the two surfaces
-    above = np.where(refs > s1[None], refs, np.inf)
-    hi = _below(np.min(above, axis=0))
-    return lo, np.maximum(hi, lo)
+    guard = SPREAD_GUARD
+    with np.errstate(invalid="ignore"):
+        acne = np.isfinite(z1) & (z1 + dz1 * guard - bias > s1)
+        h2 = z2 - dz2 * guard - bias
+    h2 = np.where(np.isfinite(z2), h2, np.inf)
+    hi = np.where(h2 > s1, _below(h2), lo)
+    hi = np.where(acne, lo, hi)
+    return lo, np.maximum(hi, lo).astype(np.float32)
 
 
 def compress_runs(lo: np.ndarray, hi: np.ndarray, order: np.ndarray):
@@ -420,13 +491,9 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     )
     cost: dict = {}
     if p.compression:
-        z1, z2 = _render(scene, projs, np.arange(n), second=True)
-        lo = np.empty(z1.shape, dtype=np.float32)
-        hi = np.empty(z1.shape, dtype=np.float32)
-        for a in range(0, n, INTERVAL_CHUNK):  # bounded float64 temporaries
-            sl = slice(a, a + INTERVAL_CHUNK)
-            lo[sl], hi[sl] = visibility_intervals(z1[sl], z2[sl], p.bias)
-        del z1, z2
+        lo, hi = _render_intervals(
+            scene, projs, np.arange(n), p.bias, footprint=p.lossless == "footprint"
+        )
         rng = np.random.default_rng(p.seed)
         orders = {
             "hilbert": np.arange(n),
@@ -452,7 +519,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         maps = {"uncompressed": lo, "decompressed": decoded}
         cost["compression"] = comp
     else:
-        z1, _ = _render(scene, projs, used, second=False)
+        z1 = _render(scene, projs, used)
         stored = _stored(z1)
         maps = {"uncompressed": {int(m): stored[i] for i, m in enumerate(used)}}
     vis_all = np.ones(gbuf.size)
