@@ -178,6 +178,7 @@ SHADOW_MODEL_CASES = {
     "shadow-map": {},
     "csm": {},
     "sdsm": {"partitions": 4, "resolution": 2048, "filter": "pcf", "pcf_size": 3},
+    "izb": {"samples": 32},  # FTIZB, 512^2 grid (its cost record: f_ls, L_avg, L_max, tests)
 }
 
 #: Target of ``bench models``: model wall time over the 32-spp visibility reference.

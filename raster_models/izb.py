@@ -191,13 +191,20 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     else:
         splits, part = np.zeros(k + 1), np.zeros(0, dtype=np.int64)
 
-    def light_points(sel):
-        """Light-frame x, y, z ``(n, S)`` of the samples of receivers ``sel``."""
+    def light_xy(sel):
+        """Light-frame x, y ``(n, S)`` of the samples of receivers ``sel``."""
         if s == 1:
-            return lc[sel, 0, None], lc[sel, 1, None], lc[sel, 2, None]
+            return lc[sel, 0, None], lc[sel, 1, None]
         return tuple(
-            lc[sel, q, None] + ldx[sel, q, None] * a + ldy[sel, q, None] * b for q in range(3)
+            lc[sel, q, None] + ldx[sel, q, None] * a + ldy[sel, q, None] * b for q in (0, 1)
         )
+
+    # Bounds of each receiver's samples: exact for 1 sample, a box around the 32 points
+    # (|dP| times the largest offset) otherwise: the grids and the depth cull only need to
+    # contain the samples.
+    spread = np.zeros((m, 3))
+    if s == 32:
+        spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
 
     boxes: list = []
     zmax = np.full(k, -np.inf)
@@ -208,18 +215,14 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         if len(sel) == 0:
             boxes.append(None)
             continue
-        lo = np.full(3, np.inf)
-        hi = np.full(3, -np.inf)
-        chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
-        for ch in chunks:  # chunks of receivers
-            pts = light_points(ch)
-            lo = np.minimum(lo, [v.min() for v in pts])
-            hi = np.maximum(hi, [v.max() for v in pts])
+        lo = (lc[sel] - spread[sel]).min(axis=0)
+        hi = (lc[sel] + spread[sel]).max(axis=0)
         box = _grid(lo[:2], hi[:2])
         boxes.append(box)
         zmax[c] = hi[2]
-        for ch in chunks:
-            px, py, _ = light_points(ch)
+        for i0 in range(0, len(sel), BUILD_CHUNK):  # chunks of receivers
+            ch = sel[i0 : i0 + BUILD_CHUNK]
+            px, py = light_xy(ch)
             i, j = _texel(px, py, box, r)
             nodes.append(list_nodes(c * r * r + j * r + i, ch))
         ci, cj = _texel(lc[sel, 0], lc[sel, 1], box, r)
