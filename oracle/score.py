@@ -319,6 +319,7 @@ def score(
         "noise_floor": result.frames[0].noise_floor,
         "frames": per_frame if frames else None,
         "camera_path": camera_path if frames else None,
+        "light_path": getattr(loaded, "light_path", None),
         "tone_mapping": None
         if channel != "color"
         else {

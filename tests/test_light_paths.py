@@ -170,3 +170,13 @@ def test_cli_bad_light_path_is_one_line_exit_2(tmp_path, capfd, argv, message):
     assert len(err) == 1
     assert message in err[0]
     assert not out.exists()
+
+
+def test_score_along_a_light_path_keeps_the_camera(tmp_path):
+    out = tmp_path / "score"
+    argv = ["score", "plate", "--technique", "shadow-map", "--light-path", "orbit-sun"]
+    assert main([*argv, "--frames", "2", *SMALL, "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["light_path"] == "orbit-sun"
+    assert metrics["camera_path"] is None
+    assert len(metrics["frames"]) == 2
