@@ -264,6 +264,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-adaptive", action="store_true", help="skip the adaptive rendering")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out", type=_path, default=Path("out/converge"), help="output folder")
+
+    p = sub.add_parser("extremes", help="every model x every numerical extreme vs the oracle")
+    p.add_argument("--quick", action="store_true", help="the main job's size (64x36, 8192^2)")
+    p.add_argument("--huge", type=_positive_int, default=None, help="huge map size (default 16384)")
+    p.add_argument("--cache-dir", type=_path, default=None)
+    p.add_argument("--no-cache", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out", type=_path, default=Path("out/extremes"), help="output folder")
     return parser
 
 
@@ -554,6 +562,29 @@ def cmd_converge(args) -> int:
     return 0
 
 
+def cmd_extremes(args) -> int:
+    from .extremes import run_extremes
+
+    if args.huge is not None and not 8 <= args.huge <= 16384:
+        raise CliError(f"--huge must be in [8, 16384], got {args.huge}")
+    _check_out(args.out)
+    data = run_extremes(
+        args.out,
+        cache=_cache(args),
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+        quick=args.quick,
+        huge=args.huge,
+    )
+    cells = data["cells"]
+    print(
+        f"extremes: {len(cells)} cells, {len(data['unexpected'])} not as documented"
+        + (f" ({', '.join(data['unexpected'])})" if data["unexpected"] else "")
+    )
+    print(f"extremes: {args.out / 'extremes.json'} and {args.out / 'extremes.html'}")
+    return 0
+
+
 COMMANDS = {
     "doctor": cmd_doctor,
     "scenes": cmd_scenes,
@@ -568,6 +599,7 @@ COMMANDS = {
     "sweep": lambda args: _sweep_cli().cmd_sweep(args),
     "tune": lambda args: _sweep_cli().cmd_tune(args),
     "converge": cmd_converge,
+    "extremes": cmd_extremes,
     "aa-memory": lambda args: _aa_memory(args),
 }
 
