@@ -228,10 +228,18 @@ def _parser() -> argparse.ArgumentParser:
     report_sweep_args(p)
     add_parsers(sub)
 
-    p = sub.add_parser("main", help="the main job on the built-in default scenes")
+    p = sub.add_parser("main", help="the main job: the default sweep, claims, extremes, report")
     p.add_argument("--out", type=_path, default=Path("out"), help="output folder")
-    p.add_argument("--spp", type=_spp, default=64)
+    p.add_argument("--spp", type=_spp, default=None, help="reference spp (default: the spec's 64)")
     p.add_argument("--scenes", default=None, help="comma-separated scenes (default: all)")
+    p.add_argument(
+        "--workers",
+        type=_nonneg_int,
+        default=None,
+        help="Dask workers (default: one per core; 0: run in this process)",
+    )
+    p.add_argument("--width", type=_positive_int, default=None, help="film width (default 640)")
+    p.add_argument("--height", type=_positive_int, default=None, help="film height (default 360)")
     p.add_argument("--cache-dir", type=_path, default=None)
     p.add_argument("--quiet", action="store_true")
 
@@ -264,14 +272,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-adaptive", action="store_true", help="skip the adaptive rendering")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out", type=_path, default=Path("out/converge"), help="output folder")
-
-    p = sub.add_parser("extremes", help="every model x every numerical extreme vs the oracle")
-    p.add_argument("--quick", action="store_true", help="the main job's size (64x36, 8192^2)")
-    p.add_argument("--huge", type=_positive_int, default=None, help="huge map size (default 16384)")
-    p.add_argument("--cache-dir", type=_path, default=None)
-    p.add_argument("--no-cache", action="store_true")
-    p.add_argument("--quiet", action="store_true")
-    p.add_argument("--out", type=_path, default=Path("out/extremes"), help="output folder")
     return parser
 
 
@@ -427,7 +427,7 @@ def cmd_main(args) -> int:
 
     from .mainjob import run_main
 
-    names = scenes.DEFAULT_SCENES
+    names = None
     if args.scenes:
         names = tuple(n.strip() for n in args.scenes.split(",") if n.strip())
         unknown = [n for n in names if n not in scenes.BUILTIN_SCENES]
@@ -436,9 +436,22 @@ def cmd_main(args) -> int:
                 f"unknown scene(s) {', '.join(unknown)}; choose from "
                 f"{', '.join(scenes.BUILTIN_SCENES)}"
             )
+    if (args.width is None) != (args.height is None):
+        raise CliError("main: give both --width and --height, or neither")
     _check_out(args.out)
-    report = run_main(names, args.out, spp=args.spp, cache=_cache(args), quiet=args.quiet)
+    report, failed = run_main(
+        names,
+        args.out,
+        spp=args.spp,
+        cache=_cache(args),
+        quiet=args.quiet,
+        workers=args.workers,
+        size=(args.width, args.height) if args.width else None,
+    )
     print(f"report: {report.resolve()}")
+    if failed:
+        print(f"raster-oracle: main job: failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -562,29 +575,6 @@ def cmd_converge(args) -> int:
     return 0
 
 
-def cmd_extremes(args) -> int:
-    from .extremes import run_extremes
-
-    if args.huge is not None and not 8 <= args.huge <= 16384:
-        raise CliError(f"--huge must be in [8, 16384], got {args.huge}")
-    _check_out(args.out)
-    data = run_extremes(
-        args.out,
-        cache=_cache(args),
-        quiet=args.quiet,
-        echo=None if args.quiet else print,
-        quick=args.quick,
-        huge=args.huge,
-    )
-    cells = data["cells"]
-    print(
-        f"extremes: {len(cells)} cells, {len(data['unexpected'])} not as documented"
-        + (f" ({', '.join(data['unexpected'])})" if data["unexpected"] else "")
-    )
-    print(f"extremes: {args.out / 'extremes.json'} and {args.out / 'extremes.html'}")
-    return 0
-
-
 COMMANDS = {
     "doctor": cmd_doctor,
     "scenes": cmd_scenes,
@@ -599,7 +589,6 @@ COMMANDS = {
     "sweep": lambda args: _sweep_cli().cmd_sweep(args),
     "tune": lambda args: _sweep_cli().cmd_tune(args),
     "converge": cmd_converge,
-    "extremes": cmd_extremes,
     "aa-memory": lambda args: _aa_memory(args),
 }
 

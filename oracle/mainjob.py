@@ -1,57 +1,178 @@
-"""The main job: references, every technique model and one combined report for the
-built-in default scenes."""
+"""The main job (``raster-oracle main``, ``bin/main.sh``): the built-in default sweep, then the
+extremes and the claims, and one report.
+
+1. The sweep of ``oracle/specs/default.toml`` (package data): every registered technique on
+   the built-in scenes at 640x360, a few settings each, run on a local Dask cluster into
+   ``OUT/sweep.db`` (resumable: a second run skips finished cases).
+2. The extremes matrix and the claims (:mod:`oracle.extremes`, :mod:`oracle.claims`, in their
+   quick form), writing ``OUT/extremes.json`` and ``OUT/claims.json``, and the anti-aliasing
+   memory table (:mod:`oracle.aa_memory`), each where the module is there.
+3. ``OUT/report.html`` (+ ``report.json``): Pareto fronts, parameter sensitivity, best at
+   equal cost, the claims, the extremes, the memory table and every case.
+"""
 
 from __future__ import annotations
 
+import importlib
+import importlib.resources
+import tomllib
 from pathlib import Path
 
-__all__ = ["MAIN_RESOLUTIONS", "run_main"]
+__all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main"]
 
-#: Shadow-map resolutions each technique runs at, so the report's cost-versus-error plot
-#: has a front to draw.
-MAIN_RESOLUTIONS = (512, 2048)
+#: The main job's sweep spec (package data).
+DEFAULT_SPEC = "specs/default.toml"
+
+#: Report sections after the sweep: ``(id, title, run module, run function, render module,
+#: render function)``. Each is run when its modules import (they are optional: written by
+#: other parts of the project); a section that fails is reported in the page, not fatal.
+SECTIONS = (
+    ("claims", "Claims", "oracle.claims", "run_claims", "reports._claims", "render_claims"),
+    (
+        "extremes",
+        "Numerical stability at the extremes",
+        "oracle.extremes",
+        "run_extremes",
+        "reports._extremes",
+        "render_extremes",
+    ),
+)
 
 
-def run_main(names, out: Path, *, spp: int, cache, quiet: bool, echo=print) -> Path:
-    """Render references, score each technique at each resolution, write the report."""
-    import raster_models
-    import scenes
+def default_spec() -> dict:
+    """The parsed default spec (a fresh dict each call)."""
+    text = importlib.resources.files("oracle").joinpath(DEFAULT_SPEC).read_text("utf-8")
+    return tomllib.loads(text)
 
-    from .pipeline import get_reference, publish
-    from .reference import ReferenceSettings
-    from .scoring import combine_reports, score_technique
 
-    settings = ReferenceSettings(spp=spp).validate()
-    techniques = raster_models.list_techniques()
-    folders = []
-    for name in names:
-        loaded = scenes.load(name)
-        ref = get_reference(loaded, settings, cache=cache, quiet=quiet)
-        publish(ref, out / name / "reference")
-        m = ref.meta
-        echo(
-            f"{name:<7} {loaded.width}x{loaded.height} {spp} spp reference ({ref.cache_status}, "
-            f"{m['wall_seconds']:.1f} s): {out / name / 'reference' / 'reference.exr'}"
-        )
-        usable = [t["name"] for t in techniques if loaded.light.kind in t.get("lights", ())]
-        for tech in usable:
-            for res in MAIN_RESOLUTIONS:
-                folder = out / name / f"{tech}-{res}"
-                params = raster_models.parse_params(tech, [f"resolution={res}"])
-                score_technique(
-                    loaded,
-                    tech,
-                    params,
-                    out=folder,
-                    spp=spp,
-                    seed=0,
-                    cache=cache,
-                    quiet=True,
-                    name=f"{tech} {res} @ {name}",
-                )
-                folders.append(folder)
-        kinds = ", ".join(usable)
-        echo(f"{name:<7} scored {kinds} at {MAIN_RESOLUTIONS} ({loaded.light.kind} light)")
+def _restrict(data: dict, names, spp: int | None, size) -> dict:
+    """The spec restricted to ``names`` (None: all its scenes), with ``spp``/``size`` set."""
+    from .sweepspec import SpecError
+
+    if spp is not None:
+        data.setdefault("defaults", {})["spp"] = int(spp)
+    if size is not None:
+        data.setdefault("defaults", {}).update(width=int(size[0]), height=int(size[1]))
+    if names is None:
+        return data
+    wanted = set(names)
+    kept = []
+    for table in data.get("case", []):
+        scenes = [s for s in table.get("scenes", []) if s in wanted]
+        if scenes:
+            kept.append({**table, "scenes": scenes})
+    if not kept:
+        raise SpecError(f"no case of the default sweep runs on {', '.join(names)}")
+    data["case"] = kept
+    return data
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(f"{type(exc).__name__}: {exc}".split())
+
+
+def _section(entry, out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict | None:
+    """Run one optional section; its report record, or None when its modules are absent."""
+    sid, title, run_mod, run_fn, render_mod, render_fn = entry
+    try:
+        run = getattr(importlib.import_module(run_mod), run_fn)
+        render = getattr(importlib.import_module(render_mod), render_fn)
+    except (ImportError, AttributeError):
+        return None
+    try:
+        data = run(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+        html = render(data)
+    except Exception as exc:  # the report still comes out; the failure is in it
+        echo(f"{sid}: failed: {_one_line(exc)}")
+        return {"id": sid, "title": title, "html": _failed_html(exc), "failed": True}
+    return {"id": sid, "title": title, "html": html, "failed": False}
+
+
+def _failed_html(exc: BaseException) -> str:
+    from markupsafe import escape
+
+    return f'<p class="note">This section failed: <code>{escape(_one_line(exc))}</code></p>'
+
+
+def _memory_section(*, echo) -> dict | None:
+    try:
+        from reports._aa_memory import render_aa_memory
+
+        from .aa_memory import memory_report
+    except ImportError:
+        return None
+    try:
+        html = render_aa_memory(memory_report())
+    except Exception as exc:
+        echo(f"aa-memory: failed: {_one_line(exc)}")
+        return {
+            "id": "aa-memory",
+            "title": "Anti-aliasing memory",
+            "html": _failed_html(exc),
+            "failed": True,
+        }
+    return {"id": "aa-memory", "title": "Anti-aliasing memory", "html": html, "failed": False}
+
+
+def run_main(
+    names,
+    out: Path,
+    *,
+    spp: int | None = None,
+    cache,
+    quiet: bool,
+    echo=print,
+    workers: int | None = None,
+    size: tuple[int, int] | None = None,
+    quick: bool = True,
+) -> tuple[Path, list[str]]:
+    """Run the main job into ``out``; returns the report's path and the failed sections.
+
+    Parameters
+    ----------
+    names : scenes to keep (None: every scene of the default spec).
+    spp : reference samples per pixel (None: the spec's, 64).
+    workers : Dask workers (None: one per core; 0: in this process).
+    size : ``(width, height)`` instead of the spec's 640x360.
+    quick : the extremes' and claims' quick form (the main job's time budget).
+    """
+    from .sweep import run_sweep
+    from .sweepcli import sweep_report
+    from .sweepspec import expand_spec
+
+    out = Path(out)
+    data = _restrict(default_spec(), names, spp, size)
+    expansion = expand_spec(data, skip_unregistered=True)
+    out.mkdir(parents=True, exist_ok=True)
+    db = out / "sweep.db"
+    for note in expansion.skipped:
+        echo(f"not applicable: {note}")
+    summary = run_sweep(
+        expansion, db, cache_root=cache.root, workers=workers, quiet=quiet, echo=echo
+    )
+    echo(
+        f"sweep {expansion.name}: {summary['cases']} cases ({summary['skipped_done']} already "
+        f"done, {summary['done']} done, {summary['failed']} failed) in "
+        f"{summary['wall_seconds']:.1f} s: {db}"
+    )
+    sections, failed = [], [f"{summary['failed']} sweep case(s)"] if summary["failed"] else []
+    for entry in SECTIONS:
+        rec = _section(entry, out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+        if rec is None:
+            echo(f"{entry[0]}: not available ({entry[2]} is not installed)")
+            continue
+        sections.append(rec)
+        if rec["failed"]:
+            failed.append(entry[0])
+    memory = _memory_section(echo=echo)
+    if memory is not None:
+        sections.append(memory)
     report = out / "report.html"
-    combine_reports(folders, report, title="raster-oracle: built-in scenes, every technique")
-    return report
+    sweep_report(
+        db,
+        report,
+        sweep=expansion.name,
+        title="raster-oracle: the default sweep, claims and extremes",
+        extra_sections=sections,
+    )
+    return report, failed

@@ -334,8 +334,15 @@ def _scene_light(scene: str, light: int, memo: dict):
     return memo[key]
 
 
-def expand_spec(data: dict, *, base_dir: Path | None = None) -> Expansion:
-    """Validate a parsed spec and expand it into cases (see the module docstring)."""
+def expand_spec(
+    data: dict, *, base_dir: Path | None = None, skip_unregistered: bool = False
+) -> Expansion:
+    """Validate a parsed spec and expand it into cases (see the module docstring).
+
+    ``skip_unregistered``: a case table whose technique is not registered is skipped (and
+    listed in :attr:`Expansion.skipped`) instead of being an error; the main job's built-in
+    spec names techniques that may not be there in every version.
+    """
     import raster_models
     from raster_models import _params
 
@@ -357,6 +364,10 @@ def expand_spec(data: dict, *, base_dir: Path | None = None) -> Expansion:
         _check_keys(where, table, _CASE_KEYS)
         settings = _settings(where, table, base)
         technique = table.get("technique")
+        if skip_unregistered and isinstance(technique, str):
+            if technique not in raster_models.TECHNIQUES:
+                skipped.append(f"{technique}: not a registered technique")
+                continue
         if technique not in raster_models.TECHNIQUES:
             raise SpecError(
                 f"{where}.technique: unknown technique {technique!r}; choose one of "
@@ -431,7 +442,7 @@ def expand_spec(data: dict, *, base_dir: Path | None = None) -> Expansion:
     return Expansion(name=name.strip(), cases=cases, skipped=skipped)
 
 
-def load_spec(path: str | Path) -> Expansion:
+def load_spec(path: str | Path, *, skip_unregistered: bool = False) -> Expansion:
     """Read, validate and expand the TOML spec at ``path``.
 
     Raises
@@ -450,4 +461,4 @@ def load_spec(path: str | Path) -> Expansion:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"spec {path}: not valid TOML: {exc}") from None
-    return expand_spec(data, base_dir=path.parent)
+    return expand_spec(data, base_dir=path.parent, skip_unregistered=skip_unregistered)

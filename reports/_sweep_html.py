@@ -16,6 +16,8 @@ from ._svg import _axis, scatter_svg
 __all__ = ["render_sweep_html", "sensitivity_svg"]
 
 _FONT = 'font-family="system-ui, sans-serif" font-size="11"'
+#: Smallest max/min ratio of a positive numeric parameter drawn on a log axis.
+LOG_SPAN = 4.0
 _EXTRA_CSS = """
 .front-grid { display: grid; gap: 14px;
   grid-template-columns: repeat(auto-fill, minmax(440px, 1fr)); }
@@ -40,11 +42,12 @@ def _css() -> str:
 def sensitivity_svg(item: Mapping) -> Markup:
     """Metric against one parameter: every case (hollow) and the mean per value (line).
 
-    Numeric parameters use a value axis (logarithmic when positive and spanning more than
-    20x); other parameters are evenly spaced categories.
+    Numeric parameters use a value axis (base-2 logarithmic when positive and spanning at
+    least :data:`LOG_SPAN` times, as resolutions and sample counts do); other parameters are
+    evenly spaced categories.
     """
     width, height = 460.0, 260.0
-    left, right, top, bottom = 62.0, 16.0, 14.0, 42.0
+    left, right, top, bottom = 74.0, 16.0, 14.0, 42.0
     plot_w, plot_h = width - left - right, height - top - bottom
     levels = item["levels"]
     numeric = item["numeric"]
@@ -52,7 +55,7 @@ def sensitivity_svg(item: Mapping) -> Markup:
     y_lo, y_hi, y_ticks = _axis(ys, log_base=None)
     if numeric:
         xs = [float(level["x"]) for level in levels]
-        log_x = min(xs) > 0 and max(xs) / min(xs) > 20.0
+        log_x = min(xs) > 0 and max(xs) / min(xs) >= LOG_SPAN
         x_lo, x_hi, x_ticks = _axis(xs, log_base=2.0 if log_x else None)
 
         def sx(v) -> float:
@@ -99,7 +102,7 @@ def sensitivity_svg(item: Mapping) -> Markup:
     parts.append(
         f'<text x="{left + plot_w / 2:g}" y="{height - 8:g}" text-anchor="middle" '
         f'fill="#0f172a" {_FONT}>{escape(item["param"])}</text>'
-        f'<text transform="translate(14 {top + plot_h / 2:g}) rotate(-90)" '
+        f'<text transform="translate(12 {top + plot_h / 2:g}) rotate(-90)" '
         f'text-anchor="middle" fill="#0f172a" {_FONT}>{escape(item["metric"])}</text>'
     )
     line = " ".join(
