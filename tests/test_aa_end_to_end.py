@@ -150,3 +150,129 @@ def test_bad_parameters_and_candidate_channels_exit_2(tmp_path, capsys, args, me
     assert rc == 2
     assert message in err and len(err.splitlines()) == 1 and err.startswith("raster-oracle: error:")
     assert not out.exists() or not any(out.iterdir())
+
+
+# ------------------------------------------------------- the models on the AA scenes
+# Each AA scene shows the weakness it was built for when the models run on it.
+
+
+def _ref_rgb(loaded, channels=("color", "edge")):
+    settings = ReferenceSettings(spp=SPP, seed=0, channels=channels)
+    ch = get_reference(loaded, settings, cache=ReferenceCache(), quiet=True).channels()
+    return np.stack([ch[f"color.{c}"] for c in "RGB"], -1).astype(np.float64), ch
+
+
+def _inside(loaded, verts):
+    """Pixels whose four corners lie inside the projection of the convex planar ``verts``."""
+    poly = loaded.camera.project(verts)
+    a, b = poly, np.roll(poly, -1, axis=0)
+    yy, xx = np.mgrid[0 : loaded.height, 0 : loaded.width]
+    inside = np.ones(xx.shape, bool)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            px, py = (xx + dx)[..., None], (yy + dy)[..., None]
+            cross = (b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (b[:, 1] - a[:, 1]) * (px - a[:, 0])
+            inside &= (cross > 0).all(-1) | (cross < 0).all(-1)
+    return inside
+
+
+def test_acaa_doubles_the_decal_and_rgba8_rounds_each_addition():
+    import raster_models
+
+    s = scenes.load("decal", width=80, height=45)
+    msaa = raster_models.run("msaa", s, samples=8).outputs["color"].astype(np.float64)
+    acaa = raster_models.run("acaa", s, samples=8)
+    acaa8 = raster_models.run("acaa", s, samples=8, accumulation="rgba8").outputs["color"]
+    _, ch = _ref_rgb(s, ("color", "visibility", "id"))
+    lit = ch["visibility"] == 1.0
+    tie = (_inside(s, s.mesh_data["decal"][0]) | _inside(s, s.mesh_data["panel"][0])) & lit
+    assert tie.sum() > 100
+    # every sample of those pixels ties with a coplanar twin and is counted twice
+    assert (acaa.outputs["ties"][tie] == 8).all()
+    ratio = acaa.outputs["color"][tie] / msaa[tie]
+    assert np.abs(ratio - 2.0).max() < 1e-5
+    # wall pixels centred away from both: no tie, ACAA equals MSAA to float precision
+    wall = (ch["id"] == s.shape_names.index("wall")) & (acaa.outputs["ties"] == 0)
+    assert wall.sum() > 1000
+    assert np.abs(acaa.outputs["color"][wall] - msaa[wall]).max() < 1e-6
+    # RGBA8, where the twins are the pixel's only two fragments (off the quads' diagonals):
+    # two additions of c, each rounded to 1/255: q(q(c) + c), q(x) = floor(255 x + 0.5) / 255
+    two = tie & (acaa.outputs["shading_events"] == 2)
+    assert two.sum() > 100
+    c = msaa[two]
+    first = np.floor(c * 255.0 + 0.5) / 255.0
+    expect = np.floor(np.clip(first + c, 0, 1) * 255.0 + 0.5) / 255.0
+    assert np.abs(acaa8[two] - expect).max() < 1e-6
+    assert np.abs(acaa8[two] - 2 * c).max() > 1e-3  # the rounding shows
+
+
+def test_stripes_alias_to_one_colour_without_samples_and_centroid_msaa_recovers_the_mix():
+    import raster_models
+
+    s = scenes.load("stripes", width=48, height=27)
+    ref, _ = _ref_rgb(s, ("color",))
+    mean = ref.mean((0, 1))
+    out = {
+        "noaa": raster_models.run("noaa", s),
+        "centroid": raster_models.run("msaa", s, samples=8, centroid=True),
+        "ssaa": raster_models.run("ssaa", s, samples=8),
+        "agaa1": raster_models.run("agaa", s, samples=8, aggregates=1),
+    }
+    got = {k: v.outputs["color"].astype(np.float64).mean((0, 1)) for k, v in out.items()}
+    # one sample a pixel at the same phase of a 1-px period: one strip everywhere (no red)
+    assert got["noaa"][0] < 0.05 * mean[0]
+    # 8 samples, shaded where they are: the half-and-half mix, to the reference's noise
+    for k in ("centroid", "ssaa"):
+        assert np.abs(got[k] - mean).max() < 0.01 * mean.max(), k
+    # one aggregate: averaged albedo and normal lose the correlation (red far too dark)
+    assert got["agaa1"][0] < 0.7 * mean[0]
+    assert out["agaa1"].cost["shading_events_mean"] == 1.0
+
+
+def test_foliage_needs_more_than_two_aggregates():
+    import raster_models
+
+    s = scenes.load("foliage", width=80, height=45)
+    ref, _ = _ref_rgb(s, ("color",))
+    err, events = {}, {}
+    for name, tech, kw in [
+        ("msaa", "msaa", {"samples": 8}),
+        ("agaa2", "agaa", {"samples": 8, "aggregates": 2}),
+        ("agaa1", "agaa", {"samples": 8, "aggregates": 1}),
+    ]:
+        r = raster_models.run(tech, s, **kw)
+        err[name] = np.abs(r.outputs["color"] - ref).mean()
+        events[name] = r.cost["shading_events_mean"]
+    assert events["msaa"] > 2.5  # more surfaces than K = 2 in the average pixel
+    assert events["agaa2"] <= 2.0 and events["agaa1"] == 1.0
+    assert err["msaa"] < err["agaa2"] < err["agaa1"]
+
+
+def test_hdr_edge_inverse_luminance_resolve_darkens_the_bright_edges():
+    import raster_models
+
+    s = scenes.load("hdr-edge", width=80, height=45)
+    ref, ch = _ref_rgb(s)
+    edge = ch["edge"] == 1
+    box = raster_models.run("msaa", s, samples=8).outputs["color"]
+    inv = raster_models.run("msaa", s, samples=8, inverse_luminance=True).outputs["color"]
+    lum = ref.mean(-1)
+    # the box resolve is the reference's own filter: unbiased on edges (to its noise)
+    assert abs((box - ref)[edge].mean()) < 0.02 * lum[edge].mean()
+    # 1 / (1 + luminance) weights favour the dark backdrop: edge pixels lose a large share
+    # of the strip (measured: 43 % of the mean edge radiance)
+    assert (inv - ref)[edge].mean() < -0.25 * lum[edge].mean()
+
+
+def test_glossy_highlights_need_every_sample_shaded():
+    import raster_models
+
+    s = scenes.load("glossy", width=80, height=45)
+    ref, ch = _ref_rgb(s)
+    interior = ch["edge"] == 0
+    err = {}
+    for name, tech in (("msaa", "msaa"), ("ssaa", "ssaa")):
+        out = raster_models.run(tech, s, samples=8).outputs["color"]
+        err[name] = np.abs(out - ref)[interior].mean()
+    # MSAA shades once a pixel: sub-pixel highlights alias inside surfaces; SSAA shades all 8
+    assert err["ssaa"] < 0.5 * err["msaa"]
