@@ -7,7 +7,7 @@
 - ``camera.json``: world-to-view and projection matrices in the OpenGL and Direct3D
   conventions, fov, resolution, near/far and the pixel-centre convention,
 - ``lights.json``: every usable light with its radiometric quantity,
-- ``materials.json``: the diffuse albedo of every shape,
+- ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
   (``raster-oracle reference out/scene.xml``) and compared with the original.
 """
@@ -191,7 +191,12 @@ def export(loaded, out_dir: str | Path) -> dict:
         (tmp / "lights.json").write_text(json.dumps(lights, indent=2))
         (tmp / "materials.json").write_text(
             json.dumps(
-                {"model": "two-sided diffuse (see scenes.shading)", "shapes": summary["shapes"]},
+                {
+                    "model": "two-sided diffuse (see scenes.shading)",
+                    # the scene-wide Blinn-Phong lobe (ks 0: none; the glossy scene has one)
+                    "specular": loaded.specular.to_json(),
+                    "shapes": summary["shapes"],
+                },
                 indent=2,
             )
         )

@@ -279,3 +279,27 @@ def test_hdr_edge_dynamic_range_exceeds_100_to_1():
     # above 10x the backdrop (the bright side dominates any box resolve)
     edge = ch["edge"] == 1
     assert edge.sum() > 100 and (lum[edge] > 10 * l_back).sum() > 50
+
+
+def test_export_writes_the_specular_lobe(tmp_path):
+    import json
+
+    from scenes.export import export
+
+    s = scenes.load("decal", width=48, height=27)
+    export(s, tmp_path / "plain")
+    mats = json.loads((tmp_path / "plain" / "materials.json").read_text())
+    assert mats["specular"]["ks"] == 0.0
+    glossy_like = dataclasses.replace(s, specular=Specular(GLOSSY_KS_FOR_EXPORT, 64.0))
+    export(glossy_like, tmp_path / "lobe")
+    mats = json.loads((tmp_path / "lobe" / "materials.json").read_text())
+    assert mats["specular"] == {
+        "ks": GLOSSY_KS_FOR_EXPORT,
+        "shininess": 64.0,
+        "model": "normalized Blinn-Phong",
+    }
+
+
+#: A lobe weight for the export test (the glossy scene's 35 spheres tessellate to millions of
+#: triangles, too many to export in a test).
+GLOSSY_KS_FOR_EXPORT = 0.3
