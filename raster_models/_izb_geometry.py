@@ -4,9 +4,12 @@ rasterization of triangles over a light-space grid (all vectorized, chunked by r
 Shadow volume of a triangle under a directional light travelling along ``d`` (unit): the
 three edge planes through each edge and ``d`` (normals ``(v_j - v_i) x d`` turned to face
 the third vertex) and the triangle's own plane (unit normal turned along ``d``, pushed away
-from the light by ``epsilon`` world units). A point ``q`` is in shadow of the triangle when
-every edge plane has ``q`` on its inner side (``>= 0``: closed) and ``n . (q - v0) > eps``.
-Triangles whose plane contains ``d`` (zero projected area) cast no shadow and are culled.
+from the light by ``epsilon`` world units). Under a spot light at ``L`` the edge planes pass
+through ``L`` (normals ``(v_i - L) x (v_j - L)``): the three half-spaces meet in the cone
+from ``L`` through the triangle (one nappe: the cone spanned by ``v_i - L``). A point ``q``
+is in shadow of the triangle when every edge plane has ``q`` on its inner side (``>= 0``:
+closed) and ``n . (q - v0) > eps``. Triangles whose plane contains ``d`` (or ``L``) have
+zero projected area, cast no shadow and are culled.
 
 Conservative rasterization: a texel square ``[i, i+1] x [j, j+1]`` (texel units) overlaps a
 2D triangle exactly when it overlaps its bounding box and, for each edge, the square's corner
@@ -59,31 +62,45 @@ def scene_triangles(scene) -> np.ndarray:
     return cache["tris"]
 
 
-def shadow_volumes(tris: np.ndarray, direction, epsilon: float):
-    """Planes of each triangle's shadow volume (directional light along ``direction``).
+def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None):
+    """Planes of each triangle's shadow volume.
+
+    Directional light along ``direction`` (``position=None``): edge planes contain the edge
+    and the direction. Spot light at ``position``: edge planes contain the edge and the
+    light (the volume is the cone from the light through the triangle, beyond it).
 
     Returns
     -------
-    keep : ``(T,)`` bool, False for edge-on (culled) triangles.
+    keep : ``(T,)`` bool, False for triangles edge-on to the light (culled).
     planes : ``(K, 4, 4)`` float64 for the kept triangles: rows are three edge planes and the
         triangle plane, each ``(nx, ny, nz, c)``; a point ``q`` is shadowed when
         ``n . q + c >= 0`` for the edge rows and ``> 0`` for the triangle row (whose ``c``
-        includes ``-epsilon``; its normal is unit length).
+        includes ``-epsilon``; its normal is unit length, turned away from the light).
     """
-    d = np.asarray(direction, dtype=np.float64)
-    d = d / np.linalg.norm(d)
     v0, v1, v2 = tris[:, 0], tris[:, 1], tris[:, 2]
     nt = np.cross(v1 - v0, v2 - v0)
     norm = np.linalg.norm(nt, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         nt = nt / norm[:, None]
-    facing = nt @ d
+    if position is None:
+        d = np.asarray(direction, dtype=np.float64)
+        d = d / np.linalg.norm(d)
+        facing = nt @ d
+    else:
+        light = np.asarray(position, dtype=np.float64)
+        to_tri = (v0 + v1 + v2) / 3.0 - light
+        dist = np.linalg.norm(to_tri, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            facing = np.einsum("ij,ij->i", nt, to_tri) / dist
     keep = np.isfinite(facing) & (np.abs(facing) > EDGE_ON) & (norm > 0)
     v0, v1, v2, nt, facing = v0[keep], v1[keep], v2[keep], nt[keep], facing[keep]
     nt = nt * np.sign(facing)[:, None]
     planes = np.empty((len(v0), 4, 4))
     for row, (a, b, c) in enumerate(((v0, v1, v2), (v1, v2, v0), (v2, v0, v1))):
-        ne = np.cross(b - a, d)
+        if position is None:
+            ne = np.cross(b - a, d)
+        else:
+            ne = np.cross(a - light, b - light)
         s = np.sign(np.einsum("ij,ij->i", ne, c - a))
         ne = ne * s[:, None]
         planes[:, row, :3] = ne

@@ -86,7 +86,7 @@ TECHNIQUES: dict[str, Technique] = {
             ),
             izb.IzbParams,
             izb.run,
-            ("directional",),
+            ("directional", "spot"),
         ),
         Technique(
             "coherent-shadow-map",

@@ -2,7 +2,8 @@
 
 1. Build: every receiver of the G-buffer (valid, N.L > 0; sky and back-facing pixels are
    skipped) is inserted into a light-space grid of ``resolution``^2 texels fit tightly
-   around the receivers (orthographic, directional light): one node per (texel, receiver),
+   around the receivers (orthographic for a directional light, perspective from a spot
+   light's position along its axis): one node per (texel, receiver),
    lists sorted by texel (:mod:`._izb_lists`). ``samples=1``: the pixel-centre point.
    ``samples=32``: the 32 fixed points ``P + a dP/dx + b dP/dy`` of the pixel's footprint on
    the tangent plane (:data:`scenes.tangent32.TANGENT_POINTS_32`); the receiver is inserted
@@ -32,7 +33,10 @@ index, a visibility word per pixel: 1 byte, or 4 for the 32-bit mask).
 
 Not modelled: the paper's approximate insertion for 32 samples (here exact: each texel a
 point falls in), back-face and z culling of occluders, the second tighter light frustum of
-the public code for lists over 1024 nodes, spot and point lights. Analytic shapes (spheres,
+the public code for lists over 1024 nodes, point lights (six grids). Spot lights: the
+occluders crossing the light's plane are rasterized over the whole grid; with 32 samples
+each point's N.L and cone test are its own (the oracle's reference does the same), so a
+pixel whose centre is outside the cone may still be partly lit. Analytic shapes (spheres,
 cylinders) are tessellated as :func:`scenes.export.shape_mesh` does, so their shadows
 differ from the oracle's by the tessellation.
 
@@ -63,6 +67,7 @@ from ._fit import light_frame_for
 from ._gbuffer import trace_gbuffer
 from ._izb_geometry import conservative_fragments, scene_triangles, shadow_volumes
 from ._izb_lists import FULL_MASK, JoinStats, build_lists, join, list_nodes
+from ._light_frame import make_frame
 from ._params import param
 from ._types import ModelResult
 
@@ -78,6 +83,10 @@ GRID_MARGIN = 1e-6
 
 #: Receivers per build chunk (32 samples each: about 50 MiB of float64 coordinates a chunk).
 BUILD_CHUNK = 1 << 16
+
+#: A triangle (texel units / R) containing the whole grid ``[0, 1]^2``: what a spot light's
+#: occluder crossing the light's plane is rasterized as.
+WHOLE_GRID = np.array([[-0.5, -0.5], [3.5, -0.5], [-0.5, 3.5]])
 
 #: Samples per pixel the technique supports: the pixel centre, or FTIZB's 32 points.
 SAMPLE_COUNTS = (1, 32)
@@ -160,23 +169,59 @@ def _histogram(lengths: np.ndarray) -> dict:
     return out
 
 
+def _unlit_bits(light, gbuf, cand: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Spot light, 32 samples: per pixel of ``cand``, the bits of the points that face away
+    from the light (N.L <= 0 with the pixel's normal) or lie outside the cone: unlit before
+    any occluder, as in the oracle's tangent-plane reference."""
+    out = np.empty(len(cand), dtype=np.uint32)
+    pos = np.asarray(light.position, dtype=np.float64)
+    axis = np.asarray(light.direction, dtype=np.float64)
+    axis = axis / np.linalg.norm(axis)
+    cos_cut = np.cos(np.radians(light.cutoff_angle))
+    bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
+    for i0 in range(0, len(cand), BUILD_CHUNK):  # chunks of pixels
+        ch = cand[i0 : i0 + BUILD_CHUNK]
+        q = (
+            gbuf.position[ch, None, :]
+            + gbuf.dpdx[ch, None, :] * a[:, None]
+            + gbuf.dpdy[ch, None, :] * b[:, None]
+        )
+        wl = pos - q
+        wl /= np.linalg.norm(wl, axis=-1, keepdims=True)
+        ok = (np.einsum("nkj,nj->nk", wl, gbuf.normal[ch]) > 0) & (-(wl @ axis) > cos_cut)
+        out[i0 : i0 + len(ch)] = ((~ok).astype(np.uint64) @ bits).astype(np.uint32)
+    return out
+
+
 def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     """Run ``izb`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
     p = params or _params.make(NAME, IzbParams, kwargs)
     light = scene.light
-    if light.kind != "directional":
-        raise ModelError(f"{NAME} needs a directional light; the scene's light is a {light.kind}")
+    if light.kind not in ("directional", "spot"):
+        raise ModelError(
+            f"{NAME} needs a directional or spot light; the scene's light is a {light.kind} light"
+        )
+    spot = light.kind == "spot"
     gbuf = trace_gbuffer(scene)
     r = p.resolution
     s = p.samples
-    rec = np.flatnonzero(gbuf.receiver)
+    a, b = tangent_offsets()
+    if spot:
+        frame = make_frame(light.direction, [("world_y", (0.0, 1.0, 0.0))], light.position)
+    else:
+        frame = light_frame_for(light, scene.camera, p.light_up)
+    if spot and s == 32:
+        cand = np.flatnonzero(gbuf.valid)
+        unlit = _unlit_bits(light, gbuf, cand, a, b)
+        rec, init = cand[unlit != FULL_MASK], unlit[unlit != FULL_MASK]
+    else:
+        rec = np.flatnonzero(gbuf.receiver)
+        init = np.zeros(len(rec), dtype=np.uint32)
     m = len(rec)
-    frame = light_frame_for(light, scene.camera, p.light_up)
     rot = frame.rotation()
     pos = gbuf.position[rec]
     lc = frame.to_light(pos)
-    a, b = tangent_offsets()
     recv = {"p": pos}
     if s == 32:
         recv.update(dpdx=gbuf.dpdx[rec], dpdy=gbuf.dpdy[rec], a=a, b=b)
@@ -191,19 +236,21 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     else:
         splits, part = np.zeros(k + 1), np.zeros(0, dtype=np.int64)
 
-    def light_xy(sel):
-        """Light-frame x, y ``(n, S)`` of the samples of receivers ``sel``."""
+    def light_pts(sel):
+        """Grid x, y and light depth z ``(n, S)`` of the samples of receivers ``sel``:
+        light-frame x, y (orthographic) or x / z, y / z (perspective)."""
         if s == 1:
-            return lc[sel, 0, None], lc[sel, 1, None]
-        return tuple(
-            lc[sel, q, None] + ldx[sel, q, None] * a + ldy[sel, q, None] * b for q in (0, 1)
-        )
+            x, y, z = lc[sel, 0, None], lc[sel, 1, None], lc[sel, 2, None]
+        else:
+            x, y, z = (
+                lc[sel, q, None] + ldx[sel, q, None] * a + ldy[sel, q, None] * b for q in range(3)
+            )
+        return (x / z, y / z, z) if spot else (x, y, z)
 
-    # Bounds of each receiver's samples: exact for 1 sample, a box around the 32 points
-    # (|dP| times the largest offset) otherwise: the grids and the depth cull only need to
-    # contain the samples.
+    # Bounds of each receiver's samples (orthographic, 32 samples: a box around the points,
+    # |dP| times the largest offset; the grids and the depth cull only need to contain them).
     spread = np.zeros((m, 3))
-    if s == 32:
+    if s == 32 and not spot:
         spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
 
     boxes: list = []
@@ -215,17 +262,27 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         if len(sel) == 0:
             boxes.append(None)
             continue
-        lo = (lc[sel] - spread[sel]).min(axis=0)
-        hi = (lc[sel] + spread[sel]).max(axis=0)
+        chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
+        if spot:
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            for ch in chunks:  # chunks of receivers
+                pts = light_pts(ch)
+                lo = np.minimum(lo, [v.min() for v in pts])
+                hi = np.maximum(hi, [v.max() for v in pts])
+        else:
+            lo = (lc[sel] - spread[sel]).min(axis=0)
+            hi = (lc[sel] + spread[sel]).max(axis=0)
         box = _grid(lo[:2], hi[:2])
         boxes.append(box)
         zmax[c] = hi[2]
-        for i0 in range(0, len(sel), BUILD_CHUNK):  # chunks of receivers
-            ch = sel[i0 : i0 + BUILD_CHUNK]
-            px, py = light_xy(ch)
-            i, j = _texel(px, py, box, r)
+        for ch in chunks:  # chunks of receivers
+            gx, gy, _ = light_pts(ch)
+            i, j = _texel(gx, gy, box, r)
             nodes.append(list_nodes(c * r * r + j * r + i, ch))
-        ci, cj = _texel(lc[sel, 0], lc[sel, 1], box, r)
+        cx, cy = lc[sel, 0], lc[sel, 1]
+        if spot:
+            cx, cy = cx / lc[sel, 2], cy / lc[sel, 2]
+        ci, cj = _texel(cx, cy, box, r)
         centre_texel[sel] = c * r * r + cj * r + ci
     lists = build_lists(nodes)
     del nodes
@@ -234,15 +291,18 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
 
     # ---- traversal: rounds of triangles, each rasterized into every grid and joined
     tris = scene_triangles(scene)
-    keep, planes = shadow_volumes(tris, light.direction, p.epsilon)
+    keep, planes = shadow_volumes(
+        tris, light.direction, p.epsilon, position=light.position if spot else None
+    )
     tris = tris[keep]
     tri_lc = frame.to_light(tris.reshape(-1, 3)).reshape(-1, 3, 3)
     if s == 32:
-        state = {"mask": np.zeros(m, dtype=np.uint32), "band": np.zeros(m, dtype=np.uint32)}
+        state = {"mask": init.copy(), "band": np.zeros(m, dtype=np.uint32)}
     else:
         state = {"shadowed": np.zeros(m, dtype=bool), "band": np.zeros(m, dtype=bool)}
     stats = JoinStats()
     rounds = 0
+    crossing_count = 0
     for start in range(0, len(tris), ROUND_TRIANGLES):  # rounds of triangles
         stop = min(len(tris), start + ROUND_TRIANGLES)
         rounds += 1
@@ -256,9 +316,22 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             idx = np.flatnonzero(near)
             if len(idx) == 0:
                 continue
+            gx, gy = t_lc[idx, :, 0], t_lc[idx, :, 1]
+            crossing = np.zeros(len(idx), dtype=bool)
+            if spot:
+                # Behind the light entirely: no shadow in front of it. Crossing the light's
+                # plane: no finite projection; rasterized over the whole grid (conservative).
+                z = t_lc[idx, :, 2]
+                front = (z > 0).any(axis=1)
+                idx, gx, gy, z = idx[front], gx[front], gy[front], z[front]
+                crossing = (z <= 0).any(axis=1)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    gx, gy = gx / z, gy / z
             uv = np.empty((len(idx), 3, 2))
-            uv[..., 0] = (t_lc[idx, :, 0] - x0) / ((x1 - x0) / r)
-            uv[..., 1] = (y1 - t_lc[idx, :, 1]) / ((y1 - y0) / r)
+            uv[..., 0] = (gx - x0) / ((x1 - x0) / r)
+            uv[..., 1] = (y1 - gy) / ((y1 - y0) / r)
+            uv[crossing] = WHOLE_GRID * r
+            crossing_count += int(crossing.sum())
             for ft, fx in conservative_fragments(uv, r):  # chunks
                 join(
                     lists,
@@ -335,11 +408,13 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     diagnostics = {
         "light": light.to_json(),
         "light_frame": frame.to_json(),
+        "projection": "perspective" if spot else "orthographic",
         "receivers": int(m),
         "fully_shadowed_receivers": fully,
         "epsilon_band_receivers": int(band.sum()),
         "nodes_removed": int(stats.nodes_removed),
         "rounds": rounds,
+        "triangle_grids_crossing_light_plane": crossing_count,
         "round_triangles": ROUND_TRIANGLES,
         "triangles": int(len(keep)),
         "triangles_culled_edge_on": int((~keep).sum()),

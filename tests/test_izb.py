@@ -171,7 +171,7 @@ def test_plate_shadow_is_exact(plate):
     np.testing.assert_array_equal(ref["visibility_tangent32"].ravel()[sel], frac[sel])
 
 
-@pytest.mark.parametrize("name", ["plate", "city", "thin"])
+@pytest.mark.parametrize("name", ["plate", "city", "thin", "spot"])
 def test_one_sample_equals_the_oracle_centre_ray(name):
     s = scenes.load(name, **MEDIUM)
     g = trace_gbuffer(s, with_lit=True)
@@ -187,7 +187,7 @@ def test_one_sample_equals_the_oracle_centre_ray(name):
     assert r.diagnostics["epsilon_band_receivers"] == int(band.sum())
 
 
-@pytest.mark.parametrize("name", ["city", "thin"])
+@pytest.mark.parametrize("name", ["city", "thin", "spot"])
 def test_32_samples_equal_the_tangent_plane_reference(name):
     s = scenes.load(name, **MEDIUM)
     ch, _ = render_reference(
@@ -318,8 +318,49 @@ def test_bad_parameters_exit_2(tmp_path, capsys, pair, message):
     assert len(err) == 1 and message in err[0]
 
 
-def test_spot_light_is_refused(tmp_path, capsys):
+def test_point_light_is_refused(tmp_path, capsys):
     out = tmp_path / "m"
-    rc = main(["model", "izb", "spot", "--width", "48", "--height", "27", "--out", str(out)])
+    rc = main(["model", "izb", "point", "--width", "48", "--height", "27", "--out", str(out)])
     assert rc == 2 and not out.exists()
-    assert "directional light" in capsys.readouterr().err
+    assert "directional or spot light" in capsys.readouterr().err
+
+
+SPOT_XML = """<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="60"/>
+    <transform name="to_world"><lookat origin="3,8,8" target="3,0,0" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="160"/><integer name="height" value="90"/>
+      <rfilter type="box"/></film>
+  </sensor>
+  <emitter type="spot">
+    <transform name="to_world"><lookat origin="0,4,0" target="3,0,0" up="0,0,1"/></transform>
+    <rgb name="intensity" value="50"/>
+    <float name="cutoff_angle" value="35"/>
+  </emitter>
+  <shape type="rectangle" id="ground">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="50"/></transform>
+  </shape>
+  <shape type="cube" id="beam">
+    <transform name="to_world">
+      <scale x="10" y="0.2" z="0.2"/><translate x="0" y="2" z="0.4"/>
+    </transform>
+  </shape>
+</scene>
+"""
+
+
+def test_spot_light_occluder_crossing_the_light_plane(tmp_path):
+    """A beam from behind the spot light to in front of it: no finite projection, so it is
+    rasterized over the whole perspective grid; its shadow is still exact."""
+    path = tmp_path / "spot.xml"
+    path.write_text(SPOT_XML)
+    s = scenes.load(str(path))
+    g = trace_gbuffer(s, with_lit=True)
+    r = rm.run("izb", s)
+    assert r.diagnostics["projection"] == "perspective"
+    assert r.diagnostics["triangle_grids_crossing_light_plane"] > 0
+    vis = r.outputs["visibility"].ravel()
+    band = r.outputs["epsilon_band"].ravel() > 0
+    scored = g.receiver & ~band
+    assert (~g.lit[scored]).sum() > 50  # the beam's shadow on the ground
+    assert ((vis[scored] == 1.0) == g.lit[scored]).mean() >= CENTRE_AGREEMENT
