@@ -8,6 +8,7 @@ import json
 
 import numpy as np
 import pytest
+from test_models_xml import box, ground, quad, write_scene
 
 import raster_models as rm
 import scenes
@@ -364,3 +365,40 @@ def test_spot_light_occluder_crossing_the_light_plane(tmp_path):
     scored = g.receiver & ~band
     assert (~g.lit[scored]).sum() > 50  # the beam's shadow on the ground
     assert ((vis[scored] == 1.0) == g.lit[scored]).mean() >= CENTRE_AGREEMENT
+
+
+def _xml_scene(tmp_path, name, **kw):
+    shapes = kw.pop("shapes", [ground(40.0), box((-1, 0, 2), (1, 2, 4))])
+    kw = {"origin": (0, 3, -6), "target": (0, 0, 4), **kw}
+    return scenes.load(str(write_scene(tmp_path, name=name, shapes=shapes, **kw)))
+
+
+def test_all_sky_frame_does_no_work(tmp_path):
+    s = _xml_scene(tmp_path, "sky", origin=(0, 2, 0), target=(0, 10, 0.01), up=(0, 0, 1))
+    for samples in (1, 32):
+        r = rm.run("izb", s, samples=samples, cascades=2)
+        assert (r.outputs["visibility"] == 1.0).all()
+        assert (r.outputs["cascade"] == -1).all()
+        assert r.diagnostics["receivers"] == 0 and r.cost["nodes"] == 0
+        assert r.cost["sample_triangle_tests"] == 0 and r.cost["f_ls"] == 0
+        assert all(np.isfinite(v) for v in r.cost.values() if not isinstance(v, dict))
+
+
+def test_scene_far_from_the_origin(tmp_path):
+    """1e5 units from the origin float32 G-buffer positions are 8 mm apart, more than the
+    epsilon: the ground (y = 0) and plate (y = 1.5) are exact in y, so there is no acne and
+    the shadow lands where it does at the origin, up to that quantization."""
+    vis = {}
+    for offset in (0.0, 1e5):
+        o = np.array([offset, 0.0, offset])
+        s = _xml_scene(
+            tmp_path,
+            f"offset{int(offset)}",
+            origin=o + (0, 6, 7),
+            target=o + (0.8, 0, 0),
+            sun=(0.55, -1.0, 0.2),
+            shapes=[quad(o, (15, 0, 0), (0, 0, -15)), quad(o + (0, 1.5, 0), (1, 0, 0), (0, 0, -1))],
+        )
+        vis[offset] = rm.run("izb", s).outputs["visibility"]
+    assert (vis[0.0] == 0).sum() > 100  # the plate's shadow
+    assert (vis[0.0] != vis[1e5]).mean() < 0.01
