@@ -129,7 +129,8 @@ class IzbParams:
         "camera_right",
         source="Intel SDSM sample alignLightToFrustum = 1 (the grids reuse SDSM's tight "
         "light-space bounds)",
-        help="light frame up: camera_right (camera Z -> light X) or world (+Y)",
+        help="directional lights: light frame up, camera_right (camera Z -> light X) or world "
+        "(+Y); a spot light's grid uses world +Y",
         choices=("world", "camera_right"),
     )
 
