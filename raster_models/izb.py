@@ -239,14 +239,23 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
 
     def light_pts(sel):
         """Grid x, y and light depth z ``(n, S)`` of the samples of receivers ``sel``:
-        light-frame x, y (orthographic) or x / z, y / z (perspective)."""
+        light-frame x, y (orthographic) or x / z, y / z (perspective). A spot light's
+        samples that no light reaches (set in ``init``: outside the cone, possibly behind
+        the light) take the place of the receiver's first lit sample: never tested, they
+        must not stretch the grid or reach a texel of their own."""
         if s == 1:
             x, y, z = lc[sel, 0, None], lc[sel, 1, None], lc[sel, 2, None]
         else:
             x, y, z = (
                 lc[sel, q, None] + ldx[sel, q, None] * a + ldy[sel, q, None] * b for q in range(3)
             )
-        return (x / z, y / z, z) if spot else (x, y, z)
+        if not spot:
+            return x, y, z
+        if s == 32:
+            ok = ((init[sel, None] >> np.arange(32, dtype=np.uint32)) & 1) == 0
+            first = np.argmax(ok, axis=1)[:, None]
+            x, y, z = (np.where(ok, v, np.take_along_axis(v, first, axis=1)) for v in (x, y, z))
+        return x / z, y / z, z
 
     # Bounds of each receiver's samples (orthographic, 32 samples: a box around the points,
     # |dP| times the largest offset; the grids and the depth cull only need to contain them).
@@ -280,9 +289,11 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             gx, gy, _ = light_pts(ch)
             i, j = _texel(gx, gy, box, r)
             nodes.append(list_nodes(c * r * r + j * r + i, ch))
-        cx, cy = lc[sel, 0], lc[sel, 1]
+        cx, cy, cz = lc[sel, 0], lc[sel, 1], lc[sel, 2]
         if spot:
-            cx, cy = cx / lc[sel, 2], cy / lc[sel, 2]
+            # the centre may lie outside the cone (32 samples): its texel is diagnostic only
+            cz = np.maximum(cz, 1e-300)
+            cx, cy = cx / cz, cy / cz
         ci, cj = _texel(cx, cy, box, r)
         centre_texel[sel] = c * r * r + cj * r + ci
     lists = build_lists(nodes)

@@ -365,6 +365,14 @@ def test_spot_light_occluder_crossing_the_light_plane(tmp_path):
     scored = g.receiver & ~band
     assert (~g.lit[scored]).sum() > 50  # the beam's shadow on the ground
     assert ((vis[scored] == 1.0) == g.lit[scored]).mean() >= CENTRE_AGREEMENT
+    # 32 points, some outside the cone: the tangent-plane reference again
+    r32 = rm.run("izb", s, samples=32)
+    ref, _ = render_reference(s, ReferenceSettings(spp=1, channels=("tangent32",)), quiet=True)
+    band = r32.outputs["epsilon_band"] > 0
+    diff = np.abs(r32.outputs["visibility"] - ref["visibility_tangent32"])[~band]
+    assert (diff == 0).mean() >= TANGENT_IDENTICAL and diff.max() <= ONE_POINT
+    partial_cone = (ref["visibility_tangent32"] > 0) & ~g.receiver.reshape(s.height, s.width)
+    assert partial_cone.sum() > 0  # pixels whose centre is outside the cone, partly lit
 
 
 def _xml_scene(tmp_path, name, **kw):
