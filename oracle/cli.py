@@ -272,6 +272,22 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--no-adaptive", action="store_true", help="skip the adaptive rendering")
     p.add_argument("--quiet", action="store_true")
     p.add_argument("--out", type=_path, default=Path("out/converge"), help="output folder")
+
+    p = sub.add_parser("extremes", help="every model x every numerical extreme vs the oracle")
+    p.add_argument("--quick", action="store_true", help="the main job's size (64x36, 8192^2)")
+    p.add_argument("--huge", type=_positive_int, default=None, help="huge map size (default 16384)")
+    p.add_argument("--cache-dir", type=_path, default=None)
+    p.add_argument("--no-cache", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out", type=_path, default=Path("out/extremes"), help="output folder")
+
+    p = sub.add_parser("claims", help="measure the seed documents' headline claims")
+    p.add_argument("--quick", action="store_true", help="the main job's size (160x90, 16 spp)")
+    p.add_argument("--only", default=None, help="comma-separated claim ids (default: all)")
+    p.add_argument("--cache-dir", type=_path, default=None)
+    p.add_argument("--no-cache", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--out", type=_path, default=Path("out/claims"), help="output folder")
     return parser
 
 
@@ -575,6 +591,56 @@ def cmd_converge(args) -> int:
     return 0
 
 
+def cmd_extremes(args) -> int:
+    from .extremes import run_extremes
+
+    if args.huge is not None and not 8 <= args.huge <= 16384:
+        raise CliError(f"--huge must be in [8, 16384], got {args.huge}")
+    _check_out(args.out)
+    data = run_extremes(
+        args.out,
+        cache=_cache(args),
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+        quick=args.quick,
+        huge=args.huge,
+    )
+    cells = data["cells"]
+    print(
+        f"extremes: {len(cells)} cells, {len(data['unexpected'])} not as documented"
+        + (f" ({', '.join(data['unexpected'])})" if data["unexpected"] else "")
+    )
+    print(f"extremes: {args.out / 'extremes.json'} and {args.out / 'extremes.html'}")
+    return 0
+
+
+def cmd_claims(args) -> int:
+    from .claims import CLAIMS, run_claims
+
+    only = None
+    if args.only is not None:
+        only = [c.strip() for c in args.only.split(",") if c.strip()]
+        known = [c.id for c in CLAIMS]
+        unknown = [c for c in only if c not in known]
+        if unknown or not only:
+            raise CliError(
+                f"--only: unknown claim(s) {', '.join(unknown) or '(none given)'}; choose from "
+                f"{', '.join(known)}"
+            )
+    _check_out(args.out)
+    data = run_claims(
+        args.out,
+        cache=_cache(args),
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+        quick=args.quick,
+        only=only,
+    )
+    print("claims: " + ", ".join(f"{k} {v}" for k, v in data["counts"].items()))
+    print(f"claims: {args.out / 'claims.json'} and {args.out / 'claims.html'}")
+    return 0
+
+
 COMMANDS = {
     "doctor": cmd_doctor,
     "scenes": cmd_scenes,
@@ -589,6 +655,8 @@ COMMANDS = {
     "sweep": lambda args: _sweep_cli().cmd_sweep(args),
     "tune": lambda args: _sweep_cli().cmd_tune(args),
     "converge": cmd_converge,
+    "extremes": cmd_extremes,
+    "claims": cmd_claims,
     "aa-memory": lambda args: _aa_memory(args),
 }
 

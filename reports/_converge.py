@@ -14,10 +14,17 @@ from markupsafe import Markup, escape
 
 from ._format import fmt_number
 
-__all__ = ["loglog_svg", "page", "render_converge", "render_converge_page"]
+__all__ = ["STYLES", "loglog_svg", "page", "render_converge", "render_converge_page"]
 
 _FONT = 'font-family="system-ui, sans-serif" font-size="11"'
 _COLOURS = ("#2563eb", "#dc2626", "#16a34a", "#9333ea", "#ea580c", "#0891b2")
+#: Inline cell styles (the fragments keep their colours inside another page's CSS).
+STYLES = {
+    "ok": "background:#dcfce7",
+    "bad": "background:#fee2e2",
+    "part": "background:#fef9c3",
+    "na": "color:#64748b",
+}
 _CSS = """body{font-family:system-ui,sans-serif;margin:2em;color:#0f172a;max-width:1100px}
 table{border-collapse:collapse;font-size:13px;margin:1em 0}
 td,th{border:1px solid #e2e8f0;padding:3px 8px;text-align:right;white-space:nowrap}

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 from markupsafe import escape
 
-from ._converge import page
+from ._converge import STYLES, page
 from ._format import fmt_number
 
 __all__ = ["render_extremes", "render_extremes_page"]
@@ -60,7 +60,10 @@ def render_extremes(data: Mapping) -> str:
             tip = f"expected: {c.get('expected')}; {c.get('reason') or ''}"
             if c.get("message"):
                 tip += f"; {c['message']}"
-            out.append(f'<td class="{css}" title="{escape(tip)}">{escape(_cell_text(c))}</td>')
+            out.append(
+                f'<td class="{css}" style="{STYLES[css]}" title="{escape(tip)}">'
+                f"{escape(_cell_text(c))}</td>"
+            )
         out.append("</tr>")
     out.append("</table><h3>Extremes</h3><ul>")
     for ext, info in data.get("extremes", {}).items():
