@@ -225,6 +225,19 @@ def test_model_follows_the_orbiting_sun():
     assert not np.array_equal(runs[0].outputs["visibility"], runs[1].outputs["visibility"])
 
 
+def test_model_follows_the_moving_point_light():
+    s = scenes.load("point", width=48, height=27, light_path="moving-point", frame=2)
+    base = scenes.load("point", width=48, height=27)
+    direct = replace(base, lights=[s.light])
+    kw = {"directions": 256, "resolution": 64, "compression": False}
+    a = rm.run("coherent-shadow-map", s, **kw).outputs
+    b = rm.run("coherent-shadow-map", direct, **kw).outputs
+    c = rm.run("coherent-shadow-map", base, **kw).outputs
+    assert np.array_equal(a["visibility"], b["visibility"])
+    assert np.array_equal(a["map_id"], b["map_id"])
+    assert not np.array_equal(a["map_id"], c["map_id"])
+
+
 def test_point_light_uses_one_map_per_direction():
     s = scenes.load("point", width=48, height=27)
     res = rm.run("coherent-shadow-map", s, directions=256, resolution=64, compression=False)
