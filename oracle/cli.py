@@ -274,7 +274,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=_path, default=Path("out/converge"), help="output folder")
 
     p = sub.add_parser("extremes", help="every model x every numerical extreme vs the oracle")
-    p.add_argument("--quick", action="store_true", help="the main job's size (64x36, 8192^2)")
+    p.add_argument("--quick", action="store_true", help="the main job's size (64x36, 4096^2)")
     p.add_argument("--huge", type=_positive_int, default=None, help="huge map size (default 16384)")
     p.add_argument("--cache-dir", type=_path, default=None)
     p.add_argument("--no-cache", action="store_true")

@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "DEFAULTS",
+    "DEFAULT_AA_EXPECTATION",
     "DEFAULT_EXPECTATION",
     "EXPECTATIONS",
     "EXTREMES",
@@ -40,6 +42,9 @@ __all__ = [
 ]
 
 BASE_SCENE = "plate"
+#: Base scene of each technique family: shadow models get the plate's clean hard shadow,
+#: anti-aliasing models the Siemens star's edges against the sky (coverage to get wrong).
+BASE_SCENES = {"shadow": "plate", "aa": "star"}
 #: Offset of the far-from-the-origin extreme (float32 positions there are 7.8 mm apart).
 FAR_OFFSET = 1e5
 #: Elevation of the grazing light above the ground, degrees.
@@ -47,6 +52,9 @@ GRAZING_DEG = 2.0
 #: Peak resident bytes per shadow-map texel of the current models, measured: a 16384^2
 #: ``shadow-map`` peaks at 8.8 GB (float64 hit depths and masks beside the float32 map).
 HUGE_BYTES_PER_TEXEL = 33
+#: Huge-map size in quick mode (the main job): 8192^2 cost 2 of the 4 minutes of extremes and
+#: claims together on 2 loaded cores (izb's 8192^2 grid alone 60 s).
+QUICK_HUGE = 4096
 #: Largest shadow-map resolution a cell uses unless its extreme sets one (fast, and fine
 #: enough for the plate's 2-unit caster); a technique whose default is lower keeps it.
 CELL_MAP = 512
@@ -217,7 +225,7 @@ EXTREMES: dict[str, Extreme] = {
         Extreme("tiny_map", "8x8 shadow maps", None, {"resolution": 8}, ("resolution",)),
         Extreme(
             "huge_map",
-            "16384^2 shadow map (one partition; 8192^2 in quick mode)",
+            "16384^2 shadow map (one partition; 4096^2 in quick mode)",
             None,
             {"resolution": 16384, "partitions": 1},
             ("resolution",),
@@ -225,12 +233,18 @@ EXTREMES: dict[str, Extreme] = {
     )
 }
 
-#: The default expectation of a cell without an override.
+#: The default expectation of a shadow model's cell without an override.
 DEFAULT_EXPECTATION = Expectation(
     0.05,
-    reason="default: finite, and at most 0.05 error (misclassified receivers at <= 512^2 "
-    "maps, or coverage RMSE for anti-aliasing models)",
+    reason="default: finite, and at most 5% of receivers misclassified at <= 512^2 maps",
 )
+#: The default expectation of an anti-aliasing model's cell without an override.
+DEFAULT_AA_EXPECTATION = Expectation(
+    0.3,
+    reason="default (anti-aliasing): finite, and coverage RMSE on the star no worse than one "
+    "sample per pixel (the 1x straight-edge floor is 0.25 RMS an edge pixel, TECHNIQUES.md)",
+)
+DEFAULTS = {"shadow": DEFAULT_EXPECTATION, "aa": DEFAULT_AA_EXPECTATION}
 _ACNE = (
     "acne: a constant bias of 0.005 in normalized light depth cannot cover the depth slope "
     "of a receiver lit at 2 degrees (false shadow; slope-scaled, receiver-plane or normal-offset "
@@ -335,6 +349,23 @@ EXPECTATIONS: list[tuple[str, str, Expectation]] = [
             "quantization: a few percent of receivers",
         ),
     ),
+    *(
+        (
+            tech,
+            "*",
+            Expectation(
+                0.13 if tech == "ssaa" else 0.1,
+                reason=f"{n} samples on the star's edges: about the {n}x straight-edge floor "
+                f"({floor} RMS an edge pixel, TECHNIQUES.md) plus the 16-spp oracle's noise",
+            ),
+        )
+        for tech, n, floor in (
+            ("ssaa", 4, 0.092),
+            ("msaa", 8, 0.057),
+            ("acaa", 8, 0.057),
+            ("agaa", 8, 0.057),
+        )
+    ),
     (
         "izb",
         "*",
@@ -347,13 +378,13 @@ EXPECTATIONS: list[tuple[str, str, Expectation]] = [
 ]
 
 
-def expectation(technique: str, extreme: str) -> Expectation:
+def expectation(technique: str, extreme: str, family: str = "shadow") -> Expectation:
     """The expectation of a cell: the first override whose patterns match, else the
-    default."""
+    family's default."""
     for pattern, ext, exp in EXPECTATIONS:
         if fnmatch.fnmatchcase(extreme, ext) and fnmatch.fnmatchcase(technique, pattern):
             return exp
-    return DEFAULT_EXPECTATION
+    return DEFAULTS.get(family, DEFAULT_EXPECTATION)
 
 
 # ----------------------------------------------------------------------- running
@@ -461,8 +492,8 @@ def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> di
     from raster_models import ModelError
     from raster_models import run as run_model
 
-    exp = expectation(technique.name, extreme.name)
     family = _family(technique)
+    exp = expectation(technique.name, extreme.name, family)
     metric = "coverage_rmse" if family == "aa" else "misclassified_fraction"
     cell = {
         "technique": technique.name,
@@ -542,7 +573,8 @@ def run_extremes(
 ) -> dict:
     """The matrix of every registered model x every extreme; writes ``out/extremes.json``.
 
-    ``quick``: 64x36 pixels, 16-spp oracle, an 8192^2 huge map (the main job's budget);
+    ``quick``: 64x36 pixels, 16-spp oracle, a 4096^2 huge map (the main job's budget:
+    8192^2 alone took 2 minutes of the 4 on 2 loaded cores);
     otherwise 160x90, 64 spp and 16384^2 (refused when its measured peak memory exceeds half
     the available memory).
     """
@@ -550,23 +582,30 @@ def run_extremes(
 
     say = echo or (lambda *_: None)
     width, height, spp = (64, 36, 16) if quick else (160, 90, 64)
-    huge = int(huge or (8192 if quick else 16384))
+    huge = int(huge or (QUICK_HUGE if quick else 16384))
     techs = [raster_models.TECHNIQUES[t] for t in (techniques or raster_models.TECHNIQUES)]
     names = extremes or list(EXTREMES)
     t0 = time.perf_counter()
     cells, scenes_info = [], {}
+    families = sorted({_family(t) for t in techs})
     for name in names:
         ext = EXTREMES[name]
-        loaded = load_extreme(ext, width=width, height=height)
-        ref = _reference(loaded, spp=spp, cache=cache, quiet=quiet)
-        scenes_info[name] = {
-            "description": ext.description,
-            "scene": loaded.name,
-            "light": loaded.light.kind,
-            "params": ext.params,
-            "sky_fraction": float(np.mean(ref["id"] < 0)),
-        }
-        row = [run_cell(t, ext, loaded, ref, huge=huge) for t in techs]
+        row = []
+        scenes_info[name] = {"description": ext.description, "params": ext.params, "scenes": {}}
+        for fam in families:
+            base = BASE_SCENES.get(fam, BASE_SCENE)
+            loaded = load_extreme(ext, width=width, height=height, base=base)
+            ref = _reference(loaded, spp=spp, cache=cache, quiet=quiet)
+            scenes_info[name]["scenes"][fam] = {
+                "scene": loaded.name,
+                "light": loaded.light.kind,
+                "sky_fraction": float(np.mean(ref["id"] < 0)),
+            }
+            row += [
+                dict(run_cell(t, ext, loaded, ref, huge=huge), scene=loaded.name)
+                for t in techs
+                if _family(t) == fam
+            ]
         cells.extend(row)
         bad = [c["technique"] for c in row if not c["outcome_met"]]
         say(f"extremes {name:<22} {len(row)} models" + (f"; unexpected: {bad}" if bad else ""))
@@ -578,6 +617,7 @@ def run_extremes(
         "cell_map": CELL_MAP,
         "huge_map": huge,
         "base_scene": BASE_SCENE,
+        "base_scenes": dict(BASE_SCENES),
         "extremes": scenes_info,
         "techniques": [t.name for t in techs],
         "cells": cells,

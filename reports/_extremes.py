@@ -33,10 +33,14 @@ def render_extremes(data: Mapping) -> str:
     cells = {(c["extreme"], c["technique"]): c for c in data.get("cells", [])}
     extremes = list(data.get("extremes", {}))
     res = data.get("resolution", ["?", "?"])
+    bases = ", ".join(
+        f"{scene} for {fam}"
+        for fam, scene in (data.get("base_scenes") or {"": data.get("base_scene", "")}).items()
+    )
     out = [
         "<h2>Numerical extremes</h2>",
-        f"<p>Every model x every extreme on the {escape(str(data.get('base_scene', '')))} "
-        f"scene at {escape(str(res[0]))}x{escape(str(res[1]))} px against a "
+        f"<p>Every model x every extreme (base scenes: {escape(bases)}) "
+        f"at {escape(str(res[0]))}x{escape(str(res[1]))} px against a "
         f"{escape(str(data.get('reference_spp', '')))}-spp oracle; maps at most "
         f"{escape(str(data.get('cell_map', '')))}^2 (huge: "
         f"{escape(str(data.get('huge_map', '')))}^2). A cell is the error (misclassified "
