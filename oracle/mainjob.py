@@ -71,14 +71,24 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(f"{type(exc).__name__}: {exc}".split())
 
 
-def _section(entry, out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict | None:
-    """Run one optional section; its report record, or None when its modules are absent."""
-    sid, title, run_mod, run_fn, render_mod, render_fn = entry
+def _load_section(entry):
+    """``(run, render)`` of a section, or None when its modules or functions are absent."""
+    _, _, run_mod, run_fn, render_mod, render_fn = entry
     try:
         run = getattr(importlib.import_module(run_mod), run_fn)
         render = getattr(importlib.import_module(render_mod), render_fn)
     except (ImportError, AttributeError):
         return None
+    return run, render
+
+
+def _section(entry, out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict | None:
+    """Run one optional section; its report record, or None when its modules are absent."""
+    sid, title = entry[:2]
+    found = _load_section(entry)
+    if found is None:
+        return None
+    run, render = found
     try:
         data = run(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
         html = render(data)

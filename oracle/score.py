@@ -243,6 +243,7 @@ def score(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     aa_samples: int | None = None,
+    floor_cache: dict | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
@@ -255,6 +256,8 @@ def score(
     frames : score ``frames`` frames of ``camera_path`` (None: the scene's own camera only).
     aa_samples : samples per pixel of an anti-aliasing technique: picks the straight-edge
         coverage floor ``coverage_floor_rms`` (None: no floor).
+    floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
+        the references and scoring options only, so it is computed once per reference.
     """
     if channel not in _REF_GROUPS:
         raise ScoreError(f"channel must be 'visibility', 'color' or 'coverage', got {channel!r}")
@@ -292,14 +295,21 @@ def score(
         floor = None
         if k == 0:
             ref_meta = ref.meta
-            ref2 = get_reference(frame_scene, noise_settings, cache=cache, quiet=quiet)
-            ref2_ch = ref2.channels()
-            second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
-            # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by
-            # noise of A's variance (B itself would overstate the floor by about sqrt(2))
-            exact = M.exact_surrogate(ref_img, second)
-            floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
-            floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+            floor_key = (ref_meta.get("cache_key"), channel, flip_mode, ppd, spp, aa_samples)
+            cached = floor_cache.get(floor_key) if floor_cache is not None else None
+            if cached is not None and floor_key[0] is not None:
+                floor = dict(cached)
+            else:
+                ref2 = get_reference(frame_scene, noise_settings, cache=cache, quiet=quiet)
+                ref2_ch = ref2.channels()
+                second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
+                # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by
+                # noise of A's variance (B itself would overstate the floor by about sqrt(2))
+                exact = M.exact_surrogate(ref_img, second)
+                floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
+                floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+                if floor_cache is not None and floor_key[0] is not None:
+                    floor_cache[floor_key] = dict(floor)
         result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
         result.reference_folders.append(ref.folder)
     per_frame = [f.metrics for f in result.frames]

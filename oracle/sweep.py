@@ -41,6 +41,8 @@ CASE_METRICS_EXTRA = ("noise_floor", "receiver_count")
 
 _SCENES: dict = {}
 _BACKEND: list = []
+#: Noise floors computed in this process, by reference (``oracle.score.score``'s cache).
+_FLOORS: dict = {}
 
 
 def _family(technique: str) -> str:
@@ -132,7 +134,9 @@ def evaluate_case(loaded, technique: str, params: dict, *, spp: int, seed: int, 
     if family == "aa":
         model_candidate(technique, params, channel="color", runs=runs)(loaded, 0)
         aa_samples = _sample_count(runs[0])
-    kw = dict(spp=spp, seed=seed, cache=cache, quiet=True, aa_samples=aa_samples)
+    kw = dict(
+        spp=spp, seed=seed, cache=cache, quiet=True, aa_samples=aa_samples, floor_cache=_FLOORS
+    )
     channel = FAMILY_CHANNELS.get(family, ("visibility",))[0]
     result = score(
         loaded,
@@ -387,7 +391,7 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet):
             n_workers=workers or _default_workers(),
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",  # any free port: several sweeps may run at once
             silence_logs=logging.ERROR,
         )
         client = Client(cluster)

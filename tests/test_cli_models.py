@@ -99,18 +99,6 @@ def test_score_technique_records_cost(tmp_path):
     assert (out / "report.html").is_file()
 
 
-def test_main_job_ends_with_a_combined_report(tmp_path, capsys):
-    out = tmp_path / "main"
-    assert main(["main", "--scenes", "plate,spot", "--spp", "4", "--out", str(out), "--quiet"]) == 0
-    printed = capsys.readouterr().out
-    assert str((out / "report.html").resolve()) in printed
-    report = json.loads((out / "report.json").read_text())
-    techniques = {c["technique"] for c in report["cases"]}
-    assert techniques == {"shadow-map", "csm", "sdsm"}
-    assert len(report["cases"]) == 2 * 3 + 2  # the spot light: shadow-map only
-    assert report["tradeoff"] is not None
-
-
 def test_bench_commands_print_ratios(capsys):
     assert main(["bench", "oracle", "--width", "48", "--height", "27", "--spp", "4"]) == 0
     fig = json.loads(capsys.readouterr().out)
