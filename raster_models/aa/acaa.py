@@ -93,6 +93,12 @@ def normalized_depth(camera, view_depth) -> np.ndarray:
     return (z - n) / (f - n)
 
 
+def _stored_depth(camera, view_depth, valid, fmt: str) -> np.ndarray:
+    """Depth as stored in ``fmt`` where ``valid``; 2 (behind everything) elsewhere."""
+    z = normalized_depth(camera, np.where(valid, view_depth, camera.far))
+    return np.where(valid, _depth.quantize(z, fmt), 2.0)
+
+
 def rgba8_accumulate(values: np.ndarray, slot: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Blend ``values`` (F, 3) additively into ``target`` (P, 3) at ``slot`` (F,) pixels, one
     blend at a time per pixel (fragments of one pixel in order), rounding the saturated sum
@@ -142,9 +148,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     cam = scene.camera
     buf = trace_samples(scene, offsets)
     valid = buf["valid"]
-    stored = np.where(
-        valid, _depth.quantize(normalized_depth(cam, buf["depth"]), p.depth_format), 2.0
-    )
+    stored = _stored_depth(cam, buf["depth"], valid, p.depth_format)
     # fragment-samples: (pixel, sample, shape, prim) passing LEQUAL
     pv, sv = np.nonzero(valid)
     ent = [(pv, sv, buf["shape"][pv, sv].astype(np.int64), buf["prim"][pv, sv])]
@@ -157,7 +161,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
             break
         hk = trace_samples(scene, offsets, mi_scene=sub, pixels=any_valid)
         extra_rays += hk["valid"].size
-        zk = _depth.quantize(normalized_depth(cam, hk["depth"]), p.depth_format)
+        zk = _stored_depth(cam, hk["depth"], hk["valid"], p.depth_format)
         v = valid[any_valid]
         tie = hk["valid"] & v & (buf["shape"][any_valid] != k) & (zk <= stored[any_valid])
         ti, ts = np.nonzero(tie)
