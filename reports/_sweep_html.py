@@ -13,7 +13,7 @@ from markupsafe import Markup, escape
 from ._format import fmt_cost, fmt_number, fmt_value
 from ._svg import _axis, scatter_svg
 
-__all__ = ["render_sweep_html", "sensitivity_svg"]
+__all__ = ["front_svg", "render_sweep_html", "sensitivity_svg"]
 
 _FONT = 'font-family="system-ui, sans-serif" font-size="11"'
 #: Smallest max/min ratio of a positive numeric parameter drawn on a log axis.
@@ -28,6 +28,9 @@ table.sweep td, table.sweep th { padding: 3px 8px; border-bottom: 1px solid #e2e
 table.sweep td.num, table.sweep th.num { text-align: right; }
 table.sweep tr.failed td { background: #fee2e2; }
 .nowrap { white-space: nowrap; }
+.legend { display: flex; flex-wrap: wrap; gap: 2px 12px; font-size: 12px; color: #334155; }
+.legend .swatch { display: inline-block; width: 10px; height: 10px; border-radius: 50%;
+  margin-right: 4px; vertical-align: -1px; }
 """
 
 
@@ -126,6 +129,48 @@ def sensitivity_svg(item: Mapping) -> Markup:
     return Markup("".join(parts))
 
 
+#: Colours of the techniques of one plot, in order of appearance (Tableau 10).
+PALETTE = (
+    "#4e79a7",
+    "#f28e2b",
+    "#e15759",
+    "#76b7b2",
+    "#59a14f",
+    "#edc948",
+    "#b07aa1",
+    "#ff9da7",
+    "#9c755f",
+    "#bab0ac",
+)
+
+
+def front_svg(front: Mapping) -> Markup:
+    """Cost against error of one family and scene: the front as a staircase (as
+    :func:`reports._svg.scatter_svg` draws it), each technique in its own colour with a
+    legend; points on the front are filled, dominated ones hollow."""
+    base = str(scatter_svg(front, cost_key=front["cost_key"], metric=front["metric"]))
+    techs = list(dict.fromkeys(p["technique"] for p in front["points"]))
+    colour = {t: PALETTE[i % len(PALETTE)] for i, t in enumerate(techs)}
+    # recolour each point: scatter_svg draws them in order, one <circle class="point..."> each
+    parts = base.split('<circle class="point')
+    out = [parts[0]]
+    for p, rest in zip(front["points"], parts[1:], strict=True):
+        c = colour[p["technique"]]
+        fill = c if p["on_front"] else "#ffffff"
+        rest = rest.replace('fill="#2563eb"', f'fill="{fill}"', 1)
+        rest = rest.replace('fill="#ffffff"', f'fill="{fill}"', 1)
+        rest = rest.replace('stroke="#1e3a8a"', f'stroke="{c}"', 1)
+        rest = rest.replace('stroke="#94a3b8"', f'stroke="{c}"', 1)
+        out.append(rest)
+    svg = '<circle class="point'.join(out)
+    legend = "".join(
+        f'<span class="legend-item"><span class="swatch" style="background:{colour[t]}">'
+        f"</span>{escape(t)}</span>"
+        for t in techs
+    )
+    return Markup(f'{svg}<div class="legend">{legend}</div>')
+
+
 def _params_text(params: Mapping) -> str:
     return ", ".join(f"{k}={fmt_value(v)}" for k, v in params.items())
 
@@ -206,7 +251,7 @@ def render_sweep_html(record: Mapping, *, extra_sections: Sequence[Mapping] = ()
         for f in g["fronts"]:
             n_front = len(f["front"])
             figs.append(
-                f"<figure>{scatter_svg(f, cost_key=f['cost_key'], metric=f['metric'])}"
+                f"<figure>{front_svg(f)}"
                 f"<figcaption>{escape(f['metric'])} against {escape(f['cost_key'])}: "
                 f"{n_front} of {len(f['points'])} cases on the front</figcaption></figure>"
             )

@@ -106,3 +106,20 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
     assert "RuntimeError: boom" in html
     assert json.loads(out.with_suffix(".json").read_text())["summary"]["n_failed"] == 1
     assert "http://" not in html.replace("http://www.w3.org/2000/svg", "")
+
+
+def test_front_plot_colours_each_technique_and_fills_the_front():
+    from reports._sweep_html import PALETTE, front_svg
+
+    rec = sweep_record(ROWS, title="t")
+    plate = next(g for g in rec["groups"] if g["scene"] == "plate")
+    svg = str(front_svg(plate["fronts"][0]))
+    circles = svg.split('<circle class="point')[1:]
+    assert len(circles) == 6
+    # shadow-map first (blue), csm second (orange); on-front points filled, others hollow
+    points = plate["fronts"][0]["points"]
+    for p, c in zip(points, circles, strict=True):
+        colour = PALETTE[0] if p["technique"] == "shadow-map" else PALETTE[1]
+        assert f'stroke="{colour}"' in c
+        assert (f'fill="{colour}"' in c) == p["on_front"]
+    assert '<div class="legend">' in svg and "csm" in svg
