@@ -28,6 +28,7 @@ from .sweepstore import SweepStore, case_key
 
 __all__ = [
     "CASE_METRICS_EXTRA",
+    "SweepError",
     "evaluate_case",
     "reference_jobs",
     "run_case",
@@ -39,10 +40,17 @@ __all__ = [
 #: only: the same spec gives the same ``metrics`` bytes; times go to ``wall_seconds``).
 CASE_METRICS_EXTRA = ("noise_floor", "receiver_count")
 
+#: Seconds to wait for a ``--scheduler`` to answer.
+SCHEDULER_TIMEOUT_S = 20
+
 _SCENES: dict = {}
 _BACKEND: list = []
 #: Noise floors computed in this process, by reference (``oracle.score.score``'s cache).
 _FLOORS: dict = {}
+
+
+class SweepError(ValueError):
+    """A sweep cannot run (no scheduler at the given address)."""
 
 
 def _family(technique: str) -> str:
@@ -396,7 +404,10 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet):
         )
         client = Client(cluster)
     else:
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SweepError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
     try:
         refs = _unique_references(todo)
         summary["references"] = len(refs)

@@ -15,11 +15,12 @@ __all__ = ["add_parsers", "cmd_sweep", "cmd_tune", "known_errors", "sweep_report
 
 def known_errors() -> tuple[type[BaseException], ...]:
     """Errors of the sweep commands that mean bad input (one line, exit 2)."""
+    from .sweep import SweepError
     from .sweepspec import SpecError
     from .sweepstore import StoreError
     from .tune import TuneError
 
-    return (SpecError, StoreError, TuneError)
+    return (SpecError, StoreError, SweepError, TuneError)
 
 
 def add_parsers(sub) -> None:

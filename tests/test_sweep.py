@@ -176,6 +176,15 @@ def test_bad_spec_is_one_line_exit_2_nothing_written(tmp_path, capsys, name):
     assert not out.exists()
 
 
+def test_unreachable_scheduler_exit_2(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("oracle.sweep.SCHEDULER_TIMEOUT_S", 1)
+    spec = _spec(tmp_path, _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n')
+    args = ["sweep", str(spec), "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "o")]
+    assert main([*args, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--scheduler tcp://127.0.0.1:1: cannot connect" in err
+
+
 def test_missing_spec_file_exit_2(tmp_path, capsys):
     assert main(["sweep", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
     assert "no such file" in capsys.readouterr().err
@@ -228,12 +237,22 @@ def _rows(db) -> dict:
         return {r["key"]: r for r in store.rows()}
 
 
-def test_same_spec_twice_gives_identical_metrics_inline_and_on_dask(tmp_path):
+def test_same_spec_twice_gives_identical_metrics_inline_and_on_a_dask_scheduler(tmp_path):
     spec = load_spec(_spec(tmp_path, SMALL))
     cache = os.environ["RASTER_ORACLE_CACHE"]
     a = run_sweep(spec, tmp_path / "a.db", cache_root=cache, workers=0, quiet=True)
     assert a["cases"] == 8 and a["done"] == 8 and a["failed"] == 0
-    b = run_sweep(spec, tmp_path / "b.db", cache_root=cache, workers=1, quiet=True)
+    # a cluster of its own, reached with --scheduler (the SIGKILL test uses a LocalCluster)
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=":0") as cluster:
+        b = run_sweep(
+            spec,
+            tmp_path / "b.db",
+            cache_root=cache,
+            scheduler=cluster.scheduler_address,
+            quiet=True,
+        )
     assert b["done"] == 8
     ra, rb = _rows(tmp_path / "a.db"), _rows(tmp_path / "b.db")
     assert ra.keys() == rb.keys()
