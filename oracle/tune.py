@@ -167,6 +167,9 @@ def run_tune(
     import optuna
 
     import raster_models
+    import scenes
+    from raster_models import _params
+    from scenes import backend
 
     from .sweep import run_case, sweep_keys
     from .sweepspec import Case
@@ -181,8 +184,6 @@ def run_tune(
     clash = sorted(set(fixed_params) & set(space))
     if clash:
         raise TuneError(f"parameter {clash[0]} is both --set and --vary")
-    import scenes
-
     loaded = scenes.load(scene, width=width, height=height, light=light)
     if loaded.light.kind not in raster_models.TECHNIQUES[technique].lights:
         raise TuneError(f"{technique} does not support the {loaded.light.kind} light of {scene}")
@@ -210,8 +211,6 @@ def run_tune(
         f"{technique} on {loaded.name}: min {cost_key} s.t. {metric}<={limit:g} "
         f"[{hashlib.sha256(ident.encode()).hexdigest()[:10]}]"
     )
-    from scenes import backend
-
     variant = backend.active().variant
     store = SweepStore(db)
 
@@ -250,9 +249,6 @@ def run_tune(
     def objective(trial):
         params = _suggest(trial, space)
         try:
-            raster_models.parse_params(technique, [])  # technique exists
-            from raster_models import _params
-
             _params.make(
                 technique, raster_models.TECHNIQUES[technique].params, {**fixed_params, **params}
             )
