@@ -78,6 +78,7 @@ def loglog_svg(series: Sequence[Mapping], *, x_label: str, y_label: str, title: 
             f'<text x="{left - 6:g}" y="{y + 3:.1f}" text-anchor="end" fill="#475569" '
             f"{_FONT}>1e{e}</text>"
         )
+    drawn = 0
     for k, s in enumerate(series):
         colour = _COLOURS[k % len(_COLOURS)]
         pts = [
@@ -92,7 +93,8 @@ def loglog_svg(series: Sequence[Mapping], *, x_label: str, y_label: str, title: 
         parts.append(f'<path d="{d}" fill="none" stroke="{colour}" stroke-width="1.6"{dash}/>')
         for x, y in pts:
             parts.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="2.5" fill="{colour}"/>')
-        ly = top + 14 + 16 * k
+        ly = top + 14 + 16 * drawn
+        drawn += 1
         parts.append(
             f'<line x1="{left + pw + 10:g}" x2="{left + pw + 30:g}" y1="{ly - 4:g}" '
             f'y2="{ly - 4:g}" stroke="{colour}" stroke-width="2"{dash}/>'
@@ -129,6 +131,11 @@ def render_converge(data: Mapping) -> str:
         {"name": "visibility true max", "x": spp, "y": [r["visibility"]["max"] for r in ladder]},
         {"name": "coverage true RMS", "x": spp, "y": [r["coverage"]["rms"] for r in ladder]},
     ]
+    if data.get("adaptive"):
+        a = data["adaptive"]
+        series.append(
+            {"name": "adaptive vis RMS", "x": [a["mean_spp"]], "y": [a["visibility"]["rms"]]}
+        )
     fit = data["fit"]["visibility"]["true_rms"]
     if fit.get("slope") is not None:
         series.append(
