@@ -20,10 +20,9 @@ TEST_HUGE = 1024
 
 #: Cells that fail for a reason outside this module, each with the reason (strict xfail:
 #: the test fails once the cause is fixed, so the entry must then be removed).
-KNOWN_FAILURES = {
-    ("msaa", "all_sky"): "raster_models/aa/msaa.py multisample indexes an empty fragment "
-    "array on a frame without fragments (IndexError)",
-}
+#: (msaa x all_sky raised IndexError until raster_models/aa/_trace.py masked the shape
+#: gather of missed samples.)
+KNOWN_FAILURES: dict[tuple[str, str], str] = {}
 
 
 @pytest.fixture(scope="module")
