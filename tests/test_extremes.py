@@ -169,3 +169,17 @@ def test_cli_bad_huge(tmp_path, capsys):
     assert main(["extremes", "--huge", "20000", "--out", str(out)]) == 2
     assert "--huge" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_cached_references_give_the_same_cells(tmp_path):
+    """The main job passes its reference cache: a second run reads the references back."""
+    from oracle.cache import ReferenceCache
+
+    cache = ReferenceCache(tmp_path / "cache")
+    kw = {"quick": True, "extremes": ["far_1e5"], "techniques": ["shadow-map", "msaa"]}
+    first = X.run_extremes(None, cache=cache, **kw)
+    again = X.run_extremes(None, cache=cache, **kw)
+    direct = X.run_extremes(None, cache=None, **kw)
+    for a, b, c in zip(first["cells"], again["cells"], direct["cells"], strict=True):
+        assert a["error"] == b["error"] == c["error"]
+    assert len(list((tmp_path / "cache").rglob("reference.json"))) == 2  # plate and star
