@@ -352,7 +352,7 @@ def _tangent32_channel(loaded) -> np.ndarray:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from scenes.raycast import SHADOW_OFFSET, SHADOW_OFFSET_MESH, camera_rays_dr, shadow_ray_dr
+    from scenes.raycast import camera_rays_dr, occluded_from_dr
     from scenes.shading import facing
     from scenes.tangent32 import tangent_derivatives_dr, tangent_offsets
 
@@ -380,8 +380,7 @@ def _tangent32_channel(loaded) -> np.ndarray:
         q = si.p + dpdx * a + dpdy * b
         wl, _ = light.to_light(q)
         candidate = valid & (dr.dot(n, wl) > 0.0) & light.in_cone(wl)
-        offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
-        blocked = loaded.mi_scene.ray_test(shadow_ray_dr(light, q, si.n, wl, offset), candidate)
+        blocked = occluded_from_dr(loaded.mi_scene, light, q, si.n, wl, si.shape, candidate)
         lit = dr.select(valid, dr.select(candidate & ~blocked, 1.0, 0.0), 1.0)
         total = dr.block_reduce(dr.ReduceOp.Add, lit, k_n, mode="evaluated")
         dr.eval(total)
