@@ -12,8 +12,8 @@ import numpy as np
 
 __all__ = ["Fragments", "group_fragments", "shading_positions"]
 
-#: Pixels per grouping chunk (bounds the ``(P, N, N)`` comparison to ~64 MiB at N = 16).
-GROUP_CHUNK = 1 << 18
+#: Pixels per grouping chunk (keeps the ``(P, N, N)`` comparison cache-sized: 8 MiB at N = 16).
+GROUP_CHUNK = 1 << 15
 
 
 class Fragments:

@@ -101,7 +101,7 @@ def trace_samples(
     step = max(n, (CHUNK // n) * n)
     for start in range(0, total, step):
         stop = min(total, start + step)
-        idx = dr.arange(mi.UInt32, start, stop)
+        idx = dr.arange(mi.UInt32, stop - start)  # start is a multiple of n
         local = idx // n
         s = idx - local * n
         pix = mi.UInt32(pix_all[start // n : stop // n].astype(np.uint32))
@@ -118,7 +118,9 @@ def trace_samples(
             valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
         depth = dr.select(valid, _view_depth(cam, ray.o + ray.d * t), 0.0)
         if table is not None:
-            shape = dr.gather(mi.Int32, table, dr.reinterpret_array(mi.UInt32, shape_ptr))
+            # masked: a preliminary intersection leaves the shape of a miss undefined
+            ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
+            shape = dr.gather(mi.Int32, table, ids, valid)
             shape = dr.select(valid, shape, -1)
         else:
             shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))

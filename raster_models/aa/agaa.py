@@ -106,13 +106,15 @@ class AgaaParams(ShadowParams):
 
 
 def quantize_normals(n: np.ndarray, fmt: str) -> np.ndarray:
-    """Unit normals ``(..., 3)`` as stored in ``fmt`` and read back (float64)."""
-    n = np.asarray(n, np.float64)
+    """Unit normals ``(..., 3)`` as stored in ``fmt`` and read back (float32, as a shader
+    reads them)."""
+    f32 = np.float32
+    n = np.asarray(n, f32)
     if fmt == "rgba16f":
-        return n.astype(np.float16).astype(np.float64)
+        return n.astype(np.float16).astype(f32)
     if fmt == "rgb10a2":
-        q = np.floor(np.clip(n * 0.5 + 0.5, 0.0, 1.0) * 1023.0 + 0.5) / 1023.0
-        return q * 2.0 - 1.0
+        q = np.floor(np.clip(n * f32(0.5) + f32(0.5), f32(0), f32(1)) * f32(1023) + f32(0.5))
+        return q * f32(2 / 1023) - f32(1)
     if fmt == "oct16":
         l1 = np.sum(np.abs(n), axis=-1, keepdims=True)
         p = n / np.where(l1 > 0, l1, 1.0)
@@ -127,31 +129,52 @@ def quantize_normals(n: np.ndarray, fmt: str) -> np.ndarray:
         u = u - np.where(u >= 0, t, -t)
         v = v - np.where(v >= 0, t, -t)
         out = np.stack([u, v, zz], axis=-1)
-        return out / np.linalg.norm(out, axis=-1, keepdims=True)
+        return (out / np.linalg.norm(out, axis=-1, keepdims=True)).astype(f32)
     raise ModelError(f"unknown normal format {fmt!r}")
 
 
 def _distance(z_a, n_a, z_b, n_b, z_mean, weight):
-    return weight * np.abs(z_a - z_b) / z_mean + (1.0 - np.sum(n_a * n_b, axis=-1))
+    """Sample distances: ``z_a``, ``n_a`` are ``(P, N)``, ``(P, N, 3)``; ``z_b``, ``n_b`` one
+    reference per pixel, ``(P, 1)``, ``(P, 3)``."""
+    cos = np.einsum("pnc,pc->pn", n_a, n_b)
+    return weight * np.abs(z_a - z_b) / z_mean + (1.0 - cos)
+
+
+#: Pixels per clustering block (keeps the temporaries cache-sized).
+CLUSTER_CHUNK = 1 << 15
 
 
 def cluster(valid, depth, normal, k: int, threshold: float, depth_weight: float):
-    """Aggregate index ``(P, N)`` of every sample (-1: sky) by the rule in the module doc."""
+    """Aggregate index ``(P, N)`` of every sample (-1: sky) by the rule in the module doc.
+
+    Distances are evaluated in float32, the precision of the G-buffer they are read from,
+    in blocks of :data:`CLUSTER_CHUNK` pixels.
+    """
     v = np.asarray(valid, bool)
-    z = np.asarray(depth, np.float64)
-    nrm = np.asarray(normal, np.float64)
-    cnt = np.maximum(v.sum(axis=1), 1)
-    z_mean = np.sum(np.where(v, z, 0.0), axis=1) / cnt
-    z_mean = np.where(z_mean > 0, z_mean, 1.0)[:, None]
-    n_mean = np.sum(np.where(v[..., None], nrm, 0.0), axis=1) / cnt[:, None]
-    d_mean = _distance(z, nrm, z_mean, n_mean[:, None, :], z_mean, depth_weight)
-    seed1 = np.argmax(np.where(v, d_mean, -np.inf), axis=1)
+    out = np.empty(v.shape, np.int8)
+    for start in range(0, len(v), CLUSTER_CHUNK):
+        sl = slice(start, start + CLUSTER_CHUNK)
+        out[sl] = _cluster_block(v[sl], depth[sl], normal[sl], k, threshold, depth_weight)
+    return out
+
+
+def _cluster_block(v, depth, normal, k, threshold, depth_weight):
+    f32 = np.float32
+    vf = v.astype(f32)
+    z = np.asarray(depth, f32) * vf
+    nrm = np.asarray(normal, f32)
+    cnt = np.maximum(vf.sum(axis=1), f32(1))
+    z_mean = z.sum(axis=1) / cnt
+    z_mean = np.where(z_mean > 0, z_mean, f32(1))[:, None]
+    n_mean = np.einsum("pn,pnc->pc", vf, nrm) / cnt[:, None]
+    w = f32(depth_weight)
+    low = f32(-np.inf)
+    d_mean = _distance(z, nrm, z_mean, n_mean, z_mean, w)
+    seed1 = np.argmax(np.where(v, d_mean, low), axis=1)
     take = np.arange(len(v))
-    z1, n1 = z[take, seed1][:, None], nrm[take, seed1][:, None, :]
-    d1 = _distance(z, nrm, z1, n1, z_mean, depth_weight)
-    seed2 = np.argmax(np.where(v, d1, -np.inf), axis=1)
-    z2, n2 = z[take, seed2][:, None], nrm[take, seed2][:, None, :]
-    d2 = _distance(z, nrm, z2, n2, z_mean, depth_weight)
+    d1 = _distance(z, nrm, z[take, seed1][:, None], nrm[take, seed1], z_mean, w)
+    seed2 = np.argmax(np.where(v, d1, low), axis=1)
+    d2 = _distance(z, nrm, z[take, seed2][:, None], nrm[take, seed2], z_mean, w)
     split = (k >= 2) & (d1[take, seed2] > threshold)
     agg = np.where(split[:, None] & (d2 < d1), 1, 0)
     return np.where(v, agg, -1)
@@ -173,46 +196,44 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     sx, sy = sample_film_positions(frags, offsets, w)
     cx, cy = shading_positions(frags, offsets, w, False, n)
     attrs = fragment_attributes(scene, sx, sy, cx, cy)
-    # accumulate each sample's fragment attributes into its aggregate
-    ps, ss = np.nonzero(valid)
-    f = frags.of_sample[ps, ss]
-    slot = ps * k + agg[ps, ss]
-    n_slot = n_pix * k
-    weight = np.bincount(slot, minlength=n_slot).astype(np.float64)
-    has = weight > 0
-    safe = np.where(has, weight, 1.0)
+    # material accumulation: (fragment, aggregate) entries weighted by the samples they own
+    of = frags.of_sample
+    ok = of >= 0
+    cnt_fk = np.bincount(of[ok] * k + agg[ok], minlength=len(frags) * k)
+    e_idx = np.nonzero(cnt_fk)[0]
+    e_slot = frags.pixel[e_idx // k] * k + e_idx % k
+    order = np.argsort(e_slot, kind="stable")
+    e_idx, e_slot = e_idx[order], e_slot[order]
+    e_f = e_idx // k
+    e_w = cnt_fk[e_idx].astype(np.float64)
+    first = np.flatnonzero(np.r_[True, e_slot[1:] != e_slot[:-1]]) if len(e_slot) else e_slot
+    slots = e_slot[first]
+    weight = np.add.reduceat(e_w, first)
 
-    def mean(key):
-        a = np.asarray(attrs[key], np.float64)[f]
-        return (
-            np.stack(
-                [np.bincount(slot, weights=a[:, c], minlength=n_slot) for c in range(3)], axis=1
-            )
-            / safe[:, None]
-        )
-
-    agg_attrs = {key: mean(key) for key in ("albedo", "normal", "position", "to_eye")}
-    g = mean("geo_normal")
+    keys = ("albedo", "normal", "position", "to_eye", "geo_normal")
+    table = np.concatenate([np.asarray(attrs[key], np.float32) for key in keys], axis=1)
+    sums = np.add.reduceat(table[e_f].astype(np.float64) * e_w[:, None], first, axis=0)
+    means = sums / weight[:, None]
+    agg_attrs = {key: means[:, 3 * i : 3 * i + 3] for i, key in enumerate(keys)}
+    g = agg_attrs["geo_normal"]
     g_len = np.linalg.norm(g, axis=1, keepdims=True)
     agg_attrs["geo_normal"] = np.where(
         g_len > 1e-6, g / np.maximum(g_len, 1e-30), agg_attrs["normal"]
     )
     e = agg_attrs["to_eye"]
     agg_attrs["to_eye"] = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-30)
-    off = np.zeros(n_slot)
-    np.maximum.at(off, slot, np.asarray(attrs["offset"], np.float64)[f])
-    agg_attrs["offset"] = off
-    agg_attrs["valid"] = has
+    agg_attrs["offset"] = np.maximum.reduceat(np.asarray(attrs["offset"], np.float64)[e_f], first)
+    agg_attrs["valid"] = np.ones(len(slots), bool)
     view = scene.camera
     agg_attrs["depth"] = (agg_attrs["position"] - view.position) @ view.forward
-    idx = np.nonzero(has)[0]
-    sub = {key: np.asarray(v)[idx] for key, v in agg_attrs.items()}
-    vis = shadow_visibility(scene, sub, p.shadows)
-    rgb, rays = shade_points(scene, sub, visibility=vis, filtered_normal=True)
-    contrib = np.zeros((n_slot, 3))
-    contrib[idx] = rgb.astype(np.float64) * (weight[idx] / n)[:, None]
-    color = contrib.reshape(n_pix, k, 3).sum(axis=1)
-    n_agg = has.reshape(n_pix, k).sum(axis=1)
+    vis = shadow_visibility(scene, agg_attrs, p.shadows)
+    rgb, rays = shade_points(scene, agg_attrs, visibility=vis, filtered_normal=True)
+    contrib = rgb.astype(np.float64) * (weight / n)[:, None]
+    pix = slots // k
+    color = np.stack(
+        [np.bincount(pix, weights=contrib[:, c], minlength=n_pix) for c in range(3)], axis=1
+    )
+    n_agg = np.bincount(pix, minlength=n_pix)
     nb = NORMAL_FORMATS[p.normal_format]
     n_frag = len(frags)
     return package(
@@ -241,7 +262,7 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
         diagnostics={
             "sample_positions": offsets.tolist(),
             "fragments": int(n_frag),
-            "aggregates_total": int(has.sum()),
+            "aggregates_total": int(len(slots)),
             "pixels_split": int((n_agg > 1).sum()),
         },
         t0=t0,

@@ -95,7 +95,9 @@ def multisample(scene, offsets, *, centroid: bool, shadows: str) -> dict:
     frags = group_fragments(buf["valid"], buf["shape"], buf["prim"])
     attrs, rgb, rays = shade_fragments(scene, frags, offsets, centroid=centroid, shadows=shadows)
     of = frags.of_sample
-    sample_rgb = np.where((of >= 0)[..., None], rgb[np.maximum(of, 0)], 0.0).astype(np.float32)
+    # row 0: sky (0); fragment f is row f + 1 (one float32 gather)
+    table = np.concatenate([np.zeros((1, 3), np.float32), np.asarray(rgb, np.float32)])
+    sample_rgb = table[of + 1]
     return {
         "buffer": buf,
         "frags": frags,
