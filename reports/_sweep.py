@@ -32,9 +32,11 @@ from ._tradeoff import pareto_front
 __all__ = [
     "DEFAULT_COSTS",
     "DEFAULT_METRICS",
+    "MEMORY_ALIASES",
     "SWEEP_REPORT_SCHEMA",
     "best_at_equal_cost",
     "sweep_record",
+    "with_memory",
     "write_sweep_report",
 ]
 
@@ -46,9 +48,13 @@ DEFAULT_METRICS = {
 }
 #: Cost keys plotted per family when none is requested (memory first, then work).
 DEFAULT_COSTS = {
-    "shadow": ("shadow_map_bytes", "texels_rendered"),
-    "aa": ("framebuffer_bytes", "shading_events_per_pixel"),
+    "shadow": ("memory_bytes", "texels_rendered"),
+    "aa": ("framebuffer_bytes", "shading_events_mean"),
 }
+#: Cost keys that stand for ``memory_bytes`` where a technique does not report it: shadow
+#: maps report their maps' bytes, IZB its lists' ``memory_bytes``, so that every shadow
+#: technique lands on one memory axis.
+MEMORY_ALIASES = ("shadow_map_bytes",)
 #: Fallback metrics for a family without defaults (first present wins).
 FALLBACK_METRICS = ("misclassified_fraction", "flip_mean", "visibility_mae")
 #: Most distinct cost values listed one per row in a best-at-equal-cost table; above it the
@@ -133,8 +139,23 @@ def best_at_equal_cost(points: Sequence[Mapping]) -> list[dict]:
     return out
 
 
+def with_memory(cost: Mapping | None) -> dict:
+    """``cost`` with ``memory_bytes`` filled in from :data:`MEMORY_ALIASES` when absent."""
+    out = dict(cost or {})
+    if "memory_bytes" not in out:
+        for key in MEMORY_ALIASES:
+            if _number(out.get(key)) is not None:
+                out["memory_bytes"] = out[key]
+                break
+    return out
+
+
 def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> dict:
-    done = [r for r in rows if r["status"] == "done" and r.get("metrics")]
+    done = [
+        {**r, "cost": with_memory(r.get("cost"))}
+        for r in rows
+        if r["status"] == "done" and r.get("metrics")
+    ]
     metric_names = list(
         dict.fromkeys(k for r in done for k, v in r["metrics"].items() if _number(v) is not None)
     )
@@ -270,6 +291,7 @@ def sweep_record(
     for r in rows:
         headline = (DEFAULT_METRICS.get(r.get("family") or "shadow") or FALLBACK_METRICS)[0]
         cost_key = (DEFAULT_COSTS.get(r.get("family") or "shadow") or ("",))[0]
+        cost = with_memory(r.get("cost"))
         cases.append(
             {
                 "id": case_id(r),
@@ -289,7 +311,7 @@ def sweep_record(
                 "value": _number((r.get("metrics") or {}).get(headline)),
                 "floor": _number(((r.get("metrics") or {}).get("noise_floor") or {}).get(headline)),
                 "cost_key": cost_key,
-                "cost": _number((r.get("cost") or {}).get(cost_key)),
+                "cost": _number(cost.get(cost_key)),
                 "wall_seconds": r.get("wall_seconds"),
             }
         )

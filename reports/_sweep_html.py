@@ -13,7 +13,7 @@ from markupsafe import Markup, escape
 from ._format import fmt_cost, fmt_number, fmt_value
 from ._svg import _axis, scatter_svg
 
-__all__ = ["front_svg", "render_sweep_html", "sensitivity_svg"]
+__all__ = ["front_svg", "render_sweep_html", "sensitivity_svg", "technique_colours"]
 
 _FONT = 'font-family="system-ui, sans-serif" font-size="11"'
 #: Smallest max/min ratio of a positive numeric parameter drawn on a log axis.
@@ -144,13 +144,19 @@ PALETTE = (
 )
 
 
-def front_svg(front: Mapping) -> Markup:
+def technique_colours(techniques: Sequence[str]) -> dict[str, str]:
+    """One colour per technique (the page's order), the same in every plot."""
+    return {t: PALETTE[i % len(PALETTE)] for i, t in enumerate(techniques)}
+
+
+def front_svg(front: Mapping, colour: Mapping[str, str] | None = None) -> Markup:
     """Cost against error of one family and scene: the front as a staircase (as
-    :func:`reports._svg.scatter_svg` draws it), each technique in its own colour with a
-    legend; points on the front are filled, dominated ones hollow."""
+    :func:`reports._svg.scatter_svg` draws it), each technique in its colour (``colour``,
+    default: by order of appearance) with a legend; points on the front are filled,
+    dominated ones hollow."""
     base = str(scatter_svg(front, cost_key=front["cost_key"], metric=front["metric"]))
     techs = list(dict.fromkeys(p["technique"] for p in front["points"]))
-    colour = {t: PALETTE[i % len(PALETTE)] for i, t in enumerate(techs)}
+    colour = dict(colour or technique_colours(techs))
     # recolour each point: scatter_svg draws them in order, one <circle class="point..."> each
     parts = base.split('<circle class="point')
     out = [parts[0]]
@@ -245,13 +251,14 @@ def render_sweep_html(record: Mapping, *, extra_sections: Sequence[Mapping] = ()
         for k, v in record["provenance"].items()
     )
     fronts, sens, best = [], [], []
+    colours = technique_colours(s["techniques"])
     for g in record["groups"]:
         head = f"{g['family']} on {g['scene']}"
         figs = []
         for f in g["fronts"]:
             n_front = len(f["front"])
             figs.append(
-                f"<figure>{front_svg(f)}"
+                f"<figure>{front_svg(f, colours)}"
                 f"<figcaption>{escape(f['metric'])} against {escape(f['cost_key'])}: "
                 f"{n_front} of {len(f['points'])} cases on the front</figcaption></figure>"
             )

@@ -48,7 +48,7 @@ def test_fronts_hold_exactly_the_non_dominated_cases():
     front = next(
         f
         for f in plate["fronts"]
-        if f["cost_key"] == "shadow_map_bytes" and f["metric"] == "misclassified_fraction"
+        if f["cost_key"] == "memory_bytes" and f["metric"] == "misclassified_fraction"
     )
     on = sorted(p["case_id"] for p in front["points"] if p["on_front"])
     assert on == sorted(f"row-{i:012x}" for i in (1, 4, 5))
@@ -123,3 +123,20 @@ def test_front_plot_colours_each_technique_and_fills_the_front():
         assert f'stroke="{colour}"' in c
         assert (f'fill="{colour}"' in c) == p["on_front"]
     assert '<div class="legend">' in svg and "csm" in svg
+
+
+def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
+    from reports._sweep import with_memory
+
+    assert with_memory({"shadow_map_bytes": 64})["memory_bytes"] == 64
+    assert with_memory({"memory_bytes": 10, "shadow_map_bytes": 64})["memory_bytes"] == 10
+    assert "memory_bytes" not in with_memory({"framebuffer_bytes": 8})
+    izb = _row(9, "izb", 512, 0, 0.04)
+    izb["cost"] = {"memory_bytes": 200}
+    rec = sweep_record([*ROWS, izb], title="t")
+    plate = next(g for g in rec["groups"] if g["scene"] == "plate")
+    front = plate["fronts"][0]
+    assert front["cost_key"] == "memory_bytes"
+    # 200 bytes at 0.04: dominates nothing it costs more than, and sits on the front
+    point = next(p for p in front["points"] if p["technique"] == "izb")
+    assert point["cost"] == 200 and point["on_front"]
