@@ -16,6 +16,13 @@
    fully shadowed receivers (mask full) are removed from the lists.
 3. Visibility: 1 - shadowed (1 sample), or the lit fraction of the 32-bit mask.
 
+Outputs (``(H, W)`` float32): ``visibility`` (1 = lit; sky 1, back-facing 0, as the
+oracle), ``cascade`` (grid of the pixel, -1 for non-receivers), ``list_length`` (length of
+the list of the texel holding the pixel centre), ``epsilon_band`` (1 where a sample lies
+inside an occluder's edge planes, beyond its plane by more than float32 rounding but by at
+most ``epsilon``: lit by the epsilon, though an exact shadow ray could still hit the
+occluder; the only samples where the model and the oracle's rays may disagree).
+
 Cascaded IZB (``cascades > 1``): receivers are split by view depth with the SDSM sample's log
 partitioning over ``[zmin, zmax]`` of the receivers (:func:`._splits.log_splits`), one grid
 per partition fit tightly around its samples (SDSM's tight light-space bounds); every
