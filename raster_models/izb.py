@@ -21,7 +21,8 @@ oracle), ``cascade`` (grid of the pixel, -1 for non-receivers), ``list_length`` 
 the list of the texel holding the pixel centre), ``epsilon_band`` (1 where a sample lies
 inside an occluder's edge planes, beyond its plane by more than float32 rounding but by at
 most ``epsilon``: lit by the epsilon, though an exact shadow ray could still hit the
-occluder; the only samples where the model and the oracle's rays may disagree).
+occluder; outside this band the model and the oracle's rays differ only where float32 ray
+origins round across a shadow edge).
 
 Cascaded IZB (``cascades > 1``): receivers are split by view depth with the SDSM sample's log
 partitioning over ``[zmin, zmax]`` of the receivers (:func:`._splits.log_splits`), one grid
