@@ -251,7 +251,15 @@ def render_sweep_html(record: Mapping, *, extra_sections: Sequence[Mapping] = ()
         for k, v in record["provenance"].items()
     )
     fronts, sens, best = [], [], []
-    colours = technique_colours(s["techniques"])
+    # one colour per technique, the same in every plot; techniques of a family differ
+    by_family: dict[str, list[str]] = {}
+    for c in record["cases"]:
+        by_family.setdefault(c.get("family") or "", [])
+        if c["technique"] not in by_family[c.get("family") or ""]:
+            by_family[c.get("family") or ""].append(c["technique"])
+    colours = {}
+    for techs in by_family.values():
+        colours.update(technique_colours(sorted(techs)))
     for g in record["groups"]:
         head = f"{g['family']} on {g['scene']}"
         figs = []
