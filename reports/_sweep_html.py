@@ -18,6 +18,8 @@ __all__ = ["front_svg", "render_sweep_html", "sensitivity_svg", "technique_colou
 _FONT = 'font-family="system-ui, sans-serif" font-size="11"'
 #: Smallest max/min ratio of a positive numeric parameter drawn on a log axis.
 LOG_SPAN = 4.0
+#: Most parameter settings that get a tick each (more: round ticks).
+MAX_LEVEL_TICKS = 8
 _EXTRA_CSS = """
 .front-grid { display: grid; gap: 14px;
   grid-template-columns: repeat(auto-fill, minmax(440px, 1fr)); }
@@ -69,6 +71,8 @@ def sensitivity_svg(item: Mapping) -> Markup:
                 t = (v - x_lo) / (x_hi - x_lo)
             return left + plot_w * t
 
+        if len(xs) <= MAX_LEVEL_TICKS:  # a few settings: tick at each one
+            x_ticks = xs
         tick_labels = [(sx(t), fmt_number(t)) for t in x_ticks]
     else:
         names = [fmt_value(level["x"]) for level in levels]
