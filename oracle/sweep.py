@@ -29,6 +29,7 @@ from .sweepstore import SweepStore, case_key
 __all__ = [
     "CASE_METRICS_EXTRA",
     "SweepError",
+    "check_scheduler",
     "evaluate_case",
     "reference_jobs",
     "run_case",
@@ -247,6 +248,16 @@ def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
         }
         out.append((case_key(identity), rec, row))
     return out
+
+
+def check_scheduler(address: str) -> None:
+    """Raise :class:`SweepError` when no Dask scheduler answers at ``address``."""
+    from distributed import Client
+
+    try:
+        Client(address, timeout=SCHEDULER_TIMEOUT_S).close()
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SweepError(f"--scheduler {address}: cannot connect: {exc}") from None
 
 
 def _default_workers() -> int:

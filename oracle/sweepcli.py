@@ -99,6 +99,10 @@ def cmd_sweep(args) -> int:
     db = args.db if args.db is not None else args.out / "sweep.db"
     _check_db(db)
     cache = _cache(args)
+    if args.scheduler is not None:
+        from .sweep import check_scheduler
+
+        check_scheduler(args.scheduler)  # before anything is written
     SweepStore(db).close()  # a file that is not a sweep store fails here, before any work
     summary = run_sweep(
         expansion,

@@ -183,6 +183,7 @@ def test_unreachable_scheduler_exit_2(tmp_path, capsys, monkeypatch):
     assert main([*args, "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler tcp://127.0.0.1:1: cannot connect" in err
+    assert not (tmp_path / "o").exists()
 
 
 def test_missing_spec_file_exit_2(tmp_path, capsys):
