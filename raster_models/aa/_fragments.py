@@ -10,7 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Fragments", "group_fragments", "shading_positions"]
+__all__ = [
+    "Fragments",
+    "first_of_key",
+    "group_fragments",
+    "sample_film_positions",
+    "shading_positions",
+]
 
 #: Pixels per grouping chunk (keeps the ``(P, N, N)`` comparison cache-sized: 8 MiB at N = 16).
 GROUP_CHUNK = 1 << 15
@@ -40,8 +46,8 @@ class Fragments:
         return np.bincount(self.pixel, minlength=n_pix)
 
 
-def group_fragments(valid: np.ndarray, shape: np.ndarray, prim: np.ndarray) -> Fragments:
-    """Group the samples of each pixel by primitive; ``valid``/``shape``/``prim`` are (P, N)."""
+def first_of_key(valid: np.ndarray, shape: np.ndarray, prim: np.ndarray) -> np.ndarray:
+    """``(P, N)`` first sample of each sample's pixel with the same (shape, primitive)."""
     n_pix, n = valid.shape
     key = np.where(valid, (shape.astype(np.int64) << 40) ^ prim.astype(np.int64), -1)
     first = np.empty((n_pix, n), np.int64)
@@ -49,6 +55,19 @@ def group_fragments(valid: np.ndarray, shape: np.ndarray, prim: np.ndarray) -> F
         k = key[start : start + GROUP_CHUNK]
         eq = k[:, :, None] == k[:, None, :]
         first[start : start + GROUP_CHUNK] = np.argmax(eq, axis=2)
+    return first
+
+
+def group_fragments(valid: np.ndarray, shape=None, prim=None, *, first=None) -> Fragments:
+    """Group the samples of each pixel by primitive; ``valid``/``shape``/``prim`` are (P, N).
+
+    ``first`` (from :func:`._pixel_dr.first_of_key` on the Dr.Jit side) skips the NumPy
+    comparison of :func:`first_of_key`.
+    """
+    n_pix, n = valid.shape
+    if first is None:
+        first = first_of_key(valid, shape, prim)
+    first = np.where(valid, first, 0).astype(np.int64)
     rep = (first == np.arange(n)[None, :]) & valid
     fp, fs = np.nonzero(rep)
     fid = np.full((n_pix, n), -1, np.int64)

@@ -37,6 +37,8 @@ from scenes.raycast import (
 )
 from scenes.shading import facing, shade
 
+from . import _pixel_dr
+
 __all__ = ["CHUNK", "fragment_attributes", "shade_points", "sample_colors", "trace_samples"]
 
 #: Rays per Dr.Jit launch (bounded memory; ~0.5 GiB a launch at most).
@@ -59,7 +61,14 @@ def _view_depth(camera, p):
 
 
 def trace_samples(
-    scene, offsets: np.ndarray, *, normals: bool = False, mi_scene=None, pixels=None
+    scene,
+    offsets: np.ndarray,
+    *,
+    normals: bool = False,
+    mi_scene=None,
+    pixels=None,
+    group: bool = False,
+    cluster: tuple | None = None,
 ) -> dict:
     """Nearest surface at every sub-sample of every pixel (a depth prepass).
 
@@ -70,6 +79,10 @@ def trace_samples(
     normals : also return the geometric normal turned towards the viewer.
     mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: one shape).
     pixels : pixel indices (row-major) to trace; default every pixel.
+    group : also return ``first`` ((P, N) int8): the first sample of the pixel with the same
+        (shape, primitive), ``N`` for sky (:func:`._pixel_dr.first_of_key`).
+    cluster : ``(k, threshold, depth_weight, normal_format)``: also return ``aggregate``
+        ((P, N) int8), AGAA's clustering on the stored normals (:func:`._pixel_dr.aggregate_of`).
 
     Returns
     -------
@@ -96,6 +109,10 @@ def trace_samples(
     }
     if normals:
         out["normal"] = np.empty((total, 3), np.float32)
+    if group:
+        out["first"] = np.empty(total, np.int8)
+    if cluster is not None:
+        out["aggregate"] = np.empty(total, np.int8)
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
     table = _shape_table(mi, dr, scene) if mi_scene is None else None
     step = max(n, (CHUNK // n) * n)
@@ -109,7 +126,7 @@ def trace_samples(
         x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
         y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
         ray = camera_rays_dr(cam, x, y)
-        if normals:
+        if normals or cluster is not None:
             si = target.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
             valid, t, prim, shape_ptr = si.is_valid(), si.t, si.prim_index, si.shape
             nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
@@ -124,7 +141,19 @@ def trace_samples(
             shape = dr.select(valid, shape, -1)
         else:
             shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
-        evals = [valid, depth, prim, shape] + ([nrm] if normals else [])
+        extra = {}
+        if group or cluster is not None:
+            # one tracing kernel; the per-pixel kernels then gather from stored arrays
+            dr.eval(valid, depth, prim, shape, *([nrm] if cluster is not None else []))
+        if group:
+            extra["first"] = _pixel_dr.first_of_key(mi, dr, valid, shape, prim, local, n)
+        if cluster is not None:
+            k, threshold, weight, fmt = cluster
+            stored = _pixel_dr.store_normal(mi, dr, nrm, fmt)
+            extra["aggregate"] = _pixel_dr.aggregate_of(
+                mi, dr, valid, depth, stored, local, n, k, threshold, weight
+            )
+        evals = [valid, depth, prim, shape] + ([nrm] if normals else []) + list(extra.values())
         dr.eval(*evals)
         sl = slice(start, stop)
         v = _np(valid)
@@ -134,6 +163,8 @@ def trace_samples(
         out["prim"][sl] = np.where(v, _np(prim).astype(np.int64), -1)
         if normals:
             out["normal"][sl] = _np(nrm).T
+        for key, val in extra.items():
+            out[key][sl] = _np(val)
     res = {k: v.reshape((n_pix, n) + v.shape[1:]) for k, v in out.items()}
     return res
 

@@ -188,11 +188,11 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     n, k = p.samples, p.aggregates
     w, h = scene.width, scene.height
     n_pix = w * h
-    buf = trace_samples(scene, offsets, normals=True)
+    clustering = (k, p.threshold, p.depth_weight, p.normal_format)
+    buf = trace_samples(scene, offsets, group=True, cluster=clustering)
     valid = buf["valid"]
-    stored_n = quantize_normals(buf["normal"], p.normal_format)
-    agg = cluster(valid, buf["depth"], stored_n, k, p.threshold, p.depth_weight)
-    frags = group_fragments(valid, buf["shape"], buf["prim"])
+    agg = buf["aggregate"]
+    frags = group_fragments(valid, first=buf["first"])
     sx, sy = sample_film_positions(frags, offsets, w)
     cx, cy = shading_positions(frags, offsets, w, False, n)
     attrs = fragment_attributes(scene, sx, sy, cx, cy)
@@ -212,8 +212,9 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
 
     keys = ("albedo", "normal", "position", "to_eye", "geo_normal")
     table = np.concatenate([np.asarray(attrs[key], np.float32) for key in keys], axis=1)
-    sums = np.add.reduceat(table[e_f].astype(np.float64) * e_w[:, None], first, axis=0)
-    means = sums / weight[:, None]
+    # float32 sums of at most N samples, as a GPU's aggregate accumulation
+    sums = np.add.reduceat(table[e_f] * e_w.astype(np.float32)[:, None], first, axis=0)
+    means = sums / weight.astype(np.float32)[:, None]
     agg_attrs = {key: means[:, 3 * i : 3 * i + 3] for i, key in enumerate(keys)}
     g = agg_attrs["geo_normal"]
     g_len = np.linalg.norm(g, axis=1, keepdims=True)

@@ -91,8 +91,8 @@ def multisample(scene, offsets, *, centroid: bool, shadows: str) -> dict:
     Returns a dict: ``buffer`` (:func:`trace_samples`), ``frags``, ``attrs``, ``rgb``
     (per fragment), ``sample_rgb`` ((P, N, 3), sky 0), ``shadow_rays``.
     """
-    buf = trace_samples(scene, offsets)
-    frags = group_fragments(buf["valid"], buf["shape"], buf["prim"])
+    buf = trace_samples(scene, offsets, group=True)
+    frags = group_fragments(buf["valid"], first=buf["first"])
     attrs, rgb, rays = shade_fragments(scene, frags, offsets, centroid=centroid, shadows=shadows)
     of = frags.of_sample
     # row 0: sky (0); fragment f is row f + 1 (one float32 gather)
