@@ -27,6 +27,8 @@ def _fb(result) -> int:
 
 
 def _acaa(ctx: ClaimContext) -> dict:
+    """ACAA against 8x MSAA: relative colour difference on scenes without and with tied
+    surfaces (decal), and framebuffer bytes with RGBA8 accumulation."""
     import scenes
 
     cases = []
@@ -75,6 +77,8 @@ AGAA_SAVING = (0.30, 0.37)
 
 
 def _agaa(ctx: ClaimContext) -> dict:
+    """AGAA (K = 2) against 8x MSAA: relative colour error against the oracle, framebuffer
+    bytes and shading events per pixel on thin, stripes, foliage and star."""
     import scenes
 
     cases = []
@@ -130,6 +134,8 @@ def _agaa(ctx: ClaimContext) -> dict:
 
 # --------------------------------------------------------------------- coherent shadow maps
 def _coherent(ctx: ClaimContext) -> dict:
+    """Coherent shadow maps with and without compression (256 directions, 64^2 maps) on
+    plate and curved: visibility difference, decompression mismatches, ratios per order."""
     cases = []
     for name in ("plate", "curved"):
         loaded = ctx.scene(name)

@@ -17,6 +17,9 @@ _PCF = {"filter": "hw_pcf"}
 
 
 def _sdsm_vs_pssm(ctx: ClaimContext) -> dict:
+    """SDSM against PSSM (``csm`` with practical splits) at equal memory: 4 x 1024^2 maps,
+    hardware PCF, on each shadow scene at frames 0, 2, ... of the dolly path; misclassified
+    receivers against the oracle."""
     res = 1024
     cases = []
     for name in ctx.shadow_scenes:
@@ -78,6 +81,8 @@ def _temporal_pairs(ctx, loaded_frames, technique, params) -> list[float]:
 
 
 def _sdsm_crawl(ctx: ClaimContext) -> dict:
+    """Temporal error (mean change of model - oracle between consecutive frames) of SDSM and
+    stable CSM along the rotate and subtexel-pan paths on city and plate."""
     per = {"sdsm": [], "stable_csm": []}
     cases = []
     n = max(ctx.frames, 3)
@@ -113,6 +118,8 @@ BLUR_CLAIM = 0.98
 
 
 def _sdsm_blur(ctx: ClaimContext) -> dict:
+    """Edge-band visibility error of SDSM (EVSM, its default filter) without blur and with a
+    3x3 moment blur, on each shadow scene: the fraction of the error the blur removes."""
     cases = []
     for name in ctx.shadow_scenes:
         loaded = ctx.scene(name)
@@ -153,6 +160,8 @@ KMEANS_GAIN = 0.10
 
 
 def _kmeans(ctx: ClaimContext) -> dict:
+    """SDSM with K-means (Lloyd) partitions against log partitions on each shadow scene:
+    misclassified receivers, compute passes and model seconds."""
     cases = []
     for name in ctx.shadow_scenes:
         loaded = ctx.scene(name)
@@ -197,6 +206,9 @@ def _kmeans(ctx: ClaimContext) -> dict:
 
 
 def _latency(ctx: ClaimContext) -> dict:
+    """SDSM with partitions from the depth of 2 frames earlier (the first approach) against
+    the current frame's (the second), along the dolly and rotate paths on city and plate:
+    receivers outside every partition, and misclassified receivers."""
     cases = []
     n = max(ctx.frames, 4)
     for name in ("city", "plate"):
@@ -237,6 +249,7 @@ def _latency(ctx: ClaimContext) -> dict:
 
 
 def _sdsm_constant_memory(ctx: ClaimContext) -> dict:
+    """SDSM's shadow-map bytes and texels rendered over every shadow scene and frame."""
     cases = []
     for name in ctx.shadow_scenes:
         for frame in range(0, ctx.frames, 2):
@@ -268,6 +281,9 @@ IZB_RATIO = 2.0
 
 
 def _izb(ctx: ClaimContext) -> dict:
+    """IZB at 1 sample per pixel against the oracle's shadow ray from each pixel centre, and
+    the 32-sample / 1-sample ratio of sample-triangle tests (and model seconds), on plate and
+    city at twice the claims' film size with a 256^2 grid."""
     from raster_models._gbuffer import trace_gbuffer
 
     cases = []
