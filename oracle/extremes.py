@@ -190,6 +190,13 @@ def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> di
         "family": family,
         "metric": metric,
         "expected": exp.text(metric),
+        "expected_short": "refused"
+        if exp.refused
+        else (
+            f"{exp.min_error:g}..{exp.max_error:g}"
+            if exp.min_error > 0
+            else f"<= {exp.max_error:g}"
+        ),
         "reason": exp.reason,
         "params": None,
         "status": None,

@@ -26,6 +26,13 @@ def _cell_text(c: Mapping) -> str:
     return str(status)
 
 
+def _short(c: Mapping) -> str:
+    """The expected band under the value (not for n/a cells)."""
+    if c.get("status") == "n/a" or not c.get("expected_short"):
+        return ""
+    return f'<br><small style="color:#64748b">{escape(c["expected_short"])}</small>'
+
+
 def render_extremes(data: Mapping) -> str:
     """HTML fragment: the matrix, then each extreme's description and each non-default
     expectation with its reason."""
@@ -44,8 +51,8 @@ def render_extremes(data: Mapping) -> str:
         f"{escape(str(data.get('reference_spp', '')))}-spp oracle; maps at most "
         f"{escape(str(data.get('cell_map', '')))}^2 (huge: "
         f"{escape(str(data.get('huge_map', '')))}^2). A cell is the error (misclassified "
-        "receivers; coverage RMSE for anti-aliasing models); green: as documented, red: not. "
-        "Hover a cell for its expectation.</p>",
+        "receivers; coverage RMSE for anti-aliasing models) over its expected band; green: as "
+        "documented, red: not. Hover a cell for the reason.</p>",
     ]
     unexpected = data.get("unexpected") or []
     if unexpected:
@@ -66,7 +73,7 @@ def render_extremes(data: Mapping) -> str:
                 tip += f"; {c['message']}"
             out.append(
                 f'<td class="{css}" style="{STYLES[css]}" title="{escape(tip)}">'
-                f"{escape(_cell_text(c))}</td>"
+                f"{escape(_cell_text(c))}{_short(c)}</td>"
             )
         out.append("</tr>")
     out.append("</table><h3>Extremes</h3><ul>")
