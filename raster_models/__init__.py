@@ -18,6 +18,7 @@ Layering: depends on :mod:`scenes` only.
 from ._engine import ModelResult
 from ._errors import ModelError
 from ._registry import TECHNIQUES, Technique, list_techniques, parse_params, run
+from .aa import AA_OUTPUT_CHANNELS
 from .csm import CsmParams
 from .sdsm import SdsmParams
 from .shadow_map import ShadowMapParams
@@ -26,6 +27,7 @@ from .shadow_map import ShadowMapParams
 OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_error", "uncovered")
 
 __all__ = [
+    "AA_OUTPUT_CHANNELS",
     "OUTPUT_CHANNELS",
     "TECHNIQUES",
     "CsmParams",

@@ -321,3 +321,47 @@ def test_model_writes_aa_channels(tmp_path):
     assert {"color.R", "color.G", "color.B", "coverage", "shading_events", "ties"} <= set(ch)
     rec = json.loads((out / "model.json").read_text())
     assert rec["cost"]["samples"] == 8 and rec["technique"] == "acaa"
+
+
+def test_every_aa_technique_is_registered_with_its_outputs(star):
+    for name in ("noaa", "ssaa", "msaa", "acaa", "agaa", "fxaa"):
+        tech = rm.TECHNIQUES[name]
+        assert tech.family == "aa" and set(tech.lights) == {"directional", "spot", "point"}
+        for prm in rm.list_techniques()[list(rm.TECHNIQUES).index(name)]["params"]:
+            assert prm["source"] and prm["help"], (name, prm["name"])
+        r = rm.run(name, star)
+        assert set(rm.AA_OUTPUT_CHANNELS) <= set(r.outputs)
+        assert r.outputs["color"].shape == (H, W, 3) and r.outputs["color"].dtype == np.float32
+        assert np.isfinite(r.outputs["color"]).all() and (r.outputs["color"] >= 0).all()
+    assert rm.TECHNIQUES["csm"].family == "shadow"
+
+
+def test_shadow_technique_option():
+    """Visibility from a shadow map instead of exact rays: only shadowed shading points
+    change, and only downwards or to a partial value; a technique the light does not
+    support is refused before any work (exit 2)."""
+    plate = scenes.load("plate", **SMALL)
+    exact = rm.run("msaa", plate, samples=4).outputs["color"]
+    sm = rm.run("msaa", plate, samples=4, shadows="shadow-map").outputs["color"]
+    differ = np.abs(sm - exact).max(axis=2) > 1e-6
+    assert differ.sum() < 0.05 * W * H
+    lit_max = exact.max(axis=(0, 1))
+    assert (sm <= lit_max + 1e-6).all()
+    assert (
+        main(
+            [
+                "model",
+                "agaa",
+                "point",
+                "--width",
+                "16",
+                "--height",
+                "9",
+                "--set",
+                "shadows=csm",
+                "--out",
+                "/nonexistent/never",
+            ]
+        )
+        == 2
+    )

@@ -38,6 +38,7 @@ __all__ = [
     "DEPTH_FORMATS",
     "ResolveParams",
     "ShadowParams",
+    "check_shadows",
     "package",
     "shade_fragments",
 ]
@@ -78,6 +79,20 @@ class ResolveParams:
     )
 
 
+def check_shadows(scene, shadows: str) -> None:
+    """Refuse a shadow technique the scene's light does not support (before any work)."""
+    if shadows == "exact":
+        return
+    from .._registry import TECHNIQUES
+
+    tech = TECHNIQUES[shadows]
+    if scene.light.kind not in tech.lights:
+        raise ModelError(
+            f"shadows={shadows} needs a {' or '.join(tech.lights)} light; the scene's light "
+            f"is a {scene.light.kind} light"
+        )
+
+
 def shadow_visibility(scene, attrs: dict, shadows: str):
     """Visibility at shading points from a shadow technique (None for ``exact``)."""
     if shadows == "exact":
@@ -87,12 +102,8 @@ def shadow_visibility(scene, attrs: dict, shadows: str):
     from .._render import render_maps
     from .._shade import shade
 
+    check_shadows(scene, shadows)
     tech = TECHNIQUES[shadows]
-    if scene.light.kind not in tech.lights:
-        raise ModelError(
-            f"shadows={shadows} needs a {' or '.join(tech.lights)} light; the scene's light "
-            f"is a {scene.light.kind} light"
-        )
     module = __import__(tech.runner.__module__, fromlist=["build"])
     p = _params.make(shadows, tech.params, {})
     setup = module.build(scene, trace_gbuffer(scene), p)

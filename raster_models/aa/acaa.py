@@ -36,7 +36,14 @@ import numpy as np
 from .. import _depth, _params
 from .._errors import ModelError
 from . import _samples
-from ._base import COLOR_FORMATS, DEPTH_FORMATS, ShadowParams, package, shadow_visibility
+from ._base import (
+    COLOR_FORMATS,
+    DEPTH_FORMATS,
+    ShadowParams,
+    check_shadows,
+    package,
+    shadow_visibility,
+)
 from ._trace import fragment_attributes, shade_points, trace_samples
 
 __all__ = ["ACCUMULATIONS", "AcaaParams", "normalized_depth", "rgba8_accumulate", "run"]
@@ -141,6 +148,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     """Run ``acaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
     p = params or _params.make(NAME, AcaaParams, kwargs)
+    check_shadows(scene, p.shadows)
     offsets = _samples.positions(p.samples)
     n = p.samples
     w, h = scene.width, scene.height

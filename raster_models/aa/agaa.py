@@ -42,7 +42,7 @@ import numpy as np
 from .. import _params
 from .._errors import ModelError
 from . import _samples
-from ._base import ShadowParams, package, shadow_visibility
+from ._base import ShadowParams, check_shadows, package, shadow_visibility
 from ._fragments import group_fragments, sample_film_positions, shading_positions
 from ._trace import fragment_attributes, shade_points, trace_samples
 
@@ -184,6 +184,7 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     """Run ``agaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
     p = params or _params.make(NAME, AgaaParams, kwargs)
+    check_shadows(scene, p.shadows)
     offsets = _samples.positions(p.samples)
     n, k = p.samples, p.aggregates
     w, h = scene.width, scene.height

@@ -36,6 +36,7 @@ from ._base import (
     DEPTH_FORMATS,
     ResolveParams,
     ShadowParams,
+    check_shadows,
     package,
     shade_fragments,
 )
@@ -112,6 +113,7 @@ def run(scene, params: MsaaParams | None = None, **kwargs):
     """Run ``msaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
     p = params or _params.make(NAME, MsaaParams, kwargs)
+    check_shadows(scene, p.shadows)
     offsets = _samples.positions(p.samples)
     ms = multisample(scene, offsets, centroid=p.centroid, shadows=p.shadows)
     w, h = scene.width, scene.height
