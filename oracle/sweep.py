@@ -23,6 +23,8 @@ import time
 import uuid
 from pathlib import Path
 
+import numpy as np
+
 from .sweepspec import Case, Expansion
 from .sweepstore import SweepStore, case_key
 
@@ -128,11 +130,14 @@ def render_reference(job: dict, cache_root: str, variant: str | None) -> str:
     return ref.cache_status
 
 
-def evaluate_case(loaded, technique: str, params: dict, *, spp: int, seed: int, cache) -> dict:
+def evaluate_case(
+    loaded, technique: str, params: dict, *, spp: int, seed: int, cache, images: bool = False
+) -> dict:
     """Score one technique configuration on ``loaded``: metrics, noise floor, cost, params.
 
     Shadow techniques are scored on visibility; anti-aliasing techniques on colour with the
-    coverage metrics merged in, exactly as ``raster-oracle score --technique`` does.
+    coverage metrics merged in, exactly as ``raster-oracle score --technique`` does. With
+    ``images``, ``"images"`` holds thumbnails (:func:`case_images`).
     """
     from .score import METRIC_KEYS, score
     from .scoring import FAMILY_CHANNELS, _merge_coverage, _sample_count, model_candidate
@@ -166,7 +171,49 @@ def evaluate_case(loaded, technique: str, params: dict, *, spp: int, seed: int, 
     metrics = {k: record.get(k) for k in METRIC_KEYS}
     metrics["noise_floor"] = record.get("noise_floor")
     metrics["receiver_count"] = result.frames[0].metrics.get("receiver_count")
-    return {"metrics": metrics, "cost": info["cost"], "params": info["params"]}
+    out = {"metrics": metrics, "cost": info["cost"], "params": info["params"]}
+    if images:
+        out["images"] = case_images(result)
+    return out
+
+
+#: Longer side of the thumbnails kept per case, in pixels (the image is reduced by the
+#: smallest integer factor that fits).
+THUMBNAIL_SIZE = 320
+#: Primary error map of each scored channel: map name, palette, fixed range.
+_ERROR_MAPS = {
+    "visibility": ("visibility_error", "signed", (-1.0, 1.0)),
+    "color": ("flip", "magma", (0.0, 1.0)),
+    "coverage": ("coverage_error", "signed", (-1.0, 1.0)),
+}
+
+
+def case_images(result) -> dict:
+    """Thumbnails of a score result as data URIs: ``reference``, ``candidate``, ``error``
+    (visibility as grey PNG, colour through the shared tone mapper as WebP/JPEG, the primary
+    error map with its fixed-range palette, reduced keeping the largest error per block)."""
+    import metrics as M
+    from reports import _images
+
+    frame = result.frames[0]
+    channel = result.record["channel"]
+    factor = _images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
+    out = {}
+    for name, image in (("reference", frame.reference), ("candidate", frame.candidate)):
+        if image.ndim == 2:
+            out[name] = _images.encode_visibility(
+                _images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
+            )
+        else:
+            exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
+            shown = M.tonemap(image, exposure=exposure)
+            out[name] = _images.encode_color(_images.reduce_image(shown, factor, srgb=True))
+    key, style, value_range = _ERROR_MAPS[channel]
+    if key in frame.maps:
+        data = _images.reduce_error(np.nan_to_num(frame.maps[key]), factor)
+        out["error"] = _images.encode_heatmap(data, style=style, value_range=value_range)
+        out["error_map"] = key
+    return out
 
 
 def _one_line(exc: BaseException) -> str:
@@ -174,7 +221,7 @@ def _one_line(exc: BaseException) -> str:
     return "".join(c if c >= " " else " " for c in text)[:2000]
 
 
-def run_case(rec: dict, cache_root: str, variant: str | None, *_deps) -> dict:
+def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bool = False) -> dict:
     """Worker task: evaluate one case record; never raises (a failure is a result)."""
     from .cache import ReferenceCache
 
@@ -188,6 +235,7 @@ def run_case(rec: dict, cache_root: str, variant: str | None, *_deps) -> dict:
             spp=rec["spp"],
             seed=rec["seed"],
             cache=ReferenceCache(cache_root),
+            images=images,
         )
         out["status"], out["error"] = "done", None
     except Exception as exc:  # recorded in the store; the sweep goes on
@@ -279,6 +327,7 @@ def run_sweep(
     scheduler: str | None = None,
     quiet: bool = False,
     retry_failed: bool = False,
+    images: bool = True,
     echo=print,
 ) -> dict:
     """Run the cases of ``expansion`` not yet in the store ``db``; returns a summary.
@@ -293,6 +342,7 @@ def run_sweep(
     scheduler : address of an existing Dask scheduler (``tcp://host:8786``) instead of a
         local cluster.
     retry_failed : run again the cases recorded as failed (default: they count as finished).
+    images : keep thumbnails of each case (reference, candidate, error map) in the store.
 
     Returns
     -------
@@ -329,7 +379,9 @@ def run_sweep(
         if todo:
             run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
             if workers == 0 and scheduler is None:
-                results = _run_inline(todo, cache_root, variant, summary, quiet=quiet)
+                results = _run_inline(
+                    todo, cache_root, variant, summary, quiet=quiet, images=images
+                )
             else:
                 results = _run_dask(
                     todo,
@@ -339,6 +391,7 @@ def run_sweep(
                     workers=workers,
                     scheduler=scheduler,
                     quiet=quiet,
+                    images=images,
                 )
             for key, rec, row, res in results:
                 store.put(
@@ -353,7 +406,8 @@ def run_sweep(
                         "status": res["status"],
                         "error": res.get("error"),
                         "run_id": run_id,
-                    }
+                    },
+                    images=res.get("images"),
                 )
                 summary["ran"] += 1
                 summary[res["status"]] += 1
@@ -371,7 +425,7 @@ def _unique_references(todo) -> dict[str, dict]:
     return refs
 
 
-def _run_inline(todo, cache_root, variant, summary, *, quiet):
+def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
     refs = _unique_references(todo)
     summary["references"] = len(refs)
     failed_refs: dict[str, str] = {}
@@ -394,12 +448,12 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet):
             if broken:
                 res = {"status": "failed", "error": f"reference: {broken[0]}", "wall_seconds": 0.0}
             else:
-                res = run_case(rec, cache_root, variant)
+                res = run_case(rec, cache_root, variant, images=images)
             bar.update()
             yield key, rec, row, res
 
 
-def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet):
+def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, images):
     import json
 
     from distributed import Client, LocalCluster, as_completed
@@ -430,7 +484,9 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet):
         for item in todo:
             rec = item[1]
             deps = [ref_futures[json.dumps(j, sort_keys=True)] for j in reference_jobs(rec)]
-            fut = client.submit(run_case, rec, cache_root, variant, *deps, pure=False)
+            fut = client.submit(
+                run_case, rec, cache_root, variant, *deps, images=images, pure=False
+            )
             futures[fut] = item
         with _progress(len(futures), quiet=quiet, desc=summary["sweep"]) as bar:
             for fut in as_completed(futures):

@@ -149,6 +149,7 @@ def sweep_report(
 
     with SweepStore(db, readonly=True) as store:
         rows = store.rows(sweep=sweep)
+        images = store.images(r["key"] for r in rows if r["status"] == "done")
     write_sweep_report(
         rows,
         out,
@@ -157,6 +158,7 @@ def sweep_report(
         costs=costs,
         metrics=metrics,
         extra_sections=extra_sections,
+        images=images,
     )
     return out
 

@@ -12,7 +12,8 @@ Table ``sweep_cases``: ``key`` (primary key, :func:`case_key`), ``sweep`` (spec 
 ``metrics`` (JSON: every metric key, the noise floor under ``noise_floor``), ``cost`` (JSON),
 ``wall_seconds`` (the case's own time on its worker), ``status`` (``done`` or ``failed``),
 ``error`` (one line, or NULL), ``finished`` (Unix time the row was written) and ``run_id``
-(the run that wrote it).
+(the run that wrote it). Table ``sweep_images``: ``key`` and ``images`` (JSON: thumbnails of
+the reference, the candidate and its primary error map as ``data:`` URIs).
 """
 
 from __future__ import annotations
@@ -84,6 +85,7 @@ CREATE TABLE IF NOT EXISTS sweep_cases (
     run_id TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS sweep_cases_by_sweep ON sweep_cases (sweep);
+CREATE TABLE IF NOT EXISTS sweep_images (key TEXT PRIMARY KEY, images TEXT NOT NULL);
 """
 
 
@@ -175,8 +177,8 @@ class SweepStore:
             sql += " WHERE status = 'done'"
         return {r[0] for r in self.conn.execute(sql)}
 
-    def put(self, row: dict) -> None:
-        """Write (or replace) one case row and commit it."""
+    def put(self, row: dict, *, images: dict | None = None) -> None:
+        """Write (or replace) one case row, and its thumbnails when given, and commit."""
         values = dict(row)
         for name in ("params", "metrics", "cost"):
             if values.get(name) is not None:
@@ -192,6 +194,11 @@ class SweepStore:
                 f"INSERT OR REPLACE INTO sweep_cases ({cols}) VALUES ({marks})",
                 [values.get(c) for c in _COLUMNS],
             )
+            if images:
+                self.conn.execute(
+                    "INSERT OR REPLACE INTO sweep_images VALUES (?, ?)",
+                    (values["key"], dumps(images)),
+                )
 
     def get(self, key: str) -> dict | None:
         rows = self.rows(where="key = ?", args=(key,))
@@ -215,6 +222,19 @@ class SweepStore:
             for name in ("params", "metrics", "cost"):
                 row[name] = json.loads(row[name]) if row[name] is not None else None
             out.append(row)
+        return out
+
+    def images(self, keys) -> dict[str, dict]:
+        """Thumbnails (``reference``, ``candidate``, ``error`` data URIs) of ``keys``."""
+        out = {}
+        try:
+            for key in keys:
+                r = self.conn.execute("SELECT images FROM sweep_images WHERE key = ?", (key,))
+                hit = r.fetchone()
+                if hit is not None:
+                    out[key] = json.loads(hit[0])
+        except sqlite3.OperationalError:  # a store written before thumbnails were kept
+            return {}
         return out
 
     def integrity_ok(self) -> bool:

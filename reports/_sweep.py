@@ -183,6 +183,7 @@ def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> 
                 points.append(
                     {
                         "case_id": case_id(r),
+                        "key": r["key"],
                         "name": _label(r, vary),
                         "technique": r["technique"],
                         "params": {k: r["params"][k] for k in vary if k in r["params"]},
@@ -248,9 +249,26 @@ def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> 
                     "levels": mean,
                 }
             )
+    gallery = []
+    if fronts:
+        headline_front = fronts[0]
+        for i in headline_front["front"]:
+            p = headline_front["points"][i]
+            gallery.append(
+                {
+                    "case_id": p["case_id"],
+                    "key": p["key"],
+                    "name": p["name"],
+                    "cost_key": headline_front["cost_key"],
+                    "cost": p["cost"],
+                    "metric": headline_front["metric"],
+                    "error": p["error"],
+                }
+            )
     return {
         "family": family,
         "scene": scene,
+        "gallery": gallery,
         "n_cases": len(rows),
         "n_done": len(done),
         "metrics": metric_list,
@@ -340,8 +358,12 @@ def write_sweep_report(
     costs: Sequence[str] | None = None,
     metrics: Sequence[str] | None = None,
     extra_sections: Sequence[Mapping] | None = None,
+    images: Mapping[str, Mapping] | None = None,
 ) -> dict:
     """Write ``path`` (HTML) and ``report.json``-style twin ``path.with_suffix('.json')``.
+
+    ``images``: thumbnails by row key (``reference``, ``candidate``, ``error`` data URIs),
+    shown for the cases on each group's headline front (the HTML only, not the JSON).
 
     ``extra_sections``: ``{"id", "title", "html"}`` records (HTML fragments that escape their
     own text, e.g. the claims and extremes sections) placed after the fronts.
@@ -350,7 +372,7 @@ def write_sweep_report(
     from ._write import _atomic_write_text
 
     record = sweep_record(rows, title=title, provenance=provenance, costs=costs, metrics=metrics)
-    html = render_sweep_html(record, extra_sections=extra_sections or [])
+    html = render_sweep_html(record, extra_sections=extra_sections or [], images=images or {})
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     _atomic_write_text(

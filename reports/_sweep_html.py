@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.resources
 import math
+import re
 from collections.abc import Mapping, Sequence
 
 from markupsafe import Markup, escape
@@ -30,6 +31,10 @@ table.sweep td, table.sweep th { padding: 3px 8px; border-bottom: 1px solid #e2e
 table.sweep td.num, table.sweep th.num { text-align: right; }
 table.sweep tr.failed td { background: #fee2e2; }
 .nowrap { white-space: nowrap; }
+.thumbs { display: flex; flex-wrap: wrap; gap: 10px; }
+.thumb { margin: 0; width: 240px; }
+.thumb img { display: block; width: 100%; image-rendering: pixelated; margin-bottom: 2px; }
+.thumb figcaption { font-size: 12px; color: #475569; }
 .legend { display: flex; flex-wrap: wrap; gap: 2px 12px; font-size: 12px; color: #334155; }
 .legend .swatch { display: inline-block; width: 10px; height: 10px; border-radius: 50%;
   margin-right: 4px; vertical-align: -1px; }
@@ -240,11 +245,56 @@ def _cases_table(cases: Sequence[Mapping]) -> Markup:
     return Markup("".join(out))
 
 
-def render_sweep_html(record: Mapping, *, extra_sections: Sequence[Mapping] = ()) -> str:
-    """The page of a :func:`reports._sweep.sweep_record` record."""
+_DATA_URI = re.compile(r"^data:image/(png|webp|jpeg);base64,[A-Za-z0-9+/=]+$")
+
+
+def _img(uri, alt: str) -> str:
+    """An ``<img>`` of a ``data:`` image URI; anything else (a link, a script) is dropped."""
+    if not isinstance(uri, str) or not _DATA_URI.match(uri):
+        return ""
+    return f'<img src="{uri}" alt="{escape(alt)}" loading="lazy">'
+
+
+def _gallery(groups: Sequence[Mapping], images: Mapping[str, Mapping]) -> str:
+    parts = []
+    for g in groups:
+        cards = [c for c in g.get("gallery", []) if c["key"] in images]
+        if not cards:
+            continue
+        first = images[cards[0]["key"]]
+        figs = [
+            f'<figure class="thumb">{_img(first.get("reference"), "reference")}'
+            "<figcaption>reference</figcaption></figure>"
+        ]
+        for c in cards:
+            im = images[c["key"]]
+            # a case of another frame (camera or light path) has a reference of its own
+            own = im.get("reference") if im.get("reference") != first.get("reference") else None
+            figs.append(
+                f'<figure class="thumb">{_img(own, "reference of " + c["name"])}'
+                f"{_img(im.get('candidate'), c['name'])}"
+                f"{_img(im.get('error'), 'error map of ' + c['name'])}"
+                f'<figcaption><a href="#{escape(c["case_id"])}">{escape(c["name"])}</a><br>'
+                f"{escape(c['metric'])} {escape(fmt_number(c['error']))}, "
+                f"{escape(fmt_cost(c['cost'], c['cost_key']))}</figcaption></figure>"
+            )
+        parts.append(
+            f"<h3>{escape(g['family'])} on {escape(g['scene'])}</h3>"
+            f'<div class="thumbs">{"".join(figs)}</div>'
+        )
+    return "".join(parts)
+
+
+def render_sweep_html(
+    record: Mapping, *, extra_sections: Sequence[Mapping] = (), images: Mapping | None = None
+) -> str:
+    """The page of a :func:`reports._sweep.sweep_record` record; ``images`` are thumbnails by
+    row key (shown for the cases on each group's headline front)."""
+    gallery = _gallery(record["groups"], images or {})
     s = record["summary"]
     toc = [
         '<a href="#fronts">Pareto fronts</a>',
+        '<a href="#gallery">Front cases</a>',
         '<a href="#sensitivity">Sensitivity</a>',
         '<a href="#best">Best at equal cost</a>',
     ]
@@ -311,6 +361,11 @@ def render_sweep_html(record: Mapping, *, extra_sections: Sequence[Mapping] = ()
         "error per technique family and scene; filled points are on the front (no other case "
         "is as cheap and as accurate), points link to their row in the cases table.</p>"
         f"{''.join(fronts) or none}</section>"
+        '<section id="gallery" class="card"><h2>Front cases</h2><p class="note">The cases on '
+        "each headline front (first plot of each group): the reference, then each case's "
+        "image above its error map (signed for visibility: green = false-lit, red = "
+        "false-shadowed; FLIP for colour).</p>"
+        f"{gallery or none}</section>"
         '<section id="sensitivity" class="card"><h2>Parameter sensitivity</h2><p class="note">'
         "The headline metric against each parameter a technique varies: every case, and the "
         f"mean over the other parameters (line).</p>{''.join(sens) or none}</section>"

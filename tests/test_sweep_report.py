@@ -140,3 +140,21 @@ def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
     # 200 bytes at 0.04: dominates nothing it costs more than, and sits on the front
     point = next(p for p in front["points"] if p["technique"] == "izb")
     assert point["cost"] == 200 and point["on_front"]
+
+
+def test_front_cases_show_their_thumbnails_and_only_data_images(tmp_path):
+    png = "data:image/png;base64,iVBORw0KGgo="
+    images = {
+        ROWS[0]["key"]: {"reference": png, "candidate": png, "error": png},
+        ROWS[3]["key"]: {"reference": png, "candidate": "https://example.com/x.png"},
+        ROWS[1]["key"]: {"reference": png, "candidate": png, "error": png},  # dominated
+    }
+    out = tmp_path / "r.html"
+    write_sweep_report(ROWS, out, title="t", images=images)
+    html = out.read_text()
+    gallery = html[html.index('id="gallery"') : html.index('id="sensitivity"')]
+    # plate's headline front: rows 1, 4, 5; row 5 has no thumbnails, row 2 is not on it
+    # the reference, row 1's image and error map; row 4's link is dropped, it has no error map
+    assert gallery.count("<img") == 3
+    assert "example.com" not in html
+    assert f"#row-{1:012x}" in gallery and f"#row-{2:012x}" not in gallery
