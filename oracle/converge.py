@@ -224,6 +224,16 @@ def run_converge(
             ),
             "spp_range": [use[0]["spp"], use[-1]["spp"]] if use else None,
         }
+    if adaptive_rec is not None:
+        # the uniform spp whose fitted true RMS equals adaptive's: samples saved at equal error
+        f = fit["visibility"]["true_rms"]
+        equiv = None
+        if f["slope"] is not None and f["slope"] < 0 and adaptive_rec["visibility"]["rms"] > 0:
+            equiv = float((adaptive_rec["visibility"]["rms"] / f["a"]) ** (1.0 / f["slope"]))
+        adaptive_rec["uniform_spp_same_rms_fit"] = equiv
+        adaptive_rec["uniform_over_adaptive_samples"] = (
+            equiv / adaptive_rec["mean_spp"] if equiv is not None else None
+        )
     target_recs = []
     for t in targets:
         rms = [r["visibility"]["rms"] for r in ladder]

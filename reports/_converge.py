@@ -189,6 +189,15 @@ def render_converge(data: Mapping) -> str:
     if data.get("adaptive"):
         a = data["adaptive"]
         rows.append(dict(a, label=f"adaptive ({a['mean_spp']:.1f} mean)"))
+    a = data.get("adaptive") or {}
+    if a.get("uniform_spp_same_rms_fit") is not None:
+        out.append(
+            f"<p>Adaptive sampling (target stderr {escape(fmt_number(a['target_stderr']))}): "
+            f"{escape(fmt_number(a['mean_spp']))} samples per pixel on average reach the true "
+            f"RMS error that uniform sampling reaches at "
+            f"{escape(fmt_number(a['uniform_spp_same_rms_fit']))} spp (on the fit): "
+            f"{escape(fmt_number(a['uniform_over_adaptive_samples']))}x fewer samples.</p>"
+        )
     out.append("<table>" + head)
     for r in rows:
         v, c = r["visibility"], r["coverage"]

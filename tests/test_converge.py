@@ -97,6 +97,10 @@ def test_target_spp_is_monotone_in_the_target(plate):
 def test_adaptive_record_and_same_bytes(plate):
     a = plate["adaptive"]
     assert 16 <= a["mean_spp"] <= 256
+    f = plate["fit"]["visibility"]["true_rms"]
+    equiv = (a["visibility"]["rms"] / f["a"]) ** (1.0 / f["slope"])
+    assert a["uniform_spp_same_rms_fit"] == pytest.approx(equiv, rel=1e-12)
+    assert a["uniform_over_adaptive_samples"] == pytest.approx(equiv / a["mean_spp"], rel=1e-12)
     assert a["visibility"]["rms"] < plate["ladder"][0]["visibility"]["rms"]
     again = run_converge("plate", max_spp=8, truth_spp=64, width=24, height=16, adaptive=False)
     twice = run_converge("plate", max_spp=8, truth_spp=64, width=24, height=16, adaptive=False)
