@@ -39,6 +39,7 @@ __all__ = [
     "evsm_exponents",
     "lookups_per_pixel",
     "moment_lookup",
+    "moment_texture",
     "moments_from_depth",
     "pcf_grid",
     "pcf_poisson",
@@ -355,6 +356,33 @@ def blur_moments(moments: np.ndarray, size: int, fmt: str) -> np.ndarray:
         m = m.astype(store).astype(np.float64)
         m = ndimage.uniform_filter1d(m, size, axis=1, mode="nearest")
     return m.astype(store)
+
+
+#: Texels a band of :func:`moment_texture` works on at a time (float64 temporaries of about
+#: 0.25 GiB for EVSM4): only the stored texture is whole, at any map size.
+MOMENT_BAND_TEXELS = 1 << 23
+
+
+def moment_texture(depth_map: np.ndarray, kind: str, exponents, size: int, fmt: str):
+    """The stored moment texture, ``blur_moments(moments_from_depth(...))`` computed in
+    bands (row bands for the warp and the horizontal pass, column bands for the vertical
+    one), so memory is the ``(R, R, C)`` result plus one band: byte-identical to the
+    whole-map computation, since each pass filters along one axis only."""
+    store = np.float16 if fmt == "float16" else np.float32
+    rows_n, cols_n = depth_map.shape
+    channels = 2 if kind in ("vsm", "evsm2") else 4
+    out = np.empty((rows_n, cols_n, channels), dtype=store)
+    rows = max(1, MOMENT_BAND_TEXELS // max(cols_n, 1))
+    cols = max(1, MOMENT_BAND_TEXELS // max(rows_n, 1))
+    for y0 in range(0, rows_n, rows):
+        out[y0 : y0 + rows] = moments_from_depth(depth_map[y0 : y0 + rows], kind, exponents)
+    if size > 1:
+        for axis, step, n in ((0, cols, cols_n), (1, rows, rows_n)):
+            for a in range(0, n, step):
+                band = (slice(None), slice(a, a + step)) if axis == 0 else slice(a, a + step)
+                m = out[band].astype(np.float64)
+                out[band] = ndimage.uniform_filter1d(m, size, axis=axis, mode="nearest")
+    return out
 
 
 def _bilinear(tex: np.ndarray, u, v, subtexel_bits: int) -> np.ndarray:

@@ -16,7 +16,7 @@ import numpy as np
 
 from scenes import backend
 
-__all__ = ["GRID_CHUNK", "cast_grid"]
+__all__ = ["GRID_CHUNK", "cast_grid", "iter_grid"]
 
 #: Texels per Dr.Jit launch (bounded memory: about 0.3 GiB a launch with normals).
 GRID_CHUNK = 1 << 22
@@ -28,42 +28,18 @@ def _np(a) -> np.ndarray:
     return np.array(to_numpy() if to_numpy is not None else a)
 
 
-def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool = False) -> dict:
-    """Cast one ray per texel centre of a ``resolution``-square map.
-
-    Parameters
-    ----------
-    scene : scenes.LoadedScene
-    grid : the affine ray description of :meth:`Projection.grid_rays`.
-    resolution : texels per side ``R``; texel ``(i, j)`` (column, row) has texture
-        coordinates ``s = (i + 0.5) / R``, ``t = (j + 0.5) / R``.
-    depth : how a hit becomes normalized depth, evaluated in float64: ``("ortho", c0, cs,
-        ct, cd)`` for ``z = c0 + s cs + t ct + d cd`` (``d`` = hit distance along the unit
-        direction), or ``("persp", a, b)`` for ``z = a - b / tau`` with light-view depth
-        ``tau = z_start + d / |direction|``.
-    normals : also return the geometric normal, hit distance and direction length per texel
-        (for the slope-scaled bias).
-
-    Returns
-    -------
-    dict with ``z`` ((R, R) float64 normalized depth, unclamped; ``inf`` on a miss) and, with
-    ``normals``: ``t`` (hit distance, ``inf`` on a miss), ``dir_norm`` and ``normal``
-    ((R, R, 3) float32). Row index = ``j``.
-    """
+def iter_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool = False):
+    """Cast the rays of :func:`cast_grid` in launches of :data:`GRID_CHUNK` texels and yield
+    ``(start, stop, chunk)`` per launch, ``chunk`` holding that launch's flat slices of the
+    arrays :func:`cast_grid` returns (``z`` float64; with ``normals`` also ``t``,
+    ``dir_norm`` and ``normal`` ``(n, 3)``). Memory stays bounded by the launch size at any
+    map resolution."""
     mi = backend.mitsuba()
     import drjit as dr
 
     r = int(resolution)
     n_total = r * r
     span = grid["z_end"] - grid["z_start"]
-    z_out = np.empty(n_total, dtype=np.float64)
-    extra = {}
-    if normals:
-        extra = {
-            "t": np.empty(n_total, dtype=np.float64),
-            "dir_norm": np.empty(n_total, dtype=np.float64),
-            "normal": np.empty((n_total, 3), dtype=np.float32),
-        }
     f64 = mi.Float64
 
     def const(x):
@@ -107,16 +83,47 @@ def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool
             tau = zs + dist / dnorm
             z = coef[0] - coef[1] / dr.maximum(tau, 1e-300)
         z = dr.select(valid, z, dr.inf)
-        sl = slice(start, stop)
         if normals:
             dr.eval(z, si.n, dist, dnorm, valid)
-            extra["normal"][sl] = _np(si.n).T
-            extra["t"][sl] = np.where(_np(valid), _np(dist), np.inf)
-            extra["dir_norm"][sl] = _np(dnorm)
+            chunk = {
+                "z": _np(z),
+                "normal": _np(si.n).T.astype(np.float32),
+                "t": np.where(_np(valid), _np(dist), np.inf),
+                "dir_norm": _np(dnorm),
+            }
         else:
             dr.eval(z)
-        z_out[sl] = _np(z)
-    out = {"z": z_out.reshape(r, r)}
-    for k, v in extra.items():
-        out[k] = v.reshape((r, r) + v.shape[1:])
-    return out
+            chunk = {"z": _np(z)}
+        yield start, stop, chunk
+
+
+def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool = False) -> dict:
+    """Cast one ray per texel centre of a ``resolution``-square map.
+
+    Parameters
+    ----------
+    scene : scenes.LoadedScene
+    grid : the affine ray description of :meth:`Projection.grid_rays`.
+    resolution : texels per side ``R``; texel ``(i, j)`` (column, row) has texture
+        coordinates ``s = (i + 0.5) / R``, ``t = (j + 0.5) / R``.
+    depth : how a hit becomes normalized depth, evaluated in float64: ``("ortho", c0, cs,
+        ct, cd)`` for ``z = c0 + s cs + t ct + d cd`` (``d`` = hit distance along the unit
+        direction), or ``("persp", a, b)`` for ``z = a - b / tau`` with light-view depth
+        ``tau = z_start + d / |direction|``.
+    normals : also return the geometric normal, hit distance and direction length per texel
+        (for the slope-scaled bias).
+
+    Returns
+    -------
+    dict with ``z`` ((R, R) float64 normalized depth, unclamped; ``inf`` on a miss) and, with
+    ``normals``: ``t`` (hit distance, ``inf`` on a miss), ``dir_norm`` and ``normal``
+    ((R, R, 3) float32). Row index = ``j``.
+    """
+    r = int(resolution)
+    out: dict = {}
+    for start, stop, chunk in iter_grid(scene, grid, r, depth, normals=normals):
+        for k, v in chunk.items():
+            if k not in out:
+                out[k] = np.empty((r * r,) + v.shape[1:], dtype=v.dtype)
+            out[k][start:stop] = v
+    return {k: v.reshape((r, r) + v.shape[1:]) for k, v in out.items()}

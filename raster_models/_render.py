@@ -12,7 +12,7 @@ import numpy as np
 
 from . import _depth, _filters
 from ._light_frame import Projection
-from ._raycast import cast_grid
+from ._raycast import iter_grid
 from ._types import MapData, Partition, Setup
 
 __all__ = ["render_maps"]
@@ -77,38 +77,37 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     else:
         _, near, far = (float(v) for v in proj.extent)
         depth = ("persp", far / (far - near), far * near / (far - near))
-    hits = cast_grid(scene, grid, r, depth, normals=need_slope)
-    z = hits["z"].ravel()
-    hit = np.isfinite(z)
-    z = np.where(hit, z, 1.0)
-    slope = None
-    if need_slope:
-        idx = np.nonzero(hit)[0]
-        s = (idx % r + 0.5) / r
-        t = (idx // r + 0.5) / r
-        slope = np.zeros(r * r)
-        slope[idx] = _max_depth_slope(
-            proj,
-            grid,
-            hits["normal"].reshape(-1, 3)[idx],
-            s,
-            t,
-            hits["t"].ravel()[idx],
-            hits["dir_norm"].ravel()[idx],
+    # One launch at a time (bounded memory at any map size): only the float32 map is whole.
+    stored = np.empty(r * r, dtype=np.float32)
+    covered = 0
+    for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
+        z = hits["z"]
+        hit = np.isfinite(z)
+        covered += int(hit.sum())
+        z = np.where(hit, z, 1.0)
+        slope = None
+        if need_slope:
+            idx = np.nonzero(hit)[0]
+            texel = idx + start
+            s = (texel % r + 0.5) / r
+            t = (texel // r + 0.5) / r
+            slope = np.zeros(stop - start)
+            slope[idx] = _max_depth_slope(
+                proj, grid, hits["normal"][idx], s, t, hits["t"][idx], hits["dir_norm"][idx]
+            )
+        # Bias first, then the viewport clamp (D3D11 order).
+        z = _depth.rasterized_depth(
+            z,
+            slope,
+            params.format,
+            depth_bias=params.depth_bias,
+            slope_scaled=params.slope_scaled_bias,
+            clamp=params.depth_bias_clamp,
         )
-    # Bias first, then the viewport clamp (D3D11 order).
-    z = _depth.rasterized_depth(
-        z,
-        slope,
-        params.format,
-        depth_bias=params.depth_bias,
-        slope_scaled=params.slope_scaled_bias,
-        clamp=params.depth_bias_clamp,
-    )
-    # Stored as float32: D3D compares a depth texel converted to float32.
-    stored = np.where(hit, _depth.quantize(z, params.format), 1.0).astype(np.float32)
+        # Stored as float32: D3D compares a depth texel converted to float32.
+        stored[start:stop] = np.where(hit, _depth.quantize(z, params.format), 1.0)
     stored = stored.reshape(r, r)
-    return MapData(stored, None, (0.0, 0.0), int(hit.sum()), z_start)
+    return MapData(stored, None, (0.0, 0.0), covered, z_start)
 
 
 def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
@@ -124,8 +123,9 @@ def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
         exponents = _filters.evsm_exponents(
             params.evsm_positive, params.evsm_negative, params.moment_format, scale
         )
-    m = _filters.moments_from_depth(data.depth, params.filter, exponents)
-    data.moments = _filters.blur_moments(m, params.blur_size, params.moment_format)
+    data.moments = _filters.moment_texture(
+        data.depth, params.filter, exponents, params.blur_size, params.moment_format
+    )
     data.exponents = exponents
 
 

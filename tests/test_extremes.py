@@ -151,7 +151,7 @@ def test_a_model_registered_later_enters_the_matrix(monkeypatch):
 
 
 def test_huge_map_refused_when_memory_is_short(monkeypatch):
-    monkeypatch.setattr(X, "memory_budget", lambda: 2**29)
+    monkeypatch.setattr(X, "memory_budget", lambda: 2**28)  # below a 4096^2 map's 0.5 GiB
     data = X.run_extremes(None, quick=True, extremes=["huge_map"], techniques=["shadow-map"])
     (cell,) = data["cells"]
     assert cell["status"] == "refused" and "GiB" in cell["message"] and cell["outcome_met"]

@@ -197,6 +197,20 @@ def test_moment_filters_on_a_flat_occluder(kind):
     assert vis[2] < 0.01
 
 
+@pytest.mark.parametrize("kind", ["vsm", "evsm2", "evsm4"])
+@pytest.mark.parametrize("fmt", ["float32", "float16"])
+@pytest.mark.parametrize("size", [1, 5])
+def test_banded_moment_texture_equals_the_whole_map(monkeypatch, kind, fmt, size):
+    """Bands of 7 rows / 5 columns (bands that do not divide the map) give the same bytes."""
+    depth_map = np.random.default_rng(3).random((37, 23))
+    exps = _filters.evsm_exponents(40.0, 5.0, fmt) if kind != "vsm" else (0.0, 0.0)
+    whole = _filters.blur_moments(_filters.moments_from_depth(depth_map, kind, exps), size, fmt)
+    monkeypatch.setattr(_filters, "MOMENT_BAND_TEXELS", 7 * 23)
+    banded = _filters.moment_texture(depth_map, kind, exps, size, fmt)
+    assert banded.dtype == whole.dtype and banded.shape == whole.shape
+    assert banded.tobytes() == whole.tobytes()
+
+
 # ---------------------------------------------------------------------- splits
 def test_split_formulas():
     n, f, k = 0.1, 2000.0, 4
