@@ -365,3 +365,27 @@ def test_shadow_technique_option():
         )
         == 2
     )
+
+
+@pytest.mark.parametrize("inverse_luminance", [False, True])
+def test_box_resolve_per_fragment_equals_per_sample(inverse_luminance):
+    """MSAA's box resolve sums fragments (colour x samples owned); averaging the sample
+    array gives the same image."""
+    from raster_models.aa import msaa
+
+    s = scenes.load("thin", **SMALL)
+    offs = _samples.positions(8)
+    ms = msaa.multisample(s, offs, centroid=False, shadows="exact")
+    per_sample = _resolve.resolve(
+        msaa.sample_colors(ms["frags"], ms["rgb"]),
+        offs,
+        W,
+        H,
+        "box",
+        inverse_luminance=inverse_luminance,
+    )
+    per_fragment = msaa.resolve_fragments(
+        ms["frags"], ms["rgb"], offs, W, H, "box", inverse_luminance
+    )
+    assert np.allclose(per_fragment, per_sample, rtol=FLOAT_TOL, atol=1e-7)
+    assert (ms["frags"].per_pixel(W * H) > 1).sum() > 50

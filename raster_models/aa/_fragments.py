@@ -13,6 +13,7 @@ import numpy as np
 __all__ = [
     "Fragments",
     "first_of_key",
+    "fragments_from_prepass",
     "group_fragments",
     "sample_film_positions",
     "shading_positions",
@@ -67,14 +68,24 @@ def group_fragments(valid: np.ndarray, shape=None, prim=None, *, first=None) -> 
     n_pix, n = valid.shape
     if first is None:
         first = first_of_key(valid, shape, prim)
-    first = np.where(valid, first, 0).astype(np.int64)
-    rep = (first == np.arange(n)[None, :]) & valid
-    fp, fs = np.nonzero(rep)
-    fid = np.full((n_pix, n), -1, np.int64)
-    fid[fp, fs] = np.arange(len(fp))
-    of_sample = np.where(valid, np.take_along_axis(fid, first, axis=1), -1)
-    count = np.bincount(of_sample[valid], minlength=len(fp))
+    first = np.asarray(first)
+    rep = (first == np.arange(n, dtype=first.dtype)[None, :]) & valid
+    flat = rep.ravel()
+    # fragment ids in pixel-major order; a sample's fragment is its representative's id
+    fid = np.cumsum(flat, dtype=np.int64) - 1
+    lane = np.where(valid, np.arange(n_pix)[:, None] * n + first, 0)
+    of_sample = np.where(valid, fid[lane], -1)
+    reps = np.flatnonzero(flat)
+    fp, fs = reps // n, reps % n
+    count = np.bincount(of_sample.ravel() + 1, minlength=len(reps) + 1)[1:]
     return Fragments(fp, fs, count, of_sample)
+
+
+def fragments_from_prepass(buf: dict, n: int) -> Fragments:
+    """:class:`Fragments` from the Dr.Jit bookkeeping of ``trace_samples(..., group=True)``."""
+    reps = np.flatnonzero(buf["rep"].ravel())
+    count = buf["count"].ravel()[reps].astype(np.int64)
+    return Fragments(reps // n, reps % n, count, buf["of"])
 
 
 def shading_positions(frags: Fragments, offsets, width: int, centroid: bool, n: int):

@@ -15,7 +15,7 @@ pixels or data.
 
 from __future__ import annotations
 
-__all__ = ["aggregate_of", "first_of_key", "store_normal"]
+__all__ = ["aggregate_of", "first_of_key", "fragments_of", "store_normal"]
 
 
 def _slot(dr, tp, arr, local, n: int, j):
@@ -101,3 +101,35 @@ def aggregate_of(mi, dr, valid, z, nrm, local, n: int, k: int, threshold, weight
     split = (top2 > threshold) if k >= 2 else dr.full(mi.Bool, False, dr.width(z))
     agg = dr.select(split & (d2 < d1), 1, 0)
     return dr.select(valid, mi.Int32(agg), -1)
+
+
+def fragments_of(mi, dr, valid, first, local, n: int, s, offset: int, agg=None) -> dict:
+    """Fragment bookkeeping of every sample from its representative slot ``first``.
+
+    Returns Dr.Jit arrays: ``rep`` (the sample is its fragment's representative), ``of``
+    (Int32 fragment id, numbered over all pixels in lane order from ``offset``; -1 sky),
+    ``count`` (samples of the sample's fragment) and, with ``agg``, ``pair_rep`` and
+    ``pair_count``: the same for (fragment, aggregate) pairs.
+    """
+    rep = valid & (first == s)
+    fid = dr.prefix_sum(dr.select(rep, mi.UInt32(1), mi.UInt32(0))) + offset
+    fid = dr.gather(mi.UInt32, fid, local * n + dr.select(valid, first, 0))
+    out = {"rep": rep, "of": dr.select(valid, mi.Int32(fid), -1)}
+    count = dr.zeros(mi.UInt32, dr.width(valid))
+    if agg is not None:
+        pair_count = dr.zeros(mi.UInt32, dr.width(valid))
+        pair_first = dr.full(mi.UInt32, n, dr.width(valid))
+    for j in range(n):
+        same = _slot(dr, mi.Bool, valid, local, n, j) & (
+            _slot(dr, mi.UInt32, first, local, n, j) == first
+        )
+        count += dr.select(same, mi.UInt32(1), mi.UInt32(0))
+        if agg is not None:
+            pair = same & (_slot(dr, mi.Int32, agg, local, n, j) == agg)
+            pair_count += dr.select(pair, mi.UInt32(1), mi.UInt32(0))
+            pair_first = dr.select(pair & (pair_first == n), j, pair_first)
+    out["count"] = dr.select(valid, count, 0)
+    if agg is not None:
+        out["pair_rep"] = valid & (pair_first == s)
+        out["pair_count"] = dr.select(valid, pair_count, 0)
+    return out

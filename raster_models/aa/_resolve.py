@@ -31,7 +31,14 @@ import math
 
 import numpy as np
 
-__all__ = ["FILTERS", "LUMA_WEIGHTS", "filter_radius", "filter_weight", "resolve"]
+__all__ = [
+    "FILTERS",
+    "LUMA_WEIGHTS",
+    "box_from_fragments",
+    "filter_radius",
+    "filter_weight",
+    "resolve",
+]
 
 #: Resolve filters by name.
 FILTERS = ("box", "triangle", "gaussian", "blackman-harris", "mitchell", "catmull-rom")
@@ -135,6 +142,30 @@ def resolve(
             num[yd, xd] += np.tensordot(wc[ys, xs], k, axes=([2], [0]))
             den[yd, xd] += wl[ys, xs] @ k
     return (num / np.where(den > 0, den, 1.0)[..., None]).astype(np.float32)
+
+
+def box_from_fragments(
+    pixel, count, rgb, n: int, n_pix: int, *, inverse_luminance: bool = False
+) -> np.ndarray:
+    """The box resolve of :func:`resolve` computed per fragment: a fragment's colour fills
+    the ``count`` samples it owns, the pixel's other samples are sky (0); ``(P, 3)`` float32.
+
+    Identical in value to averaging the ``(P, N, 3)`` sample colours (float64 sums), without
+    building them.
+    """
+    c = np.asarray(rgb, np.float64)
+    w = np.asarray(count, np.float64)
+    if inverse_luminance:
+        w = w / (1.0 + np.maximum(c @ np.asarray(LUMA_WEIGHTS), 0.0))
+    num = np.stack(
+        [np.bincount(pixel, weights=w * c[:, k], minlength=n_pix) for k in range(3)], axis=1
+    )
+    if inverse_luminance:
+        sky = n - np.bincount(pixel, weights=count, minlength=n_pix)
+        den = np.bincount(pixel, weights=w, minlength=n_pix) + sky
+    else:
+        den = np.full(n_pix, float(n))
+    return (num / den[:, None]).astype(np.float32)
 
 
 def _span(d: int, size: int) -> tuple[slice, slice]:

@@ -69,6 +69,7 @@ def trace_samples(
     pixels=None,
     group: bool = False,
     cluster: tuple | None = None,
+    keep: tuple = ("valid", "shape", "prim", "depth"),
 ) -> dict:
     """Nearest surface at every sub-sample of every pixel (a depth prepass).
 
@@ -80,9 +81,13 @@ def trace_samples(
     mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: one shape).
     pixels : pixel indices (row-major) to trace; default every pixel.
     group : also return ``first`` ((P, N) int8): the first sample of the pixel with the same
-        (shape, primitive), ``N`` for sky (:func:`._pixel_dr.first_of_key`).
+        (shape, primitive), ``N`` for sky (:func:`._pixel_dr.first_of_key`), and the fragment
+        bookkeeping of :func:`._pixel_dr.fragments_of` (``rep``, ``of``, ``count``; with
+        ``cluster`` also ``pair_rep``, ``pair_count``).
     cluster : ``(k, threshold, depth_weight, normal_format)``: also return ``aggregate``
         ((P, N) int8), AGAA's clustering on the stored normals (:func:`._pixel_dr.aggregate_of`).
+    keep : which of ``valid``, ``shape``, ``prim``, ``depth`` to copy back to NumPy (the
+        per-pixel kernels read them on the Dr.Jit side either way).
 
     Returns
     -------
@@ -101,18 +106,21 @@ def trace_samples(
     pix_all = np.arange(cam.width * cam.height) if pixels is None else np.asarray(pixels)
     n_pix = len(pix_all)
     total = n_pix * n
-    out = {
-        "valid": np.empty(total, bool),
-        "shape": np.empty(total, np.int32),
-        "prim": np.empty(total, np.int64),
-        "depth": np.empty(total, np.float32),
-    }
+    dtypes = {"valid": bool, "shape": np.int32, "prim": np.int64, "depth": np.float32}
+    out = {key: np.empty(total, dtypes[key]) for key in keep}
     if normals:
         out["normal"] = np.empty((total, 3), np.float32)
     if group:
         out["first"] = np.empty(total, np.int8)
+        out["rep"] = np.empty(total, bool)
+        out["of"] = np.empty(total, np.int32)
+        out["count"] = np.empty(total, np.int8)
     if cluster is not None:
         out["aggregate"] = np.empty(total, np.int8)
+        if group:
+            out["pair_rep"] = np.empty(total, bool)
+            out["pair_count"] = np.empty(total, np.int8)
+    n_frag = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
     table = _shape_table(mi, dr, scene) if mi_scene is None else None
     step = max(n, (CHUNK // n) * n)
@@ -153,18 +161,40 @@ def trace_samples(
             extra["aggregate"] = _pixel_dr.aggregate_of(
                 mi, dr, valid, depth, stored, local, n, k, threshold, weight
             )
+        if group:
+            dr.eval(*extra.values())
+            extra.update(
+                _pixel_dr.fragments_of(
+                    mi,
+                    dr,
+                    valid,
+                    extra["first"],
+                    local,
+                    n,
+                    s,
+                    dr.opaque(mi.UInt32, n_frag),
+                    extra.get("aggregate"),
+                )
+            )
         evals = [valid, depth, prim, shape] + ([nrm] if normals else []) + list(extra.values())
         dr.eval(*evals)
         sl = slice(start, stop)
-        v = _np(valid)
-        out["valid"][sl] = v
-        out["depth"][sl] = _np(depth)
-        out["shape"][sl] = _np(shape)
-        out["prim"][sl] = np.where(v, _np(prim).astype(np.int64), -1)
+        if "valid" in out or "prim" in out:
+            v = _np(valid)
+        if "valid" in out:
+            out["valid"][sl] = v
+        if "depth" in out:
+            out["depth"][sl] = _np(depth)
+        if "shape" in out:
+            out["shape"][sl] = _np(shape)
+        if "prim" in out:
+            out["prim"][sl] = np.where(v, _np(prim).astype(np.int64), -1)
         if normals:
             out["normal"][sl] = _np(nrm).T
         for key, val in extra.items():
             out[key][sl] = _np(val)
+        if group:
+            n_frag += int(np.count_nonzero(out["rep"][sl]))
     res = {k: v.reshape((n_pix, n) + v.shape[1:]) for k, v in out.items()}
     return res
 

@@ -43,7 +43,7 @@ from .. import _params
 from .._errors import ModelError
 from . import _samples
 from ._base import ShadowParams, check_shadows, package, shadow_visibility
-from ._fragments import group_fragments, sample_film_positions, shading_positions
+from ._fragments import fragments_from_prepass, sample_film_positions, shading_positions
 from ._trace import fragment_attributes, shade_points, trace_samples
 
 __all__ = ["AGGREGATE_BYTES", "NORMAL_FORMATS", "AgaaParams", "cluster", "quantize_normals", "run"]
@@ -190,23 +190,21 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     w, h = scene.width, scene.height
     n_pix = w * h
     clustering = (k, p.threshold, p.depth_weight, p.normal_format)
-    buf = trace_samples(scene, offsets, group=True, cluster=clustering)
+    buf = trace_samples(scene, offsets, group=True, cluster=clustering, keep=("valid",))
     valid = buf["valid"]
     agg = buf["aggregate"]
-    frags = group_fragments(valid, first=buf["first"])
+    frags = fragments_from_prepass(buf, n)
     sx, sy = sample_film_positions(frags, offsets, w)
     cx, cy = shading_positions(frags, offsets, w, False, n)
     attrs = fragment_attributes(scene, sx, sy, cx, cy)
-    # material accumulation: (fragment, aggregate) entries weighted by the samples they own
-    of = frags.of_sample
-    ok = of >= 0
-    cnt_fk = np.bincount(of[ok] * k + agg[ok], minlength=len(frags) * k)
-    e_idx = np.nonzero(cnt_fk)[0]
-    e_slot = frags.pixel[e_idx // k] * k + e_idx % k
+    # material accumulation: one entry per (fragment, aggregate) pair, weighted by the
+    # samples it owns (pairs found on the Dr.Jit side)
+    pr = np.flatnonzero(buf["pair_rep"].ravel())
+    e_slot = (pr // n) * k + agg.ravel()[pr]
     order = np.argsort(e_slot, kind="stable")
-    e_idx, e_slot = e_idx[order], e_slot[order]
-    e_f = e_idx // k
-    e_w = cnt_fk[e_idx].astype(np.float64)
+    pr, e_slot = pr[order], e_slot[order]
+    e_f = buf["of"].ravel()[pr]
+    e_w = buf["pair_count"].ravel()[pr].astype(np.float64)
     first = np.flatnonzero(np.r_[True, e_slot[1:] != e_slot[:-1]]) if len(e_slot) else e_slot
     slots = e_slot[first]
     weight = np.add.reduceat(e_w, first)
@@ -243,7 +241,7 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
         scene,
         p,
         color=color.reshape(h, w, 3),
-        coverage=valid.mean(axis=1),
+        coverage=np.count_nonzero(valid, axis=1) / n,
         events=n_agg,
         extra_outputs={"aggregates": n_agg, "surfaces": frags.per_pixel(n_pix)},
         samples=n,

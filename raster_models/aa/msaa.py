@@ -40,10 +40,10 @@ from ._base import (
     package,
     shade_fragments,
 )
-from ._fragments import group_fragments
+from ._fragments import fragments_from_prepass
 from ._trace import trace_samples
 
-__all__ = ["NAME", "MsaaParams", "multisample", "run"]
+__all__ = ["NAME", "MsaaParams", "multisample", "resolve_fragments", "run", "sample_colors"]
 
 NAME = "msaa"
 
@@ -90,23 +90,42 @@ def multisample(scene, offsets, *, centroid: bool, shadows: str) -> dict:
     """Depth prepass, fragments and their shading at ``offsets`` (shared with ACAA/AGAA).
 
     Returns a dict: ``buffer`` (:func:`trace_samples`), ``frags``, ``attrs``, ``rgb``
-    (per fragment), ``sample_rgb`` ((P, N, 3), sky 0), ``shadow_rays``.
+    (per fragment), ``shadow_rays``.
     """
-    buf = trace_samples(scene, offsets, group=True)
-    frags = group_fragments(buf["valid"], first=buf["first"])
+    buf = trace_samples(scene, offsets, group=True, keep=("valid",))
+    frags = fragments_from_prepass(buf, len(offsets))
     attrs, rgb, rays = shade_fragments(scene, frags, offsets, centroid=centroid, shadows=shadows)
-    of = frags.of_sample
+    return {"buffer": buf, "frags": frags, "attrs": attrs, "rgb": rgb, "shadow_rays": rays}
+
+
+def sample_colors(frags, rgb) -> np.ndarray:
+    """``(P, N, 3)`` float32 colour of every sample: its fragment's, 0 for sky."""
     # row 0: sky (0); fragment f is row f + 1 (one float32 gather)
     table = np.concatenate([np.zeros((1, 3), np.float32), np.asarray(rgb, np.float32)])
-    sample_rgb = table[of + 1]
-    return {
-        "buffer": buf,
-        "frags": frags,
-        "attrs": attrs,
-        "rgb": rgb,
-        "sample_rgb": sample_rgb,
-        "shadow_rays": rays,
-    }
+    return table[frags.of_sample + 1]
+
+
+def resolve_fragments(frags, rgb, offsets, width, height, name, inverse_luminance):
+    """Resolve a multisampled image held as fragments (box: per fragment, no sample array)."""
+    n = len(offsets)
+    if name == "box":
+        color = _resolve.box_from_fragments(
+            frags.pixel,
+            frags.count,
+            rgb,
+            n,
+            width * height,
+            inverse_luminance=inverse_luminance,
+        )
+        return color.reshape(height, width, 3)
+    return _resolve.resolve(
+        sample_colors(frags, rgb),
+        offsets,
+        width,
+        height,
+        name,
+        inverse_luminance=inverse_luminance,
+    )
 
 
 def run(scene, params: MsaaParams | None = None, **kwargs):
@@ -118,9 +137,7 @@ def run(scene, params: MsaaParams | None = None, **kwargs):
     ms = multisample(scene, offsets, centroid=p.centroid, shadows=p.shadows)
     w, h = scene.width, scene.height
     n = p.samples
-    color = _resolve.resolve(
-        ms["sample_rgb"], offsets, w, h, p.resolve, inverse_luminance=p.inverse_luminance
-    )
+    color = resolve_fragments(ms["frags"], ms["rgb"], offsets, w, h, p.resolve, p.inverse_luminance)
     valid = ms["buffer"]["valid"]
     n_pix = w * h
     events = ms["frags"].per_pixel(n_pix)
@@ -131,7 +148,7 @@ def run(scene, params: MsaaParams | None = None, **kwargs):
         scene,
         p,
         color=color,
-        coverage=valid.mean(axis=1),
+        coverage=np.count_nonzero(valid, axis=1) / n,
         events=events,
         extra_outputs={},
         samples=n,
