@@ -150,6 +150,7 @@ def sweep_report(
     with SweepStore(db, readonly=True) as store:
         rows = store.rows(sweep=sweep)
         images = store.images(r["key"] for r in rows if r["status"] == "done")
+    _check_keys(rows, costs, metrics)
     write_sweep_report(
         rows,
         out,
@@ -161,6 +162,26 @@ def sweep_report(
         images=images,
     )
     return out
+
+
+def _check_keys(rows, costs, metrics) -> None:
+    """Requested ``--cost`` / ``--metric`` keys must be in some case of the store."""
+    from reports._sweep import with_memory
+
+    from .sweep import SweepError
+
+    done = [r for r in rows if r["status"] == "done"]
+    have = {
+        "--cost": sorted({k for r in done for k in with_memory(r.get("cost"))}),
+        "--metric": sorted({k for r in done for k in (r.get("metrics") or {})} - {"noise_floor"}),
+    }
+    for option, wanted in (("--cost", costs or []), ("--metric", metrics or [])):
+        for key in wanted:
+            if key not in have[option]:
+                raise SweepError(
+                    f"report {option} {key}: in no finished case; choose from "
+                    f"{', '.join(have[option]) or '(none)'}"
+                )
 
 
 def cmd_tune(args) -> int:

@@ -4,6 +4,7 @@ failing cases, determinism across runs and across Dask/in-process execution."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import signal
 import sqlite3
@@ -391,7 +392,39 @@ def test_report_of_a_sweep_database(tmp_path, capsys):
     rc = main(["report", "--sweep", str(out / "sweep.db"), "--out", str(report)])
     assert rc == 0
     assert report.is_file() and report.with_suffix(".json").is_file()
+    bad = ["report", "--sweep", str(out / "sweep.db"), "--out", str(tmp_path / "b.html")]
+    assert main([*bad, "--cost", "shadow_map_byte"]) == 2
+    err = capsys.readouterr().err
+    assert "--cost shadow_map_byte: in no finished case" in err and "shadow_map_bytes" in err
+    assert main([*bad, "--metric", "flip"]) == 2
+    assert "--metric flip: in no finished case" in capsys.readouterr().err
+    assert not (tmp_path / "b.html").exists()
+    rc = main([*bad, "--cost", "render_passes", "--metric", "edge_mae"])
+    assert rc == 0
+    fronts = json.loads((tmp_path / "b.json").read_text())["groups"][0]["fronts"]
+    assert {(f["cost_key"], f["metric"]) for f in fronts} == {("render_passes", "edge_mae")}
     rc = main(["report", "--sweep", str(tmp_path / "none.db"), "--out", str(report)])
     assert rc == 2 and "no such file" in capsys.readouterr().err
     rc = main(["report", str(out), "--sweep", str(out / "sweep.db"), "--out", str(report)])
     assert rc == 2 and "one of them" in capsys.readouterr().err
+
+
+def test_light_path_frames_are_cases_of_their_own(tmp_path):
+    spec = _spec(
+        tmp_path,
+        f'name = "lp"\n[defaults]\n{SIZE}spp = 4\n[[case]]\nscenes = ["plate", "spot"]\n'
+        'technique = "shadow-map"\nframes = [0, 3]\nlight_path = "orbit-sun"\n',
+    )
+    exp = load_spec(spec)
+    # the orbiting sun needs a directional light: spot is skipped, with the reason
+    assert [(c.scene, c.frame, c.light_path) for c in exp.cases] == [
+        ("plate", 0, "orbit-sun"),
+        ("plate", 3, "orbit-sun"),
+    ]
+    assert len(exp.skipped) == 1 and "spot" in exp.skipped[0]
+    summary = run_sweep(
+        exp, tmp_path / "lp.db", cache_root=os.environ["RASTER_ORACLE_CACHE"], workers=0, quiet=True
+    )
+    assert summary["done"] == 2 and summary["references"] == 4  # 2 frames x (seed, seed + 1)
+    rows = list(_rows(tmp_path / "lp.db").values())
+    assert {r["path"] for r in rows} == {"orbit-sun"} and {r["frame"] for r in rows} == {0, 3}
