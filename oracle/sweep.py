@@ -48,6 +48,7 @@ SCHEDULER_TIMEOUT_S = 20
 
 _SCENES: dict = {}
 _BACKEND: list = []
+_THREADS: list = []
 #: Noise floors computed in this process, by reference (``oracle.score.score``'s cache).
 _FLOORS: dict = {}
 
@@ -76,6 +77,16 @@ def _ensure_backend(variant: str | None) -> None:
 
         backend.select(variant)
         _BACKEND.append(variant)
+        if _THREADS:
+            import drjit as dr
+
+            dr.set_thread_count(_THREADS[0])
+
+
+def _share_cores(threads: int) -> None:
+    """Worker set-up (``Client.run``): this worker's Dr.Jit threads, its share of the cores,
+    so that the local cluster's workers do not oversubscribe the machine."""
+    _THREADS[:] = [max(1, int(threads))]
 
 
 def _base_scene(rec: dict):
@@ -468,6 +479,8 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, 
             silence_logs=logging.ERROR,
         )
         client = Client(cluster)
+        n_workers = workers or _default_workers()
+        client.run(_share_cores, max(1, (os.cpu_count() or 1) // n_workers))
     else:
         try:
             client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
