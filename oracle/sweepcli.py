@@ -10,7 +10,14 @@ import argparse
 import sys
 from pathlib import Path
 
-__all__ = ["add_parsers", "cmd_sweep", "cmd_tune", "known_errors", "sweep_report"]
+__all__ = [
+    "add_parsers",
+    "cmd_sweep",
+    "cmd_tune",
+    "known_errors",
+    "report_sweep_args",
+    "sweep_report",
+]
 
 
 def known_errors() -> tuple[type[BaseException], ...]:
