@@ -132,7 +132,8 @@ def test_agaa_degrades_on_foliage():
         for k, r in (("msaa", m), ("k2", g2), ("k1", g1))
     }
     assert err["msaa"] < err["k2"] < err["k1"]
-    assert np.abs(g2.outputs["color"] - m.outputs["color"])[many].mean() > 1e-3
+    # many-surface pixels differ from MSAA by more than float rounding (1e-6) by far
+    assert np.abs(g2.outputs["color"] - m.outputs["color"])[many].mean() > 1000 * FLOAT_TOL
 
 
 def test_cluster_by_hand():
