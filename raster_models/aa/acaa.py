@@ -37,7 +37,6 @@ from .. import _depth, _params
 from .._errors import ModelError
 from . import _samples
 from ._base import (
-    COLOR_FORMATS,
     DEPTH_FORMATS,
     ShadowParams,
     check_shadows,
@@ -245,7 +244,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
             "tie_samples": int(tie_samples.sum()),
             "pixels_with_ties": int((ties > 0).sum()),
             "per_shape_rays": int(extra_rays),
-            "color_target_bytes_per_pixel": COLOR_FORMATS.get(p.accumulation, cb),
+            "color_target_bytes_per_pixel": cb,
         },
         t0=t0,
     )

@@ -147,8 +147,10 @@ CLUSTER_CHUNK = 1 << 15
 def cluster(valid, depth, normal, k: int, threshold: float, depth_weight: float):
     """Aggregate index ``(P, N)`` of every sample (-1: sky) by the rule in the module doc.
 
-    Distances are evaluated in float32, the precision of the G-buffer they are read from,
-    in blocks of :data:`CLUSTER_CHUNK` pixels.
+    The NumPy reference of the rule: :func:`run` clusters on the Dr.Jit side
+    (:func:`._pixel_dr.aggregate_of`, tested equal sample for sample). Distances are
+    evaluated in float32, the precision of the G-buffer they are read from, in blocks of
+    :data:`CLUSTER_CHUNK` pixels.
     """
     v = np.asarray(valid, bool)
     out = np.empty(v.shape, np.int8)
