@@ -19,6 +19,7 @@ __all__ = [
     "combine_reports",
     "model_candidate",
     "score_command",
+    "score_model",
     "score_technique",
     "technique_family",
 ]
@@ -218,6 +219,51 @@ def score_command(args, loaded, cache) -> list[str]:
     )
 
 
+def score_model(
+    loaded,
+    technique: str,
+    params: dict,
+    *,
+    spp: int,
+    seed: int,
+    cache,
+    quiet: bool,
+    floor_cache: dict | None = None,
+):
+    """Score one technique configuration on one scene frame: the :class:`ScoreResult` of
+    ``raster-oracle score --technique`` (the model runs once per frame).
+
+    Shadow techniques are scored on visibility; anti-aliasing techniques on colour, with the
+    coverage metrics (against the N-sample floor of their ``samples``) merged in.
+    ``floor_cache``: see :func:`oracle.score.score` (a sweep worker's noise floors).
+    """
+    family = technique_family(technique)
+    runs: dict = {}
+    aa_samples = None
+    if family == "aa":
+        model_candidate(technique, params, channel="color", runs=runs)(loaded, 0)
+        aa_samples = _sample_count(runs[0])
+    kw = dict(spp=spp, seed=seed, cache=cache, quiet=quiet, aa_samples=aa_samples)
+    if floor_cache is not None:
+        kw["floor_cache"] = floor_cache
+    channel = FAMILY_CHANNELS.get(family, ("visibility",))[0]
+    result = score(
+        loaded,
+        channel=channel,
+        candidate_frames=model_candidate(technique, params, channel=channel, runs=runs),
+        **kw,
+    )
+    if family == "aa":
+        coverage = score(
+            loaded,
+            channel="coverage",
+            candidate_frames=model_candidate(technique, params, channel="coverage", runs=runs),
+            **kw,
+        )
+        _merge_coverage(result, coverage)
+    return result
+
+
 def score_technique(
     loaded,
     technique: str,
@@ -236,28 +282,7 @@ def score_technique(
     Shadow techniques are scored on visibility; anti-aliasing techniques on colour, with the
     coverage metrics added.
     """
-    family = technique_family(technique)
-    runs = {}
-    aa_samples = None
-    if family == "aa":
-        model_candidate(technique, params, channel="color", runs=runs)(loaded, 0)
-        aa_samples = _sample_count(runs[0])
-    kw = dict(spp=spp, seed=seed, cache=cache, quiet=quiet, aa_samples=aa_samples)
-    channel = FAMILY_CHANNELS.get(family, ("visibility",))[0]
-    result = score(
-        loaded,
-        channel=channel,
-        candidate_frames=model_candidate(technique, params, channel=channel, runs=runs),
-        **kw,
-    )
-    if family == "aa":
-        coverage = score(
-            loaded,
-            channel="coverage",
-            candidate_frames=model_candidate(technique, params, channel="coverage", runs=runs),
-            **kw,
-        )
-        _merge_coverage(result, coverage)
+    result = score_model(loaded, technique, params, spp=spp, seed=seed, cache=cache, quiet=quiet)
     info = result.record["candidate_info"][0]
     return write_score_folder(
         result,

@@ -150,33 +150,12 @@ def evaluate_case(
     coverage metrics merged in, exactly as ``raster-oracle score --technique`` does. With
     ``images``, ``"images"`` holds thumbnails (:func:`case_images`).
     """
-    from .score import METRIC_KEYS, score
-    from .scoring import FAMILY_CHANNELS, _merge_coverage, _sample_count, model_candidate
+    from .score import METRIC_KEYS
+    from .scoring import score_model
 
-    family = _family(technique)
-    runs: dict = {}
-    aa_samples = None
-    if family == "aa":
-        model_candidate(technique, params, channel="color", runs=runs)(loaded, 0)
-        aa_samples = _sample_count(runs[0])
-    kw = dict(
-        spp=spp, seed=seed, cache=cache, quiet=True, aa_samples=aa_samples, floor_cache=_FLOORS
+    result = score_model(
+        loaded, technique, params, spp=spp, seed=seed, cache=cache, quiet=True, floor_cache=_FLOORS
     )
-    channel = FAMILY_CHANNELS.get(family, ("visibility",))[0]
-    result = score(
-        loaded,
-        channel=channel,
-        candidate_frames=model_candidate(technique, params, channel=channel, runs=runs),
-        **kw,
-    )
-    if family == "aa":
-        coverage = score(
-            loaded,
-            channel="coverage",
-            candidate_frames=model_candidate(technique, params, channel="coverage", runs=runs),
-            **kw,
-        )
-        _merge_coverage(result, coverage)
     record = result.record
     info = record["candidate_info"][0]
     metrics = {k: record.get(k) for k in METRIC_KEYS}
