@@ -78,15 +78,7 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
     n_pix = w * h
     m = np.asarray(camera.to_world, dtype=np.float64)
     rot = m[:3, :3]
-    # d(local ray)/d(film x, y) from Camera.local_ray: sx = 1 - 2x/W, sy = (1 - 2y/H)/aspect.
-    dsx, dsy = -2.0 / w, -2.0 / (h * camera.aspect)
-    if camera.kind == "perspective":
-        t = camera.tan_half_x
-        dd_x, dd_y = rot @ np.array([dsx * t, 0, 0]), rot @ np.array([0, dsy * t, 0])
-        do_x = do_y = np.zeros(3)
-    else:
-        dd_x = dd_y = np.zeros(3)
-        do_x, do_y = rot @ np.array([dsx, 0, 0]), rot @ np.array([0, dsy, 0])
+    dd_x, dd_y, do_x, do_y = camera.film_derivatives()
     # float32 values (as a GPU G-buffer) widened to float64 inside the kernel; invalid pixels 0.
     out = {k: np.empty(n_pix, dtype=np.float64) for k in ("depth", "cos_l")} | {
         k: np.empty((n_pix, 3), dtype=np.float64) for k in ("p", "n", "dpdx", "dpdy")

@@ -104,6 +104,19 @@ class Camera:
             return (0.0 * sx, 0.0 * sy, 0.0 * sx), (sx * t, sy * t, 1.0 + 0.0 * sx)
         return (sx, sy, self.near + 0.0 * sx), (0.0 * sx, 0.0 * sy, 1.0 + 0.0 * sx)
 
+    def film_derivatives(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """World-space derivatives of :meth:`local_ray` with respect to film ``x`` and ``y``
+        (pixels): ``(d_dir/dx, d_dir/dy, d_origin/dx, d_origin/dy)``, float64 ``(3,)`` each
+        (the direction unnormalized, as in :meth:`local_ray`)."""
+        rot = np.asarray(self.to_world, dtype=np.float64)[:3, :3]
+        # sx = 1 - 2x/W, sy = (1 - 2y/H)/aspect
+        dsx, dsy = -2.0 / self.width, -2.0 / (self.height * self.aspect)
+        zero = np.zeros(3)
+        if self.kind == "perspective":
+            t = self.tan_half_x
+            return rot @ np.array([dsx * t, 0, 0]), rot @ np.array([0, dsy * t, 0]), zero, zero
+        return zero, zero, rot @ np.array([dsx, 0, 0]), rot @ np.array([0, dsy, 0])
+
     def rays(self, x: np.ndarray, y: np.ndarray):
         """World-space rays through film positions (NumPy, float64).
 

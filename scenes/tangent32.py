@@ -59,17 +59,9 @@ def tangent_derivatives_dr(camera, x, y, p, n):
     mi = backend.mitsuba()
     import drjit as dr
 
-    w, h = camera.width, camera.height
     m = np.asarray(camera.to_world, dtype=np.float64)
     rot = m[:3, :3]
-    dsx, dsy = -2.0 / w, -2.0 / (h * camera.aspect)
-    if camera.kind == "perspective":
-        t = camera.tan_half_x
-        dd_x, dd_y = rot @ np.array([dsx * t, 0, 0]), rot @ np.array([0, dsy * t, 0])
-        do_x = do_y = np.zeros(3)
-    else:
-        dd_x = dd_y = np.zeros(3)
-        do_x, do_y = rot @ np.array([dsx, 0, 0]), rot @ np.array([0, dsy, 0])
+    dd_x, dd_y, do_x, do_y = camera.film_derivatives()
 
     def vec(a):
         return mi.Vector3f(*(dr.opaque(mi.Float, float(a[k])) for k in range(3)))
