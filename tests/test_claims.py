@@ -15,7 +15,9 @@ from oracle import claims as C
 from oracle.cli import main
 from reports._claims import fmt_summary, render_claims
 
-SEEDS = Path(__file__).resolve().parents[2] / "shared" / "seeds"
+#: Copies of the project's seed documents and TECHNIQUES.md (``../shared/`` is not part of a
+#: clone, so CI could not read them there).
+SEEDS = Path(__file__).resolve().parent / "data" / "seeds"
 #: Film size of the measured claims in this module (the cheapest that still has shadows).
 SIZE = (64, 36)
 
