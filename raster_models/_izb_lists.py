@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._izb_kernel import DRJIT_PAIR_CHUNK, PairTester, use_drjit
+
 __all__ = ["FULL_MASK", "PAIR_CHUNK", "IzbLists", "JoinStats", "build_lists", "join", "list_nodes"]
 
 #: (fragment, node) pairs tested per chunk: bounds memory at about 250 MiB for 32 samples
@@ -60,6 +62,20 @@ class IzbLists:
         hi = np.searchsorted(self.node_texel, texels, side="right")
         return hi - lo
 
+    def span(self, texels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First node and length of the list of each of ``texels`` (head offsets: a counting
+        sort of the nodes by texel, computed once per list state)."""
+        heads = self.__dict__.get("_heads")
+        if heads is None:
+            count = np.bincount(self.node_texel) if len(self.node_texel) else np.zeros(0, int)
+            heads = np.zeros(len(count) + 2, dtype=np.int64)
+            np.cumsum(count, out=heads[1:-1])
+            heads[-1] = heads[-2]
+            self._heads = heads
+        t = np.minimum(texels, len(heads) - 2)
+        lo = heads[t]
+        return lo, heads[t + 1] - lo
+
     def compact(self, dead: np.ndarray) -> int:
         """Remove the nodes of ``dead`` receivers; returns how many nodes were removed."""
         keep = ~dead[self.node_recv]
@@ -67,6 +83,7 @@ class IzbLists:
         if removed:
             self.node_texel = self.node_texel[keep]
             self.node_recv = self.node_recv[keep]
+            self.__dict__.pop("_heads", None)
         return removed
 
 
@@ -114,58 +131,9 @@ def _pairs(lo: np.ndarray, n: np.ndarray):
     return f, lo[f] + (np.arange(len(f)) - first[f])
 
 
-def _band_floor(p, eps):
-    """Lower end of the epsilon band below the pushed plane, per pair: ``floor - eps``."""
+def band_floor(p: np.ndarray, eps: float) -> np.ndarray:
+    """Lower end of the epsilon band below the pushed plane, per point: ``floor - eps``."""
     return BAND_FLOOR * (1.0 + np.abs(p).max(axis=1)) - eps
-
-
-def _test_single(planes, p, eps):
-    """Shadowed flags of points ``p (P, 3)`` against ``planes (P, 4, 4)``, and the flags of
-    points inside the edge planes and beyond the triangle's plane by more than float32
-    rounding but by at most ``eps`` (the band the epsilon lights: an exact shadow ray may
-    still see the triangle there; see :data:`BAND_FLOOR`)."""
-    v = np.einsum("pkj,pj->pk", planes[:, :, :3], p) + planes[:, :, 3]
-    edges = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0)
-    return edges & (v[:, 3] > 0), edges & (v[:, 3] <= 0) & (v[:, 3] > _band_floor(p, eps))
-
-
-def _masks(v, threshold, bits):
-    inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > threshold[:, None])
-    return (inside.astype(np.uint64) @ bits).astype(np.uint32)
-
-
-def _test_32(planes, p, dpdx, dpdy, a, b, bits, eps):
-    """32-bit masks of the tangent-plane points ``p + a dpdx + b dpdy`` inside the volumes,
-    and the masks of the points in the epsilon band (see :func:`_test_single`).
-
-    The value of each plane is affine in ``(a, b)``; bounds over the pixel's points decide
-    most pairs without evaluating the 32 points (all outside one plane, the band included:
-    both masks 0; all inside every plane: mask full, band empty), the rest are evaluated
-    point by point.
-    """
-    n = planes[:, :, :3]
-    base = np.einsum("pkj,pj->pk", n, p) + planes[:, :, 3]
-    da = np.einsum("pkj,pj->pk", n, dpdx)
-    db = np.einsum("pkj,pj->pk", n, dpdy)
-    spread = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
-    hi = base + spread
-    lo = base - spread
-    floor = _band_floor(p, eps)
-    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= floor)
-    full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
-    masks = np.zeros(len(p), dtype=np.uint32)
-    band = np.zeros(len(p), dtype=np.uint32)
-    masks[full & ~none] = FULL_MASK
-    mixed = np.flatnonzero(~none & ~full)
-    if len(mixed):
-        v = (
-            base[mixed, :, None]
-            + da[mixed, :, None] * a[None, None, :]
-            + db[mixed, :, None] * b[None, None, :]
-        )
-        masks[mixed] = _masks(v, np.zeros(len(mixed)), bits)
-        band[mixed] = _masks(v, floor[mixed], bits) & ~masks[mixed]
-    return masks, band
 
 
 def join(
@@ -191,9 +159,7 @@ def join(
     stats.fragments += len(frag_tri)
     if len(frag_tri) == 0 or len(lists.node_texel) == 0:
         return
-    lo = np.searchsorted(lists.node_texel, frag_texel, side="left")
-    hi = np.searchsorted(lists.node_texel, frag_texel, side="right")
-    n = hi - lo
+    lo, n = lists.span(frag_texel)
     has = n > 0
     stats.fragments_with_list += int(has.sum())
     frag_tri, lo, n = frag_tri[has], lo[has], n[has]
@@ -203,26 +169,24 @@ def join(
     stats.list_max = max(stats.list_max, int(n.max()))
     ends = np.cumsum(n)
     thirty_two = "mask" in state
-    eps = float(epsilon)
-    if thirty_two:
-        bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
+    tester = state.get("_tester")
+    if tester is None or tester.planes is not planes:
+        tester = PairTester(planes, recv, band_floor(recv["p"], float(epsilon)))
+        state["_tester"] = tester
+    chunk = DRJIT_PAIR_CHUNK if use_drjit(int(ends[-1])) else PAIR_CHUNK
     cut = 0
     while cut < len(n):  # chunks of fragments
         base = ends[cut - 1] if cut else 0
-        stop = max(int(np.searchsorted(ends, base + PAIR_CHUNK, side="right")), cut + 1)
+        stop = max(int(np.searchsorted(ends, base + chunk, side="right")), cut + 1)
         f, node = _pairs(lo[cut:stop], n[cut:stop])
         r = lists.node_recv[node]
-        pl = planes[frag_tri[cut:stop][f]]
+        hit, near = tester(frag_tri[cut:stop][f], r)
         if thirty_two:
-            m, band = _test_32(
-                pl, recv["p"][r], recv["dpdx"][r], recv["dpdy"][r], recv["a"], recv["b"], bits, eps
-            )
-            hit = m != 0
-            near = band != 0
-            np.bitwise_or.at(state["band"], r[near], band[near])
-            np.bitwise_or.at(state["mask"], r[hit], m[hit])
+            hit_i = np.flatnonzero(hit)
+            near_i = np.flatnonzero(near)
+            np.bitwise_or.at(state["band"], r[near_i], near[near_i])
+            np.bitwise_or.at(state["mask"], r[hit_i], hit[hit_i])
         else:
-            hit, near = _test_single(pl, recv["p"][r], eps)
             state["shadowed"][r[hit]] = True
             state["band"][r[near]] = True
         cut = stop

@@ -96,6 +96,10 @@ BUILD_CHUNK = 1 << 16
 #: occluder crossing the light's plane is rasterized as.
 WHOLE_GRID = np.array([[-0.5, -0.5], [3.5, -0.5], [-0.5, 3.5]])
 
+#: Relative slack of the box around a receiver's 32 points when deciding that they share one
+#: texel: the points' float64 rounding is a few 2^-53 of ``|x| + spread``.
+ONE_TEXEL_SLACK = 1e-12
+
 #: Samples per pixel the technique supports: the pixel centre, or FTIZB's 32 points.
 SAMPLE_COUNTS = (1, 32)
 
@@ -163,6 +167,21 @@ def _texel(x, y, box, r):
     i = np.clip(np.floor((x - x0) / ((x1 - x0) / r)), 0, r - 1).astype(np.int64)
     j = np.clip(np.floor((y1 - y) / ((y1 - y0) / r)), 0, r - 1).astype(np.int64)
     return i, j
+
+
+def _one_texel(lc: np.ndarray, spread: np.ndarray, box, r: int):
+    """Receivers whose 32 points all fall in one texel, and that texel (``j R + i``).
+
+    Every point ``lc + a ldx + b ldy`` lies within ``spread`` of ``lc`` (up to float64
+    rounding, well inside :data:`ONE_TEXEL_SLACK`); :func:`_texel` is monotone in x and y,
+    so the texels of the slackened box's corners bound those of the points.
+    """
+    slack = ONE_TEXEL_SLACK * (np.abs(lc[:, :2]) + spread[:, :2]) + np.finfo(float).tiny
+    lo = lc[:, :2] - spread[:, :2] - slack
+    hi = lc[:, :2] + spread[:, :2] + slack
+    i0, j0 = _texel(lo[:, 0], hi[:, 1], box, r)
+    i1, j1 = _texel(hi[:, 0], lo[:, 1], box, r)
+    return (i0 == i1) & (j0 == j1), j0 * r + i0
 
 
 def _histogram(lengths: np.ndarray) -> dict:
@@ -294,6 +313,11 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         boxes.append(box)
         zmax[c] = hi[2]
         for ch in chunks:  # chunks of receivers
+            if s == 32 and not spot:
+                # Receivers whose points' box lies in one texel: one node, no point needed.
+                one, t = _one_texel(lc[ch], spread[ch], box, r)
+                nodes.append((c * r * r + t[one], ch[one]))
+                ch = ch[~one]
             gx, gy, _ = light_pts(ch)
             i, j = _texel(gx, gy, box, r)
             nodes.append(list_nodes(c * r * r + j * r + i, ch))

@@ -411,3 +411,79 @@ def test_scene_far_from_the_origin(tmp_path):
         vis[offset] = rm.run("izb", s).outputs["visibility"]
     assert (vis[0.0] == 0).sum() > 100  # the plate's shadow
     assert (vis[0.0] != vis[1e5]).mean() < 0.01
+
+
+def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16, epsilon=0.05):
+    """Shadow volumes of random triangles over random receivers (points, derivatives)
+    around them, and random (triangle, receiver) pairs: every class of pair occurs."""
+    from raster_models._izb_geometry import shadow_volumes
+    from raster_models._izb_lists import band_floor
+
+    tris = rng.uniform(-1.0, 1.0, (n_tri, 3, 3)) + [0.0, 2.0, 0.0]
+    keep, planes = shadow_volumes(tris, (0.3, -1.0, 0.1), epsilon)
+    pts = rng.uniform(-1.5, 1.5, (n_recv, 3)) + [0.0, 1.5, 0.0]
+    recv = {
+        "p": pts,
+        "dpdx": rng.normal(0.0, 0.2, (n_recv, 3)),
+        "dpdy": rng.normal(0.0, 0.2, (n_recv, 3)),
+    }
+    recv["a"], recv["b"] = tangent_offsets()
+    tri = rng.integers(0, int(keep.sum()), n_pairs)
+    r = rng.integers(0, n_recv, n_pairs)
+    return planes, recv, band_floor(pts, epsilon), tri, r
+
+
+@pytest.mark.parametrize("samples", [1, 32])
+def test_drjit_pair_tests_equal_the_numpy_reference(samples):
+    from raster_models._izb_kernel import PairTester
+
+    planes, recv, floor, tri, r = _random_pairs(np.random.default_rng(7))
+    if samples == 1:
+        recv = {"p": recv["p"]}
+    tester = PairTester(planes, recv, floor)
+    ref = tester.numpy(tri, r)
+    fast = tester.drjit(tri, r)
+    for x, y in zip(ref, fast, strict=True):
+        assert x.dtype == y.dtype
+        np.testing.assert_array_equal(x, y)
+    hit, near = ref
+    assert hit.any() and near.any() and (~hit.astype(bool)).any()
+    if samples == 32:
+        partial = (hit != 0) & (hit != 0xFFFFFFFF)
+        assert (hit == 0xFFFFFFFF).any() and partial.any()  # bounds and point-by-point paths
+
+
+def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch):
+    """The whole model, Dr.Jit joins against NumPy joins: the same bytes."""
+    from raster_models import _izb_kernel
+
+    loaded = scenes.load("city", width=96, height=54)
+    monkeypatch.setattr(_izb_kernel, "DRJIT_MIN_PAIRS", 1)
+    monkeypatch.setattr(_izb_kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches
+    fast = rm.run("izb", loaded, samples=32, resolution=64)
+    monkeypatch.setattr(_izb_kernel, "DRJIT_MIN_PAIRS", 1 << 62)
+    ref = rm.run("izb", loaded, samples=32, resolution=64)
+    assert ref.cost == fast.cost
+    for key in ref.outputs:
+        np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
+
+
+def test_one_texel_receivers_have_every_point_in_that_texel():
+    """The build's shortcut: a receiver whose point box lies in one texel gets that texel,
+    and every one of its 32 points (computed as the full path does) falls in it."""
+    rng = np.random.default_rng(3)
+    n, r = 20000, 64
+    lc = rng.uniform(-50.0, 50.0, (n, 3))
+    ldx = rng.normal(0.0, 0.3, (n, 3)) * rng.uniform(0.0, 1.0, (n, 1)) ** 3
+    ldy = rng.normal(0.0, 0.3, (n, 3)) * rng.uniform(0.0, 1.0, (n, 1)) ** 3
+    a, b = tangent_offsets()
+    spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
+    box = izb._grid((lc - spread).min(axis=0)[:2], (lc + spread).max(axis=0)[:2])
+    one, t = izb._one_texel(lc, spread, box, r)
+    x = lc[:, 0, None] + ldx[:, 0, None] * a + ldy[:, 0, None] * b
+    y = lc[:, 1, None] + ldx[:, 1, None] * a + ldy[:, 1, None] * b
+    i, j = izb._texel(x, y, box, r)
+    texels = j * r + i
+    assert 0.2 < one.mean() < 0.95  # both paths exercised
+    np.testing.assert_array_equal(texels[one], np.repeat(t[one, None], 32, axis=1))
+    assert (texels[~one] != texels[~one, :1]).any(axis=1).mean() > 0.5

@@ -1,0 +1,229 @@
+"""IZB sample-triangle tests: the NumPy reference and the Dr.Jit kernels (same results).
+
+A test takes (fragment triangle, receiver) pairs and returns, per pair, the shadowed flag
+(1 sample) or the 32-bit mask of the tangent-plane points inside the triangle's shadow
+volume (32 samples), and the flag/mask of the samples in the epsilon band (inside the edge
+planes, beyond the pushed triangle plane by more than float32 rounding but by at most
+``epsilon``; see :data:`raster_models._izb_lists.BAND_FLOOR`).
+
+Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
+``(base + da a) + db b``, in float64 without fused multiply-adds, by NumPy (the reference,
+used for small inputs) and by the Dr.Jit kernels (LLVM backend, the hot path of large
+frames), so both give the same bits (``tests/test_izb.py`` checks it).
+
+Dr.Jit, 32 samples, two launches per chunk: the first bounds each plane over the pixel's
+points (affine in the offsets ``(a, b)``) and decides most pairs (all points outside one
+plane, band included: both masks 0; all inside every plane: mask full); the second evaluates
+the 32 points of the remaining pairs only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "DRJIT_MIN_PAIRS",
+    "DRJIT_PAIR_CHUNK",
+    "PairTester",
+    "test_32_numpy",
+    "test_single_numpy",
+    "use_drjit",
+]
+
+#: Pairs of a join from which the tests run on Dr.Jit (LLVM) instead of NumPy.
+DRJIT_MIN_PAIRS = 1 << 15
+
+#: Pairs per Dr.Jit launch (bounded memory: about 40 bytes of inputs and outputs per pair).
+DRJIT_PAIR_CHUNK = 1 << 21
+
+#: All 32 bits of an FTIZB mask.
+_FULL = 0xFFFFFFFF
+
+#: Pair classes of the first 32-sample launch.
+_NONE, _FULL_CLASS, _MIXED = 0, 1, 2
+
+
+def use_drjit(n_pairs: int) -> bool:
+    """Whether ``n_pairs`` tests run on Dr.Jit (enough work, and a vectorized variant)."""
+    if n_pairs < DRJIT_MIN_PAIRS:
+        return False
+    from scenes import backend
+
+    return not backend.active().variant.startswith("scalar")
+
+
+def _dot_np(n: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(P, 4)`` dot products of the four plane normals ``n (P, 4, 3)`` with ``v (P, 3)``."""
+    return n[:, :, 0] * v[:, None, 0] + n[:, :, 1] * v[:, None, 1] + n[:, :, 2] * v[:, None, 2]
+
+
+def test_single_numpy(planes: np.ndarray, p: np.ndarray, floor: np.ndarray):
+    """Shadowed flags and epsilon-band flags of points ``p (P, 3)`` against ``planes
+    (P, 4, 4)``; ``floor (P,)``: the lower end of the band (``BAND_FLOOR (1 + max|p|) -
+    epsilon``)."""
+    v = _dot_np(planes[:, :, :3], p) + planes[:, :, 3]
+    edges = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0)
+    return edges & (v[:, 3] > 0), edges & (v[:, 3] <= 0) & (v[:, 3] > floor)
+
+
+def _masks_np(v, threshold, bits):
+    inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > threshold[:, None])
+    return (inside.astype(np.uint64) @ bits).astype(np.uint32)
+
+
+def test_32_numpy(planes, p, dpdx, dpdy, floor, a, b):
+    """32-bit masks of the points ``p + a dpdx + b dpdy`` inside the volumes and of the
+    points in the epsilon band; bounds over the points decide most pairs (see the module)."""
+    bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
+    n = planes[:, :, :3]
+    base = _dot_np(n, p) + planes[:, :, 3]
+    da = _dot_np(n, dpdx)
+    db = _dot_np(n, dpdy)
+    spread = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
+    hi = base + spread
+    lo = base - spread
+    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= floor)
+    full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
+    masks = np.zeros(len(p), dtype=np.uint32)
+    band = np.zeros(len(p), dtype=np.uint32)
+    masks[full & ~none] = _FULL
+    mixed = np.flatnonzero(~none & ~full)
+    if len(mixed):
+        v = (
+            base[mixed, :, None]
+            + da[mixed, :, None] * a[None, None, :]
+            + db[mixed, :, None] * b[None, None, :]
+        )
+        masks[mixed] = _masks_np(v, np.zeros(len(mixed)), bits)
+        band[mixed] = _masks_np(v, floor[mixed], bits) & ~masks[mixed]
+    return masks, band
+
+
+class PairTester:
+    """Sample-triangle tests of (triangle, receiver) pairs, on Dr.Jit or NumPy.
+
+    Parameters
+    ----------
+    planes : ``(K, 4, 4)`` float64 shadow-volume planes
+        (:func:`raster_models._izb_geometry.shadow_volumes`).
+    recv : ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy``, ``a``, ``b`` (as
+        :func:`raster_models._izb_lists.join` takes them).
+    floor : ``(M,)`` float64 lower end of each receiver's epsilon band.
+    """
+
+    def __init__(self, planes: np.ndarray, recv: dict, floor: np.ndarray):
+        self.planes = planes
+        self.recv = recv
+        self.floor = floor
+        self.thirty_two = "dpdx" in recv
+        self._dr = None
+
+    def numpy(self, tri: np.ndarray, r: np.ndarray):
+        """The NumPy reference on pairs ``(tri[i], r[i])``."""
+        pl = self.planes[tri]
+        if self.thirty_two:
+            rv = self.recv
+            return test_32_numpy(
+                pl, rv["p"][r], rv["dpdx"][r], rv["dpdy"][r], self.floor[r], rv["a"], rv["b"]
+            )
+        return test_single_numpy(pl, self.recv["p"][r], self.floor[r])
+
+    def __call__(self, tri: np.ndarray, r: np.ndarray):
+        """Per pair: ``(hit, near)`` bool arrays (1 sample) or ``(mask, band)`` uint32."""
+        if not use_drjit(len(tri)):
+            return self.numpy(tri, r)
+        outs = [
+            self.drjit(tri[i : i + DRJIT_PAIR_CHUNK], r[i : i + DRJIT_PAIR_CHUNK])
+            for i in range(0, len(tri), DRJIT_PAIR_CHUNK)  # chunks of pairs
+        ]
+        return tuple(np.concatenate([o[k] for o in outs]) for k in range(2))
+
+    # ---- Dr.Jit
+    def _inputs(self):
+        if self._dr is None:
+            from scenes import backend
+
+            mi = backend.mitsuba()
+            f64 = mi.Float64
+            d = {"planes": f64(np.ascontiguousarray(self.planes, dtype=np.float64).ravel())}
+            keys = ("p", "dpdx", "dpdy") if self.thirty_two else ("p",)
+            for k in keys:
+                d[k] = f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel())
+            d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
+            self._dr = (mi, d)
+        return self._dr
+
+    def _plane_terms(self, tri, r):
+        """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs ``tri, r``."""
+        import drjit as dr
+
+        mi, d = self._inputs()
+        f64 = mi.Float64
+
+        def gather3(arr, idx):
+            return [dr.gather(f64, arr, idx * 3 + j) for j in range(3)]
+
+        rows = [
+            [dr.gather(f64, d["planes"], tri * 16 + (4 * k + j)) for j in range(4)]
+            for k in range(4)
+        ]
+        p = gather3(d["p"], r)
+
+        def dot(n, v):
+            return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+
+        base = [dot(row, p) + row[3] for row in rows]
+        floor = dr.gather(f64, d["floor"], r)
+        if not self.thirty_two:
+            return base, None, None, floor
+        dx, dy = gather3(d["dpdx"], r), gather3(d["dpdy"], r)
+        da = [dot(row, dx) for row in rows]
+        db = [dot(row, dy) for row in rows]
+        return base, da, db, floor
+
+    def drjit(self, tri: np.ndarray, r: np.ndarray):
+        """The Dr.Jit kernels on pairs ``(tri[i], r[i])`` (one chunk)."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        ti, ri = u32(tri.astype(np.uint32)), u32(r.astype(np.uint32))
+        base, da, db, floor = self._plane_terms(ti, ri)
+        if not self.thirty_two:
+            edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
+            hit = edges & (base[3] > 0)
+            near = edges & (base[3] <= 0) & (base[3] > floor)
+            code = dr.select(hit, u32(1), u32(0)) | dr.select(near, u32(2), u32(0))
+            dr.eval(code)
+            c = code.numpy()
+            return (c & 1) != 0, (c & 2) != 0
+        a, b = self.recv["a"], self.recv["b"]
+        amax, bmax = float(np.abs(a).max()), float(np.abs(b).max())
+        spread = [dr.abs(da[k]) * amax + dr.abs(db[k]) * bmax for k in range(4)]
+        hi = [base[k] + spread[k] for k in range(4)]
+        lo = [base[k] - spread[k] for k in range(4)]
+        none = (hi[0] < 0) | (hi[1] < 0) | (hi[2] < 0) | (hi[3] <= floor)
+        full = (lo[0] >= 0) & (lo[1] >= 0) & (lo[2] >= 0) & (lo[3] > 0)
+        cls = dr.select(none, u32(_NONE), dr.select(full, u32(_FULL_CLASS), u32(_MIXED)))
+        dr.eval(cls)
+        c = cls.numpy()
+        masks = np.where(c == _FULL_CLASS, np.uint32(_FULL), np.uint32(0)).astype(np.uint32)
+        band = np.zeros(len(c), dtype=np.uint32)
+        mixed = np.flatnonzero(c == _MIXED)
+        if len(mixed):
+            ti, ri = u32(tri[mixed].astype(np.uint32)), u32(r[mixed].astype(np.uint32))
+            base, da, db, floor = self._plane_terms(ti, ri)
+            m = u32(0)
+            bm = u32(0)
+            for q in range(32):  # the 32 fixed points (unrolled into the kernel)
+                aq, bq = float(a[q]), float(b[q])
+                v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
+                edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
+                bit = u32(1 << q)
+                m = m | dr.select(edges & (v[3] > 0), bit, u32(0))
+                bm = bm | dr.select(edges & (v[3] > floor), bit, u32(0))
+            bm = bm & ~m
+            dr.eval(m, bm)
+            masks[mixed] = m.numpy()
+            band[mixed] = bm.numpy()
+        return masks, band
