@@ -58,9 +58,7 @@ class IzbLists:
 
     def length_at(self, texels: np.ndarray) -> np.ndarray:
         """List length of each of ``texels``."""
-        lo = np.searchsorted(self.node_texel, texels, side="left")
-        hi = np.searchsorted(self.node_texel, texels, side="right")
-        return hi - lo
+        return self.span(texels)[1]
 
     def span(self, texels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First node and length of the list of each of ``texels`` (head offsets: a counting
@@ -106,8 +104,16 @@ def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
     """
     if not parts:
         return IzbLists(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
-    node_texel = np.concatenate([t for t, _ in parts])
-    node_recv = np.concatenate([r for _, r in parts])
+    node_texel = np.concatenate([t for t, _ in parts]).astype(np.int64)
+    node_recv = np.concatenate([r for _, r in parts]).astype(np.int64)
+    if len(node_recv) == 0:
+        return IzbLists(node_texel, node_recv)
+    # One key per node, texel-major (nodes are distinct (texel, receiver) pairs): a plain
+    # sort of int64 keys, far cheaper than a two-key lexsort.
+    span = int(node_recv.max()) + 1
+    if int(node_texel.max()) < np.iinfo(np.int64).max // span:
+        key = np.sort(node_texel * span + node_recv)
+        return IzbLists(key // span, key % span)
     order = np.lexsort((node_recv, node_texel))
     return IzbLists(node_texel[order], node_recv[order])
 
@@ -133,7 +139,8 @@ def _pairs(lo: np.ndarray, n: np.ndarray):
 
 def band_floor(p: np.ndarray, eps: float) -> np.ndarray:
     """Lower end of the epsilon band below the pushed plane, per point: ``floor - eps``."""
-    return BAND_FLOOR * (1.0 + np.abs(p).max(axis=1)) - eps
+    big = np.maximum(np.maximum(np.abs(p[:, 0]), np.abs(p[:, 1])), np.abs(p[:, 2]))
+    return BAND_FLOOR * (1.0 + big) - eps
 
 
 def join(
