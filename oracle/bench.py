@@ -179,20 +179,29 @@ SHADOW_MODEL_CASES = {
     "csm": {},
     "sdsm": {"partitions": 4, "resolution": 2048, "filter": "pcf", "pcf_size": 3},
     "izb": {"samples": 32},  # FTIZB, 512^2 grid (its cost record: f_ls, L_avg, L_max, tests)
+    "coherent-shadow-map": {},  # its defaults (map count, resolution, Hilbert ordering)
 }
 
 #: Target of ``bench models``: model wall time over the 32-spp visibility reference.
 MODEL_RATIO_TARGET = 0.5
 
-#: Anti-aliasing cases of ``bench models`` (issue 9), timed against the 32-spp *colour*
-#: reference of the same frame: technique -> parameters.
+#: Anti-aliasing cases of ``bench models``, timed against the 32-spp *colour* reference of
+#: the same frame: technique -> parameters. Every registered AA technique at its defaults or
+#: a typical setting: SSAA at 4 samples, MSAA/ACAA 8x, AGAA 8 samples K = 2 (the paper's
+#: configuration comparable to 8x MSAA), FXAA 3.11 at its quality defaults.
 AA_MODEL_CASES = {
+    "noaa": {},
+    "ssaa": {"samples": 4},
     "msaa": {"samples": 8},
+    "acaa": {"samples": 8},
     "agaa": {"samples": 8, "aggregates": 2},
+    "fxaa": {},
 }
 
-#: Target of the AA rows: model wall time over the 32-spp colour reference.
-AA_RATIO_TARGET = 1.0
+#: Target of the AA rows (issue 11 "Speed": every model <= 0.5x its 32-spp reference).
+AA_RATIO_TARGET = 0.5
+#: Issue 9's own, weaker target for msaa 8x and agaa K=2: no slower than the reference.
+AA_ISSUE9_TARGET = 1.0
 
 
 def bench_models(
@@ -209,9 +218,10 @@ def bench_models(
     resolution before the timed rounds (kernel compilation and first-touch allocations are
     not counted on either side). ``repeats`` rounds alternate reference and models; the
     ratio is the median model seconds over the median reference seconds, measured in the
-    same process; target <= 0.5 each. The anti-aliasing rows (:data:`AA_MODEL_CASES`:
-    MSAA 8x, AGAA K=2 at 8 samples) are timed the same way against the 32-spp *colour*
-    reference of the same frame (``aa_models``; target <= :data:`AA_RATIO_TARGET`).
+    same process; target <= 0.5 each. The anti-aliasing rows (:data:`AA_MODEL_CASES`: every
+    AA technique) are timed the same way against the 32-spp *colour* reference of the same
+    frame (``aa_models``; target <= :data:`AA_RATIO_TARGET`; msaa and agaa also carry
+    ``meets_issue9_target``, issue 9's <= :data:`AA_ISSUE9_TARGET`).
     """
     import raster_models
     import scenes
@@ -271,6 +281,11 @@ def bench_models(
             "seconds_per_round": aa_times[technique],
             "over_color_reference_ratio": model_s / color_s,
             "meets_target": model_s / color_s <= AA_RATIO_TARGET,
+            **(
+                {"meets_issue9_target": model_s / color_s <= AA_ISSUE9_TARGET}
+                if technique in ("msaa", "agaa")
+                else {}
+            ),
             "cost": results["aa:" + technique].cost,
         }
     return {
@@ -293,7 +308,10 @@ def bench_models(
             "rays": cstats["rays_cast"],
         },
         "aa_models": aa_models,
-        "aa_target": f"<= {AA_RATIO_TARGET} (model seconds / 32-spp colour reference seconds)",
+        "aa_target": f"<= {AA_RATIO_TARGET} (model seconds / 32-spp colour reference seconds; "
+        "issue 11)",
+        "aa_issue9_target": f"<= {AA_ISSUE9_TARGET} for msaa 8x and agaa K=2 (issue 9's own "
+        "target, meets_issue9_target)",
         "target": f"<= {MODEL_RATIO_TARGET} (model seconds / 32-spp reference seconds)",
         "variant": backend.active().variant,
     }

@@ -70,6 +70,7 @@ def trace_samples(
     group: bool = False,
     cluster: tuple | None = None,
     keep: tuple = ("valid", "shape", "prim", "depth"),
+    scene_shapes: bool = False,
 ) -> dict:
     """Nearest surface at every sub-sample of every pixel (a depth prepass).
 
@@ -78,7 +79,8 @@ def trace_samples(
     scene : scenes.LoadedScene
     offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`._samples`).
     normals : also return the geometric normal turned towards the viewer.
-    mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: one shape).
+    mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: a group of
+        the scene's shapes).
     pixels : pixel indices (row-major) to trace; default every pixel.
     group : also return ``first`` ((P, N) int8): the first sample of the pixel with the same
         (shape, primitive), ``N`` for sky (:func:`._pixel_dr.first_of_key`), and the fragment
@@ -88,12 +90,15 @@ def trace_samples(
         ((P, N) int8), AGAA's clustering on the stored normals (:func:`._pixel_dr.aggregate_of`).
     keep : which of ``valid``, ``shape``, ``prim``, ``depth`` to copy back to NumPy (the
         per-pixel kernels read them on the Dr.Jit side either way).
+    scene_shapes : ``mi_scene`` holds shape objects of ``scene`` itself: report ``shape`` as
+        their indices into ``scene.shape_names`` (else -1 or 0).
 
     Returns
     -------
     dict of ``(P, N)`` arrays: ``valid`` (bool), ``shape`` (int32, index into
     ``scene.shape_names``, -1 sky; with ``mi_scene`` -1 or 0), ``prim`` (int64, -1 sky),
-    ``depth`` (float32 view depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``.
+    ``depth`` (float32 view depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``;
+    with ``mi_scene`` and ``scene_shapes``, ``shape`` indexes ``scene.shape_names``.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -122,7 +127,7 @@ def trace_samples(
             out["pair_count"] = np.empty(total, np.int8)
     n_frag = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
-    table = _shape_table(mi, dr, scene) if mi_scene is None else None
+    table = _shape_table(mi, dr, scene) if mi_scene is None or scene_shapes else None
     step = max(n, (CHUNK // n) * n)
     for start in range(0, total, step):
         stop = min(total, start + step)

@@ -11,8 +11,10 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
    equals the prepass value there: the nearest surface, and any surface of another shape
    lying at the same quantized depth (coplanar decals, duplicated geometry), which is
    therefore counted twice, too bright, as on GPUs. The surfaces at each sample are found
-   per shape (one ray per sample into a scene holding only that shape); two coplanar
-   triangles of one mesh are not told apart.
+   per shape: one ray per sample into a scene holding a group of shapes whose bounding
+   boxes are too far apart to tie (:func:`tie_groups`; the hit there is the hit of a scene
+   holding that shape alone wherever a tie is possible); two coplanar triangles of one mesh
+   are not told apart.
 3. ``accumulation="rgba8"`` rounds the target to 8-bit UNORM (``round(255 x) / 255`` of the
    saturated sum) at every addition; ``float32`` adds in float32.
 
@@ -143,6 +145,92 @@ def _shape_scenes(scene) -> list:
     return cache["scenes"]
 
 
+#: Depth quanta of slack on each side of a tie window (covers rounding and the float32 view
+#: depth of the hits; a tie needs the two stored values equal: one quantum apart at most).
+TIE_QUANTA = 4.0
+#: World-unit slack added to every tie distance (float32 hit positions of the shapes).
+TIE_SLACK = 1e-3
+
+
+def tie_distance(camera, view_depth, fmt: str) -> np.ndarray:
+    """Largest distance along a camera ray between two points that can store equal depths
+    in ``fmt`` when the farther has view depth at most ``view_depth`` (inf: unbounded).
+
+    :data:`TIE_QUANTA` quanta of normalized depth, as view depth (the inverse of
+    :func:`normalized_depth`), over the smallest cosine between a film ray and the view axis.
+    """
+    z = np.clip(np.asarray(view_depth, np.float64), camera.near, camera.far)
+    kind, bits = _depth.FORMATS[fmt]
+    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # float32 ulp below 2
+    d = normalized_depth(camera, z) + TIE_QUANTA * q
+    n, f = camera.near, camera.far
+    if camera.kind == "perspective":
+        den = 1.0 - d * (f - n) / f
+        far = np.where(den > 0, n / np.where(den > 0, den, 1.0), np.inf)
+        t = camera.tan_half_x
+        cos_min = 1.0 / np.sqrt(1.0 + t * t + (t / camera.aspect) ** 2)
+    else:
+        far = n + d * (f - n)
+        cos_min = 1.0
+    return (far - z) / cos_min + TIE_SLACK
+
+
+def tie_groups(scene, fmt: str) -> list[list[int]]:
+    """Shapes in groups whose members can never tie with each other (cached on the scene).
+
+    Two shapes may tie at a sample only if points of both lie on the sample's ray within
+    :func:`tie_distance` of each other, so only if their bounding boxes are that close
+    (the distance taken at the larger of the two boxes' farthest view depths). Shapes are
+    coloured greedily, in scene order, so that no two close shapes share a group. Within a
+    group, the nearest hit on a ray at a tie depth is the hit of the one member that can be
+    there: a trace of the group gives every member's tie test of a trace of that member
+    alone.
+    """
+    cache = scene.__dict__.setdefault("_aa_tie_groups", {})
+    if fmt in cache:
+        return cache[fmt]
+    cam = scene.camera
+    boxes = [sh.bbox() for sh in scene.mi_scene.shapes()]
+    lo = np.array([[float(c) for c in b.min] for b in boxes], np.float64).reshape(-1, 3)
+    hi = np.array([[float(c) for c in b.max] for b in boxes], np.float64).reshape(-1, 3)
+    corners = np.stack(
+        [np.where(np.array(m, bool), hi, lo) for m in np.ndindex(2, 2, 2)], axis=1
+    )  # (S, 8, 3)
+    zfar = ((corners - cam.position) @ cam.forward).max(axis=1)
+    gap = np.sqrt(
+        np.sum(
+            np.maximum(np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]), 0.0) ** 2,
+            axis=2,
+        )
+    )
+    close = gap <= tie_distance(cam, np.maximum(zfar[:, None], zfar[None]), fmt)
+    groups: list[list[int]] = []
+    for k in range(len(boxes)):  # one round per shape (a list-length loop)
+        for g in groups:
+            if not close[k, g].any():
+                g.append(k)
+                break
+        else:
+            groups.append([k])
+    cache[fmt] = groups
+    return groups
+
+
+def _group_scene(scene, members: list[int]):
+    """A Mitsuba scene of the given shapes of ``scene`` (cached on the loaded scene)."""
+    from scenes import backend
+
+    if len(members) == 1:
+        return _shape_scenes(scene)[members[0]]
+    mi = backend.mitsuba()
+    cache = scene.__dict__.setdefault("_aa_group_scenes", {})
+    key = tuple(members)
+    if key not in cache:
+        shapes = scene.mi_scene.shapes()
+        cache[key] = mi.load_dict({"type": "scene", **{f"shape_{k}": shapes[k] for k in members}})
+    return cache[key]
+
+
 def run(scene, params: AcaaParams | None = None, **kwargs):
     """Run ``acaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
@@ -160,22 +248,27 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     pv, sv = np.nonzero(valid)
     ent = [(pv, sv, buf["shape"][pv, sv].astype(np.int64), buf["prim"][pv, sv])]
     subs = _shape_scenes(scene)
+    groups = tie_groups(scene, p.depth_format)
     any_valid = np.nonzero(valid.any(axis=1))[0]
     extra_rays = 0
     tie_samples = np.zeros((n_pix, n), bool)
-    for k, sub in enumerate(subs):
+    for members in groups:  # one trace per group of shapes that cannot tie each other
         if len(any_valid) == 0:
             break
-        hk = trace_samples(scene, offsets, mi_scene=sub, pixels=any_valid)
+        sub = _group_scene(scene, members)
+        hk = trace_samples(scene, offsets, mi_scene=sub, pixels=any_valid, scene_shapes=True)
         extra_rays += hk["valid"].size
         zk = _stored_depth(cam, hk["depth"], hk["valid"], p.depth_format)
         v = valid[any_valid]
-        tie = hk["valid"] & v & (buf["shape"][any_valid] != k) & (zk <= stored[any_valid])
+        hit_shape = hk["shape"]
+        tie = hk["valid"] & v & (buf["shape"][any_valid] != hit_shape)
+        tie &= zk <= stored[any_valid]
         ti, ts = np.nonzero(tie)
         if len(ti):
             pix = any_valid[ti]
             tie_samples[pix, ts] = True
-            ent.append((pix, ts, np.full(len(ti), k, np.int64), hk["prim"][ti, ts]))
+            shape_k = hit_shape[ti, ts].astype(np.int64)
+            ent.append((pix, ts, shape_k, hk["prim"][ti, ts]))
     e_pix = np.concatenate([e[0] for e in ent])
     e_smp = np.concatenate([e[1] for e in ent])
     e_shape = np.concatenate([e[2] for e in ent])
@@ -244,6 +337,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
             "tie_samples": int(tie_samples.sum()),
             "pixels_with_ties": int((ties > 0).sum()),
             "per_shape_rays": int(extra_rays),
+            "tie_groups": len(groups),
             "color_target_bytes_per_pixel": cb,
         },
         t0=t0,
