@@ -231,6 +231,57 @@ def _group_scene(scene, members: list[int]):
     return cache[key]
 
 
+def _fragments(buf: dict, ties: list, offsets, n_pix: int) -> dict:
+    """Fragments passing LEQUAL: the nearest surface's (grouped on the Dr.Jit side) merged
+    with the tie samples ``(pixel, sample, shape, prim)`` of other shapes.
+
+    Fragments are in submission order within each pixel (shape, then primitive); each with
+    its first passing sample, its passing-sample count and the sums of their positions.
+    Only pixels holding ties or more than one fragment are sorted.
+    """
+    n = len(offsets)
+    offs = np.asarray(offsets, np.float64)
+    reps = np.flatnonzero(buf["rep"].ravel())
+    of = buf["of"].ravel()
+    ok = of >= 0
+    slot = np.flatnonzero(ok) % n
+    n_near = len(reps)
+    parts = {
+        "pixel": [reps // n],
+        "sample": [reps % n],
+        "shape": [buf["shape"].ravel()[reps].astype(np.int64)],
+        "prim": [buf["prim"].ravel()[reps]],
+        "count": [buf["count"].ravel()[reps].astype(np.int64)],
+        "sum_x": [np.bincount(of[ok], weights=offs[slot, 0], minlength=n_near)],
+        "sum_y": [np.bincount(of[ok], weights=offs[slot, 1], minlength=n_near)],
+    }
+    for pix, smp, shape, prim in ties:
+        cols = (pix, smp, shape, prim)
+        for key, val in zip(("pixel", "sample", "shape", "prim"), cols, strict=True):
+            parts[key].append(np.asarray(val, np.int64))
+        parts["count"].append(np.ones(len(pix), np.int64))
+        parts["sum_x"].append(offs[smp, 0])
+        parts["sum_y"].append(offs[smp, 1])
+    e = {key: np.concatenate(val) for key, val in parts.items()}
+    pix = e["pixel"]
+    # pixels whose entries need ordering: more than one entry (several fragments or ties)
+    busy = np.bincount(pix, minlength=n_pix) > 1
+    need = busy[pix]
+    sub = np.flatnonzero(need)
+    sub = sub[np.lexsort((e["sample"][sub], e["prim"][sub], e["shape"][sub], pix[sub]))]
+    order = np.concatenate([np.flatnonzero(~need), sub])
+    order = order[np.argsort(pix[order], kind="stable")]
+    e = {key: val[order] for key, val in e.items()}
+    pix, shape, prim = e["pixel"], e["shape"], e["prim"]
+    new = np.ones(len(pix), bool)
+    new[1:] = (pix[1:] != pix[:-1]) | (shape[1:] != shape[:-1]) | (prim[1:] != prim[:-1])
+    first = np.flatnonzero(new)
+    out = {key: e[key][first] for key in ("pixel", "sample", "shape")}
+    for key in ("count", "sum_x", "sum_y"):
+        out[key] = np.add.reduceat(e[key], first) if len(first) else e[key][:0]
+    return out
+
+
 def run(scene, params: AcaaParams | None = None, **kwargs):
     """Run ``acaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
@@ -241,17 +292,14 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     w, h = scene.width, scene.height
     n_pix = w * h
     cam = scene.camera
-    buf = trace_samples(scene, offsets)
+    buf = trace_samples(scene, offsets, group=True)
     valid = buf["valid"]
     stored = _stored_depth(cam, buf["depth"], valid, p.depth_format)
-    # fragment-samples: (pixel, sample, shape, prim) passing LEQUAL
-    pv, sv = np.nonzero(valid)
-    ent = [(pv, sv, buf["shape"][pv, sv].astype(np.int64), buf["prim"][pv, sv])]
-    subs = _shape_scenes(scene)
     groups = tie_groups(scene, p.depth_format)
     any_valid = np.nonzero(valid.any(axis=1))[0]
     extra_rays = 0
     tie_samples = np.zeros((n_pix, n), bool)
+    ties_found = []
     for members in groups:  # one trace per group of shapes that cannot tie each other
         if len(any_valid) == 0:
             break
@@ -267,39 +315,25 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         if len(ti):
             pix = any_valid[ti]
             tie_samples[pix, ts] = True
-            shape_k = hit_shape[ti, ts].astype(np.int64)
-            ent.append((pix, ts, shape_k, hk["prim"][ti, ts]))
-    e_pix = np.concatenate([e[0] for e in ent])
-    e_smp = np.concatenate([e[1] for e in ent])
-    e_shape = np.concatenate([e[2] for e in ent])
-    e_prim = np.concatenate([e[3] for e in ent])
-    order = np.lexsort((e_smp, e_prim, e_shape, e_pix))
-    e_pix, e_smp, e_shape, e_prim = e_pix[order], e_smp[order], e_shape[order], e_prim[order]
-    new = np.ones(len(e_pix), bool)
-    new[1:] = (
-        (e_pix[1:] != e_pix[:-1]) | (e_shape[1:] != e_shape[:-1]) | (e_prim[1:] != e_prim[:-1])
-    )
-    frag_of_entry = np.cumsum(new) - 1
-    f_first = np.nonzero(new)[0]
-    n_frag = len(f_first)
-    f_pix, f_smp, f_shape = e_pix[f_first], e_smp[f_first], e_shape[f_first]
-    count = np.bincount(frag_of_entry, minlength=n_frag)
+            ties_found.append((pix, ts, hit_shape[ti, ts].astype(np.int64), hk["prim"][ti, ts]))
+    frag = _fragments(buf, ties_found, offsets, n_pix)
+    f_pix, f_smp, f_shape, count = frag["pixel"], frag["sample"], frag["shape"], frag["count"]
+    n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
     cx = (f_pix % w) + 0.5
     cy = (f_pix // w) + 0.5
     if p.centroid and n_frag:
-        sum_x = np.bincount(frag_of_entry, weights=offsets[e_smp, 0], minlength=n_frag)
-        sum_y = np.bincount(frag_of_entry, weights=offsets[e_smp, 1], minlength=n_frag)
         partial = count < n
-        cx = np.where(partial, (f_pix % w) + sum_x / count, cx)
-        cy = np.where(partial, (f_pix // w) + sum_y / count, cy)
+        cx = np.where(partial, (f_pix % w) + frag["sum_x"] / count, cx)
+        cy = np.where(partial, (f_pix // w) + frag["sum_y"] / count, cy)
     sx = (f_pix % w) + offsets[f_smp, 0]
     sy = (f_pix // w) + offsets[f_smp, 1]
     attrs = None
-    for k, sub in enumerate(subs):
-        sel = np.nonzero(f_shape == k)[0]
+    for members in groups:  # a fragment's ray finds its own surface in its group's scene
+        sel = np.nonzero(np.isin(f_shape, members))[0]
         if len(sel) == 0:
             continue
+        sub = _group_scene(scene, members)
         a = fragment_attributes(scene, sx[sel], sy[sel], cx[sel], cy[sel], mi_scene=sub)
         if attrs is None:
             attrs = {key: np.zeros((n_frag,) + v.shape[1:], v.dtype) for key, v in a.items()}
