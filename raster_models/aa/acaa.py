@@ -231,20 +231,18 @@ def _group_scene(scene, members: list[int]):
     return cache[key]
 
 
-def _fragments(buf: dict, ties: list, offsets, n_pix: int) -> dict:
+def _fragments(buf: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
     """Fragments passing LEQUAL: the nearest surface's (grouped on the Dr.Jit side) merged
     with the tie samples ``(pixel, sample, shape, prim)`` of other shapes.
 
     Fragments are in submission order within each pixel (shape, then primitive); each with
-    its first passing sample, its passing-sample count and the sums of their positions.
+    its first passing sample, its passing-sample count and, with ``centroid``, the sums of
+    their positions.
     Only pixels holding ties or more than one fragment are sorted.
     """
     n = len(offsets)
     offs = np.asarray(offsets, np.float64)
     reps = np.flatnonzero(buf["rep"].ravel())
-    of = buf["of"].ravel()
-    ok = of >= 0
-    slot = np.flatnonzero(ok) % n
     n_near = len(reps)
     parts = {
         "pixel": [reps // n],
@@ -252,16 +250,21 @@ def _fragments(buf: dict, ties: list, offsets, n_pix: int) -> dict:
         "shape": [buf["shape"].ravel()[reps].astype(np.int64)],
         "prim": [buf["prim"].ravel()[reps]],
         "count": [buf["count"].ravel()[reps].astype(np.int64)],
-        "sum_x": [np.bincount(of[ok], weights=offs[slot, 0], minlength=n_near)],
-        "sum_y": [np.bincount(of[ok], weights=offs[slot, 1], minlength=n_near)],
     }
+    sums = ("sum_x", "sum_y") if centroid else ()
+    if centroid:
+        of = buf["of"].ravel()
+        ok = of >= 0
+        slot = np.flatnonzero(ok) % n
+        for axis, key in enumerate(sums):
+            parts[key] = [np.bincount(of[ok], weights=offs[slot, axis], minlength=n_near)]
     for pix, smp, shape, prim in ties:
         cols = (pix, smp, shape, prim)
         for key, val in zip(("pixel", "sample", "shape", "prim"), cols, strict=True):
             parts[key].append(np.asarray(val, np.int64))
         parts["count"].append(np.ones(len(pix), np.int64))
-        parts["sum_x"].append(offs[smp, 0])
-        parts["sum_y"].append(offs[smp, 1])
+        for axis, key in enumerate(sums):
+            parts[key].append(offs[smp, axis])
     e = {key: np.concatenate(val) for key, val in parts.items()}
     pix = e["pixel"]
     # pixels whose entries need ordering: more than one entry (several fragments or ties)
@@ -277,7 +280,7 @@ def _fragments(buf: dict, ties: list, offsets, n_pix: int) -> dict:
     new[1:] = (pix[1:] != pix[:-1]) | (shape[1:] != shape[:-1]) | (prim[1:] != prim[:-1])
     first = np.flatnonzero(new)
     out = {key: e[key][first] for key in ("pixel", "sample", "shape")}
-    for key in ("count", "sum_x", "sum_y"):
+    for key in ("count", *sums):
         out[key] = np.add.reduceat(e[key], first) if len(first) else e[key][:0]
     return out
 
@@ -294,29 +297,33 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     cam = scene.camera
     buf = trace_samples(scene, offsets, group=True)
     valid = buf["valid"]
-    stored = _stored_depth(cam, buf["depth"], valid, p.depth_format)
     groups = tie_groups(scene, p.depth_format)
-    any_valid = np.nonzero(valid.any(axis=1))[0]
+    shape_of = buf["shape"]
     extra_rays = 0
     tie_samples = np.zeros((n_pix, n), bool)
     ties_found = []
     for members in groups:  # one trace per group of shapes that cannot tie each other
-        if len(any_valid) == 0:
-            break
+        # a sample whose nearest shape is in the group meets it there again: no tie; trace
+        # the pixels holding samples of other shapes only
+        member = np.zeros(len(scene.shape_names) + 1, bool)  # index -1 (sky): False
+        member[members] = True
+        outside = valid & ~member[shape_of]
+        pixels = np.flatnonzero(outside.any(axis=1))
+        if len(pixels) == 0:
+            continue
         sub = _group_scene(scene, members)
-        hk = trace_samples(scene, offsets, mi_scene=sub, pixels=any_valid, scene_shapes=True)
+        hk = trace_samples(scene, offsets, mi_scene=sub, pixels=pixels, scene_shapes=True)
         extra_rays += hk["valid"].size
-        zk = _stored_depth(cam, hk["depth"], hk["valid"], p.depth_format)
-        v = valid[any_valid]
-        hit_shape = hk["shape"]
-        tie = hk["valid"] & v & (buf["shape"][any_valid] != hit_shape)
-        tie &= zk <= stored[any_valid]
-        ti, ts = np.nonzero(tie)
-        if len(ti):
-            pix = any_valid[ti]
-            tie_samples[pix, ts] = True
-            ties_found.append((pix, ts, hit_shape[ti, ts].astype(np.int64), hk["prim"][ti, ts]))
-    frag = _fragments(buf, ties_found, offsets, n_pix)
+        ci, cs = np.nonzero(hk["valid"] & outside[pixels])
+        pix = pixels[ci]
+        one = np.ones(len(ci), bool)
+        zk = _stored_depth(cam, hk["depth"][ci, cs], one, p.depth_format)
+        tie = zk <= _stored_depth(cam, buf["depth"][pix, cs], one, p.depth_format)
+        ci, cs, pix = ci[tie], cs[tie], pix[tie]
+        if len(ci):
+            tie_samples[pix, cs] = True
+            ties_found.append((pix, cs, hk["shape"][ci, cs].astype(np.int64), hk["prim"][ci, cs]))
+    frag = _fragments(buf, ties_found, offsets, n_pix, p.centroid)
     f_pix, f_smp, f_shape, count = frag["pixel"], frag["sample"], frag["shape"], frag["count"]
     n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
