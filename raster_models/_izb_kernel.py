@@ -99,6 +99,17 @@ def test_32_numpy(planes, p, dpdx, dpdy, floor, a, b):
     return masks, band
 
 
+def _pair(frags, idx, f_idx):
+    """Dr.Jit triangle and receiver of pairs ``idx`` of fragments ``f_idx``; ``frags``:
+    per fragment triangle, first node, first pair of the chunk, and the nodes' receivers."""
+    import drjit as dr
+
+    tri, lo, first, node_recv = frags
+    u32 = type(idx)
+    node = dr.gather(u32, lo, f_idx) + (idx - dr.gather(u32, first, f_idx))
+    return dr.gather(u32, tri, f_idx), dr.gather(u32, node_recv, node)
+
+
 class PairTester:
     """Sample-triangle tests of (triangle, receiver) pairs, on Dr.Jit or NumPy.
 
@@ -181,22 +192,11 @@ class PairTester:
         db = [dot(row, dy) for row in rows]
         return base, da, db, floor
 
-    def drjit(self, tri: np.ndarray, r: np.ndarray):
-        """The Dr.Jit kernels on pairs ``(tri[i], r[i])`` (one chunk)."""
+    def _classes(self, base, da, db, floor):
+        """Dr.Jit 32 samples: ``none`` (no point inside, none in the band) and ``full`` (every
+        point inside) from bounds of the planes over the pixel's points."""
         import drjit as dr
 
-        mi, _ = self._inputs()
-        u32 = mi.UInt32
-        ti, ri = u32(tri.astype(np.uint32)), u32(r.astype(np.uint32))
-        base, da, db, floor = self._plane_terms(ti, ri)
-        if not self.thirty_two:
-            edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
-            hit = edges & (base[3] > 0)
-            near = edges & (base[3] <= 0) & (base[3] > floor)
-            code = dr.select(hit, u32(1), u32(0)) | dr.select(near, u32(2), u32(0))
-            dr.eval(code)
-            c = code.numpy()
-            return (c & 1) != 0, (c & 2) != 0
         a, b = self.recv["a"], self.recv["b"]
         amax, bmax = float(np.abs(a).max()), float(np.abs(b).max())
         spread = [dr.abs(da[k]) * amax + dr.abs(db[k]) * bmax for k in range(4)]
@@ -204,6 +204,46 @@ class PairTester:
         lo = [base[k] - spread[k] for k in range(4)]
         none = (hi[0] < 0) | (hi[1] < 0) | (hi[2] < 0) | (hi[3] <= floor)
         full = (lo[0] >= 0) & (lo[1] >= 0) & (lo[2] >= 0) & (lo[3] > 0)
+        return none, full
+
+    def _points(self, base, da, db, floor):
+        """Dr.Jit 32 samples, point by point: the mask and the band mask (without the mask)."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        a, b = self.recv["a"], self.recv["b"]
+        m = u32(0)
+        bm = u32(0)
+        for q in range(32):  # the 32 fixed points (unrolled into the kernel)
+            aq, bq = float(a[q]), float(b[q])
+            v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
+            edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
+            bit = u32(1 << q)
+            m = m | dr.select(edges & (v[3] > 0), bit, u32(0))
+            bm = bm | dr.select(edges & (v[3] > floor), bit, u32(0))
+        return m, bm & ~m
+
+    @staticmethod
+    def _single(base, floor):
+        edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
+        return edges & (base[3] > 0), edges & (base[3] <= 0) & (base[3] > floor)
+
+    def drjit(self, tri: np.ndarray, r: np.ndarray):
+        """The Dr.Jit kernels on pairs ``(tri[i], r[i])`` (one chunk), per pair."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        ti, ri = u32(tri.astype(np.uint32)), u32(r.astype(np.uint32))
+        base, da, db, floor = self._plane_terms(ti, ri)
+        if not self.thirty_two:
+            hit, near = self._single(base, floor)
+            code = dr.select(hit, u32(1), u32(0)) | dr.select(near, u32(2), u32(0))
+            dr.eval(code)
+            c = code.numpy()
+            return (c & 1) != 0, (c & 2) != 0
+        none, full = self._classes(base, da, db, floor)
         cls = dr.select(none, u32(_NONE), dr.select(full, u32(_FULL_CLASS), u32(_MIXED)))
         dr.eval(cls)
         c = cls.numpy()
@@ -212,18 +252,64 @@ class PairTester:
         mixed = np.flatnonzero(c == _MIXED)
         if len(mixed):
             ti, ri = u32(tri[mixed].astype(np.uint32)), u32(r[mixed].astype(np.uint32))
-            base, da, db, floor = self._plane_terms(ti, ri)
-            m = u32(0)
-            bm = u32(0)
-            for q in range(32):  # the 32 fixed points (unrolled into the kernel)
-                aq, bq = float(a[q]), float(b[q])
-                v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
-                edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
-                bit = u32(1 << q)
-                m = m | dr.select(edges & (v[3] > 0), bit, u32(0))
-                bm = bm | dr.select(edges & (v[3] > floor), bit, u32(0))
-            bm = bm & ~m
+            m, bm = self._points(*self._plane_terms(ti, ri))
             dr.eval(m, bm)
             masks[mixed] = m.numpy()
             band[mixed] = bm.numpy()
         return masks, band
+
+    def join_drjit(self, frag_tri, lo, n, node_recv, state: dict) -> None:
+        """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
+        length) with the nodes ``node_recv``, tested and OR-ed into ``state`` (the arrays of
+        :func:`raster_models._izb_lists.join`) on Dr.Jit: the pairs are expanded, gathered,
+        tested and scattered in the kernels (an OR is order-free: the same bits).
+
+        Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
+        own)."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        recv_dr = u32(np.asarray(node_recv, dtype=np.uint32))
+        if self.thirty_two:
+            keys = ("mask", "band")
+        else:
+            keys = ("shadowed", "band")
+        acc = {k: u32(np.asarray(state[k], dtype=np.uint32)) for k in keys}
+        ends = np.cumsum(n)
+        cut = 0
+        while cut < len(n):  # chunks of fragments
+            base0 = ends[cut - 1] if cut else 0
+            stop = int(np.searchsorted(ends, base0 + DRJIT_PAIR_CHUNK, side="right"))
+            stop = max(stop, cut + 1)
+            nc = n[cut:stop]
+            f_np = np.repeat(np.arange(len(nc), dtype=np.uint32), nc)
+            f = u32(f_np)
+            first = u32((np.cumsum(nc) - nc).astype(np.uint32))
+            lo_dr = u32(lo[cut:stop].astype(np.uint32))
+            tri_dr = u32(frag_tri[cut:stop].astype(np.uint32))
+
+            frags = (tri_dr, lo_dr, first, recv_dr)
+            ti, ri = _pair(frags, dr.arange(u32, len(f_np)), f)
+            base, da, db, floor = self._plane_terms(ti, ri)
+            if not self.thirty_two:
+                hit, near = self._single(base, floor)
+                dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
+                dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], u32(1), ri, near)
+                dr.eval(acc["shadowed"], acc["band"])
+            else:
+                none, full = self._classes(base, da, db, floor)
+                mixed = ~none & ~full
+                dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(_FULL), ri, full & ~none)
+                dr.eval(acc["mask"], mixed)
+                idx = dr.compress(mixed)
+                if dr.width(idx):
+                    ti, ri = _pair(frags, idx, dr.gather(u32, f, idx))
+                    m, bm = self._points(*self._plane_terms(ti, ri))
+                    dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
+                    dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
+                    dr.eval(acc["mask"], acc["band"])
+            cut = stop
+        for k in keys:
+            out = acc[k].numpy()
+            state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._izb_kernel import DRJIT_PAIR_CHUNK, PairTester, use_drjit
+from ._izb_kernel import PairTester, use_drjit
 
 __all__ = ["FULL_MASK", "PAIR_CHUNK", "IzbLists", "JoinStats", "build_lists", "join", "list_nodes"]
 
@@ -160,8 +160,9 @@ def join(
     ``b`` ``(32,)``. ``state``: ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)``
     uint32 (32 samples), and ``band`` (same type: samples inside a volume's edge planes
     within ``epsilon`` of its triangle plane, lit by the epsilon), updated in place.
-    Fragments are processed in chunks of at most :data:`PAIR_CHUNK` pairs (a fragment with
-    a longer list is a chunk of its own).
+    Large joins run on Dr.Jit (:meth:`._izb_kernel.PairTester.join_drjit`: pairs expanded,
+    tested and OR-ed in the kernels); small ones on NumPy, the reference, in chunks of at
+    most :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own).
     """
     stats.fragments += len(frag_tri)
     if len(frag_tri) == 0 or len(lists.node_texel) == 0:
@@ -180,14 +181,16 @@ def join(
     if tester is None or tester.planes is not planes:
         tester = PairTester(planes, recv, band_floor(recv["p"], float(epsilon)))
         state["_tester"] = tester
-    chunk = DRJIT_PAIR_CHUNK if use_drjit(int(ends[-1])) else PAIR_CHUNK
+    if use_drjit(int(ends[-1])):
+        tester.join_drjit(frag_tri, lo, n, lists.node_recv, state)
+        return
     cut = 0
     while cut < len(n):  # chunks of fragments
         base = ends[cut - 1] if cut else 0
-        stop = max(int(np.searchsorted(ends, base + chunk, side="right")), cut + 1)
+        stop = max(int(np.searchsorted(ends, base + PAIR_CHUNK, side="right")), cut + 1)
         f, node = _pairs(lo[cut:stop], n[cut:stop])
         r = lists.node_recv[node]
-        hit, near = tester(frag_tri[cut:stop][f], r)
+        hit, near = tester.numpy(frag_tri[cut:stop][f], r)
         if thirty_two:
             hit_i = np.flatnonzero(hit)
             near_i = np.flatnonzero(near)

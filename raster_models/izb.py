@@ -302,6 +302,8 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             boxes.append(None)
             continue
         chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
+        whole = len(sel) == m  # one grid: no gathers
+        lcs = lc if whole else lc[sel]
         if spot:
             lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
             for ch in chunks:  # chunks of receivers
@@ -310,11 +312,23 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
                 hi = np.maximum(hi, [v.max() for v in pts])
         else:
             # per column: an axis-0 reduction over (n, 3) is several times slower
-            lo = np.array([(lc[sel, q] - spread[sel, q]).min() for q in range(3)])
-            hi = np.array([(lc[sel, q] + spread[sel, q]).max() for q in range(3)])
+            sps = spread if whole else spread[sel]
+            lo = np.array([(lcs[:, q] - sps[:, q]).min() for q in range(3)])
+            hi = np.array([(lcs[:, q] + sps[:, q]).max() for q in range(3)])
         box = _grid(lo[:2], hi[:2])
         boxes.append(box)
         zmax[c] = hi[2]
+        cx, cy, cz = lcs[:, 0], lcs[:, 1], lcs[:, 2]
+        if spot:
+            # the centre may lie outside the cone (32 samples): its texel is diagnostic only
+            cz = np.maximum(cz, 1e-300)
+            cx, cy = cx / cz, cy / cz
+        ci, cj = _texel(cx, cy, box, r)
+        ctex = c * r * r + cj * r + ci
+        centre_texel[sel] = ctex
+        if s == 1 and not spot:
+            nodes.append((ctex, sel))  # the pixel centre is the sample
+            continue
         for ch in chunks:  # chunks of receivers
             if s == 32 and not spot:
                 # Receivers whose points' box lies in one texel: one node, no point needed.
@@ -324,13 +338,6 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             gx, gy, _ = light_pts(ch)
             i, j = _texel(gx, gy, box, r)
             nodes.append(list_nodes(c * r * r + j * r + i, ch))
-        cx, cy, cz = lc[sel, 0], lc[sel, 1], lc[sel, 2]
-        if spot:
-            # the centre may lie outside the cone (32 samples): its texel is diagnostic only
-            cz = np.maximum(cz, 1e-300)
-            cx, cy = cx / cz, cy / cz
-        ci, cj = _texel(cx, cy, box, r)
-        centre_texel[sel] = c * r * r + cj * r + ci
     lists = build_lists(nodes)
     del nodes
     built = lists.lengths()
