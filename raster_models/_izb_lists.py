@@ -2,7 +2,7 @@
 of conservative fragments with those lists, chunk by chunk.
 
 A GPU IZB keeps a head pointer per texel and a next pointer per node; here the lists are the
-nodes sorted by texel (``node_texel`` increasing, ties by receiver index), a list being the
+nodes sorted by texel (``node_texel`` increasing, ties in insertion order), a list being the
 run of one texel: the same lists in the same order. A fragment ``(triangle, texel)`` walks
 its texel's list and tests each node's sample(s) against the triangle's shadow volume
 (:func:`raster_models._izb_geometry.shadow_volumes`). Fully shadowed receivers are removed
@@ -99,8 +99,9 @@ def list_nodes(texels: np.ndarray, recv: np.ndarray) -> tuple[np.ndarray, np.nda
 def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
     """Lists from the nodes of :func:`list_nodes` (any number of parts).
 
-    Nodes are sorted by texel, then by receiver index (a deterministic order, as a GPU's
-    would be for a fixed insertion order).
+    Nodes are sorted by texel, ties in insertion order (the parts in order: deterministic, as
+    a GPU's lists would be for a fixed insertion order): a stable LSD radix sort on 16-bit
+    digits of the texel id (NumPy's stable sort of 16-bit keys is a counting sort).
     """
     if not parts:
         return IzbLists(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
@@ -108,13 +109,13 @@ def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
     node_recv = np.concatenate([r for _, r in parts]).astype(np.int64)
     if len(node_recv) == 0:
         return IzbLists(node_texel, node_recv)
-    # One key per node, texel-major (nodes are distinct (texel, receiver) pairs): a plain
-    # sort of int64 keys, far cheaper than a two-key lexsort.
-    span = int(node_recv.max()) + 1
-    if int(node_texel.max()) < np.iinfo(np.int64).max // span:
-        key = np.sort(node_texel * span + node_recv)
-        return IzbLists(key // span, key % span)
-    order = np.lexsort((node_recv, node_texel))
+    order = np.arange(len(node_texel))
+    top = int(node_texel.max())
+    shift = 0
+    while shift == 0 or top >> shift:  # 16-bit digits of the texel id
+        digit = ((node_texel[order] >> shift) & 0xFFFF).astype(np.uint16)
+        order = order[np.argsort(digit, kind="stable")]
+        shift += 16
     return IzbLists(node_texel[order], node_recv[order])
 
 
