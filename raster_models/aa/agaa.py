@@ -182,6 +182,24 @@ def _cluster_block(v, depth, normal, k, threshold, depth_weight):
     return np.where(v, agg, -1)
 
 
+def _segment_sums(rows: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """``np.add.reduceat(rows, first, axis=0)`` for increasing ``first`` (``first[0] = 0``),
+    computed by ``reduceat`` on the segments of more than one row only (most hold one: their
+    sum is the row), so the additions are reduceat's own."""
+    sums = rows[first]
+    if len(rows) == len(first):
+        return sums
+    size = np.diff(np.append(first, len(rows)))
+    multi = np.flatnonzero(size > 1)
+    take = np.repeat(first[multi], size[multi]) + (
+        np.arange(int(size[multi].sum()))
+        - np.repeat(np.cumsum(size[multi]) - size[multi], size[multi])
+    )
+    start = np.cumsum(size[multi]) - size[multi]
+    sums[multi] = np.add.reduceat(rows[take], start, axis=0)
+    return sums
+
+
 def run(scene, params: AgaaParams | None = None, **kwargs):
     """Run ``agaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
@@ -214,7 +232,7 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     keys = ("albedo", "normal", "position", "to_eye", "geo_normal")
     table = np.concatenate([np.asarray(attrs[key], np.float32) for key in keys], axis=1)
     # float32 sums of at most N samples, as a GPU's aggregate accumulation
-    sums = np.add.reduceat(table[e_f] * e_w.astype(np.float32)[:, None], first, axis=0)
+    sums = _segment_sums(table[e_f] * e_w.astype(np.float32)[:, None], first)
     means = sums / weight.astype(np.float32)[:, None]
     agg_attrs = {key: means[:, 3 * i : 3 * i + 3] for i, key in enumerate(keys)}
     g = agg_attrs["geo_normal"]
@@ -232,9 +250,9 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     rgb, rays = shade_points(scene, agg_attrs, visibility=vis, filtered_normal=True)
     contrib = rgb.astype(np.float64) * (weight / n)[:, None]
     pix = slots // k
-    color = np.stack(
-        [np.bincount(pix, weights=contrib[:, c], minlength=n_pix) for c in range(3)], axis=1
-    )
+    color = np.empty((n_pix, 3), np.float32)  # the output's float32, cast per channel
+    for c in range(3):
+        color[:, c] = np.bincount(pix, weights=contrib[:, c], minlength=n_pix)
     n_agg = np.bincount(pix, minlength=n_pix)
     nb = NORMAL_FORMATS[p.normal_format]
     n_frag = len(frags)
