@@ -46,9 +46,10 @@ CHUNK = 1 << 21
 
 
 def _np(a) -> np.ndarray:
-    """NumPy copy of an evaluated Dr.Jit array (a vector gives ``(3, N)``)."""
+    """NumPy view of an evaluated Dr.Jit array (a vector gives ``(3, N)``); every caller
+    copies it into its own output at once."""
     to_numpy = getattr(a, "numpy", None)
-    return np.array(to_numpy() if to_numpy is not None else a)
+    return np.asarray(to_numpy() if to_numpy is not None else a)
 
 
 def _view_depth(camera, p):
@@ -69,7 +70,7 @@ def trace_samples(
     pixels=None,
     group: bool = False,
     cluster: tuple | None = None,
-    keep: tuple = ("valid", "shape", "prim", "depth"),
+    keep: tuple = ("valid", "shape", "prim", "depth", "first"),
     scene_shapes: bool = False,
 ) -> dict:
     """Nearest surface at every sub-sample of every pixel (a depth prepass).
@@ -88,8 +89,9 @@ def trace_samples(
         ``cluster`` also ``pair_rep``, ``pair_count``).
     cluster : ``(k, threshold, depth_weight, normal_format)``: also return ``aggregate``
         ((P, N) int8), AGAA's clustering on the stored normals (:func:`._pixel_dr.aggregate_of`).
-    keep : which of ``valid``, ``shape``, ``prim``, ``depth`` to copy back to NumPy (the
-        per-pixel kernels read them on the Dr.Jit side either way).
+    keep : which of ``valid``, ``shape``, ``prim``, ``depth`` (and with ``group``,
+        ``first``) to copy back to NumPy (the per-pixel kernels read them on the Dr.Jit side
+        either way).
     scene_shapes : ``mi_scene`` holds shape objects of ``scene`` itself: report ``shape`` as
         their indices into ``scene.shape_names`` (else -1 or 0).
 
@@ -112,11 +114,12 @@ def trace_samples(
     n_pix = len(pix_all)
     total = n_pix * n
     dtypes = {"valid": bool, "shape": np.int32, "prim": np.int64, "depth": np.float32}
-    out = {key: np.empty(total, dtypes[key]) for key in keep}
+    out = {key: np.empty(total, dtypes[key]) for key in keep if key in dtypes}
     if normals:
         out["normal"] = np.empty((total, 3), np.float32)
     if group:
-        out["first"] = np.empty(total, np.int8)
+        if "first" in keep:
+            out["first"] = np.empty(total, np.int8)
         out["rep"] = np.empty(total, bool)
         out["of"] = np.empty(total, np.int32)
         out["count"] = np.empty(total, np.int8)
@@ -197,7 +200,8 @@ def trace_samples(
         if normals:
             out["normal"][sl] = _np(nrm).T
         for key, val in extra.items():
-            out[key][sl] = _np(val)
+            if key in out:
+                out[key][sl] = _np(val)
         if group:
             n_frag += int(np.count_nonzero(out["rep"][sl]))
     res = {k: v.reshape((n_pix, n) + v.shape[1:]) for k, v in out.items()}

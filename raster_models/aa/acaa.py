@@ -295,7 +295,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     w, h = scene.width, scene.height
     n_pix = w * h
     cam = scene.camera
-    buf = trace_samples(scene, offsets, group=True)
+    buf = trace_samples(scene, offsets, group=True, keep=("valid", "shape", "prim", "depth"))
     valid = buf["valid"]
     groups = tie_groups(scene, p.depth_format)
     shape_of = buf["shape"]
