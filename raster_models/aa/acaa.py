@@ -298,6 +298,8 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     buf = trace_samples(scene, offsets, group=True, keep=("valid", "shape", "prim", "depth"))
     valid = buf["valid"]
     groups = tie_groups(scene, p.depth_format)
+    # the largest tie distance (at the far plane): a view-depth bound on every tie
+    window = float(tie_distance(cam, cam.far, p.depth_format))
     shape_of = buf["shape"]
     extra_rays = 0
     tie_samples = np.zeros((n_pix, n), bool)
@@ -314,7 +316,10 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         sub = _group_scene(scene, members)
         hk = trace_samples(scene, offsets, mi_scene=sub, pixels=pixels, scene_shapes=True)
         extra_rays += hk["valid"].size
-        ci, cs = np.nonzero(hk["valid"] & outside[pixels])
+        near = hk["valid"] & outside[pixels]
+        if np.isfinite(window):  # equal stored depths lie within the tie distance
+            near &= hk["depth"] <= buf["depth"][pixels] + np.float32(window)
+        ci, cs = np.nonzero(near)
         pix = pixels[ci]
         one = np.ones(len(ci), bool)
         zk = _stored_depth(cam, hk["depth"][ci, cs], one, p.depth_format)
