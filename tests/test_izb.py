@@ -453,16 +453,27 @@ def test_drjit_pair_tests_equal_the_numpy_reference(samples):
         assert (hit == 0xFFFFFFFF).any() and partial.any()  # bounds and point-by-point paths
 
 
-def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch):
+@pytest.mark.parametrize("samples", [1, 32])
+def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch, samples):
     """The whole model, Dr.Jit joins against NumPy joins: the same bytes."""
     from raster_models import _izb_kernel
 
     loaded = scenes.load("city", width=96, height=54)
+    calls = []
+    drjit_join = _izb_kernel.PairTester.join_drjit
+    monkeypatch.setattr(
+        _izb_kernel.PairTester,
+        "join_drjit",
+        lambda self, *args: calls.append(1) or drjit_join(self, *args),
+    )
     monkeypatch.setattr(_izb_kernel, "DRJIT_MIN_PAIRS", 1)
     monkeypatch.setattr(_izb_kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches
-    fast = rm.run("izb", loaded, samples=32, resolution=64)
+    fast = rm.run("izb", loaded, samples=samples, resolution=64)
+    n_fast = len(calls)
+    assert n_fast  # the Dr.Jit join ran
     monkeypatch.setattr(_izb_kernel, "DRJIT_MIN_PAIRS", 1 << 62)
-    ref = rm.run("izb", loaded, samples=32, resolution=64)
+    ref = rm.run("izb", loaded, samples=samples, resolution=64)
+    assert len(calls) == n_fast  # the reference ran on NumPy only
     assert ref.cost == fast.cost
     for key in ref.outputs:
         np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
