@@ -92,6 +92,10 @@ GRID_MARGIN = 1e-6
 #: Receivers per build chunk (32 samples each: about 50 MiB of float64 coordinates a chunk).
 BUILD_CHUNK = 1 << 16
 
+#: Pixels per chunk of the spot light's per-point N.L and cone tests (32 points, a few
+#: (n, 32, 3) temporaries: small chunks stay in cache, about 1.5x faster than 2^16).
+UNLIT_CHUNK = 1 << 10
+
 #: A triangle (texel units / R) containing the whole grid ``[0, 1]^2``: what a spot light's
 #: occluder crossing the light's plane is rasterized as.
 WHOLE_GRID = np.array([[-0.5, -0.5], [3.5, -0.5], [-0.5, 3.5]])
@@ -209,8 +213,8 @@ def _unlit_bits(light, gbuf, cand: np.ndarray, a: np.ndarray, b: np.ndarray) -> 
     axis = axis / np.linalg.norm(axis)
     cos_cut = np.cos(np.radians(light.cutoff_angle))
     bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
-    for i0 in range(0, len(cand), BUILD_CHUNK):  # chunks of pixels
-        ch = cand[i0 : i0 + BUILD_CHUNK]
+    for i0 in range(0, len(cand), UNLIT_CHUNK):  # chunks of pixels
+        ch = cand[i0 : i0 + UNLIT_CHUNK]
         q = (
             gbuf.position[ch, None, :]
             + gbuf.dpdx[ch, None, :] * a[:, None]
