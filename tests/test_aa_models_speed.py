@@ -76,3 +76,18 @@ def test_tie_distance_grows_with_depth_and_precision():
     cos_min = 1.0 / np.sqrt(1.0 + t * t + (t / cam.aspect) ** 2)
     expect = acaa.TIE_QUANTA * step / cos_min + acaa.TIE_SLACK
     assert np.allclose(got, expect, rtol=1e-2)
+
+
+def test_agaa_segment_sums_are_reduceats_own_additions():
+    """AGAA's material sums: ``reduceat`` on the multi-row segments only must give the bytes
+    of ``reduceat`` on all rows (its float32 addition order is not left to right, so a
+    hand-written loop would not)."""
+    from raster_models.aa.agaa import _segment_sums
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        lens = rng.integers(1, 17, size=int(rng.integers(1, 400)))
+        lens[rng.random(len(lens)) < rng.random()] = 1
+        first = np.r_[0, np.cumsum(lens)[:-1]]
+        rows = (rng.standard_normal((int(lens.sum()), 15)) * 1e3).astype(np.float32)
+        assert np.array_equal(_segment_sums(rows, first), np.add.reduceat(rows, first, axis=0))
