@@ -204,6 +204,32 @@ AA_RATIO_TARGET = 0.5
 AA_ISSUE9_TARGET = 1.0
 
 
+def _time_models(loaded, cases: dict, times: dict) -> None:
+    """Run each case once, appending its wall seconds to ``times[technique]``."""
+    import raster_models
+
+    for technique, params in cases.items():
+        t0 = time.perf_counter()
+        raster_models.run(technique, loaded, **params)
+        times[technique].append(time.perf_counter() - t0)
+
+
+def _model_rows(cases, times, results, prefix, ref_s, ratio_key, target) -> dict:
+    """One JSON row per case: median seconds, its ratio to the reference, the cost record."""
+    rows = {}
+    for technique, params in cases.items():
+        model_s = float(np.median(times[technique]))
+        rows[technique] = {
+            "params": params,
+            "seconds": model_s,
+            "seconds_per_round": times[technique],
+            ratio_key: model_s / ref_s,
+            "meets_target": model_s / ref_s <= target,
+            "cost": results[prefix + technique].cost,
+        }
+    return rows
+
+
 def bench_models(
     *,
     width: int = 1920,
@@ -238,56 +264,44 @@ def bench_models(
     render_reference(loaded, color_settings, quiet=True)  # warm-up
     for technique, params in AA_MODEL_CASES.items():
         results["aa:" + technique] = raster_models.run(technique, loaded, **params)  # warm-up
-    color_times: list[float] = []
-    aa_times: dict[str, list[float]] = {t: [] for t in AA_MODEL_CASES}
-    cstats = {}
     # Rounds alternate the reference and the models, so that load from other processes hits
     # both sides alike; each side's time is the median over the rounds.
     oracle_times: list[float] = []
+    color_times: list[float] = []
     model_times: dict[str, list[float]] = {t: [] for t in SHADOW_MODEL_CASES}
-    stats = {}
+    aa_times: dict[str, list[float]] = {t: [] for t in AA_MODEL_CASES}
+    stats, cstats = {}, {}
     for _ in range(repeats):
         _, stats = render_reference(loaded, settings, quiet=quiet)
         oracle_times.append(stats["wall_seconds"])
-        for technique, params in SHADOW_MODEL_CASES.items():
-            t0 = time.perf_counter()
-            raster_models.run(technique, loaded, **params)
-            model_times[technique].append(time.perf_counter() - t0)
+        _time_models(loaded, SHADOW_MODEL_CASES, model_times)
         _, cstats = render_reference(loaded, color_settings, quiet=quiet)
         color_times.append(cstats["wall_seconds"])
-        for technique, params in AA_MODEL_CASES.items():
-            t0 = time.perf_counter()
-            raster_models.run(technique, loaded, **params)
-            aa_times[technique].append(time.perf_counter() - t0)
+        _time_models(loaded, AA_MODEL_CASES, aa_times)
     oracle_s = float(np.median(oracle_times))
-    models = {}
-    for technique, params in SHADOW_MODEL_CASES.items():
-        model_s = float(np.median(model_times[technique]))
-        models[technique] = {
-            "params": params,
-            "seconds": model_s,
-            "seconds_per_round": model_times[technique],
-            "over_oracle_ratio": model_s / oracle_s,
-            "meets_target": model_s / oracle_s <= MODEL_RATIO_TARGET,
-            "cost": results[technique].cost,
-        }
     color_s = float(np.median(color_times))
-    aa_models = {}
-    for technique, params in AA_MODEL_CASES.items():
-        model_s = float(np.median(aa_times[technique]))
-        aa_models[technique] = {
-            "params": params,
-            "seconds": model_s,
-            "seconds_per_round": aa_times[technique],
-            "over_color_reference_ratio": model_s / color_s,
-            "meets_target": model_s / color_s <= AA_RATIO_TARGET,
-            **(
-                {"meets_issue9_target": model_s / color_s <= AA_ISSUE9_TARGET}
-                if technique in ("msaa", "agaa")
-                else {}
-            ),
-            "cost": results["aa:" + technique].cost,
-        }
+    models = _model_rows(
+        SHADOW_MODEL_CASES,
+        model_times,
+        results,
+        "",
+        oracle_s,
+        "over_oracle_ratio",
+        MODEL_RATIO_TARGET,
+    )
+    aa_models = _model_rows(
+        AA_MODEL_CASES,
+        aa_times,
+        results,
+        "aa:",
+        color_s,
+        "over_color_reference_ratio",
+        AA_RATIO_TARGET,
+    )
+    for technique in ("msaa", "agaa"):
+        if technique in aa_models:
+            row = aa_models[technique]
+            row["meets_issue9_target"] = row["over_color_reference_ratio"] <= AA_ISSUE9_TARGET
     return {
         "scene": "city",
         "resolution": [width, height],

@@ -61,6 +61,16 @@ STANDARD_POSITIONS: dict[int, tuple[tuple[float, float], ...]] = {
 #: Sample counts with a standard pattern.
 STANDARD_COUNTS = tuple(STANDARD_POSITIONS)
 
+
+def check_standard_count(technique: str, samples: int, *, why: str = "(standard patterns)"):
+    """Refuse a sample count with no standard pattern (message names the valid counts)."""
+    if samples not in STANDARD_COUNTS:
+        raise ModelError(
+            f"{technique}: parameter samples must be one of "
+            f"{', '.join(map(str, STANDARD_COUNTS))} {why}, got {samples}"
+        )
+
+
 #: Sample patterns by name.
 PATTERNS = ("standard", "ordered-grid")
 

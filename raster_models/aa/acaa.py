@@ -36,7 +36,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _depth, _params
-from .._errors import ModelError
 from . import _samples
 from ._base import (
     DEPTH_FORMATS,
@@ -84,12 +83,7 @@ class AcaaParams(ShadowParams):
     )
 
     def check(self, technique: str) -> None:
-        if self.samples not in _samples.STANDARD_COUNTS:
-            raise ModelError(
-                f"{technique}: parameter samples must be one of "
-                f"{', '.join(map(str, _samples.STANDARD_COUNTS))} (standard patterns), "
-                f"got {self.samples}"
-            )
+        _samples.check_standard_count(technique, self.samples)
 
 
 def normalized_depth(camera, view_depth) -> np.ndarray:

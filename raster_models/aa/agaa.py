@@ -97,12 +97,7 @@ class AgaaParams(ShadowParams):
     )
 
     def check(self, technique: str) -> None:
-        if self.samples not in _samples.STANDARD_COUNTS:
-            raise ModelError(
-                f"{technique}: parameter samples must be one of "
-                f"{', '.join(map(str, _samples.STANDARD_COUNTS))} (standard patterns), "
-                f"got {self.samples}"
-            )
+        _samples.check_standard_count(technique, self.samples)
 
 
 def quantize_normals(n: np.ndarray, fmt: str) -> np.ndarray:

@@ -29,7 +29,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _params
-from .._errors import ModelError
 from . import _resolve, _samples
 from ._base import (
     COLOR_FORMATS,
@@ -78,12 +77,7 @@ class MsaaParams(ShadowParams, ResolveParams):
     )
 
     def check(self, technique: str) -> None:
-        if self.samples not in _samples.STANDARD_COUNTS:
-            raise ModelError(
-                f"{technique}: parameter samples must be one of "
-                f"{', '.join(map(str, _samples.STANDARD_COUNTS))} (standard patterns), "
-                f"got {self.samples}"
-            )
+        _samples.check_standard_count(technique, self.samples)
 
 
 def multisample(scene, offsets, *, centroid: bool, shadows: str) -> dict:

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _params
-from .._errors import ModelError
 from . import _resolve, _samples
 from ._base import COLOR_FORMATS, DEPTH_FORMATS, ResolveParams, package
 from ._trace import sample_colors
@@ -49,12 +48,8 @@ class SsaaParams(ResolveParams):
     )
 
     def check(self, technique: str) -> None:
-        if self.pattern == "standard" and self.samples not in _samples.STANDARD_COUNTS:
-            raise ModelError(
-                f"{technique}: parameter samples must be one of "
-                f"{', '.join(map(str, _samples.STANDARD_COUNTS))} with pattern=standard, "
-                f"got {self.samples}"
-            )
+        if self.pattern == "standard":
+            _samples.check_standard_count(technique, self.samples, why="with pattern=standard")
 
 
 @dataclass(frozen=True)
