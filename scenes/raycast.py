@@ -112,15 +112,8 @@ SELF_HIT_ROUNDS = 3
 
 
 def _has_analytic_shapes(scene) -> bool:
-    """Whether ``scene`` holds a non-mesh (analytic) shape; cached on the scene object."""
-    cached = getattr(scene, "_ro_has_analytic", None)
-    if cached is None:
-        cached = any(not sh.is_mesh() for sh in scene.shapes())
-        try:
-            scene._ro_has_analytic = cached
-        except AttributeError:  # a binding without a __dict__: recompute each time
-            pass
-    return cached
+    """Whether ``scene`` (a Mitsuba scene) holds a non-mesh (analytic) shape."""
+    return any(not sh.is_mesh() for sh in scene.shapes())
 
 
 def occluded_from_dr(scene, light, p, ng, wl, shape, active):
