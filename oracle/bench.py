@@ -237,6 +237,7 @@ def bench_models(
     spp: int = 32,
     quiet: bool = True,
     repeats: int = 3,
+    only: tuple[str, ...] = (),
 ) -> dict:
     """Every shadow model against the oracle's 32-spp visibility of the same frame.
 
@@ -248,84 +249,103 @@ def bench_models(
     AA technique) are timed the same way against the 32-spp *colour* reference of the same
     frame (``aa_models``; target <= :data:`AA_RATIO_TARGET`; msaa and agaa also carry
     ``meets_issue9_target``, issue 9's <= :data:`AA_ISSUE9_TARGET`).
+    ``only`` restricts the rows to those techniques (both references still run when a row
+    of their family remains; an unknown name raises ``ValueError``).
     """
     import raster_models
     import scenes
 
     from .reference import ReferenceSettings, render_reference
 
+    shadow_cases, aa_cases = SHADOW_MODEL_CASES, AA_MODEL_CASES
+    if only:
+        unknown = sorted(set(only) - set(shadow_cases) - set(aa_cases))
+        if unknown:
+            raise ValueError(
+                f"bench models --only: unknown technique(s) {', '.join(unknown)}; choose from "
+                f"{', '.join([*shadow_cases, *aa_cases])}"
+            )
+        shadow_cases = {t: p for t, p in shadow_cases.items() if t in only}
+        aa_cases = {t: p for t, p in aa_cases.items() if t in only}
     loaded = scenes.load("city", width=width, height=height)
     settings = ReferenceSettings(spp=spp, channels=("visibility",))
-    render_reference(loaded, settings, quiet=True)  # warm-up
-    results = {}
-    for technique, params in SHADOW_MODEL_CASES.items():
-        results[technique] = raster_models.run(technique, loaded, **params)  # warm-up
     color_settings = ReferenceSettings(spp=spp, channels=("color",))
-    render_reference(loaded, color_settings, quiet=True)  # warm-up
-    for technique, params in AA_MODEL_CASES.items():
+    results = {}
+    if shadow_cases:
+        render_reference(loaded, settings, quiet=True)  # warm-up
+    for technique, params in shadow_cases.items():
+        results[technique] = raster_models.run(technique, loaded, **params)  # warm-up
+    if aa_cases:
+        render_reference(loaded, color_settings, quiet=True)  # warm-up
+    for technique, params in aa_cases.items():
         results["aa:" + technique] = raster_models.run(technique, loaded, **params)  # warm-up
     # Rounds alternate the reference and the models, so that load from other processes hits
     # both sides alike; each side's time is the median over the rounds.
     oracle_times: list[float] = []
     color_times: list[float] = []
-    model_times: dict[str, list[float]] = {t: [] for t in SHADOW_MODEL_CASES}
-    aa_times: dict[str, list[float]] = {t: [] for t in AA_MODEL_CASES}
+    model_times: dict[str, list[float]] = {t: [] for t in shadow_cases}
+    aa_times: dict[str, list[float]] = {t: [] for t in aa_cases}
     stats, cstats = {}, {}
     for _ in range(repeats):
-        _, stats = render_reference(loaded, settings, quiet=quiet)
-        oracle_times.append(stats["wall_seconds"])
-        _time_models(loaded, SHADOW_MODEL_CASES, model_times)
-        _, cstats = render_reference(loaded, color_settings, quiet=quiet)
-        color_times.append(cstats["wall_seconds"])
-        _time_models(loaded, AA_MODEL_CASES, aa_times)
-    oracle_s = float(np.median(oracle_times))
-    color_s = float(np.median(color_times))
-    models = _model_rows(
-        SHADOW_MODEL_CASES,
-        model_times,
-        results,
-        "",
-        oracle_s,
-        "over_oracle_ratio",
-        MODEL_RATIO_TARGET,
-    )
-    aa_models = _model_rows(
-        AA_MODEL_CASES,
-        aa_times,
-        results,
-        "aa:",
-        color_s,
-        "over_color_reference_ratio",
-        AA_RATIO_TARGET,
-    )
-    for technique in ("msaa", "agaa"):
-        if technique in aa_models:
-            row = aa_models[technique]
-            row["meets_issue9_target"] = row["over_color_reference_ratio"] <= AA_ISSUE9_TARGET
-    return {
-        "scene": "city",
-        "resolution": [width, height],
-        "oracle_visibility": {
+        if shadow_cases:
+            _, stats = render_reference(loaded, settings, quiet=quiet)
+            oracle_times.append(stats["wall_seconds"])
+            _time_models(loaded, shadow_cases, model_times)
+        if aa_cases:
+            _, cstats = render_reference(loaded, color_settings, quiet=quiet)
+            color_times.append(cstats["wall_seconds"])
+            _time_models(loaded, aa_cases, aa_times)
+    figures: dict = {"scene": "city", "resolution": [width, height], "rounds": repeats}
+    if shadow_cases:
+        oracle_s = float(np.median(oracle_times))
+        models = _model_rows(
+            shadow_cases,
+            model_times,
+            results,
+            "",
+            oracle_s,
+            "over_oracle_ratio",
+            MODEL_RATIO_TARGET,
+        )
+        figures["oracle_visibility"] = {
             "spp": spp,
             "seconds": oracle_s,
             "seconds_per_round": oracle_times,
             "rays": stats["rays_cast"],
-        },
-        "rounds": repeats,
-        "models": models,
-        "sdsm": models["sdsm"],
-        "sdsm_over_oracle_ratio": models["sdsm"]["over_oracle_ratio"],
-        "oracle_color": {
+        }
+        figures["models"] = models
+        if "sdsm" in models:
+            figures["sdsm"] = models["sdsm"]
+            figures["sdsm_over_oracle_ratio"] = models["sdsm"]["over_oracle_ratio"]
+        figures["target"] = f"<= {MODEL_RATIO_TARGET} (model seconds / 32-spp reference seconds)"
+    if aa_cases:
+        color_s = float(np.median(color_times))
+        aa_models = _model_rows(
+            aa_cases,
+            aa_times,
+            results,
+            "aa:",
+            color_s,
+            "over_color_reference_ratio",
+            AA_RATIO_TARGET,
+        )
+        for technique in ("msaa", "agaa"):
+            if technique in aa_models:
+                row = aa_models[technique]
+                row["meets_issue9_target"] = row["over_color_reference_ratio"] <= AA_ISSUE9_TARGET
+        figures["oracle_color"] = {
             "spp": spp,
             "seconds": color_s,
             "seconds_per_round": color_times,
             "rays": cstats["rays_cast"],
-        },
-        "aa_models": aa_models,
-        "aa_target": f"<= {AA_RATIO_TARGET} (model seconds / 32-spp colour reference seconds; "
-        "issue 11)",
-        "aa_issue9_target": f"<= {AA_ISSUE9_TARGET} for msaa 8x and agaa K=2 (issue 9's own "
-        "target, meets_issue9_target)",
-        "target": f"<= {MODEL_RATIO_TARGET} (model seconds / 32-spp reference seconds)",
-        "variant": backend.active().variant,
-    }
+        }
+        figures["aa_models"] = aa_models
+        figures["aa_target"] = (
+            f"<= {AA_RATIO_TARGET} (model seconds / 32-spp colour reference seconds; issue 11)"
+        )
+        figures["aa_issue9_target"] = (
+            f"<= {AA_ISSUE9_TARGET} for msaa 8x and agaa K=2 (issue 9's own target, "
+            "meets_issue9_target)"
+        )
+    figures["variant"] = backend.active().variant
+    return figures

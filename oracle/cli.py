@@ -248,6 +248,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--width", type=_positive_int, default=1920)
     p.add_argument("--height", type=_positive_int, default=1080)
     p.add_argument("--spp", type=_positive_int, default=32)
+    p.add_argument(
+        "--only",
+        default="",
+        help="models: comma-separated techniques to time (default: every row)",
+    )
     p.add_argument("--quiet", action="store_true")
 
     p = sub.add_parser(
@@ -474,8 +479,17 @@ def cmd_main(args) -> int:
 def cmd_bench(args) -> int:
     from .bench import bench_models, bench_oracle
 
-    fn = bench_oracle if args.what == "oracle" else bench_models
-    figures = fn(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet)
+    kwargs = dict(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet)
+    if args.what == "models":
+        only = tuple(t.strip() for t in args.only.split(",") if t.strip())
+        try:
+            figures = bench_models(only=only, **kwargs)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+    elif args.only:
+        raise CliError("bench oracle: --only applies to 'bench models' only")
+    else:
+        figures = bench_oracle(**kwargs)
     print(json.dumps(figures, indent=2))
     return 0
 

@@ -152,6 +152,11 @@ BAD = {
         "--title must not be empty",
     ),
     "report: not a score folder": (["report", "afile", "--out", "r.html"], "not a score folder"),
+    "bench models --only unknown": (
+        ["bench", "models", "--only", "msaa,nope"],
+        r"unknown technique\(s\) nope",
+    ),
+    "bench oracle --only": (["bench", "oracle", "--only", "msaa"], "'bench models' only"),
 }
 
 
