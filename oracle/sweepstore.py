@@ -128,6 +128,7 @@ class SweepStore:
 
     def __init__(self, path: str | os.PathLike, *, readonly: bool = False):
         self.path = Path(path)
+        self.readonly = readonly
         if readonly and not self.path.is_file():
             raise StoreError(f"sweep database {self.path}: no such file")
         if self.path.exists() and not self.path.is_file():
@@ -158,6 +159,14 @@ class SweepStore:
             )
 
     def close(self) -> None:
+        if not self.readonly:
+            # Leave a single file behind: back to rollback journalling when this is the last
+            # connection (readers opened later with mode=ro then create no -wal/-shm files that
+            # they could not remove). Another open connection keeps WAL: locked, ignored.
+            try:
+                self.conn.execute("PRAGMA journal_mode=DELETE")
+            except sqlite3.OperationalError:
+                pass
         self.conn.close()
 
     def __enter__(self):

@@ -428,3 +428,17 @@ def test_light_path_frames_are_cases_of_their_own(tmp_path):
     assert summary["done"] == 2 and summary["references"] == 4  # 2 frames x (seed, seed + 1)
     rows = list(_rows(tmp_path / "lp.db").values())
     assert {r["path"] for r in rows} == {"orbit-sun"} and {r["frame"] for r in rows} == {0, 3}
+
+
+def test_store_leaves_one_file_when_the_last_writer_closes(tmp_path):
+    """WAL while writing; back to a single file on close, also after read-only opens."""
+    db = tmp_path / "s.db"
+    first, second = SweepStore(db), SweepStore(db)
+    assert (tmp_path / "s.db-wal").exists()
+    second.close()  # another connection is still open: it keeps WAL
+    assert first.conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    first.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.db"]
+    with SweepStore(db, readonly=True) as reader:
+        assert reader.conn.execute("SELECT count(*) FROM sweep_meta").fetchone()[0] >= 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.db"]
