@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _params
+from . import _coherent_dr, _params
 from ._engine import _jsonable, _provenance
 from ._errors import ModelError
 from ._gbuffer import trace_gbuffer
@@ -227,19 +227,9 @@ class _Projections:
 
 
 # ---------------------------------------------------------------------------- rendering
-def _surfaces(scene, projs, ids, *, second: bool):
-    """First (and second) surfaces of every texel of maps ``ids``, batched over maps.
-
-    Rays are those of :meth:`Projection.grid_rays` (texel centres, from the sphere's near
-    plane along the map's direction). Yields ``(start, stop, record)`` per chunk of the
-    flattened ``(len(ids), R^2)`` texels; ``record`` holds ``z1`` (and ``z2``): depth
-    normalized over the sphere's diameter (``inf``: no surface), and with ``second`` the
-    half-footprint depth spreads ``dz1``, ``dz2``: how far the depth of the hit surface's
-    plane moves from the texel centre to a texel corner, ``(|n.U| + |n.V|) / (2 r |n.D|)``
-    in normalized depth (``inf`` for a surface seen edge-on). The second surface is found by
-    continuing from the first hit with Mitsuba's ``spawn_ray`` (its self-intersection
-    offset).
-    """
+def _surface_chunks(scene, projs, ids, *, second: bool):
+    """The Dr.Jit side of :func:`_surfaces`: yields ``(start, stop, record)`` per chunk with
+    ``record`` holding unevaluated Dr.Jit Float64 arrays."""
     from scenes import backend
 
     mi = backend.mitsuba()
@@ -305,6 +295,25 @@ def _surfaces(scene, projs, ids, *, second: bool):
         else:
             pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
             out = {"z1": dr.select(pi.is_valid(), f64(pi.t) / span, dr.inf)}
+        yield start, stop, out
+
+
+def _surfaces(scene, projs, ids, *, second: bool):
+    """First (and second) surfaces of every texel of maps ``ids``, batched over maps.
+
+    Rays are those of :meth:`Projection.grid_rays` (texel centres, from the sphere's near
+    plane along the map's direction). Yields ``(start, stop, record)`` per chunk of the
+    flattened ``(len(ids), R^2)`` texels; ``record`` holds ``z1`` (and ``z2``): depth
+    normalized over the sphere's diameter (``inf``: no surface), and with ``second`` the
+    half-footprint depth spreads ``dz1``, ``dz2``: how far the depth of the hit surface's
+    plane moves from the texel centre to a texel corner, ``(|n.U| + |n.V|) / (2 r |n.D|)``
+    in normalized depth (``inf`` for a surface seen edge-on). The second surface is found by
+    continuing from the first hit with Mitsuba's ``spawn_ray`` (its self-intersection
+    offset).
+    """
+    import drjit as dr
+
+    for start, stop, out in _surface_chunks(scene, projs, ids, second=second):
         dr.eval(*out.values())
         yield start, stop, {key: val.numpy() for key, val in out.items()}
 
@@ -318,19 +327,27 @@ def _render(scene, projs, ids) -> np.ndarray:
     return z1.reshape(len(ids), rr)
 
 
-def _render_intervals(
-    scene, projs, ids, bias: float, *, footprint: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
-    """Visibility intervals ``(lo, hi)`` of every texel of maps ``ids`` (float32,
-    ``(len(ids), R^2)``), computed chunk by chunk (see :func:`visibility_intervals`;
-    ``footprint=False``: texel centres only, spreads 0)."""
-    rr = projs.resolution**2
-    lo = np.empty(len(ids) * rr, dtype=np.float32)
-    hi = np.empty(len(ids) * rr, dtype=np.float32)
-    for start, stop, rec in _surfaces(scene, projs, ids, second=True):
+def _render_intervals(scene, projs, ids, bias: float, *, footprint: bool = True):
+    """Visibility intervals ``(lo, hi)`` of every texel of maps ``ids``: flat Dr.Jit Float32
+    arrays of ``len(ids) * R^2`` values (map-major), computed inside the rendering kernel
+    chunk by chunk (the Dr.Jit twin of :func:`visibility_intervals`; ``footprint=False``:
+    texel centres only, spreads 0)."""
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    total = len(ids) * projs.resolution**2
+    lo = dr.zeros(mi.Float, total)
+    hi = dr.zeros(mi.Float, total)
+    for start, stop, rec in _surface_chunks(scene, projs, ids, second=True):
         spreads = {"dz1": rec["dz1"], "dz2": rec["dz2"]} if footprint else {}
-        lo[start:stop], hi[start:stop] = visibility_intervals(rec["z1"], rec["z2"], bias, **spreads)
-    return lo.reshape(len(ids), rr), hi.reshape(len(ids), rr)
+        c_lo, c_hi = _coherent_dr.intervals(rec["z1"], rec["z2"], bias, SPREAD_GUARD, **spreads)
+        idx = dr.arange(mi.UInt32, start, stop)
+        dr.scatter(lo, c_lo, idx)
+        dr.scatter(hi, c_hi, idx)
+        dr.eval(lo, hi)
+    return lo, hi
 
 
 def _stored(z1: np.ndarray) -> np.ndarray:
@@ -508,18 +525,18 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             "column_major": id_tex.T.ravel(),
             "random": rng.permutation(n),
         }
-        comp = {}
-        decoded = None
-        for name, order in orders.items():
-            runs, dec = compress_runs(lo, hi, order)
-            comp[name] = {
+        counts, decoded = _coherent_dr.compress_orders(
+            lo, hi, n, list(orders.values()), decode=list(orders).index("hilbert")
+        )
+        comp = {
+            name: {
                 "stored_values": runs,
                 "ratio": float(n * r * r) / runs,
                 "bytes": runs * RUN_BYTES,
             }
-            if name == "hilbert":
-                decoded = dec
-        maps = {"uncompressed": lo, "decompressed": decoded}
+            for name, runs in zip(orders, counts, strict=True)
+        }
+        maps = {"uncompressed": lo.numpy().reshape(n, r * r), "decompressed": decoded}
         cost["compression"] = comp
     else:
         z1 = _render(scene, projs, used)

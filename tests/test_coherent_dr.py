@@ -1,0 +1,82 @@
+"""The Dr.Jit kernels of coherent shadow maps give the bytes of their NumPy references:
+visibility intervals (with misses, edge-on spreads, ties at the stored value) and the greedy
+run compression of several orderings at once, with its decoded maps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from raster_models import _coherent_dr, coherent
+from scenes import backend
+
+
+@pytest.fixture(scope="module")
+def mi():
+    return backend.mitsuba()
+
+
+def _random_surfaces(rng, m):
+    """Depths and spreads of every class the intervals distinguish: misses, single
+    surfaces, second surfaces just behind, edge-on surfaces (infinite spread) and second
+    surfaces closer than the bias (the float32 step below must be taken exactly)."""
+    z1 = rng.random(m)
+    z1[rng.random(m) < 0.2] = np.inf
+    gap = rng.choice([1e-9, 1e-6, 1e-3, 0.02, 0.3], size=m) * rng.random(m)
+    z2 = z1 + gap
+    z2[(rng.random(m) < 0.3) | ~np.isfinite(z1)] = np.inf
+    dz1 = rng.random(m) * 0.004
+    dz1[rng.random(m) < 0.02] = np.inf
+    dz1[~np.isfinite(z1)] = 0.0
+    dz2 = rng.random(m) * 0.004
+    dz2[rng.random(m) < 0.02] = np.inf
+    dz2[~np.isfinite(z2)] = 0.0
+    # Depths that are float32 values exactly: the stored value equals the surface depth.
+    exact = rng.random(m) < 0.1
+    z1[exact] = z1[exact].astype(np.float32)
+    return z1, z2, dz1, dz2
+
+
+@pytest.mark.parametrize("footprint", [True, False])
+@pytest.mark.parametrize("bias", [0.0, 1e-7, 0.005])
+def test_drjit_intervals_equal_the_numpy_reference(mi, footprint, bias):
+    z1, z2, dz1, dz2 = _random_surfaces(np.random.default_rng(11), 1 << 16)
+    spreads = {"dz1": dz1, "dz2": dz2} if footprint else {}
+    lo, hi = coherent.visibility_intervals(z1, z2, bias, **spreads)
+    d_lo, d_hi = _coherent_dr.intervals(
+        mi.Float64(z1),
+        mi.Float64(z2),
+        bias,
+        coherent.SPREAD_GUARD,
+        **{k: mi.Float64(v) for k, v in spreads.items()},
+    )
+    assert np.array_equal(d_lo.numpy(), lo)
+    assert np.array_equal(d_hi.numpy(), hi)
+    assert np.any(hi > lo) and np.any(hi == lo)  # both classes occur
+
+
+def test_drjit_step_below_equals_nextafter(mi):
+    x = np.array([1e-3, 0.5, 1.0, 0.75, 3.0e38, 1e-45, np.inf, 1.0 + 1e-12, 0.1, 0.0, -0.5])
+    expect = coherent._below(x)
+    got = _coherent_dr.below_f32(mi.Float64(x)).numpy()
+    assert np.array_equal(got, expect)
+    finite = np.isfinite(x)
+    assert np.all(got[finite].astype(np.float64) < x[finite])
+
+
+@pytest.mark.parametrize(("n", "t"), [(4, 1), (16, 7), (64, 333), (256, 1024)])
+def test_drjit_compression_equals_the_numpy_reference(mi, n, t):
+    rng = np.random.default_rng(n + t)
+    lo = rng.random((n, t), dtype=np.float32)
+    # Narrow and wide intervals, exact ties (hi == lo) and cleared texels (hi = inf).
+    hi = lo + rng.choice([0.0, 0.01, 0.2, np.inf], size=(n, t)).astype(np.float32)
+    orders = [np.arange(n), rng.permutation(n), np.arange(n)[::-1], rng.permutation(n)]
+    ref = [coherent.compress_runs(lo, hi, o) for o in orders]
+    d_lo, d_hi = mi.Float(lo.ravel()), mi.Float(hi.ravel())
+    for decode in range(len(orders)):
+        runs, decoded = _coherent_dr.compress_orders(d_lo, d_hi, n, orders, decode=decode)
+        assert runs == [r for r, _ in ref]
+        assert decoded.dtype == np.float32 and decoded.shape == (n, t)
+        assert np.array_equal(decoded, ref[decode][1])
+    runs, decoded = _coherent_dr.compress_orders(d_lo, d_hi, n, orders, decode=None)
+    assert runs == [r for r, _ in ref] and decoded is None
