@@ -25,6 +25,10 @@ __all__ = ["below_f32", "compress_orders", "intervals"]
 #: Bit pattern of the float32 just below +0 (``np.nextafter(0, -inf)``: -1 subnormal step).
 _NEG_TINY_BITS = 0x80000001
 
+#: Most contiguous texels one lane of :func:`compress_orders` walks (one packet load each
+#: of ``lo`` and ``hi`` per map instead of one gather per texel).
+PACKET = 16
+
 
 def below_f32(x):
     """Largest float32 strictly below each Float64 ``x`` (``inf`` stays ``inf``), as a
@@ -66,6 +70,15 @@ def intervals(z1, z2, bias: float, guard: float, *, dz1=None, dz2=None):
     return lo, dr.maximum(hi, lo)
 
 
+def _packet(t_count: int) -> int:
+    """Texels per lane of :func:`compress_orders`: the largest power of two up to
+    :data:`PACKET` dividing the texel count (their values are contiguous: one packet load)."""
+    p = PACKET
+    while t_count % p:
+        p //= 2
+    return p
+
+
 def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: int | None = 0):
     """Greedy runs of every ordering in ``orders``, and the decoded maps of one of them: the
     Dr.Jit twin of :func:`raster_models.coherent.compress_runs`.
@@ -84,8 +97,9 @@ def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: in
     runs : list of ints, the stored values of each ordering.
     decoded : ``(N, T)`` float32 NumPy array (or ``None``), the value each map id reads.
 
-    Every texel of every ordering is one lane that walks the ``N`` maps in order (the loop
-    over maps runs inside the kernel); the decoded maps take a second, backward walk.
+    Every lane walks the ``N`` maps of one ordering in order (the loop over maps runs
+    inside the kernel) for a packet of contiguous texels; the decoded maps take a second,
+    backward walk.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -93,50 +107,55 @@ def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: in
     n = int(n_maps)
     total = dr.width(lo)
     t_count = total // n
+    pk = _packet(t_count)
+    g_count = t_count // pk  # packets per map
     k = len(orders)
     u32 = mi.UInt32
+    vec_f = dr.llvm.ad.ArrayXf
+    vec_b = dr.llvm.ad.ArrayXb
     order_all = u32(np.concatenate([np.asarray(o, dtype=np.uint32) for o in orders]))
-    lane = dr.arange(u32, k * t_count)
-    t_u = dr.opaque(u32, t_count)
+    lane = dr.arange(u32, k * g_count)
+    g_u = dr.opaque(u32, g_count)
     n_u = dr.opaque(u32, n)
-    which = lane // t_u
-    tex = lane - which * t_u
+    which = lane // g_u
+    grp = lane - which * g_u
     base = which * n_u
 
-    def at(pos):
-        return dr.gather(u32, order_all, base + pos) * t_u + tex
+    def load(src, m, grp, width):
+        return dr.gather(vec_f, src, m * g_u + grp, shape=(pk, width))
 
-    first = at(u32(0))
-    cur_lo = dr.gather(mi.Float, lo, first)
-    cur_hi = dr.gather(mi.Float, hi, first)
+    width = k * g_count
+    first = dr.gather(u32, order_all, base)
+    cur_lo = load(lo, first, grp, width)
+    cur_hi = load(hi, first, grp, width)
     keep = decode is not None
     if keep:
-        decode_u = dr.opaque(u32, int(decode))
-        mine = which == decode_u
+        mine = which == dr.opaque(u32, int(decode))
         prefix = dr.zeros(mi.Float, n * t_count)
-        starts = dr.zeros(mi.Bool, n * t_count)
-        dr.scatter(prefix, cur_lo, tex, active=mine)
-        dr.scatter(starts, True, tex, active=mine)
-    runs = u32(1)
+        starts = dr.zeros(mi.Float, n * t_count)
+        dr.scatter(prefix, cur_lo, grp, active=mine)
+        dr.scatter(starts, vec_f([mi.Float(1.0)] * pk), grp, active=mine)
+    runs = dr.zeros(mi.UInt32, width) + pk  # every texel starts a run
     pos = u32(1)
 
     def cond(pos, cur_lo, cur_hi, runs):
         return pos < n_u
 
     def body(pos, cur_lo, cur_hi, runs):
-        idx = at(pos)
-        m_lo = dr.gather(mi.Float, lo, idx)
-        m_hi = dr.gather(mi.Float, hi, idx)
+        m = dr.gather(u32, order_all, base + pos)
+        m_lo = load(lo, m, grp, width)
+        m_hi = load(hi, m, grp, width)
         new_lo = dr.maximum(cur_lo, m_lo)
         new_hi = dr.minimum(cur_hi, m_hi)
         brk = new_lo > new_hi
         cur_lo = dr.select(brk, m_lo, new_lo)
         cur_hi = dr.select(brk, m_hi, new_hi)
-        runs = runs + dr.select(brk, 1, 0)
+        for j in range(pk):
+            runs = runs + dr.select(brk[j], 1, 0)
         if keep:
-            slot = pos * t_u + tex
+            slot = pos * g_u + grp
             dr.scatter(prefix, cur_lo, slot, active=mine)
-            dr.scatter(starts, brk, slot, active=mine)
+            dr.scatter(starts, dr.select(brk, 1.0, 0.0), slot, active=mine)
         return pos + 1, cur_lo, cur_hi, runs
 
     pos, cur_lo, cur_hi, runs = dr.while_loop(
@@ -146,26 +165,26 @@ def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: in
         dr.eval(runs, prefix, starts)
     else:
         dr.eval(runs)
-    per_lane = runs.numpy().astype(np.int64).reshape(k, t_count)
+    per_lane = runs.numpy().astype(np.int64).reshape(k, g_count)
     counts = [int(c) for c in per_lane.sum(axis=1)]
     if not keep:
         return counts, None
     # Backward: every member of a run reads the run's final (largest) lo.
     order_d = u32(np.asarray(orders[decode], dtype=np.uint32))
-    tex2 = dr.arange(u32, t_count)
+    grp2 = dr.arange(u32, g_count)
     decoded = dr.zeros(mi.Float, n * t_count)
     last = u32(n - 1)
-    value = dr.gather(mi.Float, prefix, last * t_u + tex2)
-    dr.scatter(decoded, value, dr.gather(u32, order_d, last) * t_u + tex2)
+    value = load(prefix, last, grp2, g_count)
+    dr.scatter(decoded, value, dr.gather(u32, order_d, last) * g_u + grp2)
 
     def cond_b(pos, value):
         return pos > 0
 
     def body_b(pos, value):
         p = pos - 1
-        nxt_start = dr.gather(mi.Bool, starts, pos * t_u + tex2)
-        value = dr.select(nxt_start, dr.gather(mi.Float, prefix, p * t_u + tex2), value)
-        dr.scatter(decoded, value, dr.gather(u32, order_d, p) * t_u + tex2)
+        nxt_start = load(starts, pos, grp2, g_count) > 0.5
+        value = dr.select(nxt_start, load(prefix, p, grp2, g_count), value)
+        dr.scatter(decoded, value, dr.gather(u32, order_d, p) * g_u + grp2)
         return p, value
 
     dr.while_loop((last, value), cond_b, body_b, labels=("pos", "value"))

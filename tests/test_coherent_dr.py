@@ -64,7 +64,7 @@ def test_drjit_step_below_equals_nextafter(mi):
     assert np.all(got[finite].astype(np.float64) < x[finite])
 
 
-@pytest.mark.parametrize(("n", "t"), [(4, 1), (16, 7), (64, 333), (256, 1024)])
+@pytest.mark.parametrize(("n", "t"), [(4, 1), (16, 7), (64, 333), (8, 36), (32, 18), (256, 1024)])
 def test_drjit_compression_equals_the_numpy_reference(mi, n, t):
     rng = np.random.default_rng(n + t)
     lo = rng.random((n, t), dtype=np.float32)
