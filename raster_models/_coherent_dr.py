@@ -111,8 +111,7 @@ def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: in
     g_count = t_count // pk  # packets per map
     k = len(orders)
     u32 = mi.UInt32
-    vec_f = dr.llvm.ad.ArrayXf
-    vec_b = dr.llvm.ad.ArrayXb
+    vec_f = mi.ArrayXf
     order_all = u32(np.concatenate([np.asarray(o, dtype=np.uint32) for o in orders]))
     lane = dr.arange(u32, k * g_count)
     g_u = dr.opaque(u32, g_count)
