@@ -73,6 +73,7 @@ from ._engine import _jsonable, _provenance
 from ._errors import ModelError
 from ._fit import light_frame_for
 from ._gbuffer import trace_gbuffer
+from ._izb_build import BUILD_CHUNK, Ortho32Build, grid, texel
 from ._izb_geometry import conservative_fragments, scene_triangles, shadow_volumes
 from ._izb_lists import FULL_MASK, JoinStats, build_lists, join, list_nodes
 from ._light_frame import make_frame
@@ -86,12 +87,6 @@ NAME = "izb"
 #: Triangles per traversal round; fully shadowed receivers leave the lists between rounds.
 ROUND_TRIANGLES = 256
 
-#: Relative margin around each grid's tight bounds, so samples on the boundary stay inside.
-GRID_MARGIN = 1e-6
-
-#: Receivers per build chunk (32 samples each: about 50 MiB of float64 coordinates a chunk).
-BUILD_CHUNK = 1 << 16
-
 #: Pixels per chunk of the spot light's per-point N.L and cone tests (32 points, a few
 #: (n, 32, 3) temporaries: small chunks stay in cache, about 1.5x faster than 2^16).
 UNLIT_CHUNK = 1 << 10
@@ -99,10 +94,6 @@ UNLIT_CHUNK = 1 << 10
 #: A triangle (texel units / R) containing the whole grid ``[0, 1]^2``: what a spot light's
 #: occluder crossing the light's plane is rasterized as.
 WHOLE_GRID = np.array([[-0.5, -0.5], [3.5, -0.5], [-0.5, 3.5]])
-
-#: Relative slack of the box around a receiver's 32 points when deciding that they share one
-#: texel: the points' float64 rounding is a few 2^-53 of ``|x| + spread``.
-ONE_TEXEL_SLACK = 1e-12
 
 #: Samples per pixel the technique supports: the pixel centre, or FTIZB's 32 points.
 SAMPLE_COUNTS = (1, 32)
@@ -156,38 +147,6 @@ class IzbParams:
             raise ModelError(
                 f"{technique}: parameter samples must be 1 or 32, got {self.samples!r}"
             )
-
-
-def _grid(lo: np.ndarray, hi: np.ndarray):
-    """Tight grid ``(x0, x1, y0, y1)`` around light-frame x/y bounds (never empty)."""
-    size = np.maximum(hi - lo, 1e-9 * (1.0 + np.abs(lo)))
-    pad = GRID_MARGIN * size
-    return (lo[0] - pad[0], hi[0] + pad[0], lo[1] - pad[1], hi[1] + pad[1])
-
-
-def _texel(x, y, box, r):
-    """Texel (i, j) of light-frame x, y in a grid box (clamped: points on the far edge)."""
-    x0, x1, y0, y1 = box
-    i = np.clip(np.floor((x - x0) / ((x1 - x0) / r)), 0, r - 1).astype(np.int64)
-    j = np.clip(np.floor((y1 - y) / ((y1 - y0) / r)), 0, r - 1).astype(np.int64)
-    return i, j
-
-
-def _one_texel(lc: np.ndarray, spread: np.ndarray, box, r: int):
-    """Receivers whose 32 points all fall in one texel, and that texel (``j R + i``).
-
-    Every point ``lc + a ldx + b ldy`` lies within ``spread`` of ``lc`` (up to float64
-    rounding, well inside :data:`ONE_TEXEL_SLACK`); :func:`_texel` is monotone in x and y,
-    so the texels of the slackened box's corners bound those of the points.
-    """
-    ends = []
-    for q in range(2):  # x, y (columns: strided 2D arithmetic is several times slower)
-        x, w = lc[:, q], spread[:, q]
-        reach = w + (ONE_TEXEL_SLACK * (np.abs(x) + w) + np.finfo(float).tiny)
-        ends.append((x - reach, x + reach))
-    i0, j0 = _texel(ends[0][0], ends[1][1], box, r)
-    i1, j1 = _texel(ends[0][1], ends[1][0], box, r)
-    return (i0 == i1) & (j0 == j1), j0 * r + i0
 
 
 def _histogram(lengths: np.ndarray) -> dict:
@@ -290,11 +249,10 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             x, y, z = (np.where(ok, v, np.take_along_axis(v, first, axis=1)) for v in (x, y, z))
         return x / z, y / z, z
 
-    # Bounds of each receiver's samples (orthographic, 32 samples: a box around the points,
-    # |dP| times the largest offset; the grids and the depth cull only need to contain them).
-    spread = np.zeros((m, 3))
-    if s == 32 and not spot:
-        spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
+    # Orthographic, 32 samples: bounds, centre texels and nodes by :mod:`._izb_build` (the
+    # grids and the depth cull only need boxes containing each receiver's points).
+    ortho32 = s == 32 and not spot
+    build = Ortho32Build(lc, ldx, ldy, a, b) if ortho32 else None
 
     boxes: list = []
     zmax = np.full(k, -np.inf)
@@ -305,8 +263,17 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         if len(sel) == 0:
             boxes.append(None)
             continue
-        chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
         whole = len(sel) == m  # one grid: no gathers
+        if ortho32:
+            lo, hi = build.bounds(None if whole else sel)
+            box = grid(lo[:2], hi[:2])
+            boxes.append(box)
+            zmax[c] = hi[2]
+            ctex, node_texel, node_recv = build.nodes(None if whole else sel, box, r)
+            centre_texel[sel] = c * r * r + ctex
+            nodes.append((c * r * r + node_texel, node_recv))
+            continue
+        chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
         lcs = lc if whole else lc[sel]
         if spot:
             lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
@@ -315,11 +282,11 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
                 lo = np.minimum(lo, [v.min() for v in pts])
                 hi = np.maximum(hi, [v.max() for v in pts])
         else:
-            # per column: an axis-0 reduction over (n, 3) is several times slower
-            sps = spread if whole else spread[sel]
-            lo = np.array([(lcs[:, q] - sps[:, q]).min() for q in range(3)])
-            hi = np.array([(lcs[:, q] + sps[:, q]).max() for q in range(3)])
-        box = _grid(lo[:2], hi[:2])
+            # one sample: the pixel centres (per column: an axis-0 reduction over (n, 3) is
+            # several times slower)
+            lo = np.array([lcs[:, q].min() for q in range(3)])
+            hi = np.array([lcs[:, q].max() for q in range(3)])
+        box = grid(lo[:2], hi[:2])
         boxes.append(box)
         zmax[c] = hi[2]
         cx, cy, cz = lcs[:, 0], lcs[:, 1], lcs[:, 2]
@@ -327,20 +294,15 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             # the centre may lie outside the cone (32 samples): its texel is diagnostic only
             cz = np.maximum(cz, 1e-300)
             cx, cy = cx / cz, cy / cz
-        ci, cj = _texel(cx, cy, box, r)
+        ci, cj = texel(cx, cy, box, r)
         ctex = c * r * r + cj * r + ci
         centre_texel[sel] = ctex
-        if s == 1 and not spot:
-            nodes.append((ctex, sel))  # the pixel centre is the sample
+        if not spot:
+            nodes.append((ctex, sel))  # one sample: the pixel centre is the sample
             continue
         for ch in chunks:  # chunks of receivers
-            if s == 32 and not spot:
-                # Receivers whose points' box lies in one texel: one node, no point needed.
-                one, t = _one_texel(lc[ch], spread[ch], box, r)
-                nodes.append((c * r * r + t[one], ch[one]))
-                ch = ch[~one]
             gx, gy, _ = light_pts(ch)
-            i, j = _texel(gx, gy, box, r)
+            i, j = texel(gx, gy, box, r)
             nodes.append(list_nodes(c * r * r + j * r + i, ch))
     lists = build_lists(nodes)
     del nodes

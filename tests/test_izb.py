@@ -477,24 +477,3 @@ def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch, s
     assert ref.cost == fast.cost
     for key in ref.outputs:
         np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
-
-
-def test_one_texel_receivers_have_every_point_in_that_texel():
-    """The build's shortcut: a receiver whose point box lies in one texel gets that texel,
-    and every one of its 32 points (computed as the full path does) falls in it."""
-    rng = np.random.default_rng(3)
-    n, r = 20000, 64
-    lc = rng.uniform(-50.0, 50.0, (n, 3))
-    ldx = rng.normal(0.0, 0.3, (n, 3)) * rng.uniform(0.0, 1.0, (n, 1)) ** 3
-    ldy = rng.normal(0.0, 0.3, (n, 3)) * rng.uniform(0.0, 1.0, (n, 1)) ** 3
-    a, b = tangent_offsets()
-    spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
-    box = izb._grid((lc - spread).min(axis=0)[:2], (lc + spread).max(axis=0)[:2])
-    one, t = izb._one_texel(lc, spread, box, r)
-    x = lc[:, 0, None] + ldx[:, 0, None] * a + ldy[:, 0, None] * b
-    y = lc[:, 1, None] + ldx[:, 1, None] * a + ldy[:, 1, None] * b
-    i, j = izb._texel(x, y, box, r)
-    texels = j * r + i
-    assert 0.2 < one.mean() < 0.95  # both paths exercised
-    np.testing.assert_array_equal(texels[one], np.repeat(t[one, None], 32, axis=1))
-    assert (texels[~one] != texels[~one, :1]).any(axis=1).mean() > 0.5

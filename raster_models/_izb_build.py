@@ -1,0 +1,319 @@
+"""IZB list build, orthographic grids: the texels of each receiver's samples.
+
+A grid is ``R x R`` texels over a light-frame box ``(x0, x1, y0, y1)`` (``x`` right, ``y``
+up; texel row 0 at the top, ``y1``); light-frame point ``(x, y)`` falls in texel
+``i = floor((x - x0) / ((x1 - x0) / R))``, ``j = floor((y1 - y) / ((y1 - y0) / R))``, both
+clamped to ``[0, R - 1]`` (points on the far edge), id ``j R + i``.
+
+FTIZB (32 samples) inserts a receiver in every texel one of its 32 tangent-plane points
+``lc + a ldx + b ldy`` falls in (``lc``: light-frame centre, ``ldx``, ``ldy``: light-frame
+``dP/dx``, ``dP/dy``). Most receivers (about 90% on city at 1080p) lie in one texel: a box
+of half-size ``spread = |ldx| max|a| + |ldy| max|b|`` (slackened by float64 rounding, see
+:data:`ONE_TEXEL_SLACK`) around the centre decides that without the points. The nodes come
+in a fixed order, whatever the chunking: first the one-texel receivers (one node each, in
+receiver order), then the others (in receiver order, one node per distinct texel, in the
+order of the points' first occurrences).
+
+Two implementations give the same bits (``tests/test_izb_build.py``): NumPy (the reference,
+small inputs) and Dr.Jit (LLVM) kernels, one per receiver (bounds, centre texel, one-texel
+decision) and one per other receiver (its 32 points' texels, duplicates dropped). Both
+evaluate every value in float64 in the same order without fused multiply-adds:
+``spread = |ldx| amax + |ldy| bmax``, ``(lc + ldx a) + ldy b``, ``(x - x0) / s``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "BUILD_CHUNK",
+    "DRJIT_BUILD_CHUNK",
+    "DRJIT_MIN_RECEIVERS",
+    "GRID_MARGIN",
+    "ONE_TEXEL_SLACK",
+    "Ortho32Build",
+    "grid",
+    "one_texel",
+    "texel",
+]
+
+#: Relative margin around each grid's tight bounds, so samples on the boundary stay inside.
+GRID_MARGIN = 1e-6
+
+#: Relative slack of the box around a receiver's 32 points when deciding that they share one
+#: texel: the points' float64 rounding is a few 2^-53 of ``|x| + spread``.
+ONE_TEXEL_SLACK = 1e-12
+
+#: Receivers per NumPy build chunk (32 samples each: about 50 MiB of float64 coordinates).
+BUILD_CHUNK = 1 << 16
+
+#: Receivers from which the build runs on Dr.Jit (LLVM) instead of NumPy.
+DRJIT_MIN_RECEIVERS = 1 << 14
+
+#: Receivers per Dr.Jit launch (bounded memory: about 150 bytes per receiver).
+DRJIT_BUILD_CHUNK = 1 << 20
+
+#: Dr.Jit: the texel id of a duplicate point / of a receiver not in one texel (never a texel:
+#: ids are below 2^29).
+_NONE = 0xFFFFFFFF
+
+#: The smallest normal float64 (keeps the reach positive where ``x`` and ``spread`` are 0).
+_TINY = float(np.finfo(float).tiny)
+
+
+def grid(lo: np.ndarray, hi: np.ndarray):
+    """Tight grid ``(x0, x1, y0, y1)`` around light-frame x/y bounds (never empty)."""
+    size = np.maximum(hi - lo, 1e-9 * (1.0 + np.abs(lo)))
+    pad = GRID_MARGIN * size
+    return (lo[0] - pad[0], hi[0] + pad[0], lo[1] - pad[1], hi[1] + pad[1])
+
+
+def texel(x, y, box, r):
+    """Texel (i, j) of light-frame x, y in a grid box (clamped: points on the far edge)."""
+    x0, x1, y0, y1 = box
+    i = np.clip(np.floor((x - x0) / ((x1 - x0) / r)), 0, r - 1).astype(np.int64)
+    j = np.clip(np.floor((y1 - y) / ((y1 - y0) / r)), 0, r - 1).astype(np.int64)
+    return i, j
+
+
+def _reach(x, w):
+    """Half-size of the slackened box around the points (NumPy and Dr.Jit alike)."""
+    return w + (ONE_TEXEL_SLACK * (abs(x) + w) + _TINY)
+
+
+def one_texel(lc: np.ndarray, spread: np.ndarray, box, r: int):
+    """Receivers whose 32 points all fall in one texel, and that texel (``j R + i``).
+
+    Every point ``lc + a ldx + b ldy`` lies within ``spread`` of ``lc`` (up to float64
+    rounding, well inside :data:`ONE_TEXEL_SLACK`); :func:`texel` is monotone in x and y,
+    so the texels of the slackened box's corners bound those of the points.
+    """
+    ends = []
+    for q in range(2):  # x, y (columns: strided 2D arithmetic is several times slower)
+        x, w = lc[:, q], spread[:, q]
+        reach = _reach(x, w)
+        ends.append((x - reach, x + reach))
+    i0, j0 = texel(ends[0][0], ends[1][1], box, r)
+    i1, j1 = texel(ends[0][1], ends[1][0], box, r)
+    return (i0 == i1) & (j0 == j1), j0 * r + i0
+
+
+class Ortho32Build:
+    """The 32-sample receivers of orthographic grids: bounds, centre texels and nodes.
+
+    Parameters
+    ----------
+    lc, ldx, ldy : ``(M, 3)`` float64 light-frame centre and derivatives of every receiver.
+    a, b : ``(32,)`` float64 tangent-plane offsets (pixels).
+    drjit : run on Dr.Jit (LLVM kernels) or NumPy; ``None``: Dr.Jit from
+        :data:`DRJIT_MIN_RECEIVERS` receivers on a vectorized variant.
+    """
+
+    def __init__(self, lc, ldx, ldy, a, b, *, drjit: bool | None = None):
+        self.lc, self.ldx, self.ldy = lc, ldx, ldy
+        self.a, self.b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+        self.amax, self.bmax = np.abs(self.a).max(), np.abs(self.b).max()
+        if drjit is None:
+            drjit = len(lc) >= DRJIT_MIN_RECEIVERS and _vectorized()
+        self.drjit = drjit
+        self._spread = None
+        self._dr = None
+
+    # ---- NumPy (the reference)
+    @property
+    def spread(self) -> np.ndarray:
+        """``(M, 3)`` half-size of the box around each receiver's points (NumPy)."""
+        if self._spread is None:
+            self._spread = np.abs(self.ldx) * self.amax + np.abs(self.ldy) * self.bmax
+        return self._spread
+
+    def bounds(self, sel: np.ndarray | None):
+        """Light-frame ``lo``, ``hi`` ``(3,)`` of the points of receivers ``sel`` (all:
+        ``None``): the boxes around them, which contain the points."""
+        if self.drjit:
+            return self._bounds_drjit(sel)
+        lcs = self.lc if sel is None else self.lc[sel]
+        sps = self.spread if sel is None else self.spread[sel]
+        # per column: an axis-0 reduction over (n, 3) is several times slower
+        lo = np.array([(lcs[:, q] - sps[:, q]).min() for q in range(3)])
+        hi = np.array([(lcs[:, q] + sps[:, q]).max() for q in range(3)])
+        return lo, hi
+
+    def nodes(self, sel: np.ndarray | None, box, r: int):
+        """Centre texels and list nodes of receivers ``sel`` (all: ``None``) in one grid.
+
+        Returns
+        -------
+        centre : ``(n,)`` int64 texel ``j R + i`` of each receiver's centre ``lc``.
+        node_texel, node_recv : int64 texel and receiver index (into ``lc``) of every node,
+            in the order of the module docstring.
+        """
+        if self.drjit:
+            return self._nodes_drjit(sel, box, r)
+        n = len(self.lc) if sel is None else len(sel)
+        idx = np.arange(n) if sel is None else np.asarray(sel)
+        lcs = self.lc if sel is None else self.lc[idx]
+        ci, cj = texel(lcs[:, 0], lcs[:, 1], box, r)
+        ones, others = [], []
+        for s0 in range(0, n, BUILD_CHUNK):  # chunks of receivers
+            ch = idx[s0 : s0 + BUILD_CHUNK]
+            one, t = one_texel(self.lc[ch], self.spread[ch], box, r)
+            ones.append((t[one], ch[one]))
+            ch = ch[~one]
+            x, y = (
+                self.lc[ch, q, None]
+                + self.ldx[ch, q, None] * self.a
+                + self.ldy[ch, q, None] * self.b
+                for q in range(2)
+            )
+            i, j = texel(x, y, box, r)
+            tex = j * r + i
+            # each distinct texel at its first point: sorted stably, first of each run
+            order = np.argsort(tex, axis=1, kind="stable")
+            srt = np.take_along_axis(tex, order, axis=1)
+            run = np.ones_like(srt, dtype=bool)
+            run[:, 1:] = srt[:, 1:] != srt[:, :-1]
+            first = np.zeros_like(run)
+            np.put_along_axis(first, order, run, axis=1)
+            others.append((tex[first], np.repeat(ch, first.sum(axis=1))))
+        parts = ones + others
+        node_texel = np.concatenate([t for t, _ in parts]).astype(np.int64)
+        node_recv = np.concatenate([c for _, c in parts]).astype(np.int64)
+        return cj * r + ci, node_texel, node_recv
+
+    # ---- Dr.Jit
+    def _inputs(self):
+        if self._dr is None:
+            from scenes import backend
+
+            mi = backend.mitsuba()
+            f64 = mi.Float64
+            arrays = {
+                k: f64(np.ascontiguousarray(v, dtype=np.float64).ravel())
+                for k, v in (("lc", self.lc), ("ldx", self.ldx), ("ldy", self.ldy))
+            }
+            self._dr = (mi, arrays)
+        return self._dr
+
+    def _chunks(self, sel):
+        """Dr.Jit receiver indices, chunk by chunk, and the NumPy ones."""
+        mi, _ = self._inputs()
+        n = len(self.lc) if sel is None else len(sel)
+        for s0 in range(0, n, DRJIT_BUILD_CHUNK):  # chunks of receivers
+            s1 = min(n, s0 + DRJIT_BUILD_CHUNK)
+            if sel is None:
+                import drjit as dr
+
+                yield dr.arange(mi.UInt32, s0, s1), np.arange(s0, s1)
+            else:
+                ch = np.asarray(sel[s0:s1])
+                yield mi.UInt32(ch.astype(np.uint32)), ch
+
+    def _column(self, key, idx, q):
+        import drjit as dr
+
+        mi, arrays = self._inputs()
+        return dr.gather(mi.Float64, arrays[key], idx * 3 + q)
+
+    def _spread_dr(self, idx, q):
+        import drjit as dr
+
+        dx, dy = self._column("ldx", idx, q), self._column("ldy", idx, q)
+        return dr.abs(dx) * float(self.amax) + dr.abs(dy) * float(self.bmax)
+
+    def _bounds_drjit(self, sel):
+        import drjit as dr
+
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for idx, _ in self._chunks(sel):  # chunks of receivers
+            ends = []
+            for q in range(3):  # x, y, z
+                c, w = self._column("lc", idx, q), self._spread_dr(idx, q)
+                ends += [dr.min(c - w), dr.max(c + w)]
+            dr.eval(*ends)
+            v = np.array([e.numpy()[0] for e in ends])
+            lo, hi = np.minimum(lo, v[0::2]), np.maximum(hi, v[1::2])
+        return lo, hi
+
+    def _texel_dr(self, box, r):
+        """Dr.Jit texel functions ``i(x)``, ``j(y)`` of the grid (UInt32)."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        f64, u32 = mi.Float64, mi.UInt32
+        x0, x1, y0, y1 = box
+        # The cell sizes as NumPy computes them; opaque: one kernel serves every grid.
+        sx, sy = (x1 - x0) / r, (y1 - y0) / r
+        x0_, y1_, sx_, sy_ = (dr.opaque(f64, float(v)) for v in (x0, y1, sx, sy))
+        top = float(r - 1)
+
+        def ti(x):
+            return u32(dr.clip(dr.floor((x - x0_) / sx_), 0.0, top))
+
+        def tj(y):
+            return u32(dr.clip(dr.floor((y1_ - y) / sy_), 0.0, top))
+
+        return ti, tj
+
+    def _nodes_drjit(self, sel, box, r):
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        ti, tj = self._texel_dr(box, r)
+        rr = dr.opaque(u32, r)
+        centres, ones, others = [], [], []
+        for idx, ch in self._chunks(sel):  # chunks of receivers
+            x, y = self._column("lc", idx, 0), self._column("lc", idx, 1)
+            reach_x = _reach(x, self._spread_dr(idx, 0))
+            reach_y = _reach(y, self._spread_dr(idx, 1))
+            i0, j0 = ti(x - reach_x), tj(y + reach_y)
+            i1, j1 = ti(x + reach_x), tj(y - reach_y)
+            t = dr.select((i0 == i1) & (j0 == j1), j0 * rr + i0, u32(_NONE))
+            centre = tj(y) * rr + ti(x)
+            dr.eval(t, centre)
+            t_np = t.numpy()
+            centres.append(centre.numpy().astype(np.int64))
+            one = t_np != _NONE
+            ones.append((t_np[one].astype(np.int64), ch[one]))
+            rest = np.flatnonzero(~one)
+            if len(rest):
+                tex = self._point_texels(ch[rest], ti, tj, rr)
+                keep = tex != _NONE
+                others.append((tex[keep].astype(np.int64), np.repeat(ch[rest], keep.sum(axis=1))))
+        parts = ones + others
+        node_texel = np.concatenate([t for t, _ in parts])
+        node_recv = np.concatenate([c for _, c in parts]).astype(np.int64)
+        return np.concatenate(centres), node_texel, node_recv
+
+    def _point_texels(self, recv: np.ndarray, ti, tj, rr) -> np.ndarray:
+        """``(n, 32)`` uint32 texels of the 32 points of receivers ``recv``, point by point;
+        a point in the texel of an earlier point of its receiver gives :data:`_NONE`."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        n = len(recv)
+        idx = u32(recv.astype(np.uint32))
+        c = [self._column(k, idx, q) for k in ("lc", "ldx", "ldy") for q in range(2)]
+        x, y, dxx, dxy, dyx, dyy = c
+        outs, seen = [], []
+        for q in range(32):  # the 32 fixed points (unrolled into the kernel)
+            aq, bq = float(self.a[q]), float(self.b[q])
+            t = tj((y + dxy * aq) + dyy * bq) * rr + ti((x + dxx * aq) + dyx * bq)
+            dup = dr.zeros(mi.Bool, n)
+            for s in seen:  # earlier points of the same receiver
+                dup |= t == s
+            seen.append(t)
+            outs.append(dr.select(dup, u32(_NONE), t))
+        dr.eval(*outs)  # one kernel, 32 outputs
+        out = np.empty((n, 32), dtype=np.uint32)
+        for q, o in enumerate(outs):  # the 32 points' columns
+            out[:, q] = o.numpy()
+        return out
+
+
+def _vectorized() -> bool:
+    from scenes import backend
+
+    return not backend.active().variant.startswith("scalar")

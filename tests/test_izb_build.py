@@ -1,0 +1,114 @@
+"""IZB list build (orthographic grids, 32 samples): Dr.Jit kernels against the NumPy
+reference, and both against the definition (every texel one of the 32 points falls in)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import raster_models as rm
+import scenes
+from raster_models import _izb_build
+from raster_models._izb_build import Ortho32Build, grid, one_texel, texel
+from scenes.tangent32 import tangent_offsets
+
+#: Grid texels per side of the synthetic cases: texels of a few units, points spread over 0
+#: to several texels.
+R = 64
+
+
+def _receivers(rng, n=20000):
+    """Light-frame centres and derivatives: most receivers inside one texel, some across a
+    few, some over many; a few with zero derivatives (their box is a point)."""
+    lc = rng.uniform(-50.0, 50.0, (n, 3))
+    ldx = rng.normal(0.0, 0.3, (n, 3)) * rng.uniform(0.0, 1.0, (n, 1)) ** 3
+    ldy = rng.normal(0.0, 0.3, (n, 3)) * rng.uniform(0.0, 1.0, (n, 1)) ** 3
+    ldx[:50] *= 40.0  # over many texels
+    ldx[50:100] = ldy[50:100] = 0.0
+    return lc, ldx, ldy
+
+
+def _point_texels(lc, ldx, ldy, box):
+    """``(n, 32)`` texel ids of every point, as the definition reads."""
+    a, b = tangent_offsets()
+    x = lc[:, 0, None] + ldx[:, 0, None] * a + ldy[:, 0, None] * b
+    y = lc[:, 1, None] + ldx[:, 1, None] * a + ldy[:, 1, None] * b
+    i, j = texel(x, y, box, R)
+    return j * R + i
+
+
+def test_one_texel_receivers_have_every_point_in_that_texel():
+    """The build's shortcut: a receiver whose point box lies in one texel gets that texel,
+    and every one of its 32 points (computed as the full path does) falls in it."""
+    lc, ldx, ldy = _receivers(np.random.default_rng(3))
+    a, b = tangent_offsets()
+    spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
+    box = grid((lc - spread).min(axis=0)[:2], (lc + spread).max(axis=0)[:2])
+    one, t = one_texel(lc, spread, box, R)
+    texels = _point_texels(lc, ldx, ldy, box)
+    assert 0.2 < one.mean() < 0.95  # both paths exercised
+    np.testing.assert_array_equal(texels[one], np.repeat(t[one, None], 32, axis=1))
+    assert (texels[~one] != texels[~one, :1]).any(axis=1).mean() > 0.5
+
+
+@pytest.mark.parametrize("subset", [False, True])
+def test_drjit_build_equals_numpy_and_the_definition(monkeypatch, subset):
+    rng = np.random.default_rng(11)
+    lc, ldx, ldy = _receivers(rng)
+    a, b = tangent_offsets()
+    sel = np.flatnonzero(rng.uniform(size=len(lc)) < 0.6) if subset else None
+    monkeypatch.setattr(_izb_build, "BUILD_CHUNK", 3001)  # several chunks each
+    monkeypatch.setattr(_izb_build, "DRJIT_BUILD_CHUNK", 4099)
+    out = {}
+    for drjit in (False, True):
+        build = Ortho32Build(lc, ldx, ldy, a, b, drjit=drjit)
+        lo, hi = build.bounds(sel)
+        box = grid(lo[:2], hi[:2])
+        out[drjit] = (lo, hi, *build.nodes(sel, box, R))
+    for x, y in zip(out[False], out[True], strict=True):
+        assert x.dtype == y.dtype
+        np.testing.assert_array_equal(x, y)
+
+    # The definition: bounds contain every point; nodes = distinct (receiver, texel) pairs.
+    lo, hi, centre, node_texel, node_recv = out[True]
+    idx = np.arange(len(lc)) if sel is None else sel
+    spread = np.abs(ldx) * np.abs(a).max() + np.abs(ldy) * np.abs(b).max()
+    np.testing.assert_array_equal(lo, (lc[idx] - spread[idx]).min(axis=0))
+    np.testing.assert_array_equal(hi, (lc[idx] + spread[idx]).max(axis=0))
+    box = grid(lo[:2], hi[:2])
+    ci, cj = texel(lc[idx, 0], lc[idx, 1], box, R)
+    np.testing.assert_array_equal(centre, cj * R + ci)
+    texels = _point_texels(lc[idx], ldx[idx], ldy[idx], box)
+    pairs = np.unique(np.stack([np.repeat(idx, 32), texels.ravel()], axis=1), axis=0)
+    got = np.stack([node_recv, node_texel], axis=1)
+    assert len(np.unique(got, axis=0)) == len(got)  # no duplicate node
+    np.testing.assert_array_equal(np.unique(got, axis=0), pairs)
+    # Order: the one-texel receivers' nodes first, then the others', each in receiver order.
+    one, _ = one_texel(lc[idx], spread[idx], box, R)
+    n_one = int(one.sum())
+    assert 0 < n_one < len(idx)
+    np.testing.assert_array_equal(node_recv[:n_one], idx[one])
+    assert np.all(np.diff(node_recv[n_one:]) >= 0)
+    counts = np.bincount(node_recv, minlength=len(lc))[idx]
+    assert (counts > 1).sum() > 100 and counts.max() > 8  # receivers over several texels
+
+
+@pytest.mark.parametrize("cascades", [1, 2])
+def test_drjit_build_gives_the_model_the_numpy_answer(monkeypatch, cascades):
+    """The whole model with the Dr.Jit build against the NumPy build: the same bytes."""
+    loaded = scenes.load("city", width=96, height=54)
+    monkeypatch.setattr(_izb_build, "DRJIT_MIN_RECEIVERS", 1 << 62)
+    ref = rm.run("izb", loaded, samples=32, resolution=64, cascades=cascades)
+    monkeypatch.setattr(_izb_build, "DRJIT_MIN_RECEIVERS", 1)
+    monkeypatch.setattr(_izb_build, "DRJIT_BUILD_CHUNK", 1001)  # many launches
+    calls = []
+    nodes = Ortho32Build._nodes_drjit
+    monkeypatch.setattr(
+        Ortho32Build, "_nodes_drjit", lambda self, *args: calls.append(1) or nodes(self, *args)
+    )
+    fast = rm.run("izb", loaded, samples=32, resolution=64, cascades=cascades)
+    assert len(calls) == cascades  # the Dr.Jit build ran for every grid
+    assert ref.cost == fast.cost
+    assert ref.diagnostics["partitions"] == fast.diagnostics["partitions"]
+    for key in ref.outputs:
+        np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
