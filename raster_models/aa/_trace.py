@@ -18,7 +18,9 @@ intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engin
   diffuse with the normal's length as a factor (the linear average of Lambert terms) and the
   specular exponent scaled by Toksvig's factor.
 
-Values are float32 (Mitsuba's ``Float``), as a GPU computes them.
+Values are float32 (Mitsuba's ``Float``), as a GPU computes them. The Dr.Jit side of each
+(:func:`prepass_dr`, :func:`attributes_dr`, :func:`shade_dr`) is also callable on Dr.Jit
+arrays, for models that chain them without NumPy round trips (:mod:`._agaa_dr`).
 """
 
 from __future__ import annotations
@@ -39,7 +41,16 @@ from scenes.shading import facing, shade
 
 from . import _pixel_dr
 
-__all__ = ["CHUNK", "fragment_attributes", "shade_points", "sample_colors", "trace_samples"]
+__all__ = [
+    "CHUNK",
+    "attributes_dr",
+    "fragment_attributes",
+    "prepass_dr",
+    "sample_colors",
+    "shade_dr",
+    "shade_points",
+    "trace_samples",
+]
 
 #: Rays per Dr.Jit launch (bounded memory; ~0.5 GiB a launch at most).
 CHUNK = 1 << 21
@@ -106,7 +117,6 @@ def trace_samples(
     import drjit as dr
 
     cam = scene.camera
-    w = cam.width
     target = mi_scene if mi_scene is not None else scene.mi_scene
     offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
     n = len(offs)
@@ -134,58 +144,21 @@ def trace_samples(
     step = max(n, (CHUNK // n) * n)
     for start in range(0, total, step):
         stop = min(total, start + step)
-        idx = dr.arange(mi.UInt32, stop - start)  # start is a multiple of n
-        local = idx // n
-        s = idx - local * n
         pix = mi.UInt32(pix_all[start // n : stop // n].astype(np.uint32))
-        pix = dr.gather(mi.UInt32, pix, local)
-        x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
-        y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
-        ray = camera_rays_dr(cam, x, y)
-        if normals or cluster is not None:
-            si = target.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
-            valid, t, prim, shape_ptr = si.is_valid(), si.t, si.prim_index, si.shape
-            nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
-        else:
-            pi = target.ray_intersect_preliminary(ray, coherent=True)
-            valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
-        depth = dr.select(valid, _view_depth(cam, ray.o + ray.d * t), 0.0)
-        if table is not None:
-            # masked: a preliminary intersection leaves the shape of a miss undefined
-            ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
-            shape = dr.gather(mi.Int32, table, ids, valid)
-            shape = dr.select(valid, shape, -1)
-        else:
-            shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
-        extra = {}
-        if group or cluster is not None:
-            # one tracing kernel; the per-pixel kernels then gather from stored arrays
-            dr.eval(valid, depth, prim, shape, *([nrm] if cluster is not None else []))
-        if group:
-            extra["first"] = _pixel_dr.first_of_key(mi, dr, valid, shape, prim, local, n)
-        if cluster is not None:
-            k, threshold, weight, fmt = cluster
-            stored = _pixel_dr.store_normal(mi, dr, nrm, fmt)
-            extra["aggregate"] = _pixel_dr.aggregate_of(
-                mi, dr, valid, depth, stored, local, n, k, threshold, weight
-            )
-        if group:
-            dr.eval(*extra.values())
-            extra.update(
-                _pixel_dr.fragments_of(
-                    mi,
-                    dr,
-                    valid,
-                    extra["first"],
-                    local,
-                    n,
-                    s,
-                    dr.opaque(mi.UInt32, n_frag),
-                    extra.get("aggregate"),
-                )
-            )
-        evals = [valid, depth, prim, shape] + ([nrm] if normals else []) + list(extra.values())
-        dr.eval(*evals)
+        valid, depth, prim, shape, nrm, extra = prepass_dr(
+            scene,
+            target,
+            table,
+            ox,
+            oy,
+            pix,
+            n,
+            normals=normals or cluster is not None,
+            group=group,
+            cluster=cluster,
+            frag_offset=n_frag,
+        )
+        del extra["local"], extra["s"]
         sl = slice(start, stop)
         if "valid" in out or "prim" in out:
             v = _np(valid)
@@ -208,6 +181,78 @@ def trace_samples(
     return res
 
 
+def prepass_dr(
+    scene, target, table, ox, oy, pix, n: int, *, normals, group, cluster, frag_offset=0
+):
+    """One launch of the prepass on the Dr.Jit side: ``n`` lanes a pixel, pixel ``i`` of the
+    launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float).
+
+    Returns ``(valid, depth, prim, shape, nrm, extra)``: Dr.Jit arrays as described in
+    :func:`trace_samples` (``nrm`` None unless ``normals``; ``shape`` -1/0 without
+    ``table``), ``extra`` the per-pixel results of ``group`` (fragment ids from
+    ``frag_offset``) and ``cluster``, all evaluated; ``extra`` also holds ``local`` and ``s``
+    (each lane's pixel within the launch and sample slot) unevaluated.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    w = cam.width
+    idx = dr.arange(mi.UInt32, dr.width(pix) * n)
+    local = idx // n
+    s = idx - local * n
+    pix = dr.gather(mi.UInt32, pix, local)
+    x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
+    y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
+    ray = camera_rays_dr(cam, x, y)
+    nrm = None
+    if normals:
+        si = target.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
+        valid, t, prim, shape_ptr = si.is_valid(), si.t, si.prim_index, si.shape
+        nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
+    else:
+        pi = target.ray_intersect_preliminary(ray, coherent=True)
+        valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
+    depth = dr.select(valid, _view_depth(cam, ray.o + ray.d * t), 0.0)
+    if table is not None:
+        # masked: a preliminary intersection leaves the shape of a miss undefined
+        ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
+        shape = dr.gather(mi.Int32, table, ids, valid)
+        shape = dr.select(valid, shape, -1)
+    else:
+        shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
+    extra = {}
+    if group or cluster is not None:
+        # one tracing kernel; the per-pixel kernels then gather from stored arrays
+        dr.eval(valid, depth, prim, shape, *([nrm] if cluster is not None else []))
+    if group:
+        extra["first"] = _pixel_dr.first_of_key(mi, dr, valid, shape, prim, local, n)
+    if cluster is not None:
+        k, threshold, weight, fmt = cluster
+        stored = _pixel_dr.store_normal(mi, dr, nrm, fmt)
+        extra["aggregate"] = _pixel_dr.aggregate_of(
+            mi, dr, valid, depth, stored, local, n, k, threshold, weight
+        )
+    if group:
+        dr.eval(*extra.values())
+        extra.update(
+            _pixel_dr.fragments_of(
+                mi,
+                dr,
+                valid,
+                extra["first"],
+                local,
+                n,
+                s,
+                dr.opaque(mi.UInt32, frag_offset),
+                extra.get("aggregate"),
+            )
+        )
+    dr.eval(valid, depth, prim, shape, *([nrm] if nrm is not None else []), *extra.values())
+    extra["local"], extra["s"] = local, s
+    return valid, depth, prim, shape, nrm, extra
+
+
 def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
     """What a pixel shader sees for fragments given by one covered sample each.
 
@@ -228,7 +273,6 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
     mi = backend.mitsuba()
     import drjit as dr
 
-    cam = scene.camera
     target = mi_scene if mi_scene is not None else scene.mi_scene
     sx, sy, cx, cy = (np.asarray(a, np.float32).ravel() for a in (sx, sy, cx, cy))
     total = len(sx)
@@ -241,46 +285,8 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
         out[k] = np.zeros((total, 3), np.float32)
     for start in range(0, total, CHUNK):
         sl = slice(start, min(total, start + CHUNK))
-        ray_s = camera_rays_dr(cam, mi.Float(sx[sl]), mi.Float(sy[sl]))
-        si = target.ray_intersect(ray_s, mi.RayFlags.All, coherent=True)
-        valid = si.is_valid()
-        ray_c = camera_rays_dr(cam, mi.Float(cx[sl]), mi.Float(cy[sl]))
-        ng = si.n
-        den = dr.dot(ng, ray_c.d)
-        ok = dr.abs(den) > 1e-12
-        tc = dr.dot(ng, si.p - ray_c.o) / dr.select(ok, den, 1.0)
-        xc = dr.select(ok, ray_c.o + ray_c.d * tc, si.p)
-        delta = xc - si.p
-        a11, a12, a22 = (
-            dr.dot(si.dp_du, si.dp_du),
-            dr.dot(si.dp_du, si.dp_dv),
-            dr.dot(si.dp_dv, si.dp_dv),
-        )
-        b1, b2 = dr.dot(delta, si.dp_du), dr.dot(delta, si.dp_dv)
-        det = a11 * a22 - a12 * a12
-        good = det > 1e-12 * a11 * a22
-        inv = dr.select(good, 1.0 / det, 0.0)
-        du = (a22 * b1 - a12 * b2) * inv
-        dv = (a11 * b2 - a12 * b1) * inv
-        ns = dr.normalize(si.sh_frame.n + si.dn_du * du + si.dn_dv * dv)
-        to_eye = -ray_c.d
-        ns = facing(ns, to_eye)
-        si.uv = si.uv + mi.Point2f(du, dv)
-        si.p = xc
-        bsdf = si.bsdf(ray_s)
-        albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
-        offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
-        depth = _view_depth(cam, xc)
-        vals = {
-            "valid": valid,
-            "position": xc,
-            "normal": ns,
-            "geo_normal": facing(ng, to_eye),
-            "albedo": albedo,
-            "to_eye": to_eye,
-            "offset": offset,
-            "depth": depth,
-        }
+        vals = attributes_dr(scene, target, *(mi.Float(a[sl]) for a in (sx, sy, cx, cy)))
+        valid = vals["valid"]
         dr.eval(*vals.values())
         v = _np(valid)
         for key, val in vals.items():
@@ -291,6 +297,56 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
                 arr = np.where(v.reshape((-1,) + (1,) * (arr.ndim - 1)), arr, 0)
             out[key][sl] = arr
     return out
+
+
+def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
+    """The Dr.Jit side of :func:`fragment_attributes` for film positions given as Float
+    arrays; the values are unevaluated and not zeroed where ``valid`` is false."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    ray_s = camera_rays_dr(cam, sx, sy)
+    si = target.ray_intersect(ray_s, mi.RayFlags.All, coherent=True)
+    valid = si.is_valid()
+    ray_c = camera_rays_dr(cam, cx, cy)
+    ng = si.n
+    den = dr.dot(ng, ray_c.d)
+    ok = dr.abs(den) > 1e-12
+    tc = dr.dot(ng, si.p - ray_c.o) / dr.select(ok, den, 1.0)
+    xc = dr.select(ok, ray_c.o + ray_c.d * tc, si.p)
+    delta = xc - si.p
+    a11, a12, a22 = (
+        dr.dot(si.dp_du, si.dp_du),
+        dr.dot(si.dp_du, si.dp_dv),
+        dr.dot(si.dp_dv, si.dp_dv),
+    )
+    b1, b2 = dr.dot(delta, si.dp_du), dr.dot(delta, si.dp_dv)
+    det = a11 * a22 - a12 * a12
+    good = det > 1e-12 * a11 * a22
+    inv = dr.select(good, 1.0 / det, 0.0)
+    du = (a22 * b1 - a12 * b2) * inv
+    dv = (a11 * b2 - a12 * b1) * inv
+    ns = dr.normalize(si.sh_frame.n + si.dn_du * du + si.dn_dv * dv)
+    to_eye = -ray_c.d
+    ns = facing(ns, to_eye)
+    si.uv = si.uv + mi.Point2f(du, dv)
+    si.p = xc
+    bsdf = si.bsdf(ray_s)
+    albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
+    offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
+    depth = _view_depth(cam, xc)
+    vals = {
+        "valid": valid,
+        "position": xc,
+        "normal": ns,
+        "geo_normal": facing(ng, to_eye),
+        "albedo": albedo,
+        "to_eye": to_eye,
+        "offset": offset,
+        "depth": depth,
+    }
+    return vals
 
 
 def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool = False):
@@ -315,8 +371,6 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
     mi = backend.mitsuba()
     import drjit as dr
 
-    light = scene.light
-    spec = scene.specular
     total = len(attrs["position"])
     rgb_out = np.zeros((total, 3), np.float32)
     rays = 0
@@ -334,55 +388,24 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
         ng = vec("geo_normal", sl)
         albedo = mi.Color3f(vec("albedo", sl))
         to_eye = vec("to_eye", sl)
-        wl, dist = light.to_light(p)
-        if filtered_normal:
-            length = dr.norm(n)
-            nh = n / dr.maximum(length, 1e-30)
-        else:
-            length, nh = mi.Float(1.0), n
-        cos_l = dr.dot(nh, wl)
-        candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+        offset = vis = None
         if visibility is None:
             offset = mi.Float(np.asarray(attrs["offset"][sl], np.float32))
-            ray = shadow_ray_dr(light, p, ng, wl, offset)
-            occ = scene.mi_scene.ray_test(ray, candidate)
-            vis = dr.select(candidate & ~occ, 1.0, 0.0)
-            count = dr.count(candidate)
         else:
-            vis = dr.select(candidate, mi.Float(np.asarray(visibility[sl], np.float32)), 0.0)
-            count = None
-        irr = light.irradiance_scale(wl, dist)
-        if filtered_normal:
-            rgb = shade(
-                albedo=albedo * length,
-                normal=nh,
-                to_light=wl,
-                to_eye=to_eye,
-                irradiance_scale=irr,
-                visibility=vis,
-                light=light,
-                specular=None,
-            )
-            if spec is not None and spec.ks > 0.0:
-                s = spec.shininess
-                ft = length / (length + s * (1.0 - length))
-                s_eff = ft * s
-                h = dr.normalize(wl + to_eye)
-                cos_h = dr.maximum(dr.dot(nh, h), 0.0)
-                lobe = spec.ks * (s_eff + 8.0) / (8.0 * math.pi) * dr.power(cos_h, s_eff)
-                rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
-        else:
-            rgb = shade(
-                albedo=albedo,
-                normal=nh,
-                to_light=wl,
-                to_eye=to_eye,
-                irradiance_scale=irr,
-                visibility=vis,
-                light=light,
-                specular=spec,
-            )
-        rgb = dr.select(valid, rgb, 0.0)
+            vis = mi.Float(np.asarray(visibility[sl], np.float32))
+        rgb, candidate = shade_dr(
+            scene,
+            valid,
+            p,
+            n,
+            ng,
+            albedo,
+            to_eye,
+            offset=offset,
+            visibility=vis,
+            filtered_normal=filtered_normal,
+        )
+        count = dr.count(candidate) if visibility is None else None
         if count is not None:
             dr.eval(rgb, count)
             rays += int(count[0])
@@ -390,6 +413,76 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
             dr.eval(rgb)
         rgb_out[sl] = _np(rgb).T
     return rgb_out, rays
+
+
+def shade_dr(
+    scene,
+    valid,
+    p,
+    n,
+    ng,
+    albedo,
+    to_eye,
+    *,
+    offset=None,
+    visibility=None,
+    filtered_normal: bool = False,
+):
+    """The Dr.Jit side of :func:`shade_points` on Dr.Jit arrays (``offset`` for the exact
+    shadow ray when ``visibility`` is None). Returns ``(rgb, candidate)``: the Color3f
+    radiance (0 where not ``valid``) and the lanes given a shadow test (unevaluated)."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    light = scene.light
+    spec = scene.specular
+    wl, dist = light.to_light(p)
+    if filtered_normal:
+        length = dr.norm(n)
+        nh = n / dr.maximum(length, 1e-30)
+    else:
+        length, nh = mi.Float(1.0), n
+    cos_l = dr.dot(nh, wl)
+    candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+    if visibility is None:
+        ray = shadow_ray_dr(light, p, ng, wl, offset)
+        occ = scene.mi_scene.ray_test(ray, candidate)
+        vis = dr.select(candidate & ~occ, 1.0, 0.0)
+    else:
+        vis = dr.select(candidate, visibility, 0.0)
+    irr = light.irradiance_scale(wl, dist)
+    if filtered_normal:
+        rgb = shade(
+            albedo=albedo * length,
+            normal=nh,
+            to_light=wl,
+            to_eye=to_eye,
+            irradiance_scale=irr,
+            visibility=vis,
+            light=light,
+            specular=None,
+        )
+        if spec is not None and spec.ks > 0.0:
+            s = spec.shininess
+            ft = length / (length + s * (1.0 - length))
+            s_eff = ft * s
+            h = dr.normalize(wl + to_eye)
+            cos_h = dr.maximum(dr.dot(nh, h), 0.0)
+            lobe = spec.ks * (s_eff + 8.0) / (8.0 * math.pi) * dr.power(cos_h, s_eff)
+            rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
+    else:
+        rgb = shade(
+            albedo=albedo,
+            normal=nh,
+            to_light=wl,
+            to_eye=to_eye,
+            irradiance_scale=irr,
+            visibility=vis,
+            light=light,
+            specular=spec,
+        )
+    rgb = dr.select(valid, rgb, 0.0)
+    return rgb, candidate
 
 
 def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:

@@ -22,6 +22,10 @@ With ``K`` at least the number of distinct surfaces in every pixel each aggregat
 surface and the result equals :mod:`.msaa`; with more surfaces (foliage) albedo/normal
 correlation is lost and shadows are tested at a blended position.
 
+With exact shadows the whole frame runs on the Dr.Jit side (:mod:`._agaa_dr`, per launch,
+per-pixel results copied back); with a shadow technique the aggregates are copied to NumPy
+for its visibility (:func:`_run_numpy`). Both compute the same bytes (tested).
+
 Memory per pixel: N x (depth + normal) + K x aggregate (albedo RGBA8, normal RGBA16F,
 depth R32F, sample mask R32UI: 20 bytes) + the 1x colour target.
 
@@ -41,7 +45,7 @@ import numpy as np
 
 from .. import _params
 from .._errors import ModelError
-from . import _samples
+from . import _agaa_dr, _samples
 from ._base import ShadowParams, check_shadows, package, shadow_visibility
 from ._fragments import fragments_from_prepass, sample_film_positions, shading_positions
 from ._trace import fragment_attributes, shade_points, trace_samples
@@ -195,12 +199,10 @@ def _segment_sums(rows: np.ndarray, first: np.ndarray) -> np.ndarray:
     return sums
 
 
-def run(scene, params: AgaaParams | None = None, **kwargs):
-    """Run ``agaa`` on a loaded scene; see :func:`raster_models.run`."""
-    t0 = time.perf_counter()
-    p = params or _params.make(NAME, AgaaParams, kwargs)
-    check_shadows(scene, p.shadows)
-    offsets = _samples.positions(p.samples)
+def _run_numpy(scene, p: AgaaParams, offsets):
+    """The frame on the NumPy side (any shadow technique): per-pixel colour ``(P, 3)``,
+    coverage, aggregates, fragments and shadow rays. :func:`._agaa_dr.render` computes the
+    same bytes for exact shadows without the round trips."""
     n, k = p.samples, p.aggregates
     w, h = scene.width, scene.height
     n_pix = w * h
@@ -249,16 +251,43 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
     for c in range(3):
         color[:, c] = np.bincount(pix, weights=contrib[:, c], minlength=n_pix)
     n_agg = np.bincount(pix, minlength=n_pix)
+    coverage = np.count_nonzero(valid, axis=1) / n
+    return color, coverage, n_agg, frags.per_pixel(n_pix), rays
+
+
+def run(scene, params: AgaaParams | None = None, **kwargs):
+    """Run ``agaa`` on a loaded scene; see :func:`raster_models.run`."""
+    t0 = time.perf_counter()
+    p = params or _params.make(NAME, AgaaParams, kwargs)
+    check_shadows(scene, p.shadows)
+    offsets = _samples.positions(p.samples)
+    n, k = p.samples, p.aggregates
+    w, h = scene.width, scene.height
+    n_pix = w * h
+    if p.shadows == "exact":
+        res = _agaa_dr.render(
+            scene,
+            offsets,
+            k=k,
+            threshold=p.threshold,
+            depth_weight=p.depth_weight,
+            fmt=p.normal_format,
+        )
+        color, n_agg, surfaces = res["color"], res["aggregates"], res["surfaces"]
+        coverage = res["covered"] / n
+        rays = res["shadow_rays"]
+    else:
+        color, coverage, n_agg, surfaces, rays = _run_numpy(scene, p, offsets)
+    n_frag = int(surfaces.sum())
     nb = NORMAL_FORMATS[p.normal_format]
-    n_frag = len(frags)
     return package(
         NAME,
         scene,
         p,
         color=color.reshape(h, w, 3),
-        coverage=np.count_nonzero(valid, axis=1) / n,
+        coverage=coverage,
         events=n_agg,
-        extra_outputs={"aggregates": n_agg, "surfaces": frags.per_pixel(n_pix)},
+        extra_outputs={"aggregates": n_agg, "surfaces": surfaces},
         samples=n,
         buffers={
             "depth": n_pix * n * 4,
@@ -277,7 +306,7 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
         diagnostics={
             "sample_positions": offsets.tolist(),
             "fragments": int(n_frag),
-            "aggregates_total": int(len(slots)),
+            "aggregates_total": int(n_agg.sum()),
             "pixels_split": int((n_agg > 1).sum()),
         },
         t0=t0,

@@ -1,0 +1,216 @@
+"""AGAA's frame on the Dr.Jit side: prepass, aggregates, material accumulation and shading
+chained per launch, with only per-pixel results copied back to NumPy.
+
+Per launch of at most :data:`._trace.CHUNK` samples (whole pixels):
+
+1. the prepass of :func:`._trace.prepass_dr` (samples, fragment representatives, aggregates
+   and (fragment, aggregate) pairs);
+2. the fragments (representative lanes, :func:`drjit.compress`) and their attributes
+   (:func:`._trace.attributes_dr`, zero where the ray misses, as
+   :func:`._trace.fragment_attributes`);
+3. one lane a pixel: every aggregate's weighted material sums over its pairs, its averages,
+   its shading (:func:`._trace.shade_dr`, filtered normal, exact shadow ray) and the pixel's
+   coverage-weighted colour.
+
+The arithmetic is that of the NumPy path of :func:`.agaa.run` (shadow techniques), operation
+for operation, so the bytes are the same: the pairs of an aggregate are summed in float32 in
+the order of ``np.add.reduceat`` (:func:`add_reduceat_order`), the averages divided and
+normalized in float32 (a norm as ``np.linalg.norm``: ``sqrt((x^2 + y^2) + z^2)``), the
+colour summed in float64 from 0 in slot order (``np.bincount``) and rounded to float32 once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scenes import backend
+from scenes.raycast import _shape_table
+
+from . import _trace
+
+__all__ = ["CHANNELS", "add_reduceat_order", "render"]
+
+#: Attribute channels summed per aggregate, in the NumPy path's table order.
+CHANNELS = ("albedo", "normal", "position", "to_eye", "geo_normal")
+#: ``pairwise_sum`` of NumPy's float add: sums of fewer terms than this run left to right.
+_PW_UNROLL = 8
+
+
+def add_reduceat_order(dr, rows, active, at, n_rows: int):
+    """Sum of ``rows`` in the order of ``np.add.reduceat`` on one segment.
+
+    ``rows`` is a list of ``n_rows`` candidate rows (lists of arrays); ``active[i]`` says
+    whether row ``i`` is in the segment and ``at[i]`` its position there (the segment is the
+    active rows in list order). ``reduceat`` adds to the first row the ``pairwise_sum`` of
+    the rest: left to right below :data:`_PW_UNROLL` terms, else the tree of eight partial
+    sums ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))`` followed by the remaining
+    terms left to right (at most 15 terms here, so one block). Returns ``(sum, count)``;
+    the sum is undefined where ``count`` is 0.
+    """
+    width = len(rows[0])
+    first = list(rows[0])
+    rest = list(rows[0])
+    tree = [list(rows[0]) for _ in range(_PW_UNROLL)]
+    tail = [list(rows[0]) for _ in range(max(0, n_rows - 1 - _PW_UNROLL))]
+    for i in range(n_rows):
+        act, m, row = active[i], at[i], rows[i]
+        is_first = act & (m == 0)
+        is_second = act & (m == 1)
+        later = act & (m >= 2)
+        for c in range(width):
+            first[c] = dr.select(is_first, row[c], first[c])
+            rest[c] = dr.select(is_second, row[c], dr.select(later, rest[c] + row[c], rest[c]))
+        if n_rows - 1 >= _PW_UNROLL:
+            for j in range(_PW_UNROLL):
+                hit = act & (m == j + 1)
+                tree[j] = [dr.select(hit, row[c], tree[j][c]) for c in range(width)]
+            for j in range(len(tail)):
+                hit = act & (m == _PW_UNROLL + 1 + j)
+                tail[j] = [dr.select(hit, row[c], tail[j][c]) for c in range(width)]
+    count = at[-1] + dr.select(active[-1], 1, 0)
+    n_rest = count - 1
+    if n_rows - 1 >= _PW_UNROLL:
+        t = tree
+        blocked = [
+            ((t[0][c] + t[1][c]) + (t[2][c] + t[3][c]))
+            + ((t[4][c] + t[5][c]) + (t[6][c] + t[7][c]))
+            for c in range(width)
+        ]
+        for j in range(len(tail)):
+            more = n_rest > _PW_UNROLL + j
+            blocked = [dr.select(more, blocked[c] + tail[j][c], blocked[c]) for c in range(width)]
+        big = n_rest >= _PW_UNROLL
+        rest = [dr.select(big, blocked[c], rest[c]) for c in range(width)]
+    one = count <= 1
+    return [dr.select(one, first[c], first[c] + rest[c]) for c in range(width)], count
+
+
+def _norm(dr, v):
+    """``np.linalg.norm`` of a float32 3-vector, operation for operation."""
+    return dr.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
+
+
+def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt: str):
+    """AGAA's frame with exact shadow rays.
+
+    Returns a dict of per-pixel NumPy arrays (row-major, ``(P,)``): ``color`` ``(P, 3)``
+    float32 linear radiance, ``covered`` (samples hitting a surface), ``aggregates`` and
+    ``surfaces`` (fragments), and ``shadow_rays`` (int).
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    w = cam.width
+    offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
+    n = len(offs)
+    n_pix = cam.width * cam.height
+    color = np.empty((n_pix, 3), np.float32)
+    counts = {key: np.empty(n_pix, np.int64) for key in ("covered", "aggregates", "surfaces")}
+    rays = 0
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    table = _shape_table(mi, dr, scene)
+    per_launch = max(1, _trace.CHUNK // n)
+    for p0 in range(0, n_pix, per_launch):
+        p1 = min(n_pix, p0 + per_launch)
+        pix = dr.arange(mi.UInt32, p0, p1)
+        valid, _, _, _, _, ex = _trace.prepass_dr(
+            scene,
+            scene.mi_scene,
+            table,
+            ox,
+            oy,
+            pix,
+            n,
+            normals=True,
+            group=True,
+            cluster=(k, threshold, depth_weight, fmt),
+        )
+        # fragments: representative lanes, numbered as ``of`` numbers them
+        lanes = dr.compress(ex["rep"])
+        if dr.width(lanes) == 0:  # no surface in the launch: one dummy row, never gathered
+            lanes = dr.zeros(mi.UInt32, 1)
+        f_pix = lanes // n + p0
+        slot = lanes - (lanes // n) * n
+        px, py = mi.Float(f_pix % w), mi.Float(f_pix // w)
+        sx = px + dr.gather(mi.Float, ox, slot)
+        sy = py + dr.gather(mi.Float, oy, slot)
+        attrs = _trace.attributes_dr(scene, scene.mi_scene, sx, sy, px + 0.5, py + 0.5)
+        hit = attrs["valid"]
+        table_f = []
+        for key in CHANNELS:
+            table_f += [dr.select(hit, c, 0.0) for c in attrs[key]]
+        offset_f = dr.select(hit, attrs["offset"], 0.0)
+        dr.eval(table_f, offset_f)
+
+        # one lane a pixel: aggregates, shading, resolve
+        local = dr.arange(mi.UInt32, p1 - p0)
+        rows, act = [], {a: [] for a in range(k)}
+        at = {a: [] for a in range(k)}
+        seen = {a: mi.UInt32(0) for a in range(k)}
+        offset_max = {a: mi.Float(0.0) for a in range(k)}
+        weights = {a: mi.Float(0.0) for a in range(k)}  # samples each aggregate holds
+        surfaces = mi.UInt32(0)
+        covered = mi.UInt32(0)
+        for j in range(n):
+            lane = local * n + j
+            rep_j = dr.gather(mi.Bool, ex["pair_rep"], lane)
+            agg_j = dr.gather(mi.Int32, ex["aggregate"], lane)
+            f = mi.UInt32(dr.gather(mi.Int32, ex["of"], lane))
+            wt = mi.Float(dr.gather(mi.UInt32, ex["pair_count"], lane))
+            row = [dr.gather(mi.Float, c, f, rep_j) * wt for c in table_f]
+            off = dr.gather(mi.Float, offset_f, f, rep_j)
+            rows.append(row)
+            for a in range(k):
+                on = rep_j & (agg_j == a)
+                act[a].append(on)
+                at[a].append(seen[a])
+                offset_max[a] = dr.select(
+                    on, dr.select(seen[a] == 0, off, dr.maximum(offset_max[a], off)), offset_max[a]
+                )
+                seen[a] = seen[a] + dr.select(on, 1, 0)
+                weights[a] = weights[a] + dr.select(on, wt, 0.0)
+            surfaces += dr.select(dr.gather(mi.Bool, ex["rep"], lane), 1, 0)
+            covered += dr.select(dr.gather(mi.Bool, valid, lane), 1, 0)
+        acc = mi.Float64(0.0)
+        n_agg = mi.UInt32(0)
+        candidates = []
+        for a in range(k):
+            sums, count = add_reduceat_order(dr, rows, act[a], at[a], n)
+            exists = count > 0
+            weight = weights[a]
+            means = [c / weight for c in sums]
+            m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
+            g = m["geo_normal"]
+            g_len = _norm(dr, g)
+            g_safe = dr.maximum(g_len, 1e-30)
+            geo = [dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)]
+            e = m["to_eye"]
+            e_len = dr.maximum(_norm(dr, e), 1e-30)
+            rgb, cand = _trace.shade_dr(
+                scene,
+                exists,
+                mi.Point3f(*m["position"]),
+                mi.Vector3f(*m["normal"]),
+                mi.Vector3f(*geo),
+                mi.Color3f(*m["albedo"]),
+                mi.Vector3f(*(c / e_len for c in e)),
+                offset=offset_max[a],
+                filtered_normal=True,
+            )
+            candidates.append(cand)
+            share = mi.Float64(weight) / n
+            acc = dr.select(exists, acc + mi.Array3f64(rgb) * share, acc)
+            n_agg += dr.select(exists, 1, 0)
+        # 0 + x is +0 for x = -0, as in bincount's float64 accumulator
+        acc = dr.select(acc == 0.0, 0.0, acc)
+        rgb32 = mi.Color3f(acc)
+        shadow = sum(dr.count(c) for c in candidates)
+        dr.eval(rgb32, n_agg, surfaces, covered, shadow)
+        sl = slice(p0, p1)
+        color[sl] = _trace._np(rgb32).T
+        counts["aggregates"][sl] = _trace._np(n_agg)
+        counts["surfaces"][sl] = _trace._np(surfaces)
+        counts["covered"][sl] = _trace._np(covered)
+        rays += int(shadow[0])
+    return {"color": color, **counts, "shadow_rays": rays}
