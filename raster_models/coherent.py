@@ -51,7 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _coherent_dr, _params
+from . import _coherent_dr, _coherent_maps, _params
 from ._engine import _jsonable, _provenance
 from ._errors import ModelError
 from ._gbuffer import trace_gbuffer
@@ -215,6 +215,11 @@ class _Projections:
         self._dirs = dirs
         self._cache: dict[int, Projection] = {}
 
+    @property
+    def directions(self) -> np.ndarray:
+        """``(N, 3)`` travel directions by map id."""
+        return self._dirs
+
     def __getitem__(self, m) -> Projection:
         m = int(m)
         if m not in self._cache:
@@ -238,15 +243,7 @@ def _surface_chunks(scene, projs, ids, *, second: bool):
     r = projs.resolution
     rr = r * r
     k = len(ids)
-    params = np.zeros((k, 13))
-    for row, m in enumerate(ids):
-        p = projs[m]
-        grid = p.grid_rays(float(p.extent[4]), float(p.extent[5]))
-        params[row, :3] = grid["A"]
-        params[row, 3:6] = grid["U"]
-        params[row, 6:9] = grid["V"]
-        params[row, 9:12] = grid["D"]
-        params[row, 12] = grid["z_end"] - grid["z_start"]
+    params = _coherent_maps.ray_table(projs, ids)
     f64 = mi.Float64
     cols = [f64(np.ascontiguousarray(params[:, c])) for c in range(13)]
     total = k * rr

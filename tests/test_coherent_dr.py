@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from raster_models import _coherent_dr, coherent
+import scenes
+from raster_models import _coherent_dr, _coherent_maps, coherent
 from scenes import backend
 
 
@@ -80,3 +81,28 @@ def test_drjit_compression_equals_the_numpy_reference(mi, n, t):
         assert np.array_equal(decoded, ref[decode][1])
     runs, decoded = _coherent_dr.compress_orders(d_lo, d_hi, n, orders, decode=None)
     assert runs == [r for r, _ in ref] and decoded is None
+
+
+@pytest.mark.parametrize("name", ["plate", "city", "point"])
+def test_ray_table_equals_the_one_map_path(name):
+    """The stacked ray descriptions have the bytes of the one-map-at-a-time projections
+    (frame, matrix, inverse, grid rays) for every map, at every grid size."""
+    s = scenes.load(name, width=16, height=12)
+    for n in (4, 64, 1024, 16384):
+        dirs, _ = coherent.map_directions(n)
+        projs = coherent._Projections(s, dirs, 32)
+        ids = np.arange(n) if n <= 1024 else np.random.default_rng(n).choice(n, 1024)
+        table = _coherent_maps.ray_table(projs, ids)
+        one = np.stack([_coherent_maps._one_map(projs, int(m)) for m in ids])
+        assert table.tobytes() == one.tobytes()
+
+
+def test_ray_table_handles_a_direction_along_the_up_axis():
+    """A map looking straight down +-Y takes make_frame's next up hint."""
+    s = scenes.load("plate", width=16, height=12)
+    dirs = np.array([[0.0, -1.0, 0.0], [0.6, 0.0, 0.8], [0.0, 1.0, 0.0]])
+    projs = coherent._Projections(s, dirs, 16)
+    table = _coherent_maps.ray_table(projs, np.arange(3))
+    one = np.stack([_coherent_maps._one_map(projs, m) for m in range(3)])
+    assert table.tobytes() == one.tobytes()
+    assert np.allclose(table[:, 9:12], dirs)
