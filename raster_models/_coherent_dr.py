@@ -20,7 +20,7 @@ import numpy as np
 
 from scenes import backend
 
-__all__ = ["below_f32", "compress_orders", "intervals"]
+__all__ = ["below_f32", "compress_orders", "intervals", "take_rows"]
 
 #: Bit pattern of the float32 just below +0 (``np.nextafter(0, -inf)``: -1 subnormal step).
 _NEG_TINY_BITS = 0x80000001
@@ -79,7 +79,9 @@ def _packet(t_count: int) -> int:
     return p
 
 
-def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: int | None = 0):
+def compress_orders(
+    lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: int | None = 0, rows=None
+):
     """Greedy runs of every ordering in ``orders``, and the decoded maps of one of them: the
     Dr.Jit twin of :func:`raster_models.coherent.compress_runs`.
 
@@ -91,11 +93,13 @@ def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: in
     orders : permutations of ``range(N)`` (storage orders).
     decode : index in ``orders`` of the ordering whose decoded maps are returned (``None``:
         none).
+    rows : map ids whose decoded maps are returned (default: all, by map id).
 
     Returns
     -------
     runs : list of ints, the stored values of each ordering.
-    decoded : ``(N, T)`` float32 NumPy array (or ``None``), the value each map id reads.
+    decoded : ``(len(rows), T)`` float32 NumPy array (or ``None``), the value each map id
+        of ``rows`` reads.
 
     Every lane walks the ``N`` maps of one ordering in order (the loop over maps runs
     inside the kernel) for a packet of contiguous texels; the decoded maps take a second,
@@ -188,4 +192,19 @@ def compress_orders(lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: in
 
     dr.while_loop((last, value), cond_b, body_b, labels=("pos", "value"))
     dr.eval(decoded)
-    return counts, decoded.numpy().reshape(n, t_count)
+    return counts, take_rows(decoded, rows, n)
+
+
+def take_rows(flat, rows, n_rows: int) -> np.ndarray:
+    """Rows ``rows`` (default: all) of a map-major Dr.Jit array of ``n_rows`` rows, as a
+    ``(len(rows), T)`` NumPy array (only those rows are copied)."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    t_count = dr.width(flat) // n_rows
+    if rows is None:
+        return flat.numpy().reshape(n_rows, t_count)
+    rows = np.asarray(rows, dtype=np.int64)
+    idx = (rows[:, None] * t_count + np.arange(t_count)[None, :]).ravel()
+    out = dr.gather(type(flat), flat, mi.UInt32(idx.astype(np.uint32)))
+    return out.numpy().reshape(len(rows), t_count)

@@ -438,21 +438,27 @@ def _travel(scene, pos: np.ndarray) -> np.ndarray:
     return w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
 
 
-def _shade(scene, gbuf, p, projs, id_tex, maps: dict, rec: np.ndarray):
-    """Visibility, selected map and texel coordinates of the receivers ``rec``."""
+def _lookup(scene, pos: np.ndarray, id_tex: np.ndarray):
+    """Light travel directions ``w`` of receivers at ``pos`` and the map ids ``sel`` they
+    look up in the id texture."""
     g = id_tex.shape[0]
-    pos = gbuf.position[rec]
-    w = _travel(scene, pos)
+    w = _travel(scene, pos) if len(pos) else np.zeros((0, 3))
     u, v = _uv(w)
     ci = np.minimum((u * g).astype(np.int64), g - 1)
     cj = np.minimum((v * g).astype(np.int64), g - 1)
-    sel = id_tex[cj, ci]
+    return w, id_tex[cj, ci]
+
+
+def _shade(scene, gbuf, p, projs, maps: dict, rec: np.ndarray, pos, sel, used):
+    """Visibility and coverage of the receivers ``rec`` (at ``pos``, looking up maps
+    ``sel``; ``used`` the sorted distinct ``sel``)."""
     n_dot_l = np.clip(gbuf.cos_l[rec], 0.0, 1.0)
     vis = {k: np.ones(len(rec)) for k in maps}
     outside = np.zeros(len(rec), dtype=bool)
     r = projs.resolution
-    for m in np.unique(sel):
-        mask = sel == m
+    for m in used:
+        # One map for every receiver (a directional light): no masking copies.
+        mask = slice(None) if len(used) == 1 else sel == m
         proj = projs[int(m)]
         q = pos[mask]
         if p.normal_offset > 0.0:
@@ -472,7 +478,7 @@ def _shade(scene, gbuf, p, projs, id_tex, maps: dict, rec: np.ndarray):
             stored = depth[int(m)][texel].astype(np.float64)
             shadow = (ref > stored) & (stored > zl) & inside
             vis[key][mask] = np.where(shadow, 0.0, 1.0)
-    return vis, sel, outside, w
+    return vis, outside
 
 
 def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
@@ -497,15 +503,10 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             "compression=false"
         )
     rec = np.nonzero(gbuf.receiver)[0]
-    # Which maps the receivers look up (the lookup is redone with the maps below).
-    w = _travel(scene, gbuf.position[rec]) if len(rec) else np.zeros((0, 3))
-    u, v = _uv(w)
-    g = id_tex.shape[0]
-    used = np.unique(
-        id_tex[
-            np.minimum((v * g).astype(np.int64), g - 1), np.minimum((u * g).astype(np.int64), g - 1)
-        ]
-    )
+    pos = gbuf.position[rec]
+    # Which maps the receivers look up (sorted distinct ids).
+    w, sel = _lookup(scene, pos, id_tex)
+    used = np.nonzero(np.bincount(sel, minlength=n))[0]
     cost: dict = {}
     if p.compression:
         lo, hi = _render_intervals(
@@ -523,7 +524,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             "random": rng.permutation(n),
         }
         counts, decoded = _coherent_dr.compress_orders(
-            lo, hi, n, list(orders.values()), decode=list(orders).index("hilbert")
+            lo, hi, n, list(orders.values()), decode=list(orders).index("hilbert"), rows=used
         )
         comp = {
             name: {
@@ -533,7 +534,12 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             }
             for name, runs in zip(orders, counts, strict=True)
         }
-        maps = {"uncompressed": lo.numpy().reshape(n, r * r), "decompressed": decoded}
+        # Only the maps the receivers look up leave the Dr.Jit side.
+        stored = _coherent_dr.take_rows(lo, used, n)
+        maps = {
+            "uncompressed": {int(m): stored[i] for i, m in enumerate(used)},
+            "decompressed": {int(m): decoded[i] for i, m in enumerate(used)},
+        }
         cost["compression"] = comp
     else:
         z1 = _render(scene, projs, used)
@@ -546,7 +552,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     uncovered = np.zeros(gbuf.size)
     mismatches = 0
     if len(rec):
-        vis, sel, outside, w = _shade(scene, gbuf, p, projs, id_tex, maps, rec)
+        vis, outside = _shade(scene, gbuf, p, projs, maps, rec, pos, sel, used)
         vis_all[rec] = vis["uncompressed"]
         map_id[rec] = sel
         cosang = np.clip(np.sum(w * dirs[sel], axis=1), -1.0, 1.0)
