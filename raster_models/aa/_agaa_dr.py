@@ -30,7 +30,8 @@ from . import _trace
 
 __all__ = ["CHANNELS", "add_reduceat_order", "render"]
 
-#: Attribute channels summed per aggregate, in the NumPy path's table order.
+#: Attribute channels summed per aggregate, in the NumPy path's table order (the averages
+#: are stored per aggregate in this order, then its shadow-ray offset and its sample count).
 CHANNELS = ("albedo", "normal", "position", "to_eye", "geo_normal")
 #: ``pairwise_sum`` of NumPy's float add: sums of fewer terms than this run left to right.
 _PW_UNROLL = 8
@@ -113,7 +114,8 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
     per_launch = max(1, _trace.CHUNK // n)
     for p0 in range(0, n_pix, per_launch):
         p1 = min(n_pix, p0 + per_launch)
-        pix = dr.arange(mi.UInt32, p0, p1)
+        start = dr.opaque(mi.UInt32, p0)  # one kernel for every launch, not one per p0
+        pix = dr.arange(mi.UInt32, p1 - p0) + start
         valid, _, _, _, _, ex = _trace.prepass_dr(
             scene,
             scene.mi_scene,
@@ -130,7 +132,7 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
         lanes = dr.compress(ex["rep"])
         if dr.width(lanes) == 0:  # no surface in the launch: one dummy row, never gathered
             lanes = dr.zeros(mi.UInt32, 1)
-        f_pix = lanes // n + p0
+        f_pix = lanes // n + start
         slot = lanes - (lanes // n) * n
         px, py = mi.Float(f_pix % w), mi.Float(f_pix // w)
         sx = px + dr.gather(mi.Float, ox, slot)
@@ -172,45 +174,59 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
                 weights[a] = weights[a] + dr.select(on, wt, 0.0)
             surfaces += dr.select(dr.gather(mi.Bool, ex["rep"], lane), 1, 0)
             covered += dr.select(dr.gather(mi.Bool, valid, lane), 1, 0)
-        acc = mi.Float64(0.0)
-        n_agg = mi.UInt32(0)
-        candidates = []
+        # every aggregate's averages (per pixel lane, one array set per aggregate index)
+        store, exists = [], []
         for a in range(k):
             sums, count = add_reduceat_order(dr, rows, act[a], at[a], n)
-            exists = count > 0
-            weight = weights[a]
-            means = [c / weight for c in sums]
+            means = [c / weights[a] for c in sums]
             m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
             g = m["geo_normal"]
             g_len = _norm(dr, g)
             g_safe = dr.maximum(g_len, 1e-30)
-            geo = [dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)]
+            m["geo_normal"] = [
+                dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)
+            ]
             e = m["to_eye"]
             e_len = dr.maximum(_norm(dr, e), 1e-30)
+            m["to_eye"] = [c / e_len for c in e]
+            store.append([c for key in CHANNELS for c in m[key]] + [offset_max[a], weights[a]])
+            exists.append(count > 0)
+        n_agg = sum(dr.select(e, 1, 0) for e in exists)
+        dr.eval(store, exists, n_agg, surfaces, covered)
+
+        # shading, once per aggregate (exact shadow ray from its average position); then
+        # the resolve: float64 from 0, aggregates in slot order, as np.bincount
+        acc = mi.Vector3d(0.0)
+        for a in range(k):
+            idx = dr.compress(exists[a])
+            if not dr.width(idx):
+                continue
+            c = [dr.gather(mi.Float, s, idx) for s in store[a]]
             rgb, cand = _trace.shade_dr(
                 scene,
-                exists,
-                mi.Point3f(*m["position"]),
-                mi.Vector3f(*m["normal"]),
-                mi.Vector3f(*geo),
-                mi.Color3f(*m["albedo"]),
-                mi.Vector3f(*(c / e_len for c in e)),
-                offset=offset_max[a],
+                dr.full(mi.Bool, True, dr.width(idx)),
+                mi.Point3f(*c[6:9]),
+                mi.Vector3f(*c[3:6]),
+                mi.Vector3f(*c[12:15]),
+                mi.Color3f(*c[0:3]),
+                mi.Vector3f(*c[9:12]),
+                offset=c[15],
                 filtered_normal=True,
             )
-            candidates.append(cand)
-            share = mi.Float64(weight) / n
-            acc = dr.select(exists, acc + mi.Array3f64(rgb) * share, acc)
-            n_agg += dr.select(exists, 1, 0)
-        # 0 + x is +0 for x = -0, as in bincount's float64 accumulator
+            count = dr.count(cand)
+            dr.eval(rgb, count)
+            rays += int(count[0])
+            rgb_pix = dr.zeros(mi.Color3f, p1 - p0)
+            dr.scatter(rgb_pix, rgb, idx)
+            share = mi.Float64(store[a][-1]) / n
+            acc = dr.select(exists[a], acc + mi.Vector3d(rgb_pix) * share, acc)
+        # 0 + x is +0 for x = -0 in bincount's accumulator
         acc = dr.select(acc == 0.0, 0.0, acc)
         rgb32 = mi.Color3f(acc)
-        shadow = sum(dr.count(c) for c in candidates)
-        dr.eval(rgb32, n_agg, surfaces, covered, shadow)
+        dr.eval(rgb32)
         sl = slice(p0, p1)
         color[sl] = _trace._np(rgb32).T
         counts["aggregates"][sl] = _trace._np(n_agg)
         counts["surfaces"][sl] = _trace._np(surfaces)
         counts["covered"][sl] = _trace._np(covered)
-        rays += int(shadow[0])
     return {"color": color, **counts, "shadow_rays": rays}
