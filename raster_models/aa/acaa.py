@@ -13,8 +13,10 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
    therefore counted twice, too bright, as on GPUs. The surfaces at each sample are found
    per shape: one ray per sample into a scene holding a group of shapes whose bounding
    boxes are too far apart to tie (:func:`tie_groups`; the hit there is the hit of a scene
-   holding that shape alone wherever a tie is possible); two coplanar triangles of one mesh
-   are not told apart.
+   holding that shape alone wherever a tie is possible), traced only from samples whose
+   nearest hit lies within a tie distance of a member's bounding box
+   (:mod:`._acaa_ties`; the others cannot tie with the group); two coplanar triangles of
+   one mesh are not told apart.
 3. ``accumulation="rgba8"`` rounds the target to 8-bit UNORM (``round(255 x) / 255`` of the
    saturated sum) at every addition; ``float32`` adds in float32.
 
@@ -36,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _depth, _params
-from . import _samples
+from . import _acaa_trace, _samples
 from ._base import (
     DEPTH_FORMATS,
     ShadowParams,
@@ -44,7 +46,7 @@ from ._base import (
     package,
     shadow_visibility,
 )
-from ._trace import fragment_attributes, shade_points, trace_samples
+from ._trace import fragment_attributes, shade_points
 
 __all__ = ["ACCUMULATIONS", "AcaaParams", "normalized_depth", "rgba8_accumulate", "run"]
 
@@ -111,13 +113,17 @@ def rgba8_accumulate(values: np.ndarray, slot: np.ndarray, target: np.ndarray) -
 def _blend(values, pixel, target, *, rgba8: bool):
     values = np.asarray(values, np.float64 if rgba8 else np.float32)
     out = np.array(target, dtype=np.float64 if rgba8 else np.float32)
+    pixel = np.asarray(pixel, np.int64)
     if len(pixel) == 0:
         return out
-    order = np.argsort(pixel, kind="stable")
-    pix = pixel[order]
-    rank = np.arange(len(pix)) - np.searchsorted(pix, pix, side="left")
-    for j in range(int(rank.max()) + 1):
-        sel = order[rank == j]
+    if np.any(pixel[1:] < pixel[:-1]):
+        order = np.argsort(pixel, kind="stable")
+        values, pixel = values[order], pixel[order]
+    # pixel-sorted: blend j adds each pixel's j-th value (rank within its run)
+    start = np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])
+    run = np.diff(np.r_[start, len(pixel)])
+    for j in range(int(run.max())):  # one round per blend of the busiest pixel
+        sel = start[run > j] + j
         p = pixel[sel]
         s = out[p] + values[sel]
         if rgba8:
@@ -225,33 +231,19 @@ def _group_scene(scene, members: list[int]):
     return cache[key]
 
 
-def _fragments(buf: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
-    """Fragments passing LEQUAL: the nearest surface's (grouped on the Dr.Jit side) merged
-    with the tie samples ``(pixel, sample, shape, prim)`` of other shapes.
+def _fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
+    """Fragments passing LEQUAL: the nearest surface's (``near``, one row per fragment from
+    :func:`._acaa_trace.prepass`) merged with the tie samples ``(pixel, sample, shape,
+    prim)`` of other shapes.
 
     Fragments are in submission order within each pixel (shape, then primitive); each with
     its first passing sample, its passing-sample count and, with ``centroid``, the sums of
     their positions.
     Only pixels holding ties or more than one fragment are sorted.
     """
-    n = len(offsets)
     offs = np.asarray(offsets, np.float64)
-    reps = np.flatnonzero(buf["rep"].ravel())
-    n_near = len(reps)
-    parts = {
-        "pixel": [reps // n],
-        "sample": [reps % n],
-        "shape": [buf["shape"].ravel()[reps].astype(np.int64)],
-        "prim": [buf["prim"].ravel()[reps]],
-        "count": [buf["count"].ravel()[reps].astype(np.int64)],
-    }
     sums = ("sum_x", "sum_y") if centroid else ()
-    if centroid:
-        of = buf["of"].ravel()
-        ok = of >= 0
-        slot = np.flatnonzero(ok) % n
-        for axis, key in enumerate(sums):
-            parts[key] = [np.bincount(of[ok], weights=offs[slot, axis], minlength=n_near)]
+    parts = {key: [near[key]] for key in ("pixel", "sample", "shape", "prim", "count", *sums)}
     for pix, smp, shape, prim in ties:
         cols = (pix, smp, shape, prim)
         for key, val in zip(("pixel", "sample", "shape", "prim"), cols, strict=True):
@@ -279,6 +271,41 @@ def _fragments(buf: dict, ties: list, offsets, n_pix: int, centroid: bool) -> di
     return out
 
 
+def _ties(cam, candidates: list, window: float, fmt: str) -> list:
+    """Tie samples ``(pixel, sample, shape, prim)`` of each group from its candidates' hits
+    (:func:`._acaa_trace.prepass`): a hit within the tie window whose stored depth passes
+    LEQUAL against the prepass's."""
+    found = []
+    for pix, smp, depth, hit, hit_depth, hit_shape, hit_prim in candidates:
+        near = hit.copy()
+        if np.isfinite(window):  # equal stored depths lie within the tie distance
+            near &= hit_depth <= depth + np.float32(window)
+        ci = np.flatnonzero(near)
+        one = np.ones(len(ci), bool)
+        zk = _stored_depth(cam, hit_depth[ci], one, fmt)
+        ci = ci[zk <= _stored_depth(cam, depth[ci], one, fmt)]
+        if len(ci):
+            found.append((pix[ci], smp[ci], hit_shape[ci], hit_prim[ci]))
+    return found
+
+
+def _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, shadows: str):
+    """Fragment colours with a shadow technique's visibility (attributes copied to NumPy for
+    the technique). Returns ``(rgb, shadow_rays)``."""
+    attrs = None
+    for members, sub in zip(groups, subs, strict=True):  # each fragment in its group's scene
+        sel = np.nonzero(np.isin(f_shape, members))[0]
+        if len(sel) == 0:
+            continue
+        a = fragment_attributes(scene, sx[sel], sy[sel], cx[sel], cy[sel], mi_scene=sub)
+        if attrs is None:
+            attrs = {key: np.zeros((len(f_shape),) + v.shape[1:], v.dtype) for key, v in a.items()}
+        for key, v in a.items():
+            attrs[key][sel] = v
+    vis = shadow_visibility(scene, attrs, shadows)
+    return shade_points(scene, attrs, visibility=vis)
+
+
 def run(scene, params: AcaaParams | None = None, **kwargs):
     """Run ``acaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
@@ -289,40 +316,13 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     w, h = scene.width, scene.height
     n_pix = w * h
     cam = scene.camera
-    buf = trace_samples(scene, offsets, group=True, keep=("valid", "shape", "prim", "depth"))
-    valid = buf["valid"]
     groups = tie_groups(scene, p.depth_format)
+    subs = [_group_scene(scene, members) for members in groups]
+    pre = _acaa_trace.prepass(scene, offsets, groups, subs, p.depth_format, centroid=p.centroid)
     # the largest tie distance (at the far plane): a view-depth bound on every tie
     window = float(tie_distance(cam, cam.far, p.depth_format))
-    shape_of = buf["shape"]
-    extra_rays = 0
-    tie_samples = np.zeros((n_pix, n), bool)
-    ties_found = []
-    for members in groups:  # one trace per group of shapes that cannot tie each other
-        # a sample whose nearest shape is in the group meets it there again: no tie; trace
-        # the pixels holding samples of other shapes only
-        member = np.zeros(len(scene.shape_names) + 1, bool)  # index -1 (sky): False
-        member[members] = True
-        outside = valid & ~member[shape_of]
-        pixels = np.flatnonzero(outside.any(axis=1))
-        if len(pixels) == 0:
-            continue
-        sub = _group_scene(scene, members)
-        hk = trace_samples(scene, offsets, mi_scene=sub, pixels=pixels, scene_shapes=True)
-        extra_rays += hk["valid"].size
-        near = hk["valid"] & outside[pixels]
-        if np.isfinite(window):  # equal stored depths lie within the tie distance
-            near &= hk["depth"] <= buf["depth"][pixels] + np.float32(window)
-        ci, cs = np.nonzero(near)
-        pix = pixels[ci]
-        one = np.ones(len(ci), bool)
-        zk = _stored_depth(cam, hk["depth"][ci, cs], one, p.depth_format)
-        tie = zk <= _stored_depth(cam, buf["depth"][pix, cs], one, p.depth_format)
-        ci, cs, pix = ci[tie], cs[tie], pix[tie]
-        if len(ci):
-            tie_samples[pix, cs] = True
-            ties_found.append((pix, cs, hk["shape"][ci, cs].astype(np.int64), hk["prim"][ci, cs]))
-    frag = _fragments(buf, ties_found, offsets, n_pix, p.centroid)
+    ties_found = _ties(cam, pre["candidates"], window, p.depth_format)
+    frag = _fragments(pre["near"], ties_found, offsets, n_pix, p.centroid)
     f_pix, f_smp, f_shape, count = frag["pixel"], frag["sample"], frag["shape"], frag["count"]
     n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
@@ -334,26 +334,20 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         cy = np.where(partial, (f_pix // w) + frag["sum_y"] / count, cy)
     sx = (f_pix % w) + offsets[f_smp, 0]
     sy = (f_pix // w) + offsets[f_smp, 1]
-    attrs = None
-    for members in groups:  # a fragment's ray finds its own surface in its group's scene
-        sel = np.nonzero(np.isin(f_shape, members))[0]
-        if len(sel) == 0:
-            continue
-        sub = _group_scene(scene, members)
-        a = fragment_attributes(scene, sx[sel], sy[sel], cx[sel], cy[sel], mi_scene=sub)
-        if attrs is None:
-            attrs = {key: np.zeros((n_frag,) + v.shape[1:], v.dtype) for key, v in a.items()}
-        for key, v in a.items():
-            attrs[key][sel] = v
     target = np.zeros((n_pix, 3))
     rays = 0
-    if attrs is not None:
-        vis = shadow_visibility(scene, attrs, p.shadows)
-        rgb, rays = shade_points(scene, attrs, visibility=vis)
+    if n_frag:
+        if p.shadows == "exact":
+            rgb, rays = _acaa_trace.shade_exact(scene, groups, subs, f_shape, sx, sy, cx, cy)
+        else:
+            rgb, rays = _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, p.shadows)
         weighted = rgb * (count / np.float32(n)).astype(np.float32)[:, None]
         target = _blend(weighted, f_pix, target, rgba8=p.accumulation == "rgba8")
     events = np.bincount(f_pix, minlength=n_pix)
-    ties = tie_samples.sum(axis=1)
+    # samples with at least one tie (a sample may tie with several groups)
+    keys = [pix * n + smp for pix, smp, _, _ in ties_found]
+    tie_keys = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+    ties = np.bincount(tie_keys // n, minlength=n_pix)
     db = DEPTH_FORMATS[p.depth_format]
     cb = ACCUMULATIONS[p.accumulation]
     return package(
@@ -361,7 +355,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         scene,
         p,
         color=target.reshape(h, w, 3),
-        coverage=valid.mean(axis=1),
+        coverage=np.bincount(pre["near"]["pixel"], pre["near"]["count"], n_pix) / n,
         events=events,
         extra_outputs={"ties": ties},
         samples=n,
@@ -374,9 +368,9 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         diagnostics={
             "sample_positions": offsets.tolist(),
             "fragments": int(n_frag),
-            "tie_samples": int(tie_samples.sum()),
+            "tie_samples": len(tie_keys),
             "pixels_with_ties": int((ties > 0).sum()),
-            "per_shape_rays": int(extra_rays),
+            "per_shape_rays": int(pre["traced"]),
             "tie_groups": len(groups),
             "color_target_bytes_per_pixel": cb,
         },
