@@ -145,8 +145,8 @@ class Ortho32Build:
         Returns
         -------
         centre : ``(n,)`` int64 texel ``j R + i`` of each receiver's centre ``lc``.
-        node_texel, node_recv : int64 texel and receiver index (into ``lc``) of every node,
-            in the order of the module docstring.
+        node_texel, node_recv : texel (int32) and receiver index (into ``lc``; int32 below
+            2^31 receivers) of every node, in the order of the module docstring.
         """
         if self.drjit:
             return self._nodes_drjit(sel, box, r)
@@ -176,10 +176,7 @@ class Ortho32Build:
             first = np.zeros_like(run)
             np.put_along_axis(first, order, run, axis=1)
             others.append((tex[first], np.repeat(ch, first.sum(axis=1))))
-        parts = ones + others
-        node_texel = np.concatenate([t for t, _ in parts]).astype(np.int64)
-        node_recv = np.concatenate([c for _, c in parts]).astype(np.int64)
-        return cj * r + ci, node_texel, node_recv
+        return cj * r + ci, *_concat(ones + others, len(self.lc))
 
     # ---- Dr.Jit
     def _inputs(self):
@@ -204,7 +201,8 @@ class Ortho32Build:
             if sel is None:
                 import drjit as dr
 
-                yield dr.arange(mi.UInt32, s0, s1), np.arange(s0, s1)
+                ids = np.int32 if n < 2**31 else np.int64
+                yield dr.arange(mi.UInt32, s0, s1), np.arange(s0, s1, dtype=ids)
             else:
                 ch = np.asarray(sel[s0:s1])
                 yield mi.UInt32(ch.astype(np.uint32)), ch
@@ -229,9 +227,11 @@ class Ortho32Build:
             ends = []
             for q in range(3):  # x, y, z
                 c, w = self._column("lc", idx, q), self._spread_dr(idx, q)
-                ends += [dr.min(c - w), dr.max(c + w)]
-            dr.eval(*ends)
-            v = np.array([e.numpy()[0] for e in ends])
+                ends += [c - w, c + w]
+            dr.eval(*ends)  # one kernel; then the reductions
+            v = [(dr.min if k % 2 == 0 else dr.max)(e) for k, e in enumerate(ends)]
+            dr.eval(*v)
+            v = np.array([e.numpy()[0] for e in v])
             lo, hi = np.minimum(lo, v[0::2]), np.maximum(hi, v[1::2])
         return lo, hi
 
@@ -275,16 +275,13 @@ class Ortho32Build:
             t_np = t.numpy()
             centres.append(centre.numpy().astype(np.int64))
             one = t_np != _NONE
-            ones.append((t_np[one].astype(np.int64), ch[one]))
+            ones.append((t_np[one].view(np.int32), ch[one]))
             rest = np.flatnonzero(~one)
             if len(rest):
                 tex = self._point_texels(ch[rest], ti, tj, rr)
                 keep = tex != _NONE
-                others.append((tex[keep].astype(np.int64), np.repeat(ch[rest], keep.sum(axis=1))))
-        parts = ones + others
-        node_texel = np.concatenate([t for t, _ in parts])
-        node_recv = np.concatenate([c for _, c in parts]).astype(np.int64)
-        return np.concatenate(centres), node_texel, node_recv
+                others.append((tex[keep].view(np.int32), np.repeat(ch[rest], keep.sum(axis=1))))
+        return np.concatenate(centres), *_concat(ones + others, len(self.lc))
 
     def _point_texels(self, recv: np.ndarray, ti, tj, rr) -> np.ndarray:
         """``(n, 32)`` uint32 texels of the 32 points of receivers ``recv``, point by point;
@@ -311,6 +308,13 @@ class Ortho32Build:
         for q, o in enumerate(outs):  # the 32 points' columns
             out[:, q] = o.numpy()
         return out
+
+
+def _concat(parts, m: int):
+    """Node texels (int32) and receivers (int32 below 2^31 receivers) of ``parts``."""
+    node_texel = np.concatenate([t for t, _ in parts]).astype(np.int32, copy=False)
+    node_recv = np.concatenate([c for _, c in parts])
+    return node_texel, node_recv.astype(np.int32 if m < 2**31 else np.int64, copy=False)
 
 
 def _vectorized() -> bool:

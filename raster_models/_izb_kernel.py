@@ -157,10 +157,15 @@ class PairTester:
             mi = backend.mitsuba()
             f64 = mi.Float64
             d = {"planes": f64(np.ascontiguousarray(self.planes, dtype=np.float64).ravel())}
+            # One row per receiver (p, [dpdx, dpdy,] floor): a pair's gathers touch one or
+            # two cache lines, not one per array.
             keys = ("p", "dpdx", "dpdy") if self.thirty_two else ("p",)
-            for k in keys:
-                d[k] = f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel())
-            d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
+            rows = np.empty((len(self.floor), 3 * len(keys) + 1))
+            for q, k in enumerate(keys):
+                rows[:, 3 * q : 3 * q + 3] = self.recv[k]
+            rows[:, -1] = self.floor
+            d["recv"] = f64(rows.ravel())
+            d["stride"] = rows.shape[1]
             self._dr = (mi, d)
         return self._dr
 
@@ -171,23 +176,25 @@ class PairTester:
         mi, d = self._inputs()
         f64 = mi.Float64
 
-        def gather3(arr, idx):
-            return [dr.gather(f64, arr, idx * 3 + j) for j in range(3)]
+        row = r * d["stride"]
+
+        def gather3(q):
+            return [dr.gather(f64, d["recv"], row + (3 * q + j)) for j in range(3)]
 
         rows = [
             [dr.gather(f64, d["planes"], tri * 16 + (4 * k + j)) for j in range(4)]
             for k in range(4)
         ]
-        p = gather3(d["p"], r)
+        p = gather3(0)
 
         def dot(n, v):
             return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
 
         base = [dot(row, p) + row[3] for row in rows]
-        floor = dr.gather(f64, d["floor"], r)
+        floor = dr.gather(f64, d["recv"], row + (d["stride"] - 1))
         if not self.thirty_two:
             return base, None, None, floor
-        dx, dy = gather3(d["dpdx"], r), gather3(d["dpdy"], r)
+        dx, dy = gather3(1), gather3(2)
         da = [dot(row, dx) for row in rows]
         db = [dot(row, dy) for row in rows]
         return base, da, db, floor

@@ -43,7 +43,7 @@ FULL_MASK = np.uint32(0xFFFFFFFF)
 @dataclass
 class IzbLists:
     """Grid-of-lists: ``node_texel`` (sorted, global texel id = cascade * R^2 + j * R + i)
-    and ``node_recv`` (receiver index) per node."""
+    and ``node_recv`` (receiver index) per node (int32 where the ids fit)."""
 
     node_texel: np.ndarray
     node_recv: np.ndarray
@@ -104,19 +104,25 @@ def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
     digits of the texel id (NumPy's stable sort of 16-bit keys is a counting sort).
     """
     if not parts:
-        return IzbLists(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
-    node_texel = np.concatenate([t for t, _ in parts]).astype(np.int64)
-    node_recv = np.concatenate([r for _, r in parts]).astype(np.int64)
+        return IzbLists(np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
+    node_texel = np.concatenate([t for t, _ in parts])
+    node_recv = np.concatenate([r for _, r in parts])
+    node_texel = node_texel.astype(_index_type(node_texel), copy=False)
+    node_recv = node_recv.astype(_index_type(node_recv), copy=False)
     if len(node_recv) == 0:
         return IzbLists(node_texel, node_recv)
-    order = np.arange(len(node_texel))
-    top = int(node_texel.max())
-    shift = 0
-    while shift == 0 or top >> shift:  # 16-bit digits of the texel id
+    order = np.argsort((node_texel & 0xFFFF).astype(np.uint16), kind="stable")
+    top, shift = int(node_texel.max()), 16
+    while top >> shift:  # the higher 16-bit digits of the texel id
         digit = ((node_texel[order] >> shift) & 0xFFFF).astype(np.uint16)
         order = order[np.argsort(digit, kind="stable")]
         shift += 16
     return IzbLists(node_texel[order], node_recv[order])
+
+
+def _index_type(ids: np.ndarray):
+    """int32 for non-negative ids below 2^31 (half the memory traffic), else int64."""
+    return np.int32 if len(ids) == 0 or int(ids.max()) < 2**31 else np.int64
 
 
 @dataclass

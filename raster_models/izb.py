@@ -323,6 +323,7 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     stats = JoinStats()
     rounds = 0
     crossing_count = 0
+    n_dead_before = 0
     for start in range(0, len(tris), ROUND_TRIANGLES):  # rounds of triangles
         stop = min(len(tris), start + ROUND_TRIANGLES)
         rounds += 1
@@ -364,28 +365,32 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
                     epsilon=p.epsilon,
                 )
         dead = state["shadowed"] if s == 1 else state["mask"] == FULL_MASK
-        stats.nodes_removed += lists.compact(dead)
+        n_dead = int(np.count_nonzero(dead))
+        if n_dead > n_dead_before:  # a receiver stays dead: no new one, no node to remove
+            stats.nodes_removed += lists.compact(dead)
+            n_dead_before = n_dead
 
-    # ---- outputs
+    # ---- outputs (float32 images: every value, k / 32, a list length, an index, is exact)
     n_pix = gbuf.size
-    vis = np.ones(n_pix, dtype=np.float64)
+    f32 = np.float32
+    vis = np.ones(n_pix, dtype=f32)
     vis[gbuf.valid & ~gbuf.receiver] = 0.0
     if s == 32:
-        lit_bits = 32 - np.bitwise_count(state["mask"]).astype(np.float64)
-        vis[rec] = lit_bits / 32.0
+        lit_bits = 32 - np.bitwise_count(state["mask"]).astype(f32)
+        vis[rec] = lit_bits / f32(32.0)
         fully = int((state["mask"] == FULL_MASK).sum())
     else:
         vis[rec] = np.where(state["shadowed"], 0.0, 1.0)
         fully = int(state["shadowed"].sum())
-    cascade = np.full(n_pix, -1.0)
+    cascade = np.full(n_pix, -1.0, dtype=f32)
     cascade[rec] = part
     if s == 32:
         band = (state["band"] & ~state["mask"]) != 0
     else:
         band = state["band"] & ~state["shadowed"]
-    band_img = np.zeros(n_pix)
+    band_img = np.zeros(n_pix, dtype=f32)
     band_img[rec] = band
-    list_img = np.zeros(n_pix)
+    list_img = np.zeros(n_pix, dtype=f32)
     list_img[rec] = centre_len
     outputs = {
         "visibility": gbuf.image(vis),
