@@ -253,18 +253,18 @@ def shade_exact(scene, groups: list, group_scenes: list, f_shape, sx, sy, cx, cy
     import drjit as dr
 
     f_shape = np.asarray(f_shape, np.int64)
-    pos = [np.asarray(a, np.float32) for a in (sx, sy, cx, cy)]
-    rgb = np.zeros((len(f_shape), 3), np.float32)
+    pos = [mi.Float(np.asarray(a, np.float32)) for a in (sx, sy, cx, cy)]
+    rgb = [dr.zeros(mi.Float, len(f_shape)) for _ in range(3)]
     lut = np.full(len(scene.shape_names), -1, np.int64)
     for gi, g in enumerate(groups):
         lut[np.asarray(g, np.int64)] = gi
     group_of = lut[f_shape]
     rays = 0
     for gi, sub in enumerate(group_scenes):  # a fragment's ray finds its surface in its group
-        sel = np.flatnonzero(group_of == gi)
+        sel = np.flatnonzero(group_of == gi).astype(np.uint32)
         for start in range(0, len(sel), CHUNK):
-            part = sel[start : start + CHUNK]
-            a = attributes_dr(scene, sub, *(mi.Float(v[part]) for v in pos))
+            part = mi.UInt32(sel[start : start + CHUNK])
+            a = attributes_dr(scene, sub, *(dr.gather(mi.Float, v, part) for v in pos))
             color, tested = shade_dr(
                 scene,
                 a["valid"],
@@ -277,7 +277,9 @@ def shade_exact(scene, groups: list, group_scenes: list, f_shape, sx, sy, cx, cy
                 visibility=None,
             )
             count = dr.count(tested)
-            dr.eval(color, count)
-            rgb[part] = _np(color).T
+            for c in range(3):
+                dr.scatter(rgb[c], color[c], part)
+            dr.eval(rgb, count)
             rays += int(count[0])
+    rgb = np.stack([_np(c) for c in rgb], axis=1)
     return rgb, rays

@@ -111,24 +111,30 @@ def rgba8_accumulate(values: np.ndarray, slot: np.ndarray, target: np.ndarray) -
 
 
 def _blend(values, pixel, target, *, rgba8: bool):
+    """Blend of ``values`` into ``target`` (an array, or a pixel count: a zero target) in
+    the order of :func:`rgba8_accumulate` (float32, or RGBA8 rounding in float64)."""
     values = np.asarray(values, np.float64 if rgba8 else np.float32)
-    out = np.array(target, dtype=np.float64 if rgba8 else np.float32)
+    dtype = np.float64 if rgba8 else np.float32
+    zero = isinstance(target, int)
+    out = np.zeros((target, 3), dtype) if zero else np.array(target, dtype=dtype)
     pixel = np.asarray(pixel, np.int64)
     if len(pixel) == 0:
         return out
     if np.any(pixel[1:] < pixel[:-1]):
         order = np.argsort(pixel, kind="stable")
         values, pixel = values[order], pixel[order]
-    # pixel-sorted: blend j adds each pixel's j-th value (rank within its run)
+    # pixel-sorted: blend j adds each pixel's j-th value (its rank within its run); the
+    # running sums are kept per run and written to the target once
     start = np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])
     run = np.diff(np.r_[start, len(pixel)])
+    acc = np.zeros((len(start), 3), dtype) if zero else out[pixel[start]]
     for j in range(int(run.max())):  # one round per blend of the busiest pixel
-        sel = start[run > j] + j
-        p = pixel[sel]
-        s = out[p] + values[sel]
+        sel = np.flatnonzero(run > j) if j else slice(None)
+        s = acc[sel] + values[start[sel] + j]
         if rgba8:
             s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
-        out[p] = s
+        acc[sel] = s
+    out[pixel[start]] = acc
     return out
 
 
@@ -326,15 +332,16 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     f_pix, f_smp, f_shape, count = frag["pixel"], frag["sample"], frag["shape"], frag["count"]
     n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
-    cx = (f_pix % w) + 0.5
-    cy = (f_pix // w) + 0.5
+    fx, fy = f_pix % w, f_pix // w
+    cx = fx + 0.5
+    cy = fy + 0.5
     if p.centroid and n_frag:
         partial = count < n
-        cx = np.where(partial, (f_pix % w) + frag["sum_x"] / count, cx)
-        cy = np.where(partial, (f_pix // w) + frag["sum_y"] / count, cy)
-    sx = (f_pix % w) + offsets[f_smp, 0]
-    sy = (f_pix // w) + offsets[f_smp, 1]
-    target = np.zeros((n_pix, 3))
+        cx = np.where(partial, fx + frag["sum_x"] / count, cx)
+        cy = np.where(partial, fy + frag["sum_y"] / count, cy)
+    sx = fx + offsets[f_smp, 0]
+    sy = fy + offsets[f_smp, 1]
+    target = np.zeros((n_pix, 3), np.float32)
     rays = 0
     if n_frag:
         if p.shadows == "exact":
@@ -342,7 +349,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         else:
             rgb, rays = _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, p.shadows)
         weighted = rgb * (count / np.float32(n)).astype(np.float32)[:, None]
-        target = _blend(weighted, f_pix, target, rgba8=p.accumulation == "rgba8")
+        target = _blend(weighted, f_pix, n_pix, rgba8=p.accumulation == "rgba8")
     events = np.bincount(f_pix, minlength=n_pix)
     # samples with at least one tie (a sample may tie with several groups)
     keys = [pix * n + smp for pix, smp, _, _ in ties_found]
