@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import scenes
-from raster_models.aa import _agaa_dr, _samples, _trace, agaa
+from raster_models.aa import _agaa_dr, _agaa_pixels, _samples, _trace, agaa
 from scenes import backend
 
 SMALL = {"width": 64, "height": 36}
@@ -54,6 +54,7 @@ def _longest_aggregate(scene, n, fmt):
         ("glossy", {"samples": 8, "normal_format": "rgba16f"}),
         ("thin", {"samples": 4}),
         ("city", {"samples": 2}),
+        ("foliage", {"samples": 1}),
     ],
 )
 def test_fused_frame_equals_numpy_path(name, params):
@@ -124,3 +125,55 @@ def _add(mi, dr, rows, active, at):
     )
     dr.eval(sums, count)
     return np.stack([s.numpy() for s in sums], axis=1), count.numpy()
+
+
+@pytest.mark.parametrize(
+    ("name", "n", "fmt", "k"),
+    [
+        ("foliage", 16, "rgb10a2", 2),
+        ("foliage", 8, "oct16", 2),
+        ("thin", 4, "rgba16f", 2),
+        ("glossy", 2, "rgb10a2", 2),
+        ("foliage", 1, "rgb10a2", 2),
+        ("foliage", 8, "rgb10a2", 1),
+    ],
+)
+def test_pixel_lanes_equal_sample_lanes(name, n, fmt, k):
+    """Fragment representatives and aggregates computed one lane a pixel
+    (:func:`_agaa_pixels.pixel_prepass`) equal those of one lane a sample
+    (:mod:`raster_models.aa._pixel_dr`, tested against the NumPy rule) sample for sample,
+    and the block sums equal :func:`drjit.block_reduce`'s bytes."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    scene = scenes.load(name, **SMALL)
+    offs = _samples.positions(n)
+    ref = _trace.trace_samples(scene, offs, group=True, cluster=(k, 0.1, 1.0, fmt))
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    n_pix = SMALL["width"] * SMALL["height"]
+    table = _trace._shape_table(mi, dr, scene)
+    pix = dr.arange(mi.UInt32, n_pix)
+    valid, depth, prim, shape, nrm, _ = _trace.prepass_dr(
+        scene, scene.mi_scene, table, ox, oy, pix, n, normals=True, group=False, cluster=None
+    )
+    first, agg, rep_bits = _agaa_pixels.pixel_prepass(
+        mi, dr, (valid, depth, prim, shape, nrm), n, k, 0.1, 1.0, fmt
+    )
+    dr.eval(first, agg, rep_bits)
+    first = np.stack([f.numpy() for f in first], axis=1)
+    agg = np.stack([a.numpy() for a in agg], axis=1)
+    bits = (rep_bits.numpy()[:, None] >> np.arange(n)) & 1
+    assert np.array_equal(first, ref["first"])
+    assert np.array_equal(agg, ref["aggregate"])
+    assert np.array_equal(bits.astype(bool), ref["rep"])
+    if k == 2 and n >= 4:
+        assert (agg == 1).any()
+    # the pixel sums themselves, on values with signed zeros and six decades
+    rng = np.random.default_rng(n)
+    x = rng.standard_normal((5000, n)) * 10.0 ** rng.integers(-3, 4, (5000, n))
+    x = x.astype(np.float32)
+    x[rng.random(x.shape) < 0.3] = np.float32(-0.0)
+    x[:50] = np.float32(-0.0)
+    got = _agaa_pixels.block_sum(dr, [mi.Float(x[:, j]) for j in range(n)])
+    expect = dr.block_reduce(dr.ReduceOp.Add, mi.Float(x.ravel()), n, mode="evaluated")
+    assert got.numpy().tobytes() == expect.numpy().tobytes()

@@ -3,13 +3,14 @@ chained per launch, with only per-pixel results copied back to NumPy.
 
 Per launch of at most :data:`._trace.CHUNK` samples (whole pixels):
 
-1. the prepass of :func:`._trace.prepass_dr` (samples, fragment representatives, aggregates
-   and (fragment, aggregate) pairs);
+1. the samples' nearest surfaces (:func:`._trace.prepass_dr`), then, one lane a pixel, its
+   fragment representatives and aggregates (:func:`._agaa_pixels.pixel_prepass`);
 2. the fragments (representative lanes, :func:`drjit.compress`) and their attributes
    (:func:`._trace.attributes_dr`, zero where the ray misses, as
    :func:`._trace.fragment_attributes`);
-3. one lane a pixel: every aggregate's weighted material sums over its pairs, its averages,
-   its shading (:func:`._trace.shade_dr`, filtered normal, exact shadow ray) and the pixel's
+3. one lane a pixel: every aggregate's weighted material sums over its (fragment,
+   aggregate) pairs and its averages; each existing aggregate shaded once
+   (:func:`._trace.shade_dr`, filtered normal, exact shadow ray); the pixel's
    coverage-weighted colour.
 
 The arithmetic is that of the NumPy path of :func:`.agaa.run` (shadow techniques), operation
@@ -26,7 +27,7 @@ import numpy as np
 from scenes import backend
 from scenes.raycast import _shape_table
 
-from . import _trace
+from . import _agaa_pixels, _trace
 
 __all__ = ["CHANNELS", "add_reduceat_order", "render"]
 
@@ -102,7 +103,6 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
     import drjit as dr
 
     cam = scene.camera
-    w = cam.width
     offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
     n = len(offs)
     n_pix = cam.width * cam.height
@@ -115,118 +115,147 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
     for p0 in range(0, n_pix, per_launch):
         p1 = min(n_pix, p0 + per_launch)
         start = dr.opaque(mi.UInt32, p0)  # one kernel for every launch, not one per p0
-        pix = dr.arange(mi.UInt32, p1 - p0) + start
-        valid, _, _, _, _, ex = _trace.prepass_dr(
+        local = dr.arange(mi.UInt32, p1 - p0)
+        valid, depth, prim, shape, nrm, _ = _trace.prepass_dr(
             scene,
             scene.mi_scene,
             table,
             ox,
             oy,
-            pix,
+            local + start,
             n,
             normals=True,
-            group=True,
-            cluster=(k, threshold, depth_weight, fmt),
+            group=False,
+            cluster=None,
         )
-        # fragments: representative lanes, numbered as ``of`` numbers them
-        lanes = dr.compress(ex["rep"])
-        if dr.width(lanes) == 0:  # no surface in the launch: one dummy row, never gathered
-            lanes = dr.zeros(mi.UInt32, 1)
-        f_pix = lanes // n + start
-        slot = lanes - (lanes // n) * n
-        px, py = mi.Float(f_pix % w), mi.Float(f_pix // w)
-        sx = px + dr.gather(mi.Float, ox, slot)
-        sy = py + dr.gather(mi.Float, oy, slot)
-        attrs = _trace.attributes_dr(scene, scene.mi_scene, sx, sy, px + 0.5, py + 0.5)
-        hit = attrs["valid"]
-        table_f = []
-        for key in CHANNELS:
-            table_f += [dr.select(hit, c, 0.0) for c in attrs[key]]
-        offset_f = dr.select(hit, attrs["offset"], 0.0)
-        dr.eval(table_f, offset_f)
+        first, agg, rep_bits = _agaa_pixels.pixel_prepass(
+            mi, dr, (valid, depth, prim, shape, nrm), n, k, threshold, depth_weight, fmt
+        )
+        surfaces = dr.popcnt(rep_bits)
+        covered = sum(dr.select(f < n, mi.UInt32(1), 0) for f in first)
+        dr.eval(first, agg, rep_bits, surfaces, covered)
 
-        # one lane a pixel: aggregates, shading, resolve
-        local = dr.arange(mi.UInt32, p1 - p0)
-        rows, act = [], {a: [] for a in range(k)}
-        at = {a: [] for a in range(k)}
-        seen = {a: mi.UInt32(0) for a in range(k)}
-        offset_max = {a: mi.Float(0.0) for a in range(k)}
-        weights = {a: mi.Float(0.0) for a in range(k)}  # samples each aggregate holds
-        surfaces = mi.UInt32(0)
-        covered = mi.UInt32(0)
-        for j in range(n):
-            lane = local * n + j
-            rep_j = dr.gather(mi.Bool, ex["pair_rep"], lane)
-            agg_j = dr.gather(mi.Int32, ex["aggregate"], lane)
-            f = mi.UInt32(dr.gather(mi.Int32, ex["of"], lane))
-            wt = mi.Float(dr.gather(mi.UInt32, ex["pair_count"], lane))
-            row = [dr.gather(mi.Float, c, f, rep_j) * wt for c in table_f]
-            off = dr.gather(mi.Float, offset_f, f, rep_j)
-            rows.append(row)
-            for a in range(k):
-                on = rep_j & (agg_j == a)
-                act[a].append(on)
-                at[a].append(seen[a])
-                offset_max[a] = dr.select(
-                    on, dr.select(seen[a] == 0, off, dr.maximum(offset_max[a], off)), offset_max[a]
-                )
-                seen[a] = seen[a] + dr.select(on, 1, 0)
-                weights[a] = weights[a] + dr.select(on, wt, 0.0)
-            surfaces += dr.select(dr.gather(mi.Bool, ex["rep"], lane), 1, 0)
-            covered += dr.select(dr.gather(mi.Bool, valid, lane), 1, 0)
-        # every aggregate's averages (per pixel lane, one array set per aggregate index)
-        store, exists = [], []
-        for a in range(k):
-            sums, count = add_reduceat_order(dr, rows, act[a], at[a], n)
-            means = [c / weights[a] for c in sums]
-            m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
-            g = m["geo_normal"]
-            g_len = _norm(dr, g)
-            g_safe = dr.maximum(g_len, 1e-30)
-            m["geo_normal"] = [
-                dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)
-            ]
-            e = m["to_eye"]
-            e_len = dr.maximum(_norm(dr, e), 1e-30)
-            m["to_eye"] = [c / e_len for c in e]
-            store.append([c for key in CHANNELS for c in m[key]] + [offset_max[a], weights[a]])
-            exists.append(count > 0)
+        table_f, offset_f = _fragment_table(mi, dr, scene, rep_bits, start, ox, oy, n)
+        frag_base = dr.prefix_sum(surfaces)  # fragment ids in lane order, as compress gives
+        store, exists = _aggregates(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k)
         n_agg = sum(dr.select(e, 1, 0) for e in exists)
-        dr.eval(store, exists, n_agg, surfaces, covered)
-
-        # shading, once per aggregate (exact shadow ray from its average position); then
-        # the resolve: float64 from 0, aggregates in slot order, as np.bincount
-        acc = mi.Vector3d(0.0)
-        for a in range(k):
-            idx = dr.compress(exists[a])
-            if not dr.width(idx):
-                continue
-            c = [dr.gather(mi.Float, s, idx) for s in store[a]]
-            rgb, cand = _trace.shade_dr(
-                scene,
-                dr.full(mi.Bool, True, dr.width(idx)),
-                mi.Point3f(*c[6:9]),
-                mi.Vector3f(*c[3:6]),
-                mi.Vector3f(*c[12:15]),
-                mi.Color3f(*c[0:3]),
-                mi.Vector3f(*c[9:12]),
-                offset=c[15],
-                filtered_normal=True,
-            )
-            count = dr.count(cand)
-            dr.eval(rgb, count)
-            rays += int(count[0])
-            rgb_pix = dr.zeros(mi.Color3f, p1 - p0)
-            dr.scatter(rgb_pix, rgb, idx)
-            share = mi.Float64(store[a][-1]) / n
-            acc = dr.select(exists[a], acc + mi.Vector3d(rgb_pix) * share, acc)
-        # 0 + x is +0 for x = -0 in bincount's accumulator
-        acc = dr.select(acc == 0.0, 0.0, acc)
-        rgb32 = mi.Color3f(acc)
-        dr.eval(rgb32)
+        dr.eval(store, exists, n_agg)
+        rgb32, shadow = _shade_resolve(mi, dr, scene, store, exists, p1 - p0, n)
+        rays += shadow
         sl = slice(p0, p1)
         color[sl] = _trace._np(rgb32).T
         counts["aggregates"][sl] = _trace._np(n_agg)
         counts["surfaces"][sl] = _trace._np(surfaces)
         counts["covered"][sl] = _trace._np(covered)
     return {"color": color, **counts, "shadow_rays": rays}
+
+
+def _fragment_table(mi, dr, scene, rep_bits, start, ox, oy, n):
+    """Attributes of the launch's fragments (its representative samples in lane order),
+    zero where the ray misses; ``(table, offset)``, the table in :data:`CHANNELS` order."""
+    w = scene.camera.width
+    idx = dr.arange(mi.UInt32, dr.width(rep_bits) * n)
+    pix = idx // n
+    slot = idx - pix * n
+    lanes = dr.compress(((dr.gather(mi.UInt32, rep_bits, pix) >> slot) & 1) != 0)
+    if dr.width(lanes) == 0:  # no surface in the launch: one dummy row, never gathered
+        lanes = dr.zeros(mi.UInt32, 1)
+    f_pix = lanes // n + start
+    slot = lanes - (lanes // n) * n
+    px, py = mi.Float(f_pix % w), mi.Float(f_pix // w)
+    sx = px + dr.gather(mi.Float, ox, slot)
+    sy = py + dr.gather(mi.Float, oy, slot)
+    attrs = _trace.attributes_dr(scene, scene.mi_scene, sx, sy, px + 0.5, py + 0.5)
+    hit = attrs["valid"]
+    table_f = []
+    for key in CHANNELS:
+        table_f += [dr.select(hit, c, 0.0) for c in attrs[key]]
+    offset_f = dr.select(hit, attrs["offset"], 0.0)
+    dr.eval(table_f, offset_f)
+    return table_f, offset_f
+
+
+def _aggregates(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k):
+    """Per pixel lane and aggregate index: the averaged attributes (:data:`CHANNELS`), the
+    shadow-ray offset and the samples held (``store[a]``, a list of Float), and whether the
+    aggregate exists. Each (fragment, aggregate) pair adds its fragment's attributes times
+    the samples it owns, as :func:`._pixel_dr.fragments_of` pairs them."""
+    n = len(first)
+    rows, act = [], {a: [] for a in range(k)}
+    at = {a: [] for a in range(k)}
+    seen = {a: mi.UInt32(0) for a in range(k)}
+    offset_max = {a: mi.Float(0.0) for a in range(k)}
+    weights = {a: mi.Float(0.0) for a in range(k)}  # samples each aggregate holds
+    for j in range(n):
+        valid_j = first[j] < n
+        same = [(first[i] == first[j]) & (agg[i] == agg[j]) for i in range(n)]
+        pair_rep = valid_j
+        for i in range(j):
+            pair_rep &= ~same[i]
+        pair_count = sum(dr.select(same[i] & (first[i] < n), mi.UInt32(1), 0) for i in range(n))
+        below = (mi.UInt32(1) << first[j]) - 1
+        f = frag_base + dr.popcnt(rep_bits & below)
+        wt = mi.Float(pair_count)
+        row = [dr.gather(mi.Float, c, f, pair_rep) * wt for c in table_f]
+        off = dr.gather(mi.Float, offset_f, f, pair_rep)
+        rows.append(row)
+        for a in range(k):
+            on = pair_rep & (agg[j] == a)
+            act[a].append(on)
+            at[a].append(seen[a])
+            offset_max[a] = dr.select(
+                on, dr.select(seen[a] == 0, off, dr.maximum(offset_max[a], off)), offset_max[a]
+            )
+            seen[a] = seen[a] + dr.select(on, 1, 0)
+            weights[a] = weights[a] + dr.select(on, wt, 0.0)
+    store, exists = [], []
+    for a in range(k):
+        sums, count = add_reduceat_order(dr, rows, act[a], at[a], n)
+        means = [c / weights[a] for c in sums]
+        m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
+        g = m["geo_normal"]
+        g_len = _norm(dr, g)
+        g_safe = dr.maximum(g_len, 1e-30)
+        m["geo_normal"] = [dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)]
+        e = m["to_eye"]
+        e_len = dr.maximum(_norm(dr, e), 1e-30)
+        m["to_eye"] = [c / e_len for c in e]
+        store.append([c for key in CHANNELS for c in m[key]] + [offset_max[a], weights[a]])
+        exists.append(count > 0)
+    return store, exists
+
+
+def _shade_resolve(mi, dr, scene, store, exists, n_lanes, n):
+    """Shading, once per aggregate (exact shadow ray from its average position), then the
+    resolve: float64 from 0, aggregates in slot order, as ``np.bincount``. Returns the
+    pixels' Color3f (evaluated) and the shadow rays cast."""
+    acc = mi.Vector3d(0.0)
+    rays = 0
+    for a in range(len(store)):
+        idx = dr.compress(exists[a])
+        if not dr.width(idx):
+            continue
+        c = [dr.gather(mi.Float, s, idx) for s in store[a]]
+        rgb, cand = _trace.shade_dr(
+            scene,
+            dr.full(mi.Bool, True, dr.width(idx)),
+            mi.Point3f(*c[6:9]),
+            mi.Vector3f(*c[3:6]),
+            mi.Vector3f(*c[12:15]),
+            mi.Color3f(*c[0:3]),
+            mi.Vector3f(*c[9:12]),
+            offset=c[15],
+            filtered_normal=True,
+        )
+        count = dr.count(cand)
+        dr.eval(rgb, count)
+        rays += int(count[0])
+        rgb_pix = dr.zeros(mi.Color3f, n_lanes)
+        dr.scatter(rgb_pix, rgb, idx)
+        share = mi.Float64(store[a][-1]) / n
+        acc = dr.select(exists[a], acc + mi.Vector3d(rgb_pix) * share, acc)
+    # 0 + x is +0 for x = -0 in bincount's accumulator
+    acc = dr.select(acc == 0.0, 0.0, acc)
+    rgb32 = mi.Color3f(acc)
+    dr.eval(rgb32)
+    return rgb32, rays
