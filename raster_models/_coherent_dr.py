@@ -134,8 +134,8 @@ def compress_orders(
     keep = decode is not None
     if keep:
         mine = which == dr.opaque(u32, int(decode))
-        prefix = dr.zeros(mi.Float, n * t_count)
-        starts = dr.zeros(mi.Float, n * t_count)
+        prefix = dr.empty(mi.Float, n * t_count)
+        starts = dr.empty(mi.Float, n * t_count)
         dr.scatter(prefix, cur_lo, grp, active=mine)
         dr.scatter(starts, vec_f([mi.Float(1.0)] * pk), grp, active=mine)
     runs = dr.zeros(mi.UInt32, width) + pk  # every texel starts a run
@@ -175,7 +175,7 @@ def compress_orders(
     # Backward: every member of a run reads the run's final (largest) lo.
     order_d = u32(np.asarray(orders[decode], dtype=np.uint32))
     grp2 = dr.arange(u32, g_count)
-    decoded = dr.zeros(mi.Float, n * t_count)
+    decoded = dr.empty(mi.Float, n * t_count)
     last = u32(n - 1)
     value = load(prefix, last, grp2, g_count)
     dr.scatter(decoded, value, dr.gather(u32, order_d, last) * g_u + grp2)

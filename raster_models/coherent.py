@@ -84,9 +84,12 @@ RUN_BYTES = 6
 
 ORDERINGS = ("hilbert", "row_major", "column_major", "random")
 
-#: Texels per Dr.Jit launch of :func:`_surfaces` (two full surface interactions per texel:
-#: about 0.15 GB a launch).
-SURFACE_CHUNK = 1 << 20
+#: Texels per Dr.Jit launch of the map kernel (:func:`_surface_chunks`). The kernel keeps
+#: no per-texel arrays of its own (the surface interactions stay in registers) and writes
+#: two float32 bounds per texel: peak memory does not grow with the chunk (measured at the
+#: defaults), while every launch costs a synchronisation (a quarter of the render time at
+#: 1 << 20). The NumPy records of :func:`_surfaces` hold 32 bytes a texel: 128 MiB a chunk.
+SURFACE_CHUNK = 1 << 22
 
 #: Safety factor on the depth spreads of :func:`visibility_intervals`: curved surfaces bend
 #: away from their tangent plane within a texel (1.01 left one mismatching receiver on
@@ -260,7 +263,8 @@ def _surface_chunks(scene, projs, ids, *, second: bool):
 
     for start in range(0, total, SURFACE_CHUNK):
         stop = min(total, start + SURFACE_CHUNK)
-        idx = dr.arange(mi.UInt32, start, stop)
+        # The chunk offset is a kernel parameter: one compiled kernel serves every chunk.
+        idx = dr.arange(mi.UInt32, stop - start) + dr.opaque(mi.UInt32, start)
         mid = idx // rr_u
         tex = idx - mid * rr_u
         s = (f64(tex % r_u) + 0.5) * inv_r
@@ -335,8 +339,8 @@ def _render_intervals(scene, projs, ids, bias: float, *, footprint: bool = True)
     import drjit as dr
 
     total = len(ids) * projs.resolution**2
-    lo = dr.zeros(mi.Float, total)
-    hi = dr.zeros(mi.Float, total)
+    lo = dr.empty(mi.Float, total)
+    hi = dr.empty(mi.Float, total)
     for start, stop, rec in _surface_chunks(scene, projs, ids, second=True):
         spreads = {"dz1": rec["dz1"], "dz2": rec["dz2"]} if footprint else {}
         c_lo, c_hi = _coherent_dr.intervals(rec["z1"], rec["z2"], bias, SPREAD_GUARD, **spreads)
