@@ -19,8 +19,9 @@ import numpy as np
 from scenes import backend
 from scenes.raycast import _shape_table, camera_rays_dr
 
+from . import _trace
 from ._acaa_ties import group_filters, near_dr, radius_dr
-from ._trace import CHUNK, _np, _view_depth, attributes_dr, shade_dr
+from ._trace import _np, _view_depth, attributes_dr, shade_dr
 
 __all__ = ["prepass", "shade_exact"]
 
@@ -183,7 +184,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     near = {k: [] for k in keys}
     cands = [[[] for _ in range(7)] for _ in groups]
     traced = 0
-    per_launch = max(1, CHUNK // n)
+    per_launch = max(1, _trace.CHUNK // n)
     for p0 in range(0, n_pix, per_launch):  # one launch of CHUNK rays at most
         m = min(n_pix, p0 + per_launch) - p0
         base = dr.opaque(mi.UInt32, p0)
@@ -262,8 +263,8 @@ def shade_exact(scene, groups: list, group_scenes: list, f_shape, sx, sy, cx, cy
     rays = 0
     for gi, sub in enumerate(group_scenes):  # a fragment's ray finds its surface in its group
         sel = np.flatnonzero(group_of == gi).astype(np.uint32)
-        for start in range(0, len(sel), CHUNK):
-            part = mi.UInt32(sel[start : start + CHUNK])
+        for start in range(0, len(sel), _trace.CHUNK):
+            part = mi.UInt32(sel[start : start + _trace.CHUNK])
             a = attributes_dr(scene, sub, *(dr.gather(mi.Float, v, part) for v in pos))
             color, tested = shade_dr(
                 scene,

@@ -1,0 +1,190 @@
+"""ACAA's fast paths give the bytes of the direct ones: the proximity test that picks the
+samples of the tie search (:mod:`raster_models.aa._acaa_ties`), the per-pixel fragment
+grouping and the fused prepass/shading on the Dr.Jit side
+(:mod:`raster_models.aa._acaa_trace`), and the blend on pixel-sorted runs."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import raster_models as rm
+import scenes
+from raster_models.aa import _acaa_ties, _acaa_trace, _samples, _trace, acaa
+from raster_models.aa._fragments import group_fragments
+
+SMALL = {"width": 64, "height": 36}
+#: Relative agreement of the float32 tie radius with its float64 twin (float32 rounding of
+#: a handful of operations; the radius carries a factor 2 of margin over the bound).
+RADIUS_RTOL = 1e-5
+
+
+def _no_filter(scene, groups, fmt):
+    """Every sample a tie candidate of every group (the unfiltered tie search)."""
+    box = np.zeros((0, 3), np.float32)
+    return [_acaa_ties.GroupFilter(True, box, box) for _ in groups]
+
+
+@pytest.mark.parametrize(
+    ("name", "params"),
+    [
+        ("decal", {"samples": 8}),
+        ("decal", {"samples": 4, "depth_format": "D32F", "centroid": True}),
+        ("city", {"samples": 8}),
+        ("thin", {"samples": 16, "accumulation": "rgba8"}),
+    ],
+)
+def test_proximity_filtered_tie_search_equals_unfiltered(monkeypatch, name, params):
+    """Tracing only the samples near a group's boxes finds every tie the unfiltered search
+    finds: same outputs byte for byte, fewer rays (city: a handful instead of every
+    sample)."""
+    scene = scenes.load(name, **SMALL)
+    fast = rm.run("acaa", scene, **params)
+    monkeypatch.setattr(_acaa_trace, "group_filters", _no_filter)
+    full = rm.run("acaa", scenes.load(name, **SMALL), **params)
+    for key, value in full.outputs.items():
+        assert value.tobytes() == fast.outputs[key].tobytes(), key
+    assert fast.cost == full.cost
+    assert fast.diagnostics["tie_samples"] == full.diagnostics["tie_samples"]
+    assert fast.diagnostics["per_shape_rays"] < full.diagnostics["per_shape_rays"]
+    if name == "decal":
+        assert fast.diagnostics["tie_samples"] > 0
+    if name == "city":
+        assert fast.diagnostics["per_shape_rays"] < 0.01 * full.diagnostics["per_shape_rays"]
+
+
+def test_chunked_acaa_equals_one_launch(monkeypatch):
+    """Launches ending mid-row (ties and fragments on both sides of a cut) give the bytes of
+    one launch."""
+    scene = scenes.load("decal", **SMALL)
+    whole = rm.run("acaa", scene, samples=8, centroid=True)
+    monkeypatch.setattr(_trace, "CHUNK", 8 * 97)
+    parts = rm.run("acaa", scenes.load("decal", **SMALL), samples=8, centroid=True)
+    for key, value in whole.outputs.items():
+        assert value.tobytes() == parts.outputs[key].tobytes(), key
+    assert whole.diagnostics["tie_samples"] > 0
+
+
+def test_radius_is_twice_the_tie_distance_plus_slack():
+    """Perspective: ``radius(z) = 2 tie_distance(z) + POSITION_ERROR (z + p_max)`` (the
+    closed form ``c z^2 / (1 - c z)`` of the tie distance's inverse depth); unbounded once
+    ``c z`` reaches :data:`UNBOUNDED_CZ`; the float32 Dr.Jit twin agrees."""
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scenes.load("city", **SMALL).camera
+    z = np.array([0.05, 1.0, 10.0, 100.0, 1000.0, 1999.0])
+    for fmt in ("D24", "D32F"):
+        got = _acaa_ties.radius_np(cam, fmt, z, 50.0)
+        expect = 2.0 * acaa.tie_distance(cam, z, fmt) + _acaa_ties.POSITION_ERROR * (z + 50.0)
+        assert np.allclose(got, expect, rtol=1e-9, atol=0)
+        p = mi.Point3f(mi.Float(np.full(len(z), 50.0)), 0.0, 0.0)
+        r32 = _acaa_ties.radius_dr(mi, dr, cam, fmt, mi.Float(z), p).numpy()
+        assert np.allclose(r32, got, rtol=RADIUS_RTOL, atol=0)
+    far_near = dataclasses.replace(cam, near=1e-4, far=1e5)
+    c = _acaa_ties._constants(far_near, "D24")[0]
+    zs = np.array([0.4, 0.6]) / c
+    assert np.isfinite(_acaa_ties.radius_np(far_near, "D24", zs[0], 0.0))
+    assert np.isinf(_acaa_ties.radius_np(far_near, "D24", zs[1], 0.0))
+
+
+def test_grid_lookup_equals_testing_every_member():
+    """City's 196 buildings (one group): the grid lists, for any sample point, every member
+    whose box can lie within the point's tie radius, so its answer equals the test against
+    every box, point for point (points inside, around and just off the boxes' faces, within
+    a few radii)."""
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    scene = scenes.load("city", **SMALL)
+    cam = scene.camera
+    groups = acaa.tie_groups(scene, "D24")
+    big = max(groups, key=len)
+    grid = _acaa_ties.group_filters(scene, [big], "D24")[0]
+    assert grid.starts is not None and grid.longest >= 1
+    direct = dataclasses.replace(grid, starts=None, members=None)
+    rng = np.random.default_rng(7)
+    k = rng.integers(0, len(big), 200_000)
+    lo, hi = grid.lo[k].astype(np.float64), grid.hi[k].astype(np.float64)
+    pts = lo + rng.random((len(k), 3)) * (hi - lo)
+    # move half the points onto a face, then off it by up to three radii either way
+    z = (pts - cam.position) @ cam.forward
+    r_est = _acaa_ties.radius_np(cam, "D24", z, np.abs(pts).max(axis=1))
+    face = rng.random(len(k)) < 0.5
+    axis = rng.integers(0, 3, len(k))
+    side = np.where(rng.random((len(k), 1)) < 0.5, lo, hi)[np.arange(len(k)), axis]
+    off = (rng.random(len(k)) * 6.0 - 3.0) * r_est
+    pts[face, axis[face]] = side[face] + off[face]
+    pf = mi.Point3f(*(mi.Float(np.ascontiguousarray(pts[:, a], np.float32)) for a in range(3)))
+    zf = mi.Float(((pts - cam.position) @ cam.forward).astype(np.float32))
+    radius = _acaa_ties.radius_dr(mi, dr, cam, "D24", zf, pf)
+    got = _acaa_ties.near_dr(mi, dr, grid, pf, radius).numpy()
+    ref = _acaa_ties.near_dr(mi, dr, direct, pf, radius).numpy()
+    assert np.array_equal(got, ref)
+    assert 0.05 < (~ref[face]).mean() < 0.95  # the face points fall on both sides
+
+
+@pytest.mark.parametrize(("name", "n"), [("thin", 4), ("foliage", 16), ("decal", 8)])
+def test_per_pixel_grouping_matches_numpy(name, n):
+    """Representatives, sample counts and centroid sums from one lane a pixel equal the
+    NumPy grouping (:func:`._fragments.group_fragments`) and ``np.bincount``'s sums."""
+    from scenes import backend
+    from scenes.raycast import _shape_table
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    scene = scenes.load(name, **SMALL)
+    offs = _samples.positions(n)
+    b = _trace.trace_samples(scene, offs, keep=("valid", "shape", "prim", "depth"))
+    ref = group_fragments(b["valid"], b["shape"], b["prim"])
+    ox, oy = (mi.Float(offs[:, a].astype(np.float32)) for a in range(2))
+    count = scene.width * scene.height
+    table = _shape_table(mi, dr, scene)
+    base = dr.opaque(mi.UInt32, 0)
+    valid, _, prim, shape, _ = _acaa_trace._launch(scene, table, ox, oy, base, count, n, [], "D24")
+    counts = _acaa_trace._fragments_of_pixels(valid, shape, prim, count, n)
+    rep = dr.compress(counts > 0)
+    r = rep.numpy().astype(np.int64)
+    assert np.array_equal(r // n, ref.pixel) and np.array_equal(r % n, ref.sample)
+    assert np.array_equal(dr.gather(mi.UInt32, counts, rep).numpy(), ref.count)
+    sums = _acaa_trace._position_sums(valid, shape, prim, rep, n, offs.astype(np.float64))
+    of = ref.of_sample.ravel()
+    ok = of >= 0
+    slot = np.flatnonzero(ok) % n
+    for a in range(2):
+        expect = np.bincount(of[ok], weights=offs[slot, a], minlength=len(r))
+        assert np.array_equal(sums[a].numpy(), expect)
+    assert (ref.count < n).sum() > 10
+
+
+@pytest.mark.parametrize("rgba8", [False, True])
+def test_blend_equals_one_addition_at_a_time(rgba8):
+    """The run-wise blend adds each pixel's values in their given order, as a loop of single
+    additions does (float32, or float64 rounded to 8 bits after each), for any order of
+    pixels in the input, onto a zero target or a given one."""
+    rng = np.random.default_rng(3)
+    n_pix = 50
+    pixel = rng.integers(0, n_pix, 400)
+    values = (rng.random((400, 3)) * 0.6).astype(np.float32)
+    dtype = np.float64 if rgba8 else np.float32
+    vals = values.astype(dtype)
+    for start in (np.zeros((n_pix, 3)), rng.random((n_pix, 3)) * 0.2):
+        ref = start.astype(dtype)
+        order = np.argsort(pixel, kind="stable")
+        for i in order:  # the definition, one blend at a time
+            s = ref[pixel[i]] + vals[i]
+            if rgba8:
+                s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
+            ref[pixel[i]] = s
+        got = acaa._blend(values, pixel, start, rgba8=rgba8)
+        assert got.dtype == dtype and got.tobytes() == ref.tobytes()
+        if not start.any():
+            zero = acaa._blend(values, pixel, n_pix, rgba8=rgba8)
+            assert zero.tobytes() == ref.tobytes()
