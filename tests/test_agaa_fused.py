@@ -71,7 +71,7 @@ def test_fused_frame_launch_by_launch(monkeypatch):
     """Launches of two pixel rows, some of them all sky (the star's top rows: no fragment
     in the launch) give the bytes of the NumPy path in one launch."""
     scene = scenes.load("star", **SMALL)
-    monkeypatch.setattr(_trace, "CHUNK", 8 * 2 * SMALL["width"])
+    monkeypatch.setattr(_trace, "CHUNK", 8 * 2 * SMALL["width"] // _agaa_dr.LAUNCH_CHUNKS)
     fused = _agaa_dr.render(
         scene, _samples.positions(8), k=2, threshold=0.1, depth_weight=1.0, fmt="rgb10a2"
     )

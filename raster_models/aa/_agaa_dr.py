@@ -1,7 +1,7 @@
 """AGAA's frame on the Dr.Jit side: prepass, aggregates, material accumulation and shading
 chained per launch, with only per-pixel results copied back to NumPy.
 
-Per launch of at most :data:`._trace.CHUNK` samples (whole pixels):
+Per launch of at most :data:`LAUNCH_CHUNKS` x :data:`._trace.CHUNK` samples (whole pixels):
 
 1. the samples' nearest surfaces (:func:`._trace.prepass_dr`), then, one lane a pixel, its
    fragment representatives and aggregates (:func:`._agaa_pixels.pixel_prepass`);
@@ -29,11 +29,16 @@ from scenes.raycast import _shape_table
 
 from . import _agaa_pixels, _trace
 
-__all__ = ["CHANNELS", "add_reduceat_order", "render"]
+__all__ = ["CHANNELS", "LAUNCH_CHUNKS", "add_reduceat_order", "render"]
 
 #: Attribute channels summed per aggregate, in the NumPy path's table order (the averages
 #: are stored per aggregate in this order, then its shadow-ray offset and its sample count).
 CHANNELS = ("albedo", "normal", "position", "to_eye", "geo_normal")
+#: Prepass samples a launch, in :data:`._trace.CHUNK` s (``1 << 23``): every launch
+#: generates its kernels' code again (the intersection and BSDF calls of every shape), so
+#: fewer, larger launches save time; peak memory at 1920x1080 x 8 samples is about 1 GiB,
+#: under the oracle's own bound (``oracle.reference.SAMPLES_PER_CHUNK``: about 1.5 GiB).
+LAUNCH_CHUNKS = 4
 #: ``pairwise_sum`` of NumPy's float add: sums of fewer terms than this run left to right.
 _PW_UNROLL = 8
 
@@ -111,7 +116,7 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
     rays = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
     table = _shape_table(mi, dr, scene)
-    per_launch = max(1, _trace.CHUNK // n)
+    per_launch = max(1, LAUNCH_CHUNKS * _trace.CHUNK // n)
     for p0 in range(0, n_pix, per_launch):
         p1 = min(n_pix, p0 + per_launch)
         start = dr.opaque(mi.UInt32, p0)  # one kernel for every launch, not one per p0
