@@ -20,7 +20,14 @@ import numpy as np
 
 from scenes import backend
 
-__all__ = ["below_f32", "compress_orders", "intervals", "take_rows"]
+__all__ = [
+    "below_f32",
+    "compress_orders",
+    "intervals",
+    "launch_compression",
+    "launch_rows",
+    "take_rows",
+]
 
 #: Bit pattern of the float32 just below +0 (``np.nextafter(0, -inf)``: -1 subnormal step).
 _NEG_TINY_BITS = 0x80000001
@@ -105,6 +112,15 @@ def compress_orders(
     inside the kernel) for a packet of contiguous texels; the decoded maps take a second,
     backward walk.
     """
+    return launch_compression(lo, hi, n_maps, orders, decode=decode, rows=rows)()
+
+
+def launch_compression(
+    lo, hi, n_maps: int, orders: list[np.ndarray], *, decode: int | None = 0, rows=None
+):
+    """Schedule the kernels of :func:`compress_orders` (Dr.Jit runs them asynchronously) and
+    return the function that waits for them and returns its result: NumPy work can run in
+    between."""
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -168,10 +184,13 @@ def compress_orders(
         dr.eval(runs, prefix, starts)
     else:
         dr.eval(runs)
-    per_lane = runs.numpy().astype(np.int64).reshape(k, g_count)
-    counts = [int(c) for c in per_lane.sum(axis=1)]
+
+    def counts() -> list[int]:
+        per_lane = runs.numpy().astype(np.int64).reshape(k, g_count)
+        return [int(c) for c in per_lane.sum(axis=1)]
+
     if not keep:
-        return counts, None
+        return lambda: (counts(), None)
     # Backward: every member of a run reads the run's final (largest) lo.
     order_d = u32(np.asarray(orders[decode], dtype=np.uint32))
     grp2 = dr.arange(u32, g_count)
@@ -192,19 +211,26 @@ def compress_orders(
 
     dr.while_loop((last, value), cond_b, body_b, labels=("pos", "value"))
     dr.eval(decoded)
-    return counts, take_rows(decoded, rows, n)
+    decoded_rows = launch_rows(decoded, rows, n)
+    return lambda: (counts(), decoded_rows())
 
 
 def take_rows(flat, rows, n_rows: int) -> np.ndarray:
     """Rows ``rows`` (default: all) of a map-major Dr.Jit array of ``n_rows`` rows, as a
     ``(len(rows), T)`` NumPy array (only those rows are copied)."""
+    return launch_rows(flat, rows, n_rows)()
+
+
+def launch_rows(flat, rows, n_rows: int):
+    """:func:`take_rows`, scheduled: returns the function that waits and returns it."""
     mi = backend.mitsuba()
     import drjit as dr
 
     t_count = dr.width(flat) // n_rows
     if rows is None:
-        return flat.numpy().reshape(n_rows, t_count)
+        return lambda: flat.numpy().reshape(n_rows, t_count)
     rows = np.asarray(rows, dtype=np.int64)
     idx = (rows[:, None] * t_count + np.arange(t_count)[None, :]).ravel()
     out = dr.gather(type(flat), flat, mi.UInt32(idx.astype(np.uint32)))
-    return out.numpy().reshape(len(rows), t_count)
+    dr.eval(out)
+    return lambda: out.numpy().reshape(len(rows), t_count)

@@ -453,13 +453,15 @@ def _lookup(scene, pos: np.ndarray, id_tex: np.ndarray):
     return w, id_tex[cj, ci]
 
 
-def _shade(scene, gbuf, p, projs, maps: dict, rec: np.ndarray, pos, sel, used):
-    """Visibility and coverage of the receivers ``rec`` (at ``pos``, looking up maps
-    ``sel``; ``used`` the sorted distinct ``sel``)."""
+def _project(scene, gbuf, p, projs, rec: np.ndarray, pos, sel, used):
+    """Where the receivers ``rec`` (at ``pos``, looking up maps ``sel``; ``used`` the sorted
+    distinct ``sel``) fall in their maps: per map ``(m, mask, texel, ref, zl, inside)``
+    (receivers, texel index, compare reference ``z - bias``, the light's own depth,
+    inside the map's square), and which receivers lie outside their map."""
     n_dot_l = np.clip(gbuf.cos_l[rec], 0.0, 1.0)
-    vis = {k: np.ones(len(rec)) for k in maps}
     outside = np.zeros(len(rec), dtype=bool)
     r = projs.resolution
+    records = []
     for m in used:
         # One map for every receiver (a directional light): no masking copies.
         mask = slice(None) if len(used) == 1 else sel == m
@@ -478,11 +480,21 @@ def _shade(scene, gbuf, p, projs, maps: dict, rec: np.ndarray, pos, sel, used):
         zl = -np.inf
         if scene.light.kind != "directional":
             zl = float(proj.project(np.asarray(scene.light.position, dtype=np.float64)[None])[2][0])
+        records.append((int(m), mask, texel, ref, zl, inside))
+    return records, outside
+
+
+def _shade(records: list, maps: dict, n_rec: int) -> dict:
+    """Visibility of the receivers of :func:`_project` per set of maps: the depth test
+    ``z - bias <= stored`` (a stored depth nearer than a point light's own does not
+    shadow; outside the map: lit)."""
+    vis = {k: np.ones(n_rec) for k in maps}
+    for m, mask, texel, ref, zl, inside in records:
         for key, depth in maps.items():
-            stored = depth[int(m)][texel].astype(np.float64)
+            stored = depth[m][texel].astype(np.float64)
             shadow = (ref > stored) & (stored > zl) & inside
             vis[key][mask] = np.where(shadow, 0.0, 1.0)
-    return vis, outside
+    return vis
 
 
 def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
@@ -506,6 +518,11 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             f"{n * r * r} texels is above {MAX_COMPRESSED_TEXELS}; lower them or set "
             "compression=false"
         )
+    if p.compression:
+        # The map kernels run asynchronously while NumPy looks the receivers up below.
+        lo, hi = _render_intervals(
+            scene, projs, np.arange(n), p.bias, footprint=p.lossless == "footprint"
+        )
     rec = np.nonzero(gbuf.receiver)[0]
     pos = gbuf.position[rec]
     # Which maps the receivers look up (sorted distinct ids).
@@ -513,9 +530,6 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     used = np.nonzero(np.bincount(sel, minlength=n))[0]
     cost: dict = {}
     if p.compression:
-        lo, hi = _render_intervals(
-            scene, projs, np.arange(n), p.bias, footprint=p.lossless == "footprint"
-        )
         rng = np.random.default_rng(p.seed)
         orders = {
             "hilbert": np.arange(n),
@@ -527,24 +541,11 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             "column_major": id_tex.T.ravel(),
             "random": rng.permutation(n),
         }
-        counts, decoded = _coherent_dr.compress_orders(
+        compressed = _coherent_dr.launch_compression(
             lo, hi, n, list(orders.values()), decode=list(orders).index("hilbert"), rows=used
         )
-        comp = {
-            name: {
-                "stored_values": runs,
-                "ratio": float(n * r * r) / runs,
-                "bytes": runs * RUN_BYTES,
-            }
-            for name, runs in zip(orders, counts, strict=True)
-        }
         # Only the maps the receivers look up leave the Dr.Jit side.
-        stored = _coherent_dr.take_rows(lo, used, n)
-        maps = {
-            "uncompressed": {int(m): stored[i] for i, m in enumerate(used)},
-            "decompressed": {int(m): decoded[i] for i, m in enumerate(used)},
-        }
-        cost["compression"] = comp
+        uncompressed = _coherent_dr.launch_rows(lo, used, n)
     else:
         z1 = _render(scene, projs, used)
         stored = _stored(z1)
@@ -556,12 +557,30 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     uncovered = np.zeros(gbuf.size)
     mismatches = 0
     if len(rec):
-        vis, outside = _shade(scene, gbuf, p, projs, maps, rec, pos, sel, used)
-        vis_all[rec] = vis["uncompressed"]
+        records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
         map_id[rec] = sel
         cosang = np.clip(np.sum(w * dirs[sel], axis=1), -1.0, 1.0)
         err[rec] = np.degrees(np.arccos(cosang))
         uncovered[rec] = outside
+    if p.compression:
+        counts, decoded = compressed()
+        stored = uncompressed()
+        maps = {
+            "uncompressed": {int(m): stored[i] for i, m in enumerate(used)},
+            "decompressed": {int(m): decoded[i] for i, m in enumerate(used)},
+        }
+        comp = {
+            name: {
+                "stored_values": runs,
+                "ratio": float(n * r * r) / runs,
+                "bytes": runs * RUN_BYTES,
+            }
+            for name, runs in zip(orders, counts, strict=True)
+        }
+        cost["compression"] = comp
+    if len(rec):
+        vis = _shade(records, maps, len(rec))
+        vis_all[rec] = vis["uncompressed"]
         if "decompressed" in vis:
             mismatches = int(np.sum(vis["decompressed"] != vis["uncompressed"]))
     vis_all[~gbuf.valid] = 1.0
