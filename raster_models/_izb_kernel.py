@@ -157,17 +157,29 @@ class PairTester:
             mi = backend.mitsuba()
             f64 = mi.Float64
             d = {"planes": f64(np.ascontiguousarray(self.planes, dtype=np.float64).ravel())}
-            # One row per receiver (p, [dpdx, dpdy,] floor): a pair's gathers touch one or
-            # two cache lines, not one per array.
             keys = ("p", "dpdx", "dpdy") if self.thirty_two else ("p",)
-            rows = np.empty((len(self.floor), 3 * len(keys) + 1))
-            for q, k in enumerate(keys):
-                rows[:, 3 * q : 3 * q + 3] = self.recv[k]
-            rows[:, -1] = self.floor
-            d["recv"] = f64(rows.ravel())
-            d["stride"] = rows.shape[1]
+            d["stride"] = 3 * len(keys) + 1
+            d["recv"] = self._rows(mi, [self.recv[k] for k in keys], d["stride"])
             self._dr = (mi, d)
         return self._dr
+
+    def _rows(self, mi, vectors, stride):
+        """One row per receiver (the ``(M, 3)`` vectors, then the floor), packed by a
+        Dr.Jit kernel: a pair's gathers touch one or two cache lines, not one per array."""
+        import drjit as dr
+
+        f64, u32 = mi.Float64, mi.UInt32
+        lane = dr.arange(u32, len(self.floor) * stride)
+        row = lane // stride
+        col = lane - row * stride
+        floor = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
+        v = dr.gather(f64, floor, row, col == stride - 1)
+        for q, vec in enumerate(vectors):  # p, [dpdx, dpdy]
+            src = f64(np.ascontiguousarray(vec, dtype=np.float64).ravel())
+            inside = (col >= 3 * q) & (col < 3 * q + 3)
+            v = dr.select(inside, dr.gather(f64, src, row * 3 + (col - 3 * q), inside), v)
+        dr.eval(v)
+        return v
 
     def _plane_terms(self, tri, r):
         """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs ``tri, r``."""
