@@ -185,6 +185,53 @@ def test_blend_equals_one_addition_at_a_time(rgba8):
             ref[pixel[i]] = s
         got = acaa._blend(values, pixel, start, rgba8=rgba8)
         assert got.dtype == dtype and got.tobytes() == ref.tobytes()
+        # pixels grouped (contiguous runs) but not sorted: no sort needed
+        grouped = np.argsort(pixel % 7 * 1000 + pixel, kind="stable")
+        got = acaa._blend(values[grouped], pixel[grouped], start, rgba8=rgba8, grouped=True)
+        assert got.tobytes() == ref.tobytes()
         if not start.any():
             zero = acaa._blend(values, pixel, n_pix, rgba8=rgba8)
             assert zero.tobytes() == ref.tobytes()
+
+
+def test_fragment_merge_equals_sorting_everything():
+    """Merging only the busy pixels and inserting them among the others gives the rows of
+    sorting every entry by (pixel, shape, primitive, sample) and merging equal keys."""
+    rng = np.random.default_rng(5)
+    n, n_pix = 8, 400
+    offs = _samples.positions(n)
+    # nearest fragments: pixel order, distinct (shape, prim) and first samples in a pixel
+    per = rng.integers(0, 4, n_pix)
+    pixel = np.repeat(np.arange(n_pix), per)
+    rank = np.arange(len(pixel)) - np.repeat(np.cumsum(per) - per, per)
+    near = {
+        "pixel": pixel,
+        "sample": rank * 2,
+        "shape": rng.integers(0, 3, len(pixel)),
+        "prim": rank * 10 + rng.integers(0, 5, len(pixel)),
+        "count": rng.integers(1, 3, len(pixel)),
+        "sum_x": rng.random(len(pixel)),
+        "sum_y": rng.random(len(pixel)),
+    }
+    # ties: some repeat a nearest fragment's key (merged), some are new
+    pick = rng.choice(len(pixel), 60, replace=False)
+    t_shape = np.where(rng.random(60) < 0.5, near["shape"][pick], 7)
+    ties = [(pixel[pick], (rank[pick] * 2 + 1) % n, t_shape, near["prim"][pick])]
+    got = acaa._fragments(near, ties, offs, n_pix, centroid=True)
+    # reference: every entry sorted, equal (pixel, shape, prim) merged
+    cat = {
+        k: np.concatenate([near[k], v])
+        for k, v in zip(("pixel", "sample", "shape", "prim"), ties[0], strict=True)
+    }
+    cat["count"] = np.concatenate([near["count"], np.ones(60, np.int64)])
+    for a, key in enumerate(("sum_x", "sum_y")):
+        cat[key] = np.concatenate([near[key], offs[ties[0][1], a]])
+    order = np.lexsort((cat["sample"], cat["prim"], cat["shape"], cat["pixel"]))
+    cat = {k: v[order] for k, v in cat.items()}
+    key = np.stack([cat["pixel"], cat["shape"], cat["prim"]])
+    first = np.flatnonzero(np.r_[True, (key[:, 1:] != key[:, :-1]).any(axis=0)])
+    for k in ("pixel", "sample", "shape"):
+        assert np.array_equal(got[k], cat[k][first]), k
+    for k in ("count", "sum_x", "sum_y"):
+        assert np.array_equal(got[k], np.add.reduceat(cat[k], first)), k
+    assert len(got["pixel"]) < len(cat["pixel"])  # some ties merged

@@ -191,19 +191,20 @@ def _dist2(dr, p, lo, hi):
     return d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 
 
-def near_dr(mi, dr, filt: GroupFilter, p, radius):
-    """Bool: the points ``p`` (Point3f) within ``radius`` (Float) of a member's box."""
+def near_dr(mi, dr, filt: GroupFilter, p, radius, active=True):
+    """Bool: the ``active`` points ``p`` (Point3f) within ``radius`` (Float) of a member's
+    box."""
     n = dr.width(p.x)
     if filt.everything:
-        return dr.full(mi.Bool, True, n)
+        return dr.full(mi.Bool, True, n) & active
     r2 = radius * radius
     if filt.starts is None:
         near = dr.full(mi.Bool, False, n)
         for m in range(len(filt.lo)):  # a few members (list-length rounds)
             near |= _dist2(dr, p, filt.lo[m].tolist(), filt.hi[m].tolist()) <= r2
-        return near
+        return near & active
     u = [(p[a] - float(filt.origin[a])) * (1.0 / filt.cell) for a in range(3)]
-    inside = dr.full(mi.Bool, True, n)
+    inside = dr.full(mi.Bool, True, n) & active
     for a in range(3):
         inside &= (u[a] >= 0.0) & (u[a] < float(filt.dims[a]))
     idx = [mi.UInt32(dr.select(inside, u[a], 0.0)) for a in range(3)]

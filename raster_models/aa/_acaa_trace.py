@@ -55,10 +55,10 @@ def _launch(scene, table, ox, oy, base, count: int, n: int, tests: list, fmt: st
     shape = _shape_of(mi, dr, table, pi)
     radius = radius_dr(mi, dr, cam, fmt, depth, p_hit)
     shape_1 = mi.UInt32(shape + 1)
-    masks = [
-        valid & ~dr.gather(mi.Bool, lut, shape_1) & near_dr(mi, dr, filt, p_hit, radius)
-        for lut, filt in tests
-    ]
+    masks = []
+    for lut, filt in tests:
+        outside = valid & ~dr.gather(mi.Bool, lut, shape_1)
+        masks.append(near_dr(mi, dr, filt, p_hit, radius, outside))
     dr.eval(valid, depth, pi.prim_index, shape, *masks)
     return valid, depth, pi.prim_index, shape, masks
 

@@ -110,9 +110,10 @@ def rgba8_accumulate(values: np.ndarray, slot: np.ndarray, target: np.ndarray) -
     return _blend(values, slot, target, rgba8=True)
 
 
-def _blend(values, pixel, target, *, rgba8: bool):
+def _blend(values, pixel, target, *, rgba8: bool, grouped: bool = False):
     """Blend of ``values`` into ``target`` (an array, or a pixel count: a zero target) in
-    the order of :func:`rgba8_accumulate` (float32, or RGBA8 rounding in float64)."""
+    the order of :func:`rgba8_accumulate` (float32, or RGBA8 rounding in float64);
+    ``grouped``: each pixel's values are already contiguous (in their order)."""
     values = np.asarray(values, np.float64 if rgba8 else np.float32)
     dtype = np.float64 if rgba8 else np.float32
     zero = isinstance(target, int)
@@ -120,10 +121,10 @@ def _blend(values, pixel, target, *, rgba8: bool):
     pixel = np.asarray(pixel, np.int64)
     if len(pixel) == 0:
         return out
-    if np.any(pixel[1:] < pixel[:-1]):
+    if not grouped and np.any(pixel[1:] < pixel[:-1]):
         order = np.argsort(pixel, kind="stable")
         values, pixel = values[order], pixel[order]
-    # pixel-sorted: blend j adds each pixel's j-th value (its rank within its run); the
+    # one run a pixel: blend j adds each pixel's j-th value (its rank within its run); the
     # running sums are kept per run and written to the target once
     start = np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])
     run = np.diff(np.r_[start, len(pixel)])
@@ -238,43 +239,50 @@ def _group_scene(scene, members: list[int]):
 
 
 def _fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
-    """Fragments passing LEQUAL: the nearest surface's (``near``, one row per fragment from
-    :func:`._acaa_trace.prepass`) merged with the tie samples ``(pixel, sample, shape,
-    prim)`` of other shapes.
+    """Fragments passing LEQUAL: the nearest surface's (``near``, one row per fragment in
+    pixel order, from :func:`._acaa_trace.prepass`) merged with the tie samples ``(pixel,
+    sample, shape, prim)`` of other shapes.
 
-    Fragments are in submission order within each pixel (shape, then primitive); each with
-    its first passing sample, its passing-sample count and, with ``centroid``, the sums of
-    their positions.
-    Only pixels holding ties or more than one fragment are sorted.
+    Fragments are in pixel order and, within a pixel, in submission order (shape, then
+    primitive); each with its first passing sample, its passing-sample count and, with
+    ``centroid``, the sums of their positions. Only the pixels holding ties or several
+    fragments are sorted and merged; their fragments are then inserted among the others.
+    (The order matters beyond the blend: a ray's hit can depend on the rays traced beside
+    it in a packet, so the fragments keep the order in which they have always been shaded.)
     """
     offs = np.asarray(offsets, np.float64)
     sums = ("sum_x", "sum_y") if centroid else ()
-    parts = {key: [near[key]] for key in ("pixel", "sample", "shape", "prim", "count", *sums)}
-    for pix, smp, shape, prim in ties:
-        cols = (pix, smp, shape, prim)
+    keys = ("pixel", "sample", "shape", "prim", "count", *sums)
+    pix = near["pixel"]
+    busy = np.zeros(n_pix, bool)  # pixels with more than one entry
+    busy[pix[1:][pix[1:] == pix[:-1]]] = True
+    for t in ties:
+        busy[t[0]] = True
+    if not busy.any():
+        return {key: near[key] for key in keys if key != "prim"}
+    moved = busy[pix]
+    keep = ~moved
+    parts = {key: [near[key][moved]] for key in keys}
+    for tpix, smp, shape, prim in ties:
+        cols = (tpix, smp, shape, prim)
         for key, val in zip(("pixel", "sample", "shape", "prim"), cols, strict=True):
             parts[key].append(np.asarray(val, np.int64))
-        parts["count"].append(np.ones(len(pix), np.int64))
+        parts["count"].append(np.ones(len(tpix), np.int64))
         for axis, key in enumerate(sums):
             parts[key].append(offs[smp, axis])
     e = {key: np.concatenate(val) for key, val in parts.items()}
-    pix = e["pixel"]
-    # pixels whose entries need ordering: more than one entry (several fragments or ties)
-    busy = np.bincount(pix, minlength=n_pix) > 1
-    need = busy[pix]
-    sub = np.flatnonzero(need)
-    sub = sub[np.lexsort((e["sample"][sub], e["prim"][sub], e["shape"][sub], pix[sub]))]
-    order = np.concatenate([np.flatnonzero(~need), sub])
-    order = order[np.argsort(pix[order], kind="stable")]
+    order = np.lexsort((e["sample"], e["prim"], e["shape"], e["pixel"]))
     e = {key: val[order] for key, val in e.items()}
-    pix, shape, prim = e["pixel"], e["shape"], e["prim"]
-    new = np.ones(len(pix), bool)
-    new[1:] = (pix[1:] != pix[:-1]) | (shape[1:] != shape[:-1]) | (prim[1:] != prim[:-1])
+    bpix, shape, prim = e["pixel"], e["shape"], e["prim"]
+    new = np.ones(len(bpix), bool)
+    new[1:] = (bpix[1:] != bpix[:-1]) | (shape[1:] != shape[:-1]) | (prim[1:] != prim[:-1])
     first = np.flatnonzero(new)
-    out = {key: e[key][first] for key in ("pixel", "sample", "shape")}
+    merged = {key: e[key][first] for key in ("pixel", "sample", "shape")}
     for key in ("count", *sums):
-        out[key] = np.add.reduceat(e[key], first) if len(first) else e[key][:0]
-    return out
+        merged[key] = np.add.reduceat(e[key], first)
+    # the pixels of the two parts are disjoint: insert the merged ones in pixel order
+    at = np.searchsorted(pix[keep], merged["pixel"])
+    return {key: np.insert(near[key][keep], at, merged[key]) for key in merged}
 
 
 def _ties(cam, candidates: list, window: float, fmt: str) -> list:
@@ -349,7 +357,8 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         else:
             rgb, rays = _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, p.shadows)
         weighted = rgb * (count / np.float32(n)).astype(np.float32)[:, None]
-        target = _blend(weighted, f_pix, n_pix, rgba8=p.accumulation == "rgba8")
+        rgba8 = p.accumulation == "rgba8"
+        target = _blend(weighted, f_pix, n_pix, rgba8=rgba8, grouped=True)
     events = np.bincount(f_pix, minlength=n_pix)
     # samples with at least one tie (a sample may tie with several groups)
     keys = [pix * n + smp for pix, smp, _, _ in ties_found]
