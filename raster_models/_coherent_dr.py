@@ -36,6 +36,11 @@ _NEG_TINY_BITS = 0x80000001
 #: of ``lo`` and ``hi`` per map instead of one gather per texel).
 PACKET = 16
 
+#: Most looked-up maps whose decoded values :func:`compress_orders` follows during its walk
+#: (each adds a value and a flag per texel to the loop state); more take the backward pass
+#: over every map's stored run prefix.
+MAX_CAPTURED = 8
+
 
 def below_f32(x):
     """Largest float32 strictly below each Float64 ``x`` (``inf`` stays ``inf``), as a
@@ -132,6 +137,7 @@ def launch_compression(
     k = len(orders)
     u32 = mi.UInt32
     vec_f = mi.ArrayXf
+    vec_b = mi.ArrayXb
     order_all = u32(np.concatenate([np.asarray(o, dtype=np.uint32) for o in orders]))
     lane = dr.arange(u32, k * g_count)
     g_u = dr.opaque(u32, g_count)
@@ -148,19 +154,35 @@ def launch_compression(
     cur_lo = load(lo, first, grp, width)
     cur_hi = load(hi, first, grp, width)
     keep = decode is not None
+    # Few maps looked up (a directional light: one): follow their runs during the walk
+    # instead of keeping every map's run prefix for a backward pass.
+    capture = keep and rows is not None and len(rows) <= MAX_CAPTURED
+    table = keep and not capture
     if keep:
         mine = which == dr.opaque(u32, int(decode))
+    if table:
         prefix = dr.empty(mi.Float, n * t_count)
         starts = dr.empty(mi.Float, n * t_count)
         dr.scatter(prefix, cur_lo, grp, active=mine)
         dr.scatter(starts, vec_f([mi.Float(1.0)] * pk), grp, active=mine)
+    caps, opens, at_pos = [], [], []
+    if capture:
+        # Position of each looked-up map in the decoded ordering.
+        where = np.empty(n, dtype=np.int64)
+        where[np.asarray(orders[decode], dtype=np.int64)] = np.arange(n)
+        for m in np.asarray(rows, dtype=np.int64):
+            at = dr.opaque(u32, int(where[m]))
+            at_pos.append(at)
+            here = dr.zeros(mi.Bool, width) | (at == 0)
+            caps.append(dr.select(here, cur_lo, 0.0))
+            opens.append(vec_b([here] * pk))
     runs = dr.zeros(mi.UInt32, width) + pk  # every texel starts a run
     pos = u32(1)
 
-    def cond(pos, cur_lo, cur_hi, runs):
+    def cond(pos, cur_lo, cur_hi, runs, caps, opens):
         return pos < n_u
 
-    def body(pos, cur_lo, cur_hi, runs):
+    def body(pos, cur_lo, cur_hi, runs, caps, opens):
         m = dr.gather(u32, order_all, base + pos)
         m_lo = load(lo, m, grp, width)
         m_hi = load(hi, m, grp, width)
@@ -171,17 +193,30 @@ def launch_compression(
         cur_hi = dr.select(brk, m_hi, new_hi)
         for j in range(pk):
             runs = runs + dr.select(brk[j], 1, 0)
-        if keep:
+        if table:
             slot = pos * g_u + grp
             dr.scatter(prefix, cur_lo, slot, active=mine)
             dr.scatter(starts, dr.select(brk, 1.0, 0.0), slot, active=mine)
-        return pos + 1, cur_lo, cur_hi, runs
+        # A followed map's value is its run's lo so far, until the run ends.
+        for i, at in enumerate(at_pos):
+            here = pos == at
+            opens[i] = here | (opens[i] & ~brk)
+            caps[i] = dr.select(opens[i], cur_lo, caps[i])
+        return pos + 1, cur_lo, cur_hi, runs, caps, opens
 
-    pos, cur_lo, cur_hi, runs = dr.while_loop(
-        (pos, cur_lo, cur_hi, runs), cond, body, labels=("pos", "lo", "hi", "runs")
+    pos, cur_lo, cur_hi, runs, caps, opens = dr.while_loop(
+        (pos, cur_lo, cur_hi, runs, caps, opens),
+        cond,
+        body,
+        labels=("pos", "lo", "hi", "runs", "caps", "opens"),
     )
-    if keep:
+    if table:
         dr.eval(runs, prefix, starts)
+    elif capture:
+        captured = dr.empty(mi.Float, len(caps) * t_count)
+        for i, cap in enumerate(caps):
+            dr.scatter(captured, cap, dr.opaque(u32, i) * g_u + grp, active=mine)
+        dr.eval(runs, captured)
     else:
         dr.eval(runs)
 
@@ -191,6 +226,8 @@ def launch_compression(
 
     if not keep:
         return lambda: (counts(), None)
+    if capture:
+        return lambda: (counts(), captured.numpy().reshape(len(caps), t_count))
     # Backward: every member of a run reads the run's final (largest) lo.
     order_d = u32(np.asarray(orders[decode], dtype=np.uint32))
     grp2 = dr.arange(u32, g_count)

@@ -106,3 +106,24 @@ def test_ray_table_handles_a_direction_along_the_up_axis():
     one = np.stack([_coherent_maps._one_map(projs, m) for m in range(3)])
     assert table.tobytes() == one.tobytes()
     assert np.allclose(table[:, 9:12], dirs)
+
+
+@pytest.mark.parametrize("n_rows", [1, 3, _coherent_dr.MAX_CAPTURED, _coherent_dr.MAX_CAPTURED + 1])
+def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
+    """Decoded maps of a few looked-up maps (followed during the walk) and of many (the
+    backward pass) are the rows of the NumPy decoding, for every ordering decoded."""
+    n, t = 64, 48
+    rng = np.random.default_rng(n_rows)
+    lo = rng.random((n, t), dtype=np.float32)
+    hi = lo + rng.choice([0.0, 0.01, 0.2, np.inf], size=(n, t)).astype(np.float32)
+    orders = [np.arange(n), rng.permutation(n), np.arange(n)[::-1]]
+    # The first and last positions of every ordering are among the rows.
+    rows = np.unique(np.concatenate([[0, n - 1], rng.choice(n, n_rows, replace=False)]))[:n_rows]
+    d_lo, d_hi = mi.Float(lo.ravel()), mi.Float(hi.ravel())
+    for decode, order in enumerate(orders):
+        ref_runs, ref_decoded = coherent.compress_runs(lo, hi, order)
+        runs, decoded = _coherent_dr.compress_orders(
+            d_lo, d_hi, n, orders, decode=decode, rows=rows
+        )
+        assert runs[decode] == ref_runs
+        assert np.array_equal(decoded, ref_decoded[rows])
