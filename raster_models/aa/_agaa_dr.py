@@ -142,9 +142,10 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
 
         table_f, offset_f = _fragment_table(mi, dr, scene, rep_bits, start, ox, oy, n)
         frag_base = dr.prefix_sum(surfaces)  # fragment ids in lane order, as compress gives
-        store, exists = _aggregates(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k)
+        store, exists = _aggregate_store(
+            mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k
+        )
         n_agg = sum(dr.select(e, 1, 0) for e in exists)
-        dr.eval(store, exists, n_agg)
         rgb32, shadow = _shade_resolve(mi, dr, scene, store, exists, p1 - p0, n)
         rays += shadow
         sl = slice(p0, p1)
@@ -216,17 +217,76 @@ def _aggregates(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k):
     store, exists = [], []
     for a in range(k):
         sums, count = add_reduceat_order(dr, rows, act[a], at[a], n)
-        means = [c / weights[a] for c in sums]
-        m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
-        g = m["geo_normal"]
-        g_len = _norm(dr, g)
-        g_safe = dr.maximum(g_len, 1e-30)
-        m["geo_normal"] = [dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)]
-        e = m["to_eye"]
-        e_len = dr.maximum(_norm(dr, e), 1e-30)
-        m["to_eye"] = [c / e_len for c in e]
-        store.append([c for key in CHANNELS for c in m[key]] + [offset_max[a], weights[a]])
+        store.append(_averages(dr, sums, weights[a], offset_max[a]))
         exists.append(count > 0)
+    return store, exists
+
+
+def _averages(dr, sums, weight, offset):
+    """An aggregate's stored record from its weighted sums: the averages in
+    :data:`CHANNELS` order (geometric normal and eye direction normalized, the shading
+    normal not), its shadow-ray offset and the samples it holds."""
+    means = [c / weight for c in sums]
+    m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
+    g = m["geo_normal"]
+    g_len = _norm(dr, g)
+    g_safe = dr.maximum(g_len, 1e-30)
+    m["geo_normal"] = [dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)]
+    e = m["to_eye"]
+    e_len = dr.maximum(_norm(dr, e), 1e-30)
+    m["to_eye"] = [c / e_len for c in e]
+    return [c for key in CHANNELS for c in m[key]] + [offset, weight]
+
+
+def _aggregate_store(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k):
+    """:func:`_aggregates` for every pixel of the launch, evaluated. Most pixels hold
+    one (fragment, aggregate) pair per aggregate (one surface an aggregate): their sum is
+    that fragment's row times its samples, two gathers of the fragment table a pixel
+    instead of one per sample slot; the other pixels take the general path, compacted, and
+    are scattered over them."""
+    n = len(first)
+    store, exists, simple = [], [], mi.Bool(True)
+    for a in range(k):
+        lead = mi.UInt32(n)  # the aggregate's first sample (agg is -1 on sky)
+        for j in reversed(range(n)):
+            lead = dr.select(agg[j] == a, j, lead)
+        key = mi.UInt32(n)  # its fragment's first sample
+        for j in range(n):
+            key = dr.select(lead == j, first[j], key)
+        held = mi.UInt32(0)
+        for j in range(n):
+            in_a = agg[j] == a
+            simple &= ~in_a | (first[j] == key)
+            held += dr.select(in_a, 1, 0)
+        on = lead < n
+        f = frag_base + dr.popcnt(rep_bits & ((mi.UInt32(1) << key) - 1))
+        weight = mi.Float(held)
+        sums = [dr.gather(mi.Float, c, f, on) * weight for c in table_f]
+        store.append(_averages(dr, sums, weight, dr.gather(mi.Float, offset_f, f, on)))
+        exists.append(on)
+    dr.eval(store, exists, simple)
+    idx = dr.compress(~simple)
+    if dr.width(idx):
+
+        def sub(x):
+            return dr.gather(type(x), x, idx)
+
+        s_store, s_exists = _aggregates(
+            mi,
+            dr,
+            [sub(x) for x in first],
+            [sub(x) for x in agg],
+            sub(rep_bits),
+            sub(frag_base),
+            table_f,
+            offset_f,
+            k,
+        )
+        for a in range(k):
+            for dst, val in zip(store[a], s_store[a], strict=True):
+                dr.scatter(dst, val, idx)
+            dr.scatter(exists[a], s_exists[a], idx)
+        dr.eval(store, exists)
     return store, exists
 
 
