@@ -442,15 +442,33 @@ def _travel(scene, pos: np.ndarray) -> np.ndarray:
     return w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
 
 
+#: Receivers a directional light's lookup is evaluated on (every receiver has the same
+#: travel direction): a strided slice of the same layout as the full arrays, so NumPy
+#: takes the same loops and the values are the full evaluation's.
+DIRECTIONAL_ROWS = 64
+
+
 def _lookup(scene, pos: np.ndarray, id_tex: np.ndarray):
-    """Light travel directions ``w`` of receivers at ``pos`` and the map ids ``sel`` they
-    look up in the id texture."""
+    """Light travel directions ``w`` of receivers at ``pos``, the map ids ``sel`` they look
+    up in the id texture, and whether all receivers share them (a directional light: then
+    ``w`` and ``sel`` are read-only broadcasts of the first receiver's)."""
     g = id_tex.shape[0]
-    w = _travel(scene, pos) if len(pos) else np.zeros((0, 3))
+    shared = scene.light.kind == "directional" and len(pos) > 0
+    part = pos[:DIRECTIONAL_ROWS] if shared else pos
+    w = _travel(scene, part) if len(part) else np.zeros((0, 3))
     u, v = _uv(w)
     ci = np.minimum((u * g).astype(np.int64), g - 1)
     cj = np.minimum((v * g).astype(np.int64), g - 1)
-    return w, id_tex[cj, ci]
+    sel = id_tex[cj, ci]
+    if shared:
+        return np.broadcast_to(w[:1], pos.shape), np.broadcast_to(sel[:1], len(pos)), True
+    return w, sel, False
+
+
+def _direction_error(w: np.ndarray, dirs: np.ndarray, sel: np.ndarray) -> np.ndarray:
+    """Angle in degrees between travel directions ``w`` and their maps' directions."""
+    cosang = np.clip(np.sum(w * dirs[sel], axis=1), -1.0, 1.0)
+    return np.degrees(np.arccos(cosang))
 
 
 def _project(scene, gbuf, p, projs, rec: np.ndarray, pos, sel, used):
@@ -526,8 +544,8 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     rec = np.nonzero(gbuf.receiver)[0]
     pos = gbuf.position[rec]
     # Which maps the receivers look up (sorted distinct ids).
-    w, sel = _lookup(scene, pos, id_tex)
-    used = np.nonzero(np.bincount(sel, minlength=n))[0]
+    w, sel, shared = _lookup(scene, pos, id_tex)
+    used = sel[:1].copy() if shared else np.nonzero(np.bincount(sel, minlength=n))[0]
     cost: dict = {}
     if p.compression:
         rng = np.random.default_rng(p.seed)
@@ -559,8 +577,13 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     if len(rec):
         records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
         map_id[rec] = sel
-        cosang = np.clip(np.sum(w * dirs[sel], axis=1), -1.0, 1.0)
-        err[rec] = np.degrees(np.arccos(cosang))
+        if shared:
+            part = slice(0, DIRECTIONAL_ROWS)
+            err[rec] = _direction_error(
+                np.ascontiguousarray(w[part]), dirs, np.ascontiguousarray(sel[part])
+            )[0]
+        else:
+            err[rec] = _direction_error(w, dirs, sel)
         uncovered[rec] = outside
     if p.compression:
         counts, decoded = compressed()
