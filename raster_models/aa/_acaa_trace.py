@@ -159,11 +159,11 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     Returns
     -------
     dict: ``near``, the nearest fragments in pixel order (``pixel``, ``sample``: first
-    sample, ``shape``, ``prim``, ``count``: int64; with ``centroid`` ``sum_x``, ``sum_y``
-    float64); ``candidates``, per group ``(pixel, sample, depth, hit_valid, hit_depth,
-    hit_shape, hit_prim)``: the candidate samples in pixel-sample order with their prepass
-    view depth and the group's nearest hit (float32 depths, as :func:`._trace.trace_samples`
-    computes them); ``traced``, the number of candidate rays.
+    sample, int64; ``shape`` int32; ``prim``, ``count`` uint32; with ``centroid``
+    ``sum_x``, ``sum_y`` float64); ``candidates``, per group ``(pixel, sample, depth,
+    hit_valid, hit_depth, hit_shape, hit_prim)``: the candidate samples in pixel-sample
+    order with their prepass view depth and the group's nearest hit (float32 depths, as
+    :func:`._trace.trace_samples` computes them); ``traced``, the number of candidate rays.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -205,8 +205,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
         near["pixel"].append(p0 + r // n)
         near["sample"].append(r % n)
         for key in keys[2:]:
-            dtype = np.float64 if key.startswith("sum") else np.int64
-            near[key].append(_np(row[key]).astype(dtype))
+            near[key].append(_np(row[key]).copy())
         for gi, mask in enumerate(masks):  # one trace per group, of its candidates only
             cand = dr.compress(mask)
             if dr.width(cand) == 0:
@@ -232,10 +231,10 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 out[k + 2].append(_np(v).copy())
             traced += len(c)
     dtypes = (np.int64, np.int64, np.float32, bool, np.float32, np.int64, np.int64)
+    dtypes_near = {"pixel": np.int64, "sample": np.int64, "shape": np.int32}
+    dtypes_near.update(prim=np.uint32, count=np.uint32, sum_x=np.float64, sum_y=np.float64)
     return {
-        "near": {
-            k: _cat(v, np.float64 if k.startswith("sum") else np.int64) for k, v in near.items()
-        },
+        "near": {k: _cat(v, dtypes_near[k]) for k, v in near.items()},
         "candidates": [
             tuple(_cat(part, dt) for part, dt in zip(c, dtypes, strict=True)) for c in cands
         ],
@@ -243,9 +242,13 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     }
 
 
-def shade_exact(scene, groups: list, group_scenes: list, f_shape, sx, sy, cx, cy):
-    """Colour of every fragment, shaded at ``(cx, cy)`` on the surface its ray through
-    ``(sx, sy)`` meets in its group's scene, with an exact shadow ray from the shading point.
+def shade_exact(scene, groups: list, group_scenes: list, frag: dict, offsets, centre=None):
+    """Colour of every fragment of ``frag`` (``pixel``, ``sample``: a sample it covers,
+    ``shape``), shaded on the surface the ray through that sample meets in its group's scene,
+    at the pixel centre or at ``centre`` (``(cx, cy)`` film positions), with an exact shadow
+    ray from the shading point.
+
+    Film positions are formed in float32 (pixel + offset: exact, as in float64).
 
     Returns ``(rgb, shadow_rays)``: ``(F, 3)`` float32 linear radiance (0 where no surface)
     and the number of shadow rays cast.
@@ -253,8 +256,14 @@ def shade_exact(scene, groups: list, group_scenes: list, f_shape, sx, sy, cx, cy
     mi = backend.mitsuba()
     import drjit as dr
 
-    f_shape = np.asarray(f_shape, np.int64)
-    pos = [mi.Float(np.asarray(a, np.float32)) for a in (sx, sy, cx, cy)]
+    w = scene.width
+    f_shape = np.asarray(frag["shape"], np.int64)
+    pix = mi.UInt32(np.asarray(frag["pixel"], np.uint32))
+    smp = mi.UInt32(np.asarray(frag["sample"], np.uint32))
+    offs = np.asarray(offsets, np.float32).reshape(-1, 2)
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    if centre is not None:
+        centre = [mi.Float(np.asarray(a, np.float32)) for a in centre]
     rgb = [dr.zeros(mi.Float, len(f_shape)) for _ in range(3)]
     lut = np.full(len(scene.shape_names), -1, np.int64)
     for gi, g in enumerate(groups):
@@ -265,7 +274,15 @@ def shade_exact(scene, groups: list, group_scenes: list, f_shape, sx, sy, cx, cy
         sel = np.flatnonzero(group_of == gi).astype(np.uint32)
         for start in range(0, len(sel), _trace.CHUNK):
             part = mi.UInt32(sel[start : start + _trace.CHUNK])
-            a = attributes_dr(scene, sub, *(dr.gather(mi.Float, v, part) for v in pos))
+            p = dr.gather(mi.UInt32, pix, part)
+            k = dr.gather(mi.UInt32, smp, part)
+            fx, fy = mi.Float(p % w), mi.Float(p // w)
+            sx, sy = fx + dr.gather(mi.Float, ox, k), fy + dr.gather(mi.Float, oy, k)
+            if centre is None:
+                cx, cy = fx + 0.5, fy + 0.5
+            else:
+                cx, cy = (dr.gather(mi.Float, c, part) for c in centre)
+            a = attributes_dr(scene, sub, sx, sy, cx, cy)
             color, tested = shade_dr(
                 scene,
                 a["valid"],

@@ -340,21 +340,22 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     f_pix, f_smp, f_shape, count = frag["pixel"], frag["sample"], frag["shape"], frag["count"]
     n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
-    fx, fy = f_pix % w, f_pix // w
-    cx = fx + 0.5
-    cy = fy + 0.5
-    if p.centroid and n_frag:
-        partial = count < n
-        cx = np.where(partial, fx + frag["sum_x"] / count, cx)
-        cy = np.where(partial, fy + frag["sum_y"] / count, cy)
-    sx = fx + offsets[f_smp, 0]
-    sy = fy + offsets[f_smp, 1]
     target = np.zeros((n_pix, 3), np.float32)
     rays = 0
     if n_frag:
+        fx, fy = f_pix % w, f_pix // w
+        centre = None
+        if p.centroid:
+            partial = count < n
+            centre = (
+                np.where(partial, fx + frag["sum_x"] / count, fx + 0.5),
+                np.where(partial, fy + frag["sum_y"] / count, fy + 0.5),
+            )
         if p.shadows == "exact":
-            rgb, rays = _acaa_trace.shade_exact(scene, groups, subs, f_shape, sx, sy, cx, cy)
+            rgb, rays = _acaa_trace.shade_exact(scene, groups, subs, frag, offsets, centre)
         else:
+            sx, sy = fx + offsets[f_smp, 0], fy + offsets[f_smp, 1]
+            cx, cy = centre if centre is not None else (fx + 0.5, fy + 0.5)
             rgb, rays = _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, p.shadows)
         weighted = rgb * (count / np.float32(n)).astype(np.float32)[:, None]
         rgba8 = p.accumulation == "rgba8"
