@@ -127,3 +127,32 @@ def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
         )
         assert runs[decode] == ref_runs
         assert np.array_equal(decoded, ref_decoded[rows])
+
+
+def test_directional_lookup_is_the_full_evaluation():
+    """A directional light's lookup, evaluated on a slice and broadcast, has the bytes of
+    the evaluation over every receiver (map ids and direction errors)."""
+    from raster_models._gbuffer import trace_gbuffer
+
+    s = scenes.load("city", width=160, height=90)
+    assert s.light.kind == "directional"
+    gbuf = trace_gbuffer(s)
+    pos = gbuf.position[gbuf.receiver]
+    assert len(pos) > 10 * coherent.DIRECTIONAL_ROWS
+    dirs, id_tex = coherent.map_directions(1024)
+    w, sel, shared = coherent._lookup(s, pos, id_tex)
+    assert shared
+    g = id_tex.shape[0]
+    w_full = coherent._travel(s, pos)
+    u, v = coherent._uv(w_full)
+    sel_full = id_tex[
+        np.minimum((v * g).astype(np.int64), g - 1), np.minimum((u * g).astype(np.int64), g - 1)
+    ]
+    assert w.tobytes() == w_full.tobytes()
+    assert np.array_equal(sel, sel_full)
+    part = slice(0, coherent.DIRECTIONAL_ROWS)
+    err = coherent._direction_error(
+        np.ascontiguousarray(w[part]), dirs, np.ascontiguousarray(sel[part])
+    )
+    full = coherent._direction_error(w_full, dirs, sel_full)
+    assert np.all(full.view(np.int64) == err[0].view(np.int64))
