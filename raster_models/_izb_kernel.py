@@ -15,9 +15,17 @@ Dr.Jit, 32 samples, two launches per chunk: the first bounds each plane over the
 points (affine in the offsets ``(a, b)``) and decides most pairs (all points outside one
 plane, band included: both masks 0; all inside every plane: mask full); the second evaluates
 the 32 points of the remaining pairs only.
+
+Memory layout (the join is bound by fetching receivers, not by arithmetic): each receiver's
+values are one row of a power-of-two width (``p``, ``dP/dx``, ``dP/dy``, floor: 16 float64;
+``p``, floor: 4), rows stored in the order the pairs read them (list-node order in a join,
+pair order otherwise), and rows and triangle planes are fetched as packet loads
+(``JitFlag.PacketOps``). The values and the arithmetic are unchanged: the same bits.
 """
 
 from __future__ import annotations
+
+import importlib
 
 import numpy as np
 
@@ -100,14 +108,14 @@ def test_32_numpy(planes, p, dpdx, dpdy, floor, a, b):
 
 
 def _pair(frags, idx, f_idx):
-    """Dr.Jit triangle and receiver of pairs ``idx`` of fragments ``f_idx``; ``frags``:
+    """Dr.Jit triangle, receiver and node of pairs ``idx`` of fragments ``f_idx``; ``frags``:
     per fragment triangle, first node, first pair of the chunk, and the nodes' receivers."""
     import drjit as dr
 
     tri, lo, first, node_recv = frags
     u32 = type(idx)
     node = dr.gather(u32, lo, f_idx) + (idx - dr.gather(u32, first, f_idx))
-    return dr.gather(u32, tri, f_idx), dr.gather(u32, node_recv, node)
+    return dr.gather(u32, tri, f_idx), dr.gather(u32, node_recv, node), node
 
 
 class PairTester:
@@ -128,6 +136,7 @@ class PairTester:
         self.floor = floor
         self.thirty_two = "dpdx" in recv
         self._dr = None
+        self._node_rows = None
 
     def numpy(self, tri: np.ndarray, r: np.ndarray):
         """The NumPy reference on pairs ``(tri[i], r[i])``."""
@@ -152,61 +161,68 @@ class PairTester:
     # ---- Dr.Jit
     def _inputs(self):
         if self._dr is None:
+            import drjit as dr
+
             from scenes import backend
 
             mi = backend.mitsuba()
             f64 = mi.Float64
-            d = {"planes": f64(np.ascontiguousarray(self.planes, dtype=np.float64).ravel())}
+            planes = f64(np.ascontiguousarray(self.planes, dtype=np.float64).ravel())
+            # a copy in Dr.Jit's own (aligned) memory: packet loads need it (NumPy-backed
+            # arrays are gathered value by value)
+            d = {"planes": dr.gather(f64, planes, dr.arange(mi.UInt32, dr.width(planes)))}
+            dr.eval(d["planes"])
             keys = ("p", "dpdx", "dpdy") if self.thirty_two else ("p",)
-            d["stride"] = 3 * len(keys) + 1
-            d["recv"] = self._rows(mi, [self.recv[k] for k in keys], d["stride"])
+            # NumPy-backed (no copy) sources of the receivers' rows
+            d["sources"] = [
+                f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel()) for k in keys
+            ]
+            d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
+            # rows of a power-of-two width: packet loads (see _plane_terms)
+            d["floor_col"] = 3 * len(keys)
+            d["stride"] = 16 if self.thirty_two else 4
+            d["array"] = importlib.import_module(f64.__module__).ArrayXf64
             self._dr = (mi, d)
         return self._dr
 
-    def _rows(self, mi, vectors, stride):
-        """One row per receiver (the ``(M, 3)`` vectors, then the floor), packed by a
-        Dr.Jit kernel: a pair's gathers touch one or two cache lines, not one per array."""
-        import drjit as dr
-
-        f64, u32 = mi.Float64, mi.UInt32
-        lane = dr.arange(u32, len(self.floor) * stride)
-        row = lane // stride
-        col = lane - row * stride
-        floor = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
-        v = dr.gather(f64, floor, row, col == stride - 1)
-        for q, vec in enumerate(vectors):  # p, [dpdx, dpdy]
-            src = f64(np.ascontiguousarray(vec, dtype=np.float64).ravel())
-            inside = (col >= 3 * q) & (col < 3 * q + 3)
-            v = dr.select(inside, dr.gather(f64, src, row * 3 + (col - 3 * q), inside), v)
-        dr.eval(v)
-        return v
-
-    def _plane_terms(self, tri, r):
-        """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs ``tri, r``."""
+    def _rows(self, recv):
+        """Rows of receivers ``recv`` (Dr.Jit UInt32), one each: ``p``, [``dpdx``, ``dpdy``,]
+        the floor, zeros up to a power-of-two stride; packed by a Dr.Jit kernel, so that a
+        pair's receiver is one packet load from memory in pair order."""
         import drjit as dr
 
         mi, d = self._inputs()
         f64 = mi.Float64
+        n = dr.width(recv)
+        cols = [dr.gather(f64, src, recv * 3 + j) for src in d["sources"] for j in range(3)]
+        cols.append(dr.gather(f64, d["floor"], recv))
+        cols += [dr.zeros(f64, n)] * (d["stride"] - len(cols))
+        rows = dr.empty(f64, n * d["stride"])
+        dr.scatter(rows, d["array"](cols), dr.arange(mi.UInt32, n))  # packet stores
+        dr.eval(rows)
+        return rows
 
-        row = r * d["stride"]
+    def _plane_terms(self, tri, rows, row):
+        """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs: triangles
+        ``tri``, receivers at ``row`` of ``rows`` (:meth:`_rows`)."""
+        import drjit as dr
 
-        def gather3(q):
-            return [dr.gather(f64, d["recv"], row + (3 * q + j)) for j in range(3)]
-
-        rows = [
-            [dr.gather(f64, d["planes"], tri * 16 + (4 * k + j)) for j in range(4)]
-            for k in range(4)
-        ]
-        p = gather3(0)
+        _, d = self._inputs()
+        # Packet gathers (JitFlag.PacketOps): a triangle's 16 plane values and a receiver's
+        # row are contiguous, loaded as packets instead of one gather per value.
+        pl = dr.gather(d["array"], d["planes"], tri, shape=(16, dr.width(tri)))
+        rv = dr.gather(d["array"], rows, row, shape=(d["stride"], dr.width(row)))
+        rows = [[pl[4 * k + j] for j in range(4)] for k in range(4)]
+        p = [rv[0], rv[1], rv[2]]
 
         def dot(n, v):
             return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
 
         base = [dot(row, p) + row[3] for row in rows]
-        floor = dr.gather(f64, d["recv"], row + (d["stride"] - 1))
+        floor = rv[d["floor_col"]]
         if not self.thirty_two:
             return base, None, None, floor
-        dx, dy = gather3(1), gather3(2)
+        dx, dy = [rv[3], rv[4], rv[5]], [rv[6], rv[7], rv[8]]
         da = [dot(row, dx) for row in rows]
         db = [dot(row, dy) for row in rows]
         return base, da, db, floor
@@ -254,8 +270,9 @@ class PairTester:
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
-        ti, ri = u32(tri.astype(np.uint32)), u32(r.astype(np.uint32))
-        base, da, db, floor = self._plane_terms(ti, ri)
+        ti = u32(tri.astype(np.uint32))
+        rows = self._rows(u32(r.astype(np.uint32)))  # one row per pair
+        base, da, db, floor = self._plane_terms(ti, rows, dr.arange(u32, len(tri)))
         if not self.thirty_two:
             hit, near = self._single(base, floor)
             code = dr.select(hit, u32(1), u32(0)) | dr.select(near, u32(2), u32(0))
@@ -270,8 +287,8 @@ class PairTester:
         band = np.zeros(len(c), dtype=np.uint32)
         mixed = np.flatnonzero(c == _MIXED)
         if len(mixed):
-            ti, ri = u32(tri[mixed].astype(np.uint32)), u32(r[mixed].astype(np.uint32))
-            m, bm = self._points(*self._plane_terms(ti, ri))
+            ti = u32(tri[mixed].astype(np.uint32))
+            m, bm = self._points(*self._plane_terms(ti, rows, u32(mixed.astype(np.uint32))))
             dr.eval(m, bm)
             masks[mixed] = m.numpy()
             band[mixed] = bm.numpy()
@@ -289,7 +306,12 @@ class PairTester:
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
-        recv_dr = u32(np.asarray(node_recv, dtype=np.uint32))
+        if self._node_rows is None or self._node_rows[0] is not node_recv:
+            # Rows in node order (packed again when the lists change): a fragment's pairs
+            # read consecutive rows.
+            recv_dr = u32(np.asarray(node_recv, dtype=np.uint32))
+            self._node_rows = (node_recv, recv_dr, self._rows(recv_dr))
+        _, recv_dr, rows = self._node_rows
         if self.thirty_two:
             keys = ("mask", "band")
         else:
@@ -309,8 +331,8 @@ class PairTester:
             tri_dr = u32(frag_tri[cut:stop].astype(np.uint32))
 
             frags = (tri_dr, lo_dr, first, recv_dr)
-            ti, ri = _pair(frags, dr.arange(u32, len(f_np)), f)
-            base, da, db, floor = self._plane_terms(ti, ri)
+            ti, ri, node = _pair(frags, dr.arange(u32, len(f_np)), f)
+            base, da, db, floor = self._plane_terms(ti, rows, node)
             if not self.thirty_two:
                 hit, near = self._single(base, floor)
                 dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
@@ -323,8 +345,8 @@ class PairTester:
                 dr.eval(acc["mask"], mixed)
                 idx = dr.compress(mixed)
                 if dr.width(idx):
-                    ti, ri = _pair(frags, idx, dr.gather(u32, f, idx))
-                    m, bm = self._points(*self._plane_terms(ti, ri))
+                    ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
+                    m, bm = self._points(*self._plane_terms(ti, rows, node))
                     dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
                     dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
                     dr.eval(acc["mask"], acc["band"])
