@@ -116,7 +116,7 @@ def _blend(values, pixel, target, *, rgba8: bool, grouped: bool = False):
     ``grouped``: each pixel's values are already contiguous (in their order)."""
     values = np.asarray(values, np.float64 if rgba8 else np.float32)
     dtype = np.float64 if rgba8 else np.float32
-    zero = isinstance(target, int)
+    zero = isinstance(target, (int, np.integer))
     out = np.zeros((target, 3), dtype) if zero else np.array(target, dtype=dtype)
     pixel = np.asarray(pixel, np.int64)
     if len(pixel) == 0:
