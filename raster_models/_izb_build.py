@@ -23,6 +23,8 @@ evaluate every value in float64 in the same order without fused multiply-adds:
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 
 __all__ = [
@@ -303,11 +305,11 @@ class Ortho32Build:
                 dup |= t == s
             seen.append(t)
             outs.append(dr.select(dup, u32(_NONE), t))
-        dr.eval(*outs)  # one kernel, 32 outputs
-        out = np.empty((n, 32), dtype=np.uint32)
-        for q, o in enumerate(outs):  # the 32 points' columns
-            out[:, q] = o.numpy()
-        return out
+        out = dr.empty(u32, n * 32)
+        arr = importlib.import_module(u32.__module__).ArrayXu
+        dr.scatter(out, arr(outs), dr.arange(u32, n))  # row-major (n, 32), packet stores
+        dr.eval(out)
+        return out.numpy().reshape(n, 32)
 
 
 def _concat(parts, m: int):
