@@ -537,7 +537,8 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             "compression=false"
         )
     if p.compression:
-        # The map kernels run asynchronously while NumPy looks the receivers up below.
+        # The map kernels run asynchronously while NumPy looks the receivers up below
+        # (element-wise work only: BLAS threads would contend with them).
         lo, hi = _render_intervals(
             scene, projs, np.arange(n), p.bias, footprint=p.lossless == "footprint"
         )
@@ -575,7 +576,6 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     uncovered = np.zeros(gbuf.size)
     mismatches = 0
     if len(rec):
-        records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
         map_id[rec] = sel
         if shared:
             part = slice(0, DIRECTIONAL_ROWS)
@@ -584,7 +584,6 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             )[0]
         else:
             err[rec] = _direction_error(w, dirs, sel)
-        uncovered[rec] = outside
     if p.compression:
         counts, decoded = compressed()
         stored = uncompressed()
@@ -602,6 +601,10 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         }
         cost["compression"] = comp
     if len(rec):
+        # After the wait: the projection's matrix product runs on BLAS threads, which
+        # would contend with the Dr.Jit kernels.
+        records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
+        uncovered[rec] = outside
         vis = _shade(records, maps, len(rec))
         vis_all[rec] = vis["uncompressed"]
         if "decompressed" in vis:
