@@ -476,7 +476,7 @@ def _project(scene, gbuf, p, projs, rec: np.ndarray, pos, sel, used):
     distinct ``sel``) fall in their maps: per map ``(m, mask, texel, ref, zl, inside)``
     (receivers, texel index, compare reference ``z - bias``, the light's own depth,
     inside the map's square), and which receivers lie outside their map."""
-    n_dot_l = np.clip(gbuf.cos_l[rec], 0.0, 1.0)
+    n_dot_l = np.clip(gbuf.cos_l[rec], 0.0, 1.0) if p.normal_offset > 0.0 else None
     outside = np.zeros(len(rec), dtype=bool)
     r = projs.resolution
     records = []
@@ -626,21 +626,22 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     if p.compression:
         cost["decompressed_mismatches"] = mismatches
     spacing = math.degrees(math.sqrt(4.0 * math.pi / n))
+    err_rec = err[rec]
     diagnostics = {
         "light": scene.light.to_json(),
         "sphere": {"centre": centre.tolist(), "radius": radius},
         "texel_world_size": 2.0 * radius / r,
         "direction_spacing_deg": spacing,
         "maps_looked_up": int(len(used)),
-        "direction_error_deg_mean": float(err[rec].mean()) if len(rec) else 0.0,
-        "direction_error_deg_max": float(err[rec].max()) if len(rec) else 0.0,
+        "direction_error_deg_mean": float(err_rec.mean()) if len(rec) else 0.0,
+        "direction_error_deg_max": float(err_rec.max()) if len(rec) else 0.0,
         "receivers": int(len(rec)),
         "uncovered_receivers": int(uncovered.sum()),
         "scene": scene.provenance(),
         "provenance": _provenance(),
     }
     outputs = {
-        "visibility": gbuf.image(np.clip(vis_all, 0.0, 1.0)),
+        "visibility": gbuf.image(vis_all),  # 0 or 1 only
         "map_id": gbuf.image(map_id),
         "direction_error_deg": gbuf.image(err),
         "uncovered": gbuf.image(uncovered),
