@@ -84,12 +84,16 @@ RUN_BYTES = 6
 
 ORDERINGS = ("hilbert", "row_major", "column_major", "random")
 
-#: Texels per Dr.Jit launch of the map kernel (:func:`_surface_chunks`). The kernel keeps
-#: no per-texel arrays of its own (the surface interactions stay in registers) and writes
-#: two float32 bounds per texel: peak memory does not grow with the chunk (measured at the
-#: defaults), while every launch costs a synchronisation (a quarter of the render time at
-#: 1 << 20). The NumPy records of :func:`_surfaces` hold 32 bytes a texel: 128 MiB a chunk.
-SURFACE_CHUNK = 1 << 22
+#: Texels per Dr.Jit launch of the map kernel of :func:`_render_intervals`. The kernel
+#: keeps no per-texel arrays of its own (the surface interactions stay in registers) and
+#: writes two float32 bounds per texel: peak memory does not grow with the launch
+#: (measured at the defaults), while every launch costs its tracing and a synchronisation
+#: (a quarter of the render time at 1 << 20).
+SURFACE_CHUNK = 1 << 24
+
+#: Texels per launch of :func:`_surfaces`, whose NumPy records hold 32 bytes a texel
+#: (128 MiB a launch).
+RECORD_CHUNK = 1 << 22
 
 #: Safety factor on the depth spreads of :func:`visibility_intervals`: curved surfaces bend
 #: away from their tangent plane within a texel (1.01 left one mismatching receiver on
@@ -235,7 +239,7 @@ class _Projections:
 
 
 # ---------------------------------------------------------------------------- rendering
-def _surface_chunks(scene, projs, ids, *, second: bool):
+def _surface_chunks(scene, projs, ids, *, second: bool, chunk: int = SURFACE_CHUNK):
     """The Dr.Jit side of :func:`_surfaces`: yields ``(start, stop, record)`` per chunk with
     ``record`` holding unevaluated Dr.Jit Float64 arrays."""
     from scenes import backend
@@ -261,8 +265,8 @@ def _surface_chunks(scene, projs, ids, *, second: bool):
         nd = dr.abs(nf[0] * g[9] + nf[1] * g[10] + nf[2] * g[11])
         return dr.select(nd > 1e-12, (nu + nv) * half_inv_r / (nd * span), dr.inf)
 
-    for start in range(0, total, SURFACE_CHUNK):
-        stop = min(total, start + SURFACE_CHUNK)
+    for start in range(0, total, chunk):
+        stop = min(total, start + chunk)
         # The chunk offset is a kernel parameter: one compiled kernel serves every chunk.
         idx = dr.arange(mi.UInt32, stop - start) + dr.opaque(mi.UInt32, start)
         mid = idx // rr_u
@@ -314,7 +318,7 @@ def _surfaces(scene, projs, ids, *, second: bool):
     """
     import drjit as dr
 
-    for start, stop, out in _surface_chunks(scene, projs, ids, second=second):
+    for start, stop, out in _surface_chunks(scene, projs, ids, second=second, chunk=RECORD_CHUNK):
         dr.eval(*out.values())
         yield start, stop, {key: val.numpy() for key, val in out.items()}
 
