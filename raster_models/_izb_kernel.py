@@ -294,6 +294,10 @@ class PairTester:
             band[mixed] = bm.numpy()
         return masks, band
 
+    def rows_ready(self, node_recv) -> bool:
+        """Whether the Dr.Jit rows of the lists ``node_recv`` are packed already."""
+        return self._node_rows is not None and self._node_rows[0] is node_recv
+
     def join_drjit(self, frag_tri, lo, n, node_recv, state: dict) -> None:
         """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
         length) with the nodes ``node_recv``, tested and OR-ed into ``state`` (the arrays of
@@ -306,7 +310,7 @@ class PairTester:
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
-        if self._node_rows is None or self._node_rows[0] is not node_recv:
+        if not self.rows_ready(node_recv):
             # Rows in node order (packed again when the lists change): a fragment's pairs
             # read consecutive rows.
             recv_dr = u32(np.asarray(node_recv, dtype=np.uint32))

@@ -168,8 +168,9 @@ def join(
     uint32 (32 samples), and ``band`` (same type: samples inside a volume's edge planes
     within ``epsilon`` of its triangle plane, lit by the epsilon), updated in place.
     Large joins run on Dr.Jit (:meth:`._izb_kernel.PairTester.join_drjit`: pairs expanded,
-    tested and OR-ed in the kernels); small ones on NumPy, the reference, in chunks of at
-    most :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own).
+    tested and OR-ed in the kernels), and so do small ones once a Dr.Jit join has packed the
+    rows of the same lists; other small ones on NumPy, the reference, in chunks of at most
+    :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own).
     """
     stats.fragments += len(frag_tri)
     if len(frag_tri) == 0 or len(lists.node_texel) == 0:
@@ -188,7 +189,9 @@ def join(
     if tester is None or tester.planes is not planes:
         tester = PairTester(planes, recv, band_floor(recv["p"], float(epsilon)))
         state["_tester"] = tester
-    if use_drjit(int(ends[-1])):
+    # once a Dr.Jit join has packed the receivers' rows of these lists, a small join costs
+    # a launch there
+    if tester.rows_ready(lists.node_recv) or use_drjit(int(ends[-1])):
         tester.join_drjit(frag_tri, lo, n, lists.node_recv, state)
         return
     cut = 0
