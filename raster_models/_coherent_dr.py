@@ -6,7 +6,8 @@ Each function gives the same bytes as its NumPy reference in :mod:`raster_models
 :func:`~raster_models.coherent.compress_runs`): the same float64 operations in the same order,
 one rounding to float32, and the float32 step below a value taken on its bit pattern as
 ``np.nextafter`` does. They exist for speed only: at the defaults (1024 maps of 128^2) the
-NumPy versions walk sixteen million texels several times over.
+NumPy versions walk sixteen million texels several times over. ``tests/test_coherent_dr.py``
+pins each twin to its reference on random input.
 
 References
 ----------
@@ -114,8 +115,10 @@ def compress_orders(
         of ``rows`` reads.
 
     Every lane walks the ``N`` maps of one ordering in order (the loop over maps runs
-    inside the kernel) for a packet of contiguous texels; the decoded maps take a second,
-    backward walk.
+    inside the kernel) for a packet of contiguous texels. The decoded value of a map is its
+    run's final (largest) ``lo``: for up to :data:`MAX_CAPTURED` rows the walk follows
+    those maps' runs to their ends; for more (or ``rows=None``) it stores every position's
+    run prefix and break flags, and a second, backward walk spreads each run's value.
     """
     return launch_compression(lo, hi, n_maps, orders, decode=decode, rows=rows)()
 
