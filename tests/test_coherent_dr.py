@@ -108,7 +108,9 @@ def test_ray_table_handles_a_direction_along_the_up_axis():
     assert np.allclose(table[:, 9:12], dirs)
 
 
-@pytest.mark.parametrize("n_rows", [1, 3, _coherent_dr.MAX_CAPTURED, _coherent_dr.MAX_CAPTURED + 1])
+@pytest.mark.parametrize(
+    "n_rows", [0, 1, 3, _coherent_dr.MAX_CAPTURED, _coherent_dr.MAX_CAPTURED + 1]
+)
 def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
     """Decoded maps of a few looked-up maps (followed during the walk) and of many (the
     backward pass) are the rows of the NumPy decoding, for every ordering decoded."""
