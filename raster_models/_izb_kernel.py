@@ -4,7 +4,7 @@ A test takes (fragment triangle, receiver) pairs and returns, per pair, the shad
 (1 sample) or the 32-bit mask of the tangent-plane points inside the triangle's shadow
 volume (32 samples), and the flag/mask of the samples in the epsilon band (inside the edge
 planes, beyond the pushed triangle plane by more than float32 rounding but by at most
-``epsilon``; see :data:`raster_models._izb_lists.BAND_FLOOR`).
+``epsilon``; see :data:`BAND_FLOOR`).
 
 Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
 ``(base + da a) + db b``, in float64 without fused multiply-adds, by NumPy (the reference,
@@ -30,13 +30,20 @@ import importlib
 import numpy as np
 
 __all__ = [
+    "BAND_FLOOR",
     "DRJIT_MIN_PAIRS",
     "DRJIT_PAIR_CHUNK",
     "PairTester",
+    "band_floor",
     "test_32_numpy",
     "test_single_numpy",
     "use_drjit",
 ]
+
+#: Distances to a triangle's plane below ``BAND_FLOOR * (1 + max|p|)`` are float32 rounding
+#: (a receiver on its own triangle or a coplanar neighbour; the G-buffer position is float32,
+#: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps.
+BAND_FLOOR = 2.0**-18
 
 #: Pairs of a join from which the tests run on Dr.Jit (LLVM) instead of NumPy.
 DRJIT_MIN_PAIRS = 1 << 15
@@ -49,6 +56,19 @@ _FULL = 0xFFFFFFFF
 
 #: Pair classes of the first 32-sample launch.
 _NONE, _FULL_CLASS, _MIXED = 0, 1, 2
+
+
+def band_floor(p, eps: float):
+    """Lower end of the epsilon band below the pushed plane, per point ``p (P, 3)``:
+    ``BAND_FLOOR (1 + max|p|) - eps`` (the same operations on NumPy and Dr.Jit columns)."""
+    if isinstance(p, np.ndarray):
+        p, maximum = (p[:, 0], p[:, 1], p[:, 2]), np.maximum
+    else:
+        import drjit as dr
+
+        maximum = dr.maximum
+    big = maximum(maximum(abs(p[0]), abs(p[1])), abs(p[2]))
+    return BAND_FLOOR * (1.0 + big) - eps
 
 
 def use_drjit(n_pairs: int) -> bool:
@@ -127,13 +147,17 @@ class PairTester:
         (:func:`raster_models._izb_geometry.shadow_volumes`).
     recv : ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy``, ``a``, ``b`` (as
         :func:`raster_models._izb_lists.join` takes them).
-    floor : ``(M,)`` float64 lower end of each receiver's epsilon band.
+    floor : ``(M,)`` float64 lower end of each receiver's epsilon band; or ``None`` and
+        ``epsilon``: computed where needed, :func:`band_floor` of each receiver's ``p``.
     """
 
-    def __init__(self, planes: np.ndarray, recv: dict, floor: np.ndarray):
+    def __init__(self, planes: np.ndarray, recv: dict, floor=None, *, epsilon=None):
+        if (floor is None) == (epsilon is None):
+            raise ValueError("PairTester needs floor or epsilon, not both")
         self.planes = planes
         self.recv = recv
         self.floor = floor
+        self.epsilon = epsilon
         self.thirty_two = "dpdx" in recv
         self._dr = None
         self._node_rows = None
@@ -141,12 +165,12 @@ class PairTester:
     def numpy(self, tri: np.ndarray, r: np.ndarray):
         """The NumPy reference on pairs ``(tri[i], r[i])``."""
         pl = self.planes[tri]
+        p = self.recv["p"][r]
+        floor = band_floor(p, self.epsilon) if self.floor is None else self.floor[r]
         if self.thirty_two:
             rv = self.recv
-            return test_32_numpy(
-                pl, rv["p"][r], rv["dpdx"][r], rv["dpdy"][r], self.floor[r], rv["a"], rv["b"]
-            )
-        return test_single_numpy(pl, self.recv["p"][r], self.floor[r])
+            return test_32_numpy(pl, p, rv["dpdx"][r], rv["dpdy"][r], floor, rv["a"], rv["b"])
+        return test_single_numpy(pl, p, floor)
 
     def __call__(self, tri: np.ndarray, r: np.ndarray):
         """Per pair: ``(hit, near)`` bool arrays (1 sample) or ``(mask, band)`` uint32."""
@@ -177,7 +201,8 @@ class PairTester:
             d["sources"] = [
                 f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel()) for k in keys
             ]
-            d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
+            if self.floor is not None:
+                d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
             # rows of a power-of-two width: packet loads (see _plane_terms)
             d["floor_col"] = 3 * len(keys)
             d["stride"] = 16 if self.thirty_two else 4
@@ -195,7 +220,10 @@ class PairTester:
         f64 = mi.Float64
         n = dr.width(recv)
         cols = [dr.gather(f64, src, recv * 3 + j) for src in d["sources"] for j in range(3)]
-        cols.append(dr.gather(f64, d["floor"], recv))
+        if self.floor is None:
+            cols.append(band_floor(cols[:3], self.epsilon))
+        else:
+            cols.append(dr.gather(f64, d["floor"], recv))
         cols += [dr.zeros(f64, n)] * (d["stride"] - len(cols))
         rows = dr.empty(f64, n * d["stride"])
         dr.scatter(rows, d["array"](cols), dr.arange(mi.UInt32, n))  # packet stores

@@ -23,18 +23,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._izb_kernel import PairTester, use_drjit
+from ._izb_kernel import BAND_FLOOR, PairTester, band_floor, use_drjit
 
-__all__ = ["FULL_MASK", "PAIR_CHUNK", "IzbLists", "JoinStats", "build_lists", "join", "list_nodes"]
+__all__ = [
+    "BAND_FLOOR",
+    "FULL_MASK",
+    "PAIR_CHUNK",
+    "IzbLists",
+    "JoinStats",
+    "band_floor",
+    "build_lists",
+    "join",
+    "list_nodes",
+]
 
 #: (fragment, node) pairs tested per chunk: bounds memory at about 250 MiB for 32 samples
 #: ((pairs, 4, 32) float64 working arrays are only made for pairs that straddle a plane).
 PAIR_CHUNK = 1 << 18
-
-#: Distances to a triangle's plane below ``BAND_FLOOR * (1 + max|p|)`` are float32 rounding
-#: (a receiver on its own triangle or a coplanar neighbour; the G-buffer position is float32,
-#: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps.
-BAND_FLOOR = 2.0**-18
 
 #: All 32 bits of an FTIZB mask.
 FULL_MASK = np.uint32(0xFFFFFFFF)
@@ -144,12 +149,6 @@ def _pairs(lo: np.ndarray, n: np.ndarray):
     return f, lo[f] + (np.arange(len(f)) - first[f])
 
 
-def band_floor(p: np.ndarray, eps: float) -> np.ndarray:
-    """Lower end of the epsilon band below the pushed plane, per point: ``floor - eps``."""
-    big = np.maximum(np.maximum(np.abs(p[:, 0]), np.abs(p[:, 1])), np.abs(p[:, 2]))
-    return BAND_FLOOR * (1.0 + big) - eps
-
-
 def join(
     lists: IzbLists,
     frag_tri: np.ndarray,
@@ -187,7 +186,7 @@ def join(
     thirty_two = "mask" in state
     tester = state.get("_tester")
     if tester is None or tester.planes is not planes:
-        tester = PairTester(planes, recv, band_floor(recv["p"], float(epsilon)))
+        tester = PairTester(planes, recv, epsilon=float(epsilon))
         state["_tester"] = tester
     # once a Dr.Jit join has packed the receivers' rows of these lists, a small join costs
     # a launch there

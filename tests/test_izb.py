@@ -446,6 +446,11 @@ def test_drjit_pair_tests_equal_the_numpy_reference(samples):
     for x, y in zip(ref, fast, strict=True):
         assert x.dtype == y.dtype
         np.testing.assert_array_equal(x, y)
+    # the floor computed where needed (NumPy per pair, Dr.Jit in the row packing kernel)
+    lazy = PairTester(planes, recv, epsilon=0.05)  # _random_pairs' epsilon
+    for got in (lazy.numpy(tri, r), lazy.drjit(tri, r)):
+        for x, y in zip(ref, got, strict=True):
+            np.testing.assert_array_equal(x, y)
     hit, near = ref
     assert hit.any() and near.any() and (~hit.astype(bool)).any()
     if samples == 32:
