@@ -7,7 +7,7 @@
    lists sorted by texel (:mod:`._izb_lists`). ``samples=1``: the pixel-centre point.
    ``samples=32``: the 32 fixed points ``P + a dP/dx + b dP/dy`` of the pixel's footprint on
    the tangent plane (:data:`scenes.tangent32.TANGENT_POINTS_32`); the receiver is inserted
-   in each texel one of its points falls in.
+   in each texel one of its points falls in (orthographic grids: :mod:`._izb_build`).
 2. Traverse: every occluder triangle of the scene is conservatively rasterized over the grid
    (:mod:`._izb_geometry`); each fragment walks its texel's list and tests the node's
    sample(s) against the triangle's shadow volume (three edge planes through the light
@@ -213,15 +213,18 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         init = np.zeros(len(rec), dtype=np.uint32)
     m = len(rec)
     rot = frame.rotation()
-    pos = gbuf.position[rec]
-    lc = frame.to_light(pos)
+    # np.take: the same rows as fancy indexing, about twice as fast on (N, 3)
+    pos = np.take(gbuf.position, rec, axis=0)
+    # a directional light's frame has its origin at 0: p - 0 is p, no temporary needed
+    lc = frame.to_light(pos) if frame.origin.any() else pos @ rot.T
     recv = {"p": pos}
     if s == 32:
-        recv.update(dpdx=gbuf.dpdx[rec], dpdy=gbuf.dpdy[rec], a=a, b=b)
+        recv.update(dpdx=np.take(gbuf.dpdx, rec, axis=0), dpdy=np.take(gbuf.dpdy, rec, axis=0))
+        recv.update(a=a, b=b)
         ldx, ldy = recv["dpdx"] @ rot.T, recv["dpdy"] @ rot.T
 
     # ---- partitions (SDSM log over the receivers' depth range) and one grid each
-    depth = gbuf.depth[rec]
+    depth = np.take(gbuf.depth, rec)
     k = p.cascades
     if m:
         splits = _splits.log_splits(float(depth.min()), float(depth.max()), k)
@@ -270,7 +273,10 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             boxes.append(box)
             zmax[c] = hi[2]
             ctex, node_texel, node_recv = build.nodes(None if whole else sel, box, r)
-            centre_texel[sel] = c * r * r + ctex
+            if whole:
+                centre_texel[:] = c * r * r + ctex
+            else:
+                centre_texel[sel] = c * r * r + ctex
             nodes.append((c * r * r + node_texel, node_recv))
             continue
         chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
