@@ -254,7 +254,9 @@ def _surface_chunks(scene, projs, ids, *, second: bool, chunk: int = SURFACE_CHU
     f64 = mi.Float64
     cols = [f64(np.ascontiguousarray(params[:, c])) for c in range(13)]
     total = k * rr
-    r_u, rr_u = dr.opaque(mi.UInt32, r), dr.opaque(mi.UInt32, rr)
+    # Literal divisors: the compiler turns the per-texel divisions into multiplications
+    # and shifts (one kernel per map resolution).
+    r_u, rr_u = r, rr
     inv_r = dr.opaque(f64, 1.0 / r)
     half_inv_r = dr.opaque(f64, 0.5 / r)
 
@@ -271,8 +273,9 @@ def _surface_chunks(scene, projs, ids, *, second: bool, chunk: int = SURFACE_CHU
         idx = dr.arange(mi.UInt32, stop - start) + dr.opaque(mi.UInt32, start)
         mid = idx // rr_u
         tex = idx - mid * rr_u
-        s = (f64(tex % r_u) + 0.5) * inv_r
-        t = (f64(tex // r_u) + 0.5) * inv_r
+        row = tex // r_u
+        s = (f64(tex - row * r_u) + 0.5) * inv_r
+        t = (f64(row) + 0.5) * inv_r
         g = [dr.gather(f64, c, mid) for c in cols]
         o = [g[i] + s * g[3 + i] + t * g[6 + i] for i in range(3)]
         span = g[12]
