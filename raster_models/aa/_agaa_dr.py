@@ -36,8 +36,9 @@ __all__ = ["CHANNELS", "LAUNCH_CHUNKS", "add_reduceat_order", "render"]
 CHANNELS = ("albedo", "normal", "position", "to_eye", "geo_normal")
 #: Prepass samples a launch, in :data:`._trace.CHUNK` s (``1 << 23``): every launch
 #: generates its kernels' code again (the intersection and BSDF calls of every shape), so
-#: fewer, larger launches save time; peak memory at 1920x1080 x 8 samples is about 1 GiB,
-#: under the oracle's own bound (``oracle.reference.SAMPLES_PER_CHUNK``: about 1.5 GiB).
+#: fewer, larger launches save time; peak memory at 1920x1080 x 8 samples is about 1.1 GiB
+#: (the NumPy path's: 1.45 GiB), under the oracle's own bound (``oracle.reference``'s
+#: ``SAMPLES_PER_CHUNK``: about 1.5 GiB).
 LAUNCH_CHUNKS = 4
 #: ``pairwise_sum`` of NumPy's float add: sums of fewer terms than this run left to right.
 _PW_UNROLL = 8
