@@ -195,19 +195,17 @@ class Ortho32Build:
         return self._dr
 
     def _chunks(self, sel):
-        """Dr.Jit receiver indices, chunk by chunk, and the NumPy ones."""
+        """Dr.Jit receiver indices, chunk by chunk."""
+        import drjit as dr
+
         mi, _ = self._inputs()
         n = len(self.lc) if sel is None else len(sel)
         for s0 in range(0, n, DRJIT_BUILD_CHUNK):  # chunks of receivers
             s1 = min(n, s0 + DRJIT_BUILD_CHUNK)
             if sel is None:
-                import drjit as dr
-
-                ids = np.int32 if n < 2**31 else np.int64
-                yield dr.arange(mi.UInt32, s0, s1), np.arange(s0, s1, dtype=ids)
+                yield dr.arange(mi.UInt32, s0, s1)
             else:
-                ch = np.asarray(sel[s0:s1])
-                yield mi.UInt32(ch.astype(np.uint32)), ch
+                yield mi.UInt32(np.asarray(sel[s0:s1]).astype(np.uint32))
 
     def _column(self, key, idx, q):
         import drjit as dr
@@ -225,7 +223,7 @@ class Ortho32Build:
         import drjit as dr
 
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for idx, _ in self._chunks(sel):  # chunks of receivers
+        for idx in self._chunks(sel):  # chunks of receivers
             ends = []
             for q in range(3):  # x, y, z
                 c, w = self._column("lc", idx, q), self._spread_dr(idx, q)
@@ -265,35 +263,36 @@ class Ortho32Build:
         ti, tj = self._texel_dr(box, r)
         rr = dr.opaque(u32, r)
         centres, ones, others = [], [], []
-        for idx, ch in self._chunks(sel):  # chunks of receivers
+        for idx in self._chunks(sel):  # chunks of receivers
             x, y = self._column("lc", idx, 0), self._column("lc", idx, 1)
             reach_x = _reach(x, self._spread_dr(idx, 0))
             reach_y = _reach(y, self._spread_dr(idx, 1))
             i0, j0 = ti(x - reach_x), tj(y + reach_y)
             i1, j1 = ti(x + reach_x), tj(y - reach_y)
-            t = dr.select((i0 == i1) & (j0 == j1), j0 * rr + i0, u32(_NONE))
+            one = (i0 == i1) & (j0 == j1)
+            t = j0 * rr + i0
             centre = tj(y) * rr + ti(x)
-            dr.eval(t, centre)
-            t_np = t.numpy()
+            dr.eval(t, one, centre)
             centres.append(centre.numpy().astype(np.int64))
-            one = t_np != _NONE
-            ones.append((t_np[one].view(np.int32), ch[one]))
-            rest = np.flatnonzero(~one)
-            if len(rest):
-                tex = self._point_texels(ch[rest], ti, tj, rr)
-                keep = tex != _NONE
-                others.append((tex[keep].view(np.int32), np.repeat(ch[rest], keep.sum(axis=1))))
-        return np.concatenate(centres), *_concat(ones + others, len(self.lc))
+            k = dr.compress(one)  # compacted in Dr.Jit (both threads), in receiver order
+            ones.append((dr.gather(u32, t, k), dr.gather(u32, idx, k)))
+            rest = dr.gather(u32, idx, dr.compress(~one))
+            if dr.width(rest):
+                tex = self._point_texels(rest, ti, tj, rr)
+                k = dr.compress(tex != u32(_NONE))  # row-major: receiver, then point order
+                others.append((dr.gather(u32, tex, k), dr.gather(u32, rest, k // 32)))
+        parts = [(t.numpy().view(np.int32), c.numpy()) for t, c in ones + others]
+        return np.concatenate(centres), *_concat(parts, len(self.lc))
 
-    def _point_texels(self, recv: np.ndarray, ti, tj, rr) -> np.ndarray:
-        """``(n, 32)`` uint32 texels of the 32 points of receivers ``recv``, point by point;
-        a point in the texel of an earlier point of its receiver gives :data:`_NONE`."""
+    def _point_texels(self, idx, ti, tj, rr):
+        """Dr.Jit ``(n * 32,)`` texels of the 32 points of receivers ``idx`` (row-major: by
+        receiver, then point); a point in the texel of an earlier point of its receiver
+        gives :data:`_NONE`."""
         import drjit as dr
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
-        n = len(recv)
-        idx = u32(recv.astype(np.uint32))
+        n = dr.width(idx)
         c = [self._column(k, idx, q) for k in ("lc", "ldx", "ldy") for q in range(2)]
         x, y, dxx, dxy, dyx, dyy = c
         outs, seen = [], []
@@ -309,13 +308,15 @@ class Ortho32Build:
         arr = importlib.import_module(u32.__module__).ArrayXu
         dr.scatter(out, arr(outs), dr.arange(u32, n))  # row-major (n, 32), packet stores
         dr.eval(out)
-        return out.numpy().reshape(n, 32)
+        return out
 
 
 def _concat(parts, m: int):
     """Node texels (int32) and receivers (int32 below 2^31 receivers) of ``parts``."""
     node_texel = np.concatenate([t for t, _ in parts]).astype(np.int32, copy=False)
     node_recv = np.concatenate([c for _, c in parts])
+    if node_recv.dtype == np.uint32:  # from Dr.Jit: ids below 2^32 / 3
+        node_recv = node_recv.astype(np.int64) if m >= 2**31 else node_recv.view(np.int32)
     return node_texel, node_recv.astype(np.int32 if m < 2**31 else np.int64, copy=False)
 
 

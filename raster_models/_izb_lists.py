@@ -110,8 +110,11 @@ def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
     """
     if not parts:
         return IzbLists(np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
-    node_texel = np.concatenate([t for t, _ in parts])
-    node_recv = np.concatenate([r for _, r in parts])
+    if len(parts) == 1:  # one grid: no copy
+        node_texel, node_recv = parts[0]
+    else:
+        node_texel = np.concatenate([t for t, _ in parts])
+        node_recv = np.concatenate([r for _, r in parts])
     node_texel = node_texel.astype(_index_type(node_texel), copy=False)
     node_recv = node_recv.astype(_index_type(node_recv), copy=False)
     if len(node_recv) == 0:

@@ -277,7 +277,7 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
                 centre_texel[:] = c * r * r + ctex
             else:
                 centre_texel[sel] = c * r * r + ctex
-            nodes.append((c * r * r + node_texel, node_recv))
+            nodes.append((c * r * r + node_texel if c else node_texel, node_recv))
             continue
         chunks = [sel[i : i + BUILD_CHUNK] for i in range(0, len(sel), BUILD_CHUNK)]
         lcs = lc if whole else lc[sel]
