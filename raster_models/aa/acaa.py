@@ -128,13 +128,19 @@ def _blend(values, pixel, target, *, rgba8: bool, grouped: bool = False):
     # running sums are kept per run and written to the target once
     start = np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])
     run = np.diff(np.r_[start, len(pixel)])
-    acc = np.zeros((len(start), 3), dtype) if zero else out[pixel[start]]
+    acc = None
     for j in range(int(run.max())):  # one round per blend of the busiest pixel
         sel = np.flatnonzero(run > j) if j else slice(None)
-        s = acc[sel] + values[start[sel] + j]
+        if acc is None:  # first blend: onto zeros (+0: the same addition) or the target
+            s = (dtype(0.0) if zero else out[pixel[start]]) + values[start]
+        else:
+            s = acc[sel] + values[start[sel] + j]
         if rgba8:
             s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
-        acc[sel] = s
+        if acc is None:
+            acc = s
+        else:
+            acc[sel] = s
     out[pixel[start]] = acc
     return out
 
@@ -343,8 +349,9 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     target = np.zeros((n_pix, 3), np.float32)
     rays = 0
     if n_frag:
-        fx, fy = f_pix % w, f_pix // w
         centre = None
+        if p.centroid or p.shadows != "exact":
+            fx, fy = f_pix % w, f_pix // w
         if p.centroid:
             partial = count < n
             centre = (
