@@ -356,14 +356,19 @@ class PairTester:
             stop = int(np.searchsorted(ends, base0 + DRJIT_PAIR_CHUNK, side="right"))
             stop = max(stop, cut + 1)
             nc = n[cut:stop]
-            f_np = np.repeat(np.arange(len(nc), dtype=np.uint32), nc)
-            f = u32(f_np)
-            first = u32((np.cumsum(nc) - nc).astype(np.uint32))
+            first_np = (np.cumsum(nc) - nc).astype(np.uint32)
+            first = u32(first_np)
+            n_pairs = int(first_np[-1]) + int(nc[-1])
+            # fragment of each pair: 1 at every later fragment's first pair, summed (lists
+            # are never empty: the firsts are distinct)
+            marks = dr.zeros(u32, n_pairs)
+            dr.scatter(marks, u32(1), u32(first_np[1:]))
+            f = dr.prefix_sum(marks) + marks  # inclusive
             lo_dr = u32(lo[cut:stop].astype(np.uint32))
             tri_dr = u32(frag_tri[cut:stop].astype(np.uint32))
 
             frags = (tri_dr, lo_dr, first, recv_dr)
-            ti, ri, node = _pair(frags, dr.arange(u32, len(f_np)), f)
+            ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
             base, da, db, floor = self._plane_terms(ti, rows, node)
             if not self.thirty_two:
                 hit, near = self._single(base, floor)
