@@ -1,11 +1,12 @@
 """Ray work of ACAA on the Dr.Jit side: the depth prepass with its tie search, and the
 shading of fragments with exact shadow rays, copying back only compact results.
 
-- :func:`prepass`: per launch of :data:`._trace.CHUNK` rays, the prepass of
-  :func:`._trace.prepass_dr` (nearest surface and fragment bookkeeping), then for every tie
-  group the samples that can tie with it (:mod:`._acaa_ties`) compressed and traced against
-  the group's scene; NumPy receives the nearest fragments (one row each) and the hits of
-  those tie candidates, never the ``(P, N)`` sample arrays.
+- :func:`prepass`: per launch of :data:`._trace.CHUNK` rays, one kernel tracing every
+  sample (nearest surface, as :func:`._trace.trace_samples`) and testing which samples can
+  tie with each group (:mod:`._acaa_ties`); one lane a pixel then groups its samples into
+  fragments; each group's candidates are compressed and traced against the group's scene.
+  NumPy receives the nearest fragments (one row each) and the hits of the tie candidates,
+  never the ``(P, N)`` sample arrays.
 - :func:`shade_exact`: fragment attributes (:func:`._trace.attributes_dr`) and the oracle's
   shading with an exact shadow ray (:func:`._trace.shade_dr`) in one kernel per group and
   launch, as :func:`._trace.fragment_attributes` followed by :func:`._trace.shade_points`
