@@ -145,8 +145,11 @@ def launch_compression(
     lane = dr.arange(u32, k * g_count)
     g_u = dr.opaque(u32, g_count)
     n_u = dr.opaque(u32, n)
-    which = lane // g_u
-    grp = lane - which * g_u
+    # Neighbouring lanes walk the same texels in the k orderings: each packet's texels
+    # stay in the cache for all orderings instead of being read from memory k times.
+    k_u = dr.opaque(u32, k)
+    grp = lane // k_u
+    which = lane - grp * k_u
     base = which * n_u
 
     def load(src, m, grp, width):
@@ -224,8 +227,8 @@ def launch_compression(
         dr.eval(runs)
 
     def counts() -> list[int]:
-        per_lane = runs.numpy().astype(np.int64).reshape(k, g_count)
-        return [int(c) for c in per_lane.sum(axis=1)]
+        per_lane = runs.numpy().astype(np.int64).reshape(g_count, k)
+        return [int(c) for c in per_lane.sum(axis=0)]
 
     if not keep:
         return lambda: (counts(), None)
