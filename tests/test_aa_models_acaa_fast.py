@@ -237,3 +237,51 @@ def test_fragment_merge_equals_sorting_everything():
     for k in ("count", "sum_x", "sum_y"):
         assert np.array_equal(got[k], np.add.reduceat(cat[k], first)), k
     assert len(got["pixel"]) < len(cat["pixel"])  # some ties merged
+
+
+def test_grid_margin_covers_radii_wider_than_cells():
+    """Thirty small cubes 1.5 km away (D24: tie radii of metres, cells of about one metre):
+    a grid lookup still equals testing every cube, so each cube's cells reach as far as
+    any radius a tie with it can have (points up to three radii off the faces)."""
+    import types
+
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scenes.load("city", **SMALL).camera
+    fwd, up = np.asarray(cam.forward), np.array([0.0, 1.0, 0.0])
+    right = np.cross(fwd, up)
+    right /= np.linalg.norm(right)
+    centres = [
+        cam.position + fwd * 1500.0 + right * (30.0 * i - 75.0) + up * (30.0 * j - 60.0)
+        for i in range(6)
+        for j in range(5)
+    ]
+    T = mi.ScalarTransform4f
+    shapes = {
+        f"cube_{k}": {"type": "cube", "to_world": T().translate(c.tolist()).scale(0.5)}
+        for k, c in enumerate(centres)
+    }
+    scene = types.SimpleNamespace(camera=cam, mi_scene=mi.load_dict({"type": "scene", **shapes}))
+    grid = _acaa_ties.group_filters(scene, [list(range(len(centres)))], "D24")[0]
+    assert grid.starts is not None and grid.longest <= _acaa_ties.CELL_LIST
+    direct = dataclasses.replace(grid, starts=None, members=None)
+    rng = np.random.default_rng(11)
+    k = rng.integers(0, len(centres), 100_000)
+    lo, hi = grid.lo[k].astype(np.float64), grid.hi[k].astype(np.float64)
+    z = (np.asarray(centres)[k] - cam.position) @ cam.forward
+    r_est = _acaa_ties.radius_np(cam, "D24", z, np.abs(hi).max(axis=1))
+    assert r_est.min() > 3.0 * grid.cell  # radii span several cells
+    pts = lo + rng.random((len(k), 3)) * (hi - lo)
+    axis = rng.integers(0, 3, len(k))
+    side = np.where(rng.random((len(k), 1)) < 0.5, lo, hi)[np.arange(len(k)), axis]
+    pts[np.arange(len(k)), axis] = side + (rng.random(len(k)) * 6.0 - 3.0) * r_est
+    pf = mi.Point3f(*(mi.Float(np.ascontiguousarray(pts[:, a], np.float32)) for a in range(3)))
+    zf = mi.Float(((pts - cam.position) @ cam.forward).astype(np.float32))
+    radius = _acaa_ties.radius_dr(mi, dr, cam, "D24", zf, pf)
+    got = _acaa_ties.near_dr(mi, dr, grid, pf, radius).numpy()
+    ref = _acaa_ties.near_dr(mi, dr, direct, pf, radius).numpy()
+    assert np.array_equal(got, ref)
+    assert 0.2 < ref.mean() < 0.8
