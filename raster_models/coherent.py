@@ -576,21 +576,29 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         z1 = _render(scene, projs, used)
         stored = _stored(z1)
         maps = {"uncompressed": {int(m): stored[i] for i, m in enumerate(used)}}
-    vis_all = np.ones(gbuf.size)
+    # The output images are float32 from the start (values are cast on assignment, as
+    # the final conversion would).
+    vis_all = np.ones(gbuf.size, dtype=np.float32)
     vis_all[gbuf.valid] = 0.0
-    map_id = np.full(gbuf.size, -1.0)
-    err = np.zeros(gbuf.size)
-    uncovered = np.zeros(gbuf.size)
+    map_id = np.full(gbuf.size, -1.0, dtype=np.float32)
+    err = np.zeros(gbuf.size, dtype=np.float32)
+    err_rec = np.zeros(0)
+    uncovered = np.zeros(gbuf.size, dtype=np.float32)
+    n_uncovered = 0
     mismatches = 0
     if len(rec):
         map_id[rec] = sel
         if shared:
             part = slice(0, DIRECTIONAL_ROWS)
-            err[rec] = _direction_error(
-                np.ascontiguousarray(w[part]), dirs, np.ascontiguousarray(sel[part])
-            )[0]
+            err_rec = np.full(
+                len(rec),
+                _direction_error(
+                    np.ascontiguousarray(w[part]), dirs, np.ascontiguousarray(sel[part])
+                )[0],
+            )
         else:
-            err[rec] = _direction_error(w, dirs, sel)
+            err_rec = _direction_error(w, dirs, sel)
+        err[rec] = err_rec
     if p.compression:
         counts, decoded = compressed()
         stored = uncompressed()
@@ -612,6 +620,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         # would contend with the Dr.Jit kernels.
         records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
         uncovered[rec] = outside
+        n_uncovered = int(np.count_nonzero(outside))
         vis = _shade(records, maps, len(rec))
         vis_all[rec] = vis["uncompressed"]
         if "decompressed" in vis:
@@ -633,7 +642,6 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     if p.compression:
         cost["decompressed_mismatches"] = mismatches
     spacing = math.degrees(math.sqrt(4.0 * math.pi / n))
-    err_rec = err[rec]
     diagnostics = {
         "light": scene.light.to_json(),
         "sphere": {"centre": centre.tolist(), "radius": radius},
@@ -643,7 +651,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         "direction_error_deg_mean": float(err_rec.mean()) if len(rec) else 0.0,
         "direction_error_deg_max": float(err_rec.max()) if len(rec) else 0.0,
         "receivers": int(len(rec)),
-        "uncovered_receivers": int(uncovered.sum()),
+        "uncovered_receivers": n_uncovered,
         "scene": scene.provenance(),
         "provenance": _provenance(),
     }
