@@ -35,6 +35,11 @@ along its direction, depth normalized to ``[0, 1]`` across the sphere's diameter
 Error sources: direction quantization (spacing about ``sqrt(4 pi / N)``), map resolution
 (texel ``2R / r``) and bias.
 
+Implementation: the maps' rays, their intervals and the run compression of every ordering
+run in Dr.Jit kernels (:mod:`._coherent_dr`, ray descriptions from :mod:`._coherent_maps`),
+asynchronously while NumPy looks the receivers up; :func:`visibility_intervals` and
+:func:`compress_runs` are their NumPy references (same bytes, pinned by tests).
+
 References
 ----------
 .. [1] T. Ritschel, T. Grosch, J. Kautz, S. Mueller, "Interactive Illumination with Coherent
