@@ -52,11 +52,11 @@ BUILD_CHUNK = 1 << 16
 #: Receivers from which the build runs on Dr.Jit (LLVM) instead of NumPy.
 DRJIT_MIN_RECEIVERS = 1 << 14
 
-#: Receivers per Dr.Jit launch (bounded memory: about 150 bytes per receiver).
+#: Receivers per Dr.Jit launch (bounded memory: a few tens of bytes per receiver, plus
+#: 128 bytes (32 texel ids) per receiver over several texels).
 DRJIT_BUILD_CHUNK = 1 << 20
 
-#: Dr.Jit: the texel id of a duplicate point / of a receiver not in one texel (never a texel:
-#: ids are below 2^29).
+#: Dr.Jit: the texel id of a duplicate point (never a texel: ids are below 2^26 per grid).
 _NONE = 0xFFFFFFFF
 
 #: The smallest normal float64 (keeps the reach positive where ``x`` and ``spread`` are 0).
@@ -107,8 +107,9 @@ class Ortho32Build:
     ----------
     lc, ldx, ldy : ``(M, 3)`` float64 light-frame centre and derivatives of every receiver.
     a, b : ``(32,)`` float64 tangent-plane offsets (pixels).
-    drjit : run on Dr.Jit (LLVM kernels) or NumPy; ``None``: Dr.Jit from
-        :data:`DRJIT_MIN_RECEIVERS` receivers on a vectorized variant.
+    drjit : run on Dr.Jit (LLVM kernels; 32-bit indices: fewer than 2^32 / 3 receivers) or
+        NumPy; ``None``: Dr.Jit from :data:`DRJIT_MIN_RECEIVERS` receivers on a vectorized
+        variant.
     """
 
     def __init__(self, lc, ldx, ldy, a, b, *, drjit: bool | None = None):
@@ -116,7 +117,7 @@ class Ortho32Build:
         self.a, self.b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
         self.amax, self.bmax = np.abs(self.a).max(), np.abs(self.b).max()
         if drjit is None:
-            drjit = len(lc) >= DRJIT_MIN_RECEIVERS and _vectorized()
+            drjit = DRJIT_MIN_RECEIVERS <= len(lc) < 2**32 // 3 and _vectorized()
         self.drjit = drjit
         self._spread = None
         self._dr = None
