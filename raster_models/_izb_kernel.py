@@ -17,10 +17,10 @@ plane, band included: both masks 0; all inside every plane: mask full); the seco
 the 32 points of the remaining pairs only.
 
 Memory layout (the join is bound by fetching receivers, not by arithmetic): each receiver's
-values are one row of a power-of-two width (``p``, ``dP/dx``, ``dP/dy``, floor: 16 float64;
-``p``, floor: 4), rows stored in the order the pairs read them (list-node order in a join,
-pair order otherwise), and rows and triangle planes are fetched as packet loads
-(``JitFlag.PacketOps``). The values and the arithmetic are unchanged: the same bits.
+values are one row in arrays of power-of-two widths (``p``, ``dP/dx``, ``dP/dy``, floor:
+8 + 2 float64; ``p``, floor: 4), rows stored in the order the pairs read them (list-node
+order in a join, pair order otherwise), and rows and triangle planes are fetched as packet
+loads (``JitFlag.PacketOps``). The values and the arithmetic are unchanged: the same bits.
 """
 
 from __future__ import annotations
@@ -203,17 +203,17 @@ class PairTester:
             ]
             if self.floor is not None:
                 d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
-            # rows of a power-of-two width: packet loads (see _plane_terms)
-            d["floor_col"] = 3 * len(keys)
-            d["stride"] = 16 if self.thirty_two else 4
+            # row arrays of power-of-two widths (packet loads, see _plane_terms): p, dP/dx,
+            # dP/dy and the floor (10 values) as 8 + 2; p and the floor as 4
+            d["widths"] = (8, 2) if self.thirty_two else (4,)
             d["array"] = importlib.import_module(f64.__module__).ArrayXf64
             self._dr = (mi, d)
         return self._dr
 
-    def _rows(self, recv):
-        """Rows of receivers ``recv`` (Dr.Jit UInt32), one each: ``p``, [``dpdx``, ``dpdy``,]
-        the floor, zeros up to a power-of-two stride; packed by a Dr.Jit kernel, so that a
-        pair's receiver is one packet load from memory in pair order."""
+    def _rows(self, recv) -> list:
+        """Row arrays of receivers ``recv`` (Dr.Jit UInt32), one row each: ``p``,
+        [``dpdx``, ``dpdy``,] the floor, split into arrays of power-of-two widths; packed by
+        a Dr.Jit kernel, so that a pair's receiver is a few packet loads in pair order."""
         import drjit as dr
 
         mi, d = self._inputs()
@@ -224,11 +224,14 @@ class PairTester:
             cols.append(band_floor(cols[:3], self.epsilon))
         else:
             cols.append(dr.gather(f64, d["floor"], recv))
-        cols += [dr.zeros(f64, n)] * (d["stride"] - len(cols))
-        rows = dr.empty(f64, n * d["stride"])
-        dr.scatter(rows, d["array"](cols), dr.arange(mi.UInt32, n))  # packet stores
-        dr.eval(rows)
-        return rows
+        out, lane = [], dr.arange(mi.UInt32, n)
+        for w in d["widths"]:  # packet stores
+            arr = dr.empty(f64, n * w)
+            dr.scatter(arr, d["array"](cols[:w]), lane)
+            out.append(arr)
+            cols = cols[w:]
+        dr.eval(*out)
+        return out
 
     def _plane_terms(self, tri, rows, row):
         """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs: triangles
@@ -239,7 +242,9 @@ class PairTester:
         # Packet gathers (JitFlag.PacketOps): a triangle's 16 plane values and a receiver's
         # row are contiguous, loaded as packets instead of one gather per value.
         pl = dr.gather(d["array"], d["planes"], tri, shape=(16, dr.width(tri)))
-        rv = dr.gather(d["array"], rows, row, shape=(d["stride"], dr.width(row)))
+        rv = []
+        for arr, w in zip(rows, d["widths"], strict=True):  # the row's arrays
+            rv += list(dr.gather(d["array"], arr, row, shape=(w, dr.width(row))))
         rows = [[pl[4 * k + j] for j in range(4)] for k in range(4)]
         p = [rv[0], rv[1], rv[2]]
 
@@ -247,7 +252,7 @@ class PairTester:
             return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
 
         base = [dot(row, p) + row[3] for row in rows]
-        floor = rv[d["floor_col"]]
+        floor = rv[-1]
         if not self.thirty_two:
             return base, None, None, floor
         dx, dy = [rv[3], rv[4], rv[5]], [rv[6], rv[7], rv[8]]
