@@ -160,7 +160,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     Returns
     -------
     dict: ``near``, the nearest fragments in pixel order (``pixel``, ``sample``: first
-    sample, int64; ``shape`` int32; ``prim``, ``count`` uint32; with ``centroid``
+    sample, uint32; ``shape`` int32; ``prim``, ``count`` uint32; with ``centroid``
     ``sum_x``, ``sum_y`` float64); ``candidates``, per group ``(pixel, sample, depth,
     hit_valid, hit_depth, hit_shape, hit_prim)``: the candidate samples in pixel-sample
     order with their prepass view depth and the group's nearest hit (float32 depths, as
@@ -194,7 +194,8 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
         # nearest fragments: their representative samples, compressed
         rep = dr.compress(counts > 0)
         row = {
-            "rep": rep,
+            "pixel": base + rep // n,
+            "sample": rep % n,
             "shape": dr.gather(mi.Int32, shape, rep),
             "prim": dr.gather(mi.UInt32, prim, rep),
             "count": dr.gather(mi.UInt32, counts, rep),
@@ -202,10 +203,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
         if centroid:
             row["sum_x"], row["sum_y"] = _position_sums(valid, shape, prim, rep, n, offs64)
         dr.eval(*row.values())
-        r = _np(row["rep"]).astype(np.int64)
-        near["pixel"].append(p0 + r // n)
-        near["sample"].append(r % n)
-        for key in keys[2:]:
+        for key in keys:
             near[key].append(_np(row[key]).copy())
         for gi, mask in enumerate(masks):  # one trace per group, of its candidates only
             cand = dr.compress(mask)
@@ -232,7 +230,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 out[k + 2].append(_np(v).copy())
             traced += len(c)
     dtypes = (np.int64, np.int64, np.float32, bool, np.float32, np.int64, np.int64)
-    dtypes_near = {"pixel": np.int64, "sample": np.int64, "shape": np.int32}
+    dtypes_near = {"pixel": np.uint32, "sample": np.uint32, "shape": np.int32}
     dtypes_near.update(prim=np.uint32, count=np.uint32, sum_x=np.float64, sum_y=np.float64)
     return {
         "near": {k: _cat(v, dtypes_near[k]) for k, v in near.items()},

@@ -128,21 +128,32 @@ def _blend(values, pixel, target, *, rgba8: bool, grouped: bool = False):
     # running sums are kept per run and written to the target once
     start = np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])
     run = np.diff(np.r_[start, len(pixel)])
+    values = np.ascontiguousarray(values)
     acc = None
     for j in range(int(run.max())):  # one round per blend of the busiest pixel
         sel = np.flatnonzero(run > j) if j else slice(None)
         if acc is None:  # first blend: onto zeros (+0: the same addition) or the target
-            s = (dtype(0.0) if zero else out[pixel[start]]) + values[start]
+            s = (dtype(0.0) if zero else _take_rows(out, pixel[start])) + _take_rows(values, start)
         else:
-            s = acc[sel] + values[start[sel] + j]
+            s = acc[sel] + _take_rows(values, start[sel] + j)
         if rgba8:
             s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
         if acc is None:
             acc = s
         else:
             acc[sel] = s
-    out[pixel[start]] = acc
+    _rows(out)[pixel[start]] = _rows(np.ascontiguousarray(acc))
     return out
+
+
+def _rows(a: np.ndarray) -> np.ndarray:
+    """A C-contiguous ``(N, K)`` array as ``N`` opaque rows (fast row gathers/scatters)."""
+    return a.view(np.dtype((np.void, a.itemsize * a.shape[1]))).reshape(len(a))
+
+
+def _take_rows(a: np.ndarray, rows) -> np.ndarray:
+    """``a[rows]`` for a C-contiguous ``(N, K)`` array (the same bytes, row by row)."""
+    return _rows(a)[rows].view(a.dtype).reshape(-1, a.shape[1])
 
 
 def _shape_scenes(scene) -> list:
