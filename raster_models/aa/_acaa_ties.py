@@ -33,8 +33,8 @@ DIRECT_MEMBERS = 8
 GRID_CELLS = 1 << 18
 #: Members a grid cell lists at most; a sample in a cell listing more is always kept.
 CELL_LIST = 32
-#: Relative float32 error allowed for a hit position computed from a view depth and a
-#: camera ray (a few float32 roundings of the larger of its coordinates and its depth).
+#: Relative error allowed for hit positions computed in float32 (the prepass's ``o + t d``
+#: and the tie's alike: a few roundings of the larger of their coordinates and depth).
 POSITION_ERROR = 1e-5
 #: Tie radii at or beyond this fraction of the depth where the tie window becomes unbounded
 #: (``c z -> 1``, see :func:`radius_np`) count as unbounded: every such sample is kept.
