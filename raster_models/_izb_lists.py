@@ -71,10 +71,7 @@ class IzbLists:
         heads = self.__dict__.get("_heads")
         if heads is None:
             count = np.bincount(self.node_texel) if len(self.node_texel) else np.zeros(0, int)
-            heads = np.zeros(len(count) + 2, dtype=np.int64)
-            np.cumsum(count, out=heads[1:-1])
-            heads[-1] = heads[-2]
-            self._heads = heads
+            heads = self._heads = _heads(count)
         t = np.minimum(texels, len(heads) - 2)
         lo = heads[t]
         return lo, heads[t + 1] - lo
@@ -106,7 +103,8 @@ def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
 
     Nodes are sorted by texel, ties in insertion order (the parts in order: deterministic, as
     a GPU's lists would be for a fixed insertion order): a stable LSD radix sort on 16-bit
-    digits of the texel id (NumPy's stable sort of 16-bit keys is a counting sort).
+    digits of the texel id, 8 bits for a short top digit (NumPy's stable sort of 8- and
+    16-bit keys is a counting sort).
     """
     if not parts:
         return IzbLists(np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
@@ -121,11 +119,25 @@ def build_lists(parts: list[tuple[np.ndarray, np.ndarray]]) -> IzbLists:
         return IzbLists(node_texel, node_recv)
     order = np.argsort((node_texel & 0xFFFF).astype(np.uint16), kind="stable")
     top, shift = int(node_texel.max()), 16
-    while top >> shift:  # the higher 16-bit digits of the texel id
-        digit = ((node_texel[order] >> shift) & 0xFFFF).astype(np.uint16)
-        order = order[np.argsort(digit, kind="stable")]
-        shift += 16
-    return IzbLists(node_texel[order], node_recv[order])
+    while top >> shift:  # the higher digits of the texel id (8 bits where they suffice)
+        bits = 8 if top >> shift < 256 else 16
+        digit = (node_texel[order] >> shift) & ((1 << bits) - 1)
+        order = order[np.argsort(digit.astype(np.uint8 if bits == 8 else np.uint16), kind="stable")]
+        shift += bits
+    # the sorted texel ids are runs of each id: from the counts, which give the heads too
+    count = np.bincount(node_texel)
+    lists = IzbLists(np.repeat(np.arange(top + 1, dtype=node_texel.dtype), count), node_recv[order])
+    lists._heads = _heads(count)
+    return lists
+
+
+def _heads(count: np.ndarray) -> np.ndarray:
+    """Head offsets ``(len(count) + 2,)`` of lists of ``count`` nodes per texel (the last
+    entry repeated: a texel past the end has an empty list)."""
+    heads = np.zeros(len(count) + 2, dtype=np.int64)
+    np.cumsum(count, out=heads[1:-1])
+    heads[-1] = heads[-2]
+    return heads
 
 
 def _index_type(ids: np.ndarray):

@@ -112,3 +112,24 @@ def test_drjit_build_gives_the_model_the_numpy_answer(monkeypatch, cascades):
     assert ref.diagnostics["partitions"] == fast.diagnostics["partitions"]
     for key in ref.outputs:
         np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
+
+
+@pytest.mark.parametrize("top", [1000, 1 << 18, 1 << 23, 1 << 29])
+def test_lists_are_a_stable_sort_by_texel(top):
+    """The radix-sorted lists (16-bit digits, 8 for a short top digit) equal a stable sort
+    by texel, in parts; the head offsets give each texel's run."""
+    from raster_models._izb_lists import build_lists
+
+    rng = np.random.default_rng(top)
+    texels = rng.integers(0, top, 5000)
+    texels[:2000] = rng.integers(0, 40, 2000)  # long runs: ties keep insertion order
+    recv = np.arange(5000)
+    lists = build_lists([(texels[:3000], recv[:3000]), (texels[3000:], recv[3000:])])
+    order = np.argsort(texels, kind="stable")
+    np.testing.assert_array_equal(lists.node_texel, texels[order])
+    np.testing.assert_array_equal(lists.node_recv, recv[order])
+    probe = np.concatenate([texels[:50], [top + 5]])
+    lo, n = lists.span(probe)
+    for t, first, count in zip(probe, lo, n, strict=True):  # a few probes, not a hot path
+        run = np.flatnonzero(lists.node_texel == t)
+        assert count == len(run) and (count == 0 or first == run[0])
