@@ -389,15 +389,15 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         vis[rec] = np.where(state["shadowed"], 0.0, 1.0)
         fully = int(state["shadowed"].sum())
     cascade = np.full(n_pix, -1.0, dtype=f32)
-    cascade[rec] = part
+    cascade[rec] = part.astype(f32)  # converted first: a faster scatter, the same values
     if s == 32:
         band = (state["band"] & ~state["mask"]) != 0
     else:
         band = state["band"] & ~state["shadowed"]
     band_img = np.zeros(n_pix, dtype=f32)
-    band_img[rec] = band
+    band_img[rec] = band.astype(f32)
     list_img = np.zeros(n_pix, dtype=f32)
-    list_img[rec] = centre_len
+    list_img[rec] = centre_len.astype(f32)
     outputs = {
         "visibility": gbuf.image(vis),
         "cascade": gbuf.image(cascade),
