@@ -376,7 +376,8 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             stats.nodes_removed += lists.compact(dead)
             n_dead_before = n_dead
 
-    # ---- outputs (float32 images: every value, k / 32, a list length, an index, is exact)
+    # ---- outputs (float32 images built directly: the values k / 32, 0/1, indices and list
+    # lengths round to float32 once, as they did through float64)
     n_pix = gbuf.size
     f32 = np.float32
     vis = np.ones(n_pix, dtype=f32)
