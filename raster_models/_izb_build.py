@@ -316,8 +316,8 @@ def _concat(parts, m: int):
     """Node texels (int32) and receivers (int32 below 2^31 receivers) of ``parts``."""
     node_texel = np.concatenate([t for t, _ in parts]).astype(np.int32, copy=False)
     node_recv = np.concatenate([c for _, c in parts])
-    if node_recv.dtype == np.uint32:  # from Dr.Jit: ids below 2^32 / 3
-        node_recv = node_recv.astype(np.int64) if m >= 2**31 else node_recv.view(np.int32)
+    if node_recv.dtype == np.uint32:  # from Dr.Jit: ids below 2^32 / 3, within int32
+        node_recv = node_recv.view(np.int32)
     return node_texel, node_recv.astype(np.int32 if m < 2**31 else np.int64, copy=False)
 
 
