@@ -351,14 +351,18 @@ def _render_intervals(scene, projs, ids, bias: float, *, footprint: bool = True)
     import drjit as dr
 
     total = len(ids) * projs.resolution**2
-    lo = dr.empty(mi.Float, total)
-    hi = dr.empty(mi.Float, total)
+    lo = hi = None
     for start, stop, rec in _surface_chunks(scene, projs, ids, second=True):
         spreads = {"dz1": rec["dz1"], "dz2": rec["dz2"]} if footprint else {}
         c_lo, c_hi = _coherent_dr.intervals(rec["z1"], rec["z2"], bias, SPREAD_GUARD, **spreads)
-        idx = dr.arange(mi.UInt32, start, stop)
-        dr.scatter(lo, c_lo, idx)
-        dr.scatter(hi, c_hi, idx)
+        if stop - start == total:  # one launch: the kernel's outputs are the arrays
+            lo, hi = c_lo, c_hi
+        else:
+            if lo is None:
+                lo, hi = dr.empty(mi.Float, total), dr.empty(mi.Float, total)
+            idx = dr.arange(mi.UInt32, start, stop)
+            dr.scatter(lo, c_lo, idx)
+            dr.scatter(hi, c_hi, idx)
         dr.eval(lo, hi)
     return lo, hi
 

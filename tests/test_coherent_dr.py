@@ -158,3 +158,23 @@ def test_directional_lookup_is_the_full_evaluation():
     )
     full = coherent._direction_error(w_full, dirs, sel_full)
     assert np.all(full.view(np.int64) == err[0].view(np.int64))
+
+
+def test_interval_kernel_launches_do_not_change_the_intervals(monkeypatch):
+    """Launching the map kernel in several chunks (scattered into one array) gives the
+    bytes of one launch."""
+    s = scenes.load("curved", width=16, height=12)
+    dirs, _ = coherent.map_directions(64)
+    projs = coherent._Projections(s, dirs, 32)
+    one = [a.numpy() for a in coherent._render_intervals(s, projs, np.arange(64), 0.005)]
+    monkeypatch.setattr(coherent, "SURFACE_CHUNK", 1000)  # not a multiple of a map
+    # The default chunk argument was bound at definition: pass the patched value.
+    chunks = coherent._surface_chunks
+    monkeypatch.setattr(
+        coherent,
+        "_surface_chunks",
+        lambda *a, **k: chunks(*a, **{**k, "chunk": coherent.SURFACE_CHUNK}),
+    )
+    many = [a.numpy() for a in coherent._render_intervals(s, projs, np.arange(64), 0.005)]
+    assert one[0].tobytes() == many[0].tobytes() and one[1].tobytes() == many[1].tobytes()
+    assert np.any(one[1] > one[0])
