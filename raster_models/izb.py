@@ -228,7 +228,10 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     k = p.cascades
     if m:
         splits = _splits.log_splits(float(depth.min()), float(depth.max()), k)
-        part = np.searchsorted(splits[1:-1], depth, side="right")
+        if k > 1:
+            part = np.searchsorted(splits[1:-1], depth, side="right")
+        else:  # one grid: every receiver in partition 0
+            part = np.zeros(m, dtype=np.intp)
     else:
         splits, part = np.zeros(k + 1), np.zeros(0, dtype=np.int64)
 
@@ -262,7 +265,7 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     nodes = []
     centre_texel = np.empty(m, dtype=np.int64)
     for c in range(k):  # cascades
-        sel = np.flatnonzero(part == c)
+        sel = np.flatnonzero(part == c) if k > 1 else np.arange(m)
         if len(sel) == 0:
             boxes.append(None)
             continue
