@@ -193,18 +193,19 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
         counts = _fragments_of_pixels(valid, shape, prim, m, n)
         # nearest fragments: their representative samples, compressed
         rep = dr.compress(counts > 0)
-        row = {
-            "pixel": base + rep // n,
-            "sample": rep % n,
-            "shape": dr.gather(mi.Int32, shape, rep),
-            "prim": dr.gather(mi.UInt32, prim, rep),
-            "count": dr.gather(mi.UInt32, counts, rep),
-        }
-        if centroid:
-            row["sum_x"], row["sum_y"] = _position_sums(valid, shape, prim, rep, n, offs64)
-        dr.eval(*row.values())
-        for key in keys:
-            near[key].append(_np(row[key]).copy())
+        if dr.width(rep) > 0:  # an all-sky launch has no fragment (and no candidate)
+            row = {
+                "pixel": base + rep // n,
+                "sample": rep % n,
+                "shape": dr.gather(mi.Int32, shape, rep),
+                "prim": dr.gather(mi.UInt32, prim, rep),
+                "count": dr.gather(mi.UInt32, counts, rep),
+            }
+            if centroid:
+                row["sum_x"], row["sum_y"] = _position_sums(valid, shape, prim, rep, n, offs64)
+            dr.eval(*row.values())
+            for key in keys:
+                near[key].append(_np(row[key]).copy())
         for gi, mask in enumerate(masks):  # one trace per group, of its candidates only
             cand = dr.compress(mask)
             if dr.width(cand) == 0:
