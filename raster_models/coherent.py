@@ -553,8 +553,8 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
             "compression=false"
         )
     if p.compression:
-        # The map kernels run asynchronously while NumPy looks the receivers up below
-        # (element-wise work only: BLAS threads would contend with them).
+        # The map kernels run asynchronously while NumPy looks the receivers up and
+        # projects them into their maps below.
         lo, hi = _render_intervals(
             scene, projs, np.arange(n), p.bias, footprint=p.lossless == "footprint"
         )
@@ -608,6 +608,9 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         else:
             err_rec = _direction_error(w, dirs, sel)
         err[rec] = err_rec
+        records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
+        uncovered[rec] = outside
+        n_uncovered = int(np.count_nonzero(outside))
     if p.compression:
         counts, decoded = compressed()
         stored = uncompressed()
@@ -625,11 +628,6 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         }
         cost["compression"] = comp
     if len(rec):
-        # After the wait: the projection's matrix product runs on BLAS threads, which
-        # would contend with the Dr.Jit kernels.
-        records, outside = _project(scene, gbuf, p, projs, rec, pos, sel, used)
-        uncovered[rec] = outside
-        n_uncovered = int(np.count_nonzero(outside))
         vis = _shade(records, maps, len(rec))
         vis_all[rec] = vis["uncompressed"]
         if "decompressed" in vis:
