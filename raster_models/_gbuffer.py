@@ -52,13 +52,14 @@ class GBuffer:
 
 
 def _np(a) -> np.ndarray:
-    """NumPy copy of an evaluated Dr.Jit array (a Vector3f gives ``(3, N)``).
+    """NumPy view of an evaluated Dr.Jit array (a Vector3f gives ``(3, N)``).
 
-    ``.numpy()`` is one memory copy; ``np.array`` on a Dr.Jit vector goes through the
-    array protocol component by component and is ~20x slower at 1080p.
+    ``.numpy()`` exposes the evaluated array's own memory (the view keeps it alive);
+    ``np.array`` on a Dr.Jit vector goes through the array protocol component by component
+    and is ~20x slower at 1080p. Callers copy the view into their own arrays.
     """
     to_numpy = getattr(a, "numpy", None)
-    return np.array(to_numpy() if to_numpy is not None else a)
+    return to_numpy() if to_numpy is not None else np.asarray(a)
 
 
 def _vec(mi, a):

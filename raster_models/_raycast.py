@@ -16,6 +16,8 @@ import numpy as np
 
 from scenes import backend
 
+from ._depth_dr import stored_depth_dr
+
 __all__ = ["GRID_CHUNK", "cast_grid", "iter_grid"]
 
 #: Texels per Dr.Jit launch (bounded memory: about 0.3 GiB a launch with normals).
@@ -28,12 +30,24 @@ def _np(a) -> np.ndarray:
     return np.array(to_numpy() if to_numpy is not None else a)
 
 
-def iter_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool = False):
+def iter_grid(
+    scene,
+    grid: dict,
+    resolution: int,
+    depth: tuple,
+    *,
+    normals: bool = False,
+    store: tuple[str, float] | None = None,
+):
     """Cast the rays of :func:`cast_grid` in launches of :data:`GRID_CHUNK` texels and yield
     ``(start, stop, chunk)`` per launch, ``chunk`` holding that launch's flat slices of the
     arrays :func:`cast_grid` returns (``z`` float64; with ``normals`` also ``t``,
     ``dir_norm`` and ``normal`` ``(n, 3)``). Memory stays bounded by the launch size at any
-    map resolution."""
+    map resolution.
+
+    ``store=(format, bias)`` (without ``normals``): the texels are post-processed in the
+    same kernel (:func:`_depth_dr.stored_depth_dr`) and ``chunk`` holds ``stored`` (float32
+    map texels) and ``covered`` (texels hit) instead of ``z``."""
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -83,6 +97,12 @@ def iter_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool
             tau = zs + dist / dnorm
             z = coef[0] - coef[1] / dr.maximum(tau, 1e-300)
         z = dr.select(valid, z, dr.inf)
+        if store is not None:
+            texels, hit = stored_depth_dr(mi, z, store[0], store[1])
+            covered = dr.count(hit)
+            dr.eval(texels, covered)
+            yield start, stop, {"stored": texels.numpy(), "covered": int(covered[0])}
+            continue
         if normals:
             dr.eval(z, si.n, dist, dnorm, valid)
             chunk = {

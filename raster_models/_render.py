@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _depth, _filters
+from ._depth_dr import fused_bias
 from ._light_frame import Projection
 from ._raycast import iter_grid
 from ._types import MapData, Partition, Setup
@@ -80,6 +81,18 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     # One launch at a time (bounded memory at any map size): only the float32 map is whole.
     stored = np.empty(r * r, dtype=np.float32)
     covered = 0
+    bias = fused_bias(
+        params.format,
+        depth_bias=params.depth_bias,
+        slope_scaled=params.slope_scaled_bias,
+        clamp=params.depth_bias_clamp,
+    )
+    if bias is not None:
+        # No per-texel bias: the texels are finished in the casting kernel (same bytes).
+        for start, stop, hits in iter_grid(scene, grid, r, depth, store=(params.format, bias)):
+            stored[start:stop] = hits["stored"]
+            covered += hits["covered"]
+        return MapData(stored.reshape(r, r), None, (0.0, 0.0), covered, z_start)
     for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
         z = hits["z"]
         hit = np.isfinite(z)

@@ -309,11 +309,46 @@ def _partition_box(lo_tc, hi_tc, p: SdsmParams, gmin, gdim):
 
 def _to_texture(frame, gmin, gdim, points):
     """Global light-box texture coordinates (u right, v down, z in [0, 1]) of world points."""
-    lc = frame.to_light(points)
+    return _light_to_texture(frame.to_light(points), gmin, gdim)
+
+
+def _light_to_texture(lc, gmin, gdim):
+    """:func:`_to_texture` of light-frame coordinates ``lc`` (N, 3)."""
     u = (lc[:, 0] - gmin[0]) / gdim[0]
     v = (gmin[1] + gdim[1] - lc[:, 1]) / gdim[1]
     z = (lc[:, 2] - gmin[2]) / gdim[2]
     return np.stack([u, v, z], axis=1)
+
+
+def _partition_texture_bounds(frame, gmin, gdim, points, part, k):
+    """Per-partition min/max of the :func:`_to_texture` coordinates of ``points`` (partition
+    ``part``, ``-1`` for none) and the sample counts: the sample's per-partition reduction.
+
+    Each texture coordinate is a monotone function of one light-frame coordinate (IEEE
+    rounding is monotone; ``v`` decreases with light y), so the extremes of the texture
+    coordinates are the transformed extremes of the light-frame coordinates: the same values
+    as reducing :func:`_to_texture` of every sample, without transforming every sample.
+    """
+    lc = frame.to_light(points)
+    lo_l = np.full((k, 3), np.inf)
+    hi_l = np.full((k, 3), -np.inf)
+    counts = np.zeros(k, dtype=np.int64)
+    for i in range(k):  # one masked reduction per partition and axis (no copies)
+        mask = part == i
+        counts[i] = np.count_nonzero(mask)
+        if counts[i]:
+            for a in range(3):
+                lo_l[i, a] = np.min(lc[:, a], where=mask, initial=np.inf)
+                hi_l[i, a] = np.max(lc[:, a], where=mask, initial=-np.inf)
+    lo = np.full((k, 3), np.inf)
+    hi = np.full((k, 3), -np.inf)
+    filled = counts > 0
+    t_lo = _light_to_texture(lo_l[filled], gmin, gdim)
+    t_hi = _light_to_texture(hi_l[filled], gmin, gdim)
+    # u and z increase with light x and z; v decreases with light y.
+    lo[filled] = np.stack([t_lo[:, 0], t_hi[:, 1], t_lo[:, 2]], axis=1)
+    hi[filled] = np.stack([t_hi[:, 0], t_lo[:, 1], t_hi[:, 2]], axis=1)
+    return lo, hi, counts
 
 
 def _intervals(z_bounds, camera, p: SdsmParams):
@@ -340,7 +375,6 @@ def _partitions_from_depth(scene, gb, camera, light, p: SdsmParams):
     if zmin is None:
         return None, frame, gmin, gdim, diag
     z = gb.depth[samples]
-    tc = _to_texture(frame, gmin, gdim, gb.position[samples])
     if p.scheme == "log":
         bounds = _intervals(_splits.log_splits(zmin, zmax, k), camera, p)
         near_z, far_z = bounds[0], bounds[-1]
@@ -348,15 +382,9 @@ def _partitions_from_depth(scene, gb, camera, light, p: SdsmParams):
         # Number of interior boundaries at or below z (boundaries increase).
         part = np.searchsorted(bounds[1:-1], z, side="right")
         part = np.where(keep, part, -1)
-        lo = np.full((k, 3), np.inf)
-        hi = np.full((k, 3), -np.inf)
-        counts = np.zeros(k, dtype=np.int64)
-        for i in range(k):  # the sample's per-partition reduction
-            sel = tc[part == i]
-            counts[i] = len(sel)
-            if len(sel):
-                lo[i], hi[i] = sel.min(axis=0), sel.max(axis=0)
+        lo, hi, counts = _partition_texture_bounds(frame, gmin, gdim, gb.position[samples], part, k)
     else:
+        tc = _to_texture(frame, gmin, gdim, gb.position[samples])
         h = _splits.build_histogram(
             z, tc, camera.near, camera.far, p.histogram_bins, p.histogram_power
         )

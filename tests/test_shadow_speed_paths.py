@@ -1,0 +1,127 @@
+"""The fast paths of the shadow-map models give the bytes of the plain NumPy paths they
+replace: the Dr.Jit texel post-processing of :mod:`raster_models._depth_dr`, SDSM's
+per-partition bounds from light-frame extremes, and the Dr.Jit gathers of the shading
+geometry. Equality is exact (``tobytes``), on random and edge inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import scenes
+from raster_models import _depth, _depth_dr, _render, sdsm
+from raster_models._light_frame import make_frame
+
+RNG = np.random.default_rng(20261123)
+
+#: Depths the post-processing must treat exactly as NumPy does: signed zeros, the [0, 1]
+#: ends and their neighbours, UNORM round-half-even ties, subnormals, misses and overflow.
+EDGE = np.array(
+    [
+        0.0,
+        -0.0,
+        1.0,
+        np.nextafter(1.0, 2.0),
+        np.nextafter(0.0, -1.0),
+        np.nextafter(1.0, 0.0),
+        5e-324,
+        -5e-324,
+        -1e300,
+        1e300,
+        0.5 / 65535.0,
+        1.5 / 65535.0,
+        2.5 / 65535.0,
+        0.5 / 16777215.0,
+        2.5 / 16777215.0,
+        np.inf,
+        -np.inf,
+        np.nan,
+    ]
+)
+
+
+def _numpy_stored(z, fmt, depth_bias, clamp):
+    """The NumPy path of ``_render._render_one`` (no slope-scaled bias)."""
+    hit = np.isfinite(z)
+    d = _depth.rasterized_depth(
+        np.where(hit, z, 1.0), None, fmt, depth_bias=depth_bias, clamp=clamp
+    )
+    return np.where(hit, _depth.quantize(d, fmt), 1.0).astype(np.float32), hit
+
+
+@pytest.mark.parametrize("fmt", sorted(_depth.FORMATS))
+@pytest.mark.parametrize(("depth_bias", "clamp"), [(0, 0.0), (3, 0.0), (-40, -1e-4), (900, 2e-5)])
+def test_stored_depth_dr_matches_numpy(mi, fmt, depth_bias, clamp):
+    bias = _depth_dr.fused_bias(fmt, depth_bias=depth_bias, slope_scaled=0.0, clamp=clamp)
+    if bias is None:
+        # D32F's DepthBias scales with each texel's exponent: the NumPy path keeps it.
+        assert fmt == "D32F" and depth_bias != 0
+        return
+    z = np.concatenate([EDGE, RNG.uniform(-0.2, 1.2, 20000), RNG.random(20000)])
+    # Exact UNORM ties after scaling (round-half-even must agree).
+    steps = float((1 << _depth.FORMATS[fmt][1]) - 1)
+    z = np.concatenate([z, (np.arange(200) + 0.5) / steps])
+    want, want_hit = _numpy_stored(z, fmt, depth_bias, clamp)
+    got, got_hit = _depth_dr.stored_depth_dr(mi, mi.Float64(z), fmt, bias)
+    got = got.numpy()
+    assert got.dtype == np.float32
+    assert got.tobytes() == want.tobytes()
+    np.testing.assert_array_equal(got_hit.numpy(), want_hit)
+
+
+def test_fused_bias_only_for_constant_bias():
+    assert _depth_dr.fused_bias("D32F", depth_bias=0, slope_scaled=0.0, clamp=0.0) == 0.0
+    assert _depth_dr.fused_bias("D32F", depth_bias=1, slope_scaled=0.0, clamp=0.0) is None
+    assert _depth_dr.fused_bias("D24", depth_bias=0, slope_scaled=1.0, clamp=0.0) is None
+    # UNORM: DepthBias * 1 / (2^n - 1), clamped (hand-computed).
+    assert _depth_dr.fused_bias("D16", depth_bias=2, slope_scaled=0.0, clamp=0.0) == 2 / 65535
+    assert _depth_dr.fused_bias("D16", depth_bias=9, slope_scaled=0.0, clamp=1e-4) == 1e-4
+
+
+@pytest.mark.parametrize("fmt", ["D16", "D32F"])
+@pytest.mark.parametrize("technique", ["shadow-map", "csm"])
+def test_fused_maps_equal_numpy_maps(monkeypatch, technique, fmt):
+    """Whole maps: the kernel-finished texels against the NumPy post-processing."""
+    import raster_models
+    from raster_models._gbuffer import trace_gbuffer
+    from raster_models._registry import TECHNIQUES
+
+    loaded = scenes.load("city" if technique == "csm" else "spot", width=64, height=36)
+    tech = TECHNIQUES[technique]
+    module = __import__(tech.runner.__module__, fromlist=["build"])
+    p = raster_models._params.make(technique, tech.params, {"format": fmt, "resolution": 96})
+    setup = module.build(loaded, trace_gbuffer(loaded), p)
+    fused = _render.render_maps(loaded, setup, p)
+    monkeypatch.setattr(_render, "fused_bias", lambda *a, **k: None)
+    plain = _render.render_maps(loaded, setup, p)
+    assert sum(m is not None for m in fused) >= 1
+    for a, b in zip(fused, plain, strict=True):
+        assert (a is None) == (b is None)
+        if a is not None:
+            assert a.depth.dtype == np.float32
+            assert a.depth.tobytes() == b.depth.tobytes()
+            assert a.texels_covered == b.texels_covered
+            assert a.texels_covered > 0
+
+
+def test_partition_bounds_equal_bruteforce():
+    """Extremes of transformed samples = transformed extremes (monotone rounding)."""
+    frame = make_frame(
+        np.array([0.3, -1.0, 0.2]), [("world", np.array([0.0, 1.0, 0.0]))], (1.0, 2.0, 3.0)
+    )
+    pts = RNG.normal(0.0, 50.0, (5000, 3)) + np.array([10.0, 0.0, -4.0])
+    gmin = np.array([-200.0, -190.0, -210.0])
+    gdim = np.array([400.0, 380.0, 420.0])
+    # Partition 2 empty, some samples in none (-1).
+    part = RNG.choice(np.array([-1, 0, 1, 3]), size=len(pts), p=[0.1, 0.5, 0.3, 0.1])
+    k = 4
+    lo, hi, counts = sdsm._partition_texture_bounds(frame, gmin, gdim, pts, part, k)
+    tc = sdsm._to_texture(frame, gmin, gdim, pts)
+    for i in range(k):
+        sel = tc[part == i]
+        assert counts[i] == len(sel)
+        if len(sel):
+            assert lo[i].tobytes() == sel.min(axis=0).tobytes()
+            assert hi[i].tobytes() == sel.max(axis=0).tobytes()
+        else:
+            assert np.all(lo[i] == np.inf) and np.all(hi[i] == -np.inf)
