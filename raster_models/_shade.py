@@ -250,6 +250,21 @@ def _geometry_numpy(params, proj, gbuf, pix):
     )
 
 
+def _drjit_fields(mi, gbuf, names) -> dict:
+    """Flat Dr.Jit ``Float64`` copies of G-buffer fields (``(N, 3)`` fields row-major), made
+    once per G-buffer and kept on it for every partition (and blend band) it shades."""
+    cache = gbuf.__dict__.setdefault("_drjit_fields", {})
+    fields = {}
+    for name in names:
+        arr = getattr(gbuf, name)
+        hit = cache.get(name)
+        if hit is None or hit[0] is not arr:  # a replaced array is uploaded again
+            flat = np.ascontiguousarray(arr, dtype=np.float64).reshape(-1)
+            hit = cache[name] = (arr, mi.Float64(flat))
+        fields[name] = hit[1]
+    return fields
+
+
 def _geometry_drjit(params, proj, gbuf, pix):
     """:func:`_geometry_numpy` as one fused Dr.Jit float64 kernel per chunk of pixels."""
     from scenes import backend
@@ -273,14 +288,12 @@ def _geometry_drjit(params, proj, gbuf, pix):
     keys = ("u", "v", "z", "tpp", "err")
     if need_j:
         keys += ("jux", "juy", "jvx", "jvy", "jzx", "jzy")
-    out = {k: np.empty(n) for k in keys}
-    inside_out = np.empty(n, dtype=bool)
+    single = n <= DRJIT_CHUNK
+    out = {} if single else {k: np.empty(n) for k in keys}
+    inside_out = None if single else np.empty(n, dtype=bool)
     tan2 = const(2.0 * float(proj.extent[0]) / res if persp else 0.0)
     texel_ortho = const(0.0 if persp else float(proj.texel_world_size()))
     offset_k = const(offset)
-
-    def col(a, sl, k):
-        return f64(np.ascontiguousarray(a[sl, k]))
 
     def project(p):
         rows = [m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3] for i in range(4)]
@@ -289,22 +302,29 @@ def _geometry_drjit(params, proj, gbuf, pix):
         w = rows[3]
         return rows[0] / w, rows[1] / w, rows[2] / w, w
 
+    cols = _drjit_fields(mi, gbuf, ("position", "dpdx", "dpdy"))
+    if offset > 0.0:
+        cols |= _drjit_fields(mi, gbuf, ("normal", "cos_l"))
+
+    def gather(name, base, k):
+        # The pixels' float64 G-buffer values, read inside the kernel (no NumPy gathers).
+        return dr.gather(f64, cols[name], base + k)
+
     for start in range(0, n, DRJIT_CHUNK):
         sl = slice(start, min(n, start + DRJIT_CHUNK))
-        idx = pix[sl]
-        pos = gbuf.position[idx]
-        p = [col(pos, slice(None), k) for k in range(3)]
+        idx = mi.UInt32(np.asarray(pix[sl], dtype=np.uint32))
+        base = idx * 3
+        p = [gather("position", base, k) for k in range(3)]
         u, v, z, w = project(p)
         if offset > 0.0:
-            nrm = gbuf.normal[idx]
             texel = tan2 * w if persp else texel_ortho
-            n_dot_l = dr.clip(f64(gbuf.cos_l[idx]), 0.0, 1.0)
+            n_dot_l = dr.clip(dr.gather(f64, cols["cos_l"], idx), 0.0, 1.0)
             scale = offset_k * texel * (1.0 - n_dot_l)
-            p = [p[k] + col(nrm, slice(None), k) * scale for k in range(3)]
+            p = [p[k] + gather("normal", base, k) * scale for k in range(3)]
             u, v, z, w = project(p)
         jac = []
-        for dp_np in (gbuf.dpdx[idx], gbuf.dpdy[idx]):
-            dp = [col(dp_np, slice(None), k) for k in range(3)]
+        for name in ("dpdx", "dpdy"):
+            dp = [gather(name, base, k) for k in range(3)]
             dq = [m[i][0] * dp[0] + m[i][1] * dp[1] + m[i][2] * dp[2] for i in range(3)]
             if persp:
                 dw = m[3][0] * dp[0] + m[3][1] * dp[1] + m[3][2] * dp[2]
@@ -331,6 +351,11 @@ def _geometry_drjit(params, proj, gbuf, pix):
         if need_j:
             vals.update(jux=ux, juy=uy, jvx=vx, jvy=vy, jzx=zx, jzy=zy)
         dr.eval(inside, *vals.values())
+        if single:
+            # One launch: its evaluated arrays are the outputs (views, no copies).
+            out = {k: val.numpy() for k, val in vals.items()}
+            inside_out = inside.numpy()
+            continue
         for k, val in vals.items():
             out[k][sl] = val.numpy()
         inside_out[sl] = inside.numpy()

@@ -125,3 +125,43 @@ def test_partition_bounds_equal_bruteforce():
             assert hi[i].tobytes() == sel.max(axis=0).tobytes()
         else:
             assert np.all(lo[i] == np.inf) and np.all(hi[i] == -np.inf)
+
+
+@pytest.mark.parametrize(
+    ("scene_name", "technique", "kw"),
+    [
+        ("city", "csm", {"receiver_plane_bias": True, "filter": "pcf", "normal_offset": 1.0}),
+        ("spot", "shadow-map", {"perspective_normal_offset": 2.0}),
+    ],
+)
+def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique, kw):
+    """The Dr.Jit shading geometry gathers the G-buffer in the kernel: several launches
+    (scattered into NumPy arrays) give the bytes of one launch (views), and a G-buffer whose
+    field is replaced is gathered from the new field, not the uploaded copy."""
+    import raster_models as rm
+    from raster_models import _shade
+    from raster_models._gbuffer import trace_gbuffer
+
+    loaded = scenes.load(scene_name, width=96, height=54)
+    monkeypatch.setattr(_shade, "DRJIT_MIN_PIXELS", 1)
+    outs = []
+    for chunk in (_shade.DRJIT_CHUNK, 777):
+        monkeypatch.setattr(_shade, "DRJIT_CHUNK", chunk)
+        outs.append(rm.run(technique, loaded, resolution=128, **kw).outputs)
+    for key in outs[0]:
+        assert outs[1][key].tobytes() == outs[0][key].tobytes(), key
+    assert outs[0]["texels_per_pixel"].max() > 0
+
+    tech = rm._registry.TECHNIQUES[technique]
+    module = __import__(tech.runner.__module__, fromlist=["build"])
+    p = rm._params.make(technique, tech.params, {"resolution": 128, **kw})
+    gb = trace_gbuffer(loaded)
+    setup = module.build(loaded, gb, p)
+    part = next(q for q in setup.partitions if q.projection is not None)
+    pix = np.nonzero(gb.valid)[0]
+    first = _shade._partition_geometry(p, part, gb, pix)
+    # Twice the screen derivatives: twice the texels per pixel.
+    gb.dpdx, gb.dpdy = gb.dpdx * 2.0, gb.dpdy * 2.0
+    second = _shade._partition_geometry(p, part, gb, pix)
+    np.testing.assert_allclose(second["tpp"], 2.0 * first["tpp"], rtol=1e-12)
+    assert second["u"].tobytes() == first["u"].tobytes()
