@@ -81,12 +81,18 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
     rot = m[:3, :3]
     dd_x, dd_y, do_x, do_y = camera.film_derivatives()
     # float32 values (as a GPU G-buffer) widened to float64 inside the kernel; invalid pixels 0.
-    out = {k: np.empty(n_pix, dtype=np.float64) for k in ("depth", "cos_l")} | {
-        k: np.empty((n_pix, 3), dtype=np.float64) for k in ("p", "n", "dpdx", "dpdy")
-    }
-    valid_out = np.empty(n_pix, dtype=bool)
-    cone_out = np.empty(n_pix, dtype=bool)
-    lit_out = np.empty(n_pix, dtype=bool) if with_lit else None
+    # One launch (up to CHUNK pixels, 1080p included): its evaluated 1-D arrays become the
+    # G-buffer's (NumPy views); (N, 3) fields and several launches are copied.
+    single = n_pix <= CHUNK
+    if single:
+        out: dict = {}
+    else:
+        out = {k: np.empty(n_pix, dtype=np.float64) for k in ("depth", "cos_l")} | {
+            k: np.empty((n_pix, 3), dtype=np.float64) for k in ("p", "n", "dpdx", "dpdy")
+        }
+        out |= {k: np.empty(n_pix, dtype=bool) for k in ("valid", "cone")}
+        if with_lit:
+            out["lit"] = np.empty(n_pix, dtype=bool)
     for start in range(0, n_pix, CHUNK):
         stop = min(n_pix, start + CHUNK)
         idx = dr.arange(mi.UInt32, start, stop)
@@ -133,28 +139,30 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             "depth": wide(res["depth"]),
             "cos_l": wide(res["cos_l"]),
         }
-        evals = [
-            valid,
-            cone,
-            *[a for v in cols.values() for a in (v if isinstance(v, list) else [v])],
-        ]
+        arrays = {"depth": cols["depth"], "cos_l": cols["cos_l"], "valid": valid, "cone": cone}
         if with_lit:
-            evals.append(res["lit"])
-        dr.eval(*evals)
+            arrays["lit"] = res["lit"]
+        vectors = {key: cols[key] for key in ("p", "n", "dpdx", "dpdy")}
+        dr.eval(*arrays.values(), *[c for v in vectors.values() for c in v])
         sl = slice(start, stop)
-        valid_out[sl] = _np(valid)
-        cone_out[sl] = _np(cone)
-        for key, val in cols.items():
-            if isinstance(val, list):
+        if single:
+            # Interleaved (N, 3) by Dr.Jit from the evaluated columns: cheaper than three
+            # strided NumPy writes into freshly allocated memory.
+            flat = {key: dr.ravel(mi.Vector3d(*val)) for key, val in vectors.items()}
+            dr.eval(*flat.values())
+            out |= {key: _np(val).reshape(n_pix, 3) for key, val in flat.items()}
+        else:
+            for key, val in vectors.items():
                 for k in range(3):
                     out[key][sl, k] = _np(val[k])
+        for key, val in arrays.items():
+            if single:
+                out[key] = _np(val)
             else:
                 out[key][sl] = _np(val)
-        if with_lit:
-            lit_out[sl] = _np(res["lit"])
-    valid = valid_out
+    valid = out["valid"]
     pos, nrm, cos_l, depth = out["p"], out["n"], out["cos_l"], out["depth"]
-    receiver = valid & (cos_l > 0.0) & cone_out
+    receiver = valid & (cos_l > 0.0) & out["cone"]
     return GBuffer(
         width=w,
         height=h,
@@ -166,5 +174,5 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
         receiver=receiver,
         dpdx=out["dpdx"],
         dpdy=out["dpdy"],
-        lit=lit_out,
+        lit=out.get("lit"),
     )

@@ -165,3 +165,21 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
     second = _shade._partition_geometry(p, part, gb, pix)
     np.testing.assert_allclose(second["tpp"], 2.0 * first["tpp"], rtol=1e-12)
     assert second["u"].tobytes() == first["u"].tobytes()
+
+
+def test_gbuffer_launches_equal_one_launch(monkeypatch):
+    """Several G-buffer launches (copied into NumPy) give the bytes of one launch (the
+    kernel's own arrays as views, (N, 3) fields interleaved by scatters)."""
+    from raster_models import _gbuffer
+
+    loaded = scenes.load("city", width=80, height=45)  # sky and shadowed pixels
+    one = _gbuffer.trace_gbuffer(loaded, with_lit=True)
+    monkeypatch.setattr(_gbuffer, "CHUNK", 1000)  # 4 launches, the last one partial
+    many = _gbuffer.trace_gbuffer(loaded, with_lit=True)
+    fields = ("valid", "depth", "position", "normal", "cos_l", "receiver", "dpdx", "dpdy", "lit")
+    for name in fields:
+        a, b = getattr(one, name), getattr(many, name)
+        assert a.dtype == b.dtype and a.shape == b.shape, name
+        assert a.tobytes() == b.tobytes(), name
+    assert one.position.shape == (80 * 45, 3)
+    assert 0 < one.valid.sum() < one.size and one.receiver.any() and not one.lit.all()
