@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from . import _depth
 
-__all__ = ["fused_bias", "stored_depth_dr"]
+__all__ = ["clip01_dr", "fused_bias", "stored_depth_dr"]
 
 
 def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) -> float | None:
@@ -39,11 +39,13 @@ def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) 
     return float(bias[0])
 
 
-def _clip01(mi, dr, x):
+def clip01_dr(mi, x):
     """``np.clip(x, 0.0, 1.0)`` bit for bit: NaN and ``-0.0`` pass through unchanged.
 
     "Below zero" is read from the bits (sign set, not ``-0.0``, not NaN): the LLVM backend
     treats subnormal inputs as zero in comparisons, NumPy does not."""
+    import drjit as dr
+
     bits = dr.reinterpret_array(mi.Int64, x)
     below = (bits < 0) & (bits != dr.opaque(mi.Int64, -(1 << 63))) & ~dr.isnan(x)
     x = dr.select(below, 0.0, x)
@@ -69,8 +71,8 @@ def stored_depth_dr(mi, z, fmt: str, bias: float):
     d = dr.select(hit, z, 1.0)
     if bias != 0.0:
         d = d + dr.opaque(mi.Float64, bias)
-    d = _clip01(mi, dr, d)
+    d = clip01_dr(mi, d)
     if kind == "unorm":
         scale = dr.opaque(mi.Float64, float((1 << bits) - 1))
-        d = dr.round(_clip01(mi, dr, d) * scale) / scale
+        d = dr.round(clip01_dr(mi, d) * scale) / scale
     return mi.Float32(dr.select(hit, d, 1.0)), hit

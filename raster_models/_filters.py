@@ -28,6 +28,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import ndimage
 
+from ._depth_dr import clip01_dr
+
 __all__ = [
     "FILTERS",
     "MOMENT_FILTERS",
@@ -44,6 +46,7 @@ __all__ = [
     "pcf_grid",
     "pcf_poisson",
     "poisson_disc",
+    "register_drjit_texture",
 ]
 
 FILTERS = ("point", "hw_pcf", "pcf", "poisson", "vsm", "evsm2", "evsm4")
@@ -79,6 +82,32 @@ def _use_drjit(n: int) -> bool:
     return not backend.active().variant.startswith("scalar")
 
 
+#: Depth maps whose memory is a Dr.Jit array (maps finished in the ray-casting kernel):
+#: ``id(map) -> (weak reference to the map, the Dr.Jit Float array)``. The map is a NumPy
+#: view of that array's memory, so the two can never disagree; lookups use the array
+#: instead of uploading a copy. Entries leave with their map.
+_DRJIT_TEXTURES: dict = {}
+
+
+def register_drjit_texture(depth_map: np.ndarray, texels) -> None:
+    """Record that ``depth_map`` is a NumPy view of the Dr.Jit ``Float`` array ``texels``."""
+    import weakref
+
+    key = id(depth_map)
+    _DRJIT_TEXTURES[key] = (
+        weakref.ref(depth_map, lambda _: _DRJIT_TEXTURES.pop(key, None)),
+        texels,
+    )
+
+
+def _drjit_texture(mi, depth_map):
+    """The Dr.Jit texels of ``depth_map``: its registered array, else an uploaded copy."""
+    entry = _DRJIT_TEXTURES.get(id(depth_map))
+    if entry is not None and entry[0]() is depth_map:
+        return entry[1]
+    return mi.Float(np.ascontiguousarray(depth_map, dtype=np.float32).ravel())
+
+
 def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexel_bits: int):
     """Depth compares on Dr.Jit: nearest texel (``size=0``) or ``size x size`` hardware-PCF
     taps one texel apart (``size=1``: one 2x2 hardware-PCF tap), as :func:`compare_point` and
@@ -92,14 +121,15 @@ def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexe
     import drjit as dr
 
     r = depth_map.shape[0]
-    tex = mi.Float(np.ascontiguousarray(depth_map, dtype=np.float32).ravel())
+    tex = _drjit_texture(mi, depth_map)
     f64, i32 = mi.Float64, mi.Int32
     # Resolution as a kernel parameter (not a literal): one compiled kernel per filter shape.
     r_i, r_f = dr.opaque(i32, r), dr.opaque(f64, float(r))
     u = np.asarray(u, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
-    ref = np.clip(np.asarray(ref, dtype=np.float64), 0.0, 1.0)
-    out = np.empty(u.shape, dtype=np.float64)
+    ref = np.asarray(ref, dtype=np.float64)
+    single = 0 < u.size <= DRJIT_CHUNK
+    out = None if single else np.empty(u.shape, dtype=np.float64)
     # Index range that decides every fetch (clamp and border alike); keeps int32 safe.
     lo_idx = -float(size) - 2.0
 
@@ -119,7 +149,8 @@ def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexe
 
     for start in range(0, u.size, DRJIT_CHUNK):
         sl = slice(start, min(u.size, start + DRJIT_CHUNK))
-        uu, vv, rr = f64(u[sl]), f64(v[sl]), f64(ref[sl])
+        # np.clip of the reference, bit for bit, in the kernel.
+        uu, vv, rr = f64(u[sl]), f64(v[sl]), clip01_dr(mi, f64(ref[sl]))
         if size == 0:
             ix = i32(dr.clip(dr.floor(uu * r_f), lo_idx, r_f + 1.0))
             iy = i32(dr.clip(dr.floor(vv * r_f), lo_idx, r_f + 1.0))
@@ -150,6 +181,8 @@ def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexe
                 acc = acc + weight(fy, my) * row
             acc = acc / float(size * size)
         dr.eval(acc)
+        if single:
+            return acc.numpy().reshape(u.shape)  # the kernel's own output (a view)
         out[sl] = acc.numpy()
     return out
 

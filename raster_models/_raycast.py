@@ -47,7 +47,8 @@ def iter_grid(
 
     ``store=(format, bias)`` (without ``normals``): the texels are post-processed in the
     same kernel (:func:`_depth_dr.stored_depth_dr`) and ``chunk`` holds ``stored`` (float32
-    map texels) and ``covered`` (texels hit) instead of ``z``."""
+    map texels, a view of the Dr.Jit array ``texels``) and ``covered`` (texels hit) instead
+    of ``z``."""
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -101,7 +102,8 @@ def iter_grid(
             texels, hit = stored_depth_dr(mi, z, store[0], store[1])
             covered = dr.count(hit)
             dr.eval(texels, covered)
-            yield start, stop, {"stored": texels.numpy(), "covered": int(covered[0])}
+            chunk = {"stored": texels.numpy(), "covered": int(covered[0]), "texels": texels}
+            yield start, stop, chunk
             continue
         if normals:
             dr.eval(z, si.n, dist, dnorm, valid)

@@ -13,7 +13,7 @@ import numpy as np
 from . import _depth, _filters
 from ._depth_dr import fused_bias
 from ._light_frame import Projection
-from ._raycast import iter_grid
+from ._raycast import GRID_CHUNK, iter_grid
 from ._types import MapData, Partition, Setup
 
 __all__ = ["render_maps"]
@@ -79,7 +79,6 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
         _, near, far = (float(v) for v in proj.extent)
         depth = ("persp", far / (far - near), far * near / (far - near))
     # One launch at a time (bounded memory at any map size): only the float32 map is whole.
-    stored = np.empty(r * r, dtype=np.float32)
     covered = 0
     bias = fused_bias(
         params.format,
@@ -89,10 +88,19 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     )
     if bias is not None:
         # No per-texel bias: the texels are finished in the casting kernel (same bytes).
-        for start, stop, hits in iter_grid(scene, grid, r, depth, store=(params.format, bias)):
+        launches = iter_grid(scene, grid, r, depth, store=(params.format, bias))
+        if r * r <= GRID_CHUNK:
+            # One launch: the map is a view of the kernel's output, which lookups reuse.
+            ((_, _, hits),) = launches
+            stored = hits["stored"].reshape(r, r)
+            _filters.register_drjit_texture(stored, hits["texels"])
+            return MapData(stored, None, (0.0, 0.0), hits["covered"], z_start)
+        stored = np.empty(r * r, dtype=np.float32)
+        for start, stop, hits in launches:
             stored[start:stop] = hits["stored"]
             covered += hits["covered"]
         return MapData(stored.reshape(r, r), None, (0.0, 0.0), covered, z_start)
+    stored = np.empty(r * r, dtype=np.float32)
     for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
         z = hits["z"]
         hit = np.isfinite(z)

@@ -183,3 +183,43 @@ def test_gbuffer_launches_equal_one_launch(monkeypatch):
         assert a.tobytes() == b.tobytes(), name
     assert one.position.shape == (80 * 45, 3)
     assert 0 < one.valid.sum() < one.size and one.receiver.any() and not one.lit.all()
+
+
+def test_registered_texture_lookups(mi):
+    """A map that is a view of a Dr.Jit array is looked up from that array: same results as
+    an uploaded copy, one kernel output per launch or several, and the registry entry leaves
+    with the map."""
+    import gc
+
+    from raster_models import _filters
+
+    r = 64
+    texels = mi.Float(RNG.random(r * r).astype(np.float32))
+    view = texels.numpy().reshape(r, r)
+    copy = view.copy()
+    _filters.register_drjit_texture(view, texels)
+    n = 50000
+    u, v = RNG.uniform(-0.1, 1.1, n), RNG.uniform(-0.1, 1.1, n)
+    ref = np.concatenate([RNG.uniform(-0.2, 1.2, n - len(EDGE[:-1])), EDGE[:-1]])
+    for size in (0, 1, 3):
+        a = _filters.compare_taps_drjit(view, u, v, ref, size, address="clamp", subtexel_bits=8)
+        b = _filters.compare_taps_drjit(copy, u, v, ref, size, address="clamp", subtexel_bits=8)
+        assert a.tobytes() == b.tobytes()
+        assert 0.0 < a.mean() < 1.0
+    key = id(view)
+    assert key in _filters._DRJIT_TEXTURES
+    del view
+    gc.collect()
+    assert key not in _filters._DRJIT_TEXTURES
+
+
+def test_filter_launches_equal_one_launch(monkeypatch):
+    """Several compare launches (copied into NumPy) give the bytes of one (a view)."""
+    from raster_models import _filters
+
+    depth = RNG.random((48, 48)).astype(np.float32)
+    u, v, ref = RNG.random(30000), RNG.random(30000), RNG.random(30000)
+    one = _filters.compare_taps_drjit(depth, u, v, ref, 3, address="border", subtexel_bits=8)
+    monkeypatch.setattr(_filters, "DRJIT_CHUNK", 7000)
+    many = _filters.compare_taps_drjit(depth, u, v, ref, 3, address="border", subtexel_bits=8)
+    assert one.tobytes() == many.tobytes()
