@@ -227,7 +227,9 @@ def _reduce_depth(gb, camera, p: SdsmParams):
     samples = gb.valid & (z >= camera.near) & (z < camera.far)
     if not samples.any():
         return None, None, samples
-    zmin, zmax = float(z[samples].min()), float(z[samples].max())
+    # Masked reductions (no gathered copy); min/max are exact in any order.
+    zmin = float(np.min(z, where=samples, initial=np.inf))
+    zmax = float(np.max(z, where=samples, initial=-np.inf))
     if p.sky_as_far and (~gb.valid).any():
         zmax = camera.far
     if p.depth_readback == "unorm16":
@@ -323,13 +325,16 @@ def _light_to_texture(lc, gmin, gdim):
 def _partition_texture_bounds(frame, gmin, gdim, points, part, k):
     """Per-partition min/max of the :func:`_to_texture` coordinates of ``points`` (partition
     ``part``, ``-1`` for none) and the sample counts: the sample's per-partition reduction.
+    ``points`` (float64, the caller's own copy) is overwritten.
 
     Each texture coordinate is a monotone function of one light-frame coordinate (IEEE
     rounding is monotone; ``v`` decreases with light y), so the extremes of the texture
     coordinates are the transformed extremes of the light-frame coordinates: the same values
     as reducing :func:`_to_texture` of every sample, without transforming every sample.
     """
-    lc = frame.to_light(points)
+    # frame.to_light(points), its subtraction made in place (``points`` is our own gather).
+    points -= frame.origin
+    lc = points @ frame.rotation().T
     lo_l = np.full((k, 3), np.inf)
     hi_l = np.full((k, 3), -np.inf)
     counts = np.zeros(k, dtype=np.int64)

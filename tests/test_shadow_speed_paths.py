@@ -115,7 +115,7 @@ def test_partition_bounds_equal_bruteforce():
     # Partition 2 empty, some samples in none (-1).
     part = RNG.choice(np.array([-1, 0, 1, 3]), size=len(pts), p=[0.1, 0.5, 0.3, 0.1])
     k = 4
-    lo, hi, counts = sdsm._partition_texture_bounds(frame, gmin, gdim, pts, part, k)
+    lo, hi, counts = sdsm._partition_texture_bounds(frame, gmin, gdim, pts.copy(), part, k)
     tc = sdsm._to_texture(frame, gmin, gdim, pts)
     for i in range(k):
         sel = tc[part == i]
