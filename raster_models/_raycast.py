@@ -100,9 +100,11 @@ def iter_grid(
         z = dr.select(valid, z, dr.inf)
         if store is not None:
             texels, hit = stored_depth_dr(mi, z, store[0], store[1])
-            covered = dr.count(hit)
-            dr.eval(texels, covered)
-            chunk = {"stored": texels.numpy(), "covered": int(covered[0]), "texels": texels}
+            # Both from one kernel (dr.count would evaluate ``hit`` in a kernel of its own,
+            # casting every ray twice); counted in NumPy.
+            dr.eval(texels, hit)
+            covered = int(np.count_nonzero(hit.numpy()))
+            chunk = {"stored": texels.numpy(), "covered": covered, "texels": texels}
             yield start, stop, chunk
             continue
         if normals:
