@@ -433,11 +433,12 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             vis[rec] = _lookup_subset(params, data, geo, rmask, rot)
             uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
             lookups[rec] = per_lookup
+        tpp_rec = geo["tpp"][rmask]  # = tpp[pix][rmask], gathered once
         st.update(
             empty=False,
             uncovered=int(uncovered[rec].sum()) if len(rec) else 0,
-            texels_per_pixel_min=float(tpp[pix][rmask].min()) if rmask.any() else None,
-            texels_per_pixel_mean=float(tpp[pix][rmask].mean()) if rmask.any() else None,
+            texels_per_pixel_min=float(tpp_rec.min()) if len(tpp_rec) else None,
+            texels_per_pixel_mean=float(tpp_rec.mean()) if len(tpp_rec) else None,
             resolution_error_mean=float(e[rmask].mean()) if rmask.any() else None,
             texels_covered=int(data.texels_covered) if data is not None else 0,
         )
