@@ -223,3 +223,24 @@ def test_filter_launches_equal_one_launch(monkeypatch):
     monkeypatch.setattr(_filters, "DRJIT_CHUNK", 7000)
     many = _filters.compare_taps_drjit(depth, u, v, ref, 3, address="border", subtexel_bits=8)
     assert one.tobytes() == many.tobytes()
+
+
+def test_fused_map_launches_equal_one_launch(monkeypatch):
+    """A map finished in the kernel over several launches (copied into NumPy) has the bytes
+    and covered count of the single-launch map (a view of the kernel's output)."""
+    import raster_models as rm
+    from raster_models import _raycast
+    from raster_models._gbuffer import trace_gbuffer
+
+    loaded = scenes.load("city", width=64, height=36)
+    p = rm._params.make("csm", rm.csm.CsmParams, {"resolution": 80, "format": "D24"})
+    setup = rm.csm.build(loaded, trace_gbuffer(loaded), p)
+    one = _render.render_maps(loaded, setup, p)
+    monkeypatch.setattr(_raycast, "GRID_CHUNK", 1000)  # 7 launches, the last one partial
+    monkeypatch.setattr(_render, "GRID_CHUNK", 1000)
+    many = _render.render_maps(loaded, setup, p)
+    for a, b in zip(one, many, strict=True):
+        assert (a is None) == (b is None)
+        if a is not None:
+            assert a.depth.tobytes() == b.depth.tobytes()
+            assert a.texels_covered == b.texels_covered > 0
