@@ -115,8 +115,14 @@ def resolve(
     The box filter averages each pixel's own samples (float64 sums). Wide filters loop over
     the pixel offsets of their support (at most 5 x 5 rounds, vectorized over the image).
     """
-    c = np.asarray(colors, dtype=np.float64).reshape(height, width, -1, 3)
     offs = np.asarray(offsets, dtype=np.float64).reshape(-1, 2)
+    if name == "box" and not inverse_luminance:
+        # Unit weights: the float64 sum of the samples over their count, reduced over the
+        # sample axis in place of the colours' own layout (no float64 copy of every sample).
+        src = np.asarray(colors).reshape(height, width, -1, 3)
+        num = np.add.reduce(src, axis=2, dtype=np.float64)
+        return (num / float(src.shape[2])).astype(np.float32)
+    c = np.asarray(colors, dtype=np.float64).reshape(height, width, -1, 3)
     wl = np.ones(c.shape[:3])
     if inverse_luminance:
         wl = 1.0 / (1.0 + np.maximum(c @ np.asarray(LUMA_WEIGHTS), 0.0))

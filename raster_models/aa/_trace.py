@@ -489,7 +489,9 @@ def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
     """Every sample shaded where it lies (supersampling): the oracle's own
     :func:`scenes.raycast.trace_film_dr` at each sub-sample position.
 
-    Returns ``({"valid": (P, N), "shape": (P, N), "color": (P, N, 3)}, shadow_rays)``.
+    Returns ``({"valid": (P, N), "shape": (P, N), "color": (P, N, 3)}, shadow_rays)``;
+    ``color`` is a view of planar ``(3, P, N)`` storage (the layout Dr.Jit hands over: no
+    interleaving copy).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -503,7 +505,7 @@ def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
     n_pix = cam.width * cam.height
     total = n_pix * n
     valid_out = np.empty(total, bool)
-    color_out = np.empty((total, 3), np.float32)
+    planar = np.empty((3, total), np.float32)
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
     step = max(n, (CHUNK // n) * n)
     rays = 0
@@ -518,9 +520,9 @@ def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
         count = dr.count(res["shadow_tested"])
         dr.eval(res["valid"], res["color"], count)
         valid_out[start:stop] = _np(res["valid"])
-        color_out[start:stop] = _np(res["color"]).T
+        planar[:, start:stop] = _np(res["color"])
         rays += int(count[0])
     return {
         "valid": valid_out.reshape(n_pix, n),
-        "color": color_out.reshape(n_pix, n, 3),
+        "color": np.moveaxis(planar.reshape(3, n_pix, n), 0, -1),
     }, rays

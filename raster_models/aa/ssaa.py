@@ -76,14 +76,14 @@ def _supersample(name, scene, p, offsets, t0):
     )
     valid = res["valid"]
     n_pix = w * h
-    events = valid.sum(axis=1)
+    events = np.count_nonzero(valid, axis=1)
     cb, db = COLOR_FORMATS["rgba8"], DEPTH_FORMATS["D32F"]
     return package(
         name,
         scene,
         p,
         color=color,
-        coverage=valid.mean(axis=1),
+        coverage=events / n,
         events=events,
         extra_outputs={},
         samples=n,
