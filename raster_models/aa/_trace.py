@@ -253,6 +253,10 @@ def prepass_dr(
     return valid, depth, prim, shape, nrm, extra
 
 
+#: The (F, 3) attributes of :func:`fragment_attributes`.
+_VECTOR_ATTRIBUTES = ("position", "normal", "geo_normal", "albedo", "to_eye")
+
+
 def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
     """What a pixel shader sees for fragments given by one covered sample each.
 
@@ -281,8 +285,9 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
         "depth": np.zeros(total, np.float32),
         "offset": np.zeros(total, np.float32),
     }
-    for k in ("position", "normal", "geo_normal", "albedo", "to_eye"):
-        out[k] = np.zeros((total, 3), np.float32)
+    # Vectors are (F, 3) views of planar (3, F) storage: Dr.Jit's own layout, so neither the
+    # copy out of Dr.Jit nor :func:`shade_points`' copy back in interleaves or gathers.
+    planar = {k: np.zeros((3, total), np.float32) for k in _VECTOR_ATTRIBUTES}
     for start in range(0, total, CHUNK):
         sl = slice(start, min(total, start + CHUNK))
         vals = attributes_dr(scene, target, *(mi.Float(a[sl]) for a in (sx, sy, cx, cy)))
@@ -291,11 +296,13 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
         v = _np(valid)
         for key, val in vals.items():
             arr = _np(val)
-            if arr.ndim == 2:
-                arr = arr.T
-            if key != "valid":
-                arr = np.where(v.reshape((-1,) + (1,) * (arr.ndim - 1)), arr, 0)
-            out[key][sl] = arr
+            if key in planar:
+                planar[key][:, sl] = np.where(v, arr, 0)
+            elif key == "valid":
+                out[key][sl] = arr
+            else:
+                out[key][sl] = np.where(v, arr, 0)
+    out.update({k: a.T for k, a in planar.items()})
     return out
 
 
