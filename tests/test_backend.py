@@ -118,3 +118,12 @@ def test_auto_without_llvm_falls_back_to_scalar_with_warning():
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
     )
     assert res.stdout.split() == ["scalar_rgb", "True"], res.stderr
+
+
+def test_keep_freed_memory_applies_on_glibc_and_can_be_turned_off():
+    """glibc accepts both thresholds (mallopt returns 1); RASTER_ORACLE_KEEP_HEAP=0 skips."""
+    import platform
+
+    assert backend.keep_freed_memory({"RASTER_ORACLE_KEEP_HEAP": "0"}) is False
+    on_glibc = platform.system() == "Linux" and platform.libc_ver()[0] == "glibc"
+    assert backend.keep_freed_memory({}) is on_glibc
