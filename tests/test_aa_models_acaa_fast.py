@@ -23,6 +23,18 @@ RADIUS_RTOL = 1e-5
 CLOSED_FORM_RTOL = 1e-9
 
 
+def _grid_lookup_equals_direct(mi, dr, cam, grid, direct, pts):
+    """Near-box flags of ``pts`` (D24 tie radius) by the grid lookup and by testing every
+    box; asserts they are equal and returns them."""
+    pf = mi.Point3f(*(mi.Float(np.ascontiguousarray(pts[:, a], np.float32)) for a in range(3)))
+    zf = mi.Float(((pts - cam.position) @ cam.forward).astype(np.float32))
+    radius = _acaa_ties.radius_dr(mi, dr, cam, "D24", zf, pf)
+    got = _acaa_ties.near_dr(mi, dr, grid, pf, radius).numpy()
+    ref = _acaa_ties.near_dr(mi, dr, direct, pf, radius).numpy()
+    assert np.array_equal(got, ref)
+    return ref
+
+
 def _no_filter(scene, groups, fmt):
     """Every sample a tie candidate of every group (the unfiltered tie search)."""
     box = np.zeros((0, 3), np.float32)
@@ -123,12 +135,7 @@ def test_grid_lookup_equals_testing_every_member():
     side = np.where(rng.random((len(k), 1)) < 0.5, lo, hi)[np.arange(len(k)), axis]
     off = (rng.random(len(k)) * 6.0 - 3.0) * r_est
     pts[face, axis[face]] = side[face] + off[face]
-    pf = mi.Point3f(*(mi.Float(np.ascontiguousarray(pts[:, a], np.float32)) for a in range(3)))
-    zf = mi.Float(((pts - cam.position) @ cam.forward).astype(np.float32))
-    radius = _acaa_ties.radius_dr(mi, dr, cam, "D24", zf, pf)
-    got = _acaa_ties.near_dr(mi, dr, grid, pf, radius).numpy()
-    ref = _acaa_ties.near_dr(mi, dr, direct, pf, radius).numpy()
-    assert np.array_equal(got, ref)
+    ref = _grid_lookup_equals_direct(mi, dr, cam, grid, direct, pts)
     assert 0.05 < (~ref[face]).mean() < 0.95  # the face points fall on both sides
 
 
@@ -278,12 +285,7 @@ def test_grid_margin_covers_radii_wider_than_cells():
     axis = rng.integers(0, 3, len(k))
     side = np.where(rng.random((len(k), 1)) < 0.5, lo, hi)[np.arange(len(k)), axis]
     pts[np.arange(len(k)), axis] = side + (rng.random(len(k)) * 6.0 - 3.0) * r_est
-    pf = mi.Point3f(*(mi.Float(np.ascontiguousarray(pts[:, a], np.float32)) for a in range(3)))
-    zf = mi.Float(((pts - cam.position) @ cam.forward).astype(np.float32))
-    radius = _acaa_ties.radius_dr(mi, dr, cam, "D24", zf, pf)
-    got = _acaa_ties.near_dr(mi, dr, grid, pf, radius).numpy()
-    ref = _acaa_ties.near_dr(mi, dr, direct, pf, radius).numpy()
-    assert np.array_equal(got, ref)
+    ref = _grid_lookup_equals_direct(mi, dr, cam, grid, direct, pts)
     assert 0.2 < ref.mean() < 0.8
 
 

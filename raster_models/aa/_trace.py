@@ -458,36 +458,24 @@ def shade_dr(
     else:
         vis = dr.select(candidate, visibility, 0.0)
     irr = light.irradiance_scale(wl, dist)
-    if filtered_normal:
-        rgb = shade(
-            albedo=albedo * length,
-            normal=nh,
-            to_light=wl,
-            to_eye=to_eye,
-            irradiance_scale=irr,
-            visibility=vis,
-            light=light,
-            specular=None,
-        )
-        if spec is not None and spec.ks > 0.0:
-            s = spec.shininess
-            ft = length / (length + s * (1.0 - length))
-            s_eff = ft * s
-            h = dr.normalize(wl + to_eye)
-            cos_h = dr.maximum(dr.dot(nh, h), 0.0)
-            lobe = spec.ks * (s_eff + 8.0) / (8.0 * math.pi) * dr.power(cos_h, s_eff)
-            rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
-    else:
-        rgb = shade(
-            albedo=albedo,
-            normal=nh,
-            to_light=wl,
-            to_eye=to_eye,
-            irradiance_scale=irr,
-            visibility=vis,
-            light=light,
-            specular=spec,
-        )
+    rgb = shade(
+        albedo=albedo * length if filtered_normal else albedo,
+        normal=nh,
+        to_light=wl,
+        to_eye=to_eye,
+        irradiance_scale=irr,
+        visibility=vis,
+        light=light,
+        specular=None if filtered_normal else spec,
+    )
+    if filtered_normal and spec is not None and spec.ks > 0.0:
+        s = spec.shininess
+        ft = length / (length + s * (1.0 - length))
+        s_eff = ft * s
+        h = dr.normalize(wl + to_eye)
+        cos_h = dr.maximum(dr.dot(nh, h), 0.0)
+        lobe = spec.ks * (s_eff + 8.0) / (8.0 * math.pi) * dr.power(cos_h, s_eff)
+        rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
     rgb = dr.select(valid, rgb, 0.0)
     return rgb, candidate
 
