@@ -272,7 +272,7 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
     add their sums to ``acc``; returns the shadow rays cast."""
     import drjit as dr
 
-    res = trace_film_dr(loaded, x, y, color=acc.color)
+    res = trace_film_dr(loaded, x, y, color=acc.color, albedo=False)
     lit = dr.select(res["lit"], 1.0, 0.0)
     cov = dr.select(res["valid"], 1.0, 0.0)
     per_sample = [lit, cov, res["shape"]]

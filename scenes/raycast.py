@@ -155,13 +155,14 @@ def shadow_occluded_dr(scene, light, si, wl, active):
     return occluded_from_dr(scene, light, si.p, si.n, wl, si.shape, active)
 
 
-def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
+def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool = True):
     """Trace primary and shadow rays through film positions (Dr.Jit ``Float`` pixels).
 
     Returns a dict of Dr.Jit arrays: ``valid`` (hit geometry), ``lit`` (sees the light; True
     for sky), ``shape`` (Int32 shape index, -1 sky), ``depth`` (view depth, 0 sky),
-    ``position``, ``normal`` (facing the viewer), ``albedo`` and, with ``color``, ``color``
-    (shaded linear RGB, 0 for sky).
+    ``position``, ``normal`` (facing the viewer), ``albedo`` (unless ``albedo`` and
+    ``color`` are both False: tracing the BSDF call costs Python time on every launch even
+    when nothing reads it) and, with ``color``, ``color`` (shaded linear RGB, 0 for sky).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -191,8 +192,6 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
         mi.Int32, _shape_table(mi, dr, loaded), dr.reinterpret_array(mi.UInt32, si.shape)
     )
     shape_index = dr.select(valid, shape_index, -1)
-    bsdf = si.bsdf(ray)
-    albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
     out = {
         "valid": valid,
         "lit": lit,
@@ -200,14 +199,16 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None):
         "depth": depth,
         "position": si.p,
         "normal": n,
-        "albedo": albedo,
         "cos_l": cos_l,
         "shadow_tested": candidate,
     }
+    if albedo or color:
+        bsdf = si.bsdf(ray)
+        out["albedo"] = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
     if color:
         vis = dr.select(lit & valid, 1.0, 0.0)
         rgb = shade(
-            albedo=albedo,
+            albedo=out["albedo"],
             normal=n,
             to_light=wl,
             to_eye=to_eye,
