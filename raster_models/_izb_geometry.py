@@ -26,6 +26,7 @@ import numpy as np
 __all__ = [
     "CONSERVATIVE_MARGIN",
     "RASTER_CHUNK",
+    "chunks_by_total",
     "conservative_fragments",
     "scene_triangles",
     "shadow_volumes",
@@ -126,6 +127,18 @@ def _edge_functions(uv: np.ndarray):
     return coef
 
 
+def chunks_by_total(sizes: np.ndarray, limit: int):
+    """Slices of consecutive items whose ``sizes`` add up to at most ``limit`` (at least one
+    item each, so an item larger than ``limit`` forms a chunk of its own)."""
+    ends = np.cumsum(sizes)
+    cut = 0
+    while cut < len(ends):
+        base = ends[cut - 1] if cut else 0
+        stop = max(int(np.searchsorted(ends, base + limit, side="right")), cut + 1)
+        yield slice(cut, stop)
+        cut = stop
+
+
 def conservative_fragments(uv: np.ndarray, resolution: int):
     """Texels every 2D triangle touches (conservative rasterization), chunk by chunk.
 
@@ -161,13 +174,7 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
     row_start = np.cumsum(height) - height
     row_j = lo[row_tri, 1] + (np.arange(len(row_tri)) - row_start[row_tri])
     row_w = width[row_tri]
-    ends = np.cumsum(row_w)
-    cut = 0
-    while cut < len(row_tri):  # chunks of rows
-        base = ends[cut - 1] if cut else 0
-        stop = int(np.searchsorted(ends, base + RASTER_CHUNK, side="right"))
-        stop = max(stop, cut + 1)
-        sl = slice(cut, stop)
+    for sl in chunks_by_total(row_w, RASTER_CHUNK):  # chunks of rows
         t = np.repeat(row_tri[sl], row_w[sl])
         j = np.repeat(row_j[sl], row_w[sl])
         first = np.cumsum(row_w[sl]) - row_w[sl]
@@ -178,4 +185,3 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
             best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
             inside &= best >= -CONSERVATIVE_MARGIN * (np.abs(a) + np.abs(b))
         yield idx[t[inside]], j[inside] * r + i[inside]
-        cut = stop

@@ -29,6 +29,8 @@ import importlib
 
 import numpy as np
 
+from ._izb_geometry import chunks_by_total
+
 __all__ = [
     "BAND_FLOOR",
     "DRJIT_MIN_PAIRS",
@@ -354,13 +356,8 @@ class PairTester:
         else:
             keys = ("shadowed", "band")
         acc = {k: u32(np.asarray(state[k], dtype=np.uint32)) for k in keys}
-        ends = np.cumsum(n)
-        cut = 0
-        while cut < len(n):  # chunks of fragments
-            base0 = ends[cut - 1] if cut else 0
-            stop = int(np.searchsorted(ends, base0 + DRJIT_PAIR_CHUNK, side="right"))
-            stop = max(stop, cut + 1)
-            nc = n[cut:stop]
+        for sl in chunks_by_total(n, DRJIT_PAIR_CHUNK):  # chunks of fragments
+            nc = n[sl]
             first_np = (np.cumsum(nc) - nc).astype(np.uint32)
             first = u32(first_np)
             n_pairs = int(first_np[-1]) + int(nc[-1])
@@ -369,8 +366,8 @@ class PairTester:
             marks = dr.zeros(u32, n_pairs)
             dr.scatter(marks, u32(1), u32(first_np[1:]))
             f = dr.prefix_sum(marks) + marks  # inclusive
-            lo_dr = u32(lo[cut:stop].astype(np.uint32))
-            tri_dr = u32(frag_tri[cut:stop].astype(np.uint32))
+            lo_dr = u32(lo[sl].astype(np.uint32))
+            tri_dr = u32(frag_tri[sl].astype(np.uint32))
 
             frags = (tri_dr, lo_dr, first, recv_dr)
             ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
@@ -392,7 +389,6 @@ class PairTester:
                     dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
                     dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
                     dr.eval(acc["mask"], acc["band"])
-            cut = stop
         for k in keys:
             out = acc[k].numpy()
             state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out
