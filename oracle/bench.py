@@ -235,6 +235,16 @@ def _time_models(loaded, cases: dict, times: dict) -> None:
         times[technique].append(time.perf_counter() - t0)
 
 
+def _reference_row(spp: int, times: list[float], stats: dict) -> dict:
+    """JSON row of a reference timed over the rounds: median seconds, each round, rays."""
+    return {
+        "spp": spp,
+        "seconds": float(np.median(times)),
+        "seconds_per_round": times,
+        "rays": stats["rays_cast"],
+    }
+
+
 def _model_rows(cases, times, results, prefix, ref_s, ratio_key, target) -> dict:
     """One JSON row per case: median seconds, its ratio to the reference, the cost record."""
     rows = {}
@@ -328,12 +338,7 @@ def bench_models(
             "over_oracle_ratio",
             MODEL_RATIO_TARGET,
         )
-        figures["oracle_visibility"] = {
-            "spp": spp,
-            "seconds": oracle_s,
-            "seconds_per_round": oracle_times,
-            "rays": stats["rays_cast"],
-        }
+        figures["oracle_visibility"] = _reference_row(spp, oracle_times, stats)
         figures["models"] = models
         if "sdsm" in models:
             figures["sdsm"] = models["sdsm"]
@@ -354,12 +359,7 @@ def bench_models(
             if technique in aa_models:
                 row = aa_models[technique]
                 row["meets_issue9_target"] = row["over_color_reference_ratio"] <= AA_ISSUE9_TARGET
-        figures["oracle_color"] = {
-            "spp": spp,
-            "seconds": color_s,
-            "seconds_per_round": color_times,
-            "rays": cstats["rays_cast"],
-        }
+        figures["oracle_color"] = _reference_row(spp, color_times, cstats)
         figures["aa_models"] = aa_models
         figures["aa_target"] = (
             f"<= {AA_RATIO_TARGET} (model seconds / 32-spp colour reference seconds; issue 11)"
