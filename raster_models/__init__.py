@@ -15,13 +15,21 @@ VSM / EVSM filters, cascade selection and blending.
 Layering: depends on :mod:`scenes` only.
 """
 
-from ._engine import ModelResult
-from ._errors import ModelError
-from ._registry import TECHNIQUES, Technique, list_techniques, parse_params, run
-from .aa import AA_OUTPUT_CHANNELS
-from .csm import CsmParams
-from .sdsm import SdsmParams
-from .shadow_map import ShadowMapParams
+from .aa import (
+    AA_OUTPUT_CHANNELS,
+    AcaaParams,
+    AgaaParams,
+    FxaaParams,
+    MsaaParams,
+    NoAAParams,
+    SsaaParams,
+)
+from .coherent import CoherentParams
+from .errors import ModelError
+from .izb import IzbParams
+from .registry import TECHNIQUES, Technique, list_techniques, parse_params, run
+from .result import ModelResult
+from .shadowmaps import CsmParams, SdsmParams, ShadowMapParams
 
 #: Names of the output channels every model writes (``output.exr``).
 OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_error", "uncovered")
@@ -30,11 +38,19 @@ __all__ = [
     "AA_OUTPUT_CHANNELS",
     "OUTPUT_CHANNELS",
     "TECHNIQUES",
+    "AcaaParams",
+    "AgaaParams",
+    "CoherentParams",
     "CsmParams",
+    "FxaaParams",
+    "IzbParams",
     "ModelError",
     "ModelResult",
+    "MsaaParams",
+    "NoAAParams",
     "SdsmParams",
     "ShadowMapParams",
+    "SsaaParams",
     "Technique",
     "list_techniques",
     "parse_params",

@@ -85,9 +85,9 @@ Report record (``build_report``)
 
 from ._build import REPORT_SCHEMA, build_report, read_cases
 from ._case import CASE_SCHEMA, make_case
-from ._images import colorize
 from ._tradeoff import pareto_front
 from ._write import render_html, write_report
+from .images import colorize
 
 __all__ = [
     "CASE_SCHEMA",

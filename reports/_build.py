@@ -10,7 +10,7 @@ import urllib.parse
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from . import _images
+from . import images as _images
 from ._case import CASE_SCHEMA
 from ._tradeoff import tradeoff_section
 from ._validate import check_case_record, check_name, to_jsonable

@@ -8,7 +8,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from . import _images, _stats
+from . import _stats
+from . import images as _images
 from ._validate import (
     KINDS,
     check_cost,

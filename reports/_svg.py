@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from markupsafe import Markup, escape
 
-from . import _images
+from . import images as _images
 from ._format import fmt_cost, fmt_number, fmt_value
 
 __all__ = ["histogram_svg", "nice_ticks", "scatter_svg"]

@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from . import _meshes
+from . import meshes as _meshes
 
 __all__ = [
     "AA_SCENES",

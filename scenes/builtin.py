@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _meshes, aa_scenes
+from . import aa_scenes
+from . import meshes as _meshes
 
 __all__ = ["BUILTIN_SCENES", "BuiltinScene", "DEFAULT_SCENES"]
 

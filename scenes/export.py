@@ -23,7 +23,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from . import _meshes, backend
+from . import backend
+from . import meshes as _meshes
 
 __all__ = ["export", "shape_mesh"]
 

@@ -326,7 +326,7 @@ def load(
     ----------
     scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
         A :class:`scenes.builtin.BuiltinScene` (e.g. a built-in scene's factory wrapped by a
-        transformation, as ``oracle.extremes`` does) loads like a built-in one.
+        transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
     light : index of the light to use among the scene's punctual lights.
     camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import scenes
-from oracle.cache import ReferenceCache
-from oracle.cli import main
-from oracle.exr import read_exr, write_exr
-from oracle.pipeline import get_reference
-from oracle.reference import ReferenceSettings
+from oracle.cli.app import main
+from oracle.reference.cache import ReferenceCache
+from oracle.reference.exr import read_exr, write_exr
+from oracle.reference.render import ReferenceSettings
+from oracle.reference.store import get_reference
 
 SCENE = "star"
 W, H = 48, 27

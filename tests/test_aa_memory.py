@@ -13,9 +13,9 @@ import json
 import pytest
 
 import scenes
-from oracle import aa_memory
-from oracle.cli import main
-from raster_models.aa import agaa
+from oracle.cli.app import main
+from oracle.studies import aa_memory
+from raster_models.aa.agaa import model as agaa
 
 PX_736 = 1280 * 736
 PX_1080 = 1920 * 1080

@@ -12,12 +12,13 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.cache import ReferenceCache
-from oracle.cli import main
-from oracle.pipeline import get_reference
-from oracle.reference import ReferenceSettings
-from oracle.score import COVERAGE_FLOOR_RMS
-from raster_models.aa import _resolve, _samples
+from oracle.cli.app import main
+from oracle.reference.cache import ReferenceCache
+from oracle.reference.render import ReferenceSettings
+from oracle.reference.store import get_reference
+from oracle.scoring.score import COVERAGE_FLOOR_RMS
+from raster_models.aa import resolve as _resolve
+from raster_models.aa import samples as _samples
 from scenes.builtin import BuiltinScene, _mesh, _sensor, _sun
 from tests._geometry import polygon_coverage
 
@@ -123,7 +124,7 @@ def _squares(seed: int = 5):
 
 
 def _squares_scene(width, height):
-    from scenes import _meshes
+    from scenes import meshes as _meshes
     from scenes.aa_scenes import _ortho_camera
 
     mesh = _meshes.merge([_meshes.quad(q) for q in _squares()])
@@ -320,7 +321,7 @@ def test_model_writes_aa_channels(tmp_path):
     out = tmp_path / "m"
     args = ["model", "acaa", "decal", "--width", "32", "--height", "18", "--out", str(out)]
     assert main(args) == 0
-    from oracle.exr import read_exr
+    from oracle.reference.exr import read_exr
 
     ch = read_exr(out / "output.exr")
     assert {"color.R", "color.G", "color.B", "coverage", "shading_events", "ties"} <= set(ch)

@@ -11,12 +11,12 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.cache import ReferenceCache
-from oracle.pipeline import get_reference
-from oracle.reference import ReferenceSettings
-from raster_models.aa import _trace
-from raster_models.aa.acaa import rgba8_accumulate
-from raster_models.aa.agaa import cluster, quantize_normals
+from oracle.reference.cache import ReferenceCache
+from oracle.reference.render import ReferenceSettings
+from oracle.reference.store import get_reference
+from raster_models.aa import trace as _trace
+from raster_models.aa.acaa.model import rgba8_accumulate
+from raster_models.aa.agaa.model import cluster, quantize_normals
 
 W, H = 64, 36
 SMALL = {"width": W, "height": H}
@@ -198,8 +198,8 @@ def test_filtered_normal_shading_by_hand():
 def test_drjit_grouping_and_clustering_match_numpy(fmt):
     """The prepass's per-pixel work on the Dr.Jit side (fragment representatives, AGAA
     aggregates on stored normals) equals the NumPy reference rule sample for sample."""
-    from raster_models.aa import _samples
-    from raster_models.aa._fragments import first_of_key
+    from raster_models.aa import samples as _samples
+    from raster_models.aa.fragments import first_of_key
 
     s = scenes.load("foliage", **SMALL)
     for n in (4, 16):
@@ -216,7 +216,7 @@ def test_drjit_grouping_and_clustering_match_numpy(fmt):
 def test_chunked_prepass_equals_one_launch(monkeypatch):
     """Launch size is a memory bound only: a prepass cut into many chunks (a chunk ends
     mid-image, not on a row) gives the same bytes as one launch."""
-    from raster_models.aa import _samples
+    from raster_models.aa import samples as _samples
 
     s = scenes.load("thin", **SMALL)
     offs = _samples.positions(8)
@@ -234,8 +234,8 @@ def test_chunked_prepass_equals_one_launch(monkeypatch):
 def test_drjit_fragment_bookkeeping_matches_numpy(monkeypatch):
     """Fragment ids, representatives and sample counts from the Dr.Jit prepass (prefix sums
     across launches) equal the NumPy grouping of the same samples."""
-    from raster_models.aa import _samples
-    from raster_models.aa._fragments import fragments_from_prepass, group_fragments
+    from raster_models.aa import samples as _samples
+    from raster_models.aa.fragments import fragments_from_prepass, group_fragments
 
     monkeypatch.setattr(_trace, "CHUNK", 8 * 333)
     s = scenes.load("thin", **SMALL)

@@ -1,7 +1,7 @@
 """ACAA's fast paths give the bytes of the direct ones: the proximity test that picks the
-samples of the tie search (:mod:`raster_models.aa._acaa_ties`), the per-pixel fragment
+samples of the tie search (:mod:`raster_models.aa.acaa.ties`), the per-pixel fragment
 grouping and the fused prepass/shading on the Dr.Jit side
-(:mod:`raster_models.aa._acaa_trace`), and the blend on pixel-sorted runs."""
+(:mod:`raster_models.aa.acaa.trace`), and the blend on pixel-sorted runs."""
 
 from __future__ import annotations
 
@@ -12,8 +12,12 @@ import pytest
 
 import raster_models as rm
 import scenes
-from raster_models.aa import _acaa_ties, _acaa_trace, _samples, _trace, acaa
-from raster_models.aa._fragments import group_fragments
+from raster_models.aa import samples as _samples
+from raster_models.aa import trace as _trace
+from raster_models.aa.acaa import model as acaa
+from raster_models.aa.acaa import ties as _acaa_ties
+from raster_models.aa.acaa import trace as _acaa_trace
+from raster_models.aa.fragments import group_fragments
 
 SMALL = {"width": 64, "height": 36}
 #: Relative agreement of the float32 tie radius with its float64 twin (float32 rounding of
@@ -303,8 +307,8 @@ def test_grid_margin_covers_radii_wider_than_cells():
 def test_all_sky_frame_has_no_fragment_and_no_error(technique, params):
     """A frame that sees only sky (the camera looks straight up over the star scene): every
     launch of the fused paths is empty; coverage, colour and shading events are 0."""
-    from oracle._extremes_cases import EXTREMES
-    from oracle.extremes import load_extreme
+    from oracle.studies.extremes.cases import EXTREMES
+    from oracle.studies.extremes.run import load_extreme
 
     scene = load_extreme(EXTREMES["all_sky"], base="star", **SMALL)
     out = rm.run(technique, scene, samples=4, **params).outputs

@@ -1,6 +1,6 @@
 """The faster paths of the AA models give the results of the direct ones.
 
-ACAA's tie search traces groups of shapes (:func:`raster_models.aa.acaa.tie_groups`) instead
+ACAA's tie search traces groups of shapes (:func:`raster_models.aa.acaa.model.tie_groups`) instead
 of one scene per shape: the outputs must be those of the per-shape search, byte for byte,
 on scenes with ties (decal), with many shapes (city) and with many surfaces a pixel (thin).
 """
@@ -12,7 +12,7 @@ import pytest
 
 import raster_models as rm
 import scenes
-from raster_models.aa import acaa
+from raster_models.aa.acaa import model as acaa
 
 SMALL = {"width": 64, "height": 36}
 
@@ -82,7 +82,7 @@ def test_agaa_segment_sums_are_reduceats_own_additions():
     """AGAA's material sums: ``reduceat`` on the multi-row segments only must give the bytes
     of ``reduceat`` on all rows (its float32 addition order is not left to right, so a
     hand-written loop would not)."""
-    from raster_models.aa.agaa import _segment_sums
+    from raster_models.aa.agaa.model import _segment_sums
 
     rng = np.random.default_rng(1)
     for _ in range(50):
@@ -99,7 +99,7 @@ def test_box_resolve_fast_path_equals_the_weighted_sum(n, planar):
     """The unit-weight box resolve (a float64 reduction over the sample axis, on interleaved
     or planar colours) gives the bytes of the weighted einsum form it replaces, on colours
     spanning 60 binades (where float64 sums of float32 values could round)."""
-    from raster_models.aa import _resolve
+    from raster_models.aa import resolve as _resolve
 
     rng = np.random.default_rng(n)
     h, w = 7, 5

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import scenes
-from oracle.reference import ReferenceSettings, render_reference
+from oracle.reference.render import ReferenceSettings, render_reference
 from scenes import aa_scenes, raycast
 from scenes.builtin import BUILTIN_SCENES, DEFAULT_SCENES
 from scenes.shading import Specular

@@ -16,14 +16,15 @@ import numpy as np
 import pytest
 
 import raster_models
-from oracle.cache import ReferenceCache
-from oracle.cli import main
-from oracle.exr import read_exr, write_exr
-from oracle.pipeline import get_reference
-from oracle.reference import ReferenceSettings
-from oracle.score import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, METRIC_KEYS, _coverage_metrics
-from raster_models import _params, _registry
-from raster_models._types import ModelResult
+from oracle.cli.app import main
+from oracle.reference.cache import ReferenceCache
+from oracle.reference.exr import read_exr, write_exr
+from oracle.reference.render import ReferenceSettings
+from oracle.reference.store import get_reference
+from oracle.scoring.score import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, METRIC_KEYS, _coverage_metrics
+from raster_models import params as _params
+from raster_models import registry as _registry
+from raster_models.result import ModelResult
 
 SCENE = "star"  # spokes against the sky: fractional coverage on hundreds of pixels
 W, H = 48, 27

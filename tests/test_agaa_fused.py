@@ -1,5 +1,5 @@
-"""AGAA's fused Dr.Jit frame (:mod:`raster_models.aa._agaa_dr`) gives the bytes of the NumPy
-path (:func:`raster_models.aa.agaa._run_numpy`): the same clustering, the same float32
+"""AGAA's fused Dr.Jit frame (:mod:`raster_models.aa.agaa.kernels`) gives the bytes of the NumPy
+path (:func:`raster_models.aa.agaa.model._run_numpy`): the same clustering, the same float32
 material sums in ``np.add.reduceat``'s order, the same float64 resolve."""
 
 from __future__ import annotations
@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 
 import scenes
-from raster_models.aa import _agaa_dr, _agaa_pixels, _samples, _trace, agaa
+from raster_models.aa import samples as _samples
+from raster_models.aa import trace as _trace
+from raster_models.aa.agaa import kernels as _agaa_dr
+from raster_models.aa.agaa import model as agaa
+from raster_models.aa.agaa import pixels as _agaa_pixels
 from scenes import backend
 
 SMALL = {"width": 64, "height": 36}
@@ -141,7 +145,7 @@ def _add(mi, dr, rows, active, at):
 def test_pixel_lanes_equal_sample_lanes(name, n, fmt, k):
     """Fragment representatives and aggregates computed one lane a pixel
     (:func:`_agaa_pixels.pixel_prepass`) equal those of one lane a sample
-    (:mod:`raster_models.aa._pixel_dr`, tested against the NumPy rule) sample for sample,
+    (:mod:`raster_models.aa.pixel_dr`, tested against the NumPy rule) sample for sample,
     and the block sums equal :func:`drjit.block_reduce`'s bytes."""
     mi = backend.mitsuba()
     import drjit as dr

@@ -88,7 +88,7 @@ def test_doctor_exits_2_with_install_hint_without_a_vectorized_backend(tmp_path)
         "import sys; from scenes import backend\n"
         "backend.DEFAULT_LIBRARY_DIRS = ()\n"
         "backend.cuda_works = lambda: False\n"
-        "from oracle.cli import main\n"
+        "from oracle.cli.app import main\n"
         "sys.exit(main(['--backend', 'scalar_rgb', 'doctor']))\n"
     )
     env = {k: v for k, v in __import__("os").environ.items() if k != "DRJIT_LIBLLVM_PATH"}

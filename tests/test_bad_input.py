@@ -15,8 +15,8 @@ import tempfile
 import numpy as np
 import pytest
 
-from oracle.cli import MAX_SPP, main
-from oracle.exr import write_exr
+from oracle.cli.app import MAX_SPP, main
+from oracle.reference.exr import write_exr
 
 SMALL = ["--width", "16", "--height", "12", "--quiet", "--no-cache"]
 
@@ -192,7 +192,7 @@ def test_runtime_warnings_do_not_add_stderr_lines(monkeypatch, capfd):
     """NumPy RuntimeWarnings raised on the way to an error are not printed."""
     import warnings
 
-    from oracle import cli
+    from oracle.cli import app as cli
 
     def noisy(args):
         np.log(np.zeros(1))  # a genuine NumPy "divide by zero" RuntimeWarning

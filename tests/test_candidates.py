@@ -9,8 +9,8 @@ import pytest
 from PIL import Image
 
 from metrics import srgb_decode
-from oracle.candidates import CandidateError, load_candidate
-from oracle.exr import write_exr
+from oracle.reference.exr import write_exr
+from oracle.scoring.candidates import CandidateError, load_candidate
 
 H, W = 6, 10
 # 8-bit PNG values decoded in float32: exact up to float32 rounding of the sRGB curve.

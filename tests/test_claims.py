@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import raster_models
-from oracle import claims as C
-from oracle.cli import main
-from reports._claims import fmt_summary, render_claims
+from oracle.cli.app import main
+from oracle.studies.claims import run as C
+from reports.sections.claims import fmt_summary, render_claims
 
 #: Copies of the project's seed documents and TECHNIQUES.md (``../shared/`` is not part of a
 #: clone, so CI could not read them there).

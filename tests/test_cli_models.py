@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from oracle.cli import main
-from oracle.exr import read_exr
+from oracle.cli.app import main
+from oracle.reference.exr import read_exr
 
 SIZE = ["--width", "64", "--height", "36"]
 

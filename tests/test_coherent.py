@@ -13,10 +13,10 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.cli import main
-from raster_models import coherent
-from raster_models._gbuffer import trace_gbuffer
-from raster_models._hilbert import hilbert_cell, hilbert_index
+from oracle.cli.app import main
+from raster_models.coherent import model as coherent
+from raster_models.coherent.hilbert import hilbert_cell, hilbert_index
+from raster_models.gbuffer import trace_gbuffer
 
 W, H = 96, 54
 #: Small bias plus normal offset (as the shadow-map convergence tests): acne-free on plate,

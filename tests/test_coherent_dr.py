@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 import scenes
-from raster_models import _coherent_dr, _coherent_maps, coherent
+from raster_models.coherent import kernels as _coherent_dr
+from raster_models.coherent import model as coherent
+from raster_models.coherent import rays as _coherent_maps
 from scenes import backend
 
 
@@ -134,7 +136,7 @@ def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
 def test_directional_lookup_is_the_full_evaluation():
     """A directional light's lookup, evaluated on a slice and broadcast, has the bytes of
     the evaluation over every receiver (map ids and direction errors)."""
-    from raster_models._gbuffer import trace_gbuffer
+    from raster_models.gbuffer import trace_gbuffer
 
     s = scenes.load("city", width=160, height=90)
     assert s.light.kind == "directional"

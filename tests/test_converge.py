@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from oracle.cli import main
-from oracle.converge import (
+from oracle.cli.app import main
+from oracle.studies.converge import (
     JITTER_EDGE_SLOPE,
     ConvergeError,
     fit_power_law,
@@ -16,7 +16,7 @@ from oracle.converge import (
     spp_for_target,
     spp_ladder,
 )
-from reports._converge import render_converge
+from reports.sections.converge import render_converge
 
 #: Slope tolerance: the fit spans 4..256 spp on ~300 edge pixels of a 96x54 plate; its spread
 #: over seeds 0..3 is about +-0.03, so 0.1 still separates -0.75 (jittered samples at edges)

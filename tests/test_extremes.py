@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import raster_models
-from oracle import extremes as X
-from oracle.cli import main
-from reports._extremes import render_extremes
+from oracle.cli.app import main
+from oracle.studies.extremes import run as X
+from reports.sections.extremes import render_extremes
 
 #: Huge-map size of the test matrix: 1024^2 keeps the module under half a minute on 2 cores
 #: (the main job's quick mode runs 4096^2, the CLI's default 16384^2).
@@ -173,7 +173,7 @@ def test_cli_bad_huge(tmp_path, capsys):
 
 def test_cached_references_give_the_same_cells(tmp_path):
     """The main job passes its reference cache: a second run reads the references back."""
-    from oracle.cache import ReferenceCache
+    from oracle.reference.cache import ReferenceCache
 
     cache = ReferenceCache(tmp_path / "cache")
     kw = {"quick": True, "extremes": ["far_1e5"], "techniques": ["shadow-map", "msaa"]}

@@ -12,11 +12,11 @@ from test_models_xml import box, ground, quad, write_scene
 
 import raster_models as rm
 import scenes
-from oracle.cli import main
-from oracle.exr import read_exr
-from oracle.reference import ALL_CHANNELS, ReferenceSettings, render_reference
-from raster_models import izb
-from raster_models._gbuffer import trace_gbuffer
+from oracle.cli.app import main
+from oracle.reference.exr import read_exr
+from oracle.reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
+from raster_models.gbuffer import trace_gbuffer
+from raster_models.izb import model as izb
 from scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
 
 SMALL = {"width": 160, "height": 90}
@@ -79,7 +79,7 @@ def test_point_table_is_a_32_rooks_net():
 
 
 def test_conservative_rasterization_hand_count():
-    from raster_models._izb_geometry import conservative_fragments
+    from raster_models.izb.geometry import conservative_fragments
 
     # x >= 0.5, y >= 0.5, x + y <= 5: texel (i, j) touches it when max(i, .5) + max(j, .5)
     # <= 5 (the hypotenuse passes through the corners (4, 1) and (1, 4)): 5+5+4+3+2 = 19.
@@ -92,7 +92,7 @@ def test_conservative_rasterization_hand_count():
 
 
 def test_conservative_rasterization_covers_every_interior_point(monkeypatch):
-    from raster_models import _izb_geometry
+    from raster_models.izb import geometry as _izb_geometry
 
     monkeypatch.setattr(_izb_geometry, "RASTER_CHUNK", 97)  # many chunks, rows split
     rng = np.random.default_rng(3)
@@ -116,7 +116,7 @@ def test_conservative_rasterization_covers_every_interior_point(monkeypatch):
 
 
 def test_shadow_volume_equals_ray_triangle_intersection():
-    from raster_models._izb_geometry import shadow_volumes
+    from raster_models.izb.geometry import shadow_volumes
 
     rng = np.random.default_rng(5)
     d = np.array([0.3, -1.0, 0.2])
@@ -416,8 +416,8 @@ def test_scene_far_from_the_origin(tmp_path):
 def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16, epsilon=0.05):
     """Shadow volumes of random triangles over random receivers (points, derivatives)
     around them, and random (triangle, receiver) pairs: every class of pair occurs."""
-    from raster_models._izb_geometry import shadow_volumes
-    from raster_models._izb_lists import band_floor
+    from raster_models.izb.geometry import shadow_volumes
+    from raster_models.izb.lists import band_floor
 
     tris = rng.uniform(-1.0, 1.0, (n_tri, 3, 3)) + [0.0, 2.0, 0.0]
     keep, planes = shadow_volumes(tris, (0.3, -1.0, 0.1), epsilon)
@@ -435,7 +435,7 @@ def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16, epsilon=0.05):
 
 @pytest.mark.parametrize("samples", [1, 32])
 def test_drjit_pair_tests_equal_the_numpy_reference(samples):
-    from raster_models._izb_kernel import PairTester
+    from raster_models.izb.kernel import PairTester
 
     planes, recv, floor, tri, r = _random_pairs(np.random.default_rng(7))
     if samples == 1:
@@ -461,7 +461,7 @@ def test_drjit_pair_tests_equal_the_numpy_reference(samples):
 @pytest.mark.parametrize("samples", [1, 32])
 def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch, samples):
     """The whole model, Dr.Jit joins against NumPy joins: the same bytes."""
-    from raster_models import _izb_kernel
+    from raster_models.izb import kernel as _izb_kernel
 
     loaded = scenes.load("city", width=96, height=54)
     calls = []

@@ -8,8 +8,8 @@ import pytest
 
 import raster_models as rm
 import scenes
-from raster_models import _izb_build
-from raster_models._izb_build import Ortho32Build, grid, one_texel, texel
+from raster_models.izb import build as _izb_build
+from raster_models.izb.build import Ortho32Build, grid, one_texel, texel
 from scenes.tangent32 import tangent_offsets
 
 #: Grid texels per side of the synthetic cases: texels of a few units, points spread over 0
@@ -118,7 +118,7 @@ def test_drjit_build_gives_the_model_the_numpy_answer(monkeypatch, cascades):
 def test_lists_are_a_stable_sort_by_texel(top):
     """The radix-sorted lists (16-bit digits, 8 for a short top digit) equal a stable sort
     by texel, in parts; the head offsets give each texel's run."""
-    from raster_models._izb_lists import build_lists
+    from raster_models.izb.lists import build_lists
 
     rng = np.random.default_rng(top)
     texels = rng.integers(0, top, 5000)

@@ -12,9 +12,9 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.cache import reference_key
-from oracle.cli import main
-from oracle.reference import ReferenceSettings, render_reference
+from oracle.cli.app import main
+from oracle.reference.cache import reference_key
+from oracle.reference.render import ReferenceSettings, render_reference
 from scenes.light_paths import (
     POINT_RADIUS_FRACTION,
     POINT_STEP_DEG,

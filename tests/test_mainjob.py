@@ -8,10 +8,10 @@ import json
 import pytest
 
 import raster_models
-from oracle import mainjob
-from oracle.cli import main
-from oracle.sweepspec import expand_spec
-from oracle.sweepstore import SweepStore
+from oracle.cli.app import main
+from oracle.sweeps import mainjob
+from oracle.sweeps.spec import expand_spec
+from oracle.sweeps.store import SweepStore
 
 #: Small enough for the shared test machine: 64x36 at 4 spp, in this process.
 SMALL = ["--spp", "4", "--width", "64", "--height", "36", "--workers", "0", "--quiet"]

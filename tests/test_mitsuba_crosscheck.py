@@ -13,7 +13,7 @@ import pytest
 from scipy.special import erfc
 
 import scenes
-from oracle.reference import ReferenceSettings, render_reference
+from oracle.reference.render import ReferenceSettings, render_reference
 
 ALPHA = 0.01
 PASS_RATE = 0.9975

@@ -172,7 +172,7 @@ def test_result_contract(plate, technique):
 def test_sky_is_lit_and_back_faces_are_dark():
     s = scenes.load("star", **SMALL)
     r = rm.run("csm", s, resolution=SMALL_MAP)
-    from raster_models._gbuffer import trace_gbuffer
+    from raster_models.gbuffer import trace_gbuffer
 
     g = trace_gbuffer(s)
     vis = r.outputs["visibility"].ravel()

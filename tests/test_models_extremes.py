@@ -15,7 +15,7 @@ from test_models_xml import box, ground, quad, write_scene
 
 import raster_models as rm
 import scenes
-from raster_models._gbuffer import trace_gbuffer
+from raster_models.gbuffer import trace_gbuffer
 
 TECHNIQUES = ("shadow-map", "csm", "sdsm")
 MAP = 512

@@ -8,8 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from raster_models import _depth, _filters, _splits
-from raster_models._light_frame import Projection, make_frame
+from raster_models import depth as _depth
+from raster_models import splits as _splits
+from raster_models.light_frame import Projection, make_frame
+from raster_models.shadowmaps import filters as _filters
 
 RNG = np.random.default_rng(1234)
 

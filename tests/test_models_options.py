@@ -9,8 +9,10 @@ import pytest
 
 import raster_models as rm
 import scenes
-from raster_models import _engine, _params, csm, sdsm, shadow_map
-from raster_models._gbuffer import trace_gbuffer
+from raster_models import params as _params
+from raster_models.gbuffer import trace_gbuffer
+from raster_models.shadowmaps import csm, sdsm, shadow_map
+from raster_models.shadowmaps import engine as _engine
 
 SIZE = {"width": 96, "height": 54}
 GOOD_BIAS = {"bias": 0.0005, "normal_offset": 1.5}
@@ -91,7 +93,7 @@ def test_hardware_slope_scaled_bias_pushes_tilted_casters_back():
 def test_maps_rendered_in_launches_equal_one_launch(monkeypatch, scene_name):
     """Launches of 1000 texels (not dividing the map) give the same map bytes and moments as
     one launch: per-launch slopes use the launch's texel offset (ortho and perspective)."""
-    from raster_models import _raycast
+    from raster_models.shadowmaps import raycast as _raycast
 
     s = scenes.load(scene_name, **SIZE)
     values = {"resolution": 96, "slope_scaled_bias": 1.0, "depth_bias": 100, "format": "D24"}

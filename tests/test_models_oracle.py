@@ -15,9 +15,11 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.reference import ReferenceSettings, render_reference
-from raster_models import _engine, _params, csm
-from raster_models._gbuffer import trace_gbuffer
+from oracle.reference.render import ReferenceSettings, render_reference
+from raster_models import params as _params
+from raster_models.gbuffer import trace_gbuffer
+from raster_models.shadowmaps import csm
+from raster_models.shadowmaps import engine as _engine
 
 W, H = 160, 90
 #: A small constant bias plus a normal offset: no acne at any resolution tested, so the

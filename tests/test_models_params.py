@@ -10,9 +10,10 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.cli import main
-from raster_models import _filters, _shade
-from raster_models._gbuffer import trace_gbuffer
+from oracle.cli.app import main
+from raster_models.gbuffer import trace_gbuffer
+from raster_models.shadowmaps import filters as _filters
+from raster_models.shadowmaps import shade as _shade
 
 #: False-lit fraction of receivers allowed for the default spot/point configuration at
 #: 2048^2 (measured 0.0001 spot / 0.0005 point at 320x180; the old constant bias 0.005 on
@@ -21,7 +22,7 @@ FALSE_LIT_MAX = 0.003
 
 
 def _records(tech):
-    from raster_models import _params
+    from raster_models import params as _params
 
     return _params.describe(tech.params)
 
@@ -85,7 +86,7 @@ def test_perspective_bias_is_linear_in_light_depth():
     r = rm.run("shadow-map", scene, resolution=256, filter="point")
     proj_rec = r.diagnostics["partitions"][0]["projection"]
     near, far = proj_rec["near"], proj_rec["far"]
-    from raster_models._light_frame import Projection, make_frame
+    from raster_models.light_frame import Projection, make_frame
 
     p = rm.TECHNIQUES["shadow-map"].params()
     frame = make_frame(scene.light.direction, [("y", (0.0, 1.0, 0.0))])
@@ -156,7 +157,8 @@ def test_projection_selection_checks_depth_too():
     """CSM projection selection picks a cascade only when the pixel is inside its whole
     texture volume, depth included (the ``thin`` scene had 10 receivers selected into a
     cascade whose depth range they are outside of)."""
-    from raster_models import _params, csm
+    from raster_models import params as _params
+    from raster_models.shadowmaps import csm
 
     scene = scenes.load("thin", width=160, height=90)
     g = trace_gbuffer(scene)

@@ -11,8 +11,8 @@ import pytest
 
 import metrics as M
 import scenes
-from oracle import reference as R
-from oracle.reference import ReferenceSettings, render_reference
+from oracle.reference import render as R
+from oracle.reference.render import ReferenceSettings, render_reference
 from scenes import backend
 
 CHANNELS = ("visibility", "coverage")
@@ -166,7 +166,7 @@ def test_a_small_kerb_keeps_its_shadow_far_from_the_origin(tmp_path, offset):
 
 
 def test_spot_receivers_are_inside_the_cone():
-    from oracle.score import _receivers
+    from oracle.scoring.score import _receivers
 
     scene = scenes.load("spot", width=80, height=45)
     ch, _ = render_reference(

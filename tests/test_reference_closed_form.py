@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import scenes
-from oracle.reference import ReferenceSettings, render_reference
+from oracle.reference.render import ReferenceSettings, render_reference
 from tests._geometry import polygon_coverage
 
 # A jittered 8x8 grid estimates a straight edge's area with an error of a few cells at worst:

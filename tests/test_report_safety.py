@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import reports
-from oracle.cli import main
+from oracle.cli.app import main
 
 H, W = 12, 16
 

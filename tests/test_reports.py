@@ -13,7 +13,8 @@ import pytest
 from PIL import Image
 
 import reports
-from reports import _format, _images, _stats, _svg
+from reports import _format, _stats, _svg
+from reports import images as _images
 from reports._write import json_script
 
 # Heights/widths of the small synthetic images; tile-aligned planted errors sit at multiples

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import scenes
-from oracle.cli import main
-from oracle.exr import read_exr
-from oracle.reference import ReferenceSettings, grid_shape, render_reference
+from oracle.cli.app import main
+from oracle.reference.exr import read_exr
+from oracle.reference.render import ReferenceSettings, grid_shape, render_reference
 from scenes import raycast
 
 

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from oracle.cli import main
-from oracle.exr import read_exr, write_exr
-from oracle.score import METRIC_KEYS
+from oracle.cli.app import main
+from oracle.reference.exr import read_exr, write_exr
+from oracle.scoring.score import METRIC_KEYS
 
 SIZE = ["--width", "48", "--height", "27"]
 REQUIRED = (

@@ -1,5 +1,5 @@
 """The fast paths of the shadow-map models give the bytes of the plain NumPy paths they
-replace: the Dr.Jit texel post-processing of :mod:`raster_models._depth_dr`, SDSM's
+replace: the Dr.Jit texel post-processing of :mod:`raster_models.shadowmaps.depth_dr`, SDSM's
 per-partition bounds from light-frame extremes, and the Dr.Jit gathers of the shading
 geometry. Equality is exact (``tobytes``), on random and edge inputs."""
 
@@ -9,8 +9,11 @@ import numpy as np
 import pytest
 
 import scenes
-from raster_models import _depth, _depth_dr, _render, sdsm
-from raster_models._light_frame import make_frame
+from raster_models import depth as _depth
+from raster_models.light_frame import make_frame
+from raster_models.shadowmaps import depth_dr as _depth_dr
+from raster_models.shadowmaps import render as _render
+from raster_models.shadowmaps import sdsm
 
 RNG = np.random.default_rng(20261123)
 
@@ -83,13 +86,13 @@ def test_fused_bias_only_for_constant_bias():
 def test_fused_maps_equal_numpy_maps(monkeypatch, technique, fmt):
     """Whole maps: the kernel-finished texels against the NumPy post-processing."""
     import raster_models
-    from raster_models._gbuffer import trace_gbuffer
-    from raster_models._registry import TECHNIQUES
+    from raster_models.gbuffer import trace_gbuffer
+    from raster_models.registry import TECHNIQUES
 
     loaded = scenes.load("city" if technique == "csm" else "spot", width=64, height=36)
     tech = TECHNIQUES[technique]
     module = __import__(tech.runner.__module__, fromlist=["build"])
-    p = raster_models._params.make(technique, tech.params, {"format": fmt, "resolution": 96})
+    p = raster_models.params.make(technique, tech.params, {"format": fmt, "resolution": 96})
     setup = module.build(loaded, trace_gbuffer(loaded), p)
     fused = _render.render_maps(loaded, setup, p)
     monkeypatch.setattr(_render, "fused_bias", lambda *a, **k: None)
@@ -139,8 +142,8 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
     (scattered into NumPy arrays) give the bytes of one launch (views), and a G-buffer whose
     field is replaced is gathered from the new field, not the uploaded copy."""
     import raster_models as rm
-    from raster_models import _shade
-    from raster_models._gbuffer import trace_gbuffer
+    from raster_models.gbuffer import trace_gbuffer
+    from raster_models.shadowmaps import shade as _shade
 
     loaded = scenes.load(scene_name, width=96, height=54)
     monkeypatch.setattr(_shade, "DRJIT_MIN_PIXELS", 1)
@@ -170,7 +173,7 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
 def test_gbuffer_launches_equal_one_launch(monkeypatch):
     """Several G-buffer launches (copied into NumPy) give the bytes of one launch (the
     kernel's own arrays as views, (N, 3) fields interleaved by scatters)."""
-    from raster_models import _gbuffer
+    from raster_models import gbuffer as _gbuffer
 
     loaded = scenes.load("city", width=80, height=45)  # sky and shadowed pixels
     one = _gbuffer.trace_gbuffer(loaded, with_lit=True)
@@ -191,7 +194,7 @@ def test_registered_texture_lookups(mi):
     with the map."""
     import gc
 
-    from raster_models import _filters
+    from raster_models.shadowmaps import filters as _filters
 
     r = 64
     texels = mi.Float(RNG.random(r * r).astype(np.float32))
@@ -215,7 +218,7 @@ def test_registered_texture_lookups(mi):
 
 def test_filter_launches_equal_one_launch(monkeypatch):
     """Several compare launches (copied into NumPy) give the bytes of one (a view)."""
-    from raster_models import _filters
+    from raster_models.shadowmaps import filters as _filters
 
     depth = RNG.random((48, 48)).astype(np.float32)
     u, v, ref = RNG.random(30000), RNG.random(30000), RNG.random(30000)
@@ -229,8 +232,8 @@ def test_fused_map_launches_equal_one_launch(monkeypatch):
     """A map finished in the kernel over several launches (copied into NumPy) has the bytes
     and covered count of the single-launch map (a view of the kernel's output)."""
     import raster_models as rm
-    from raster_models import _raycast
-    from raster_models._gbuffer import trace_gbuffer
+    from raster_models.gbuffer import trace_gbuffer
+    from raster_models.shadowmaps import raycast as _raycast
 
     loaded = scenes.load("city", width=64, height=36)
     p = rm._params.make("csm", rm.csm.CsmParams, {"resolution": 80, "format": "D24"})

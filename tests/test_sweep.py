@@ -16,11 +16,13 @@ from pathlib import Path
 import pytest
 
 import raster_models
-from oracle.cli import main
-from oracle.sweep import run_sweep, sweep_keys
-from oracle.sweepspec import SpecError, expand_spec, expand_values, load_spec
-from oracle.sweepstore import SweepStore
-from raster_models import _params, _registry, shadow_map
+from oracle.cli.app import main
+from oracle.sweeps.run import run_sweep, sweep_keys
+from oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
+from oracle.sweeps.store import SweepStore
+from raster_models import params as _params
+from raster_models import registry as _registry
+from raster_models.shadowmaps import shadow_map
 
 SIZE = "width = 48\nheight = 27\n"
 #: How long the SIGKILL test waits for the first committed rows / for the killed sweep's
@@ -178,7 +180,7 @@ def test_bad_spec_is_one_line_exit_2_nothing_written(tmp_path, capsys, name):
 
 
 def test_unreachable_scheduler_exit_2(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("oracle.sweep.SCHEDULER_TIMEOUT_S", 1)
+    monkeypatch.setattr("oracle.sweeps.run.SCHEDULER_TIMEOUT_S", 1)
     spec = _spec(tmp_path, _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n')
     args = ["sweep", str(spec), "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "o")]
     assert main([*args, "--quiet"]) == 2
@@ -344,7 +346,7 @@ def test_sigkill_loses_only_cases_in_flight_and_resume_skips_finished(tmp_path):
     total = len(load_spec(spec).cases)
     assert total == 2 * 13
     db = tmp_path / "kill.db"
-    cmd = [sys.executable, "-m", "oracle.cli", "sweep", str(spec), "--db", str(db)]
+    cmd = [sys.executable, "-m", "oracle.cli.app", "sweep", str(spec), "--db", str(db)]
     cmd += ["--out", str(tmp_path / "o"), "--workers", "1", "--quiet"]
     proc = subprocess.Popen(
         cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE

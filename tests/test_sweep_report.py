@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from reports._sweep import best_at_equal_cost, sweep_record, write_sweep_report
+from reports.sweep import best_at_equal_cost, sweep_record, write_sweep_report
 
 
 def _row(i, technique, resolution, cost, error, *, scene="plate", status="done", family="shadow"):
@@ -109,7 +109,7 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
 
 
 def test_front_plot_colours_each_technique_and_fills_the_front():
-    from reports._sweep_html import PALETTE, front_svg
+    from reports.sections.sweep import PALETTE, front_svg
 
     rec = sweep_record(ROWS, title="t")
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
@@ -126,7 +126,7 @@ def test_front_plot_colours_each_technique_and_fills_the_front():
 
 
 def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
-    from reports._sweep import with_memory
+    from reports.sweep import with_memory
 
     assert with_memory({"shadow_map_bytes": 64})["memory_bytes"] == 64
     assert with_memory({"memory_bytes": 10, "shadow_map_bytes": 64})["memory_bytes"] == 10

@@ -8,10 +8,10 @@ import json
 import pytest
 
 import scenes
-from oracle.cache import ReferenceCache
-from oracle.cli import main
-from oracle.sweep import evaluate_case
-from oracle.tune import TuneError, parse_space, parse_target, run_tune
+from oracle.cli.app import main
+from oracle.reference.cache import ReferenceCache
+from oracle.sweeps.run import evaluate_case
+from oracle.sweeps.tune import TuneError, parse_space, parse_target, run_tune
 
 SCENE = "plate"
 W, H, SPP = 96, 54, 16

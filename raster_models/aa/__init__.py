@@ -7,9 +7,9 @@ shadow rays (or a shadow technique), and writes ``color`` (linear, (H, W, 3)), `
 events, passes, samples tested and bandwidth.
 """
 
-from . import _resolve, _samples
-from .fxaa import FXAA_PRESETS, fxaa, fxaa_luma
-from .fxaa_model import FxaaParams
+from .acaa import AcaaParams
+from .agaa import AgaaParams
+from .fxaa import FxaaParams
 from .msaa import MsaaParams
 from .ssaa import NoAAParams, SsaaParams
 
@@ -18,13 +18,10 @@ AA_OUTPUT_CHANNELS = ("color", "coverage", "shading_events")
 
 __all__ = [
     "AA_OUTPUT_CHANNELS",
-    "FXAA_PRESETS",
+    "AcaaParams",
+    "AgaaParams",
     "FxaaParams",
     "MsaaParams",
     "NoAAParams",
     "SsaaParams",
-    "_resolve",
-    "_samples",
-    "fxaa",
-    "fxaa_luma",
 ]

@@ -28,9 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _params
-from . import _resolve, _samples
-from ._base import (
+from .. import params as _params
+from . import resolve as _resolve
+from . import samples as _samples
+from .common import (
     COLOR_FORMATS,
     DEPTH_FORMATS,
     ResolveParams,
@@ -39,8 +40,8 @@ from ._base import (
     package,
     shade_fragments,
 )
-from ._fragments import fragments_from_prepass
-from ._trace import trace_samples
+from .fragments import fragments_from_prepass
+from .trace import trace_samples
 
 __all__ = ["NAME", "MsaaParams", "multisample", "resolve_fragments", "run", "sample_colors"]
 

@@ -21,10 +21,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import _params
-from . import _resolve, _samples
-from ._base import COLOR_FORMATS, DEPTH_FORMATS, ResolveParams, package
-from ._trace import sample_colors
+from .. import params as _params
+from . import resolve as _resolve
+from . import samples as _samples
+from .common import COLOR_FORMATS, DEPTH_FORMATS, ResolveParams, package
+from .trace import sample_colors
 
 __all__ = ["NoAAParams", "SsaaParams", "run", "run_noaa"]
 

@@ -1,0 +1,303 @@
+"""Load an image exported by an external engine as a candidate to score against a reference.
+
+Supported files:
+
+- **EXR** (any channel layout, read with the OpenEXR 3.x API through
+  :func:`oracle.reference.exr.read_exr`): ``R/G/B``, a layer ``name.R/name.G/name.B``, luminance
+  ``Y``, or named channels such as ``visibility``. Half, float and uint channels are
+  returned as float32. Values are taken as linear.
+- **PNG**: 8-bit grey/grey+alpha/RGB/RGBA/palette and 16-bit grey (via Pillow), 16-bit
+  RGB/RGBA (via pypng: Pillow would reduce them to 8 bits a channel). Colour is
+  taken as sRGB-encoded (what engines write to PNG) and decoded to linear. A grey PNG read
+  as ``visibility`` is *data*, not colour: its values are scaled to [0, 1] (``v / 255`` or
+  ``v / 65535``) and **not** sRGB-decoded, so 50 % visibility is stored as 128 (8-bit).
+
+``channel`` picks what to read: ``"color"`` returns ``(H, W, 3)`` linear radiance,
+``"visibility"`` returns ``(H, W)`` in [0, 1]; any other name is looked up in an EXR as a
+channel (``"Z"``, ``"color.R"``) or a layer (``"diffuse"`` -> ``diffuse.R/G/B``). Alpha is
+ignored everywhere.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from pathlib import Path
+
+import numpy as np
+import png
+
+from oracle.reference.exr import ExrError, read_exr
+
+__all__ = ["CandidateError", "load_candidate"]
+
+_RGB = ("R", "G", "B")
+_ALPHA = ("A",)
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# PNG colour types (PNG spec, table 11.1) that carry colour: truecolour and truecolour+alpha.
+_PNG_COLOUR_TYPES = (2, 6)
+
+
+class CandidateError(ValueError):
+    """A candidate image that cannot be used: unreadable, wrong size, missing channel, NaN."""
+
+
+def load_candidate(
+    path: str | os.PathLike,
+    *,
+    channel: str = "color",
+    expected_shape: tuple[int, int] | None = None,
+) -> np.ndarray:
+    """Read one channel (or RGB group) of an engine's image as float32.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.exr`` or ``.png`` file (extension compared case-insensitively).
+    channel : str, keyword-only
+        ``"color"``: linear RGB radiance, from (in this order) an EXR layer ``color.R/G/B``,
+        top-level ``R/G/B``, the only ``<layer>.R/G/B`` group, or ``Y`` replicated; from a
+        PNG, its sRGB-decoded colour (grey replicated).
+        ``"visibility"``: visibility in [0, 1], 1 = lit, from (in this order) an EXR channel
+        ``visibility``, the only ``<layer>.visibility``, ``Y``, the file's only non-alpha
+        channel, or equal ``R/G/B``; from a PNG, its grey values as data (not decoded).
+        Any other name: an EXR channel of that exact name, else a layer ``<name>.R/G/B``.
+    expected_shape : (int, int) or None, keyword-only
+        The reference's ``(H, W)``; a candidate of another size is an error.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, ``(H, W, 3)`` for colour and RGB layers, ``(H, W)`` otherwise; row 0 at
+        the top; finite; colour non-negative, visibility in [0, 1].
+
+    Raises
+    ------
+    CandidateError
+        With one line saying what is wrong: file missing, unknown extension, truncated or
+        unreadable file, missing channel (the available ones are listed), wrong size
+        (``candidate is 640x360, the reference is 960x540``), NaN or inf values (counted),
+        negative radiance or visibility outside [0, 1].
+    """
+    path = Path(path)
+    if not isinstance(channel, str) or not channel:
+        raise CandidateError(f"channel must be a non-empty string, got {channel!r}")
+    if not path.is_file():
+        raise CandidateError(f"candidate file not found: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".exr":
+        image = _load_exr(path, channel)
+    elif suffix == ".png":
+        image = _load_png(path, channel)
+    else:
+        raise CandidateError(
+            f"unknown candidate file extension {path.suffix or '(none)'!r} for {path.name}; "
+            "expected .exr or .png"
+        )
+    _check_shape(path, image, expected_shape)
+    _check_values(path, image, channel)
+    return image
+
+
+def _check_shape(path: Path, image: np.ndarray, expected_shape) -> None:
+    if expected_shape is None:
+        return
+    try:
+        h, w = (int(v) for v in expected_shape)
+    except (TypeError, ValueError) as exc:
+        raise CandidateError(
+            f"expected_shape must be (height, width), got {expected_shape!r}"
+        ) from exc
+    ch, cw = image.shape[:2]
+    if (ch, cw) != (h, w):
+        raise CandidateError(f"candidate is {cw}x{ch}, the reference is {w}x{h} ({path.name})")
+
+
+def _check_values(path: Path, image: np.ndarray, channel: str) -> None:
+    finite = np.isfinite(image)
+    if not finite.all():
+        n_nan = int(np.isnan(image).sum())
+        n_inf = int(image.size - finite.sum() - n_nan)
+        raise CandidateError(
+            f"candidate {path.name} channel {channel!r} has {n_nan} NaN and {n_inf} inf "
+            f"values (of {image.size})"
+        )
+    if channel == "visibility":
+        n_out = int(((image < 0) | (image > 1)).sum())
+        if n_out:
+            raise CandidateError(
+                f"candidate {path.name} visibility must be in [0, 1], got {n_out} values "
+                f"outside (range {float(image.min()):.6g} to {float(image.max()):.6g})"
+            )
+    elif channel == "color":
+        n_neg = int((image < 0).sum())
+        if n_neg:
+            raise CandidateError(
+                f"candidate {path.name} has {n_neg} negative radiance values "
+                f"(minimum {float(image.min()):.6g}); radiance must be >= 0"
+            )
+
+
+# --------------------------------------------------------------------------- EXR
+
+
+def _load_exr(path: Path, channel: str) -> np.ndarray:
+    try:
+        raw = read_exr(path)
+    except ExrError as exc:
+        raise CandidateError(
+            f"candidate {path.name} is truncated or not a readable EXR ({exc})"
+        ) from exc
+    chans = {name: np.asarray(a, dtype=np.float32) for name, a in raw.items()}
+    if channel == "color":
+        image = _exr_color(chans)
+    elif channel == "visibility":
+        image = _exr_visibility(chans)
+    else:
+        image = _exr_named(chans, channel)
+    if image is None:
+        available = ", ".join(sorted(chans))
+        raise CandidateError(
+            f"candidate {path.name} has no channel {channel!r}; available: {available}"
+        )
+    return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def _group(chans: dict, prefix: str) -> np.ndarray | None:
+    names = [prefix + c for c in _RGB]
+    if all(n in chans for n in names):
+        return np.stack([chans[n] for n in names], axis=-1)
+    return None
+
+
+def _rgb_layers(chans: dict) -> list[str]:
+    """Layer prefixes ``"name."`` that hold a complete R/G/B group."""
+    prefixes = {n[: -len(c)] for n in chans for c in _RGB if n.endswith("." + c)}
+    return sorted(p for p in prefixes if _group(chans, p) is not None)
+
+
+def _exr_color(chans: dict) -> np.ndarray | None:
+    for prefix in ("color.", ""):
+        rgb = _group(chans, prefix)
+        if rgb is not None:
+            return rgb
+    layers = _rgb_layers(chans)
+    if len(layers) == 1:
+        return _group(chans, layers[0])
+    if "Y" in chans:
+        return np.repeat(chans["Y"][..., None], 3, axis=-1)
+    return None
+
+
+def _exr_visibility(chans: dict) -> np.ndarray | None:
+    if "visibility" in chans:
+        return chans["visibility"]
+    layered = [n for n in chans if n.endswith(".visibility")]
+    if len(layered) == 1:
+        return chans[layered[0]]
+    if "Y" in chans:
+        return chans["Y"]
+    data = [n for n in chans if n not in _ALPHA]
+    if len(data) == 1:
+        return chans[data[0]]
+    rgb = _group(chans, "")
+    if (
+        rgb is not None
+        and np.array_equal(rgb[..., 0], rgb[..., 1])
+        and np.array_equal(rgb[..., 0], rgb[..., 2])
+    ):
+        return rgb[..., 0]
+    return None
+
+
+def _exr_named(chans: dict, channel: str) -> np.ndarray | None:
+    if channel in chans:
+        return chans[channel]
+    return _group(chans, channel + ".")
+
+
+# --------------------------------------------------------------------------- PNG
+
+
+def _png_header(path: Path) -> tuple[int, int]:
+    """(bit depth, colour type) from the IHDR chunk, which the PNG spec puts first."""
+    with open(path, "rb") as f:
+        head = f.read(26)
+    if len(head) < 26 or head[:8] != _PNG_SIGNATURE or head[12:16] != b"IHDR":
+        raise CandidateError(f"candidate {path.name} is truncated or not a PNG file")
+    bit_depth, colour_type = struct.unpack(">BB", head[24:26])
+    return bit_depth, colour_type
+
+
+def _load_png(path: Path, channel: str) -> np.ndarray:
+    from PIL import Image
+
+    if channel not in ("color", "visibility"):
+        raise CandidateError(
+            f"candidate {path.name} is a PNG, which has no named channels: channel must be "
+            f"'color' or 'visibility', got {channel!r}"
+        )
+    bit_depth, colour_type = _png_header(path)
+    try:
+        if bit_depth == 16 and colour_type in _PNG_COLOUR_TYPES:
+            # Pillow reduces 16-bit colour to 8 bits a channel; pypng keeps all 16
+            pixels, scale = _png16_colour(path)
+        else:
+            with Image.open(path) as im:
+                im.load()
+                pixels, scale = _png_pixels(im)
+    except CandidateError:
+        raise
+    except (OSError, SyntaxError, ValueError, Image.DecompressionBombError, png.Error) as exc:
+        raise CandidateError(
+            f"candidate {path.name} is truncated or not a readable PNG ({exc})"
+        ) from exc
+    values = pixels.astype(np.float32) / np.float32(scale)
+    if channel == "visibility":
+        return _png_visibility(path, values)
+    from metrics.tonemap import srgb_decode
+
+    if values.ndim == 2:
+        values = np.repeat(values[..., None], 3, axis=-1)
+    return np.ascontiguousarray(srgb_decode(values), dtype=np.float32)
+
+
+def _png16_colour(path: Path) -> tuple[np.ndarray, float]:
+    """A 16-bit RGB(A) PNG as ``(H, W, 3)`` uint16 (rows decoded by pypng, one per scanline)."""
+    with open(path, "rb") as f:
+        width, height, rows, info = png.Reader(file=f).asDirect()
+        planes = info["planes"]
+        data = np.vstack([np.asarray(row, dtype=np.uint16) for row in rows])
+    return data.reshape(height, width, planes)[..., :3], 65535.0
+
+
+def _png_pixels(im) -> tuple[np.ndarray, float]:
+    """Pixel array without alpha and the value of full scale (white)."""
+    mode = im.mode
+    if mode == "P":
+        im = im.convert("RGBA")
+        mode = im.mode
+    if mode == "1":
+        return np.asarray(im, dtype=np.uint8), 1.0
+    if mode in ("I;16", "I;16B", "I;16L", "I"):
+        return np.asarray(im).astype(np.int64), 65535.0
+    if mode in ("L", "LA"):
+        arr = np.asarray(im)
+        return (arr[..., 0] if arr.ndim == 3 else arr), 255.0
+    if mode in ("RGB", "RGBA"):
+        return np.asarray(im)[..., :3], 255.0
+    raise CandidateError(f"unsupported PNG pixel mode {mode!r}")
+
+
+def _png_visibility(path: Path, values: np.ndarray) -> np.ndarray:
+    if values.ndim == 3:
+        if not (
+            np.array_equal(values[..., 0], values[..., 1])
+            and np.array_equal(values[..., 0], values[..., 2])
+        ):
+            raise CandidateError(
+                f"candidate {path.name} is a colour PNG with unequal R, G, B; visibility "
+                "needs a grey PNG"
+            )
+        values = values[..., 0]
+    return np.ascontiguousarray(values, dtype=np.float32)

@@ -1,0 +1,234 @@
+"""Write a score folder: metrics.json, EXR and PNG error maps, report.html (+ report.json).
+
+Everything is computed before the first file is written, and every file is written under a
+temporary name and renamed, so a failed request leaves nothing half-written.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import metrics as M
+import reports
+
+from ..reference.exr import atomic_write_bytes, make_readable, write_exr
+from ..reference.store import package_versions
+from .score import METRIC_KEYS, ScoreResult, failures, to_json
+
+__all__ = ["MAP_STYLES", "MEMORY_RESOLUTIONS", "report_cost", "write_score_folder"]
+
+#: How each error map is drawn: palette and fixed range (the same in PNG and report).
+MAP_STYLES = {
+    "visibility_error": ("signed", (-1.0, 1.0)),
+    "misclassified": ("signed", (-1.0, 1.0)),
+    "coverage_error": ("signed", (-1.0, 1.0)),
+    "flip": ("magma", (0.0, 1.0)),
+    "delta_e2000": ("magma", (0.0, 20.0)),
+    "neg_log10_p": ("magma", (0.0, 10.0)),
+}
+
+
+def _png_bytes(image) -> bytes:
+    buf = io.BytesIO()
+    image.save(buf, format="PNG", optimize=True)
+    return buf.getvalue()
+
+
+def _display(result: ScoreResult, image: np.ndarray) -> np.ndarray:
+    """What the report shows: visibility as is, colour through the shared tone mapper."""
+    if image.ndim == 2:
+        return np.clip(image, 0.0, 1.0)
+    tm = result.record.get("tone_mapping") or {}
+    return M.tonemap(image, exposure=tm.get("exposure_stops") or 0.0)
+
+
+def _case(
+    result: ScoreResult, *, name: str, scene: str, thresholds: dict, technique, params, cost
+) -> dict:
+    frame = result.frames[0]
+    maps = {}
+    for key, data in frame.maps.items():
+        style, rng = MAP_STYLES[key]
+        maps[key] = {
+            "data": np.nan_to_num(data).astype(np.float32),
+            "style": style,
+            "range": list(rng),
+            "primary": key in ("visibility_error", "flip")
+            and (key == "visibility_error" or "visibility_error" not in frame.maps),
+        }
+    record = result.record
+    values = {k: record[k] for k in METRIC_KEYS if record.get(k) is not None}
+    return reports.make_case(
+        name=name,
+        scene=scene,
+        reference=_display(result, frame.reference),
+        candidate=_display(result, frame.candidate),
+        # a coverage mask is (H, W) data in [0, 1]: drawn as visibility images are
+        kind="color" if record["channel"] == "color" else "visibility",
+        metrics=values,
+        error_maps=maps,
+        noise_floor=record.get("noise_floor") or None,
+        thresholds={k: v for k, v in thresholds.items() if k in values} or None,
+        cost=report_cost(cost, technique),
+        technique=technique,
+        family=_family(technique, scene),
+        params=params,
+        exr_links={
+            "reference": "reference.exr",
+            "candidate": "candidate.exr",
+            "error maps": "error_maps.exr",
+        },
+    )
+
+
+def _family(technique: str | None, scene: str) -> str | None:
+    """Pareto fronts compare techniques of one family on one scene."""
+    if technique is None:
+        return None
+    family = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
+    if _technique_family(technique) == "aa":
+        family = "anti-aliasing"
+    return f"{family} on {scene}"
+
+
+#: Resolutions at which the report restates an anti-aliasing model's framebuffer memory: the
+#: AGAA seed slides' 1280x736 (41 / 71 / 112 MB for 1 aggregate / 2 aggregates / deferred 8x)
+#: and 1080p.
+MEMORY_RESOLUTIONS = ((1280, 736), (1920, 1080))
+
+
+def report_cost(cost: dict | None, technique: str | None) -> dict | None:
+    """The cost entries the report shows: numbers, per-buffer bytes, restated memory.
+
+    Lists (histograms) stay in ``metrics.json`` only; a ``name -> number`` dict such as
+    ``framebuffer_bytes_by_buffer`` becomes one entry per buffer (``"color framebuffer_bytes"``).
+    For the anti-aliasing family, whose buffers are all per pixel or per sample, the model's
+    ``framebuffer_bytes`` at its ``width`` x ``height`` is restated at each of
+    :data:`MEMORY_RESOLUTIONS` as ``framebuffer_WxH_bytes`` (bytes per pixel times pixels;
+    only when the bytes are a whole number per pixel, i.e. the accounting is per pixel).
+    """
+    if cost is None:
+        return None
+    out = {}
+    for key, value in cost.items():
+        if isinstance(value, bool):
+            continue
+        if isinstance(value, int | float | np.integer | np.floating) and np.isfinite(value):
+            out[key] = value
+        elif isinstance(value, dict):
+            stem = key.split("_by_")[0]
+            for sub, v in value.items():
+                if isinstance(v, int | float | np.integer | np.floating) and np.isfinite(v):
+                    out[f"{sub} {stem}"] = v
+    if technique is not None and _technique_family(technique) == "aa":
+        total, w, h = cost.get("framebuffer_bytes"), cost.get("width"), cost.get("height")
+        if all(isinstance(v, int | np.integer) and v > 0 for v in (total, w, h)):
+            per_pixel, rest = divmod(int(total), int(w) * int(h))
+            if rest == 0:
+                for rw, rh in MEMORY_RESOLUTIONS:
+                    out[f"framebuffer_{rw}x{rh}_bytes"] = per_pixel * rw * rh
+    return out
+
+
+def _technique_family(technique: str) -> str:
+    import raster_models
+
+    t = raster_models.TECHNIQUES.get(technique)
+    return getattr(t, "family", "shadow") if t is not None else "shadow"
+
+
+def provenance(result: ScoreResult, loaded) -> dict:
+    ref = result.record["reference"]
+    tm = result.record.get("tone_mapping") or {}
+    return {
+        "scene": loaded.name,
+        "scene source": loaded.source,
+        "scene hash": loaded.content_hash[:16],
+        "light": f"{loaded.light_index}: {loaded.light.kind}",
+        "resolution": f"{loaded.width}x{loaded.height}",
+        "reference spp": ref["spp"],
+        "seed": ref["seed"],
+        "filter": ref["filter"],
+        "ppd": result.record["ppd"],
+        "exposure (stops)": tm.get("exposure_stops"),
+        "tone mapper": tm.get("tone_mapper", "none (visibility is data)"),
+        "backend": ref["variant"],
+        "versions": package_versions(),
+        "score seconds": round(result.record["wall_seconds"], 3),
+    }
+
+
+def write_score_folder(
+    result: ScoreResult,
+    out_dir: Path,
+    *,
+    loaded,
+    name: str,
+    thresholds: dict,
+    technique=None,
+    params=None,
+    cost=None,
+) -> list[str]:
+    """Write the score folder; returns the metrics that exceed their thresholds."""
+    record = dict(result.record)
+    record["thresholds"] = thresholds
+    record["failed"] = failures(record, thresholds)
+    record["technique"] = technique
+    record["params"] = params
+    record["cost"] = cost
+    restated = {
+        k: v
+        for k, v in (report_cost(cost, technique) or {}).items()
+        if k.startswith("framebuffer_")
+        and k[len("framebuffer_") : len("framebuffer_") + 1].isdigit()
+    }
+    if restated:
+        # the model's own memory accounting at the seed slides' resolutions (see report_cost)
+        record["framebuffer_bytes_restated"] = restated
+    record["maps"] = {
+        k: {"exr": f"error_maps.exr:{k}", "png": f"{k}.png"} for k in result.frames[0].maps
+    }
+    frame = result.frames[0]
+    case = _case(
+        result,
+        name=name,
+        scene=loaded.name,
+        thresholds=thresholds,
+        technique=technique,
+        params=params,
+        cost=cost,
+    )
+    report = reports.build_report(
+        [case], title=f"{name} on {loaded.name}", provenance=provenance(result, loaded)
+    )
+    pngs = {}
+    for key, data in frame.maps.items():
+        style, rng = MAP_STYLES[key]
+        pngs[f"{key}.png"] = _png_bytes(
+            reports.colorize(np.nan_to_num(data), style=style, value_range=rng)
+        )
+    cand = frame.candidate
+    cand_channels = (
+        {"coverage" if record["channel"] == "coverage" else "visibility": cand}
+        if cand.ndim == 2
+        else {f"color.{c}": np.ascontiguousarray(cand[..., i]) for i, c in enumerate("RGB")}
+    )
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_exr(out_dir / "candidate.exr", cand_channels)
+    write_exr(out_dir / "error_maps.exr", {k: np.nan_to_num(v) for k, v in frame.maps.items()})
+    fd, tmp = tempfile.mkstemp(prefix=".reference.", suffix=".exr", dir=out_dir)
+    os.close(fd)
+    shutil.copyfile(result.reference_folders[0] / "reference.exr", tmp)
+    make_readable(tmp)
+    os.replace(tmp, out_dir / "reference.exr")
+    for fname, data in pngs.items():
+        atomic_write_bytes(out_dir / fname, data)
+    atomic_write_bytes(out_dir / "metrics.json", to_json(record))
+    reports.write_report(report, out_dir / "report.html")
+    return record["failed"]

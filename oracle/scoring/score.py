@@ -1,0 +1,399 @@
+"""Score a technique model or an engine's image against the reference.
+
+The candidate's channel decides which metrics apply and which reference channels are
+rendered:
+
+- ``visibility`` (models of the shadow-map family, or an engine's shadow mask): shadow
+  metrics on receivers (valid pixels with N.L > 0 at the pixel centre), edge/interior split,
+  the per-pixel Z-test, and FLIP/SSIM/PSNR of the visibility image as display data (no tone
+  mapping). Reference channels: visibility, edge, id, normal, position.
+- ``color`` (an engine's linear radiance): FLIP (LDR after the shared tone mapper, or HDR with
+  the exposure bracket of the reference), SSIM, PSNR, CIEDE2000, edge/interior split and the
+  Z-test. Reference channels: color, edge, id.
+
+Every metric is also computed for a second, independently seeded reference of the same spp
+against the first: its noise floor. With ``frames`` the camera path is scored frame by frame
+(per-frame metrics averaged) and the temporal metrics are added.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import metrics as M
+
+from ..reference.render import ReferenceSettings
+from ..reference.store import get_reference
+
+__all__ = [
+    "COVERAGE_FLOOR_RMS",
+    "COVERAGE_KEYS",
+    "METRIC_KEYS",
+    "ScoreError",
+    "ScoreResult",
+    "score",
+]
+
+#: Coverage metrics (anti-aliasing techniques, or an engine's MSAA coverage mask).
+COVERAGE_KEYS = (
+    "coverage_mae",
+    "coverage_rmse",
+    "coverage_bias",
+    "coverage_edge_rmse",
+    "coverage_interior_mae",
+    "coverage_floor_rms",
+    "coverage_edge_rmse_over_floor",
+)
+#: Every metric key of ``metrics.json`` (None where it does not apply to the channel).
+_SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
+METRIC_KEYS = (
+    *_SHADOW_VALUES,
+    "edge_mae",
+    "interior_mae",
+    "flip_mean",
+    "ssim",
+    "psnr_db",
+    "delta_e2000_mean",
+    "significant_fraction",
+    "flicker",
+    "temporal_error",
+    *COVERAGE_KEYS,
+)
+#: RMS coverage error of a box-resolved N-sample standard pattern on one straight edge
+#: (TECHNIQUES.md table; ``metrics.straight_edge_error_floor`` reproduces it).
+COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
+_REF_GROUPS = {
+    "visibility": ("visibility", "edge", "id", "normal", "position"),
+    "color": ("color", "edge", "id"),
+    "coverage": ("coverage", "edge", "id"),
+}
+PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
+
+
+class ScoreError(ValueError):
+    """Bad scoring request (unknown channel, bad threshold, ...)."""
+
+
+@dataclass
+class FrameScore:
+    metrics: dict
+    noise_floor: dict | None
+    maps: dict
+    reference: np.ndarray
+    candidate: np.ndarray
+    receivers: np.ndarray | None
+
+
+@dataclass
+class ScoreResult:
+    """What ``score`` computed: the metrics record and the images behind it."""
+
+    record: dict
+    frames: list[FrameScore] = field(default_factory=list)
+    reference_folders: list[Path] = field(default_factory=list)
+
+
+def _receivers(ch: dict, light) -> np.ndarray:
+    valid = ch["id"] >= 0
+    n = np.stack([ch[f"normal.{c}"] for c in "XYZ"], -1).astype(np.float64)
+    p = np.stack([ch[f"position.{c}"] for c in "XYZ"], -1).astype(np.float64)
+    wl, _ = light.to_light(p.reshape(-1, 3))
+    cos = np.sum(n.reshape(-1, 3) * wl, axis=-1).reshape(valid.shape)
+    # a spot light reaches only its cone: outside it a pixel receives no light to shadow,
+    # exactly as the models and the oracle's shading treat it
+    cone = np.asarray(light.in_cone(wl)).reshape(valid.shape)
+    return valid & (cos > 0) & cone
+
+
+def _rgb(ch: dict, name: str) -> np.ndarray:
+    return np.stack([ch[f"{name}.{c}"] for c in "RGB"], -1)
+
+
+def _finite(value):
+    if value is None:
+        return None
+    value = float(value)
+    if np.isinf(value):
+        return PSNR_CAP_DB if value > 0 else -PSNR_CAP_DB
+    return value
+
+
+def _metrics_for(
+    channel,
+    ref_ch,
+    cand,
+    *,
+    light,
+    exposure,
+    flip_mode,
+    flip_range,
+    ppd,
+    full: bool,
+    samples,
+    aa_samples=None,
+):
+    """Metric values (and, with ``full``, error maps) of one candidate frame."""
+    out = dict.fromkeys(METRIC_KEYS)
+    maps = {}
+    edge = ref_ch["edge"] > 0.5
+    if channel == "visibility":
+        ref = ref_ch["visibility"]
+        rec = _receivers(ref_ch, light)
+        sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
+        for k in _SHADOW_VALUES:
+            out[k] = sm[k]
+        out["receiver_count"] = sm["receiver_count"]
+        ref_se = ref_ch["visibility_stderr"]
+        lin = dict(tone_mapper="clip", exposure=0.0)
+        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
+        out["ssim"] = M.ssim(ref, cand, **lin)
+        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
+        if full:
+            maps["visibility_error"] = sm["signed_error"]
+            maps["misclassified"] = sm["misclassified"].astype(np.float32)
+    elif channel == "coverage":
+        ref = ref_ch["coverage"]
+        rec = None
+        ref_se = ref_ch["coverage_stderr"]
+        out.update(_coverage_metrics(ref, cand, edge, aa_samples))
+        # silhouettes against the sky are edges of coverage even where one shape is seen
+        edge = edge | ((ref > 0) & (ref < 1))
+        lin = dict(tone_mapper="clip", exposure=0.0)
+        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
+        out["ssim"] = M.ssim(ref, cand, **lin)
+        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
+        if full:
+            maps["coverage_error"] = (cand - ref).astype(np.float32)
+    else:
+        ref = _rgb(ref_ch, "color")
+        rec = None
+        ref_se = _rgb(ref_ch, "color_stderr")
+        if flip_mode == "HDR":
+            fl = M.flip(ref, cand, mode="HDR", ppd=ppd, exposure_range=flip_range, full=full)
+        else:
+            fl = M.flip(ref, cand, mode="LDR", ppd=ppd, exposure=exposure, full=full)
+        out["ssim"] = M.ssim(ref, cand, exposure=exposure)
+        out["psnr_db"] = M.psnr_db(ref, cand, exposure=exposure)
+        de = M.delta_e2000(ref, cand, exposure=exposure, full=full)
+        out["delta_e2000_mean"] = de[0] if full else de
+        if full:
+            maps["delta_e2000"] = de[1]
+    if full:
+        out["flip_mean"], maps["flip"] = fl[0], fl[1]
+    else:
+        out["flip_mean"] = fl
+    ei = M.edge_interior_error(ref, cand, edge_mask=edge)
+    out["edge_mae"], out["interior_mae"] = ei["edge_mae"], ei["interior_mae"]
+    # radiance a missed sub-pixel feature could have: the reference's 99th percentile
+    scale = 1.0 if ref.ndim == 2 else np.percentile(ref.reshape(-1, ref.shape[-1]), 99, axis=0)
+    binary = channel in ("visibility", "coverage")
+    zt = M.z_test(ref, ref_se, cand, samples=samples, floor_scale=scale, binary=binary, full=full)
+    out["significant_fraction"] = zt["significant_fraction"]
+    if full:
+        p = zt["p_value"]
+        p = p if p.ndim == 2 else p.min(axis=-1)
+        # -log10 p: 0 where the difference is pure noise, large where it is significant
+        maps["neg_log10_p"] = -np.log10(np.maximum(p, 1e-300))
+    return {k: _finite(v) if k in METRIC_KEYS else v for k, v in out.items()}, maps, ref, rec
+
+
+def _coverage_metrics(ref, cand, edge, aa_samples) -> dict:
+    """Coverage error overall, on edge and interior pixels, and against the N-sample floor.
+
+    Edge pixels: the reference's ``edge`` channel or fractional reference coverage.
+    The floor is the RMS error of N box-resolved standard samples on one straight edge;
+    ``coverage_edge_rmse_over_floor`` near 1 means the technique is as good as its pattern
+    allows (above 1 also where an edge pixel holds more than one edge, or the reference's
+    own noise adds to the error).
+    """
+    edge = edge | ((ref > 0) & (ref < 1))
+    every = M.coverage_error(ref, cand)
+    on_edge = M.coverage_error(ref, cand, mask=edge)
+    inside = M.coverage_error(ref, cand, mask=~edge)
+    floor = COVERAGE_FLOOR_RMS.get(int(aa_samples)) if aa_samples else None
+    ratio = on_edge["rmse"] / floor if floor and on_edge["count"] else None
+    return {
+        "coverage_mae": every["mae"],
+        "coverage_rmse": every["rmse"],
+        "coverage_bias": every["bias"],
+        "coverage_edge_rmse": on_edge["rmse"] if on_edge["count"] else None,
+        "coverage_interior_mae": inside["mae"] if inside["count"] else None,
+        "coverage_floor_rms": floor,
+        "coverage_edge_rmse_over_floor": ratio,
+    }
+
+
+def score(
+    loaded,
+    *,
+    channel: str,
+    candidate_frames,
+    spp: int = 64,
+    seed: int = 0,
+    frames: int | None = None,
+    camera_path: str = "dolly",
+    cache=None,
+    quiet: bool = True,
+    flip_mode: str = "LDR",
+    ppd: float = M.DEFAULT_PPD,
+    aa_samples: int | None = None,
+    floor_cache: dict | None = None,
+) -> ScoreResult:
+    """Score candidate frames against references of ``loaded``.
+
+    Parameters
+    ----------
+    channel : ``"visibility"``, ``"color"`` or ``"coverage"``.
+    candidate_frames : callable ``(frame_scene, k) -> (image, info)`` giving the candidate of
+        frame ``k`` (a model run, or an image file read and validated) and a plain record
+        (cost, diagnostics, file name) for the report.
+    frames : score ``frames`` frames of ``camera_path`` (None: the scene's own camera only).
+    aa_samples : samples per pixel of an anti-aliasing technique: picks the straight-edge
+        coverage floor ``coverage_floor_rms`` (None: no floor).
+    floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
+        the references and scoring options only, so it is computed once per reference.
+    """
+    if channel not in _REF_GROUPS:
+        raise ScoreError(f"channel must be 'visibility', 'color' or 'coverage', got {channel!r}")
+    flip_mode = flip_mode.upper()
+    if flip_mode not in ("LDR", "HDR"):
+        raise ScoreError(f"flip mode must be LDR or HDR, got {flip_mode!r}")
+    t0 = time.perf_counter()
+    groups = _REF_GROUPS[channel]
+    settings = ReferenceSettings(spp=spp, seed=seed, channels=groups).validate()
+    noise_settings = ReferenceSettings(spp=spp, seed=seed + 1, channels=groups).validate()
+    n = frames or 1
+    result = ScoreResult(record={})
+    exposure = flip_range = None
+    infos = []
+    for k in range(n):
+        frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
+        ref = get_reference(frame_scene, settings, cache=cache, quiet=quiet)
+        ref_ch = ref.channels()
+        cand, info = candidate_frames(frame_scene, k)
+        infos.append(info)
+        if k == 0 and channel == "color":
+            ref_rgb = _rgb(ref_ch, "color")
+            exposure = M.exposure_from_reference(ref_rgb)
+            flip_range = M.hdr_exposure_range(ref_rgb) if flip_mode == "HDR" else None
+        kw = dict(
+            light=frame_scene.light,
+            exposure=exposure,
+            flip_mode=flip_mode,
+            flip_range=flip_range,
+            ppd=ppd,
+            samples=spp,
+            aa_samples=aa_samples,
+        )
+        values, maps, ref_img, rec = _metrics_for(channel, ref_ch, cand, full=True, **kw)
+        floor = None
+        if k == 0:
+            ref_meta = ref.meta
+            floor_key = (ref_meta.get("cache_key"), channel, flip_mode, ppd, spp, aa_samples)
+            cached = floor_cache.get(floor_key) if floor_cache is not None else None
+            if cached is not None and floor_key[0] is not None:
+                floor = dict(cached)
+            else:
+                ref2 = get_reference(frame_scene, noise_settings, cache=cache, quiet=quiet)
+                ref2_ch = ref2.channels()
+                second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
+                # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by
+                # noise of A's variance (B itself would overstate the floor by about sqrt(2))
+                exact = M.exact_surrogate(ref_img, second)
+                floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
+                floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+                if floor_cache is not None and floor_key[0] is not None:
+                    floor_cache[floor_key] = dict(floor)
+        result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
+        result.reference_folders.append(ref.folder)
+    per_frame = [f.metrics for f in result.frames]
+    summary = {}
+    for key in METRIC_KEYS:
+        vals = [m[key] for m in per_frame if m.get(key) is not None]
+        summary[key] = float(np.mean(vals)) if vals else None
+    if frames and n >= 2:
+        refs = np.stack([f.reference for f in result.frames])
+        cands = np.stack([f.candidate for f in result.frames])
+        summary["flicker"] = M.flicker(refs, cands)
+        summary["temporal_error"] = M.temporal_error(refs, cands)
+    result.record = {
+        "schema": "raster-oracle/metrics/1",
+        "channel": channel,
+        **summary,
+        "noise_floor": result.frames[0].noise_floor,
+        "frames": per_frame if frames else None,
+        "camera_path": camera_path if frames else None,
+        "light_path": getattr(loaded, "light_path", None),
+        "tone_mapping": None
+        if channel != "color"
+        else {
+            "exposure_stops": exposure,
+            "tone_mapper": "aces",
+            "flip_mode": flip_mode,
+            "flip_exposure_range": list(flip_range) if flip_range else None,
+        },
+        "ppd": ppd,
+        "reference": {
+            "scene": ref_meta["scene"],
+            "spp": spp,
+            "seed": seed,
+            "noise_floor_seed": seed + 1,
+            "channels": list(groups),
+            "variant": ref_meta["variant"],
+            "versions": ref_meta["versions"],
+            "cache_key": ref_meta["cache_key"],
+            "filter": ref_meta["filter"],
+        },
+        "candidate_info": infos,
+        "wall_seconds": time.perf_counter() - t0,
+    }
+    return result
+
+
+def parse_thresholds(pairs: list[str] | None) -> dict[str, float]:
+    """``["flip_mean=0.1", ...]`` -> ``{"flip_mean": 0.1}``; unknown metrics are errors."""
+    out = {}
+    for pair in pairs or []:
+        key, sep, value = pair.partition("=")
+        key = key.strip()
+        if not sep:
+            raise ScoreError(f"--fail-above expects METRIC=VALUE, got {pair!r}")
+        if key not in METRIC_KEYS:
+            raise ScoreError(
+                f"--fail-above: unknown metric {key!r}; choose from {', '.join(METRIC_KEYS)}"
+            )
+        try:
+            limit = float(value)
+        except ValueError:
+            raise ScoreError(f"--fail-above {key}: expected a number, got {value!r}") from None
+        if not math.isfinite(limit):
+            raise ScoreError(f"--fail-above {key}: expected a finite number, got {value!r}")
+        out[key] = limit
+    return out
+
+
+def failures(record: dict, thresholds: dict[str, float]) -> list[str]:
+    """Metrics whose value exceeds its threshold (a metric that does not apply never fails)."""
+    return [k for k, limit in thresholds.items() if record.get(k) is not None and record[k] > limit]
+
+
+def to_json(record: dict) -> bytes:
+    return json.dumps(record, indent=2, default=_json_default).encode()
+
+
+def _json_default(obj):
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, tuple | set | frozenset):
+        return list(obj)
+    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")

@@ -1,0 +1,495 @@
+"""Sweeps: run the cases of a spec on Dask and keep the results in a resumable SQLite store.
+
+One task is one case: one technique configuration scored on one scene frame
+(:class:`oracle.sweeps.spec.Case`). The references a case needs (its channel groups at the
+case's seed and at ``seed + 1`` for the noise floor, per scene, frame, resolution, spp and
+light) are tasks of their own, submitted first; every case that needs one depends on it, so a
+reference is rendered once, into the content-addressed cache, and read by every case after
+it. Workers therefore need the client's cache folder (``RASTER_ORACLE_CACHE``): on a
+``--scheduler`` cluster of several machines it must be a shared folder at the same path.
+
+Results are written by the client only, one committed row per finished case
+(:class:`oracle.sweeps.store.SweepStore`); cases whose key is already in the store are skipped,
+and a case that raises is recorded as ``failed`` with its error while the sweep goes on.
+``workers=0`` runs everything in the client process, in order, without Dask (small sweeps,
+tuning, debugging).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+from .spec import Case, Expansion
+from .store import SweepStore, case_key
+
+__all__ = [
+    "CASE_METRICS_EXTRA",
+    "SweepError",
+    "check_scheduler",
+    "evaluate_case",
+    "reference_jobs",
+    "run_case",
+    "run_sweep",
+    "sweep_keys",
+]
+
+#: Per-case entries stored in ``metrics`` next to the metric keys (deterministic values
+#: only: the same spec gives the same ``metrics`` bytes; times go to ``wall_seconds``).
+CASE_METRICS_EXTRA = ("noise_floor", "receiver_count")
+
+#: Seconds to wait for a ``--scheduler`` to answer.
+SCHEDULER_TIMEOUT_S = 20
+
+_SCENES: dict = {}
+_BACKEND: list = []
+_THREADS: list = []
+#: Noise floors computed in this process, by reference (``oracle.scoring.score.score``'s cache).
+_FLOORS: dict = {}
+
+
+class SweepError(ValueError):
+    """A sweep cannot run (no scheduler at the given address)."""
+
+
+def _family(technique: str) -> str:
+    from ..cli.score import technique_family
+
+    return technique_family(technique)
+
+
+def _reference_groups(technique: str) -> list[tuple[str, ...]]:
+    """Channel groups of the references scoring ``technique`` reads (one per channel)."""
+    from ..cli.score import FAMILY_CHANNELS
+    from ..scoring.score import _REF_GROUPS
+
+    return [_REF_GROUPS[c] for c in FAMILY_CHANNELS.get(_family(technique), ("visibility",))]
+
+
+def _ensure_backend(variant: str | None) -> None:
+    if variant is not None and not _BACKEND:
+        from scenes import backend
+
+        backend.select(variant)
+        _BACKEND.append(variant)
+        if _THREADS:
+            import drjit as dr
+
+            dr.set_thread_count(_THREADS[0])
+
+
+def _share_cores(threads: int) -> None:
+    """Worker set-up (``Client.run``): this worker's Dr.Jit threads, its share of the cores,
+    so that the local cluster's workers do not oversubscribe the machine."""
+    _THREADS[:] = [max(1, int(threads))]
+
+
+def _base_scene(rec: dict):
+    import scenes
+
+    key = (rec["scene"], rec["width"], rec["height"], rec["light"])
+    if key not in _SCENES:
+        _SCENES[key] = scenes.load(
+            rec["scene"], width=rec["width"], height=rec["height"], light=rec["light"]
+        )
+    return _SCENES[key]
+
+
+def case_scene(rec: dict):
+    """The loaded scene of a case record: its frame of its camera or light path."""
+    base = _base_scene(rec)
+    if rec.get("light_path"):
+        return base.with_light_frame(rec["frame"], path=rec["light_path"], n_frames=rec["n_frames"])
+    if rec.get("camera_path"):
+        return base.with_frame(rec["frame"], path=rec["camera_path"], n_frames=rec["n_frames"])
+    return base
+
+
+def reference_jobs(rec: dict) -> list[dict]:
+    """The reference records a case needs: ``{"scene": ..., "channels", "seed", "spp"}``."""
+    scene_part = {
+        k: rec[k]
+        for k in ("scene", "width", "height", "light", "camera_path", "light_path", "frame")
+    }
+    scene_part["n_frames"] = (
+        rec["n_frames"] if rec.get("camera_path") or rec.get("light_path") else None
+    )
+    jobs = []
+    for groups in _reference_groups(rec["technique"]):
+        for seed in (rec["seed"], rec["seed"] + 1):
+            jobs.append({**scene_part, "channels": list(groups), "seed": seed, "spp": rec["spp"]})
+    return jobs
+
+
+def render_reference(job: dict, cache_root: str, variant: str | None) -> str:
+    """Worker task: render one reference into the cache (or find it there); its status."""
+    from ..reference.cache import ReferenceCache
+    from ..reference.render import ReferenceSettings
+    from ..reference.store import get_reference
+
+    _ensure_backend(variant)
+    settings = ReferenceSettings(
+        spp=job["spp"], seed=job["seed"], channels=tuple(job["channels"])
+    ).validate()
+    rec = dict(job, n_frames=job["n_frames"] or 1)
+    ref = get_reference(case_scene(rec), settings, cache=ReferenceCache(cache_root), quiet=True)
+    return ref.cache_status
+
+
+def evaluate_case(
+    loaded, technique: str, params: dict, *, spp: int, seed: int, cache, images: bool = False
+) -> dict:
+    """Score one technique configuration on ``loaded``: metrics, noise floor, cost, params.
+
+    Shadow techniques are scored on visibility; anti-aliasing techniques on colour with the
+    coverage metrics merged in, exactly as ``raster-oracle score --technique`` does. With
+    ``images``, ``"images"`` holds thumbnails (:func:`case_images`).
+    """
+    from ..cli.score import score_model
+    from ..scoring.score import METRIC_KEYS
+
+    result = score_model(
+        loaded, technique, params, spp=spp, seed=seed, cache=cache, quiet=True, floor_cache=_FLOORS
+    )
+    record = result.record
+    info = record["candidate_info"][0]
+    metrics = {k: record.get(k) for k in METRIC_KEYS}
+    metrics["noise_floor"] = record.get("noise_floor")
+    metrics["receiver_count"] = result.frames[0].metrics.get("receiver_count")
+    out = {"metrics": metrics, "cost": info["cost"], "params": info["params"]}
+    if images:
+        out["images"] = case_images(result)
+    return out
+
+
+#: Longer side of the thumbnails kept per case, in pixels (the image is reduced by the
+#: smallest integer factor that fits).
+THUMBNAIL_SIZE = 320
+#: Primary error map of each scored channel: map name, palette, fixed range.
+_ERROR_MAPS = {
+    "visibility": ("visibility_error", "signed", (-1.0, 1.0)),
+    "color": ("flip", "magma", (0.0, 1.0)),
+    "coverage": ("coverage_error", "signed", (-1.0, 1.0)),
+}
+
+
+def case_images(result) -> dict:
+    """Thumbnails of a score result as data URIs: ``reference``, ``candidate``, ``error``
+    (visibility as grey PNG, colour through the shared tone mapper as WebP/JPEG, the primary
+    error map with its fixed-range palette, reduced keeping the largest error per block)."""
+    import metrics as M
+    from reports import images as _images
+
+    frame = result.frames[0]
+    channel = result.record["channel"]
+    factor = _images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
+    out = {}
+    for name, image in (("reference", frame.reference), ("candidate", frame.candidate)):
+        if image.ndim == 2:
+            out[name] = _images.encode_visibility(
+                _images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
+            )
+        else:
+            exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
+            shown = M.tonemap(image, exposure=exposure)
+            out[name] = _images.encode_color(_images.reduce_image(shown, factor, srgb=True))
+    key, style, value_range = _ERROR_MAPS[channel]
+    if key in frame.maps:
+        data = _images.reduce_error(np.nan_to_num(frame.maps[key]), factor)
+        out["error"] = _images.encode_heatmap(data, style=style, value_range=value_range)
+        out["error_map"] = key
+    return out
+
+
+def _one_line(exc: BaseException) -> str:
+    text = f"{type(exc).__name__}: {exc}"
+    return "".join(c if c >= " " else " " for c in text)[:2000]
+
+
+def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bool = False) -> dict:
+    """Worker task: evaluate one case record; never raises (a failure is a result)."""
+    from ..reference.cache import ReferenceCache
+
+    t0 = time.perf_counter()
+    try:
+        _ensure_backend(variant)
+        out = evaluate_case(
+            case_scene(rec),
+            rec["technique"],
+            rec["params"],
+            spp=rec["spp"],
+            seed=rec["seed"],
+            cache=ReferenceCache(cache_root),
+            images=images,
+        )
+        out["status"], out["error"] = "done", None
+    except Exception as exc:  # recorded in the store; the sweep goes on
+        out = {"status": "failed", "error": _one_line(exc), "metrics": None, "cost": None}
+        out["params"] = rec["params"]
+    out["wall_seconds"] = time.perf_counter() - t0
+    return out
+
+
+def _versions(variant: str) -> dict:
+    from importlib import metadata
+
+    from ..reference.cache import ORACLE_VERSION
+
+    out = {"variant": variant, "oracle_version": ORACLE_VERSION}
+    for name in ("raster-oracle", "mitsuba", "drjit"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
+    """``(key, record, row)`` of each case: the store key, the worker record and the row
+    fields known before it runs (scene content hash and every parameter resolved)."""
+    import raster_models
+    from raster_models import params as _params
+
+    versions = _versions(variant)
+    out = []
+    for case in cases:
+        rec = case.record()
+        base = _base_scene(rec)
+        rec["width"], rec["height"] = base.width, base.height
+        tech = raster_models.TECHNIQUES[case.technique]
+        full = _params.as_dict(_params.make(case.technique, tech.params, case.params))
+        identity = {
+            "scene": Path(case.scene).name if case.scene.endswith(".xml") else case.scene,
+            "scene_hash": base.content_hash,
+            "technique": case.technique,
+            "params": full,
+            **{k: rec[k] for k in ("light", "camera_path", "light_path", "spp", "seed")},
+            "frame": case.frame,
+            "n_frames": case.n_frames if case.frame_path else None,
+            "versions": versions,
+        }
+        row = {
+            "scene": base.name,
+            "technique": case.technique,
+            "family": _family(case.technique),
+            "frame": case.frame,
+            "path": case.frame_path,
+            "width": base.width,
+            "height": base.height,
+            "spp": case.spp,
+            "seed": case.seed,
+        }
+        out.append((case_key(identity), rec, row))
+    return out
+
+
+def check_scheduler(address: str) -> None:
+    """Raise :class:`SweepError` when no Dask scheduler answers at ``address``."""
+    from distributed import Client
+
+    try:
+        Client(address, timeout=SCHEDULER_TIMEOUT_S).close()
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise SweepError(f"--scheduler {address}: cannot connect: {exc}") from None
+
+
+def _default_workers() -> int:
+    return max(1, os.cpu_count() or 1)
+
+
+def _progress(total: int, *, quiet: bool, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="case", disable=quiet, leave=False)
+
+
+def run_sweep(
+    expansion: Expansion,
+    db: str | os.PathLike,
+    *,
+    cache_root: str | os.PathLike,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    quiet: bool = False,
+    retry_failed: bool = False,
+    images: bool = True,
+    echo=print,
+) -> dict:
+    """Run the cases of ``expansion`` not yet in the store ``db``; returns a summary.
+
+    Parameters
+    ----------
+    expansion : from :func:`oracle.sweeps.spec.load_spec`.
+    db : the SQLite store (created when missing).
+    cache_root : the reference cache folder every worker reads and writes.
+    workers : worker processes of the local Dask cluster (default: one per core); 0 runs
+        everything in this process without Dask.
+    scheduler : address of an existing Dask scheduler (``tcp://host:8786``) instead of a
+        local cluster.
+    retry_failed : run again the cases recorded as failed (default: they count as finished).
+    images : keep thumbnails of each case (reference, candidate, error map) in the store.
+
+    Returns
+    -------
+    dict
+        ``{"sweep", "db", "cases", "skipped_done", "ran", "done", "failed", "references",
+        "wall_seconds", "not_applicable"}``.
+    """
+    from scenes import backend
+
+    t0 = time.perf_counter()
+    variant = backend.active().variant
+    cache_root = str(Path(cache_root).resolve())
+    Path(cache_root).mkdir(parents=True, exist_ok=True)
+    keyed = sweep_keys(expansion.cases, variant)
+    # the same case listed twice in a spec runs once
+    unique = {}
+    for key, rec, row in keyed:
+        unique.setdefault(key, (rec, row))
+    summary = {
+        "sweep": expansion.name,
+        "db": str(db),
+        "cases": len(unique),
+        "not_applicable": list(expansion.skipped),
+        "skipped_done": 0,
+        "ran": 0,
+        "done": 0,
+        "failed": 0,
+        "references": 0,
+    }
+    with SweepStore(db) as store:
+        finished = store.finished_keys(include_failed=not retry_failed)
+        todo = [(k, rec, row) for k, (rec, row) in unique.items() if k not in finished]
+        summary["skipped_done"] = len(unique) - len(todo)
+        if todo:
+            run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
+            if workers == 0 and scheduler is None:
+                results = _run_inline(
+                    todo, cache_root, variant, summary, quiet=quiet, images=images
+                )
+            else:
+                results = _run_dask(
+                    todo,
+                    cache_root,
+                    variant,
+                    summary,
+                    workers=workers,
+                    scheduler=scheduler,
+                    quiet=quiet,
+                    images=images,
+                )
+            for key, rec, row, res in results:
+                store.put(
+                    {
+                        **row,
+                        "key": key,
+                        "sweep": expansion.name,
+                        "params": res.get("params") or rec["params"],
+                        "metrics": res.get("metrics"),
+                        "cost": res.get("cost"),
+                        "wall_seconds": res.get("wall_seconds"),
+                        "status": res["status"],
+                        "error": res.get("error"),
+                        "run_id": run_id,
+                    },
+                    images=res.get("images"),
+                )
+                summary["ran"] += 1
+                summary[res["status"]] += 1
+    summary["wall_seconds"] = time.perf_counter() - t0
+    return summary
+
+
+def _unique_references(todo) -> dict[str, dict]:
+    import json
+
+    refs: dict[str, dict] = {}
+    for _, rec, _ in todo:
+        for job in reference_jobs(rec):
+            refs.setdefault(json.dumps(job, sort_keys=True), job)
+    return refs
+
+
+def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
+    refs = _unique_references(todo)
+    summary["references"] = len(refs)
+    failed_refs: dict[str, str] = {}
+    with _progress(len(refs), quiet=quiet, desc="references") as bar:
+        for text, job in refs.items():
+            try:
+                render_reference(job, cache_root, variant)
+            except Exception as exc:  # the cases that need it fail with this error
+                failed_refs[text] = _one_line(exc)
+            bar.update()
+    import json
+
+    with _progress(len(todo), quiet=quiet, desc=summary["sweep"]) as bar:
+        for key, rec, row in todo:
+            broken = [
+                failed_refs[t]
+                for t in (json.dumps(j, sort_keys=True) for j in reference_jobs(rec))
+                if t in failed_refs
+            ]
+            if broken:
+                res = {"status": "failed", "error": f"reference: {broken[0]}", "wall_seconds": 0.0}
+            else:
+                res = run_case(rec, cache_root, variant, images=images)
+            bar.update()
+            yield key, rec, row, res
+
+
+def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, images):
+    import json
+
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(
+            n_workers=workers or _default_workers(),
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",  # any free port: several sweeps may run at once
+            silence_logs=logging.ERROR,
+        )
+        client = Client(cluster)
+        n_workers = workers or _default_workers()
+        client.run(_share_cores, max(1, (os.cpu_count() or 1) // n_workers))
+    else:
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SweepError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
+    try:
+        refs = _unique_references(todo)
+        summary["references"] = len(refs)
+        ref_futures = {
+            text: client.submit(render_reference, job, cache_root, variant, pure=False)
+            for text, job in refs.items()
+        }
+        futures = {}
+        for item in todo:
+            rec = item[1]
+            deps = [ref_futures[json.dumps(j, sort_keys=True)] for j in reference_jobs(rec)]
+            fut = client.submit(
+                run_case, rec, cache_root, variant, *deps, images=images, pure=False
+            )
+            futures[fut] = item
+        with _progress(len(futures), quiet=quiet, desc=summary["sweep"]) as bar:
+            for fut in as_completed(futures):
+                key, rec, row = futures.pop(fut)
+                try:
+                    res = fut.result()
+                except Exception as exc:  # a reference failed, or a worker died
+                    res = {"status": "failed", "error": _one_line(exc), "wall_seconds": None}
+                bar.update()
+                yield key, rec, row, res
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

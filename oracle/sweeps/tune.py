@@ -1,0 +1,344 @@
+"""``raster-oracle tune``: the cheapest configuration of a technique that meets an error target.
+
+The search is Optuna's: a constrained TPE study (objective: the cost key; constraint
+``metric - target <= 0``, set with ``Trial.set_constraint``), or, when the search space is
+discrete and no larger than the trial budget, Optuna's grid sampler, which tries every
+configuration once (the answer is then exact). The study is stored in the sweep store's
+SQLite file (Optuna's own tables), so a second run with the same arguments continues it;
+every evaluated configuration is also a row of the store (sweep ``tune:<study>``), so
+repeated configurations are not scored twice and ``report --sweep`` shows them.
+
+References
+----------
+Akiba, T., Sano, S., Yanase, T., Ohta, T., Koyama, M. (2019). Optuna: A Next-generation
+Hyperparameter Optimization Framework. KDD 2019, doi:10.1145/3292500.3330701.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import warnings
+from pathlib import Path
+
+__all__ = ["DEFAULT_COST", "TuneError", "parse_space", "parse_target", "run_tune"]
+
+#: Cost minimised when ``--minimize`` is not given: the family's memory.
+DEFAULT_COST = {"shadow": "shadow_map_bytes", "aa": "framebuffer_bytes"}
+#: Default search space: shadow-map resolution from 64^2 to 4096^2 texels (log scale).
+DEFAULT_RESOLUTION = (64, 4096)
+#: Constraint value of a trial whose case failed (infeasible, worse than any real miss).
+FAILED_CONSTRAINT = 1e30
+
+
+class TuneError(ValueError):
+    """Bad tuning request (target, search space, cost key)."""
+
+
+def parse_target(text: str) -> tuple[str, float]:
+    """``"flip_mean<=0.05"`` -> ``("flip_mean", 0.05)``; the metric must be a metric key."""
+    from ..scoring.score import METRIC_KEYS
+
+    metric, sep, value = str(text).partition("<=")
+    metric = metric.strip()
+    if not sep:
+        raise TuneError(f"--target expects METRIC<=VALUE, got {text!r}")
+    if metric not in METRIC_KEYS:
+        raise TuneError(
+            f"--target: unknown metric {metric!r}; choose from {', '.join(METRIC_KEYS)}"
+        )
+    try:
+        limit = float(value)
+    except ValueError:
+        raise TuneError(f"--target {metric}: expected a number, got {value.strip()!r}") from None
+    if not math.isfinite(limit):
+        raise TuneError(f"--target {metric}: expected a finite number, got {value.strip()!r}")
+    return metric, limit
+
+
+def parse_space(technique: str, vary: list[str]) -> dict[str, tuple]:
+    """Search space from ``--vary`` texts: ``{name: ("int"|"float", lo, hi) | ("choice", vals)}``.
+
+    ``KEY=lo:hi`` is a log-uniform integer or float range (by the parameter's kind);
+    ``KEY=a,b,c`` a set of choices (parsed as ``--set`` values are). Without ``--vary`` the
+    space is ``resolution`` over :data:`DEFAULT_RESOLUTION` when the technique has one.
+    """
+    import raster_models
+    from raster_models import params as _params
+
+    if technique not in raster_models.TECHNIQUES:
+        raise TuneError(
+            f"unknown technique {technique!r}; choose one of {', '.join(raster_models.TECHNIQUES)}"
+        )
+    fields = {p["name"]: p for p in _params.describe(raster_models.TECHNIQUES[technique].params)}
+    if not vary:
+        if "resolution" not in fields:
+            raise TuneError(f"{technique} has no resolution parameter: give --vary KEY=SPEC")
+        return {"resolution": ("int", *DEFAULT_RESOLUTION)}
+    space: dict[str, tuple] = {}
+    for text in vary:
+        key, sep, spec = text.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or not spec.strip():
+            raise TuneError(f"--vary expects KEY=lo:hi or KEY=a,b,c, got {text!r}")
+        if key not in fields:
+            raise TuneError(
+                f"--vary: unknown parameter {key!r} of {technique}; valid: {', '.join(fields)}"
+            )
+        kind = fields[key]["type"]
+        if ":" in spec and "," not in spec:
+            if kind not in ("int", "float"):
+                raise TuneError(f"--vary {key}: a lo:hi range needs a number parameter ({kind})")
+            lo_text, hi_text = spec.split(":", 1)
+            try:
+                lo, hi = float(lo_text), float(hi_text)
+            except ValueError:
+                raise TuneError(f"--vary {key}: expected lo:hi numbers, got {spec!r}") from None
+            if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+                raise TuneError(f"--vary {key}: need 0 < lo < hi (log scale), got {spec!r}")
+            if kind == "int":
+                if not (lo.is_integer() and hi.is_integer()):
+                    raise TuneError(f"--vary {key}: integer bounds expected, got {spec!r}")
+                space[key] = ("int", int(lo), int(hi))
+            else:
+                space[key] = ("float", lo, hi)
+        else:
+            values = []
+            for item in (s for s in spec.split(",") if s.strip()):
+                try:
+                    parsed = raster_models.parse_params(technique, [f"{key}={item}"])[key]
+                except raster_models.ModelError as exc:
+                    raise TuneError(f"--vary {key}: {exc}") from None
+                values.append(list(parsed) if isinstance(parsed, tuple) else parsed)
+            if not values:
+                raise TuneError(f"--vary {key}: no values in {spec!r}")
+            space[key] = ("choice", list(dict.fromkeys(json.dumps(v) for v in values)))
+    return space
+
+
+def _suggest(trial, space: dict) -> dict:
+    out = {}
+    for key, spec in space.items():
+        if spec[0] == "int":
+            out[key] = trial.suggest_int(key, spec[1], spec[2], log=True)
+        elif spec[0] == "float":
+            out[key] = trial.suggest_float(key, spec[1], spec[2], log=True)
+        else:
+            out[key] = json.loads(trial.suggest_categorical(key, spec[1]))
+    return out
+
+
+def _grid(space: dict) -> dict | None:
+    """Optuna grid of a discrete space (choices only), else None."""
+    if all(spec[0] == "choice" for spec in space.values()):
+        return {key: list(spec[1]) for key, spec in space.items()}
+    return None
+
+
+def run_tune(
+    scene: str,
+    *,
+    technique: str,
+    target: tuple[str, float],
+    minimize: str | None = None,
+    trials: int = 20,
+    vary: list[str] | None = None,
+    fixed: list[str] | None = None,
+    width: int | None = None,
+    height: int | None = None,
+    light: int = 0,
+    spp: int = 64,
+    seed: int = 0,
+    db: str | Path,
+    study_name: str | None = None,
+    cache,
+    quiet: bool = True,
+) -> dict:
+    """Find the cheapest configuration meeting ``target``; returns the study's summary.
+
+    Returns
+    -------
+    dict
+        ``{"study", "db", "sampler", "target", "minimize", "trials", "feasible", "best":
+        {"params", "cost", "metric", "key"} or None, "evaluated": [{"params", "cost",
+        "metric", "feasible"}]}`` (``evaluated`` sorted by cost).
+    """
+    import optuna
+
+    import raster_models
+    import scenes
+    from raster_models import params as _params
+    from scenes import backend
+
+    from .run import run_case, sweep_keys
+    from .spec import Case
+    from .store import SweepStore
+
+    metric, limit = target
+    space = parse_space(technique, list(vary or []))
+    try:
+        fixed_params = raster_models.parse_params(technique, list(fixed or []))
+    except raster_models.ModelError as exc:
+        raise TuneError(str(exc)) from None
+    clash = sorted(set(fixed_params) & set(space))
+    if clash:
+        raise TuneError(f"parameter {clash[0]} is both --set and --vary")
+    loaded = scenes.load(scene, width=width, height=height, light=light)
+    if loaded.light.kind not in raster_models.TECHNIQUES[technique].lights:
+        raise TuneError(f"{technique} does not support the {loaded.light.kind} light of {scene}")
+    from .run import _family
+
+    cost_key = minimize or DEFAULT_COST.get(_family(technique))
+    ident = json.dumps(
+        [
+            scene,
+            loaded.content_hash,
+            technique,
+            metric,
+            limit,
+            cost_key,
+            space,
+            sorted(fixed_params.items()),
+            spp,
+            seed,
+            light,
+        ],
+        sort_keys=True,
+        default=str,
+    )
+    name = study_name or (
+        f"{technique} on {loaded.name}: min {cost_key} s.t. {metric}<={limit:g} "
+        f"[{hashlib.sha256(ident.encode()).hexdigest()[:10]}]"
+    )
+    variant = backend.active().variant
+    store = SweepStore(db)
+
+    def evaluate(params: dict) -> dict:
+        case = Case(
+            scene=scene,
+            technique=technique,
+            params={**fixed_params, **params},
+            width=loaded.width,
+            height=loaded.height,
+            spp=spp,
+            seed=seed,
+            light=light,
+        )
+        key, rec, row = sweep_keys([case], variant)[0]
+        stored = store.get(key)
+        if stored is None or stored["status"] != "done":
+            res = run_case(rec, str(cache.root), variant)
+            store.put(
+                {
+                    **row,
+                    "key": key,
+                    "sweep": f"tune:{name}",
+                    "params": res.get("params") or rec["params"],
+                    "metrics": res.get("metrics"),
+                    "cost": res.get("cost"),
+                    "wall_seconds": res.get("wall_seconds"),
+                    "status": res["status"],
+                    "error": res.get("error"),
+                    "run_id": "tune",
+                }
+            )
+            stored = store.get(key)
+        return stored
+
+    def objective(trial):
+        params = _suggest(trial, space)
+        try:
+            _params.make(
+                technique, raster_models.TECHNIQUES[technique].params, {**fixed_params, **params}
+            )
+        except raster_models.ModelError as exc:
+            trial.set_user_attr("error", str(exc))
+            trial.set_user_attr("constraint", FAILED_CONSTRAINT)
+            trial.set_constraint("target", FAILED_CONSTRAINT)
+            raise optuna.TrialPruned(str(exc)) from None
+        row = evaluate(params)
+        trial.set_user_attr("key", row["key"])
+        if row["status"] != "done":
+            trial.set_user_attr("error", row["error"])
+            trial.set_user_attr("constraint", FAILED_CONSTRAINT)
+            trial.set_constraint("target", FAILED_CONSTRAINT)
+            raise optuna.TrialPruned(row["error"])
+        value = row["metrics"].get(metric)
+        if value is None:
+            raise TuneError(f"metric {metric} does not apply to {technique}")
+        cost = (row["cost"] or {}).get(cost_key)
+        if not isinstance(cost, int | float) or isinstance(cost, bool):
+            numeric = [
+                k
+                for k, v in (row["cost"] or {}).items()
+                if isinstance(v, int | float) and not isinstance(v, bool)
+            ]
+            raise TuneError(
+                f"--minimize {cost_key}: not a cost of {technique}; "
+                f"choose from {', '.join(numeric)}"
+            )
+        trial.set_user_attr("metric", float(value))
+        trial.set_user_attr("constraint", float(value) - limit)
+        # Optuna's constrained TPE reads this: feasible when <= 0
+        trial.set_constraint("target", float(value) - limit)
+        return float(cost)
+
+    grid = _grid(space)
+    n_grid = math.prod(len(v) for v in grid.values()) if grid is not None else None
+    if grid is not None and n_grid <= trials:
+        sampler = optuna.samplers.GridSampler(grid, seed=seed)
+        sampler_name = "grid"
+    else:
+        sampler = optuna.samplers.TPESampler(seed=seed)
+        sampler_name = "tpe"
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    try:
+        with warnings.catch_warnings():
+            # GridSampler and the SQLite storage are marked experimental by Optuna
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            study = optuna.create_study(
+                study_name=name,
+                storage=store.url(),
+                sampler=sampler,
+                direction="minimize",
+                load_if_exists=True,
+            )
+            done = [t for t in study.trials if t.state.is_finished()]
+            budget = trials if sampler_name == "tpe" else max(0, min(trials, n_grid) - len(done))
+            if budget:
+                study.optimize(objective, n_trials=budget, show_progress_bar=not quiet)
+    finally:
+        store.close()
+    results, seen = [], set()
+    for t in study.trials:
+        key = t.user_attrs.get("key")
+        if t.state != optuna.trial.TrialState.COMPLETE or key in seen:
+            continue
+        seen.add(key)
+        results.append(
+            {
+                "params": {
+                    k: json.loads(v) if space[k][0] == "choice" else v for k, v in t.params.items()
+                },
+                "cost": t.value,
+                "metric": t.user_attrs["metric"],
+                "feasible": t.user_attrs["constraint"] <= 0,
+                "key": key,
+            }
+        )
+    results.sort(key=lambda r: (r["cost"], r["metric"]))
+    feasible = [r for r in results if r["feasible"]]
+    best = feasible[0] if feasible else None
+    return {
+        "study": name,
+        "db": str(db),
+        "sampler": sampler_name,
+        "target": {"metric": metric, "max": limit},
+        "minimize": cost_key,
+        "fixed": fixed_params,
+        "trials": len(study.trials),
+        "feasible": len(feasible),
+        "best": None if best is None else {**best, "params": {**fixed_params, **best["params"]}},
+        "evaluated": results,
+    }

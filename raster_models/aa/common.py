@@ -1,0 +1,234 @@
+"""What every anti-aliasing model shares: resolve and shadow parameters, the optional shadow
+technique, the fragment shading of the multisample models, and the packaged result (outputs,
+cost record, diagnostics).
+
+Cost record (the technique's own GPU budget, not the model's run time):
+
+- ``framebuffer_bytes`` and ``framebuffer_bytes_by_buffer`` (``color``, ``depth``,
+  ``normal``, ``aggregates``): the multisampled (or accumulation) buffers at this
+  resolution, per-sample buffers ``N`` times; the 1x resolve/display target is not counted
+  (``resolve_target_bytes``), as in the framebuffer figures of the NVIDIA slides;
+- ``samples``, ``width``, ``height``;
+- ``shading_events_mean`` and ``shading_events_histogram`` (pixels with 0, 1, 2, ...
+  shading events: pixel-shader invocations, i.e. fragments, aggregates or samples shaded);
+- ``geometry_passes`` (depth prepass, shading or accumulation passes), ``samples_tested``
+  (sub-samples given an inside and depth test, all passes), ``shadow_rays``;
+- ``bandwidth_bytes``: an estimate of framebuffer traffic: every sample test of a pass reads
+  and (in a prepass) writes its depth, every shading event writes its colour to each sample
+  it owns (MSAA) or blends once (ACAA, read + write), the resolve reads every colour sample
+  and writes one pixel.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import params as _params
+from ..errors import ModelError
+from ..result import ModelResult
+from . import resolve as _resolve
+from .fragments import Fragments, sample_film_positions, shading_positions
+from .trace import fragment_attributes, shade_points
+
+__all__ = [
+    "COLOR_FORMATS",
+    "DEPTH_FORMATS",
+    "ResolveParams",
+    "ShadowParams",
+    "check_shadows",
+    "package",
+    "shade_fragments",
+]
+
+#: Bytes per colour sample of each colour format.
+COLOR_FORMATS = {"rgba8": 4, "rgba16f": 8, "rgba32f": 16}
+#: Bytes per depth sample (D24 is stored as D24S8).
+DEPTH_FORMATS = {"D24": 4, "D32F": 4}
+#: Shadow techniques a colour model can take its visibility from instead of exact rays.
+SHADOW_CHOICES = ("exact", "shadow-map", "csm", "sdsm")
+
+
+@dataclass(frozen=True)
+class ShadowParams:
+    shadows: str = _params.param(
+        "exact",
+        source="issue 9: exact shadow rays, so AA error is not mixed with shadow-map error",
+        help="light visibility at each shading point: exact (the oracle's shadow ray) or a "
+        "shadow technique with its default parameters (shadow-map, csm, sdsm)",
+        choices=SHADOW_CHOICES,
+    )
+
+
+@dataclass(frozen=True)
+class ResolveParams:
+    resolve: str = _params.param(
+        "box",
+        source="D3D ResolveSubresource / glBlitFramebuffer: box average in linear",
+        help="resolve filter: box (own samples) or a wide separable filter over the "
+        "neighbours' samples (triangle r=1, gaussian sigma=0.5 r=2, blackman-harris, "
+        "mitchell, catmull-rom r=2; MJP MSAAFilter)",
+        choices=_resolve.FILTERS,
+    )
+    inverse_luminance: bool = _params.param(
+        False,
+        source="off: hardware resolve; on: Karis 2014 / MJP MSAAFilter option",
+        help="divide each sample's resolve weight by 1 + its luminance",
+    )
+
+
+def check_shadows(scene, shadows: str) -> None:
+    """Refuse a shadow technique the scene's light does not support (before any work)."""
+    if shadows == "exact":
+        return
+    from ..registry import TECHNIQUES
+
+    tech = TECHNIQUES[shadows]
+    if scene.light.kind not in tech.lights:
+        raise ModelError(
+            f"shadows={shadows} needs a {' or '.join(tech.lights)} light; the scene's light "
+            f"is a {scene.light.kind} light"
+        )
+
+
+def shadow_visibility(scene, attrs: dict, shadows: str):
+    """Visibility at shading points from a shadow technique (None for ``exact``)."""
+    if shadows == "exact":
+        return None
+    from ..gbuffer import GBuffer, trace_gbuffer
+    from ..registry import TECHNIQUES
+    from ..shadowmaps.render import render_maps
+    from ..shadowmaps.shade import shade
+
+    check_shadows(scene, shadows)
+    tech = TECHNIQUES[shadows]
+    module = __import__(tech.runner.__module__, fromlist=["build"])
+    p = _params.make(shadows, tech.params, {})
+    setup = module.build(scene, trace_gbuffer(scene), p)
+    maps = render_maps(scene, setup, p)
+    pos = np.asarray(attrs["position"], np.float64)
+    nrm = np.asarray(attrs["normal"], np.float64)
+    valid = np.asarray(attrs["valid"], bool)
+    wl, _ = scene.light.to_light(pos)
+    cos_l = np.where(valid, np.sum(nrm * wl, axis=1), 0.0)
+    dpdx, dpdy = _plane_derivatives(scene.camera, pos, np.asarray(attrs["geo_normal"], float))
+    gb = GBuffer(
+        width=len(pos),
+        height=1,
+        valid=valid,
+        depth=np.asarray(attrs["depth"], np.float64),
+        position=pos,
+        normal=nrm,
+        cos_l=cos_l,
+        receiver=valid & (cos_l > 0.0) & np.asarray(scene.light.in_cone(wl), bool),
+        dpdx=dpdx,
+        dpdy=dpdy,
+    )
+    outputs, _ = shade(gb, setup, maps, p)
+    return np.asarray(outputs["visibility"], np.float64).ravel()
+
+
+def _plane_derivatives(camera, pos, ng):
+    """``dP/dx``, ``dP/dy`` (world units per pixel) on the plane through ``pos`` with normal
+    ``ng`` (ray differentials, as :mod:`raster_models.gbuffer` computes them)."""
+    m = np.asarray(camera.to_world, np.float64)
+    rot = m[:3, :3]
+    w, h = camera.width, camera.height
+    dsx, dsy = -2.0 / w, -2.0 / (h * camera.aspect)
+    cam_o = m[:3, 3]
+    if camera.kind == "perspective":
+        t = camera.tan_half_x
+        dd = [rot @ np.array([dsx * t, 0, 0]), rot @ np.array([0, dsy * t, 0])]
+        do = [np.zeros(3), np.zeros(3)]
+        d = pos - cam_o
+        tau = np.ones(len(pos))
+    else:
+        dd = [np.zeros(3), np.zeros(3)]
+        do = [rot @ np.array([dsx, 0, 0]), rot @ np.array([0, dsy, 0])]
+        d = np.broadcast_to(rot[:, 2], pos.shape)
+        tau = np.zeros(len(pos))
+    nd = np.sum(ng * d, axis=1)
+    nd = np.where(np.abs(nd) > 1e-12, nd, 1e-12)
+    out = []
+    for o_k, d_k in zip(do, dd, strict=True):
+        dtau = -((ng @ o_k) + tau * (ng @ d_k)) / nd
+        out.append(o_k[None, :] + d * dtau[:, None] + d_k[None, :] * tau[:, None])
+    return out[0], out[1]
+
+
+def shade_fragments(scene, frags: Fragments, offsets, *, centroid: bool, shadows: str):
+    """Attributes and colour of every fragment, shaded once at its shading position."""
+    w = scene.width
+    n = len(offsets)
+    sx, sy = sample_film_positions(frags, offsets, w)
+    cx, cy = shading_positions(frags, offsets, w, centroid, n)
+    attrs = fragment_attributes(scene, sx, sy, cx, cy)
+    vis = shadow_visibility(scene, attrs, shadows)
+    rgb, rays = shade_points(scene, attrs, visibility=vis)
+    return attrs, rgb, rays
+
+
+def histogram(events: np.ndarray) -> list[int]:
+    """Pixels with 0, 1, 2, ... shading events."""
+    return [int(c) for c in np.bincount(np.asarray(events, np.int64).ravel())]
+
+
+def package(
+    name: str,
+    scene,
+    params,
+    *,
+    color: np.ndarray,
+    coverage: np.ndarray,
+    events: np.ndarray,
+    extra_outputs: dict,
+    samples: int,
+    buffers: dict,
+    resolve_target_bytes: int,
+    geometry_passes: int,
+    samples_tested: int,
+    bandwidth_bytes: int,
+    shadow_rays: int,
+    diagnostics: dict,
+    t0: float,
+) -> ModelResult:
+    """A :class:`ModelResult` with the AA output channels and cost record."""
+    h, w = scene.height, scene.width
+    events = np.asarray(events).reshape(h, w)
+    by_buffer = {k: int(buffers.get(k, 0)) for k in ("color", "depth", "normal", "aggregates")}
+    outputs = {
+        "color": np.asarray(color, np.float32).reshape(h, w, 3),
+        "coverage": np.asarray(coverage, np.float32).reshape(h, w),
+        "shading_events": events.astype(np.float32),
+    }
+    for k, v in extra_outputs.items():
+        outputs[k] = np.asarray(v, np.float32).reshape(h, w)
+    cost = {
+        "framebuffer_bytes": int(sum(by_buffer.values())),
+        "framebuffer_bytes_by_buffer": by_buffer,
+        "resolve_target_bytes": int(resolve_target_bytes),
+        "samples": int(samples),
+        "width": int(w),
+        "height": int(h),
+        "shading_events_mean": float(events.mean()),
+        "shading_events_histogram": histogram(events),
+        "geometry_passes": int(geometry_passes),
+        "samples_tested": int(samples_tested),
+        "bandwidth_bytes": int(bandwidth_bytes),
+        "shadow_rays": int(shadow_rays),
+    }
+    from ..shadowmaps.engine import _jsonable, _provenance
+
+    diag = dict(diagnostics)
+    diag["scene"] = scene.provenance()
+    diag["provenance"] = _provenance()
+    return ModelResult(
+        technique=name,
+        outputs=outputs,
+        cost=cost,
+        diagnostics=_jsonable(diag),
+        params=_params.as_dict(params),
+        wall_seconds=time.perf_counter() - t0,
+    )

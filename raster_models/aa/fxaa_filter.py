@@ -1,0 +1,290 @@
+"""FXAA 3.11, quality path, ported to NumPy (vectorized over pixels).
+
+The port follows ``FxaaPixelShader`` of FXAA 3.11 (``FXAA_PC 1``, ``FXAA_GREEN_AS_LUMA 0``)
+operation for operation, in float32 like the shader: the 3x3 luma neighbourhood and the early
+exit on local contrast, the horizontal/vertical edge decision, the choice of the steeper
+neighbour pair, the sub-pixel term, the edge-end search (``FXAA_QUALITY__PS`` steps of the
+preset's table, run for every pixel at once as a fixed number of vectorized iterations), and
+the final re-fetch of the colour at the offset position. Sums are grouped as in the shader:
+FXAA's horizontal and vertical edge measures are often equal in exact arithmetic (with the
+usual signs both expand to the same sum), so float32 rounding picks the branch, as it does on
+a GPU (whose fused multiply-adds may round such ties the other way).
+
+Texture fetches are modelled as a GPU samples a clamp-to-edge texture: integer-offset taps
+read texels, the edge-end taps and the final colour tap are bilinear (exact weights; hardware
+uses 8-bit fractions, a difference below 1/256 of a texel). The colour target is modelled as
+an sRGB-format (or float) texture, so the fetch returns linear data and filtering is linear,
+and luma is stored "in a perceptual space" as FXAA 3.11 requires: the header's recipe for a
+linear target, ``luma = sqrt(dot(rgb, (0.299, 0.587, 0.114)))`` (gamma 2.0), with the dot
+product clipped to ``[0, 1]`` as an 8-bit luma channel would store it.
+
+Preset: 12 by default, FXAA 3.11's own default (``FXAA_QUALITY__PRESET 12``: 5 steps,
+1.0, 1.5, 2.0, 4.0, 12.0 texels, "slightly faster than FXAA 3.9 and higher edge quality"), the
+one shipped integrations use unless told otherwise; 39 ("no dither, very expensive": 12 steps,
+five of them 1 texel) is the most exact search and is available, as is every other preset of
+the 3.11 table.
+
+References
+----------
+T. Lottes, FXAA (whitepaper), NVIDIA, 2009; FXAA 3.11 source (``Fxaa3_11.h``), NVIDIA, 2011.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import ModelError
+
+__all__ = ["FXAA_PRESETS", "fxaa", "fxaa_luma"]
+
+#: Edge-search step table of every FXAA 3.11 quality preset (``FXAA_QUALITY__P0..P11``).
+FXAA_PRESETS: dict[int, tuple[float, ...]] = {
+    10: (1.5, 3.0, 12.0),
+    11: (1.0, 1.5, 3.0, 12.0),
+    12: (1.0, 1.5, 2.0, 4.0, 12.0),
+    13: (1.0, 1.5, 2.0, 2.0, 4.0, 12.0),
+    14: (1.0, 1.5, 2.0, 2.0, 2.0, 4.0, 12.0),
+    15: (1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 4.0, 12.0),
+    20: (1.5, 2.0, 8.0),
+    21: (1.0, 1.5, 2.0, 8.0),
+    22: (1.0, 1.5, 2.0, 2.0, 8.0),
+    23: (1.0, 1.5, 2.0, 2.0, 2.0, 8.0),
+    24: (1.0, 1.5, 2.0, 2.0, 2.0, 3.0, 8.0),
+    25: (1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 4.0, 8.0),
+    26: (1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 2.0, 4.0, 8.0),
+    27: (1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 4.0, 8.0),
+    28: (1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 4.0, 8.0),
+    29: (1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 2.0, 4.0, 8.0),
+    39: (1.0, 1.0, 1.0, 1.0, 1.0, 1.5, 2.0, 2.0, 2.0, 2.0, 4.0, 8.0),
+}
+
+#: Luma weights of FXAA 3.11's documented luma pass (Rec. 601).
+LUMA_WEIGHTS = (0.299, 0.587, 0.114)
+
+_F = np.float32
+
+
+def _check_unit(name: str, value: float, *, low_open: bool) -> float:
+    v = float(value)
+    ok = math.isfinite(v) and (0.0 < v if low_open else 0.0 <= v) and v <= 1.0
+    if not ok:
+        interval = "(0, 1]" if low_open else "[0, 1]"
+        raise ModelError(f"fxaa {name} must be a number in {interval}, got {value!r}")
+    return v
+
+
+def fxaa_luma(rgb_linear: np.ndarray) -> np.ndarray:
+    """FXAA's luma of a linear image: ``sqrt(clip(dot(rgb, (0.299, 0.587, 0.114)), 0, 1))``.
+
+    Parameters
+    ----------
+    rgb_linear : (H, W, 3) array
+        Linear radiance, display-referred (tone-mapped) so that 1 is white.
+
+    Returns
+    -------
+    (H, W) float32 array in ``[0, 1]``, gamma 2.0 encoded.
+    """
+    rgb = np.asarray(rgb_linear, dtype=_F)
+    w = np.asarray(LUMA_WEIGHTS, dtype=_F)
+    y = rgb[..., 0] * w[0] + rgb[..., 1] * w[1] + rgb[..., 2] * w[2]
+    return np.sqrt(np.clip(y, _F(0.0), _F(1.0))).astype(_F)
+
+
+def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear clamp-to-edge fetch of ``img`` (H, W[, C]) at pixel coordinates (centre +0.5)."""
+    h, w = img.shape[:2]
+    u = x - _F(0.5)
+    v = y - _F(0.5)
+    x0f = np.floor(u)
+    y0f = np.floor(v)
+    fx = (u - x0f).astype(_F)
+    fy = (v - y0f).astype(_F)
+    x0 = np.clip(x0f.astype(np.int64), 0, w - 1)
+    x1 = np.clip(x0f.astype(np.int64) + 1, 0, w - 1)
+    y0 = np.clip(y0f.astype(np.int64), 0, h - 1)
+    y1 = np.clip(y0f.astype(np.int64) + 1, 0, h - 1)
+    if img.ndim == 3:
+        fx = fx[:, None]
+        fy = fy[:, None]
+    top = img[y0, x0] * (_F(1.0) - fx) + img[y0, x1] * fx
+    bottom = img[y1, x0] * (_F(1.0) - fx) + img[y1, x1] * fx
+    return (top * (_F(1.0) - fy) + bottom * fy).astype(_F)
+
+
+def fxaa(
+    rgb_linear: np.ndarray,
+    *,
+    subpix: float = 0.75,
+    edge_threshold: float = 0.166,
+    edge_threshold_min: float = 0.0833,
+    preset: int = 12,
+) -> np.ndarray:
+    """Apply FXAA 3.11 (quality path) to a linear image.
+
+    Parameters
+    ----------
+    rgb_linear : (H, W, 3) array
+        Linear radiance of the 1-sample image, display-referred (FXAA runs after tone
+        mapping: the thresholds are fractions of a [0, 1] luma). Finite values.
+    subpix : float
+        ``fxaaQualitySubpix``, amount of sub-pixel aliasing removal in ``[0, 1]``;
+        0.75: FXAA 3.11 default.
+    edge_threshold : float
+        ``fxaaQualityEdgeThreshold``, minimum local contrast relative to the local maximum
+        luma, in ``(0, 1]``; 0.166: FXAA 3.11 default.
+    edge_threshold_min : float
+        ``fxaaQualityEdgeThresholdMin``, minimum absolute local contrast (skips dark areas),
+        in ``[0, 1]``; 0.0833: FXAA 3.11 default.
+    preset : int
+        ``FXAA_QUALITY__PRESET``, one of :data:`FXAA_PRESETS`; 12: FXAA 3.11 default.
+
+    Returns
+    -------
+    (H, W, 3) float32 array
+        Linear radiance after FXAA. Pixels below the contrast threshold are returned
+        unchanged (bit for bit).
+
+    Notes
+    -----
+    Where the shader would divide by a zero luma range (only with ``edge_threshold_min=0``
+    on a flat area) the sub-pixel term is 0, as ``saturate(NaN)`` is 0 on GPUs.
+    """
+    rgb = np.asarray(rgb_linear)
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.shape[0] < 1 or rgb.shape[1] < 1:
+        raise ModelError(f"fxaa needs an (H, W, 3) image, got shape {rgb.shape}")
+    rgb = rgb.astype(_F, copy=False)
+    if not np.isfinite(rgb).all():
+        raise ModelError("fxaa input image has NaN or inf values")
+    if preset not in FXAA_PRESETS:
+        raise ModelError(f"fxaa preset must be one of {sorted(FXAA_PRESETS)}, got {preset!r}")
+    q_subpix = _F(_check_unit("subpix", subpix, low_open=False))
+    q_thr = _F(_check_unit("edge_threshold", edge_threshold, low_open=True))
+    q_thr_min = _F(_check_unit("edge_threshold_min", edge_threshold_min, low_open=False))
+    steps = FXAA_PRESETS[preset]
+
+    h, w = rgb.shape[:2]
+    luma = fxaa_luma(rgb)
+    lp = np.pad(luma, 1, mode="edge")  # clamp-to-edge taps
+
+    def tap(dx: int, dy: int) -> np.ndarray:
+        return lp[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
+
+    luma_m = luma
+    luma_s, luma_e, luma_n, luma_w = tap(0, 1), tap(1, 0), tap(0, -1), tap(-1, 0)
+    range_max = np.maximum(
+        np.maximum(luma_n, luma_w), np.maximum(luma_e, np.maximum(luma_s, luma_m))
+    )
+    range_min = np.minimum(
+        np.minimum(luma_n, luma_w), np.minimum(luma_e, np.minimum(luma_s, luma_m))
+    )
+    luma_range = range_max - range_min
+    early_exit = luma_range < np.maximum(q_thr_min, range_max * q_thr)
+
+    out = rgb.copy()
+    iy, ix = np.nonzero(~early_exit)
+    if iy.size == 0:
+        return out
+
+    def sel(a: np.ndarray) -> np.ndarray:
+        return a[iy, ix]
+
+    l_m, l_s, l_e, l_n, l_w = sel(luma_m), sel(luma_s), sel(luma_e), sel(luma_n), sel(luma_w)
+    l_nw, l_se, l_ne, l_sw = sel(tap(-1, -1)), sel(tap(1, 1)), sel(tap(1, -1)), sel(tap(-1, 1))
+    rng = sel(luma_range)
+
+    two = _F(2.0)
+    luma_ns = l_n + l_s
+    luma_we = l_w + l_e
+    with np.errstate(divide="ignore"):
+        subpix_rcp_range = np.where(rng > 0, _F(1.0) / np.where(rng > 0, rng, _F(1.0)), _F(0.0))
+    subpix_nswe = luma_ns + luma_we
+    edge_horz1 = -two * l_m + luma_ns
+    edge_vert1 = -two * l_m + luma_we
+    luma_nese = l_ne + l_se
+    luma_nwne = l_nw + l_ne
+    edge_horz2 = -two * l_e + luma_nese
+    edge_vert2 = -two * l_n + luma_nwne
+    luma_nwsw = l_nw + l_sw
+    luma_swse = l_sw + l_se
+    edge_horz4 = np.abs(edge_horz1) * two + np.abs(edge_horz2)
+    edge_vert4 = np.abs(edge_vert1) * two + np.abs(edge_vert2)
+    edge_horz3 = -two * l_w + luma_nwsw
+    edge_vert3 = -two * l_s + luma_swse
+    edge_horz = np.abs(edge_horz3) + edge_horz4
+    edge_vert = np.abs(edge_vert3) + edge_vert4
+    subpix_nwswnese = luma_nwsw + luma_nese
+    horz_span = edge_horz >= edge_vert
+    subpix_a = subpix_nswe * two + subpix_nwswnese
+    # For a vertical edge the "north/south" pair is west/east; the search runs along the edge.
+    l_n = np.where(horz_span, l_n, l_w)
+    l_s = np.where(horz_span, l_s, l_e)
+    subpix_b = subpix_a * _F(1.0 / 12.0) - l_m
+    gradient_n = l_n - l_m
+    gradient_s = l_s - l_m
+    luma_nn = l_n + l_m
+    luma_ss = l_s + l_m
+    pair_n = np.abs(gradient_n) >= np.abs(gradient_s)
+    gradient = np.maximum(np.abs(gradient_n), np.abs(gradient_s))
+    length_sign = np.where(pair_n, _F(-1.0), _F(1.0)).astype(_F)  # rcpFrame = 1 pixel
+    subpix_c = np.clip(np.abs(subpix_b) * subpix_rcp_range, _F(0.0), _F(1.0))
+
+    # posB: half a pixel across the edge, toward the steeper neighbour; offNP along the edge.
+    cx = ix.astype(_F) + _F(0.5)
+    cy = iy.astype(_F) + _F(0.5)
+    pos_b_x = np.where(horz_span, cx, cx + length_sign * _F(0.5))
+    pos_b_y = np.where(horz_span, cy + length_sign * _F(0.5), cy)
+    off_x = np.where(horz_span, _F(1.0), _F(0.0)).astype(_F)
+    off_y = np.where(horz_span, _F(0.0), _F(1.0)).astype(_F)
+
+    subpix_d = _F(-2.0) * subpix_c + _F(3.0)
+    subpix_e = subpix_c * subpix_c
+    luma_nn = np.where(pair_n, luma_nn, luma_ss)
+    gradient_scaled = gradient * _F(1.0 / 4.0)
+    half_nn = luma_nn * _F(0.5)
+    luma_mm = l_m - half_nn
+    subpix_f = subpix_d * subpix_e
+    luma_mlt_zero = luma_mm < 0
+
+    # Edge-end search: dst_n / dst_p are the distances (texels) of posN / posP from posM.
+    dst_n = np.full(iy.size, steps[0], dtype=_F)
+    dst_p = np.full(iy.size, steps[0], dtype=_F)
+
+    def end_luma(dist: np.ndarray, sign: float) -> np.ndarray:
+        x = pos_b_x + _F(sign) * off_x * dist
+        y = pos_b_y + _F(sign) * off_y * dist
+        return _bilinear(luma, x, y) - half_nn
+
+    luma_end_n = end_luma(dst_n, -1.0)
+    luma_end_p = end_luma(dst_p, 1.0)
+    for k in range(1, len(steps)):
+        done_n = np.abs(luma_end_n) >= gradient_scaled
+        done_p = np.abs(luma_end_p) >= gradient_scaled
+        dst_n = np.where(done_n, dst_n, dst_n + _F(steps[k]))
+        dst_p = np.where(done_p, dst_p, dst_p + _F(steps[k]))
+        if k < len(steps) - 1:  # the shader reads no luma after its last step
+            if (~done_n).any():
+                luma_end_n = np.where(done_n, luma_end_n, end_luma(dst_n, -1.0))
+            if (~done_p).any():
+                luma_end_p = np.where(done_p, luma_end_p, end_luma(dst_p, 1.0))
+
+    good_span_n = (luma_end_n < 0) != luma_mlt_zero
+    good_span_p = (luma_end_p < 0) != luma_mlt_zero
+    span_length = dst_p + dst_n
+    span_length_rcp = _F(1.0) / span_length
+    direction_n = dst_n < dst_p
+    dst = np.minimum(dst_n, dst_p)
+    good_span = np.where(direction_n, good_span_n, good_span_p)
+    subpix_g = subpix_f * subpix_f
+    pixel_offset = dst * (-span_length_rcp) + _F(0.5)
+    subpix_h = subpix_g * q_subpix
+    pixel_offset_good = np.where(good_span, pixel_offset, _F(0.0))
+    pixel_offset_subpix = np.maximum(pixel_offset_good, subpix_h)
+
+    shift = pixel_offset_subpix * length_sign
+    px = np.where(horz_span, cx, cx + shift).astype(_F)
+    py = np.where(horz_span, cy + shift, cy).astype(_F)
+    out[iy, ix] = _bilinear(rgb, px, py)
+    return out

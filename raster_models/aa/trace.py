@@ -1,0 +1,523 @@
+"""Ray work of the anti-aliasing models: sample G-buffers, fragment attributes, shading.
+
+Three Dr.Jit kernels, each chunked (at most :data:`CHUNK` rays a launch), on the scene's own
+intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engine"):
+
+- :func:`trace_samples`: one primary ray through every sub-sample position of every pixel
+  (the depth prepass of MSAA/ACAA/AGAA): hit or sky, shape and primitive, view depth and,
+  on request, the geometric normal;
+- :func:`fragment_attributes`: for a fragment (a primitive in a pixel) given by one of its
+  samples, the attributes a pixel shader sees at the shading position (pixel centre or
+  centroid): the position where the ray through that position meets the *triangle's plane*
+  and the surface parameters extrapolated linearly from the sample's hit (``uv``, shading
+  normal), as a rasterizer's attribute interpolation does beyond a triangle's edge; the
+  albedo is evaluated at the extrapolated ``uv``;
+- :func:`shade_points`: the oracle's shading (:func:`scenes.shading.shade`) at those points,
+  with an exact shadow ray from each (:func:`scenes.raycast.shadow_ray_dr`, the oracle's own
+  offsets) or with a given visibility, and optionally an unnormalized (filtered) normal:
+  diffuse with the normal's length as a factor (the linear average of Lambert terms) and the
+  specular exponent scaled by Toksvig's factor.
+
+Values are float32 (Mitsuba's ``Float``), as a GPU computes them. The Dr.Jit side of each
+(:func:`prepass_dr`, :func:`attributes_dr`, :func:`shade_dr`) is also callable on Dr.Jit
+arrays, for models that chain them without NumPy round trips (:mod:`._agaa_dr`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from scenes import backend
+from scenes.raycast import (
+    SHADOW_OFFSET,
+    SHADOW_OFFSET_MESH,
+    _shape_table,
+    camera_rays_dr,
+    shadow_ray_dr,
+)
+from scenes.shading import facing, shade
+
+from . import pixel_dr as _pixel_dr
+
+__all__ = [
+    "CHUNK",
+    "attributes_dr",
+    "fragment_attributes",
+    "prepass_dr",
+    "sample_colors",
+    "shade_dr",
+    "shade_points",
+    "trace_samples",
+]
+
+#: Rays per Dr.Jit launch (bounded memory; ~0.5 GiB a launch at most).
+CHUNK = 1 << 21
+
+
+def _np(a) -> np.ndarray:
+    """NumPy view of an evaluated Dr.Jit array (a vector gives ``(3, N)``); every caller
+    copies it into its own output at once."""
+    to_numpy = getattr(a, "numpy", None)
+    return np.asarray(to_numpy() if to_numpy is not None else a)
+
+
+def _view_depth(camera, p):
+    fwd, pos = camera.forward, camera.position
+    return (
+        (p.x - float(pos[0])) * float(fwd[0])
+        + (p.y - float(pos[1])) * float(fwd[1])
+        + (p.z - float(pos[2])) * float(fwd[2])
+    )
+
+
+def trace_samples(
+    scene,
+    offsets: np.ndarray,
+    *,
+    normals: bool = False,
+    mi_scene=None,
+    pixels=None,
+    group: bool = False,
+    cluster: tuple | None = None,
+    keep: tuple = ("valid", "shape", "prim", "depth", "first"),
+    scene_shapes: bool = False,
+) -> dict:
+    """Nearest surface at every sub-sample of every pixel (a depth prepass).
+
+    Parameters
+    ----------
+    scene : scenes.LoadedScene
+    offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`._samples`).
+    normals : also return the geometric normal turned towards the viewer.
+    mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: a group of
+        the scene's shapes).
+    pixels : pixel indices (row-major) to trace; default every pixel.
+    group : also return ``first`` ((P, N) int8): the first sample of the pixel with the same
+        (shape, primitive), ``N`` for sky (:func:`._pixel_dr.first_of_key`), and the fragment
+        bookkeeping of :func:`._pixel_dr.fragments_of` (``rep``, ``of``, ``count``; with
+        ``cluster`` also ``pair_rep``, ``pair_count``).
+    cluster : ``(k, threshold, depth_weight, normal_format)``: also return ``aggregate``
+        ((P, N) int8), AGAA's clustering on the stored normals (:func:`._pixel_dr.aggregate_of`).
+    keep : which of ``valid``, ``shape``, ``prim``, ``depth`` (and with ``group``,
+        ``first``) to copy back to NumPy (the per-pixel kernels read them on the Dr.Jit side
+        either way).
+    scene_shapes : ``mi_scene`` holds shape objects of ``scene`` itself: report ``shape`` as
+        their indices into ``scene.shape_names`` (else -1 or 0).
+
+    Returns
+    -------
+    dict of ``(P, N)`` arrays: ``valid`` (bool), ``shape`` (int32, index into
+    ``scene.shape_names``, -1 sky; with ``mi_scene`` -1 or 0), ``prim`` (int64, -1 sky),
+    ``depth`` (float32 view depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``;
+    with ``mi_scene`` and ``scene_shapes``, ``shape`` indexes ``scene.shape_names``.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    target = mi_scene if mi_scene is not None else scene.mi_scene
+    offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
+    n = len(offs)
+    pix_all = np.arange(cam.width * cam.height) if pixels is None else np.asarray(pixels)
+    n_pix = len(pix_all)
+    total = n_pix * n
+    dtypes = {"valid": bool, "shape": np.int32, "prim": np.int64, "depth": np.float32}
+    out = {key: np.empty(total, dtypes[key]) for key in keep if key in dtypes}
+    if normals:
+        out["normal"] = np.empty((total, 3), np.float32)
+    if group:
+        if "first" in keep:
+            out["first"] = np.empty(total, np.int8)
+        out["rep"] = np.empty(total, bool)
+        out["of"] = np.empty(total, np.int32)
+        out["count"] = np.empty(total, np.int8)
+    if cluster is not None:
+        out["aggregate"] = np.empty(total, np.int8)
+        if group:
+            out["pair_rep"] = np.empty(total, bool)
+            out["pair_count"] = np.empty(total, np.int8)
+    n_frag = 0
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    table = _shape_table(mi, dr, scene) if mi_scene is None or scene_shapes else None
+    step = max(n, (CHUNK // n) * n)
+    for start in range(0, total, step):
+        stop = min(total, start + step)
+        pix = mi.UInt32(pix_all[start // n : stop // n].astype(np.uint32))
+        valid, depth, prim, shape, nrm, extra = prepass_dr(
+            scene,
+            target,
+            table,
+            ox,
+            oy,
+            pix,
+            n,
+            normals=normals or cluster is not None,
+            group=group,
+            cluster=cluster,
+            frag_offset=n_frag,
+        )
+        del extra["local"], extra["s"]
+        sl = slice(start, stop)
+        if "valid" in out or "prim" in out:
+            v = _np(valid)
+        if "valid" in out:
+            out["valid"][sl] = v
+        if "depth" in out:
+            out["depth"][sl] = _np(depth)
+        if "shape" in out:
+            out["shape"][sl] = _np(shape)
+        if "prim" in out:
+            out["prim"][sl] = np.where(v, _np(prim).astype(np.int64), -1)
+        if normals:
+            out["normal"][sl] = _np(nrm).T
+        for key, val in extra.items():
+            if key in out:
+                out[key][sl] = _np(val)
+        if group:
+            n_frag += int(np.count_nonzero(out["rep"][sl]))
+    res = {k: v.reshape((n_pix, n) + v.shape[1:]) for k, v in out.items()}
+    return res
+
+
+def prepass_dr(
+    scene, target, table, ox, oy, pix, n: int, *, normals, group, cluster, frag_offset=0
+):
+    """One launch of the prepass on the Dr.Jit side: ``n`` lanes a pixel, pixel ``i`` of the
+    launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float).
+
+    Returns ``(valid, depth, prim, shape, nrm, extra)``: Dr.Jit arrays as described in
+    :func:`trace_samples` (``nrm`` None unless ``normals``; ``shape`` -1/0 without
+    ``table``), ``extra`` the per-pixel results of ``group`` (fragment ids from
+    ``frag_offset``) and ``cluster``, all evaluated; ``extra`` also holds ``local`` and ``s``
+    (each lane's pixel within the launch and sample slot) unevaluated.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    w = cam.width
+    idx = dr.arange(mi.UInt32, dr.width(pix) * n)
+    local = idx // n
+    s = idx - local * n
+    pix = dr.gather(mi.UInt32, pix, local)
+    x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
+    y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
+    ray = camera_rays_dr(cam, x, y)
+    nrm = None
+    if normals:
+        si = target.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
+        valid, t, prim, shape_ptr = si.is_valid(), si.t, si.prim_index, si.shape
+        nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
+    else:
+        pi = target.ray_intersect_preliminary(ray, coherent=True)
+        valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
+    depth = dr.select(valid, _view_depth(cam, ray.o + ray.d * t), 0.0)
+    if table is not None:
+        # masked: a preliminary intersection leaves the shape of a miss undefined
+        ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
+        shape = dr.gather(mi.Int32, table, ids, valid)
+        shape = dr.select(valid, shape, -1)
+    else:
+        shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
+    extra = {}
+    if group or cluster is not None:
+        # one tracing kernel; the per-pixel kernels then gather from stored arrays
+        dr.eval(valid, depth, prim, shape, *([nrm] if cluster is not None else []))
+    if group:
+        extra["first"] = _pixel_dr.first_of_key(mi, dr, valid, shape, prim, local, n)
+    if cluster is not None:
+        k, threshold, weight, fmt = cluster
+        stored = _pixel_dr.store_normal(mi, dr, nrm, fmt)
+        extra["aggregate"] = _pixel_dr.aggregate_of(
+            mi, dr, valid, depth, stored, local, n, k, threshold, weight
+        )
+    if group:
+        dr.eval(*extra.values())
+        extra.update(
+            _pixel_dr.fragments_of(
+                mi,
+                dr,
+                valid,
+                extra["first"],
+                local,
+                n,
+                s,
+                dr.opaque(mi.UInt32, frag_offset),
+                extra.get("aggregate"),
+            )
+        )
+    dr.eval(valid, depth, prim, shape, *([nrm] if nrm is not None else []), *extra.values())
+    extra["local"], extra["s"] = local, s
+    return valid, depth, prim, shape, nrm, extra
+
+
+#: The (F, 3) attributes of :func:`fragment_attributes`.
+_VECTOR_ATTRIBUTES = ("position", "normal", "geo_normal", "albedo", "to_eye")
+
+
+def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
+    """What a pixel shader sees for fragments given by one covered sample each.
+
+    Parameters
+    ----------
+    sx, sy : film positions of a sample the fragment covers (its primitive is found again by
+        the ray through it; ``mi_scene`` restricts the search to one shape, for fragments
+        that are not the nearest surface there).
+    cx, cy : film positions where the fragment is shaded (pixel centre, or centroid).
+
+    Returns
+    -------
+    dict of NumPy arrays (F rows): ``valid``, ``position`` (on the primitive's plane, under
+    ``(cx, cy)``), ``normal`` (shading normal extrapolated to that point, unit, facing the
+    viewer), ``geo_normal``, ``albedo``, ``to_eye``, ``offset`` (the oracle's shadow-ray
+    offset for the shape type), ``depth`` (view depth of ``position``); ``float32``.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    target = mi_scene if mi_scene is not None else scene.mi_scene
+    sx, sy, cx, cy = (np.asarray(a, np.float32).ravel() for a in (sx, sy, cx, cy))
+    total = len(sx)
+    out = {
+        "valid": np.zeros(total, bool),
+        "depth": np.zeros(total, np.float32),
+        "offset": np.zeros(total, np.float32),
+    }
+    # Vectors are (F, 3) views of planar (3, F) storage: Dr.Jit's own layout, so neither the
+    # copy out of Dr.Jit nor :func:`shade_points`' copy back in interleaves or gathers.
+    planar = {k: np.zeros((3, total), np.float32) for k in _VECTOR_ATTRIBUTES}
+    for start in range(0, total, CHUNK):
+        sl = slice(start, min(total, start + CHUNK))
+        vals = attributes_dr(scene, target, *(mi.Float(a[sl]) for a in (sx, sy, cx, cy)))
+        valid = vals["valid"]
+        dr.eval(*vals.values())
+        v = _np(valid)
+        for key, val in vals.items():
+            arr = _np(val)
+            if key in planar:
+                planar[key][:, sl] = np.where(v, arr, 0)
+            elif key == "valid":
+                out[key][sl] = arr
+            else:
+                out[key][sl] = np.where(v, arr, 0)
+    out.update({k: a.T for k, a in planar.items()})
+    return out
+
+
+def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
+    """The Dr.Jit side of :func:`fragment_attributes` for film positions given as Float
+    arrays; the values are unevaluated and not zeroed where ``valid`` is false."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    cam = scene.camera
+    ray_s = camera_rays_dr(cam, sx, sy)
+    si = target.ray_intersect(ray_s, mi.RayFlags.All, coherent=True)
+    valid = si.is_valid()
+    ray_c = camera_rays_dr(cam, cx, cy)
+    ng = si.n
+    den = dr.dot(ng, ray_c.d)
+    ok = dr.abs(den) > 1e-12
+    tc = dr.dot(ng, si.p - ray_c.o) / dr.select(ok, den, 1.0)
+    xc = dr.select(ok, ray_c.o + ray_c.d * tc, si.p)
+    delta = xc - si.p
+    a11, a12, a22 = (
+        dr.dot(si.dp_du, si.dp_du),
+        dr.dot(si.dp_du, si.dp_dv),
+        dr.dot(si.dp_dv, si.dp_dv),
+    )
+    b1, b2 = dr.dot(delta, si.dp_du), dr.dot(delta, si.dp_dv)
+    det = a11 * a22 - a12 * a12
+    good = det > 1e-12 * a11 * a22
+    inv = dr.select(good, 1.0 / det, 0.0)
+    du = (a22 * b1 - a12 * b2) * inv
+    dv = (a11 * b2 - a12 * b1) * inv
+    ns = dr.normalize(si.sh_frame.n + si.dn_du * du + si.dn_dv * dv)
+    to_eye = -ray_c.d
+    ns = facing(ns, to_eye)
+    si.uv = si.uv + mi.Point2f(du, dv)
+    si.p = xc
+    bsdf = si.bsdf(ray_s)
+    albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
+    offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
+    depth = _view_depth(cam, xc)
+    vals = {
+        "valid": valid,
+        "position": xc,
+        "normal": ns,
+        "geo_normal": facing(ng, to_eye),
+        "albedo": albedo,
+        "to_eye": to_eye,
+        "offset": offset,
+        "depth": depth,
+    }
+    return vals
+
+
+def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool = False):
+    """Shade surface points with the oracle's model (:func:`scenes.shading.shade`).
+
+    Parameters
+    ----------
+    attrs : ``position``, ``normal``, ``geo_normal``, ``albedo``, ``to_eye``, ``offset``
+        ``(F, ...)`` arrays (as from :func:`fragment_attributes`); ``valid`` rows only shaded.
+    visibility : ``(F,)`` light visibility in [0, 1] from a shadow technique; default: one
+        exact shadow ray from each point (the oracle's ray, offsets and light tests).
+    filtered_normal : ``normal`` is an average of unit normals (length <= 1): the diffuse
+        term uses it unnormalized (the average of the fragments' Lambert terms where they
+        all face the light) and the specular exponent ``s`` becomes ``ft * s`` with
+        Toksvig's ``ft = |n| / (|n| + s (1 - |n|))``.
+
+    Returns
+    -------
+    rgb : ``(F, 3)`` float32 linear radiance (0 where not valid).
+    shadow_rays : number of shadow rays cast.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    total = len(attrs["position"])
+    rgb_out = np.zeros((total, 3), np.float32)
+    rays = 0
+    valid_all = np.asarray(attrs.get("valid", np.ones(total, bool)), bool)
+
+    def vec(key, sl):
+        a = np.asarray(attrs[key][sl], np.float32)
+        return mi.Vector3f(*(mi.Float(np.ascontiguousarray(a[:, i])) for i in range(3)))
+
+    for start in range(0, total, CHUNK):
+        sl = slice(start, min(total, start + CHUNK))
+        valid = mi.Bool(valid_all[sl])
+        p = mi.Point3f(vec("position", sl))
+        n = vec("normal", sl)
+        ng = vec("geo_normal", sl)
+        albedo = mi.Color3f(vec("albedo", sl))
+        to_eye = vec("to_eye", sl)
+        offset = vis = None
+        if visibility is None:
+            offset = mi.Float(np.asarray(attrs["offset"][sl], np.float32))
+        else:
+            vis = mi.Float(np.asarray(visibility[sl], np.float32))
+        rgb, candidate = shade_dr(
+            scene,
+            valid,
+            p,
+            n,
+            ng,
+            albedo,
+            to_eye,
+            offset=offset,
+            visibility=vis,
+            filtered_normal=filtered_normal,
+        )
+        count = dr.count(candidate) if visibility is None else None
+        if count is not None:
+            dr.eval(rgb, count)
+            rays += int(count[0])
+        else:
+            dr.eval(rgb)
+        rgb_out[sl] = _np(rgb).T
+    return rgb_out, rays
+
+
+def shade_dr(
+    scene,
+    valid,
+    p,
+    n,
+    ng,
+    albedo,
+    to_eye,
+    *,
+    offset=None,
+    visibility=None,
+    filtered_normal: bool = False,
+):
+    """The Dr.Jit side of :func:`shade_points` on Dr.Jit arrays (``offset`` for the exact
+    shadow ray when ``visibility`` is None). Returns ``(rgb, candidate)``: the Color3f
+    radiance (0 where not ``valid``) and the lanes given a shadow test (unevaluated)."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    light = scene.light
+    spec = scene.specular
+    wl, dist = light.to_light(p)
+    if filtered_normal:
+        length = dr.norm(n)
+        nh = n / dr.maximum(length, 1e-30)
+    else:
+        length, nh = mi.Float(1.0), n
+    cos_l = dr.dot(nh, wl)
+    candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+    if visibility is None:
+        ray = shadow_ray_dr(light, p, ng, wl, offset)
+        occ = scene.mi_scene.ray_test(ray, candidate)
+        vis = dr.select(candidate & ~occ, 1.0, 0.0)
+    else:
+        vis = dr.select(candidate, visibility, 0.0)
+    irr = light.irradiance_scale(wl, dist)
+    rgb = shade(
+        albedo=albedo * length if filtered_normal else albedo,
+        normal=nh,
+        to_light=wl,
+        to_eye=to_eye,
+        irradiance_scale=irr,
+        visibility=vis,
+        light=light,
+        specular=None if filtered_normal else spec,
+    )
+    if filtered_normal and spec is not None and spec.ks > 0.0:
+        s = spec.shininess
+        ft = length / (length + s * (1.0 - length))
+        s_eff = ft * s
+        h = dr.normalize(wl + to_eye)
+        cos_h = dr.maximum(dr.dot(nh, h), 0.0)
+        lobe = spec.ks * (s_eff + 8.0) / (8.0 * math.pi) * dr.power(cos_h, s_eff)
+        rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
+    rgb = dr.select(valid, rgb, 0.0)
+    return rgb, candidate
+
+
+def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
+    """Every sample shaded where it lies (supersampling): the oracle's own
+    :func:`scenes.raycast.trace_film_dr` at each sub-sample position.
+
+    Returns ``({"valid": (P, N), "shape": (P, N), "color": (P, N, 3)}, shadow_rays)``;
+    ``color`` is a view of planar ``(3, P, N)`` storage (the layout Dr.Jit hands over: no
+    interleaving copy).
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    from scenes.raycast import trace_film_dr
+
+    cam = scene.camera
+    w = cam.width
+    offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
+    n = len(offs)
+    n_pix = cam.width * cam.height
+    total = n_pix * n
+    valid_out = np.empty(total, bool)
+    planar = np.empty((3, total), np.float32)
+    ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
+    step = max(n, (CHUNK // n) * n)
+    rays = 0
+    for start in range(0, total, step):
+        stop = min(total, start + step)
+        idx = dr.arange(mi.UInt32, start, stop)
+        pix = idx // n
+        s = idx - pix * n
+        x = mi.Float(pix % w) + dr.gather(mi.Float, ox, s)
+        y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
+        res = trace_film_dr(scene, x, y, color=True)
+        count = dr.count(res["shadow_tested"])
+        dr.eval(res["valid"], res["color"], count)
+        valid_out[start:stop] = _np(res["valid"])
+        planar[:, start:stop] = _np(res["color"])
+        rays += int(count[0])
+    return {
+        "valid": valid_out.reshape(n_pix, n),
+        "color": np.moveaxis(planar.reshape(3, n_pix, n), 0, -1),
+    }, rays

@@ -1,0 +1,394 @@
+"""IZB sample-triangle tests: the NumPy reference and the Dr.Jit kernels (same results).
+
+A test takes (fragment triangle, receiver) pairs and returns, per pair, the shadowed flag
+(1 sample) or the 32-bit mask of the tangent-plane points inside the triangle's shadow
+volume (32 samples), and the flag/mask of the samples in the epsilon band (inside the edge
+planes, beyond the pushed triangle plane by more than float32 rounding but by at most
+``epsilon``; see :data:`BAND_FLOOR`).
+
+Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
+``(base + da a) + db b``, in float64 without fused multiply-adds, by NumPy (the reference,
+used for small inputs) and by the Dr.Jit kernels (LLVM backend, the hot path of large
+frames), so both give the same bits (``tests/test_izb.py`` checks it).
+
+Dr.Jit, 32 samples, two launches per chunk: the first bounds each plane over the pixel's
+points (affine in the offsets ``(a, b)``) and decides most pairs (all points outside one
+plane, band included: both masks 0; all inside every plane: mask full); the second evaluates
+the 32 points of the remaining pairs only.
+
+Memory layout (the join is bound by fetching receivers, not by arithmetic): each receiver's
+values are one row in arrays of power-of-two widths (``p``, ``dP/dx``, ``dP/dy``, floor:
+8 + 2 float64; ``p``, floor: 4), rows stored in the order the pairs read them (list-node
+order in a join, pair order otherwise), and rows and triangle planes are fetched as packet
+loads (``JitFlag.PacketOps``). The values and the arithmetic are unchanged: the same bits.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+
+from .geometry import chunks_by_total
+
+__all__ = [
+    "BAND_FLOOR",
+    "DRJIT_MIN_PAIRS",
+    "DRJIT_PAIR_CHUNK",
+    "PairTester",
+    "band_floor",
+    "test_32_numpy",
+    "test_single_numpy",
+    "use_drjit",
+]
+
+#: Distances to a triangle's plane below ``BAND_FLOOR * (1 + max|p|)`` are float32 rounding
+#: (a receiver on its own triangle or a coplanar neighbour; the G-buffer position is float32,
+#: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps.
+BAND_FLOOR = 2.0**-18
+
+#: Pairs of a join from which the tests run on Dr.Jit (LLVM) instead of NumPy.
+DRJIT_MIN_PAIRS = 1 << 15
+
+#: Pairs per Dr.Jit launch (bounded memory: about 40 bytes of inputs and outputs per pair).
+DRJIT_PAIR_CHUNK = 1 << 21
+
+#: All 32 bits of an FTIZB mask.
+_FULL = 0xFFFFFFFF
+
+#: Pair classes of the first 32-sample launch.
+_NONE, _FULL_CLASS, _MIXED = 0, 1, 2
+
+
+def band_floor(p, eps: float):
+    """Lower end of the epsilon band below the pushed plane, per point ``p (P, 3)``:
+    ``BAND_FLOOR (1 + max|p|) - eps`` (the same operations on NumPy and Dr.Jit columns)."""
+    if isinstance(p, np.ndarray):
+        p, maximum = (p[:, 0], p[:, 1], p[:, 2]), np.maximum
+    else:
+        import drjit as dr
+
+        maximum = dr.maximum
+    big = maximum(maximum(abs(p[0]), abs(p[1])), abs(p[2]))
+    return BAND_FLOOR * (1.0 + big) - eps
+
+
+def use_drjit(n_pairs: int) -> bool:
+    """Whether ``n_pairs`` tests run on Dr.Jit (enough work, and a vectorized variant)."""
+    if n_pairs < DRJIT_MIN_PAIRS:
+        return False
+    from scenes import backend
+
+    return not backend.active().variant.startswith("scalar")
+
+
+def _dot_np(n: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(P, 4)`` dot products of the four plane normals ``n (P, 4, 3)`` with ``v (P, 3)``."""
+    return n[:, :, 0] * v[:, None, 0] + n[:, :, 1] * v[:, None, 1] + n[:, :, 2] * v[:, None, 2]
+
+
+def test_single_numpy(planes: np.ndarray, p: np.ndarray, floor: np.ndarray):
+    """Shadowed flags and epsilon-band flags of points ``p (P, 3)`` against ``planes
+    (P, 4, 4)``; ``floor (P,)``: the lower end of the band (``BAND_FLOOR (1 + max|p|) -
+    epsilon``)."""
+    v = _dot_np(planes[:, :, :3], p) + planes[:, :, 3]
+    edges = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0)
+    return edges & (v[:, 3] > 0), edges & (v[:, 3] <= 0) & (v[:, 3] > floor)
+
+
+def _masks_np(v, threshold, bits):
+    inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > threshold[:, None])
+    return (inside.astype(np.uint64) @ bits).astype(np.uint32)
+
+
+def test_32_numpy(planes, p, dpdx, dpdy, floor, a, b):
+    """32-bit masks of the points ``p + a dpdx + b dpdy`` inside the volumes and of the
+    points in the epsilon band; bounds over the points decide most pairs (see the module)."""
+    bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
+    n = planes[:, :, :3]
+    base = _dot_np(n, p) + planes[:, :, 3]
+    da = _dot_np(n, dpdx)
+    db = _dot_np(n, dpdy)
+    spread = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
+    hi = base + spread
+    lo = base - spread
+    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= floor)
+    full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
+    masks = np.zeros(len(p), dtype=np.uint32)
+    band = np.zeros(len(p), dtype=np.uint32)
+    masks[full & ~none] = _FULL
+    mixed = np.flatnonzero(~none & ~full)
+    if len(mixed):
+        v = (
+            base[mixed, :, None]
+            + da[mixed, :, None] * a[None, None, :]
+            + db[mixed, :, None] * b[None, None, :]
+        )
+        masks[mixed] = _masks_np(v, np.zeros(len(mixed)), bits)
+        band[mixed] = _masks_np(v, floor[mixed], bits) & ~masks[mixed]
+    return masks, band
+
+
+def _pair(frags, idx, f_idx):
+    """Dr.Jit triangle, receiver and node of pairs ``idx`` of fragments ``f_idx``; ``frags``:
+    per fragment triangle, first node, first pair of the chunk, and the nodes' receivers."""
+    import drjit as dr
+
+    tri, lo, first, node_recv = frags
+    u32 = type(idx)
+    node = dr.gather(u32, lo, f_idx) + (idx - dr.gather(u32, first, f_idx))
+    return dr.gather(u32, tri, f_idx), dr.gather(u32, node_recv, node), node
+
+
+class PairTester:
+    """Sample-triangle tests of (triangle, receiver) pairs, on Dr.Jit or NumPy.
+
+    Parameters
+    ----------
+    planes : ``(K, 4, 4)`` float64 shadow-volume planes
+        (:func:`raster_models.izb.geometry.shadow_volumes`).
+    recv : ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy``, ``a``, ``b`` (as
+        :func:`raster_models.izb.lists.join` takes them).
+    floor : ``(M,)`` float64 lower end of each receiver's epsilon band; or ``None`` and
+        ``epsilon``: computed where needed, :func:`band_floor` of each receiver's ``p``.
+    """
+
+    def __init__(self, planes: np.ndarray, recv: dict, floor=None, *, epsilon=None):
+        if (floor is None) == (epsilon is None):
+            raise ValueError("PairTester needs floor or epsilon, not both")
+        self.planes = planes
+        self.recv = recv
+        self.floor = floor
+        self.epsilon = epsilon
+        self.thirty_two = "dpdx" in recv
+        self._dr = None
+        self._node_rows = None
+
+    def numpy(self, tri: np.ndarray, r: np.ndarray):
+        """The NumPy reference on pairs ``(tri[i], r[i])``."""
+        pl = self.planes[tri]
+        p = self.recv["p"][r]
+        floor = band_floor(p, self.epsilon) if self.floor is None else self.floor[r]
+        if self.thirty_two:
+            rv = self.recv
+            return test_32_numpy(pl, p, rv["dpdx"][r], rv["dpdy"][r], floor, rv["a"], rv["b"])
+        return test_single_numpy(pl, p, floor)
+
+    def __call__(self, tri: np.ndarray, r: np.ndarray):
+        """Per pair: ``(hit, near)`` bool arrays (1 sample) or ``(mask, band)`` uint32."""
+        if not use_drjit(len(tri)):
+            return self.numpy(tri, r)
+        outs = [
+            self.drjit(tri[i : i + DRJIT_PAIR_CHUNK], r[i : i + DRJIT_PAIR_CHUNK])
+            for i in range(0, len(tri), DRJIT_PAIR_CHUNK)  # chunks of pairs
+        ]
+        return tuple(np.concatenate([o[k] for o in outs]) for k in range(2))
+
+    # ---- Dr.Jit
+    def _inputs(self):
+        if self._dr is None:
+            import drjit as dr
+
+            from scenes import backend
+
+            mi = backend.mitsuba()
+            f64 = mi.Float64
+            planes = f64(np.ascontiguousarray(self.planes, dtype=np.float64).ravel())
+            # a copy in Dr.Jit's own (aligned) memory: packet loads need it (NumPy-backed
+            # arrays are gathered value by value)
+            d = {"planes": dr.gather(f64, planes, dr.arange(mi.UInt32, dr.width(planes)))}
+            dr.eval(d["planes"])
+            keys = ("p", "dpdx", "dpdy") if self.thirty_two else ("p",)
+            # NumPy-backed (no copy) sources of the receivers' rows
+            d["sources"] = [
+                f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel()) for k in keys
+            ]
+            if self.floor is not None:
+                d["floor"] = f64(np.ascontiguousarray(self.floor, dtype=np.float64))
+            # row arrays of power-of-two widths (packet loads, see _plane_terms): p, dP/dx,
+            # dP/dy and the floor (10 values) as 8 + 2; p and the floor as 4
+            d["widths"] = (8, 2) if self.thirty_two else (4,)
+            d["array"] = importlib.import_module(f64.__module__).ArrayXf64
+            self._dr = (mi, d)
+        return self._dr
+
+    def _rows(self, recv) -> list:
+        """Row arrays of receivers ``recv`` (Dr.Jit UInt32), one row each: ``p``,
+        [``dpdx``, ``dpdy``,] the floor, split into arrays of power-of-two widths; packed by
+        a Dr.Jit kernel, so that a pair's receiver is a few packet loads in pair order."""
+        import drjit as dr
+
+        mi, d = self._inputs()
+        f64 = mi.Float64
+        n = dr.width(recv)
+        cols = [dr.gather(f64, src, recv * 3 + j) for src in d["sources"] for j in range(3)]
+        if self.floor is None:
+            cols.append(band_floor(cols[:3], self.epsilon))
+        else:
+            cols.append(dr.gather(f64, d["floor"], recv))
+        out, lane = [], dr.arange(mi.UInt32, n)
+        for w in d["widths"]:  # packet stores
+            arr = dr.empty(f64, n * w)
+            dr.scatter(arr, d["array"](cols[:w]), lane)
+            out.append(arr)
+            cols = cols[w:]
+        dr.eval(*out)
+        return out
+
+    def _plane_terms(self, tri, rows, row):
+        """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs: triangles
+        ``tri``, receivers at ``row`` of ``rows`` (:meth:`_rows`)."""
+        import drjit as dr
+
+        _, d = self._inputs()
+        # Packet gathers (JitFlag.PacketOps): a triangle's 16 plane values and a receiver's
+        # row are contiguous, loaded as packets instead of one gather per value.
+        pl = dr.gather(d["array"], d["planes"], tri, shape=(16, dr.width(tri)))
+        rv = []
+        for arr, w in zip(rows, d["widths"], strict=True):  # the row's arrays
+            rv += list(dr.gather(d["array"], arr, row, shape=(w, dr.width(row))))
+        rows = [[pl[4 * k + j] for j in range(4)] for k in range(4)]
+        p = [rv[0], rv[1], rv[2]]
+
+        def dot(n, v):
+            return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+
+        base = [dot(row, p) + row[3] for row in rows]
+        floor = rv[-1]
+        if not self.thirty_two:
+            return base, None, None, floor
+        dx, dy = [rv[3], rv[4], rv[5]], [rv[6], rv[7], rv[8]]
+        da = [dot(row, dx) for row in rows]
+        db = [dot(row, dy) for row in rows]
+        return base, da, db, floor
+
+    def _classes(self, base, da, db, floor):
+        """Dr.Jit 32 samples: ``none`` (no point inside, none in the band) and ``full`` (every
+        point inside) from bounds of the planes over the pixel's points."""
+        import drjit as dr
+
+        a, b = self.recv["a"], self.recv["b"]
+        amax, bmax = float(np.abs(a).max()), float(np.abs(b).max())
+        spread = [dr.abs(da[k]) * amax + dr.abs(db[k]) * bmax for k in range(4)]
+        hi = [base[k] + spread[k] for k in range(4)]
+        lo = [base[k] - spread[k] for k in range(4)]
+        none = (hi[0] < 0) | (hi[1] < 0) | (hi[2] < 0) | (hi[3] <= floor)
+        full = (lo[0] >= 0) & (lo[1] >= 0) & (lo[2] >= 0) & (lo[3] > 0)
+        return none, full
+
+    def _points(self, base, da, db, floor):
+        """Dr.Jit 32 samples, point by point: the mask and the band mask (without the mask)."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        a, b = self.recv["a"], self.recv["b"]
+        m = u32(0)
+        bm = u32(0)
+        for q in range(32):  # the 32 fixed points (unrolled into the kernel)
+            aq, bq = float(a[q]), float(b[q])
+            v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
+            edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
+            bit = u32(1 << q)
+            m = m | dr.select(edges & (v[3] > 0), bit, u32(0))
+            bm = bm | dr.select(edges & (v[3] > floor), bit, u32(0))
+        return m, bm & ~m
+
+    @staticmethod
+    def _single(base, floor):
+        edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
+        return edges & (base[3] > 0), edges & (base[3] <= 0) & (base[3] > floor)
+
+    def drjit(self, tri: np.ndarray, r: np.ndarray):
+        """The Dr.Jit kernels on pairs ``(tri[i], r[i])`` (one chunk), per pair."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        ti = u32(tri.astype(np.uint32))
+        rows = self._rows(u32(r.astype(np.uint32)))  # one row per pair
+        base, da, db, floor = self._plane_terms(ti, rows, dr.arange(u32, len(tri)))
+        if not self.thirty_two:
+            hit, near = self._single(base, floor)
+            code = dr.select(hit, u32(1), u32(0)) | dr.select(near, u32(2), u32(0))
+            dr.eval(code)
+            c = code.numpy()
+            return (c & 1) != 0, (c & 2) != 0
+        none, full = self._classes(base, da, db, floor)
+        cls = dr.select(none, u32(_NONE), dr.select(full, u32(_FULL_CLASS), u32(_MIXED)))
+        dr.eval(cls)
+        c = cls.numpy()
+        masks = np.where(c == _FULL_CLASS, np.uint32(_FULL), np.uint32(0)).astype(np.uint32)
+        band = np.zeros(len(c), dtype=np.uint32)
+        mixed = np.flatnonzero(c == _MIXED)
+        if len(mixed):
+            ti = u32(tri[mixed].astype(np.uint32))
+            m, bm = self._points(*self._plane_terms(ti, rows, u32(mixed.astype(np.uint32))))
+            dr.eval(m, bm)
+            masks[mixed] = m.numpy()
+            band[mixed] = bm.numpy()
+        return masks, band
+
+    def rows_ready(self, node_recv) -> bool:
+        """Whether the Dr.Jit rows of the lists ``node_recv`` are packed already."""
+        return self._node_rows is not None and self._node_rows[0] is node_recv
+
+    def join_drjit(self, frag_tri, lo, n, node_recv, state: dict) -> None:
+        """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
+        length) with the nodes ``node_recv``, tested and OR-ed into ``state`` (the arrays of
+        :func:`raster_models.izb.lists.join`) on Dr.Jit: the pairs are expanded, gathered,
+        tested and scattered in the kernels (an OR is order-free: the same bits).
+
+        Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
+        own)."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        if not self.rows_ready(node_recv):
+            # Rows in node order (packed again when the lists change): a fragment's pairs
+            # read consecutive rows.
+            recv_dr = u32(np.asarray(node_recv, dtype=np.uint32))
+            self._node_rows = (node_recv, recv_dr, self._rows(recv_dr))
+        _, recv_dr, rows = self._node_rows
+        if self.thirty_two:
+            keys = ("mask", "band")
+        else:
+            keys = ("shadowed", "band")
+        acc = {k: u32(np.asarray(state[k], dtype=np.uint32)) for k in keys}
+        for sl in chunks_by_total(n, DRJIT_PAIR_CHUNK):  # chunks of fragments
+            nc = n[sl]
+            first_np = (np.cumsum(nc) - nc).astype(np.uint32)
+            first = u32(first_np)
+            n_pairs = int(first_np[-1]) + int(nc[-1])
+            # fragment of each pair: 1 at every later fragment's first pair, summed (lists
+            # are never empty: the firsts are distinct)
+            marks = dr.zeros(u32, n_pairs)
+            dr.scatter(marks, u32(1), u32(first_np[1:]))
+            f = dr.prefix_sum(marks) + marks  # inclusive
+            lo_dr = u32(lo[sl].astype(np.uint32))
+            tri_dr = u32(frag_tri[sl].astype(np.uint32))
+
+            frags = (tri_dr, lo_dr, first, recv_dr)
+            ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
+            base, da, db, floor = self._plane_terms(ti, rows, node)
+            if not self.thirty_two:
+                hit, near = self._single(base, floor)
+                dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
+                dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], u32(1), ri, near)
+                dr.eval(acc["shadowed"], acc["band"])
+            else:
+                none, full = self._classes(base, da, db, floor)
+                mixed = ~none & ~full
+                dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(_FULL), ri, full & ~none)
+                dr.eval(acc["mask"], mixed)
+                idx = dr.compress(mixed)
+                if dr.width(idx):
+                    ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
+                    m, bm = self._points(*self._plane_terms(ti, rows, node))
+                    dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
+                    dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
+                    dr.eval(acc["mask"], acc["band"])
+        for k in keys:
+            out = acc[k].numpy()
+            state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out

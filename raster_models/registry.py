@@ -1,0 +1,246 @@
+"""The technique registry and the one dispatch function, :func:`run`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import params as _params
+from .aa import fxaa as fxaa_model  # noqa: I001
+from .aa import msaa, ssaa
+from .aa.acaa import model as acaa
+from .aa.agaa import model as agaa
+from .coherent import model as coherent
+from .errors import ModelError
+from .izb import model as izb
+from .shadowmaps import csm, sdsm, shadow_map
+
+__all__ = ["TECHNIQUES", "Technique", "list_techniques", "parse_params", "run"]
+
+
+@dataclass(frozen=True)
+class Technique:
+    """A registered technique: its parameter dataclass and entry point."""
+
+    name: str
+    description: str
+    references: tuple[str, ...]
+    params: type
+    runner: object
+    lights: tuple[str, ...]
+    family: str = "shadow"
+
+
+#: Light kinds the anti-aliasing models accept (they shade with any light).
+_ALL_LIGHTS = ("directional", "spot", "point")
+
+TECHNIQUES: dict[str, Technique] = {
+    t.name: t
+    for t in (
+        Technique(
+            "shadow-map",
+            "one shadow map (six cube faces for a point light) fit to the scene bounds or "
+            "the view frustum; orthographic for directional, perspective for spot lights",
+            (
+                "L. Williams, Casting curved shadows on curved surfaces, SIGGRAPH 1978, "
+                "doi:10.1145/965139.807402",
+                "D. Scherzer, M. Wimmer, W. Purgathofer, A Survey of Real-Time Hard Shadow "
+                "Mapping Methods, CGF 30(1) 2011, doi:10.1111/j.1467-8659.2010.01841.x",
+            ),
+            shadow_map.ShadowMapParams,
+            shadow_map.run,
+            ("directional", "spot", "point"),
+        ),
+        Technique(
+            "csm",
+            "cascaded shadow maps: uniform/log/practical/manual splits, frustum-slice or "
+            "stable (sphere, texel-snapped) fits, selection by depth or projection, blend band",
+            (
+                "F. Zhang, H. Sun, L. Xu, L. K. Lun, Parallel-Split Shadow Maps for Large-scale "
+                "Virtual Environments, VRCIA 2006, doi:10.1145/1128923.1128975",
+                "W. Engel, Cascaded Shadow Maps, ShaderX5, 2006",
+                "M. Pettineo, TheRealMJP/Shadows (A Sampling of Shadow Techniques), 2013",
+                "NVIDIA Falcor, CSM render pass",
+            ),
+            csm.CsmParams,
+            csm.run,
+            ("directional",),
+        ),
+        Technique(
+            "sdsm",
+            "sample distribution shadow maps: min/max depth reduction, log/histogram/"
+            "adaptive-log/K-means partitions, tight light-space bounds; current-frame depth "
+            "or a CPU readback k frames late",
+            (
+                "A. Lauritzen, M. Salvi, A. Lefohn, Sample Distribution Shadow Maps, I3D 2011, "
+                "doi:10.1145/1944745.1944761",
+                "Intel Corporation, Sample Distribution Shadow Maps DX11 sample",
+            ),
+            sdsm.SdsmParams,
+            sdsm.run,
+            ("directional",),
+        ),
+        Technique(
+            "izb",
+            "irregular z-buffer: receivers listed in a light-space grid, occluders "
+            "conservatively rasterized and tested against exact shadow volumes; samples=32 "
+            "is FTIZB (32 tangent-plane points, 32-bit mask); cascades split the grid by depth",
+            (
+                "C. Wyman, R. Hoetzlein, A. Lefohn, Frustum-Traced Raster Shadows: Revisiting "
+                "Irregular Z-Buffers, I3D 2015, doi:10.1145/2699276.2699282",
+                "G. S. Johnson, J. Lee, C. A. Burns, W. R. Mark, The irregular Z-buffer, "
+                "ACM TOG 24(4) 2005, doi:10.1145/1095878.1095889",
+            ),
+            izb.IzbParams,
+            izb.run,
+            ("directional", "spot"),
+        ),
+        Technique(
+            "coherent-shadow-map",
+            "coherent shadow maps: N precomputed orthographic depth maps over the bounding "
+            "sphere, ids along a Hilbert curve over (phi, cos theta); lookup direction -> id "
+            "texture -> matrix -> depth test; lossless run compression ratios per ordering",
+            (
+                "T. Ritschel, T. Grosch, J. Kautz, S. Mueller, Interactive Illumination with "
+                "Coherent Shadow Maps, EGSR 2007, doi:10.2312/EGWR/EGSR07/061-072",
+            ),
+            coherent.CoherentParams,
+            coherent.run,
+            ("directional", "point"),
+        ),
+        # anti-aliasing family (issue 9): colour and coverage, scored against the reference
+        Technique(
+            "noaa",
+            "no anti-aliasing: one sample at each pixel centre, shaded there",
+            ("F. C. Crow, The aliasing problem in computer-generated shaded images, CACM 1977",),
+            ssaa.NoAAParams,
+            ssaa.run_noaa,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "ssaa",
+            "supersampling: N standard or ordered-grid samples per pixel, every one shaded, "
+            "box or wide resolve",
+            ("T. Akenine-Moller et al., Real-Time Rendering, 4th ed., 2018, section 5.4",),
+            ssaa.SsaaParams,
+            ssaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "msaa",
+            "multisampling: N standard sample positions (coverage + depth), one shade per "
+            "primitive and pixel at the centre (or centroid), box or wide resolve",
+            (
+                "K. Akeley, Reality Engine graphics, SIGGRAPH 1993, doi:10.1145/166117.166131",
+                "Khronos, Vulkan specification, standard sample locations",
+            ),
+            msaa.MsaaParams,
+            msaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "acaa",
+            "accumulative AA: N-sample depth prepass, shading pass with LEQUAL and additive "
+            "blending weighted by post-depth coverage into one colour (float or RGBA8); "
+            "coplanar surfaces tie and count twice",
+            (
+                "E. Enderton, E. Lum, C. Rouet, O. Kouznetsov, Accumulative anti-aliasing, "
+                "NVIDIA (HPG 2015 poster; GameWorks BlendedAA sample)",
+                "C. Wyman, High-quality rasterization (NVIDIA slides), 2015",
+            ),
+            acaa.AcaaParams,
+            acaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "agaa",
+            "aggregate G-buffer AA: N-sample depth+normal prepass, K <= 2 aggregates a pixel "
+            "by clustering, coverage-weighted material accumulation, one shade per aggregate "
+            "(Toksvig-filtered normal)",
+            (
+                "C. Crassin, M. McGuire, K. Fatahalian, A. Lefohn, Aggregate G-Buffer "
+                "Anti-Aliasing, I3D 2015, doi:10.1145/2699276.2699285",
+                "M. Toksvig, Mipmapping normal maps, JGT 10(3) 2005",
+            ),
+            agaa.AgaaParams,
+            agaa.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "fxaa",
+            "FXAA 3.11 quality path on the one-sample image (luma in gamma space)",
+            ("T. Lottes, FXAA 3.11 (Fxaa3_11.h), NVIDIA, 2011",),
+            fxaa_model.FxaaParams,
+            fxaa_model.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+    )
+}
+
+
+def _technique(name: str) -> Technique:
+    if name not in TECHNIQUES:
+        raise ModelError(f"unknown technique {name!r}; choose one of {', '.join(TECHNIQUES)}")
+    return TECHNIQUES[name]
+
+
+def list_techniques() -> list[dict]:
+    """Every technique with its description, references and parameter records.
+
+    Each parameter record: ``name``, ``default``, ``type`` (bool, int, float, str, floats),
+    ``choices`` (or None), ``range`` (``[lo, hi]`` or None), ``source`` and ``help``.
+    """
+    return [
+        {
+            "name": t.name,
+            "description": t.description,
+            "references": list(t.references),
+            "lights": list(t.lights),
+            "params": _params.describe(t.params),
+        }
+        for t in TECHNIQUES.values()
+    ]
+
+
+def parse_params(technique: str, pairs: list[str]) -> dict:
+    """Typed, validated values from ``"key=value"`` strings (for ``--set``).
+
+    Raises
+    ------
+    ModelError
+        Unknown technique (lists them), unknown parameter (lists the valid ones), or a value
+        of the wrong type, range or choice (says what was expected).
+    """
+    t = _technique(technique)
+    return _params.parse_pairs(t.name, t.params, list(pairs))
+
+
+def run(technique: str, scene, **params):
+    """Run a technique on a loaded scene (its current camera frame and light).
+
+    Parameters
+    ----------
+    technique : a name of :data:`TECHNIQUES`.
+    scene : :class:`scenes.LoadedScene`.
+    **params : parameter values (Python types; see :func:`list_techniques`).
+
+    Returns
+    -------
+    ModelResult
+        ``outputs`` (``visibility``, ``cascade``, ``texels_per_pixel``, ``resolution_error``,
+        ``uncovered``: ``(H, W)`` float32), ``cost``, ``diagnostics``, ``params``,
+        ``wall_seconds``.
+    """
+    t = _technique(technique)
+    p = _params.make(t.name, t.params, params)
+    if scene.light.kind not in t.lights:
+        raise ModelError(
+            f"{t.name} needs a {' or '.join(t.lights)} light; the scene's light is a "
+            f"{scene.light.kind} light (use shadow-map)"
+        )
+    return t.runner(scene, p)

@@ -1,0 +1,78 @@
+"""Dr.Jit twin of the texel post-processing of :mod:`_render` for maps without a per-texel
+bias: the depth a rasterizer writes (:func:`_depth.rasterized_depth`, a constant hardware
+bias at most), quantized to the format (:func:`_depth.quantize`) and stored as float32,
+computed in the kernel that casts the texels' rays instead of in NumPy afterwards.
+
+Every step is the same IEEE float64 operation in the same order as the NumPy path (one add,
+a clamp, a multiply, round-half-even and a divide: nothing an FMA could contract), and the
+clamp is written with selects that reproduce ``np.clip`` exactly (``-0.0`` kept, NaN
+propagated), so the stored bytes are identical; ``tests/test_shadow_speed_paths.py`` pins
+that on random and edge inputs for every format.
+"""
+
+from __future__ import annotations
+
+from .. import depth as _depth
+
+__all__ = ["clip01_dr", "fused_bias", "stored_depth_dr"]
+
+
+def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) -> float | None:
+    """The constant hardware bias every texel of a map gets, or ``None`` when the bias
+    varies per texel (a slope-scaled bias, or a D32F ``DepthBias`` that scales with each
+    texel's exponent): those maps keep the NumPy path.
+
+    ``0.0`` means no bias at all (:func:`_depth.rasterized_depth` then adds nothing)."""
+    if slope_scaled != 0.0:
+        return None
+    if depth_bias == 0:
+        return 0.0
+    kind, _ = _depth.FORMATS[fmt]
+    if kind != "unorm":
+        return None
+    import numpy as np
+
+    # The NumPy path's own arithmetic on one texel: the UNORM bias does not depend on depth.
+    bias = _depth.hardware_bias(
+        np.zeros(1), None, fmt, depth_bias=depth_bias, slope_scaled=0.0, clamp=clamp
+    )
+    return float(bias[0])
+
+
+def clip01_dr(mi, x):
+    """``np.clip(x, 0.0, 1.0)`` bit for bit: NaN and ``-0.0`` pass through unchanged.
+
+    "Below zero" is read from the bits (sign set, not ``-0.0``, not NaN): the LLVM backend
+    treats subnormal inputs as zero in comparisons, NumPy does not."""
+    import drjit as dr
+
+    bits = dr.reinterpret_array(mi.Int64, x)
+    below = (bits < 0) & (bits != dr.opaque(mi.Int64, -(1 << 63))) & ~dr.isnan(x)
+    x = dr.select(below, 0.0, x)
+    return dr.select((x <= 1.0) | dr.isnan(x), x, 1.0)
+
+
+def stored_depth_dr(mi, z, fmt: str, bias: float):
+    """Stored float32 texels and the hit mask of unclamped normalized depths ``z``
+    (Dr.Jit ``Float64``; ``inf`` on a miss).
+
+    Equal, bit for bit, to the NumPy path of :mod:`_render`::
+
+        hit = np.isfinite(z)
+        d = rasterized_depth(np.where(hit, z, 1.0), None, fmt, depth_bias=..., clamp=...)
+        np.where(hit, quantize(d, fmt), 1.0).astype(np.float32)
+
+    for the constant ``bias`` of :func:`fused_bias` (``0.0``: none added).
+    """
+    import drjit as dr
+
+    kind, bits = _depth.FORMATS[fmt]
+    hit = dr.isfinite(z)
+    d = dr.select(hit, z, 1.0)
+    if bias != 0.0:
+        d = d + dr.opaque(mi.Float64, bias)
+    d = clip01_dr(mi, d)
+    if kind == "unorm":
+        scale = dr.opaque(mi.Float64, float((1 << bits) - 1))
+        d = dr.round(clip01_dr(mi, d) * scale) / scale
+    return mi.Float32(dr.select(hit, d, 1.0)), hit

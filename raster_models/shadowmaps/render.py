@@ -1,0 +1,165 @@
+"""Rendering shadow maps: one ray per texel centre from the light, then the depth format,
+depth clamp and hardware bias a rasterizer applies, and the VSM/EVSM moments.
+
+Depth clamp ("pancaking"): orthographic maps start their rays behind the scene's bounds (not
+at the near plane) and clamp depths in front of the near plane to 0; perspective maps start
+at the light. Without it rays start at the near plane, so casters in front are clipped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import depth as _depth
+from ..light_frame import Projection
+from ..result import MapData, Partition, Setup
+from . import filters as _filters
+from .depth_dr import fused_bias
+from .raycast import GRID_CHUNK, iter_grid
+
+__all__ = ["render_maps"]
+
+
+def _scene_light_z_range(scene, proj: Projection) -> tuple[float, float]:
+    lo, hi = scene.bounds()
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    lz = proj.frame.to_light(corners)[:, 2]
+    return float(lz.min()), float(lz.max())
+
+
+def _max_depth_slope(proj: Projection, grid, n, s, t, thit, dnorm):
+    """Caster depth slope in normalized depth per texel (for SlopeScaledDepthBias)."""
+    r = proj.resolution
+    n = n.astype(np.float64)
+    if proj.kind == "ortho":
+        m2 = proj.matrix[2, :3]
+        d = grid["D"]
+        nd = n @ d
+        nd = np.where(np.abs(nd) > 1e-12, nd, 1e-12)
+        slopes = []
+        for vec in (grid["U"], grid["V"]):
+            dthit = -(n @ vec) / (r * nd)
+            slopes.append(np.abs((m2 @ vec) / r + dthit * (m2 @ d)))
+        return np.maximum(slopes[0], slopes[1])
+    _, near, far = (float(v) for v in proj.extent)
+    b = far * near / (far - near)
+    dvec = grid["D"][None, :] + s[:, None] * grid["DS"] + t[:, None] * grid["DT"]
+    nd = np.sum(n * dvec, axis=1)
+    nd = np.where(np.abs(nd) > 1e-12, nd, 1e-12)
+    tau = grid["z_start"] + thit / dnorm
+    slopes = []
+    for vec in (grid["DS"], grid["DT"]):
+        dtau = -tau * (n @ vec) / nd / r
+        slopes.append(np.abs(b / (tau * tau) * dtau))
+    return np.maximum(slopes[0], slopes[1])
+
+
+def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
+    proj = part.projection
+    r = proj.resolution
+    if proj.kind == "ortho":
+        z0, z1 = float(proj.extent[4]), float(proj.extent[5])
+        z_start = z0
+        if params.depth_clamp:
+            scene_lo, _ = _scene_light_z_range(scene, proj)
+            margin = 1e-3 * max(z1 - z0, 1e-6)
+            z_start = min(z0, scene_lo - margin)
+        z_end = z1
+    else:
+        _, near, far = (float(v) for v in proj.extent)
+        z_start = 0.0 if params.depth_clamp else near
+        z_end = far
+    grid = proj.grid_rays(z_start, z_end)
+    m = proj.matrix
+    if proj.kind == "ortho":
+        m2 = m[2, :3]
+        depth = ("ortho", m2 @ grid["A"] + m[2, 3], m2 @ grid["U"], m2 @ grid["V"], m2 @ grid["D"])
+    else:
+        _, near, far = (float(v) for v in proj.extent)
+        depth = ("persp", far / (far - near), far * near / (far - near))
+    # One launch at a time (bounded memory at any map size): only the float32 map is whole.
+    covered = 0
+    bias = fused_bias(
+        params.format,
+        depth_bias=params.depth_bias,
+        slope_scaled=params.slope_scaled_bias,
+        clamp=params.depth_bias_clamp,
+    )
+    if bias is not None:
+        # No per-texel bias: the texels are finished in the casting kernel (same bytes).
+        launches = iter_grid(scene, grid, r, depth, store=(params.format, bias))
+        if r * r <= GRID_CHUNK:
+            # One launch: the map is a view of the kernel's output, which lookups reuse.
+            ((_, _, hits),) = launches
+            stored = hits["stored"].reshape(r, r)
+            _filters.register_drjit_texture(stored, hits["texels"])
+            return MapData(stored, None, (0.0, 0.0), hits["covered"], z_start)
+        stored = np.empty(r * r, dtype=np.float32)
+        for start, stop, hits in launches:
+            stored[start:stop] = hits["stored"]
+            covered += hits["covered"]
+        return MapData(stored.reshape(r, r), None, (0.0, 0.0), covered, z_start)
+    stored = np.empty(r * r, dtype=np.float32)
+    for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
+        z = hits["z"]
+        hit = np.isfinite(z)
+        covered += int(hit.sum())
+        z = np.where(hit, z, 1.0)
+        slope = None
+        if need_slope:
+            idx = np.nonzero(hit)[0]
+            texel = idx + start
+            s = (texel % r + 0.5) / r
+            t = (texel // r + 0.5) / r
+            slope = np.zeros(stop - start)
+            slope[idx] = _max_depth_slope(
+                proj, grid, hits["normal"][idx], s, t, hits["t"][idx], hits["dir_norm"][idx]
+            )
+        # Bias first, then the viewport clamp (D3D11 order).
+        z = _depth.rasterized_depth(
+            z,
+            slope,
+            params.format,
+            depth_bias=params.depth_bias,
+            slope_scaled=params.slope_scaled_bias,
+            clamp=params.depth_bias_clamp,
+        )
+        # Stored as float32: D3D compares a depth texel converted to float32.
+        stored[start:stop] = np.where(hit, _depth.quantize(z, params.format), 1.0)
+    stored = stored.reshape(r, r)
+    return MapData(stored, None, (0.0, 0.0), covered, z_start)
+
+
+def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
+    if params.filter not in _filters.MOMENT_FILTERS:
+        return
+    exponents = (0.0, 0.0)
+    if params.filter != "vsm":
+        scale = 1.0
+        proj = part.projection
+        if params.evsm_light_space and proj.kind == "ortho":
+            extent = float(proj.extent[5] - proj.extent[4])
+            scale = extent / max(setup.depth_extent_reference, 1e-30)
+        exponents = _filters.evsm_exponents(
+            params.evsm_positive, params.evsm_negative, params.moment_format, scale
+        )
+    data.moments = _filters.moment_texture(
+        data.depth, params.filter, exponents, params.blur_size, params.moment_format
+    )
+    data.exponents = exponents
+
+
+def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
+    """Render every non-empty partition's map (one Dr.Jit launch per map chunk)."""
+    need_slope = params.slope_scaled_bias != 0.0
+    maps: list[MapData | None] = []
+    for part in setup.partitions:
+        if part.projection is None or setup.skip_rendering:
+            maps.append(None)
+            continue
+        data = _render_one(scene, part, params, need_slope)
+        _add_moments(data, part, params, setup)
+        maps.append(data)
+    return maps

@@ -1,0 +1,494 @@
+"""Shading a G-buffer with rendered maps: map selection, shader biases, filters, cascade
+blending, and the diagnostic images.
+
+Outputs (all ``(H, W)`` float32, row 0 at the top):
+
+- ``visibility``: 1 = lit. Sky is 1; valid pixels facing away from the light (N.L <= 0) or
+  outside a spot light's cone are 0, as in the oracle's definition of visibility.
+- ``cascade``: index of the partition a pixel looks up (cube face for point lights), -1 for
+  sky and for pixels in no partition.
+- ``texels_per_pixel``: shadow-map texels per screen pixel along the worst-sampled screen
+  direction: the smallest singular value of the Jacobian ``J = d(texel) / d(pixel)`` of the
+  selected map; its inverse is the texel-to-pixel ratio of the aliasing literature. 0 where
+  no map is selected.
+- ``resolution_error``: the Intel SDSM sample's metric, ``max(0, -log2(sqrt(fw_u fw_v)))``
+  with ``fw = max(|J dx|, |J dy|)`` per texel axis (0 = at least one texel per pixel).
+- ``uncovered``: 1 on receivers whose selected map does not contain them (outside its
+  texture, an empty partition, or outside every partition's depth range).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..result import MapData, Setup
+from . import filters as _filters
+
+__all__ = ["shade"]
+
+
+def normal_offset_texels(params, proj) -> float:
+    """Normal offset (texels) of a map: ``perspective_normal_offset`` on spot/point maps of
+    techniques that have it, else ``normal_offset``."""
+    if proj is not None and proj.kind == "persp":
+        persp = getattr(params, "perspective_normal_offset", None)
+        if persp is not None:
+            return float(persp)
+    return float(params.normal_offset)
+
+
+def perspective_reference(params, proj, z):
+    """Compare reference of perspective maps with a linear-depth bias, or ``None``.
+
+    ``tau = b / (a - z)`` is the receiver's light-view depth; the reference is the
+    hyperbolic depth of ``tau (1 - k)`` with ``k = perspective_bias * 2 tan(fov/2) / R``:
+    ``perspective_bias`` texel footprints at the receiver's distance, in world units along
+    the light's axis. ``None`` where the technique has no such bias (the constant ``bias`` is
+    subtracted from normalized depth instead).
+    """
+    k_texels = getattr(params, "perspective_bias", None)
+    if proj is None or proj.kind != "persp" or not k_texels:
+        return None
+    tan_half, near, far = (float(x) for x in proj.extent)
+    a, b = far / (far - near), far * near / (far - near)
+    k = float(k_texels) * 2.0 * tan_half / proj.resolution
+    z = np.asarray(z, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = b / (a - z)
+        ref = a - b / (tau * max(1.0 - k, 1e-6))
+    return np.where(np.isfinite(ref), ref, z)
+
+
+def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
+    """Partition index per pixel of ``idx`` (-1: none)."""
+    parts = setup.partitions
+    k = len(parts)
+    z = gbuf.depth[idx]
+    if setup.selection == "single":
+        return np.zeros(len(idx), dtype=np.int64)
+    if setup.selection == "depth":
+        ends = np.array([p.z_end for p in parts[:-1]])
+        if np.all(np.diff(ends) >= 0):
+            # Number of interior ends at or below z (the same count, without an (N, k) mask).
+            sel = np.searchsorted(ends, z, side="right").astype(np.int64)
+        else:
+            sel = np.sum(z[:, None] >= ends[None, :], axis=1).astype(np.int64)
+        if setup.outside == "discard":
+            outside = (z < parts[0].z_begin) | (z >= parts[-1].z_end)
+            sel[outside] = -1
+        return sel
+    if setup.selection == "cube":
+        # The face of the lookup direction, normal offset included (a cube-map fetch is
+        # seamless: the offset may carry a lookup onto the neighbouring face).
+        proj0 = parts[0].projection
+        d = gbuf.position[idx] - proj0.frame.origin
+        offset = normal_offset_texels(params, proj0)
+        if offset > 0.0:
+            texel = 2.0 * float(proj0.extent[0]) * np.max(np.abs(d), axis=1) / proj0.resolution
+            n_dot_l = np.clip(gbuf.cos_l[idx], 0.0, 1.0)
+            scale = offset * texel * (1.0 - n_dot_l)
+            d = d + gbuf.normal[idx] * scale[:, None]
+        axis = np.argmax(np.abs(d), axis=1)
+        sign = np.take_along_axis(d, axis[:, None], axis=1)[:, 0] < 0
+        return (2 * axis + sign).astype(np.int64)
+    # projection: first map whose texture volume ([0, 1]^3) contains the pixel
+    sel = np.full(len(idx), -1, dtype=np.int64)
+    pos = gbuf.position[idx]
+    for i in range(k - 1, -1, -1):
+        proj = parts[i].projection
+        if proj is None:
+            continue
+        u, v, z, w = proj.project(pos)
+        # The whole texture volume: x, y and depth (a pixel beyond a cascade's depth range
+        # is not represented by its map even where x, y fall inside).
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (z >= 0) & (z <= 1) & (w > 0)
+        sel[inside] = i
+    return sel
+
+
+def _receiver_plane(j3: np.ndarray):
+    """MJP's ComputeReceiverPlaneDepthBias: (dz/du, dz/dv) from the (u, v, z) derivatives."""
+    dx, dy = j3[:, :, 0], j3[:, :, 1]
+    det = dx[:, 0] * dy[:, 1] - dx[:, 1] * dy[:, 0]
+    ok = np.abs(det) > 1e-30
+    safe = np.where(ok, det, 1.0)
+    bu = (dy[:, 1] * dx[:, 2] - dx[:, 1] * dy[:, 2]) / safe
+    bv = (dx[:, 0] * dy[:, 2] - dy[:, 0] * dx[:, 2]) / safe
+    bu = np.where(ok & np.isfinite(bu), bu, 0.0)
+    bv = np.where(ok & np.isfinite(bv), bv, 0.0)
+    return bu, bv
+
+
+def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.ndarray:
+    """Visibility of receivers from one map (the filter of ``params``); ``ref``: a compare
+    reference replacing ``z - bias`` (perspective linear-depth bias)."""
+    kind = params.filter
+    if kind in _filters.MOMENT_FILTERS:
+        return _filters.moment_lookup(
+            data.moments,
+            u,
+            v,
+            z,
+            kind,
+            exponents=data.exponents,
+            min_variance=params.vsm_bias,
+            bleed_reduction=params.light_bleeding_reduction,
+            subtexel_bits=params.subtexel_bits,
+        )
+    r = data.depth.shape[0]
+    if params.receiver_plane_bias:
+        frac = np.minimum((np.abs(plane[0]) + np.abs(plane[1])) / r, 0.01)
+        ref = z - frac
+    else:
+        ref = z - params.bias if ref is None else ref
+        plane = None
+    common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
+    if kind == "point":
+        return _filters.compare_point(data.depth, u, v, ref, address=params.address_mode)
+    if kind == "hw_pcf":
+        return _filters.compare_bilinear(data.depth, u, v, ref, **common)
+    if kind == "pcf":
+        return _filters.pcf_grid(data.depth, u, v, ref, params.pcf_size, plane=plane, **common)
+    return _filters.pcf_poisson(
+        data.depth,
+        u,
+        v,
+        ref,
+        taps=params.poisson_taps,
+        diameter=params.filter_size,
+        rotation=rotation,
+        plane=plane,
+        seed=params.seed,
+        **common,
+    )
+
+
+def _singular_min(ju, jv):
+    """Smallest singular value of the 2x2 Jacobians with rows ``ju``, ``jv`` (N, 2)."""
+    a, b = ju[:, 0], ju[:, 1]
+    c, d = jv[:, 0], jv[:, 1]
+    fro = a * a + b * b + c * c + d * d
+    det = np.abs(a * d - b * c)
+    smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(smax > 0, det / smax, 0.0)
+
+
+#: Pixels from which a partition's geometry runs as one Dr.Jit kernel (LLVM backend, float64)
+#: instead of NumPy (same formulas; results agree to a few ulps, FMA contraction).
+DRJIT_MIN_PIXELS = 1 << 14
+
+#: Pixels per Dr.Jit launch of :func:`_geometry_drjit` (bounded memory).
+DRJIT_CHUNK = 1 << 21
+
+
+def _partition_geometry(params, part, gbuf, pix):
+    """Shadow coordinates (with the normal offset), Jacobian, texel density and resolution
+    error for pixels ``pix`` (Dr.Jit for large float64 sets, else NumPy)."""
+    proj = part.projection
+    geo = None
+    if proj.precision == "float64" and len(pix) >= DRJIT_MIN_PIXELS:
+        from scenes import backend
+
+        if not backend.active().variant.startswith("scalar"):
+            geo = _geometry_drjit(params, proj, gbuf, pix)
+    if geo is None:
+        geo = _geometry_numpy(params, proj, gbuf, pix)
+    geo["proj"] = proj
+    return geo
+
+
+def _density(geo: dict) -> dict:
+    """Add ``tpp`` (smallest singular value of J) and ``err`` (Intel resolution error)."""
+    smin = _singular_min(geo["ju"], geo["jv"])
+    fw_u = np.maximum(np.abs(geo["ju"][:, 0]), np.abs(geo["ju"][:, 1]))
+    fw_v = np.maximum(np.abs(geo["jv"][:, 0]), np.abs(geo["jv"][:, 1]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lod = np.log2(np.sqrt(fw_u * fw_v))
+    geo["err"] = np.where(np.isfinite(lod), np.maximum(-lod, 0.0), 0.0)
+    geo["tpp"] = np.where(np.isfinite(smin), smin, 0.0)
+    return geo
+
+
+def _geometry_numpy(params, proj, gbuf, pix):
+    pos = gbuf.position[pix]
+    u, v, z, w = proj.project(pos)
+    offset = normal_offset_texels(params, proj)
+    if offset > 0.0:
+        texel = np.broadcast_to(np.asarray(proj.texel_world_size(w), dtype=np.float64), u.shape)
+        n_dot_l = np.clip(gbuf.cos_l[pix], 0.0, 1.0)
+        scale = offset * texel * (1.0 - n_dot_l)
+        u, v, z, w = proj.project(pos + gbuf.normal[pix] * scale[:, None])
+    dpdx, dpdy = gbuf.dpdx[pix], gbuf.dpdy[pix]
+    m = proj.matrix
+    if proj.kind == "ortho":
+        # Affine map: d(u, v, z)/dP is the matrix itself.
+        j3 = np.stack([dpdx @ m[:3, :3].T, dpdy @ m[:3, :3].T], axis=-1)
+    else:
+        # d(q / w) = (dq - (q / w) dw) / w for homogeneous q = M P.
+        t = np.stack([u, v, z], axis=-1)
+        cols = []
+        for dp in (dpdx, dpdy):
+            dq = dp @ m[:3, :3].T
+            dw = dp @ m[3, :3]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                cols.append((dq - t * dw[:, None]) / w[:, None])
+        j3 = np.stack(cols, axis=-1)  # (N, 3, 2): rows u, v, z; columns x, y
+    res = proj.resolution
+    with np.errstate(invalid="ignore"):
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & np.isfinite(u + v)
+    return _density(
+        {
+            "u": np.where(np.isfinite(u), u, 0.0),
+            "v": np.where(np.isfinite(v), v, 0.0),
+            "z": np.where(np.isfinite(z), z, 1.0),
+            "j3": j3,
+            "ju": j3[:, 0, :] * res,
+            "jv": j3[:, 1, :] * res,
+            "inside": inside,
+        }
+    )
+
+
+def _drjit_fields(mi, gbuf, names) -> dict:
+    """Flat Dr.Jit ``Float64`` copies of G-buffer fields (``(N, 3)`` fields row-major), made
+    once per G-buffer and kept on it for every partition (and blend band) it shades."""
+    cache = gbuf.__dict__.setdefault("_drjit_fields", {})
+    fields = {}
+    for name in names:
+        arr = getattr(gbuf, name)
+        hit = cache.get(name)
+        if hit is None or hit[0] is not arr:  # a replaced array is uploaded again
+            flat = np.ascontiguousarray(arr, dtype=np.float64).reshape(-1)
+            hit = cache[name] = (arr, mi.Float64(flat))
+        fields[name] = hit[1]
+    return fields
+
+
+def _geometry_drjit(params, proj, gbuf, pix):
+    """:func:`_geometry_numpy` as one fused Dr.Jit float64 kernel per chunk of pixels."""
+    from scenes import backend
+
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    f64 = mi.Float64
+
+    def const(x):
+        # Kernel parameters, not literals: one compiled kernel serves every projection.
+        return dr.opaque(f64, float(x))
+
+    m = [[const(c) for c in row] for row in np.asarray(proj.matrix, dtype=np.float64)]
+    res = float(proj.resolution)
+    res_k = const(res)
+    persp = proj.kind != "ortho"
+    offset = normal_offset_texels(params, proj)
+    n = len(pix)
+    need_j = bool(params.receiver_plane_bias)
+    keys = ("u", "v", "z", "tpp", "err")
+    if need_j:
+        keys += ("jux", "juy", "jvx", "jvy", "jzx", "jzy")
+    single = n <= DRJIT_CHUNK
+    out = {} if single else {k: np.empty(n) for k in keys}
+    inside_out = None if single else np.empty(n, dtype=bool)
+    tan2 = const(2.0 * float(proj.extent[0]) / res if persp else 0.0)
+    texel_ortho = const(0.0 if persp else float(proj.texel_world_size()))
+    offset_k = const(offset)
+
+    def project(p):
+        rows = [m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3] for i in range(4)]
+        if not persp:
+            return rows[0], rows[1], rows[2], f64(1.0)
+        w = rows[3]
+        return rows[0] / w, rows[1] / w, rows[2] / w, w
+
+    cols = _drjit_fields(mi, gbuf, ("position", "dpdx", "dpdy"))
+    if offset > 0.0:
+        cols |= _drjit_fields(mi, gbuf, ("normal", "cos_l"))
+
+    def gather(name, base, k):
+        # The pixels' float64 G-buffer values, read inside the kernel (no NumPy gathers).
+        return dr.gather(f64, cols[name], base + k)
+
+    for start in range(0, n, DRJIT_CHUNK):
+        sl = slice(start, min(n, start + DRJIT_CHUNK))
+        idx = mi.UInt32(np.asarray(pix[sl], dtype=np.uint32))
+        base = idx * 3
+        p = [gather("position", base, k) for k in range(3)]
+        u, v, z, w = project(p)
+        if offset > 0.0:
+            texel = tan2 * w if persp else texel_ortho
+            n_dot_l = dr.clip(dr.gather(f64, cols["cos_l"], idx), 0.0, 1.0)
+            scale = offset_k * texel * (1.0 - n_dot_l)
+            p = [p[k] + gather("normal", base, k) * scale for k in range(3)]
+            u, v, z, w = project(p)
+        jac = []
+        for name in ("dpdx", "dpdy"):
+            dp = [gather(name, base, k) for k in range(3)]
+            dq = [m[i][0] * dp[0] + m[i][1] * dp[1] + m[i][2] * dp[2] for i in range(3)]
+            if persp:
+                dw = m[3][0] * dp[0] + m[3][1] * dp[1] + m[3][2] * dp[2]
+                dq = [(dq[i] - t * dw) / w for i, t in enumerate((u, v, z))]
+            jac.append(dq)
+        (ux, vx, zx), (uy, vy, zy) = jac
+        a, b, c, d = ux * res_k, uy * res_k, vx * res_k, vy * res_k
+        fro = a * a + b * b + c * c + d * d
+        det = dr.abs(a * d - b * c)
+        smax = dr.sqrt(0.5 * (fro + dr.sqrt(dr.maximum(fro * fro - 4.0 * det * det, 0.0))))
+        smin = dr.select(smax > 0, det / smax, 0.0)
+        fw_u = dr.maximum(dr.abs(a), dr.abs(b))
+        fw_v = dr.maximum(dr.abs(c), dr.abs(d))
+        lod = dr.log2(dr.sqrt(fw_u * fw_v))
+        err = dr.select(dr.isfinite(lod), dr.maximum(-lod, 0.0), 0.0)
+        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & dr.isfinite(u + v)
+        vals = {
+            "u": dr.select(dr.isfinite(u), u, 0.0),
+            "v": dr.select(dr.isfinite(v), v, 0.0),
+            "z": dr.select(dr.isfinite(z), z, 1.0),
+            "tpp": dr.select(dr.isfinite(smin), smin, 0.0),
+            "err": err,
+        }
+        if need_j:
+            vals.update(jux=ux, juy=uy, jvx=vx, jvy=vy, jzx=zx, jzy=zy)
+        dr.eval(inside, *vals.values())
+        if single:
+            # One launch: its evaluated arrays are the outputs (views, no copies).
+            out = {k: val.numpy() for k, val in vals.items()}
+            inside_out = inside.numpy()
+            continue
+        for k, val in vals.items():
+            out[k][sl] = val.numpy()
+        inside_out[sl] = inside.numpy()
+    geo = {
+        "u": out["u"],
+        "v": out["v"],
+        "z": out["z"],
+        "inside": inside_out,
+        "tpp": out["tpp"],
+        "err": out["err"],
+    }
+    if need_j:
+        # The Jacobian itself only feeds the receiver-plane bias (tpp, err are done above).
+        j_u = np.stack([out["jux"], out["juy"]], axis=-1)
+        j_v = np.stack([out["jvx"], out["jvy"]], axis=-1)
+        jz = np.stack([out["jzx"], out["jzy"]], axis=-1)
+        geo.update(ju=j_u * res, jv=j_v * res, j3=np.stack([j_u, j_v, jz], axis=1))
+    return geo
+
+
+def _lookup_subset(params, data, geo, mask, rotation):
+    """Visibility of the pixels ``mask`` of a :func:`_partition_geometry` record."""
+    plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
+    z = geo["z"][mask]
+    ref = perspective_reference(params, geo.get("proj"), z)
+    return _lookup(params, data, geo["u"][mask], geo["v"][mask], z, plane, rotation, ref=ref)
+
+
+def _smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
+    """Outputs (see module docstring) and per-partition statistics."""
+    n = gbuf.size
+    vis = np.ones(n)
+    cascade = np.full(n, -1.0)
+    tpp = np.zeros(n)
+    err = np.zeros(n)
+    uncovered = np.zeros(n)
+    lookups = np.zeros(n)
+    valid_idx = np.nonzero(gbuf.valid)[0]
+    vis[valid_idx] = 0.0
+    sel = _select(setup, gbuf, valid_idx, params) if len(valid_idx) else np.zeros(0, np.int64)
+    cascade[valid_idx] = sel
+    receiver = gbuf.receiver
+    rotation_all = None
+    if params.filter == "poisson" and params.poisson_rotate:
+        rng = np.random.default_rng(params.seed)
+        rotation_all = rng.uniform(0.0, 2.0 * np.pi, n)
+    per_lookup = _filters.lookups_per_pixel(
+        params.filter, pcf_size=params.pcf_size, taps=params.poisson_taps
+    )
+    stats = []
+    k = len(setup.partitions)
+    for i, part in enumerate(setup.partitions):
+        pix = valid_idx[sel == i]
+        rec = pix[receiver[pix]]
+        st = {"index": i, "pixels": int(len(pix)), "receivers": int(len(rec))}
+        if part.projection is None:
+            uncovered[rec] = 1.0
+            vis[rec] = 0.0 if setup.outside == "discard" else 1.0
+            st.update(empty=True, uncovered=int(len(rec)))
+            stats.append(st)
+            continue
+        data = maps[i]
+        geo = _partition_geometry(params, part, gbuf, pix)
+        e = geo["err"]
+        tpp[pix] = geo["tpp"]
+        err[pix] = e
+        rmask = receiver[pix]
+        if len(rec) and data is not None:
+            rot = rotation_all[rec] if rotation_all is not None else None
+            vis[rec] = _lookup_subset(params, data, geo, rmask, rot)
+            uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
+            lookups[rec] = per_lookup
+        tpp_rec = geo["tpp"][rmask]  # = tpp[pix][rmask], gathered once
+        st.update(
+            empty=False,
+            uncovered=int(uncovered[rec].sum()) if len(rec) else 0,
+            texels_per_pixel_min=float(tpp_rec.min()) if len(tpp_rec) else None,
+            texels_per_pixel_mean=float(tpp_rec.mean()) if len(tpp_rec) else None,
+            resolution_error_mean=float(e[rmask].mean()) if rmask.any() else None,
+            texels_covered=int(data.texels_covered) if data is not None else 0,
+        )
+        stats.append(st)
+    # Outside every depth range (Intel: the lighting pass discards the pixel).
+    none = valid_idx[sel < 0]
+    rec_none = none[receiver[none]]
+    uncovered[rec_none] = 1.0
+    vis[rec_none] = 0.0 if setup.outside == "discard" else 1.0
+    # Blend band between consecutive cascades (MJP FilterAcrossCascades).
+    blended = 0
+    if setup.blend_band > 0.0 and setup.selection == "depth" and k > 1:
+        for i in range(k - 1):
+            part, nxt = setup.partitions[i], setup.partitions[i + 1]
+            if part.projection is None or nxt.projection is None or maps[i + 1] is None:
+                continue
+            rec = valid_idx[(sel == i) & receiver[valid_idx]]
+            z = gbuf.depth[rec]
+            start = 0.0 if i == 0 else setup.partitions[i - 1].z_end
+            size = part.z_end - start
+            split_dist = (part.z_end - z) / size
+            band = rec[split_dist <= setup.blend_band]
+            if len(band) == 0:
+                continue
+            rot = rotation_all[band] if rotation_all is not None else None
+            geo = _partition_geometry(params, nxt, gbuf, band)
+            nxt_vis = _lookup_subset(params, maps[i + 1], geo, np.ones(len(band), bool), rot)
+            amt = _smoothstep(0.0, setup.blend_band, (part.z_end - gbuf.depth[band]) / size)
+            vis[band] = nxt_vis * (1.0 - amt) + vis[band] * amt
+            lookups[band] += per_lookup
+            blended += len(band)
+    # Receivers only see the light where the oracle says the light reaches them.
+    non_rec = gbuf.valid & ~receiver
+    vis[non_rec] = 0.0
+    vis = np.clip(vis, 0.0, 1.0)
+    vis[~gbuf.valid] = 1.0
+    outputs = {
+        "visibility": gbuf.image(vis),
+        "cascade": gbuf.image(cascade),
+        "texels_per_pixel": gbuf.image(tpp),
+        "resolution_error": gbuf.image(err),
+        "uncovered": gbuf.image(uncovered),
+    }
+    n_rec = int(receiver.sum())
+    summary = {
+        "partitions": stats,
+        "receivers": n_rec,
+        "uncovered_receivers": int(uncovered.sum()),
+        "blended_receivers": blended,
+        "outside_all_partitions": int(len(rec_none)),
+        "lookups_mean": float(lookups[receiver].mean()) if n_rec else 0.0,
+    }
+    return outputs, summary

@@ -1,0 +1,382 @@
+"""The sweep report: Pareto fronts, parameter sensitivity and best-at-equal-cost tables of the
+rows of a sweep store.
+
+Data in, file out: the rows are plain records (``oracle.sweeps.store.SweepStore.rows``:
+``key``, ``scene``, ``technique``, ``family``, ``params``, ``frame``, ``path``, ``metrics``,
+``cost``, ``status``, ``error``, ``wall_seconds``, ...); :func:`sweep_record` reduces them to
+one JSON-serialisable record and :func:`write_sweep_report` writes it as one self-contained
+HTML file with its JSON twin (``report.json`` beside ``report.html``).
+
+Cases are grouped by technique family and scene: techniques of one family answer the same
+question (a shadow test, an anti-aliased image), so their fronts are comparable, while error
+levels of different scenes are not.
+
+References
+----------
+Deb, K. (2001). *Multi-Objective Optimization Using Evolutionary Algorithms*, Wiley, ch. 2
+(dominance and the non-dominated set). ISBN 978-0-471-87339-6.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ._tradeoff import pareto_front
+
+__all__ = [
+    "DEFAULT_COSTS",
+    "DEFAULT_METRICS",
+    "MEMORY_ALIASES",
+    "SWEEP_REPORT_SCHEMA",
+    "best_at_equal_cost",
+    "sweep_record",
+    "with_memory",
+    "write_sweep_report",
+]
+
+SWEEP_REPORT_SCHEMA = "raster-oracle.sweeps.run-report/1"
+#: Metrics plotted per family when none is requested (the first is the headline).
+DEFAULT_METRICS = {
+    "shadow": ("misclassified_fraction", "visibility_mae"),
+    "aa": ("flip_mean", "coverage_edge_rmse"),
+}
+#: Cost keys plotted per family when none is requested (memory first, then work).
+DEFAULT_COSTS = {
+    "shadow": ("memory_bytes", "texels_rendered"),
+    "aa": ("framebuffer_bytes", "shading_events_mean"),
+}
+#: Cost keys that stand for ``memory_bytes`` where a technique does not report it: shadow
+#: maps report their maps' bytes, IZB its lists' ``memory_bytes``, so that every shadow
+#: technique lands on one memory axis.
+MEMORY_ALIASES = ("shadow_map_bytes",)
+#: Fallback metrics for a family without defaults (first present wins).
+FALLBACK_METRICS = ("misclassified_fraction", "flip_mean", "visibility_mae")
+#: Most distinct cost values listed one per row in a best-at-equal-cost table; above it the
+#: costs are binned by powers of two.
+MAX_COST_ROWS = 12
+
+
+def _number(v) -> float | None:
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        return None
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _varying(rows: Sequence[Mapping]) -> list[str]:
+    """Parameter names whose value differs between ``rows``."""
+    names: dict[str, set] = {}
+    for r in rows:
+        for k, v in (r.get("params") or {}).items():
+            names.setdefault(k, set()).add(json.dumps(v, sort_keys=True))
+    return [k for k, vals in names.items() if len(vals) > 1]
+
+
+def _label(row: Mapping, varying: Sequence[str]) -> str:
+    params = row.get("params") or {}
+    bits = [f"{k}={_short(params[k])}" for k in varying if k in params]
+    where = f" {row['path']}#{row['frame']}" if row.get("path") else ""
+    return " ".join([row["technique"], *bits]) + where
+
+
+def _short(v) -> str:
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, list):
+        return ",".join(_short(x) for x in v)
+    return str(v)
+
+
+def case_id(row: Mapping) -> str:
+    return f"row-{row['key'][:12]}"
+
+
+def _pick(requested: Sequence[str] | None, defaults: Sequence[str], present: Sequence[str]):
+    if requested:
+        return [k for k in requested if k in present]
+    chosen = [k for k in defaults if k in present]
+    return chosen or list(present[:1])
+
+
+def best_at_equal_cost(points: Sequence[Mapping]) -> list[dict]:
+    """Best (lowest-error) case of each technique at each cost level.
+
+    Parameters
+    ----------
+    points : ``{"cost", "error", "technique", "case_id", "name"}`` records.
+
+    Returns
+    -------
+    list of dict
+        ``{"cost_lo", "cost_hi", "best": {technique: point}}`` by increasing cost: one row
+        per distinct cost when there are at most :data:`MAX_COST_ROWS`, else power-of-two
+        bins ``[2^k, 2^(k+1))``.
+    """
+    costs = sorted({float(p["cost"]) for p in points})
+    if len(costs) <= MAX_COST_ROWS:
+        edges = [(c, c) for c in costs]
+    else:
+        lo = math.floor(math.log2(max(costs[0], 1e-300)))
+        hi = math.floor(math.log2(max(costs[-1], 1e-300)))
+        edges = [(2.0**k, 2.0 ** (k + 1)) for k in range(lo, hi + 1)]
+    out = []
+    for a, b in edges:
+        inside = [
+            p for p in points if (float(p["cost"]) == a if a == b else a <= float(p["cost"]) < b)
+        ]
+        if not inside:
+            continue
+        best: dict[str, dict] = {}
+        for p in sorted(inside, key=lambda p: (p["error"], p["cost"], p["case_id"])):
+            best.setdefault(p["technique"], p)
+        out.append({"cost_lo": a, "cost_hi": b, "best": best})
+    return out
+
+
+def with_memory(cost: Mapping | None) -> dict:
+    """``cost`` with ``memory_bytes`` filled in from :data:`MEMORY_ALIASES` when absent."""
+    out = dict(cost or {})
+    if "memory_bytes" not in out:
+        for key in MEMORY_ALIASES:
+            if _number(out.get(key)) is not None:
+                out["memory_bytes"] = out[key]
+                break
+    return out
+
+
+def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> dict:
+    done = [
+        {**r, "cost": with_memory(r.get("cost"))}
+        for r in rows
+        if r["status"] == "done" and r.get("metrics")
+    ]
+    metric_names = list(
+        dict.fromkeys(k for r in done for k, v in r["metrics"].items() if _number(v) is not None)
+    )
+    cost_names = list(
+        dict.fromkeys(
+            k for r in done for k, v in (r.get("cost") or {}).items() if _number(v) is not None
+        )
+    )
+    metric_list = _pick(metrics, DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS, metric_names)
+    cost_list = _pick(costs, DEFAULT_COSTS.get(family, ()), cost_names)
+    by_tech: dict[str, list[dict]] = {}
+    for r in done:
+        by_tech.setdefault(r["technique"], []).append(r)
+    varying = {t: _varying(rs) for t, rs in by_tech.items()}
+    fronts = []
+    for cost_key in cost_list:
+        for metric in metric_list:
+            points = []
+            for r in done:
+                c = _number((r.get("cost") or {}).get(cost_key))
+                e = _number(r["metrics"].get(metric))
+                if c is None or e is None:
+                    continue
+                vary = varying[r["technique"]]
+                points.append(
+                    {
+                        "case_id": case_id(r),
+                        "key": r["key"],
+                        "name": _label(r, vary),
+                        "technique": r["technique"],
+                        "params": {k: r["params"][k] for k in vary if k in r["params"]},
+                        "cost": c,
+                        "error": e,
+                    }
+                )
+            if not points:
+                continue
+            mask = pareto_front([p["cost"] for p in points], [p["error"] for p in points])
+            for p, on in zip(points, mask, strict=True):
+                p["on_front"] = bool(on)
+            front = sorted(np.flatnonzero(mask).tolist(), key=lambda i: (points[i]["cost"], i))
+            fronts.append(
+                {
+                    "family": f"{family} on {scene}",
+                    "cost_key": cost_key,
+                    "metric": metric,
+                    "points": points,
+                    "front": front,
+                    "best_at_equal_cost": best_at_equal_cost(points),
+                }
+            )
+    sensitivity = []
+    headline = metric_list[0] if metric_list else None
+    for tech, rs in by_tech.items():
+        for name in varying[tech]:
+            xs, ys = [], []
+            for r in rs:
+                e = _number(r["metrics"].get(headline)) if headline else None
+                if e is None or name not in r["params"]:
+                    continue
+                xs.append(r["params"][name])
+                ys.append(e)
+            if len(set(json.dumps(x) for x in xs)) < 2:
+                continue
+            numeric = all(_number(x) is not None for x in xs)
+            levels = sorted(set(xs)) if numeric else list(dict.fromkeys(json.dumps(x) for x in xs))
+            mean = []
+            for level in levels:
+                sel = [
+                    y
+                    for x, y in zip(xs, ys, strict=True)
+                    if (x == level if numeric else json.dumps(x) == level)
+                ]
+                mean.append(
+                    {
+                        "x": level if numeric else json.loads(level),
+                        "mean": float(np.mean(sel)),
+                        "min": float(np.min(sel)),
+                        "max": float(np.max(sel)),
+                        "n": len(sel),
+                    }
+                )
+            sensitivity.append(
+                {
+                    "technique": tech,
+                    "scene": scene,
+                    "param": name,
+                    "metric": headline,
+                    "numeric": numeric,
+                    "points": [{"x": x, "y": y} for x, y in zip(xs, ys, strict=True)],
+                    "levels": mean,
+                }
+            )
+    gallery = []
+    if fronts:
+        headline_front = fronts[0]
+        for i in headline_front["front"]:
+            p = headline_front["points"][i]
+            gallery.append(
+                {
+                    "case_id": p["case_id"],
+                    "key": p["key"],
+                    "name": p["name"],
+                    "cost_key": headline_front["cost_key"],
+                    "cost": p["cost"],
+                    "metric": headline_front["metric"],
+                    "error": p["error"],
+                }
+            )
+    return {
+        "family": family,
+        "scene": scene,
+        "gallery": gallery,
+        "n_cases": len(rows),
+        "n_done": len(done),
+        "metrics": metric_list,
+        "costs": cost_list,
+        "fronts": fronts,
+        "sensitivity": sensitivity,
+    }
+
+
+def sweep_record(
+    rows: Sequence[Mapping],
+    *,
+    title: str,
+    provenance: Mapping | None = None,
+    costs: Sequence[str] | None = None,
+    metrics: Sequence[str] | None = None,
+) -> dict:
+    """The report record of sweep ``rows`` (see the module docstring).
+
+    Parameters
+    ----------
+    costs, metrics : cost keys and metrics of the fronts (default: per family,
+        :data:`DEFAULT_COSTS` and :data:`DEFAULT_METRICS`); a requested key that a group does
+        not have is left out of that group.
+    """
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r.get("family") or "shadow", r["scene"]), []).append(dict(r))
+    group_records = [
+        _group_record(fam, scene, rs, list(costs or []), list(metrics or []))
+        for (fam, scene), rs in sorted(groups.items())
+    ]
+    all_varying = {}
+    for r in rows:
+        all_varying.setdefault((r["technique"], r["scene"]), []).append(r)
+    vary = {k: _varying(v) for k, v in all_varying.items()}
+    cases = []
+    for r in rows:
+        headline = (DEFAULT_METRICS.get(r.get("family") or "shadow") or FALLBACK_METRICS)[0]
+        cost_key = (DEFAULT_COSTS.get(r.get("family") or "shadow") or ("",))[0]
+        cost = with_memory(r.get("cost"))
+        cases.append(
+            {
+                "id": case_id(r),
+                "key": r["key"],
+                "name": _label(r, vary[(r["technique"], r["scene"])]),
+                "scene": r["scene"],
+                "technique": r["technique"],
+                "family": r.get("family"),
+                "params": r.get("params") or {},
+                "frame": r.get("frame"),
+                "path": r.get("path"),
+                "resolution": f"{r.get('width')}x{r.get('height')}",
+                "spp": r.get("spp"),
+                "status": r["status"],
+                "error": r.get("error"),
+                "metric": headline,
+                "value": _number((r.get("metrics") or {}).get(headline)),
+                "floor": _number(((r.get("metrics") or {}).get("noise_floor") or {}).get(headline)),
+                "cost_key": cost_key,
+                "cost": _number(cost.get(cost_key)),
+                "wall_seconds": r.get("wall_seconds"),
+            }
+        )
+    return {
+        "schema": SWEEP_REPORT_SCHEMA,
+        "title": title,
+        "provenance": dict(provenance or {}),
+        "summary": {
+            "n_cases": len(rows),
+            "n_done": sum(r["status"] == "done" for r in rows),
+            "n_failed": sum(r["status"] == "failed" for r in rows),
+            "scenes": sorted({r["scene"] for r in rows}),
+            "techniques": sorted({r["technique"] for r in rows}),
+        },
+        "groups": group_records,
+        "cases": cases,
+    }
+
+
+def write_sweep_report(
+    rows: Sequence[Mapping],
+    path: str | os.PathLike,
+    *,
+    title: str,
+    provenance: Mapping | None = None,
+    costs: Sequence[str] | None = None,
+    metrics: Sequence[str] | None = None,
+    extra_sections: Sequence[Mapping] | None = None,
+    images: Mapping[str, Mapping] | None = None,
+) -> dict:
+    """Write ``path`` (HTML) and ``report.json``-style twin ``path.with_suffix('.json')``.
+
+    ``images``: thumbnails by row key (``reference``, ``candidate``, ``error`` data URIs),
+    shown for the cases on each group's headline front (the HTML only, not the JSON).
+
+    ``extra_sections``: ``{"id", "title", "html"}`` records (HTML fragments that escape their
+    own text, e.g. the claims and extremes sections) placed after the fronts.
+    """
+    from ._write import _atomic_write_text
+    from .sections.sweep import render_sweep_html
+
+    record = sweep_record(rows, title=title, provenance=provenance, costs=costs, metrics=metrics)
+    html = render_sweep_html(record, extra_sections=extra_sections or [], images=images or {})
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _atomic_write_text(
+        path.with_suffix(".json"), json.dumps(record, indent=1, allow_nan=False, default=str)
+    )
+    _atomic_write_text(path, html)
+    return record
