@@ -65,6 +65,10 @@ class LoadedScene:
     light_path: str | None = None
     base_lights: list[Light] = field(default_factory=list)
     mesh_data: dict = field(default_factory=dict, repr=False)
+    #: Per-scene memo caches of derived data (shape tables, occluder triangles, tie groups),
+    #: keyed by their owner's name. A declared field, so ``dataclasses.replace`` carries it:
+    #: only data that depends on the scene's geometry (not its camera or light) belongs here.
+    memo: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def light(self) -> Light:

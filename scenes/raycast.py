@@ -19,15 +19,15 @@ import numpy as np
 from . import backend
 from .shading import facing, shade
 
-__all__ = ["CHUNK", "intersect", "occluded", "trace_film", "trace_film_dr"]
+__all__ = ["CHUNK", "intersect", "occluded", "shape_table", "trace_film", "trace_film_dr"]
 
 #: Rays per Dr.Jit launch in the NumPy-level helpers (bounded memory: ~0.5 GiB a launch).
 CHUNK = 1 << 21
 
 
-def _shape_table(mi, dr, loaded):
+def shape_table(mi, dr, loaded):
     """Int32 array mapping Mitsuba shape registry ids to indices into ``loaded.shape_names``."""
-    cache = loaded.__dict__.setdefault("_shape_table", {})
+    cache = loaded.memo.setdefault("shape_table", {})
     if "table" not in cache:
         shapes = loaded.mi_scene.shapes()
         reg = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes]
@@ -189,7 +189,7 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
         0.0,
     )
     shape_index = dr.gather(
-        mi.Int32, _shape_table(mi, dr, loaded), dr.reinterpret_array(mi.UInt32, si.shape)
+        mi.Int32, shape_table(mi, dr, loaded), dr.reinterpret_array(mi.UInt32, si.shape)
     )
     shape_index = dr.select(valid, shape_index, -1)
     out = {
@@ -264,7 +264,7 @@ def intersect(loaded, origins: np.ndarray, directions: np.ndarray, *, tmax=None)
     o = np.asarray(origins, dtype=np.float32).reshape(-1, 3)
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
     tm = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float32), (len(o),))
-    table = _shape_table(mi, dr, loaded)
+    table = shape_table(mi, dr, loaded)
     out: dict[str, list] = {"valid": [], "t": [], "position": [], "normal": [], "shape": []}
     for start in range(0, len(o), CHUNK):
         sl = slice(start, start + CHUNK)

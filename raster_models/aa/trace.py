@@ -33,7 +33,7 @@ from scenes import backend
 from scenes.raycast import (
     SHADOW_OFFSET,
     SHADOW_OFFSET_MESH,
-    _shape_table,
+    shape_table,
     camera_rays_dr,
     shadow_ray_dr,
 )
@@ -140,7 +140,7 @@ def trace_samples(
             out["pair_count"] = np.empty(total, np.int8)
     n_frag = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
-    table = _shape_table(mi, dr, scene) if mi_scene is None or scene_shapes else None
+    table = shape_table(mi, dr, scene) if mi_scene is None or scene_shapes else None
     step = max(n, (CHUNK // n) * n)
     for start in range(0, total, step):
         stop = min(total, start + step)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from scenes import backend
-from scenes.raycast import _shape_table, camera_rays_dr
+from scenes.raycast import shape_table, camera_rays_dr
 
 from .. import trace as _trace
 from ..trace import _np, _view_depth, attributes_dr, shade_dr
@@ -175,7 +175,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     offs64 = np.asarray(offsets, np.float64).reshape(-1, 2)
     n = len(offs)
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
-    table = _shape_table(mi, dr, scene)
+    table = shape_table(mi, dr, scene)
     tests = []
     for g, filt in zip(groups, group_filters(scene, groups, fmt), strict=True):
         lut = np.zeros(len(scene.shape_names) + 1, bool)  # index shape + 1 (sky: 0)

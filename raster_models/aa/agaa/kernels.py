@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from scenes import backend
-from scenes.raycast import _shape_table
+from scenes.raycast import shape_table
 
 from .. import trace as _trace
 from . import pixels as _agaa_pixels
@@ -117,7 +117,7 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
     counts = {key: np.empty(n_pix, np.int64) for key in ("covered", "aggregates", "surfaces")}
     rays = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
-    table = _shape_table(mi, dr, scene)
+    table = shape_table(mi, dr, scene)
     per_launch = max(1, LAUNCH_CHUNKS * _trace.CHUNK // n)
     for p0 in range(0, n_pix, per_launch):
         p1 = min(n_pix, p0 + per_launch)
