@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import sys
 
 import numpy as np
@@ -76,10 +77,38 @@ def cases() -> list[tuple[str, str, dict]]:
     return result
 
 
+def _arrays(args, n: int, key: str, res) -> None:
+    """Save the outputs (``--arrays``) and print the largest difference to ``--diff-arrays``."""
+    if args.arrays:
+        os.makedirs(args.arrays, exist_ok=True)
+        np.savez(os.path.join(args.arrays, f"{n}.npz"), key=key, **res.outputs)
+    if args.diff_arrays:
+        path = os.path.join(args.diff_arrays, f"{n}.npz")
+        if not os.path.exists(path):
+            return
+        old = np.load(path)
+        if str(old["key"]) != key:
+            return
+        for name, arr in res.outputs.items():
+            a = np.asarray(arr, dtype=np.float64)
+            b = np.asarray(old[name], dtype=np.float64) if name in old else None
+            if b is None or a.shape != b.shape:
+                print(f"  {name}: missing or shape changed")
+            elif not np.array_equal(a, b):
+                d = np.abs(a - b)
+                rel = d / np.maximum(np.abs(b), 1e-30)
+                print(
+                    f"  {name}: max |diff| {d.max():.3g}, max rel {rel.max():.3g}, "
+                    f"{int((d > 0).sum())} values differ"
+                )
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="JSON file of case -> digest")
     ap.add_argument("--compare", help="an earlier --out file to compare with")
+    ap.add_argument("--arrays", help="also save each case's outputs as DIR/<n>.npz")
+    ap.add_argument("--diff-arrays", help="an earlier --arrays folder: print max |diff|")
     args = ap.parse_args(argv)
     digests, skipped = {}, {}
     cache = {}
@@ -92,6 +121,7 @@ def main(argv=None) -> int:
             skipped[key] = str(exc)
             continue
         digests[key] = _digest(res)
+        _arrays(args, len(digests) - 1, key, res)
         print(f"{digests[key][:16]}  {key}", flush=True)
     with open(args.out, "w") as f:
         json.dump({"digests": digests, "skipped": skipped}, f, indent=1, sort_keys=True)
