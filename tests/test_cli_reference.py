@@ -152,7 +152,7 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
 
 def test_real_process_exit_code_and_no_traceback(tmp_path):
     res = subprocess.run(
-        [sys.executable, "-m", "oracle.cli.app", "reference", "nope", "--out", str(tmp_path / "o")],
+        [sys.executable, "-m", "oracle.cli", "reference", "nope", "--out", str(tmp_path / "o")],
         capture_output=True,
         text=True,
         timeout=120,

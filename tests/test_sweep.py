@@ -346,7 +346,7 @@ def test_sigkill_loses_only_cases_in_flight_and_resume_skips_finished(tmp_path):
     total = len(load_spec(spec).cases)
     assert total == 2 * 13
     db = tmp_path / "kill.db"
-    cmd = [sys.executable, "-m", "oracle.cli.app", "sweep", str(spec), "--db", str(db)]
+    cmd = [sys.executable, "-m", "oracle.cli", "sweep", str(spec), "--db", str(db)]
     cmd += ["--out", str(tmp_path / "o"), "--workers", "1", "--quiet"]
     proc = subprocess.Popen(
         cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
