@@ -36,7 +36,8 @@ import math
 
 import numpy as np
 
-from . import meshes as _meshes
+from . import meshes
+from .factories import diffuse, look_at, mesh, sensor, sun
 
 __all__ = [
     "AA_SCENES",
@@ -51,6 +52,7 @@ __all__ = [
     "foliage",
     "glossy",
     "hdr_edge",
+    "ortho_camera",
     "stripes",
 ]
 
@@ -79,9 +81,8 @@ def _wall_pixel(width: int) -> float:
 
 
 def _wall_camera(width: int, height: int) -> dict:
-    from .builtin import _sensor
 
-    return _sensor(
+    return sensor(
         width,
         height,
         origin=(0, 0, -_WALL_DISTANCE),
@@ -94,12 +95,11 @@ def _wall_camera(width: int, height: int) -> dict:
 
 def _rect_z(x0, x1, y0, y1, z=0.0):
     """An axis-aligned rectangle in the plane ``z`` (two triangles)."""
-    return _meshes.quad([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]])
+    return meshes.quad([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]])
 
 
 def decal(width: int, height: int) -> dict:
     """A wall with a coplanar decal and a duplicated panel: depth ties (ACAA counts twice)."""
-    from .builtin import _mesh, _sun
 
     a = np.radians(20.0)
     c, s = np.cos(a), np.sin(a)
@@ -112,11 +112,11 @@ def decal(width: int, height: int) -> dict:
         "type": "scene",
         "camera": _wall_camera(width, height),
         # from behind the camera, slightly from above and from the image's left (world +X)
-        "sun": _sun((-0.25, -0.3, 1.0)),
-        "wall": _mesh(_rect_z(-8, 8, -5, 5), DECAL_ALBEDO),
-        "decal": _mesh(_meshes.quad(decal_quad), DECAL_ALBEDO),
-        "panel": _mesh(panel, (0.8, 0.5, 0.2)),
-        "panel_copy": _mesh((panel[0].copy(), panel[1].copy()), (0.8, 0.5, 0.2)),
+        "sun": sun((-0.25, -0.3, 1.0)),
+        "wall": mesh(_rect_z(-8, 8, -5, 5), DECAL_ALBEDO),
+        "decal": mesh(meshes.quad(decal_quad), DECAL_ALBEDO),
+        "panel": mesh(panel, (0.8, 0.5, 0.2)),
+        "panel_copy": mesh((panel[0].copy(), panel[1].copy()), (0.8, 0.5, 0.2)),
     }
 
 
@@ -124,15 +124,13 @@ def decal(width: int, height: int) -> dict:
 _STRIPES_HALF_WIDTH = 3.6
 
 
-def _ortho_camera(width: int, height: int, half_width: float) -> dict:
+def ortho_camera(width: int, height: int, half_width: float) -> dict:
     """Orthographic view down +Z of ``2 half_width`` units across (Mitsuba's scaled frame)."""
-    from .builtin import _look_at, _sensor
-
-    sensor = _sensor(width, height, origin=(0, 0, -10), target=(0, 0, 0), fov=1, near=0.1, far=100)
-    del sensor["fov"], sensor["fov_axis"]
-    sensor["type"] = "orthographic"
-    sensor["to_world"] = _look_at((0, 0, -10), (0, 0, 0)) @ np.diag([half_width, half_width, 1, 1])
-    return sensor
+    cam = sensor(width, height, origin=(0, 0, -10), target=(0, 0, 0), fov=1, near=0.1, far=100)
+    del cam["fov"], cam["fov_axis"]
+    cam["type"] = "orthographic"
+    cam["to_world"] = look_at((0, 0, -10), (0, 0, 0)) @ np.diag([half_width, half_width, 1, 1])
+    return cam
 
 
 def stripes(width: int, height: int) -> dict:
@@ -141,7 +139,6 @@ def stripes(width: int, height: int) -> dict:
     The view is orthographic, so every strip projects to exactly half a period wherever it is
     on the screen (a perspective view would see the zigzag obliquely towards the sides).
     """
-    from .builtin import _mesh, _sun
 
     period = STRIPE_PERIOD_PX * 2 * _STRIPES_HALF_WIDTH / width
     half = period / 2
@@ -173,35 +170,34 @@ def stripes(width: int, height: int) -> dict:
     blue = strips(x0 + half, zeros + half, x0 + period, zeros)
     return {
         "type": "scene",
-        "camera": _ortho_camera(width, height, _STRIPES_HALF_WIDTH),
+        "camera": ortho_camera(width, height, _STRIPES_HALF_WIDTH),
         # to-light (0.6, 0.3, -0.75): n.l = 0.94 on red, 0.10 on blue; the light's rays fall
         # more steeply in depth than the strips do, so no strip shadows another
-        "sun": _sun((-0.6, -0.3, 0.75)),
-        "stripes_red": _mesh(red, (0.8, 0.15, 0.1)),
-        "stripes_blue": _mesh(blue, (0.1, 0.2, 0.8)),
+        "sun": sun((-0.6, -0.3, 0.75)),
+        "stripes_red": mesh(red, (0.8, 0.15, 0.1)),
+        "stripes_blue": mesh(blue, (0.1, 0.2, 0.8)),
     }
 
 
 def glossy(width: int, height: int) -> dict:
     """Glossy beads and a glossy sphere with sub-pixel highlights (Blinn-Phong)."""
-    from .builtin import _diffuse, _mesh, _sensor, _sun
 
     scene = {
         "type": "scene",
-        "camera": _sensor(
+        "camera": sensor(
             width, height, origin=(0, 1.0, -9), target=(0, 0.6, 0), fov=45, near=0.1, far=100
         ),
         # from just above the camera: every bead is lit across its visible face (shadows fall
         # behind the beads)
-        "sun": _sun((0.0, -0.35, 1.0)),
+        "sun": sun((0.0, -0.35, 1.0)),
         "ro_specular": {"ks": GLOSSY_KS, "shininess": GLOSSY_SHININESS},
         # a ground, not a backdrop: its mirror direction of the sun points behind the camera
-        "ground": _mesh(_rect_xz(-12, 12, -12, 30, y=-1.4), 0.3),
+        "ground": mesh(_rect_xz(-12, 12, -12, 30, y=-1.4), 0.3),
         "ball": {
             "type": "sphere",
             "center": [1.8, 0.4, 0.5],
             "radius": 1.1,
-            "bsdf": _diffuse((0.6, 0.1, 0.1)),
+            "bsdf": diffuse((0.6, 0.1, 0.1)),
         },
     }
     # 7 x 5 glossy beads 0.15 units in radius (6 px across at the default 160 px width): the
@@ -215,30 +211,29 @@ def glossy(width: int, height: int) -> dict:
                 "type": "sphere",
                 "center": [-0.6 - 0.5 * i, -1.0 + 0.55 * j, 0.0],
                 "radius": 0.15,
-                "bsdf": _diffuse((0.15, 0.3, 0.6)),
+                "bsdf": diffuse((0.15, 0.3, 0.6)),
             }
     return scene
 
 
 def foliage(width: int, height: int) -> dict:
     """Four layers of thin blades at 3-7 units before a backdrop: 3+ surfaces a pixel."""
-    from .builtin import _mesh, _sensor, _sun
 
     scene = {
         "type": "scene",
-        "camera": _sensor(
+        "camera": sensor(
             width, height, origin=(0, 0.45, -3), target=(0, 0.35, 5), fov=50, near=0.05, far=100
         ),
-        "sun": _sun((0.4, -0.8, 0.45)),
-        "ground": _mesh(_rect_xz(-30, 30, -5, 30), (0.35, 0.3, 0.2)),
-        "backdrop": _mesh(_rect_z(-30, 30, -1, 20, z=5.0), (0.3, 0.35, 0.5)),
+        "sun": sun((0.4, -0.8, 0.45)),
+        "ground": mesh(_rect_xz(-30, 30, -5, 30), (0.35, 0.3, 0.2)),
+        "backdrop": mesh(_rect_z(-30, 30, -1, 20, z=5.0), (0.3, 0.35, 0.5)),
     }
     rng = np.random.default_rng(17)
     greens = [(0.2, 0.5, 0.15), (0.35, 0.6, 0.1), (0.15, 0.4, 0.25), (0.5, 0.55, 0.15)]
     for k, rgb in enumerate(greens):
         z0 = 0.0 + k
-        scene[f"blades_{k}"] = _mesh(
-            _meshes.blades(
+        scene[f"blades_{k}"] = mesh(
+            meshes.blades(
                 rng, 900, x_range=(-3.6, 3.6), z_range=(z0, z0 + 1.0), height=1.1, width=0.012
             ),
             rgb,
@@ -248,20 +243,19 @@ def foliage(width: int, height: int) -> dict:
 
 def _rect_xz(x0, x1, z0, z1, y=0.0):
     """An axis-aligned rectangle in the plane ``y`` (ground)."""
-    return _meshes.quad([[x0, y, z0], [x0, y, z1], [x1, y, z1], [x1, y, z0]])
+    return meshes.quad([[x0, y, z0], [x0, y, z1], [x1, y, z1], [x1, y, z0]])
 
 
 def hdr_edge(width: int, height: int) -> dict:
     """Bright strips 0.5-6 px wide before a near-black backdrop: 180:1 across each edge."""
-    from .builtin import _mesh, _sun
 
     px = _wall_pixel(width)
     scene = {
         "type": "scene",
         "camera": _wall_camera(width, height),
         # nearly along the view axis: strips and backdrop both at n.l = 0.98
-        "sun": _sun((0.1, -0.15, 1.0), irradiance=10.0),
-        "backdrop": _mesh(_rect_z(-8, 8, -5, 5, z=0.5), HDR_BACKDROP_ALBEDO),
+        "sun": sun((0.1, -0.15, 1.0), irradiance=10.0),
+        "backdrop": mesh(_rect_z(-8, 8, -5, 5, z=0.5), HDR_BACKDROP_ALBEDO),
     }
     # vertical strips 1.5 deg off the vertical axis, widths in pixels at the film width
     a = np.radians(1.5)
@@ -272,7 +266,7 @@ def hdr_edge(width: int, height: int) -> dict:
         base = np.array([[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]])
         rot = base @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
         pts = np.column_stack([xc + rot[:, 0], rot[:, 1], np.zeros(4)])
-        scene[f"strip_{k}"] = _mesh(_meshes.quad(pts), HDR_STRIP_ALBEDO)
+        scene[f"strip_{k}"] = mesh(meshes.quad(pts), HDR_STRIP_ALBEDO)
     return scene
 
 

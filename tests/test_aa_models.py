@@ -19,7 +19,8 @@ from oracle.reference.store import get_reference
 from oracle.scoring.score import COVERAGE_FLOOR_RMS
 from raster_models.aa import resolve as _resolve
 from raster_models.aa import samples as _samples
-from scenes.builtin import BuiltinScene, _mesh, _sensor, _sun
+from scenes.builtin import BuiltinScene
+from scenes.factories import mesh, sensor, sun
 from tests._geometry import polygon_coverage
 
 W, H = 48, 27
@@ -42,11 +43,11 @@ def _triangle_scene(verts):
         v = np.asarray(verts, float)
         return {
             "type": "scene",
-            "camera": _sensor(
+            "camera": sensor(
                 width, height, origin=(0, 0, -10), target=(0, 0, 0), fov=40, near=0.1, far=100
             ),
-            "sun": _sun((0.2, -0.3, 1.0)),
-            "tri": _mesh((v, np.array([[0, 1, 2]], np.uint32)), 0.7),
+            "sun": sun((0.2, -0.3, 1.0)),
+            "tri": mesh((v, np.array([[0, 1, 2]], np.uint32)), 0.7),
         }
 
     return scenes.load(BuiltinScene("aa-triangle", factory, "one triangle"), **SMALL)
@@ -124,15 +125,15 @@ def _squares(seed: int = 5):
 
 
 def _squares_scene(width, height):
-    from scenes import meshes as _meshes
-    from scenes.aa_scenes import _ortho_camera
+    from scenes import meshes
+    from scenes.aa_scenes import ortho_camera
 
-    mesh = _meshes.merge([_meshes.quad(q) for q in _squares()])
+    squares = meshes.merge([meshes.quad(q) for q in _squares()])
     return {
         "type": "scene",
-        "camera": _ortho_camera(width, height, _COLS * _CELL / 2),
-        "sun": _sun((0.0, 0.0, 1.0)),
-        "squares": _mesh(mesh, 0.5),
+        "camera": ortho_camera(width, height, _COLS * _CELL / 2),
+        "sun": sun((0.0, 0.0, 1.0)),
+        "squares": mesh(squares, 0.5),
     }
 
 

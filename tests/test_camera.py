@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import scenes
-from scenes.builtin import _look_at
+from scenes.factories import look_at
 
 # float32 rays from Mitsuba against float64 ones: agreement to ~1e-6 relative
 RAY_TOL = 2e-5
@@ -25,7 +25,7 @@ def _mitsuba_rays(mi, sensor, x, y, w, h):
 @pytest.mark.parametrize("kind", ["perspective", "orthographic"])
 def test_rays_match_mitsuba_sensor(mi, kind):
     w, h = 64, 40
-    to_world = _look_at((1, 3, -4), (0.2, 0, 0.5), (0, 1, 0))
+    to_world = look_at((1, 3, -4), (0.2, 0, 0.5), (0, 1, 0))
     if kind == "orthographic":
         to_world = to_world @ np.diag([2.0, 2.0, 1.0, 1.0])
     d = {

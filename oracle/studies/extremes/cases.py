@@ -121,20 +121,20 @@ def _parallel_up(raw, w, h):
 
 
 def _in_wall(raw, w, h):
-    from scenes import meshes as _meshes
-    from scenes.builtin import _mesh
+    from scenes import meshes
+    from scenes.factories import mesh
 
     p = np.asarray(_sensor(raw)["to_world"], dtype=np.float64)[:3, 3]
-    raw["wall"] = _mesh(_meshes.box(p - 0.5, p + 0.5), 0.5)
+    raw["wall"] = mesh(meshes.box(p - 0.5, p + 0.5), 0.5)
     return raw
 
 
 def _all_sky(raw, w, h):
-    from scenes.builtin import _look_at
+    from scenes.factories import look_at
 
     cam = _sensor(raw)
     p = np.asarray(cam["to_world"], dtype=np.float64)[:3, 3]
-    cam["to_world"] = _look_at(p, p + np.array([0.0, 1.0, 0.0]), (0.0, 0.0, 1.0))
+    cam["to_world"] = look_at(p, p + np.array([0.0, 1.0, 0.0]), (0.0, 0.0, 1.0))
     return raw
 
 
