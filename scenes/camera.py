@@ -235,15 +235,3 @@ class Camera:
         if self.kind == "orthographic":
             out["half_extent"] = list(self.half_extent())
         return out
-
-    @classmethod
-    def from_json(cls, record: dict) -> Camera:
-        return cls(
-            kind=record["kind"],
-            to_world=np.asarray(record["to_world_mitsuba"], dtype=np.float64),
-            width=int(record["width"]),
-            height=int(record["height"]),
-            near=float(record["near"]),
-            far=float(record["far"]),
-            fov_x=float(record["fov_x_deg"] or 0.0),
-        )

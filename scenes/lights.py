@@ -101,15 +101,3 @@ class Light:
             out["falloff"] = "1 inside beam_width, linear in angle to 0 at cutoff_angle"
         out["units"] = "irradiance W/m^2" if self.is_directional else "intensity W/sr"
         return out
-
-    @classmethod
-    def from_json(cls, record: dict) -> Light:
-        return cls(
-            kind=record["kind"],
-            color=tuple(record["color"]),
-            direction=tuple(record.get("direction", (0.0, -1.0, 0.0))),
-            position=tuple(record.get("position", (0.0, 0.0, 0.0))),
-            cutoff_angle=float(record.get("cutoff_angle_deg", 20.0)),
-            beam_width=float(record.get("beam_width_deg", 15.0)),
-            name=record.get("name", ""),
-        )
