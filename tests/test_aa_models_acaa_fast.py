@@ -148,7 +148,7 @@ def test_per_pixel_grouping_matches_numpy(name, n):
     """Representatives, sample counts and centroid sums from one lane a pixel equal the
     NumPy grouping (:func:`._fragments.group_fragments`) and ``np.bincount``'s sums."""
     from scenes import backend
-    from scenes.raycast import _shape_table
+    from scenes.raycast import shape_table
 
     mi = backend.mitsuba()
     import drjit as dr
@@ -159,7 +159,7 @@ def test_per_pixel_grouping_matches_numpy(name, n):
     ref = group_fragments(b["valid"], b["shape"], b["prim"])
     ox, oy = (mi.Float(offs[:, a].astype(np.float32)) for a in range(2))
     count = scene.width * scene.height
-    table = _shape_table(mi, dr, scene)
+    table = shape_table(mi, dr, scene)
     base = dr.opaque(mi.UInt32, 0)
     valid, _, prim, shape, _ = _acaa_trace._launch(scene, table, ox, oy, base, count, n, [], "D24")
     counts = _acaa_trace._fragments_of_pixels(valid, shape, prim, count, n)

@@ -155,7 +155,7 @@ def test_pixel_lanes_equal_sample_lanes(name, n, fmt, k):
     ref = _trace.trace_samples(scene, offs, group=True, cluster=(k, 0.1, 1.0, fmt))
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
     n_pix = SMALL["width"] * SMALL["height"]
-    table = _trace._shape_table(mi, dr, scene)
+    table = _trace.shape_table(mi, dr, scene)
     pix = dr.arange(mi.UInt32, n_pix)
     valid, depth, prim, shape, nrm, _ = _trace.prepass_dr(
         scene, scene.mi_scene, table, ox, oy, pix, n, normals=True, group=False, cluster=None

@@ -155,9 +155,9 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
         assert outs[1][key].tobytes() == outs[0][key].tobytes(), key
     assert outs[0]["texels_per_pixel"].max() > 0
 
-    tech = rm._registry.TECHNIQUES[technique]
+    tech = rm.TECHNIQUES[technique]
     module = __import__(tech.runner.__module__, fromlist=["build"])
-    p = rm._params.make(technique, tech.params, {"resolution": 128, **kw})
+    p = rm.params.make(technique, tech.params, {"resolution": 128, **kw})
     gb = trace_gbuffer(loaded)
     setup = module.build(loaded, gb, p)
     part = next(q for q in setup.partitions if q.projection is not None)
@@ -236,8 +236,8 @@ def test_fused_map_launches_equal_one_launch(monkeypatch):
     from raster_models.shadowmaps import raycast as _raycast
 
     loaded = scenes.load("city", width=64, height=36)
-    p = rm._params.make("csm", rm.csm.CsmParams, {"resolution": 80, "format": "D24"})
-    setup = rm.csm.build(loaded, trace_gbuffer(loaded), p)
+    p = rm.params.make("csm", rm.CsmParams, {"resolution": 80, "format": "D24"})
+    setup = rm.shadowmaps.csm.build(loaded, trace_gbuffer(loaded), p)
     one = _render.render_maps(loaded, setup, p)
     monkeypatch.setattr(_raycast, "GRID_CHUNK", 1000)  # 7 launches, the last one partial
     monkeypatch.setattr(_render, "GRID_CHUNK", 1000)
