@@ -10,7 +10,6 @@ Modules: :mod:`metrics.tonemap` (the shared tone-mapping pipeline), :mod:`metric
 :mod:`metrics.temporal` (flicker), :mod:`metrics.stats` (Z-test, noise floor).
 """
 
-from metrics._validate import MetricError
 from metrics.aliasing import (
     coverage_error,
     edge_interior_error,
@@ -37,6 +36,7 @@ from metrics.tonemap import (
     srgb_encode,
     tonemap,
 )
+from metrics.validate import MetricError
 
 __all__ = [
     "DEFAULT_PPD",

@@ -18,7 +18,6 @@ import math
 
 import numpy as np
 
-from metrics._validate import MetricError, check_image, check_images
 from metrics.tonemap import (
     LUMINANCE_WEIGHTS,
     TONE_MAPPERS,
@@ -26,6 +25,7 @@ from metrics.tonemap import (
     srgb_decode,
     tonemap,
 )
+from metrics.validate import MetricError, check_image, check_images
 
 __all__ = [
     "DEFAULT_PPD",

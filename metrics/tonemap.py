@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from metrics._validate import MetricError, check_image
+from metrics.validate import MetricError, check_image
 
 __all__ = [
     "LUMINANCE_WEIGHTS",

@@ -19,7 +19,6 @@ from metrics import (
     ssim,
     tonemap,
 )
-from metrics.perceptual import _evaluate_flip
 
 # Our wrapper and a direct flip_evaluator call run the same code on the same float32
 # arrays; means agree to float32 summation order.
@@ -161,10 +160,17 @@ def test_flip_rejects_bad_options(kwargs, match):
         flip(img, img, **kwargs)
 
 
-def test_flip_system_exit_becomes_metric_error(capsys):
+def test_flip_system_exit_becomes_metric_error(capsys, monkeypatch):
+    """flip_evaluator prints its complaint and exits: flip() raises it as one MetricError."""
+
+    def rejects(*args, **kwargs):
+        print("Invalid tone mapper:\n bogus")
+        raise SystemExit(1)
+
+    monkeypatch.setattr(flip_evaluator, "evaluate", rejects)
     img = np.ones((16, 16, 3), np.float32)
     with pytest.raises(MetricError, match="flip_evaluator rejected its arguments: Invalid tone"):
-        _evaluate_flip(img, img, "HDR", False, {"tonemapper": "bogus"})
+        flip(img, img)
     assert capsys.readouterr().out == ""
 
 

@@ -5,7 +5,7 @@ import pytest
 
 import metrics
 from metrics import MetricError
-from metrics._validate import check_images
+from metrics.validate import check_images
 
 H, W = 16, 16
 REC = np.ones((H, W), bool)
