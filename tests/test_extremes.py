@@ -12,7 +12,7 @@ import pytest
 import raster_models
 from oracle.cli.app import main
 from oracle.studies.extremes import run as X
-from reports.sections.extremes import render_extremes
+from reports.sections import extremes_section, render_section
 
 #: Huge-map size of the test matrix: 1024^2 keeps the module under half a minute on 2 cores
 #: (the main job's quick mode runs 4096^2, the CLI's default 16384^2).
@@ -160,7 +160,7 @@ def test_huge_map_refused_when_memory_is_short(monkeypatch):
 def test_page_escapes_text(matrix):
     _, data = matrix
     evil = dict(data, techniques=[*data["techniques"], "<b>x</b>"], unexpected=["<i>y</i>"])
-    html = render_extremes(evil)
+    html = render_section(extremes_section(evil))
     assert "<b>x</b>" not in html and "&lt;b&gt;x&lt;/b&gt;" in html and "<i>y" not in html
 
 

@@ -18,12 +18,14 @@ point; it writes ``out/extremes.json``.
 from __future__ import annotations
 
 import copy
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from reports.sections import extremes_section
+
+from ..output import write_study
 from .cases import (
     DEFAULT_AA_EXPECTATION,
     DEFAULT_EXPECTATION,
@@ -110,10 +112,6 @@ def _reference(loaded, *, spp: int, cache, quiet: bool) -> dict:
     return get_reference(loaded, settings, cache=cache, quiet=quiet).channels()
 
 
-def _family(technique) -> str:
-    return getattr(technique, "family", "shadow")
-
-
 def _defaults(technique_name: str) -> dict:
     """Parameter name -> default of a registered technique (its public records)."""
     import raster_models
@@ -180,10 +178,11 @@ def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
 def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> dict:
     """Run one technique on one extreme's scene and judge the outcome against its
     expectation. Never raises for the model's own failure: it is recorded."""
+    import raster_models
     from raster_models import ModelError
     from raster_models import run as run_model
 
-    family = _family(technique)
+    family = raster_models.TECHNIQUES[technique.name].family
     exp = expectation(technique.name, extreme.name, family)
     metric = "coverage_rmse" if family == "aa" else "misclassified_fraction"
     cell = {
@@ -285,7 +284,7 @@ def run_extremes(
     names = extremes or list(EXTREMES)
     t0 = time.perf_counter()
     cells, scenes_info = [], {}
-    families = sorted({_family(t) for t in techs})
+    families = sorted({raster_models.TECHNIQUES[t.name].family for t in techs})
     for name in names:
         ext = EXTREMES[name]
         row = []
@@ -302,7 +301,7 @@ def run_extremes(
             row += [
                 dict(run_cell(t, ext, loaded, ref, huge=huge), scene=loaded.name)
                 for t in techs
-                if _family(t) == fam
+                if raster_models.TECHNIQUES[t.name].family == fam
             ]
         cells.extend(row)
         bad = [c["technique"] for c in row if not c["outcome_met"]]
@@ -323,12 +322,7 @@ def run_extremes(
         "wall_seconds": time.perf_counter() - t0,
     }
     if out is not None:
-        from ...reference.exr import atomic_write_bytes
-
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(out / "extremes.json", json.dumps(data, indent=2).encode())
-        from reports.sections.extremes import render_extremes_page
-
-        atomic_write_bytes(out / "extremes.html", render_extremes_page(data).encode())
+        section = extremes_section(data)
+        title = "raster-oracle extremes"
+        write_study(out, name="extremes", data=data, section=section, title=title)
     return data
