@@ -92,7 +92,8 @@ def _fake(vis_by_technique):
     ],
 )
 def test_sdsm_vs_pssm_rule(sdsm, csm, verdict):
-    out = C._sdsm_vs_pssm(_fake({"sdsm": sdsm, "csm": csm}))
+    claim = next(c for c in C.CLAIMS if c.id == "sdsm-beats-pssm")
+    out = claim.measure(_fake({"sdsm": sdsm, "csm": csm}))
     assert out["verdict"] == verdict
     assert out["value"]["n"] == 4  # 2 scenes x frames 0 and 2
 

@@ -128,7 +128,7 @@ def test_transformations_closed_form():
 
 def test_all_sky_oracle_sees_no_geometry():
     loaded = X.load_extreme(X.EXTREMES["all_sky"], width=16, height=9)
-    ref = X._reference(loaded, spp=4, cache=None, quiet=True)
+    ref = X.reference_channels(loaded, spp=4, cache=None, quiet=True)
     assert (ref["id"] == -1).all() and (ref["coverage"] == 0).all()
     assert (ref["visibility"] == 1).all()  # sky counts as lit
 

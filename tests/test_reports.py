@@ -13,8 +13,7 @@ import pytest
 from PIL import Image
 
 import reports
-from reports import formatting, stats, svg
-from reports import images as _images
+from reports import formatting, images, stats, svg
 from reports.formatting import json_script
 
 # Heights/widths of the small synthetic images; tile-aligned planted errors sit at multiples
@@ -188,20 +187,20 @@ def test_case_histograms_sum_to_pixel_count_and_centre_zero():
 def test_signed_heatmap_colours_and_fixed_range():
     data = np.array([[-1.0, 0.0, 1.0, 3.0]], dtype=np.float32)
     rgb = np.asarray(
-        _decode(_images.encode_heatmap(data, style="signed", value_range=(-1, 1))).convert("RGB")
+        _decode(images.encode_heatmap(data, style="signed", value_range=(-1, 1))).convert("RGB")
     )
-    assert tuple(rgb[0, 0]) == _images.SIGNED_NEGATIVE  # false-shadowed: red
+    assert tuple(rgb[0, 0]) == images.SIGNED_NEGATIVE  # false-shadowed: red
     assert tuple(rgb[0, 1]) == (0, 0, 0)
-    assert tuple(rgb[0, 2]) == _images.SIGNED_POSITIVE  # false-lit: green
-    assert tuple(rgb[0, 3]) == _images.SIGNED_POSITIVE  # saturates, range is fixed
+    assert tuple(rgb[0, 2]) == images.SIGNED_POSITIVE  # false-lit: green
+    assert tuple(rgb[0, 3]) == images.SIGNED_POSITIVE  # saturates, range is fixed
 
 
 def test_magma_heatmap_matches_matplotlib_ends():
     data = np.array([[0.0, 1.0]], dtype=np.float32)
     rgb = np.asarray(
-        _decode(_images.encode_heatmap(data, style="magma", value_range=(0, 1))).convert("RGB")
+        _decode(images.encode_heatmap(data, style="magma", value_range=(0, 1))).convert("RGB")
     )
-    lut = _images.palette("magma")
+    lut = images.palette("magma")
     assert tuple(rgb[0, 0]) == tuple(lut[0]) and tuple(rgb[0, 1]) == tuple(lut[-1])
 
 
@@ -221,14 +220,14 @@ def test_large_images_are_reduced_and_thin_errors_survive():
     assert case["thumbnail"]["factor"] == 2
     heat = np.asarray(_decode(case["error_maps"][0]["image"]).convert("RGB"))
     assert heat.shape == (540, 960, 3)
-    assert (heat[250, :, 0] == _images.SIGNED_NEGATIVE[0]).all()  # max-magnitude pooling
+    assert (heat[250, :, 0] == images.SIGNED_NEGATIVE[0]).all()  # max-magnitude pooling
     assert case["worst_tiles"]["tiles"][0]["y"] == 480
 
 
 def test_reduce_image_averages_srgb_in_linear_light():
     half = np.zeros((2, 2, 3), dtype=np.float32)
     half[0] = 1.0
-    mean = _images.reduce_image(half, 2, srgb=True)[0, 0, 0]
+    mean = images.reduce_image(half, 2, srgb=True)[0, 0, 0]
     assert mean == pytest.approx(0.7353569, abs=1e-5)  # sRGB encoding of linear 0.5
 
 

@@ -52,6 +52,7 @@ __all__ = [
     "HUGE_BYTES_PER_TEXEL",
     "expectation",
     "load_extreme",
+    "reference_channels",
     "run_cell",
     "run_extremes",
 ]
@@ -100,7 +101,9 @@ def load_extreme(extreme: Extreme, *, width: int, height: int, base: str = BASE_
 _REF_CHANNELS = ("visibility", "coverage", "id", "normal", "position")
 
 
-def _reference(loaded, *, spp: int, cache, quiet: bool) -> dict:
+def reference_channels(loaded, *, spp: int, cache, quiet: bool) -> dict:
+    """The oracle's channels (visibility, coverage, id, normal, position) of ``loaded`` at
+    ``spp`` (seed 0): rendered, or from ``cache`` (a reference cache) when given."""
     from ...reference.render import ReferenceSettings, render_reference
 
     settings = ReferenceSettings(spp=spp, seed=0, channels=_REF_CHANNELS)
@@ -292,7 +295,7 @@ def run_extremes(
         for fam in families:
             base = BASE_SCENES.get(fam, BASE_SCENE)
             loaded = load_extreme(ext, width=width, height=height, base=base)
-            ref = _reference(loaded, spp=spp, cache=cache, quiet=quiet)
+            ref = reference_channels(loaded, spp=spp, cache=cache, quiet=quiet)
             scenes_info[name]["scenes"][fam] = {
                 "scene": loaded.name,
                 "light": loaded.light.kind,
