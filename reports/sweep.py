@@ -96,7 +96,8 @@ def _short(v) -> str:
     return str(v)
 
 
-def case_id(row: Mapping) -> str:
+def _case_id(row: Mapping) -> str:
+    """The HTML id of a row of the cases table."""
     return f"row-{row['key'][:12]}"
 
 
@@ -181,7 +182,7 @@ def _front(
         vary = varying[r["technique"]]
         points.append(
             {
-                "case_id": case_id(r),
+                "case_id": _case_id(r),
                 "key": r["key"],
                 "name": _label(r, vary),
                 "technique": r["technique"],
@@ -341,7 +342,7 @@ def sweep_record(
         cost = with_memory(r.get("cost"))
         cases.append(
             {
-                "id": case_id(r),
+                "id": _case_id(r),
                 "key": r["key"],
                 "name": _label(r, vary[(r["technique"], r["scene"])]),
                 "scene": r["scene"],
