@@ -8,8 +8,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from . import _stats
 from . import images as _images
+from . import stats
 from ._validate import (
     KINDS,
     check_cost,
@@ -94,6 +94,84 @@ def _thumbnails(
     return images, heatmaps
 
 
+def _check_labels(name, scene, kind, technique, family) -> None:
+    check_name("name", name)
+    if not isinstance(scene, str):
+        raise TypeError(f"scene must be a string, got {scene!r}")
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {list(KINDS)}, got {kind!r}")
+    for label, value in (("technique", technique), ("family", family)):
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"{label} must be a string or None, got {value!r}")
+
+
+def _check_sizes(**sizes: int) -> None:
+    for label, value in sizes.items():
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise ValueError(f"{label} must be a positive integer, got {value!r}")
+
+
+def _fit_thumbnails(
+    reference: np.ndarray,
+    candidate: np.ndarray,
+    maps: dict,
+    *,
+    kind: str,
+    factor: int,
+    max_bytes: int,
+) -> tuple[dict[str, str], dict[str, str], int, int]:
+    """Thumbnails reduced by the smallest factor from ``factor`` up whose encoded size fits
+    ``max_bytes``: ``(images, heatmaps, factor, size)``."""
+    height, width = reference.shape[:2]
+    while True:
+        images, heatmaps = _thumbnails(reference, candidate, maps, kind=kind, factor=factor)
+        size = sum(map(len, images.values())) + sum(map(len, heatmaps.values()))
+        if size <= max_bytes or factor >= max(height, width):
+            return images, heatmaps, factor, size
+        # Encoded size scales roughly with the pixel count, i.e. with 1 / factor^2.
+        factor = max(factor + 1, math.ceil(factor * math.sqrt(size / max_bytes)))
+
+
+def _map_records(maps: dict, heatmaps: dict[str, str]) -> list[dict]:
+    return [
+        {
+            "name": name,
+            "style": spec["style"],
+            "range": spec["range"],
+            "primary": spec["primary"],
+            "image": heatmaps[name],
+            "histogram": stats.histogram(
+                spec["data"], style=spec["style"], value_range=tuple(spec["range"])
+            ),
+            "summary": stats.error_summary(spec["data"]),
+        }
+        for name, spec in maps.items()
+    ]
+
+
+def _worst_tiles(
+    reference: np.ndarray,
+    candidate: np.ndarray,
+    maps: dict,
+    *,
+    kind: str,
+    tile_size: int,
+    n_tiles: int,
+) -> dict:
+    """The worst tiles of the primary error map with full-resolution crops of each image."""
+    map_name, spec = next((name, spec) for name, spec in maps.items() if spec["primary"])
+    tiles = stats.worst_tiles(spec["data"], tile=tile_size, count=n_tiles)
+    for tile in tiles:
+        rows = slice(tile["y"], tile["y"] + tile["h"])
+        cols = slice(tile["x"], tile["x"] + tile["w"])
+        tile["reference"] = _encode_image(reference[rows, cols], kind, lossless=True)
+        tile["candidate"] = _encode_image(candidate[rows, cols], kind, lossless=True)
+        tile["error"] = _images.encode_heatmap(
+            spec["data"][rows, cols], style=spec["style"], value_range=tuple(spec["range"])
+        )
+    return {"map": map_name, "tile_size": tile_size, "tiles": tiles}
+
+
 def make_case(
     *,
     name: str,
@@ -163,22 +241,8 @@ def make_case(
     dict
         The case record; its keys are documented in the :mod:`reports` module docstring.
     """
-    check_name("name", name)
-    if not isinstance(scene, str):
-        raise TypeError(f"scene must be a string, got {scene!r}")
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {list(KINDS)}, got {kind!r}")
-    for label, value in (("technique", technique), ("family", family)):
-        if value is not None and not isinstance(value, str):
-            raise TypeError(f"{label} must be a string or None, got {value!r}")
-    for label, value in (
-        ("tile_size", tile_size),
-        ("n_tiles", n_tiles),
-        ("max_size", max_size),
-        ("max_bytes", max_bytes),
-    ):
-        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-            raise ValueError(f"{label} must be a positive integer, got {value!r}")
+    _check_labels(name, scene, kind, technique, family)
+    _check_sizes(tile_size=tile_size, n_tiles=n_tiles, max_size=max_size, max_bytes=max_bytes)
     reference = check_image("reference", reference, kind=kind)
     candidate = check_image("candidate", candidate, kind=kind)
     if reference.shape != candidate.shape:
@@ -198,39 +262,14 @@ def make_case(
     if params is not None and not isinstance(params, Mapping):
         raise TypeError(f"params must be a dict or None, got {type(params).__name__}")
 
-    factor = _images.downscale_factor((height, width), max_size=max_size)
-    while True:
-        images, heatmaps = _thumbnails(reference, candidate, maps, kind=kind, factor=factor)
-        size = sum(map(len, images.values())) + sum(map(len, heatmaps.values()))
-        if size <= max_bytes or factor >= max(height, width):
-            break
-        # Encoded size scales roughly with the pixel count, i.e. with 1 / factor^2.
-        factor = max(factor + 1, math.ceil(factor * math.sqrt(size / max_bytes)))
-    map_records = [
-        {
-            "name": name,
-            "style": spec["style"],
-            "range": spec["range"],
-            "primary": spec["primary"],
-            "image": heatmaps[name],
-            "histogram": _stats.histogram(
-                spec["data"], style=spec["style"], value_range=tuple(spec["range"])
-            ),
-            "summary": _stats.error_summary(spec["data"]),
-        }
-        for name, spec in maps.items()
-    ]
-    map_name, spec = next((name, spec) for name, spec in maps.items() if spec["primary"])
-    tiles = _stats.worst_tiles(spec["data"], tile=tile_size, count=n_tiles)
-    for tile in tiles:
-        rows = slice(tile["y"], tile["y"] + tile["h"])
-        cols = slice(tile["x"], tile["x"] + tile["w"])
-        tile["reference"] = _encode_image(reference[rows, cols], kind, lossless=True)
-        tile["candidate"] = _encode_image(candidate[rows, cols], kind, lossless=True)
-        tile["error"] = _images.encode_heatmap(
-            spec["data"][rows, cols], style=spec["style"], value_range=tuple(spec["range"])
-        )
-
+    images, heatmaps, factor, size = _fit_thumbnails(
+        reference,
+        candidate,
+        maps,
+        kind=kind,
+        factor=_images.downscale_factor((height, width), max_size=max_size),
+        max_bytes=max_bytes,
+    )
     failing = _failing(metrics, thresholds)
     within_noise = [
         key
@@ -261,7 +300,9 @@ def make_case(
         "within_noise": within_noise,
         "status": "unchecked" if not thresholds else ("fail" if failing else "pass"),
         "images": images,
-        "error_maps": map_records,
-        "worst_tiles": {"map": map_name, "tile_size": tile_size, "tiles": tiles},
+        "error_maps": _map_records(maps, heatmaps),
+        "worst_tiles": _worst_tiles(
+            reference, candidate, maps, kind=kind, tile_size=tile_size, n_tiles=n_tiles
+        ),
         "exr_links": _exr_links(exr_links),
     }

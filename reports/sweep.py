@@ -4,8 +4,9 @@ rows of a sweep store.
 Data in, file out: the rows are plain records (``oracle.sweeps.store.SweepStore.rows``:
 ``key``, ``scene``, ``technique``, ``family``, ``params``, ``frame``, ``path``, ``metrics``,
 ``cost``, ``status``, ``error``, ``wall_seconds``, ...); :func:`sweep_record` reduces them to
-one JSON-serialisable record and :func:`write_sweep_report` writes it as one self-contained
-HTML file with its JSON twin (``report.json`` beside ``report.html``).
+one JSON-serialisable record and :func:`write_sweep_report` writes it, with the section
+records of the studies (:mod:`reports.sections`), as one self-contained HTML file
+(``templates/sweep.html``) and its JSON twin (``report.json`` beside ``report.html``).
 
 Cases are grouped by technique family and scene: techniques of one family answer the same
 question (a shadow test, an anti-aliased image), so their fronts are comparable, while error
@@ -28,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from ._tradeoff import pareto_front
+from ._write import atomic_write_text
+from .sections.page import render_sweep_page
 
 __all__ = [
     "DEFAULT_COSTS",
@@ -93,7 +96,8 @@ def _short(v) -> str:
     return str(v)
 
 
-def case_id(row: Mapping) -> str:
+def _case_id(row: Mapping) -> str:
+    """The HTML id of a row of the cases table."""
     return f"row-{row['key'][:12]}"
 
 
@@ -150,65 +154,83 @@ def with_memory(cost: Mapping | None) -> dict:
     return out
 
 
-def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> dict:
-    done = [
+def _done_rows(rows: Sequence[Mapping]) -> list[dict]:
+    """The finished rows with metrics, their cost with ``memory_bytes`` filled in."""
+    return [
         {**r, "cost": with_memory(r.get("cost"))}
         for r in rows
         if r["status"] == "done" and r.get("metrics")
     ]
-    metric_names = list(
-        dict.fromkeys(k for r in done for k, v in r["metrics"].items() if _number(v) is not None)
-    )
-    cost_names = list(
-        dict.fromkeys(
-            k for r in done for k, v in (r.get("cost") or {}).items() if _number(v) is not None
-        )
-    )
-    metric_list = _pick(metrics, DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS, metric_names)
-    cost_list = _pick(costs, DEFAULT_COSTS.get(family, ()), cost_names)
-    by_tech: dict[str, list[dict]] = {}
+
+
+def _numeric_keys(records: Sequence[Mapping | None]) -> list[str]:
+    """Keys with a finite number in some record, first seen first."""
+    keys = (k for rec in records for k, v in (rec or {}).items() if _number(v) is not None)
+    return list(dict.fromkeys(keys))
+
+
+def _front(
+    label: str, done: Sequence[Mapping], varying: Mapping, cost_key: str, metric: str
+) -> dict | None:
+    """The Pareto front of ``metric`` against ``cost_key`` over ``done`` (None: no point)."""
+    points = []
     for r in done:
-        by_tech.setdefault(r["technique"], []).append(r)
-    varying = {t: _varying(rs) for t, rs in by_tech.items()}
-    fronts = []
-    for cost_key in cost_list:
-        for metric in metric_list:
-            points = []
-            for r in done:
-                c = _number((r.get("cost") or {}).get(cost_key))
-                e = _number(r["metrics"].get(metric))
-                if c is None or e is None:
-                    continue
-                vary = varying[r["technique"]]
-                points.append(
-                    {
-                        "case_id": case_id(r),
-                        "key": r["key"],
-                        "name": _label(r, vary),
-                        "technique": r["technique"],
-                        "params": {k: r["params"][k] for k in vary if k in r["params"]},
-                        "cost": c,
-                        "error": e,
-                    }
-                )
-            if not points:
-                continue
-            mask = pareto_front([p["cost"] for p in points], [p["error"] for p in points])
-            for p, on in zip(points, mask, strict=True):
-                p["on_front"] = bool(on)
-            front = sorted(np.flatnonzero(mask).tolist(), key=lambda i: (points[i]["cost"], i))
-            fronts.append(
-                {
-                    "family": f"{family} on {scene}",
-                    "cost_key": cost_key,
-                    "metric": metric,
-                    "points": points,
-                    "front": front,
-                    "best_at_equal_cost": best_at_equal_cost(points),
-                }
-            )
-    sensitivity = []
-    headline = metric_list[0] if metric_list else None
+        c = _number((r.get("cost") or {}).get(cost_key))
+        e = _number(r["metrics"].get(metric))
+        if c is None or e is None:
+            continue
+        vary = varying[r["technique"]]
+        points.append(
+            {
+                "case_id": _case_id(r),
+                "key": r["key"],
+                "name": _label(r, vary),
+                "technique": r["technique"],
+                "params": {k: r["params"][k] for k in vary if k in r["params"]},
+                "cost": c,
+                "error": e,
+            }
+        )
+    if not points:
+        return None
+    mask = pareto_front([p["cost"] for p in points], [p["error"] for p in points])
+    for p, on in zip(points, mask, strict=True):
+        p["on_front"] = bool(on)
+    front = sorted(np.flatnonzero(mask).tolist(), key=lambda i: (points[i]["cost"], i))
+    return {
+        "family": label,
+        "cost_key": cost_key,
+        "metric": metric,
+        "points": points,
+        "front": front,
+        "best_at_equal_cost": best_at_equal_cost(points),
+    }
+
+
+def _levels(xs: list, ys: list[float], *, numeric: bool) -> list[dict]:
+    """Mean, min, max and count of ``ys`` at each distinct value of ``xs``."""
+    keys = [x if numeric else json.dumps(x) for x in xs]
+    levels = sorted(set(keys)) if numeric else list(dict.fromkeys(keys))
+    out = []
+    for level in levels:
+        sel = [y for k, y in zip(keys, ys, strict=True) if k == level]
+        out.append(
+            {
+                "x": level if numeric else json.loads(level),
+                "mean": float(np.mean(sel)),
+                "min": float(np.min(sel)),
+                "max": float(np.max(sel)),
+                "n": len(sel),
+            }
+        )
+    return out
+
+
+def _sensitivity(
+    scene: str, by_tech: Mapping[str, list], varying: Mapping, headline: str | None
+) -> list[dict]:
+    """The headline metric against each parameter a technique varies."""
+    items = []
     for tech, rs in by_tech.items():
         for name in varying[tech]:
             xs, ys = [], []
@@ -221,24 +243,7 @@ def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> 
             if len(set(json.dumps(x) for x in xs)) < 2:
                 continue
             numeric = all(_number(x) is not None for x in xs)
-            levels = sorted(set(xs)) if numeric else list(dict.fromkeys(json.dumps(x) for x in xs))
-            mean = []
-            for level in levels:
-                sel = [
-                    y
-                    for x, y in zip(xs, ys, strict=True)
-                    if (x == level if numeric else json.dumps(x) == level)
-                ]
-                mean.append(
-                    {
-                        "x": level if numeric else json.loads(level),
-                        "mean": float(np.mean(sel)),
-                        "min": float(np.min(sel)),
-                        "max": float(np.max(sel)),
-                        "n": len(sel),
-                    }
-                )
-            sensitivity.append(
+            items.append(
                 {
                     "technique": tech,
                     "scene": scene,
@@ -246,35 +251,60 @@ def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> 
                     "metric": headline,
                     "numeric": numeric,
                     "points": [{"x": x, "y": y} for x, y in zip(xs, ys, strict=True)],
-                    "levels": mean,
+                    "levels": _levels(xs, ys, numeric=numeric),
                 }
             )
-    gallery = []
-    if fronts:
-        headline_front = fronts[0]
-        for i in headline_front["front"]:
-            p = headline_front["points"][i]
-            gallery.append(
-                {
-                    "case_id": p["case_id"],
-                    "key": p["key"],
-                    "name": p["name"],
-                    "cost_key": headline_front["cost_key"],
-                    "cost": p["cost"],
-                    "metric": headline_front["metric"],
-                    "error": p["error"],
-                }
-            )
+    return items
+
+
+def _gallery(fronts: Sequence[Mapping]) -> list[dict]:
+    """The cases on the headline front (the first), by increasing cost."""
+    if not fronts:
+        return []
+    head = fronts[0]
+    return [
+        {
+            "case_id": p["case_id"],
+            "key": p["key"],
+            "name": p["name"],
+            "cost_key": head["cost_key"],
+            "cost": p["cost"],
+            "metric": head["metric"],
+            "error": p["error"],
+        }
+        for p in (head["points"][i] for i in head["front"])
+    ]
+
+
+def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> dict:
+    """Fronts, sensitivity and gallery of the rows of one family on one scene."""
+    done = _done_rows(rows)
+    metric_names = _numeric_keys([r["metrics"] for r in done])
+    cost_names = _numeric_keys([r.get("cost") for r in done])
+    metric_list = _pick(metrics, DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS, metric_names)
+    cost_list = _pick(costs, DEFAULT_COSTS.get(family, ()), cost_names)
+    by_tech: dict[str, list[dict]] = {}
+    for r in done:
+        by_tech.setdefault(r["technique"], []).append(r)
+    varying = {t: _varying(rs) for t, rs in by_tech.items()}
+    label = f"{family} on {scene}"
+    fronts = [
+        front
+        for cost_key in cost_list
+        for metric in metric_list
+        if (front := _front(label, done, varying, cost_key, metric)) is not None
+    ]
+    headline = metric_list[0] if metric_list else None
     return {
         "family": family,
         "scene": scene,
-        "gallery": gallery,
+        "gallery": _gallery(fronts),
         "n_cases": len(rows),
         "n_done": len(done),
         "metrics": metric_list,
         "costs": cost_list,
         "fronts": fronts,
-        "sensitivity": sensitivity,
+        "sensitivity": _sensitivity(scene, by_tech, varying, headline),
     }
 
 
@@ -312,7 +342,7 @@ def sweep_record(
         cost = with_memory(r.get("cost"))
         cases.append(
             {
-                "id": case_id(r),
+                "id": _case_id(r),
                 "key": r["key"],
                 "name": _label(r, vary[(r["technique"], r["scene"])]),
                 "scene": r["scene"],
@@ -360,23 +390,31 @@ def write_sweep_report(
     extra_sections: Sequence[Mapping] | None = None,
     images: Mapping[str, Mapping] | None = None,
 ) -> dict:
-    """Write ``path`` (HTML) and ``report.json``-style twin ``path.with_suffix('.json')``.
+    """Write the page ``path`` (HTML) and its JSON twin ``path.with_suffix('.json')``.
 
-    ``images``: thumbnails by row key (``reference``, ``candidate``, ``error`` data URIs),
-    shown for the cases on each group's headline front (the HTML only, not the JSON).
+    Parameters
+    ----------
+    rows, title, provenance, costs, metrics
+        As :func:`sweep_record`.
+    extra_sections : sequence of dict, optional
+        Section records (:mod:`reports.sections`: claims, extremes, anti-aliasing memory,
+        or a failed one) placed after the fronts; the JSON holds them under ``"sections"``.
+    images : dict, optional
+        Thumbnails by row key (``reference``, ``candidate``, ``error`` data URIs), shown for
+        the cases on each group's headline front. They are the page's only content that is
+        not in the JSON (the store keeps them; the JSON names the cases by key).
 
-    ``extra_sections``: ``{"id", "title", "html"}`` records (HTML fragments that escape their
-    own text, e.g. the claims and extremes sections) placed after the fronts.
+    Returns
+    -------
+    dict
+        The record written as JSON: :func:`sweep_record` plus ``"sections"``.
     """
-    from ._write import _atomic_write_text
-    from .sections.sweep import render_sweep_html
-
     record = sweep_record(rows, title=title, provenance=provenance, costs=costs, metrics=metrics)
-    html = render_sweep_html(record, extra_sections=extra_sections or [], images=images or {})
+    record["sections"] = [dict(x) for x in extra_sections or []]
+    html = render_sweep_page(record, images=images)
+    text = json.dumps(record, indent=1, allow_nan=False, default=str)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_write_text(
-        path.with_suffix(".json"), json.dumps(record, indent=1, allow_nan=False, default=str)
-    )
-    _atomic_write_text(path, html)
+    atomic_write_text(path.with_suffix(".json"), text)
+    atomic_write_text(path, html)
     return record

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 
+import jinja2
 import pytest
 
 import scenes
@@ -130,3 +131,24 @@ def test_cli_refuses_an_output_under_a_file(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("raster-oracle: error:") and "\n" not in err
     assert blocker.read_text() == "x"
+
+
+def test_study_files_are_written_together_or_not_at_all(tmp_path, report):
+    from oracle.studies.output import write_study
+    from reports.sections import aa_memory_section, claims_section
+
+    out = tmp_path / "mem"
+    json_path, html_path = write_study(
+        out, name="aa_memory", data=report, section=aa_memory_section(report), title="<t>"
+    )
+    assert json.loads(json_path.read_text()) == json.loads(json.dumps(report))
+    assert "<title>&lt;t&gt;</title>" in html_path.read_text()
+    assert sorted(p.name for p in out.iterdir()) == ["aa_memory.html", "aa_memory.json"]
+    # a page that cannot be rendered (a claims section of memory data) writes nothing
+    bad = tmp_path / "bad"
+    with pytest.raises(jinja2.UndefinedError, match="resolution"):
+        write_study(bad, name="x", data=report, section=claims_section(report), title="t")
+    assert not bad.exists()
+    # nor does data that is not standard JSON
+    with pytest.raises(ValueError, match="JSON|NaN|nan"):
+        aa_memory_section({**report, "formats": float("nan")})

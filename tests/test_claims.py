@@ -13,7 +13,8 @@ import pytest
 import raster_models
 from oracle.cli.app import main
 from oracle.studies.claims import run as C
-from reports.sections.claims import fmt_summary, render_claims
+from reports.formatting import fmt_summary
+from reports.sections import claims_section, render_section
 
 #: Copies of the project's seed documents and TECHNIQUES.md (``../shared/`` is not part of a
 #: clone, so CI could not read them there).
@@ -91,7 +92,8 @@ def _fake(vis_by_technique):
     ],
 )
 def test_sdsm_vs_pssm_rule(sdsm, csm, verdict):
-    out = C._sdsm_vs_pssm(_fake({"sdsm": sdsm, "csm": csm}))
+    claim = next(c for c in C.CLAIMS if c.id == "sdsm-beats-pssm")
+    out = claim.measure(_fake({"sdsm": sdsm, "csm": csm}))
     assert out["verdict"] == verdict
     assert out["value"]["n"] == 4  # 2 scenes x frames 0 and 2
 
@@ -146,9 +148,12 @@ def test_acaa_equals_msaa_except_ties(measured):
 def test_files_and_page(measured):
     out, data = measured
     assert (out / "claims.json").is_file() and (out / "claims.html").is_file()
-    evil = {"claims": [{**data["claims"][0], "claim": "<script>x</script>"}]}
-    html = render_claims(evil)
+    evil = dict(data, claims=[{**data["claims"][0], "claim": "<script>x</script>"}])
+    html = render_section(claims_section(evil))
     assert "<script>x" not in html and "&lt;script&gt;" in html
+    page = (out / "claims.html").read_text()
+    for row in data["claims"]:
+        assert f"<b>{row['id']}</b>" in page and f">{row['verdict']}</td>" in page
     assert np.isfinite(data["wall_seconds"])
 
 

@@ -16,7 +16,7 @@ from oracle.studies.converge import (
     spp_for_target,
     spp_ladder,
 )
-from reports.sections.converge import render_converge
+from reports.sections import converge_section, render_section
 
 #: Slope tolerance: the fit spans 4..256 spp on ~300 edge pixels of a 96x54 plate; its spread
 #: over seeds 0..3 is about +-0.03, so 0.1 still separates -0.75 (jittered samples at edges)
@@ -166,5 +166,5 @@ def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, argv, me
 
 def test_page_escapes_scene_names(plate):
     data = dict(plate, scene={**plate["scene"], "name": "<script>x</script>"})
-    html = render_converge(data)
+    html = render_section(converge_section(data))
     assert "<script>x" not in html and "&lt;script&gt;" in html

@@ -12,7 +12,7 @@ import pytest
 import raster_models
 from oracle.cli.app import main
 from oracle.studies.extremes import run as X
-from reports.sections.extremes import render_extremes
+from reports.sections import extremes_section, render_section
 
 #: Huge-map size of the test matrix: 1024^2 keeps the module under half a minute on 2 cores
 #: (the main job's quick mode runs 4096^2, the CLI's default 16384^2).
@@ -128,7 +128,7 @@ def test_transformations_closed_form():
 
 def test_all_sky_oracle_sees_no_geometry():
     loaded = X.load_extreme(X.EXTREMES["all_sky"], width=16, height=9)
-    ref = X._reference(loaded, spp=4, cache=None, quiet=True)
+    ref = X.reference_channels(loaded, spp=4, cache=None, quiet=True)
     assert (ref["id"] == -1).all() and (ref["coverage"] == 0).all()
     assert (ref["visibility"] == 1).all()  # sky counts as lit
 
@@ -160,7 +160,7 @@ def test_huge_map_refused_when_memory_is_short(monkeypatch):
 def test_page_escapes_text(matrix):
     _, data = matrix
     evil = dict(data, techniques=[*data["techniques"], "<b>x</b>"], unexpected=["<i>y</i>"])
-    html = render_extremes(evil)
+    html = render_section(extremes_section(evil))
     assert "<b>x</b>" not in html and "&lt;b&gt;x&lt;/b&gt;" in html and "<i>y" not in html
 
 

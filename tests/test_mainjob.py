@@ -1,5 +1,5 @@
-"""The main job: the default sweep spec, the sweep into ``OUT/sweep.db``, the optional
-sections (claims, extremes) and the one report, at a small size."""
+"""The main job: the default sweep spec, the sweep into ``OUT/sweep.db``, the sections
+(claims, extremes, anti-aliasing memory) and the one report with its JSON, at a small size."""
 
 from __future__ import annotations
 
@@ -29,29 +29,42 @@ def test_default_spec_is_worth_looking_at_and_covers_every_technique():
         assert len({(c.scene, json.dumps(c.params, sort_keys=True)) for c in mine}) > 1, tech
 
 
+#: The cheapest claim and extremes of the real studies (their own tests run them all).
+CLAIMS = ["coherent-lossless"]
+EXTREMES = ["baseline"]
+EXTREME_MODELS = ["shadow-map", "msaa"]
+
+
 @pytest.fixture
 def sections(monkeypatch):
-    """Record the calls of the claims and extremes sections (their own tests run them)."""
+    """The real claims and extremes studies, restricted to a claim and two models; their
+    calls are recorded, and ``fail["extremes"]`` makes the extremes raise."""
     calls = []
-
-    def fake(entry):
-        sid = entry[0]
-
-        def run(out, *, cache, quiet, echo, quick):
-            calls.append({"id": sid, "out": out, "quick": quick, "cache": cache})
-            if sid == "extremes" and fail.get("extremes"):
-                raise RuntimeError("extremes broke")
-            data = {"section": sid, "cells": 3}
-            (out / f"{sid}.json").write_text(json.dumps(data))
-            return data
-
-        def render(data):
-            return f'<p class="{data["section"]}-fragment">{data["cells"]} cells</p>'
-
-        return run, render
-
     fail: dict = {}
-    monkeypatch.setattr(mainjob, "_load_section", fake)
+    real_claims, real_extremes = mainjob.run_claims, mainjob.run_extremes
+
+    def claims(out, *, cache, quiet, echo, quick):
+        calls.append({"id": "claims", "out": out, "quick": quick})
+        return real_claims(
+            out, cache=cache, quiet=quiet, echo=echo, quick=quick, only=CLAIMS, size=(32, 18)
+        )
+
+    def extremes(out, *, cache, quiet, echo, quick):
+        calls.append({"id": "extremes", "out": out, "quick": quick})
+        if fail.get("extremes"):
+            raise RuntimeError("extremes <broke>")
+        return real_extremes(
+            out,
+            cache=cache,
+            quiet=quiet,
+            echo=echo,
+            quick=quick,
+            extremes=EXTREMES,
+            techniques=EXTREME_MODELS,
+        )
+
+    monkeypatch.setattr(mainjob, "run_claims", claims)
+    monkeypatch.setattr(mainjob, "run_extremes", extremes)
     return calls, fail
 
 
@@ -81,12 +94,37 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
         ("extremes", True, out),
     ]
     html = (out / "report.html").read_text()
-    assert '<p class="claims-fragment">3 cells</p>' in html
-    assert '<p class="extremes-fragment">3 cells</p>' in html
+    assert "Claims of the seed documents" in html and "Numerical extremes" in html
+    assert "Anti-aliasing framebuffer memory" in html
     assert html.index('id="fronts"') < html.index('id="claims"') < html.index('id="cases"')
     # a second run finds every case in the store
     assert main(["main", "--scenes", "plate,spot,decal", "--out", str(out), *SMALL]) == 0
     assert f"({len(rows)} already done, 0 done, 0 failed)" in capsys.readouterr().out
+
+
+def test_report_json_holds_every_section_record(tmp_path, sections):
+    out = tmp_path / "main"
+    assert main(["main", "--scenes", "spot", "--out", str(out), *SMALL]) == 0
+    report = json.loads((out / "report.json").read_text())
+    found = {s["kind"]: s for s in report["sections"]}
+    assert [s["id"] for s in report["sections"]] == ["claims", "extremes", "aa-memory"]
+    assert not any(s["failed"] for s in report["sections"])
+    # each holds its study's record, as the study wrote it beside the report
+    claims = found["claims"]["data"]
+    assert claims == json.loads((out / "claims.json").read_text())
+    assert [r["id"] for r in claims["claims"]] == CLAIMS
+    extremes = found["extremes"]["data"]
+    assert extremes == json.loads((out / "extremes.json").read_text())
+    assert {(c["extreme"], c["technique"]) for c in extremes["cells"]} == {
+        (e, t) for e in EXTREMES for t in EXTREME_MODELS
+    }
+    # the matrix: one row per extreme, its cells (indices) in the order of the techniques
+    (row,) = found["extremes"]["matrix"]
+    assert row["extreme"] == "baseline"
+    assert [extremes["cells"][i]["technique"] for i in row["cells"]] == extremes["techniques"]
+    memory = found["aa_memory"]["data"]
+    assert memory["schema"] == "raster-oracle.aa-memory/1"
+    assert any(row["label"].startswith("MSAA 8x") for row in memory["rows"])
 
 
 def test_a_failing_section_is_in_the_report_and_the_exit_code(tmp_path, capsys, sections):
@@ -97,7 +135,12 @@ def test_a_failing_section_is_in_the_report_and_the_exit_code(tmp_path, capsys, 
     captured = capsys.readouterr()
     assert "failed: extremes" in captured.err
     html = (out / "report.html").read_text()
-    assert "This section failed" in html and "extremes broke" in html
+    assert "This section failed" in html and "extremes &lt;broke&gt;" in html
+    report = json.loads((out / "report.json").read_text())
+    (failed,) = [s for s in report["sections"] if s["failed"]]
+    assert failed["id"] == "extremes" and failed["error"] == "RuntimeError: extremes <broke>"
+    # the other sections are still there
+    assert [s["id"] for s in report["sections"]] == ["claims", "extremes", "aa-memory"]
 
 
 @pytest.mark.parametrize(

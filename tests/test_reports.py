@@ -13,9 +13,8 @@ import pytest
 from PIL import Image
 
 import reports
-from reports import _format, _stats, _svg
-from reports import images as _images
-from reports._write import json_script
+from reports import formatting, images, stats, svg
+from reports.formatting import json_script
 
 # Heights/widths of the small synthetic images; tile-aligned planted errors sit at multiples
 # of the 32 px tile.
@@ -137,7 +136,7 @@ def test_worst_tiles_unaligned_error_and_partial_edge_tiles():
     error = np.zeros((70, 90), dtype=np.float32)
     error[40:50, 20:30] = 0.5  # straddles no tile edge: inside tile (0, 32)
     error[64:70, 80:90] = -1.0  # bottom-right partial tile of 6 x 10 px
-    tiles = _stats.worst_tiles(error, tile=32, count=4)
+    tiles = stats.worst_tiles(error, tile=32, count=4)
     assert [(t["x"], t["y"], t["w"], t["h"]) for t in tiles] == [(64, 64, 26, 6), (0, 32, 32, 32)]
     assert tiles[0]["mean_abs_error"] == pytest.approx(60.0 / (26 * 6))
     assert tiles[1]["mean_abs_error"] == pytest.approx(0.5 * 100 / 1024)
@@ -168,7 +167,7 @@ def test_worst_tiles_empty_when_identical():
 )
 def test_histogram_counts_sum_to_pixel_count(style, data):
     lo, hi = (-1.0, 1.0) if style == "signed" else (0.0, 1.0)
-    hist = _stats.histogram(data, style=style, value_range=(lo, hi))
+    hist = stats.histogram(data, style=style, value_range=(lo, hi))
     assert sum(hist["counts"]) == hist["total"] == H * W
     assert len(hist["edges"]) == len(hist["counts"]) + 1
     assert hist["below"] == int(np.sum(data < lo))
@@ -188,20 +187,20 @@ def test_case_histograms_sum_to_pixel_count_and_centre_zero():
 def test_signed_heatmap_colours_and_fixed_range():
     data = np.array([[-1.0, 0.0, 1.0, 3.0]], dtype=np.float32)
     rgb = np.asarray(
-        _decode(_images.encode_heatmap(data, style="signed", value_range=(-1, 1))).convert("RGB")
+        _decode(images.encode_heatmap(data, style="signed", value_range=(-1, 1))).convert("RGB")
     )
-    assert tuple(rgb[0, 0]) == _images.SIGNED_NEGATIVE  # false-shadowed: red
+    assert tuple(rgb[0, 0]) == images.SIGNED_NEGATIVE  # false-shadowed: red
     assert tuple(rgb[0, 1]) == (0, 0, 0)
-    assert tuple(rgb[0, 2]) == _images.SIGNED_POSITIVE  # false-lit: green
-    assert tuple(rgb[0, 3]) == _images.SIGNED_POSITIVE  # saturates, range is fixed
+    assert tuple(rgb[0, 2]) == images.SIGNED_POSITIVE  # false-lit: green
+    assert tuple(rgb[0, 3]) == images.SIGNED_POSITIVE  # saturates, range is fixed
 
 
 def test_magma_heatmap_matches_matplotlib_ends():
     data = np.array([[0.0, 1.0]], dtype=np.float32)
     rgb = np.asarray(
-        _decode(_images.encode_heatmap(data, style="magma", value_range=(0, 1))).convert("RGB")
+        _decode(images.encode_heatmap(data, style="magma", value_range=(0, 1))).convert("RGB")
     )
-    lut = _images.palette("magma")
+    lut = images.palette("magma")
     assert tuple(rgb[0, 0]) == tuple(lut[0]) and tuple(rgb[0, 1]) == tuple(lut[-1])
 
 
@@ -221,14 +220,14 @@ def test_large_images_are_reduced_and_thin_errors_survive():
     assert case["thumbnail"]["factor"] == 2
     heat = np.asarray(_decode(case["error_maps"][0]["image"]).convert("RGB"))
     assert heat.shape == (540, 960, 3)
-    assert (heat[250, :, 0] == _images.SIGNED_NEGATIVE[0]).all()  # max-magnitude pooling
+    assert (heat[250, :, 0] == images.SIGNED_NEGATIVE[0]).all()  # max-magnitude pooling
     assert case["worst_tiles"]["tiles"][0]["y"] == 480
 
 
 def test_reduce_image_averages_srgb_in_linear_light():
     half = np.zeros((2, 2, 3), dtype=np.float32)
     half[0] = 1.0
-    mean = _images.reduce_image(half, 2, srgb=True)[0, 0, 0]
+    mean = images.reduce_image(half, 2, srgb=True)[0, 0, 0]
     assert mean == pytest.approx(0.7353569, abs=1e-5)  # sRGB encoding of linear 0.5
 
 
@@ -327,9 +326,9 @@ def test_build_report_tradeoff_per_family():
         "pcf 64",
     ]
     assert [families["vsm"]["points"][i]["name"] for i in families["vsm"]["front"]] == ["vsm 2"]
-    svg = _svg.scatter_svg(families["pcf"], cost_key="memory_bytes", metric="misclassified")
-    assert svg.count("<circle") == 4 and svg.count('class="point on-front"') == 3
-    assert 'class="front"' in svg and "MiB" in svg
+    plot = svg.scatter_svg(families["pcf"], cost_key="memory_bytes", metric="misclassified")
+    assert plot.count("<circle") == 4 and plot.count('class="point on-front"') == 3
+    assert 'class="front"' in plot and "MiB" in plot
 
 
 def test_build_report_without_costs_has_no_tradeoff():
@@ -427,14 +426,14 @@ def test_read_cases_rebases_exr_links(tmp_path):
 
 
 def test_formatting_filters():
-    assert _format.fmt_bytes(4 * 2**20) == "4 MiB"
-    assert _format.fmt_cost(1536, "memory_bytes") == "1.5 KiB"
-    assert _format.fmt_cost(1048576, "texels_rendered") == "1,048,576"
-    assert _format.fmt_number(-0.0123456) == "−0.01235"
-    assert _format.fmt_number("inf") == "∞" and _format.fmt_number(None) == "—"
-    assert _format.fmt_threshold({"min": 25.0}) == "≥ 25"
-    assert _format.flatten({"a": {"b": 1}, "c": 2}) == [("a.b", 1), ("c", 2)]
-    assert _format.sort_key("nan") == "" and _format.sort_key(0.25) == "0.25"
+    assert formatting.fmt_bytes(4 * 2**20) == "4 MiB"
+    assert formatting.fmt_cost(1536, "memory_bytes") == "1.5 KiB"
+    assert formatting.fmt_cost(1048576, "texels_rendered") == "1,048,576"
+    assert formatting.fmt_number(-0.0123456) == "−0.01235"
+    assert formatting.fmt_number("inf") == "∞" and formatting.fmt_number(None) == "—"
+    assert formatting.fmt_threshold({"min": 25.0}) == "≥ 25"
+    assert formatting.flatten({"a": {"b": 1}, "c": 2}) == [("a.b", 1), ("c", 2)]
+    assert formatting.sort_key("nan") == "" and formatting.sort_key(0.25) == "0.25"
 
 
 @pytest.mark.slow

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+from reports.sections import failed_section
 from reports.sweep import best_at_equal_cost, sweep_record, write_sweep_report
 
 
@@ -92,19 +93,26 @@ def test_sensitivity_lists_the_varying_parameter_only():
 def test_page_escapes_text_and_holds_every_section(tmp_path):
     rows = [dict(r) for r in ROWS]
     rows[0]["scene"] = "<script>alert(1)</script>"
+    failed = failed_section(
+        kind="claims", section_id="claims", title="Claims", error=ValueError("<i>claims broke</i>")
+    )
     out = tmp_path / "r.html"
     write_sweep_report(
         rows,
         out,
         title="a <b>title</b>",
-        extra_sections=[{"id": "claims", "title": "Claims", "html": "<p>claims here</p>"}],
+        extra_sections=[failed],
     )
     html = out.read_text()
     assert "<script>alert(1)</script>" not in html and "&lt;script&gt;" in html
     assert "a &lt;b&gt;title&lt;/b&gt;" in html
-    assert '<section id="claims" class="card"><h2>Claims</h2><p>claims here</p>' in html
+    section = html[html.index('<section id="claims"') : html.index('<section id="cases"')]
+    assert "<h2>Claims</h2>" in section and "This section failed" in section
+    assert "&lt;i&gt;claims broke&lt;/i&gt;" in section and "<i>claims" not in html
     assert "RuntimeError: boom" in html
-    assert json.loads(out.with_suffix(".json").read_text())["summary"]["n_failed"] == 1
+    record = json.loads(out.with_suffix(".json").read_text())
+    assert record["summary"]["n_failed"] == 1
+    assert record["sections"] == [failed]
     assert "http://" not in html.replace("http://www.w3.org/2000/svg", "")
 
 

@@ -679,7 +679,7 @@ def _aa_memory(args) -> int:
     from ..studies.aa_memory import cmd_aa_memory
 
     _check_out(args.out)
-    return cmd_aa_memory(args)
+    return cmd_aa_memory(out=args.out)
 
 
 def _sweep_cli():

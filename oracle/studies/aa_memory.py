@@ -29,6 +29,11 @@ half the multisample framebuffer memory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
+
+from reports.sections import aa_memory_section
+
+from .output import write_study
 
 __all__ = [
     "DEFAULT_CONFIGS",
@@ -37,9 +42,12 @@ __all__ = [
     "Config",
     "Quote",
     "aggregate_layout_bound",
+    "cmd_aa_memory",
     "compare_quoted",
     "memory_report",
     "memory_table",
+    "summary_lines",
+    "write_memory_report",
 ]
 
 #: Resolutions of the table: the AGAA slides' 1280x736 and 1080p.
@@ -357,32 +365,35 @@ def memory_report(configs=DEFAULT_CONFIGS, *, resolutions=MEMORY_RESOLUTIONS) ->
 
 
 def write_memory_report(out, data: dict | None = None) -> dict:
-    """Write ``out/aa_memory.json`` and ``out/aa_memory.html`` (atomically); returns the data."""
-    import json
-    from pathlib import Path
-
-    from reports.sections.aa_memory import render_aa_memory_page
-
-    from ..reference.exr import atomic_write_bytes
-
+    """Write ``out/aa_memory.json`` and ``out/aa_memory.html`` (atomically); returns the data
+    (``data``, or a fresh :func:`memory_report`)."""
     data = memory_report() if data is None else data
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(out / "aa_memory.json", json.dumps(data, indent=2).encode())
-    atomic_write_bytes(out / "aa_memory.html", render_aa_memory_page(data).encode())
+    section = aa_memory_section(data)
+    title = "raster-oracle anti-aliasing memory"
+    write_study(out, name="aa_memory", data=data, section=section, title=title)
     return data
 
 
-def cmd_aa_memory(args) -> int:
-    """``raster-oracle aa-memory``: print the table and write the section's files."""
-    data = write_memory_report(args.out)
+def summary_lines(data: dict) -> list[str]:
+    """The table at the first two resolutions and each quote's verdict, as text lines."""
     (w0, h0), (w1, h1) = data["resolutions"][:2]
-    print(f"{'configuration':32s} {'B/px':>5s} {f'{w0}x{h0} MB':>14s} {f'{w1}x{h1} MB':>14s}")
+    lines = [f"{'configuration':32s} {'B/px':>5s} {f'{w0}x{h0} MB':>14s} {f'{w1}x{h1} MB':>14s}"]
     for row in data["rows"]:
         per = row["bytes_per_pixel"]["total"]
         a, b = row["at"][f"{w0}x{h0}"]["total_MB"], row["at"][f"{w1}x{h1}"]["total_MB"]
-        print(f"{row['label']:32s} {per:5d} {a:14.1f} {b:14.1f}")
+        lines.append(f"{row['label']:32s} {per:5d} {a:14.1f} {b:14.1f}")
     for q in data["quoted"]:
-        print(f"quoted: {q['text']}: {'reproduced' if q['reproduced'] else 'not reproduced'}")
-    print(f"aa-memory: {args.out / 'aa_memory.json'} and {args.out / 'aa_memory.html'}")
+        verdict = "reproduced" if q["reproduced"] else "not reproduced"
+        lines.append(f"quoted: {q['text']}: {verdict}")
+    return lines
+
+
+def cmd_aa_memory(*, out, echo=print) -> int:
+    """``raster-oracle aa-memory``: write the section's files into ``out`` and ``echo`` the
+    table (:func:`summary_lines`) and the files' paths; returns the exit status (0)."""
+    data = write_memory_report(out)
+    for line in summary_lines(data):
+        echo(line)
+    out = Path(out)
+    echo(f"aa-memory: {out / 'aa_memory.json'} and {out / 'aa_memory.html'}")
     return 0

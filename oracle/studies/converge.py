@@ -26,12 +26,15 @@ References
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
 
 import numpy as np
+
+from reports.sections import converge_section
+
+from .output import write_study
 
 __all__ = [
     "CONVERGE_CHANNELS",
@@ -121,6 +124,111 @@ def _errors(ch: dict, truth: dict) -> dict:
     return out
 
 
+def _check_settings(max_spp: int, truth_spp: int | None, targets) -> tuple[list[int], int]:
+    """The spp ladder and the truth's spp; raises :class:`ConvergeError` on bad settings."""
+    ladder_spp = spp_ladder(max_spp)
+    truth_spp = int(truth_spp if truth_spp is not None else 4 * max_spp)
+    if truth_spp <= max_spp:
+        raise ConvergeError(f"truth spp ({truth_spp}) must be larger than max spp ({max_spp})")
+    for t in targets:
+        spp_for_target([1], [0.0], t)  # validates
+    return ladder_spp, truth_spp
+
+
+def _render_ladder(loaded, ladder_spp: list[int], truth: dict, *, seed: int, say) -> list[dict]:
+    """One rendering per spp of the ladder, compared with the truth."""
+    from ..reference.render import ReferenceSettings, render_reference
+
+    ladder = []
+    for spp in ladder_spp:
+        settings = ReferenceSettings(spp=spp, seed=seed, channels=CONVERGE_CHANNELS)
+        ch, st = render_reference(loaded, settings, quiet=True)
+        rec = {
+            "spp": spp,
+            "rays": st["rays_cast"],
+            "seconds": st["wall_seconds"],
+            **_errors(ch, truth),
+        }
+        ladder.append(rec)
+        say(
+            f"  {spp:>6} spp: visibility RMS {rec['visibility']['rms']:.2e} "
+            f"max {rec['visibility']['max']:.3f}, reported stderr "
+            f"{rec['visibility']['stderr_rms']:.2e} ({st['wall_seconds']:.2f} s)"
+        )
+    return ladder
+
+
+def _render_adaptive(loaded, truth: dict, *, target: float, max_spp: int, seed: int) -> dict:
+    """One adaptive rendering (16 spp first pass, up to ``max_spp``) against the truth."""
+    from ..reference.render import ReferenceSettings, render_reference
+
+    settings = ReferenceSettings(
+        adaptive=True,
+        adaptive_spp=16,
+        target_stderr=target,
+        max_spp=max_spp,
+        seed=seed,
+        channels=CONVERGE_CHANNELS,
+    )
+    ch, st = render_reference(loaded, settings, quiet=True)
+    npix = loaded.width * loaded.height
+    return {
+        "target_stderr": target,
+        "mean_spp": st["adaptive"]["samples"] / npix,
+        "max_spp_used": st["adaptive"]["max_spp_used"],
+        "rays": st["rays_cast"],
+        "seconds": st["wall_seconds"],
+        **_errors(ch, truth),
+    }
+
+
+def _fit_ladder(ladder: list[dict], truth_spp: int) -> dict:
+    """Power laws of the true RMS error and the reported stderr RMS, per channel.
+
+    The fit leaves out spp < 4 (1 and 2 samples are one and two strata: the stratified
+    asymptote starts with a 2x2 grid) and spp above a quarter of the truth's, whose error is
+    the closest to the truth's own noise.
+    """
+    use = [r for r in ladder if 4 <= r["spp"] and r["spp"] * 4 <= truth_spp]
+    spp = [r["spp"] for r in use]
+    return {
+        c: {
+            "true_rms": fit_power_law(spp, [r[c]["rms"] for r in use]),
+            "reported_stderr_rms": fit_power_law(spp, [r[c]["stderr_rms"] for r in use]),
+            "spp_range": [use[0]["spp"], use[-1]["spp"]] if use else None,
+        }
+        for c in CONVERGE_CHANNELS
+    }
+
+
+def _spp_on_fit(fit: dict, error: float) -> float | None:
+    """The spp at which the fitted power law reaches ``error`` (None: no falling fit)."""
+    if fit["slope"] is None or not fit["slope"] < 0 or not error > 0:
+        return None
+    return float((error / fit["a"]) ** (1.0 / fit["slope"]))
+
+
+def _adaptive_saving(adaptive: dict, fit: dict) -> dict:
+    """``adaptive`` with the uniform spp of equal fitted true RMS and the samples saved."""
+    equiv = _spp_on_fit(fit["visibility"]["true_rms"], adaptive["visibility"]["rms"])
+    saving = equiv / adaptive["mean_spp"] if equiv is not None else None
+    return {**adaptive, "uniform_spp_same_rms_fit": equiv, "uniform_over_adaptive_samples": saving}
+
+
+def _target_spp(targets, ladder: list[dict], fit: dict) -> list[dict]:
+    """The spp each target true RMS error needs: on the measured ladder and on the fit."""
+    spps = [r["spp"] for r in ladder]
+    rms = [r["visibility"]["rms"] for r in ladder]
+    return [
+        {
+            "target_rms": float(t),
+            "spp_measured": spp_for_target(spps, rms, float(t)),
+            "spp_fitted": _spp_on_fit(fit["visibility"]["true_rms"], float(t)),
+        }
+        for t in targets
+    ]
+
+
 def run_converge(
     scene: str,
     *,
@@ -136,7 +244,8 @@ def run_converge(
     quiet: bool = True,
     echo=None,
 ) -> dict:
-    """Measure the oracle's convergence on ``scene``; write ``out/converge.json`` if given.
+    """Measure the oracle's convergence on ``scene``; write ``out/converge.json`` and
+    ``out/converge.html`` if ``out`` is given.
 
     Parameters
     ----------
@@ -157,102 +266,28 @@ def run_converge(
 
     from ..reference.render import ReferenceSettings, render_reference
 
-    ladder_spp = spp_ladder(max_spp)
-    truth_spp = int(truth_spp if truth_spp is not None else 4 * max_spp)
-    if truth_spp <= max_spp:
-        raise ConvergeError(f"truth spp ({truth_spp}) must be larger than max spp ({max_spp})")
-    for t in targets:
-        spp_for_target([1], [0.0], t)  # validates
+    ladder_spp, truth_spp = _check_settings(max_spp, truth_spp, targets)
     loaded = scene if hasattr(scene, "mi_scene") else scenes.load(scene, width=width, height=height)
     say = echo or (lambda *_: None)
-    chans = CONVERGE_CHANNELS
     t0 = time.perf_counter()
-    truth, tstats = render_reference(
-        loaded,
-        ReferenceSettings(spp=truth_spp, seed=seed + TRUTH_SEED_OFFSET, channels=chans),
-        quiet=quiet,
+    truth_settings = ReferenceSettings(
+        spp=truth_spp, seed=seed + TRUTH_SEED_OFFSET, channels=CONVERGE_CHANNELS
     )
+    truth, tstats = render_reference(loaded, truth_settings, quiet=quiet)
     say(f"converge {loaded.name}: truth {truth_spp} spp ({tstats['wall_seconds']:.1f} s)")
-    ladder = []
-    for spp in ladder_spp:
-        ch, st = render_reference(
-            loaded, ReferenceSettings(spp=spp, seed=seed, channels=chans), quiet=True
-        )
-        rec = {
-            "spp": spp,
-            "rays": st["rays_cast"],
-            "seconds": st["wall_seconds"],
-            **_errors(ch, truth),
-        }
-        ladder.append(rec)
-        say(
-            f"  {spp:>6} spp: visibility RMS {rec['visibility']['rms']:.2e} "
-            f"max {rec['visibility']['max']:.3f}, reported stderr "
-            f"{rec['visibility']['stderr_rms']:.2e} ({st['wall_seconds']:.2f} s)"
-        )
+    ladder = _render_ladder(loaded, ladder_spp, truth, seed=seed, say=say)
+    fit = _fit_ladder(ladder, truth_spp)
     adaptive_rec = None
     if adaptive and max_spp >= 16:
-        settings = ReferenceSettings(
-            adaptive=True,
-            adaptive_spp=16,
-            target_stderr=adaptive_target,
-            max_spp=max_spp,
-            seed=seed,
-            channels=chans,
+        adaptive_rec = _render_adaptive(
+            loaded, truth, target=adaptive_target, max_spp=max_spp, seed=seed
         )
-        ch, st = render_reference(loaded, settings, quiet=True)
-        npix = loaded.width * loaded.height
-        adaptive_rec = {
-            "target_stderr": adaptive_target,
-            "mean_spp": st["adaptive"]["samples"] / npix,
-            "max_spp_used": st["adaptive"]["max_spp_used"],
-            "rays": st["rays_cast"],
-            "seconds": st["wall_seconds"],
-            **_errors(ch, truth),
-        }
-    spps = [r["spp"] for r in ladder]
-    fit = {}
-    for c in chans:
-        # The fit leaves out spp < 4 (1 and 2 samples are one and two strata: the stratified
-        # asymptote starts with a 2x2 grid) and the largest spp, whose error is the closest
-        # to the truth's own noise.
-        use = [r for r in ladder if 4 <= r["spp"] and r["spp"] * 4 <= truth_spp]
-        fit[c] = {
-            "true_rms": fit_power_law([r["spp"] for r in use], [r[c]["rms"] for r in use]),
-            "reported_stderr_rms": fit_power_law(
-                [r["spp"] for r in use], [r[c]["stderr_rms"] for r in use]
-            ),
-            "spp_range": [use[0]["spp"], use[-1]["spp"]] if use else None,
-        }
-    if adaptive_rec is not None:
-        # the uniform spp whose fitted true RMS equals adaptive's: samples saved at equal error
-        f = fit["visibility"]["true_rms"]
-        equiv = None
-        if f["slope"] is not None and f["slope"] < 0 and adaptive_rec["visibility"]["rms"] > 0:
-            equiv = float((adaptive_rec["visibility"]["rms"] / f["a"]) ** (1.0 / f["slope"]))
-        adaptive_rec["uniform_spp_same_rms_fit"] = equiv
-        adaptive_rec["uniform_over_adaptive_samples"] = (
-            equiv / adaptive_rec["mean_spp"] if equiv is not None else None
-        )
-    target_recs = []
-    for t in targets:
-        rms = [r["visibility"]["rms"] for r in ladder]
-        f = fit["visibility"]["true_rms"]
-        fitted = None
-        if f["slope"] is not None and f["slope"] < 0:
-            fitted = float((t / f["a"]) ** (1.0 / f["slope"]))
-        target_recs.append(
-            {
-                "target_rms": float(t),
-                "spp_measured": spp_for_target(spps, rms, float(t)),
-                "spp_fitted": fitted,
-            }
-        )
+        adaptive_rec = _adaptive_saving(adaptive_rec, fit)
     data = {
         "schema": "raster-oracle.studies.converge/1",
         "scene": loaded.provenance(),
         "resolution": [loaded.width, loaded.height],
-        "channels": list(chans),
+        "channels": list(CONVERGE_CHANNELS),
         "seed": seed,
         "truth": {
             "spp": truth_spp,
@@ -271,16 +306,11 @@ def run_converge(
             "why": "jittered stratified samples: O(N^-1.5) variance at straight edges "
             "(Mitchell 1996); the reported stderr treats samples as independent",
         },
-        "targets": target_recs,
+        "targets": _target_spp(targets, ladder, fit),
         "wall_seconds": time.perf_counter() - t0,
     }
     if out is not None:
-        from ..reference.exr import atomic_write_bytes
-
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(out / "converge.json", json.dumps(data, indent=2).encode())
-        from reports.sections.converge import render_converge_page
-
-        atomic_write_bytes(out / "converge.html", render_converge_page(data).encode())
+        section = converge_section(data)
+        title = f"raster-oracle converge {data['scene'].get('name', '')}"
+        write_study(out, name="converge", data=data, section=section, title=title)
     return data

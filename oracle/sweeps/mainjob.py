@@ -4,46 +4,58 @@ extremes and the claims, and one report.
 1. The sweep of ``oracle/specs/default.toml`` (package data): every registered technique on
    the built-in scenes at 640x360, a few settings each, run on a local Dask cluster into
    ``OUT/sweep.db`` (resumable: a second run skips finished cases).
-2. The extremes matrix and the claims (:mod:`oracle.studies.extremes.run`,
-   :mod:`oracle.studies.claims.run`, in their quick form), writing ``OUT/extremes.json``
-   and ``OUT/claims.json``, and the anti-aliasing memory table
-   (:mod:`oracle.studies.aa_memory`).
-3. ``OUT/report.html`` (+ ``report.json``): Pareto fronts, parameter sensitivity, best at
-   equal cost, the claims, the extremes, the memory table and every case.
+2. The claims and the extremes matrix (:mod:`oracle.studies.claims.run`,
+   :mod:`oracle.studies.extremes.run`, in their quick form), writing ``OUT/claims.json``
+   and ``OUT/extremes.json`` (+ their pages), and the anti-aliasing memory table
+   (:mod:`oracle.studies.aa_memory`): :func:`run_sections`.
+3. ``OUT/report.html`` (+ ``report.json``, which holds every section record of the page):
+   Pareto fronts, parameter sensitivity, best at equal cost, the claims, the extremes, the
+   memory table and every case.
 """
 
 from __future__ import annotations
 
-import importlib
 import importlib.resources
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main"]
+from reports.sections import (
+    aa_memory_section,
+    claims_section,
+    extremes_section,
+    failed_section,
+)
+
+from ..studies.aa_memory import memory_report
+from ..studies.claims.run import run_claims
+from ..studies.extremes.run import run_extremes
+
+__all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main", "run_sections"]
 
 #: The main job's sweep spec (package data).
 DEFAULT_SPEC = "specs/default.toml"
 
-#: Report sections after the sweep: ``(id, title, run module, run function, render module,
-#: render function)``. Each is run when its modules import (they are optional: written by
-#: other parts of the project); a section that fails is reported in the page, not fatal.
-SECTIONS = (
-    (
-        "claims",
-        "Claims",
-        "oracle.studies.claims.run",
-        "run_claims",
-        "reports.sections.claims",
-        "render_claims",
-    ),
-    (
-        "extremes",
-        "Numerical stability at the extremes",
-        "oracle.studies.extremes.run",
-        "run_extremes",
-        "reports.sections.extremes",
-        "render_extremes",
-    ),
+
+def _claims(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+    return run_claims(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+
+
+def _extremes(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+    return run_extremes(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+
+
+def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+    return memory_report()
+
+
+#: The report's sections after the sweep, in page order: ``(kind, id, title, study,
+#: section)``: ``study(out, *, cache, quiet, echo, quick)`` measures and returns the study's
+#: record, ``section(data, section_id=, title=)`` makes its section record.
+SECTIONS: tuple[tuple[str, str, str, Callable[..., dict], Callable[..., dict]], ...] = (
+    ("claims", "claims", "Claims", _claims, claims_section),
+    ("extremes", "extremes", "Numerical stability at the extremes", _extremes, extremes_section),
+    ("aa_memory", "aa-memory", "Anti-aliasing memory", _aa_memory, aa_memory_section),
 )
 
 
@@ -75,61 +87,28 @@ def _restrict(data: dict, names, spp: int | None, size) -> dict:
     return data
 
 
-def _one_line(exc: BaseException) -> str:
-    return " ".join(f"{type(exc).__name__}: {exc}".split())
+def run_sections(
+    out: Path, *, cache, quiet: bool, echo=print, quick: bool = True
+) -> tuple[list[dict], list[str]]:
+    """Run the studies of :data:`SECTIONS` into ``out``; their section records, and the ids
+    of those that failed.
 
-
-def _load_section(entry):
-    """``(run, render)`` of a section, or None when its modules or functions are absent."""
-    _, _, run_mod, run_fn, render_mod, render_fn = entry
-    try:
-        run = getattr(importlib.import_module(run_mod), run_fn)
-        render = getattr(importlib.import_module(render_mod), render_fn)
-    except (ImportError, AttributeError):
-        return None
-    return run, render
-
-
-def _section(entry, out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict | None:
-    """Run one optional section; its report record, or None when its modules are absent."""
-    sid, title = entry[:2]
-    found = _load_section(entry)
-    if found is None:
-        return None
-    run, render = found
-    try:
-        data = run(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
-        html = render(data)
-    except Exception as exc:  # the report still comes out; the failure is in it
-        echo(f"{sid}: failed: {_one_line(exc)}")
-        return {"id": sid, "title": title, "html": _failed_html(exc), "failed": True}
-    return {"id": sid, "title": title, "html": html, "failed": False}
-
-
-def _failed_html(exc: BaseException) -> str:
-    from markupsafe import escape
-
-    return f'<p class="note">This section failed: <code>{escape(_one_line(exc))}</code></p>'
-
-
-def _memory_section(*, echo) -> dict | None:
-    try:
-        from reports.sections.aa_memory import render_aa_memory
-
-        from ..studies.aa_memory import memory_report
-    except ImportError:
-        return None
-    try:
-        html = render_aa_memory(memory_report())
-    except Exception as exc:
-        echo(f"aa-memory: failed: {_one_line(exc)}")
-        return {
-            "id": "aa-memory",
-            "title": "Anti-aliasing memory",
-            "html": _failed_html(exc),
-            "failed": True,
-        }
-    return {"id": "aa-memory", "title": "Anti-aliasing memory", "html": html, "failed": False}
+    A study that raises is reported, not fatal: its record is a failed section (the page
+    shows the error in its place), its id is in the returned list (the main job then exits
+    with status 1) and ``echo`` says so. Import errors are not caught: the modules are
+    imported with this one.
+    """
+    sections, failed = [], []
+    for kind, sid, title, study, section in SECTIONS:
+        try:
+            data = study(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+            record = section(data, section_id=sid, title=title)
+        except Exception as exc:  # in the page and in the exit status, not fatal
+            record = failed_section(kind=kind, section_id=sid, title=title, error=exc)
+            echo(f"{sid}: failed: {record['error']}")
+            failed.append(sid)
+        sections.append(record)
+    return sections, failed
 
 
 def run_main(
@@ -173,18 +152,9 @@ def run_main(
         f"done, {summary['done']} done, {summary['failed']} failed) in "
         f"{summary['wall_seconds']:.1f} s: {db}"
     )
-    sections, failed = [], [f"{summary['failed']} sweep case(s)"] if summary["failed"] else []
-    for entry in SECTIONS:
-        rec = _section(entry, out, cache=cache, quiet=quiet, echo=echo, quick=quick)
-        if rec is None:
-            echo(f"{entry[0]}: not available ({entry[2]} is not installed)")
-            continue
-        sections.append(rec)
-        if rec["failed"]:
-            failed.append(entry[0])
-    memory = _memory_section(echo=echo)
-    if memory is not None:
-        sections.append(memory)
+    failed = [f"{summary['failed']} sweep case(s)"] if summary["failed"] else []
+    sections, failed_sections = run_sections(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+    failed += failed_sections
     report = out / "report.html"
     sweep_report(
         db,

@@ -1,105 +1,85 @@
 """The numerical-extremes section: a matrix of models x extremes.
 
-Data in (the dict of :func:`oracle.studies.extremes.run.run_extremes`), HTML out. A cell shows the
-model's error against the oracle (or n/a, refused, non-finite, error), green when the
-measured outcome matches the documented expectation and red when it does not; the
-expectation and its reason are in the cell's tooltip and in the list below the matrix.
-Every piece of text from the data is escaped here.
+Data in (the record of :func:`oracle.studies.extremes.run.run_extremes`), section record out;
+``templates/section_extremes.html`` renders it. A cell shows the model's error against the
+oracle (or n/a, refused, non-finite, error), green when the measured outcome matches the
+documented expectation and red when it does not; the expectation and its reason are in the
+cell's tooltip and in the list below the matrix.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from markupsafe import escape
+from ..formatting import fmt_number
+from ._record import section_record
 
-from .._format import fmt_number
-from .converge import STYLES, page
+__all__ = ["cell_class", "extremes_section", "fmt_cell", "fmt_cell_tip"]
 
-__all__ = ["render_extremes", "render_extremes_page"]
-
-
-def _cell_text(c: Mapping) -> str:
-    status = c.get("status")
-    if status == "ok":
-        return fmt_number(c.get("error"))
-    return str(status)
+#: Most cells named in one documented outcome; above it, their count.
+MAX_NAMED_CELLS = 6
 
 
-def _short(c: Mapping) -> str:
-    """The expected band under the value (not for n/a cells)."""
-    if c.get("status") == "n/a" or not c.get("expected_short"):
-        return ""
-    return f'<br><small style="color:#64748b">{escape(c["expected_short"])}</small>'
-
-
-def render_extremes(data: Mapping) -> str:
-    """HTML fragment: the matrix, then each extreme's description and each non-default
-    expectation with its reason."""
-    techs = list(data.get("techniques", []))
-    cells = {(c["extreme"], c["technique"]): c for c in data.get("cells", [])}
-    extremes = list(data.get("extremes", {}))
-    res = data.get("resolution", ["?", "?"])
-    bases = ", ".join(
-        f"{scene} for {fam}"
-        for fam, scene in (data.get("base_scenes") or {"": data.get("base_scene", "")}).items()
-    )
-    out = [
-        "<h2>Numerical extremes</h2>",
-        f"<p>Every model x every extreme (base scenes: {escape(bases)}) "
-        f"at {escape(str(res[0]))}x{escape(str(res[1]))} px against a "
-        f"{escape(str(data.get('reference_spp', '')))}-spp oracle; maps at most "
-        f"{escape(str(data.get('cell_map', '')))}^2 (huge: "
-        f"{escape(str(data.get('huge_map', '')))}^2). A cell is the error (misclassified "
-        "receivers; coverage RMSE for anti-aliasing models) over its expected band; green: as "
-        "documented, red: not. Hover a cell for the reason.</p>",
+def _matrix(data: Mapping) -> list[dict]:
+    """One row per extreme: per technique the index of its cell in ``data["cells"]``."""
+    index = {(c["extreme"], c["technique"]): i for i, c in enumerate(data["cells"])}
+    return [
+        {"extreme": ext, "cells": [index.get((ext, t)) for t in data["techniques"]]}
+        for ext in data["extremes"]
     ]
-    unexpected = data.get("unexpected") or []
-    if unexpected:
-        out.append(f"<p class=bad>Not as documented: {escape(', '.join(map(str, unexpected)))}</p>")
-    out.append("<table><tr><th class=l>extreme</th>")
-    out.extend(f"<th>{escape(t)}</th>" for t in techs)
-    out.append("</tr>")
-    for ext in extremes:
-        out.append(f"<tr><td class=l>{escape(ext)}</td>")
-        for t in techs:
-            c = cells.get((ext, t))
-            if c is None:
-                out.append("<td class=na>—</td>")
-                continue
-            css = "na" if c.get("status") == "n/a" else ("ok" if c.get("outcome_met") else "bad")
-            tip = f"expected: {c.get('expected')}; {c.get('reason') or ''}"
-            if c.get("message"):
-                tip += f"; {c['message']}"
-            out.append(
-                f'<td class="{css}" style="{STYLES[css]}" title="{escape(tip)}">'
-                f"{escape(_cell_text(c))}{_short(c)}</td>"
-            )
-        out.append("</tr>")
-    out.append("</table><h3>Extremes</h3><ul>")
-    for ext, info in data.get("extremes", {}).items():
-        out.append(f"<li><b>{escape(ext)}</b>: {escape(info.get('description', ''))}</li>")
-    out.append("</ul><h3>Documented outcomes</h3><ul>")
-    seen = set()
-    for c in data.get("cells", []):
-        key = (c.get("expected"), c.get("reason"))
-        if c.get("status") == "n/a" or key in seen:
-            continue
-        seen.add(key)
-        who = sorted(
-            f"{d['technique']} x {d['extreme']}"
-            for d in data["cells"]
-            if (d.get("expected"), d.get("reason")) == key and d.get("status") != "n/a"
-        )
-        label = ", ".join(who) if len(who) <= 6 else f"{len(who)} cells"
-        out.append(
-            f"<li><b>{escape(str(c.get('expected')))}</b> ({escape(label)}): "
-            f"{escape(c.get('reason') or '')}</li>"
-        )
-    out.append("</ul>")
-    return "\n".join(out)
 
 
-def render_extremes_page(data: Mapping) -> str:
-    """``extremes.html``: the fragment of :func:`render_extremes` as a page."""
-    return page("raster-oracle extremes", render_extremes(data))
+def _outcomes(data: Mapping) -> list[dict]:
+    """Each distinct documented expectation (and reason) with the cells it covers."""
+    groups: dict[tuple, list[str]] = {}
+    for c in data["cells"]:
+        if c.get("status") != "n/a":
+            key = (c.get("expected"), c.get("reason"))
+            groups.setdefault(key, []).append(f"{c['technique']} x {c['extreme']}")
+    out = []
+    for (expected, reason), who in groups.items():
+        who = sorted(who)
+        label = ", ".join(who) if len(who) <= MAX_NAMED_CELLS else f"{len(who)} cells"
+        out.append({"expected": expected, "reason": reason or "", "cells": label})
+    return out
+
+
+def extremes_section(
+    data: Mapping,
+    *,
+    section_id: str = "extremes",
+    title: str = "Numerical stability at the extremes",
+) -> dict:
+    """The section record of an extremes run: the data, the ``matrix`` (rows of cell
+    indices, one column per technique) and the documented ``outcomes``."""
+    return section_record(
+        "extremes",
+        section_id=section_id,
+        title=title,
+        data=data,
+        matrix=_matrix(data),
+        outcomes=_outcomes(data),
+    )
+
+
+def cell_class(cell: Mapping) -> str:
+    """``na`` for a model the extreme does not apply to, else ``ok`` or ``bad`` (as
+    documented or not)."""
+    if cell.get("status") == "n/a":
+        return "na"
+    return "ok" if cell.get("outcome_met") else "bad"
+
+
+def fmt_cell(cell: Mapping) -> str:
+    """The error of a measured cell, else its status."""
+    if cell.get("status") == "ok":
+        return fmt_number(cell.get("error"))
+    return str(cell.get("status"))
+
+
+def fmt_cell_tip(cell: Mapping) -> str:
+    """The tooltip of a cell: its expectation, the reason and any message."""
+    tip = f"expected: {cell.get('expected')}; {cell.get('reason') or ''}"
+    if cell.get("message"):
+        tip += f"; {cell['message']}"
+    return tip

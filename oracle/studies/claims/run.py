@@ -29,6 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
+from reports.sections import claims_section
+
+from ..output import write_study
 from .aa import ACAA_EQUAL, ACAA_HALF, AGAA_COMPARABLE, AGAA_SAVING, _acaa, _agaa, _coherent
 from .base import NOT, PARTLY, REPRODUCED, ClaimContext, summary
 from .shadow import (
@@ -277,14 +280,8 @@ def run_claims(
     }
     data = json.loads(json.dumps(data, default=_jsonable))
     if out is not None:
-        from ...reference.exr import atomic_write_bytes
-
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(out / "claims.json", json.dumps(data, indent=2).encode())
-        from reports.sections.claims import render_claims_page
-
-        atomic_write_bytes(out / "claims.html", render_claims_page(data).encode())
+        section = claims_section(data)
+        write_study(out, name="claims", data=data, section=section, title="raster-oracle claims")
     return data
 
 

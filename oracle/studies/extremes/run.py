@@ -18,12 +18,14 @@ point; it writes ``out/extremes.json``.
 from __future__ import annotations
 
 import copy
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from reports.sections import extremes_section
+
+from ..output import write_study
 from .cases import (
     DEFAULT_AA_EXPECTATION,
     DEFAULT_EXPECTATION,
@@ -50,6 +52,7 @@ __all__ = [
     "HUGE_BYTES_PER_TEXEL",
     "expectation",
     "load_extreme",
+    "reference_channels",
     "run_cell",
     "run_extremes",
 ]
@@ -98,7 +101,9 @@ def load_extreme(extreme: Extreme, *, width: int, height: int, base: str = BASE_
 _REF_CHANNELS = ("visibility", "coverage", "id", "normal", "position")
 
 
-def _reference(loaded, *, spp: int, cache, quiet: bool) -> dict:
+def reference_channels(loaded, *, spp: int, cache, quiet: bool) -> dict:
+    """The oracle's channels (visibility, coverage, id, normal, position) of ``loaded`` at
+    ``spp`` (seed 0): rendered, or from ``cache`` (a reference cache) when given."""
     from ...reference.render import ReferenceSettings, render_reference
 
     settings = ReferenceSettings(spp=spp, seed=0, channels=_REF_CHANNELS)
@@ -108,10 +113,6 @@ def _reference(loaded, *, spp: int, cache, quiet: bool) -> dict:
     from ...reference.store import get_reference
 
     return get_reference(loaded, settings, cache=cache, quiet=quiet).channels()
-
-
-def _family(technique) -> str:
-    return getattr(technique, "family", "shadow")
 
 
 def _defaults(technique_name: str) -> dict:
@@ -180,10 +181,11 @@ def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
 def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> dict:
     """Run one technique on one extreme's scene and judge the outcome against its
     expectation. Never raises for the model's own failure: it is recorded."""
+    import raster_models
     from raster_models import ModelError
     from raster_models import run as run_model
 
-    family = _family(technique)
+    family = raster_models.TECHNIQUES[technique.name].family
     exp = expectation(technique.name, extreme.name, family)
     metric = "coverage_rmse" if family == "aa" else "misclassified_fraction"
     cell = {
@@ -285,7 +287,7 @@ def run_extremes(
     names = extremes or list(EXTREMES)
     t0 = time.perf_counter()
     cells, scenes_info = [], {}
-    families = sorted({_family(t) for t in techs})
+    families = sorted({raster_models.TECHNIQUES[t.name].family for t in techs})
     for name in names:
         ext = EXTREMES[name]
         row = []
@@ -293,7 +295,7 @@ def run_extremes(
         for fam in families:
             base = BASE_SCENES.get(fam, BASE_SCENE)
             loaded = load_extreme(ext, width=width, height=height, base=base)
-            ref = _reference(loaded, spp=spp, cache=cache, quiet=quiet)
+            ref = reference_channels(loaded, spp=spp, cache=cache, quiet=quiet)
             scenes_info[name]["scenes"][fam] = {
                 "scene": loaded.name,
                 "light": loaded.light.kind,
@@ -302,7 +304,7 @@ def run_extremes(
             row += [
                 dict(run_cell(t, ext, loaded, ref, huge=huge), scene=loaded.name)
                 for t in techs
-                if _family(t) == fam
+                if raster_models.TECHNIQUES[t.name].family == fam
             ]
         cells.extend(row)
         bad = [c["technique"] for c in row if not c["outcome_met"]]
@@ -323,12 +325,7 @@ def run_extremes(
         "wall_seconds": time.perf_counter() - t0,
     }
     if out is not None:
-        from ...reference.exr import atomic_write_bytes
-
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(out / "extremes.json", json.dumps(data, indent=2).encode())
-        from reports.sections.extremes import render_extremes_page
-
-        atomic_write_bytes(out / "extremes.html", render_extremes_page(data).encode())
+        section = extremes_section(data)
+        title = "raster-oracle extremes"
+        write_study(out, name="extremes", data=data, section=section, title=title)
     return data

@@ -1,4 +1,5 @@
-"""Hand-written inline SVG plots: error histograms and cost-versus-error scatters.
+"""Hand-written inline SVG plots: error histograms, cost-versus-error scatters and log-log
+line plots.
 
 Each function returns ``markupsafe.Markup``; every piece of user text it embeds (case names,
 techniques, parameters) is escaped here. Coordinates are SVG user units in a ``viewBox``, so
@@ -14,9 +15,9 @@ import numpy as np
 from markupsafe import Markup, escape
 
 from . import images as _images
-from ._format import fmt_cost, fmt_number, fmt_value
+from .formatting import fmt_cost, fmt_number, fmt_value
 
-__all__ = ["histogram_svg", "nice_ticks", "scatter_svg"]
+__all__ = ["axis", "histogram_svg", "loglog_svg", "nice_ticks", "scatter_svg"]
 
 _FONT = 'font-family="system-ui, sans-serif" font-size="11"'
 _ACCENT = "#2563eb"
@@ -43,7 +44,7 @@ def _hex(rgb: Sequence[int]) -> str:
 
 
 def histogram_svg(hist: Mapping, *, style: str, name: str) -> Markup:
-    """Bar chart of ``hist`` (from ``_stats.histogram``) on a log count axis.
+    """Bar chart of ``hist`` (from ``stats.histogram``) on a log count axis.
 
     Bars take the heatmap colour of their bin centre, so the histogram doubles as a legend.
     """
@@ -91,7 +92,7 @@ def histogram_svg(hist: Mapping, *, style: str, name: str) -> Markup:
     return Markup("".join(parts))
 
 
-def _axis(
+def axis(
     values: Sequence[float], *, log_base: float | None, unit: float = 1.0
 ) -> tuple[float, float, list[float]]:
     """Axis limits and ticks: powers of ``log_base``, or round multiples of ``unit``."""
@@ -132,8 +133,8 @@ def scatter_svg(family: Mapping, *, cost_key: str, metric: str) -> Markup:
     log_base = (2.0 if is_bytes else 10.0) if log_x else None
     # Linear byte axes tick at round numbers of KiB/MiB/GiB, not of bytes.
     unit = 1024.0 ** max(0, math.floor(math.log(max(max(costs), 1.0), 1024))) if is_bytes else 1.0
-    x_lo, x_hi, x_ticks = _axis(costs, log_base=log_base, unit=unit)
-    y_lo, y_hi, y_ticks = _axis(errors, log_base=None)
+    x_lo, x_hi, x_ticks = axis(costs, log_base=log_base, unit=unit)
+    y_lo, y_hi, y_ticks = axis(errors, log_base=None)
 
     def sx(v: float) -> float:
         if log_x:
@@ -199,4 +200,84 @@ def scatter_svg(family: Mapping, *, cost_key: str, metric: str) -> Markup:
             f'stroke="{stroke}" stroke-width="1.5"><title>{escape(tip)}</title></circle></a>'
         )
     parts.append("</svg>")
+    return Markup("".join(parts))
+
+
+_COLOURS = ("#2563eb", "#dc2626", "#16a34a", "#9333ea", "#ea580c", "#0891b2")
+
+
+def _decades(lo: float, hi: float) -> tuple[int, int]:
+    a = math.floor(math.log10(lo) + 1e-9)
+    b = math.ceil(math.log10(hi) - 1e-9)
+    return a, b if b > a else a + 1
+
+
+def loglog_svg(series: Sequence[Mapping], *, x_label: str, y_label: str, title: str = "") -> Markup:
+    """A log-log line plot. ``series``: ``{"name", "x", "y", "dashed"?}`` (positive values
+    only are drawn; others are left out)."""
+    width, height = 560.0, 330.0
+    left, right, top, bottom = 64.0, 150.0, 20.0, 40.0
+    pw, ph = width - left - right, height - top - bottom
+    xs = [float(v) for s in series for v in s["x"] if v and v > 0]
+    ys = [float(v) for s in series for v in s["y"] if v is not None and v > 0]
+    if not xs or not ys:
+        return Markup('<p class="na">nothing to plot (no positive values)</p>')
+    x0, x1 = _decades(min(xs), max(xs))
+    y0, y1 = _decades(min(ys), max(ys))
+
+    def sx(v: float) -> float:
+        return left + pw * (math.log10(v) - x0) / (x1 - x0)
+
+    def sy(v: float) -> float:
+        return top + ph * (1.0 - (math.log10(v) - y0) / (y1 - y0))
+
+    parts = [
+        f'<svg viewBox="0 0 {width:g} {height:g}" role="img" aria-label="{escape(title)}" '
+        'xmlns="http://www.w3.org/2000/svg">',
+        f'<rect x="{left:g}" y="{top:g}" width="{pw:g}" height="{ph:g}" fill="#f8fafc" '
+        'stroke="#cbd5e1"/>',
+    ]
+    for e in range(x0, x1 + 1):
+        x = sx(10.0**e)
+        parts.append(
+            f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top:g}" y2="{top + ph:g}" stroke="#e2e8f0"/>'
+            f'<text x="{x:.1f}" y="{top + ph + 14:g}" text-anchor="middle" fill="#475569" '
+            f"{_FONT}>1e{e}</text>"
+        )
+    for e in range(y0, y1 + 1):
+        y = sy(10.0**e)
+        parts.append(
+            f'<line x1="{left:g}" x2="{left + pw:g}" y1="{y:.1f}" y2="{y:.1f}" stroke="#e2e8f0"/>'
+            f'<text x="{left - 6:g}" y="{y + 3:.1f}" text-anchor="end" fill="#475569" '
+            f"{_FONT}>1e{e}</text>"
+        )
+    drawn = 0
+    for k, s in enumerate(series):
+        colour = _COLOURS[k % len(_COLOURS)]
+        pts = [
+            (sx(float(x)), sy(float(y)))
+            for x, y in zip(s["x"], s["y"], strict=True)
+            if x and x > 0 and y is not None and y > 0
+        ]
+        if not pts:
+            continue
+        dash = ' stroke-dasharray="5 3"' if s.get("dashed") else ""
+        d = "M" + "L".join(f"{x:.1f},{y:.1f}" for x, y in pts)
+        parts.append(f'<path d="{d}" fill="none" stroke="{colour}" stroke-width="1.6"{dash}/>')
+        for x, y in pts:
+            parts.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="2.5" fill="{colour}"/>')
+        ly = top + 14 + 16 * drawn
+        drawn += 1
+        parts.append(
+            f'<line x1="{left + pw + 10:g}" x2="{left + pw + 30:g}" y1="{ly - 4:g}" '
+            f'y2="{ly - 4:g}" stroke="{colour}" stroke-width="2"{dash}/>'
+            f'<text x="{left + pw + 34:g}" y="{ly:g}" fill="#0f172a" {_FONT}>'
+            f"{escape(s['name'])}</text>"
+        )
+    parts.append(
+        f'<text x="{left + pw / 2:g}" y="{height - 8:g}" text-anchor="middle" fill="#0f172a" '
+        f"{_FONT}>{escape(x_label)} (log)</text>"
+        f'<text transform="translate(14 {top + ph / 2:g}) rotate(-90)" text-anchor="middle" '
+        f'fill="#0f172a" {_FONT}>{escape(y_label)} (log)</text></svg>'
+    )
     return Markup("".join(parts))

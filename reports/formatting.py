@@ -1,7 +1,8 @@
 """Text formatting of numbers and records for the HTML page (used as jinja2 filters).
 
-Every function returns plain ``str``; escaping is left to jinja2's autoescape (or to the
-SVG builder, which escapes what it embeds).
+Every function returns plain ``str`` (except :func:`json_script`, whose JSON is safe inside
+a ``<script>`` element); escaping is left to jinja2's autoescape (or to the SVG builder, which
+escapes what it embeds).
 """
 
 from __future__ import annotations
@@ -10,17 +11,41 @@ import json
 import math
 from collections.abc import Mapping
 
+from markupsafe import Markup
+
 from ._validate import decode_float
 
 __all__ = [
     "flatten",
     "fmt_bytes",
     "fmt_cost",
+    "fmt_json",
+    "fmt_mb",
     "fmt_number",
+    "fmt_summary",
     "fmt_threshold",
     "fmt_value",
+    "json_script",
     "sort_key",
 ]
+
+# JSON inside <script type="application/json">: "</script>", "<!--" and HTML entities must
+# not appear literally, and U+2028/U+2029 break older JS parsers.
+_JSON_SCRIPT_ESCAPES = {
+    ord("<"): "\\u003c",
+    ord(">"): "\\u003e",
+    ord("&"): "\\u0026",
+    ord("'"): "\\u0027",
+    0x2028: "\\u2028",
+    0x2029: "\\u2029",
+}
+
+
+def json_script(value: object) -> Markup:
+    """Serialise ``value`` as JSON safe to place verbatim inside a ``<script>`` element."""
+    text = json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(",", ":"))
+    return Markup(text.translate(_JSON_SCRIPT_ESCAPES))
+
 
 _NONFINITE_TEXT = {"inf": "∞", "-inf": "−∞", "nan": "NaN"}
 
@@ -113,3 +138,25 @@ def sort_key(value: object) -> str:
     if math.isinf(number):
         return "Infinity" if number > 0 else "-Infinity"
     return repr(number)
+
+
+def fmt_mb(value: float) -> str:
+    """Megabytes (or mebibytes) to one decimal: ``41.0``."""
+    return f"{float(value):.1f}"
+
+
+def fmt_json(value: object) -> str:
+    """Any JSON-like value as indented JSON text (non-JSON values by ``str``)."""
+    return json.dumps(value, indent=1, default=str, ensure_ascii=False)
+
+
+def fmt_summary(value: object) -> str:
+    """``mean ± stderr (n = N, min .. max)`` of a ``{"mean", "stderr", "n", "min", "max"}``
+    summary record (:func:`oracle.studies.claims.run.summary`); — when it has no mean."""
+    if not isinstance(value, Mapping) or value.get("mean") is None:
+        return "—"
+    text = f"{fmt_number(value['mean'])} ± {fmt_number(value.get('stderr'))}"
+    if value.get("n", 0) > 1:
+        low, high = fmt_number(value.get("min")), fmt_number(value.get("max"))
+        text += f" (n = {value['n']}, {low} .. {high})"
+    return text
