@@ -14,7 +14,7 @@ import time
 import pytest
 
 import scenes
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference import cache as cache_mod
 
 SMALL = ["--width", "8", "--height", "6", "--spp", "1", "--quiet"]
@@ -177,7 +177,7 @@ def test_sigterm_during_a_render_leaves_no_scratch_folder(tmp_path):
     env = dict(os.environ, TMPDIR=str(scratch))
     argv = ["reference", "plate", "--no-cache", "--spp", "65536", "--width", "64"]
     argv += ["--height", "64", "--quiet", "--out", str(tmp_path / "o")]
-    proc = subprocess.Popen([sys.executable, "-m", "oracle.cli.app", *argv], env=env)
+    proc = subprocess.Popen([sys.executable, "-m", "oracle.cli", *argv], env=env)
     try:
         deadline = time.monotonic() + 120
         while not list(scratch.iterdir()) and time.monotonic() < deadline:

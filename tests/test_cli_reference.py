@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.exr import read_exr
 
 SMALL = ["--width", "48", "--height", "27", "--quiet"]
@@ -152,7 +152,7 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
 
 def test_real_process_exit_code_and_no_traceback(tmp_path):
     res = subprocess.run(
-        [sys.executable, "-m", "oracle.cli.app", "reference", "nope", "--out", str(tmp_path / "o")],
+        [sys.executable, "-m", "oracle.cli", "reference", "nope", "--out", str(tmp_path / "o")],
         capture_output=True,
         text=True,
         timeout=120,

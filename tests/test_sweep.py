@@ -16,12 +16,12 @@ from pathlib import Path
 import pytest
 
 import raster_models
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.sweeps.run import run_sweep, sweep_keys
 from oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
 from oracle.sweeps.store import SweepStore
 from raster_models import params as _params
-from raster_models import registry as _registry
+from raster_models import registry
 from raster_models.shadowmaps import shadow_map
 
 SIZE = "width = 48\nheight = 27\n"
@@ -288,8 +288,8 @@ def _flaky_run(scene, p):
 
 @pytest.fixture
 def flaky(monkeypatch):
-    tech = _registry.Technique("flaky", "test", (), _FlakyParams, _flaky_run, ("directional",))
-    monkeypatch.setitem(_registry.TECHNIQUES, "flaky", tech)
+    tech = registry.Technique("flaky", "test", (), _FlakyParams, _flaky_run, ("directional",))
+    monkeypatch.setitem(registry.TECHNIQUES, "flaky", tech)
     assert raster_models.TECHNIQUES["flaky"] is tech
     return tech
 
@@ -346,7 +346,7 @@ def test_sigkill_loses_only_cases_in_flight_and_resume_skips_finished(tmp_path):
     total = len(load_spec(spec).cases)
     assert total == 2 * 13
     db = tmp_path / "kill.db"
-    cmd = [sys.executable, "-m", "oracle.cli.app", "sweep", str(spec), "--db", str(db)]
+    cmd = [sys.executable, "-m", "oracle.cli", "sweep", str(spec), "--db", str(db)]
     cmd += ["--out", str(tmp_path / "o"), "--workers", "1", "--quiet"]
     proc = subprocess.Popen(
         cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE

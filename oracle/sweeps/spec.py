@@ -42,6 +42,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import InputError
+
 __all__ = ["Case", "Expansion", "SpecError", "expand_spec", "expand_values", "load_spec"]
 
 _TOP_KEYS = ("name", "defaults", "case")
@@ -71,7 +73,7 @@ RANGE_END_SLACK = 1e-9
 FLOAT_DIGITS = 12
 
 
-class SpecError(ValueError):
+class SpecError(InputError):
     """A malformed sweep spec; the message starts with the offending key."""
 
 
