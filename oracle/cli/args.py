@@ -200,13 +200,8 @@ def load_scene(args):
     """The scene of ``add_scene_args`` options (its frame of a camera or light path)."""
     import scenes
 
-    light_path = getattr(args, "light_path", None)
-    if (
-        args.frame
-        and args.camera_path is None
-        and light_path is None
-        and not getattr(args, "frames", None)
-    ):
+    light_path = args.light_path
+    if args.frame and args.camera_path is None and light_path is None and not args.frames:
         raise CliError(
             f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
             "scene's own camera and light)"

@@ -284,7 +284,7 @@ def _record(
         "noise_floor": result.frames[0].noise_floor,
         "frames": [f.metrics for f in result.frames] if frames else None,
         "camera_path": camera_path if frames else None,
-        "light_path": getattr(loaded, "light_path", None),
+        "light_path": loaded.light_path,
         "tone_mapping": tone,
         "ppd": ppd,
         "reference": {
