@@ -11,6 +11,7 @@ One rule for each, shared by the oracle, the models and the reports:
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import platform
@@ -76,16 +77,23 @@ def jsonable(obj):
     raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")
 
 
-def package_versions() -> dict[str, str | None]:
-    """``{"python": ..., name: version}`` of every package in :data:`PACKAGES` (None when one
-    is not installed)."""
-    out: dict[str, str | None] = {"python": platform.python_version()}
+@functools.cache
+def _installed() -> tuple[tuple[str, str | None], ...]:
+    # looked up once per process (each lookup scans the installed distributions, ~1 ms):
+    # the packages a running process imported do not change under it
+    out: list[tuple[str, str | None]] = [("python", platform.python_version())]
     for name in PACKAGES:
         try:
-            out[name] = metadata.version(name)
+            out.append((name, metadata.version(name)))
         except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
+            out.append((name, None))
+    return tuple(out)
+
+
+def package_versions() -> dict[str, str | None]:
+    """``{"python": ..., name: version}`` of every package in :data:`PACKAGES` (None when one
+    is not installed); a new dict each call."""
+    return dict(_installed())
 
 
 def provenance() -> dict:
