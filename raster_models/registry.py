@@ -14,7 +14,7 @@ from .errors import ModelError
 from .izb import model as izb
 from .shadowmaps import csm, sdsm, shadow_map
 
-__all__ = ["TECHNIQUES", "Technique", "list_techniques", "parse_params", "run"]
+__all__ = ["TECHNIQUES", "Technique", "family_of", "list_techniques", "parse_params", "run"]
 
 
 @dataclass(frozen=True)
@@ -187,6 +187,17 @@ def _technique(name: str) -> Technique:
     if name not in TECHNIQUES:
         raise ModelError(f"unknown technique {name!r}; choose one of {', '.join(TECHNIQUES)}")
     return TECHNIQUES[name]
+
+
+def family_of(technique: str) -> str:
+    """The family of a registered technique: ``"shadow"`` or ``"aa"``.
+
+    Raises
+    ------
+    ModelError
+        Unknown technique (lists them).
+    """
+    return _technique(technique).family
 
 
 def list_techniques() -> list[dict]:

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from . import _ops
 from .lights import Light
 
-__all__ = ["Specular", "facing", "shade"]
+__all__ = ["Specular", "facing", "receiver_mask", "shade"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,31 @@ def facing(normal, to_eye):
     import drjit as dr
 
     return dr.select(d < 0.0, -normal, normal)
+
+
+def receiver_mask(*, valid, cos_l, to_light, light: Light):
+    """Where a surface point receives the light (the pixels shadows are scored on).
+
+    A receiver is a valid surface point (not sky) whose facing normal has ``n . l > 0`` and
+    that lies inside a spot light's cutoff cone (other lights reach everywhere).
+
+    Parameters
+    ----------
+    valid : (N,) or (H, W) bool array, or Dr.Jit Bool: the point hit geometry.
+    cos_l : ``n . l`` with ``n`` facing the viewer, same shape (or Dr.Jit Float).
+    to_light : unit directions towards the light, (N, 3) float64 array or Vector3f.
+    light : the light.
+
+    Returns
+    -------
+    bool array of the shape of ``valid`` (or Dr.Jit Bool)
+    """
+    cone = light.in_cone(to_light)
+    if _ops.is_np(cos_l):
+        import numpy as np
+
+        cone = np.asarray(cone).reshape(np.shape(valid))
+    return valid & (cos_l > 0.0) & cone
 
 
 def shade(

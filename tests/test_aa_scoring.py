@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 import raster_models
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.cache import ReferenceCache
 from oracle.reference.exr import read_exr, write_exr
 from oracle.reference.render import ReferenceSettings
 from oracle.reference.store import get_reference
-from oracle.scoring.score import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, METRIC_KEYS, _coverage_metrics
+from oracle.scoring.score import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, METRIC_KEYS, coverage_metrics
 from raster_models import params as _params
 from raster_models import registry as _registry
 from raster_models.result import ModelResult
@@ -110,7 +110,7 @@ def test_coverage_metrics_closed_form():
     ref = np.array([[0.0, 0.25, 0.5], [1.0, 0.75, 1.0]], np.float32)
     cand = np.array([[0.0, 0.0, 1.0], [1.0, 1.0, 0.5]], np.float32)
     edge = np.array([[False, False, False], [False, False, True]])
-    m = _coverage_metrics(ref, cand, edge, 4)
+    m = coverage_metrics(ref, cand, edge=edge, aa_samples=4)
     # edge pixels: 0.25 (-0.25), 0.5 (+0.5), 0.75 (+0.25) and the flagged (1, 2) (-0.5)
     edge_rmse = np.sqrt((0.25**2 + 0.5**2 + 0.25**2 + 0.5**2) / 4)
     assert m["coverage_edge_rmse"] == pytest.approx(edge_rmse)
@@ -119,7 +119,7 @@ def test_coverage_metrics_closed_form():
     assert m["coverage_bias"] == pytest.approx(0.0)
     assert m["coverage_floor_rms"] == COVERAGE_FLOOR_RMS[4] == 0.092
     assert m["coverage_edge_rmse_over_floor"] == pytest.approx(edge_rmse / 0.092)
-    none = _coverage_metrics(ref, cand, edge, None)
+    none = coverage_metrics(ref, cand, edge=edge, aa_samples=None)
     assert none["coverage_floor_rms"] is None and none["coverage_edge_rmse_over_floor"] is None
 
 

@@ -15,7 +15,8 @@ import tempfile
 import numpy as np
 import pytest
 
-from oracle.cli.app import MAX_SPP, main
+from oracle.cli import main
+from oracle.cli.args import MAX_SPP, CliError
 from oracle.reference.exr import write_exr
 
 SMALL = ["--width", "16", "--height", "12", "--quiet", "--no-cache"]
@@ -192,14 +193,14 @@ def test_runtime_warnings_do_not_add_stderr_lines(monkeypatch, capfd):
     """NumPy RuntimeWarnings raised on the way to an error are not printed."""
     import warnings
 
-    from oracle.cli import app as cli
+    from oracle.cli import app
 
     def noisy(args):
         np.log(np.zeros(1))  # a genuine NumPy "divide by zero" RuntimeWarning
         warnings.warn("mean of empty slice", RuntimeWarning, stacklevel=1)
-        raise cli.CliError("the one line")
+        raise CliError("the one line")
 
-    monkeypatch.setitem(cli.COMMANDS, "scenes", noisy)
+    monkeypatch.setitem(app.COMMANDS, "scenes", noisy)
     capfd.readouterr()
     assert main(["scenes"]) == 2
     out, err = capfd.readouterr()

@@ -14,7 +14,7 @@ import time
 import pytest
 
 import scenes
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference import cache as cache_mod
 
 SMALL = ["--width", "8", "--height", "6", "--spp", "1", "--quiet"]

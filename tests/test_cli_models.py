@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.exr import read_exr
 
 SIZE = ["--width", "64", "--height", "36"]

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.exr import read_exr
 
 SMALL = ["--width", "48", "--height", "27", "--quiet"]

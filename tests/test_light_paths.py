@@ -12,7 +12,7 @@ import pytest
 
 import raster_models as rm
 import scenes
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.cache import reference_key
 from oracle.reference.render import ReferenceSettings, render_reference
 from scenes.light_paths import (

@@ -166,13 +166,13 @@ def test_a_small_kerb_keeps_its_shadow_far_from_the_origin(tmp_path, offset):
 
 
 def test_spot_receivers_are_inside_the_cone():
-    from oracle.scoring.score import _receivers
+    from oracle.scoring.score import reference_receivers
 
     scene = scenes.load("spot", width=80, height=45)
     ch, _ = render_reference(
         scene, ReferenceSettings(spp=1, channels=("id", "normal", "position")), quiet=True
     )
-    rec = _receivers(ch, scene.light)
+    rec = reference_receivers(ch, scene.light)
     p = np.stack([ch[f"position.{c}"] for c in "XYZ"], -1).reshape(-1, 3).astype(np.float64)
     wl, _ = scene.light.to_light(p)
     inside = np.asarray(scene.light.in_cone(wl)).reshape(rec.shape)

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.exr import read_exr, write_exr
 from oracle.scoring.score import METRIC_KEYS
 

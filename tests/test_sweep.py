@@ -16,12 +16,12 @@ from pathlib import Path
 import pytest
 
 import raster_models
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.sweeps.run import run_sweep, sweep_keys
 from oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
 from oracle.sweeps.store import SweepStore
 from raster_models import params as _params
-from raster_models import registry as _registry
+from raster_models import registry
 from raster_models.shadowmaps import shadow_map
 
 SIZE = "width = 48\nheight = 27\n"
@@ -288,8 +288,8 @@ def _flaky_run(scene, p):
 
 @pytest.fixture
 def flaky(monkeypatch):
-    tech = _registry.Technique("flaky", "test", (), _FlakyParams, _flaky_run, ("directional",))
-    monkeypatch.setitem(_registry.TECHNIQUES, "flaky", tech)
+    tech = registry.Technique("flaky", "test", (), _FlakyParams, _flaky_run, ("directional",))
+    monkeypatch.setitem(registry.TECHNIQUES, "flaky", tech)
     assert raster_models.TECHNIQUES["flaky"] is tech
     return tech
 

@@ -8,7 +8,7 @@ import json
 import pytest
 
 import scenes
-from oracle.cli.app import main
+from oracle.cli import main
 from oracle.reference.cache import ReferenceCache
 from oracle.sweeps.run import evaluate_case
 from oracle.sweeps.tune import TuneError, parse_space, parse_target, run_tune

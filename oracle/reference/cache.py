@@ -73,7 +73,7 @@ def reference_key(loaded, settings, variant: str) -> str:
         "light": loaded.light_index,
         # The light actually used (a light path moves it from frame to frame).
         "light_used": loaded.light.to_json(),
-        "light_path": getattr(loaded, "light_path", None),
+        "light_path": loaded.light_path,
         "camera_path": loaded.camera_path,
         "frame": loaded.frame,
         "n_frames": loaded.n_frames,

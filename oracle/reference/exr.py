@@ -12,45 +12,24 @@ import contextlib
 import io
 import os
 import sys
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["ExrError", "atomic_write_bytes", "make_readable", "read_exr", "write_exr"]
+from ..errors import InputError
+from ..files import atomic_write
+
+__all__ = ["ExrError", "read_exr", "write_exr"]
 
 
-def make_readable(path: str | os.PathLike) -> None:
-    """Give a ``mkstemp`` file (mode 0600) the usual mode of a new file (0666 & ~umask)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(path, 0o666 & ~mask)
-
-
-class ExrError(ValueError):
+class ExrError(InputError):
     """An EXR file that cannot be read or channels that cannot be written."""
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        make_readable(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_exr(
     path: str | os.PathLike,
     channels: Mapping[str, np.ndarray],
-    *,
-    header: Mapping[str, str] | None = None,
 ) -> None:
     """Write float32 channels, each ``(H, W)``, to a ZIP-compressed scanline EXR atomically.
 
@@ -70,19 +49,12 @@ def write_exr(
         arr = arr.astype(np.uint32 if arr.dtype == np.uint32 else np.float32, copy=False)
         data[name] = np.ascontiguousarray(arr)
     hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    for key, value in (header or {}).items():
-        hdr[key] = str(value)
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".exr", dir=path.parent)
-    os.close(fd)
-    try:
+
+    def write(tmp: str) -> None:
         with OpenEXR.File(hdr, data) as f:
             f.write(tmp)
-        make_readable(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    atomic_write(path, write)
 
 
 @contextlib.contextmanager

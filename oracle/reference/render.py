@@ -35,10 +35,12 @@ from metrics.stats import binomial_stderr_floor
 from scenes import backend
 from scenes.raycast import trace_film_dr
 
+from ..errors import InputError
+
 __all__ = [
     "ALL_CHANNELS",
     "CHANNEL_GROUPS",
-    "ReferenceError_",
+    "ReferenceSettingsError",
     "ReferenceSettings",
     "channel_names",
     "estimate_memory",
@@ -76,7 +78,7 @@ _BYTES_PER_SAMPLE = 360
 _BYTES_PER_PIXEL = 8 * 24 + 4 * 30
 
 
-class ReferenceError_(ValueError):
+class ReferenceSettingsError(InputError):
     """Invalid reference settings (bad spp, unknown channel, too much memory)."""
 
 
@@ -94,22 +96,22 @@ class ReferenceSettings:
 
     def validate(self) -> ReferenceSettings:
         if int(self.spp) < 1:
-            raise ReferenceError_(f"spp must be >= 1, got {self.spp}")
+            raise ReferenceSettingsError(f"spp must be >= 1, got {self.spp}")
         if int(self.seed) < 0:
-            raise ReferenceError_(f"seed must be >= 0, got {self.seed}")
+            raise ReferenceSettingsError(f"seed must be >= 0, got {self.seed}")
         unknown = [c for c in self.channels if c not in CHANNEL_GROUPS]
         if unknown or not self.channels:
-            raise ReferenceError_(
+            raise ReferenceSettingsError(
                 f"unknown channel(s) {', '.join(unknown) or '(none given)'}; choose from "
                 f"{', '.join(CHANNEL_GROUPS)}"
             )
         if self.adaptive:
             if int(self.adaptive_spp) < 2:
-                raise ReferenceError_(f"adaptive_spp must be >= 2, got {self.adaptive_spp}")
+                raise ReferenceSettingsError(f"adaptive_spp must be >= 2, got {self.adaptive_spp}")
             if not self.target_stderr > 0:
-                raise ReferenceError_(f"target_stderr must be > 0, got {self.target_stderr}")
+                raise ReferenceSettingsError(f"target_stderr must be > 0, got {self.target_stderr}")
             if int(self.max_spp) < int(self.adaptive_spp):
-                raise ReferenceError_("max_spp must be >= adaptive_spp")
+                raise ReferenceSettingsError("max_spp must be >= adaptive_spp")
         ordered = tuple(c for c in CHANNEL_GROUPS if c in set(self.channels))
         return ReferenceSettings(
             int(self.spp),
@@ -353,7 +355,7 @@ def _tangent32_channel(loaded) -> np.ndarray:
     import drjit as dr
 
     from scenes.raycast import camera_rays_dr, occluded_from_dr
-    from scenes.shading import facing
+    from scenes.shading import facing, receiver_mask
     from scenes.tangent32 import tangent_derivatives_dr, tangent_offsets
 
     w, h = loaded.width, loaded.height
@@ -379,7 +381,7 @@ def _tangent32_channel(loaded) -> np.ndarray:
         b = dr.gather(mi.Float, mi.Float(b_np), k)
         q = si.p + dpdx * a + dpdy * b
         wl, _ = light.to_light(q)
-        candidate = valid & (dr.dot(n, wl) > 0.0) & light.in_cone(wl)
+        candidate = receiver_mask(valid=valid, cos_l=dr.dot(n, wl), to_light=wl, light=light)
         blocked = occluded_from_dr(loaded.mi_scene, light, q, si.n, wl, si.shape, candidate)
         lit = dr.select(valid, dr.select(candidate & ~blocked, 1.0, 0.0), 1.0)
         total = dr.block_reduce(dr.ReduceOp.Add, lit, k_n, mode="evaluated")
@@ -402,7 +404,7 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     need = estimate_memory(w, h)
     have = available_memory()
     if need > have:
-        raise ReferenceError_(
+        raise ReferenceSettingsError(
             f"a {w}x{h} reference needs about {need / 2**30:.1f} GiB; only "
             f"{have / 2**30:.1f} GiB is available"
         )

@@ -3,42 +3,19 @@
 from __future__ import annotations
 
 import json
-import os
-import platform
 import shutil
-import tempfile
 from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
 
 from scenes import backend
+from scenes.records import package_versions
 
+from ..files import atomic_copy, atomic_write_json
 from .cache import ORACLE_VERSION, ReferenceCache, reference_key, scratch_dir
-from .exr import atomic_write_bytes, make_readable, read_exr, write_exr
+from .exr import read_exr, write_exr
 from .render import ReferenceSettings, render_reference
 
-__all__ = ["Reference", "get_reference", "package_versions", "publish"]
-
-_PACKAGES = (
-    "raster-oracle",
-    "mitsuba",
-    "drjit",
-    "numpy",
-    "OpenEXR",
-    "scikit-image",
-    "colour-science",
-    "flip-evaluator",
-)
-
-
-def package_versions() -> dict[str, str]:
-    out = {"python": platform.python_version()}
-    for name in _PACKAGES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
+__all__ = ["Reference", "get_reference", "publish"]
 
 
 @dataclass
@@ -85,7 +62,7 @@ def _render_into(
         **stats,
     }
     write_exr(folder / "reference.exr", channels)
-    atomic_write_bytes(folder / "reference.json", json.dumps(meta, indent=2).encode())
+    atomic_write_json(folder / "reference.json", meta)
     return meta
 
 
@@ -121,19 +98,10 @@ def get_reference(
     return Reference(folder, meta, status)
 
 
-def publish(ref: Reference, out_dir: Path, *, extra: dict | None = None) -> None:
+def publish(ref: Reference, out_dir: Path) -> None:
     """Copy ``reference.exr``/``reference.json`` into ``out_dir``, each file atomically."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".reference.", suffix=".exr", dir=out_dir)
-    os.close(fd)
-    try:
-        shutil.copyfile(ref.exr, tmp)
-        make_readable(tmp)
-        os.replace(tmp, out_dir / "reference.exr")
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_copy(ref.exr, out_dir / "reference.exr")
     meta = dict(ref.meta)
     meta["cache_status"] = ref.cache_status
-    meta.update(extra or {})
-    atomic_write_bytes(out_dir / "reference.json", json.dumps(meta, indent=2).encode())
+    atomic_write_json(out_dir / "reference.json", meta)

@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 import png
 
-from oracle.reference.exr import ExrError, read_exr
+from ..errors import InputError
+from ..reference.exr import ExrError, read_exr
 
 __all__ = ["CandidateError", "load_candidate"]
 
@@ -38,7 +39,7 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_COLOUR_TYPES = (2, 6)
 
 
-class CandidateError(ValueError):
+class CandidateError(InputError):
     """A candidate image that cannot be used: unreadable, wrong size, missing channel, NaN."""
 
 

@@ -6,8 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..reference.exr import atomic_write_bytes, write_exr
-from .score import to_json
+import raster_models
+from scenes.records import jsonable
+
+from ..files import atomic_write_json
+from ..reference.exr import write_exr
 
 __all__ = ["output_channels", "run_model_to_folder"]
 
@@ -33,23 +36,22 @@ def output_channels(outputs: dict) -> dict[str, np.ndarray]:
     return channels
 
 
-def run_model_to_folder(technique: str, loaded, pairs: list[str], out: Path) -> dict:
-    """Parse ``KEY=VALUE`` pairs, run the model on ``loaded`` and write the folder."""
-    import raster_models
-
-    params = raster_models.parse_params(technique, pairs)
+def run_model_to_folder(technique: str, loaded, *, params: dict, out: Path) -> dict:
+    """Run ``technique`` with ``params`` on ``loaded``; write ``out/output.exr`` (its outputs)
+    and ``out/model.json`` (parameters, cost, diagnostics, time, scene); returns the record."""
     res = raster_models.run(technique, loaded, **params)
-    record = {
-        "technique": technique,
-        "params": res.params,
-        "cost": res.cost,
-        "diagnostics": res.diagnostics,
-        "wall_seconds": res.wall_seconds,
-        "scene": loaded.provenance(),
-    }
-    data = to_json(record)
+    record = jsonable(
+        {
+            "technique": technique,
+            "params": res.params,
+            "cost": res.cost,
+            "diagnostics": res.diagnostics,
+            "wall_seconds": res.wall_seconds,
+            "scene": loaded.provenance(),
+        }
+    )
     channels = output_channels(res.outputs)
     out.mkdir(parents=True, exist_ok=True)
     write_exr(out / "output.exr", channels)
-    atomic_write_bytes(out / "model.json", data)
+    atomic_write_json(out / "model.json", record)
     return record

@@ -7,19 +7,18 @@ temporary name and renamed, so a failed request leaves nothing half-written.
 from __future__ import annotations
 
 import io
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 import metrics as M
+import raster_models
 import reports
+from scenes.records import jsonable, package_versions
 
-from ..reference.exr import atomic_write_bytes, make_readable, write_exr
-from ..reference.store import package_versions
-from .score import METRIC_KEYS, ScoreResult, failures, to_json
+from ..files import atomic_copy, atomic_write_bytes, atomic_write_json
+from ..reference.exr import write_exr
+from .score import METRIC_KEYS, ScoreResult, failures
 
 __all__ = ["MAP_STYLES", "MEMORY_RESOLUTIONS", "report_cost", "write_score_folder"]
 
@@ -77,7 +76,7 @@ def _case(
         thresholds={k: v for k, v in thresholds.items() if k in values} or None,
         cost=report_cost(cost, technique),
         technique=technique,
-        family=_family(technique, scene),
+        family=_front(technique, scene),
         params=params,
         exr_links={
             "reference": "reference.exr",
@@ -87,14 +86,15 @@ def _case(
     )
 
 
-def _family(technique: str | None, scene: str) -> str | None:
-    """Pareto fronts compare techniques of one family on one scene."""
+def _front(technique: str | None, scene: str) -> str | None:
+    """The report's group of a case: Pareto fronts compare techniques of one group on one
+    scene (the shadow maps together, the anti-aliasing techniques together, others alone)."""
     if technique is None:
         return None
-    family = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
-    if _technique_family(technique) == "aa":
-        family = "anti-aliasing"
-    return f"{family} on {scene}"
+    group = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
+    if raster_models.family_of(technique) == "aa":
+        group = "anti-aliasing"
+    return f"{group} on {scene}"
 
 
 #: Resolutions at which the report restates an anti-aliasing model's framebuffer memory: the
@@ -126,7 +126,7 @@ def report_cost(cost: dict | None, technique: str | None) -> dict | None:
             for sub, v in value.items():
                 if isinstance(v, int | float | np.integer | np.floating) and np.isfinite(v):
                     out[f"{sub} {stem}"] = v
-    if technique is not None and _technique_family(technique) == "aa":
+    if technique is not None and raster_models.family_of(technique) == "aa":
         total, w, h = cost.get("framebuffer_bytes"), cost.get("width"), cost.get("height")
         if all(isinstance(v, int | np.integer) and v > 0 for v in (total, w, h)):
             per_pixel, rest = divmod(int(total), int(w) * int(h))
@@ -136,14 +136,8 @@ def report_cost(cost: dict | None, technique: str | None) -> dict | None:
     return out
 
 
-def _technique_family(technique: str) -> str:
-    import raster_models
-
-    t = raster_models.TECHNIQUES.get(technique)
-    return getattr(t, "family", "shadow") if t is not None else "shadow"
-
-
-def provenance(result: ScoreResult, loaded) -> dict:
+def _provenance(result: ScoreResult, loaded) -> dict:
+    """The report's provenance table: scene, reference, tone mapping, backend, versions."""
     ref = result.record["reference"]
     tm = result.record.get("tone_mapping") or {}
     return {
@@ -194,6 +188,7 @@ def write_score_folder(
     record["maps"] = {
         k: {"exr": f"error_maps.exr:{k}", "png": f"{k}.png"} for k in result.frames[0].maps
     }
+    record = jsonable(record)  # a record JSON cannot hold fails here, before any file
     frame = result.frames[0]
     case = _case(
         result,
@@ -205,7 +200,7 @@ def write_score_folder(
         cost=cost,
     )
     report = reports.build_report(
-        [case], title=f"{name} on {loaded.name}", provenance=provenance(result, loaded)
+        [case], title=f"{name} on {loaded.name}", provenance=_provenance(result, loaded)
     )
     pngs = {}
     for key, data in frame.maps.items():
@@ -222,13 +217,9 @@ def write_score_folder(
     out_dir.mkdir(parents=True, exist_ok=True)
     write_exr(out_dir / "candidate.exr", cand_channels)
     write_exr(out_dir / "error_maps.exr", {k: np.nan_to_num(v) for k, v in frame.maps.items()})
-    fd, tmp = tempfile.mkstemp(prefix=".reference.", suffix=".exr", dir=out_dir)
-    os.close(fd)
-    shutil.copyfile(result.reference_folders[0] / "reference.exr", tmp)
-    make_readable(tmp)
-    os.replace(tmp, out_dir / "reference.exr")
+    atomic_copy(result.reference_folders[0] / "reference.exr", out_dir / "reference.exr")
     for fname, data in pngs.items():
         atomic_write_bytes(out_dir / fname, data)
-    atomic_write_bytes(out_dir / "metrics.json", to_json(record))
+    atomic_write_json(out_dir / "metrics.json", record)
     reports.write_report(report, out_dir / "report.html")
     return record["failed"]

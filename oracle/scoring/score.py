@@ -18,7 +18,6 @@ against the first: its noise floor. With ``frames`` the camera path is scored fr
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -27,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 import metrics as M
+from scenes.shading import receiver_mask
 
+from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 
@@ -35,8 +36,13 @@ __all__ = [
     "COVERAGE_FLOOR_RMS",
     "COVERAGE_KEYS",
     "METRIC_KEYS",
+    "REFERENCE_GROUPS",
     "ScoreError",
     "ScoreResult",
+    "coverage_metrics",
+    "failures",
+    "parse_thresholds",
+    "reference_receivers",
     "score",
 ]
 
@@ -68,7 +74,8 @@ METRIC_KEYS = (
 #: RMS coverage error of a box-resolved N-sample standard pattern on one straight edge
 #: (TECHNIQUES.md table; ``metrics.straight_edge_error_floor`` reproduces it).
 COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
-_REF_GROUPS = {
+#: Reference channel groups each scored channel reads.
+REFERENCE_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
     "coverage": ("coverage", "edge", "id"),
@@ -76,7 +83,7 @@ _REF_GROUPS = {
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
 
 
-class ScoreError(ValueError):
+class ScoreError(InputError):
     """Bad scoring request (unknown channel, bad threshold, ...)."""
 
 
@@ -99,16 +106,15 @@ class ScoreResult:
     reference_folders: list[Path] = field(default_factory=list)
 
 
-def _receivers(ch: dict, light) -> np.ndarray:
+def reference_receivers(ch: dict, light) -> np.ndarray:
+    """Receivers of a reference (:func:`scenes.shading.receiver_mask` at the pixel centres):
+    ``(H, W)`` bool from its ``id``, ``normal`` and ``position`` channels."""
     valid = ch["id"] >= 0
     n = np.stack([ch[f"normal.{c}"] for c in "XYZ"], -1).astype(np.float64)
     p = np.stack([ch[f"position.{c}"] for c in "XYZ"], -1).astype(np.float64)
     wl, _ = light.to_light(p.reshape(-1, 3))
     cos = np.sum(n.reshape(-1, 3) * wl, axis=-1).reshape(valid.shape)
-    # a spot light reaches only its cone: outside it a pixel receives no light to shadow,
-    # exactly as the models and the oracle's shading treat it
-    cone = np.asarray(light.in_cone(wl)).reshape(valid.shape)
-    return valid & (cos > 0) & cone
+    return receiver_mask(valid=valid, cos_l=cos, to_light=wl, light=light)
 
 
 def _rgb(ch: dict, name: str) -> np.ndarray:
@@ -144,7 +150,7 @@ def _metrics_for(
     edge = ref_ch["edge"] > 0.5
     if channel == "visibility":
         ref = ref_ch["visibility"]
-        rec = _receivers(ref_ch, light)
+        rec = reference_receivers(ref_ch, light)
         sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
         for k in _SHADOW_VALUES:
             out[k] = sm[k]
@@ -161,7 +167,7 @@ def _metrics_for(
         ref = ref_ch["coverage"]
         rec = None
         ref_se = ref_ch["coverage_stderr"]
-        out.update(_coverage_metrics(ref, cand, edge, aa_samples))
+        out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=aa_samples))
         # silhouettes against the sky are edges of coverage even where one shape is seen
         edge = edge | ((ref > 0) & (ref < 1))
         lin = dict(tone_mapper="clip", exposure=0.0)
@@ -203,7 +209,7 @@ def _metrics_for(
     return {k: _finite(v) if k in METRIC_KEYS else v for k, v in out.items()}, maps, ref, rec
 
 
-def _coverage_metrics(ref, cand, edge, aa_samples) -> dict:
+def coverage_metrics(ref, cand, *, edge, aa_samples) -> dict:
     """Coverage error overall, on edge and interior pixels, and against the N-sample floor.
 
     Edge pixels: the reference's ``edge`` channel or fractional reference coverage.
@@ -226,6 +232,72 @@ def _coverage_metrics(ref, cand, edge, aa_samples) -> dict:
         "coverage_interior_mae": inside["mae"] if inside["count"] else None,
         "coverage_floor_rms": floor,
         "coverage_edge_rmse_over_floor": ratio,
+    }
+
+
+def _noise_floor(
+    frame_scene, ref, ref_ch, ref_img, *, channel, settings, kw, cache, quiet, floor_cache
+) -> dict:
+    """Metrics an exact candidate would score against ``ref``: an independently seeded second
+    reference (``settings``) stands for it. Cached in ``floor_cache`` by reference and options.
+    """
+    floor_key = (ref.meta.get("cache_key"), channel, kw["flip_mode"], kw["ppd"], kw["samples"])
+    floor_key += (kw["aa_samples"],)
+    cached = floor_cache.get(floor_key) if floor_cache is not None else None
+    if cached is not None and floor_key[0] is not None:
+        return dict(cached)
+    ref2_ch = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
+    second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
+    # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by noise of
+    # A's variance (B itself would overstate the floor by about sqrt(2))
+    exact = M.exact_surrogate(ref_img, second)
+    floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
+    floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+    if floor_cache is not None and floor_key[0] is not None:
+        floor_cache[floor_key] = dict(floor)
+    return floor
+
+
+def _summary(result: ScoreResult, *, temporal: bool) -> dict:
+    """Per-frame metrics averaged over the frames, and the temporal metrics of the path."""
+    per_frame = [f.metrics for f in result.frames]
+    summary = {}
+    for key in METRIC_KEYS:
+        vals = [m[key] for m in per_frame if m.get(key) is not None]
+        summary[key] = float(np.mean(vals)) if vals else None
+    if temporal:
+        refs = np.stack([f.reference for f in result.frames])
+        cands = np.stack([f.candidate for f in result.frames])
+        summary["flicker"] = M.flicker(refs, cands)
+        summary["temporal_error"] = M.temporal_error(refs, cands)
+    return summary
+
+
+def _record(
+    result, loaded, ref_meta, *, channel, summary, frames, camera_path, tone, ppd, spp, seed
+) -> dict:
+    """The ``metrics.json`` record of a score (before thresholds and the candidate's cost)."""
+    return {
+        "schema": "raster-oracle/metrics/1",
+        "channel": channel,
+        **summary,
+        "noise_floor": result.frames[0].noise_floor,
+        "frames": [f.metrics for f in result.frames] if frames else None,
+        "camera_path": camera_path if frames else None,
+        "light_path": loaded.light_path,
+        "tone_mapping": tone,
+        "ppd": ppd,
+        "reference": {
+            "scene": ref_meta["scene"],
+            "spp": spp,
+            "seed": seed,
+            "noise_floor_seed": seed + 1,
+            "channels": list(REFERENCE_GROUPS[channel]),
+            "variant": ref_meta["variant"],
+            "versions": ref_meta["versions"],
+            "cache_key": ref_meta["cache_key"],
+            "filter": ref_meta["filter"],
+        },
     }
 
 
@@ -259,13 +331,13 @@ def score(
     floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
         the references and scoring options only, so it is computed once per reference.
     """
-    if channel not in _REF_GROUPS:
+    if channel not in REFERENCE_GROUPS:
         raise ScoreError(f"channel must be 'visibility', 'color' or 'coverage', got {channel!r}")
     flip_mode = flip_mode.upper()
     if flip_mode not in ("LDR", "HDR"):
         raise ScoreError(f"flip mode must be LDR or HDR, got {flip_mode!r}")
     t0 = time.perf_counter()
-    groups = _REF_GROUPS[channel]
+    groups = REFERENCE_GROUPS[channel]
     settings = ReferenceSettings(spp=spp, seed=seed, channels=groups).validate()
     noise_settings = ReferenceSettings(spp=spp, seed=seed + 1, channels=groups).validate()
     n = frames or 1
@@ -295,64 +367,43 @@ def score(
         floor = None
         if k == 0:
             ref_meta = ref.meta
-            floor_key = (ref_meta.get("cache_key"), channel, flip_mode, ppd, spp, aa_samples)
-            cached = floor_cache.get(floor_key) if floor_cache is not None else None
-            if cached is not None and floor_key[0] is not None:
-                floor = dict(cached)
-            else:
-                ref2 = get_reference(frame_scene, noise_settings, cache=cache, quiet=quiet)
-                ref2_ch = ref2.channels()
-                second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
-                # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by
-                # noise of A's variance (B itself would overstate the floor by about sqrt(2))
-                exact = M.exact_surrogate(ref_img, second)
-                floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
-                floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
-                if floor_cache is not None and floor_key[0] is not None:
-                    floor_cache[floor_key] = dict(floor)
+            floor = _noise_floor(
+                frame_scene,
+                ref,
+                ref_ch,
+                ref_img,
+                channel=channel,
+                settings=noise_settings,
+                kw=kw,
+                cache=cache,
+                quiet=quiet,
+                floor_cache=floor_cache,
+            )
         result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
         result.reference_folders.append(ref.folder)
-    per_frame = [f.metrics for f in result.frames]
-    summary = {}
-    for key in METRIC_KEYS:
-        vals = [m[key] for m in per_frame if m.get(key) is not None]
-        summary[key] = float(np.mean(vals)) if vals else None
-    if frames and n >= 2:
-        refs = np.stack([f.reference for f in result.frames])
-        cands = np.stack([f.candidate for f in result.frames])
-        summary["flicker"] = M.flicker(refs, cands)
-        summary["temporal_error"] = M.temporal_error(refs, cands)
-    result.record = {
-        "schema": "raster-oracle/metrics/1",
-        "channel": channel,
-        **summary,
-        "noise_floor": result.frames[0].noise_floor,
-        "frames": per_frame if frames else None,
-        "camera_path": camera_path if frames else None,
-        "light_path": getattr(loaded, "light_path", None),
-        "tone_mapping": None
-        if channel != "color"
-        else {
+    tone = None
+    if channel == "color":
+        tone = {
             "exposure_stops": exposure,
             "tone_mapper": "aces",
             "flip_mode": flip_mode,
             "flip_exposure_range": list(flip_range) if flip_range else None,
-        },
-        "ppd": ppd,
-        "reference": {
-            "scene": ref_meta["scene"],
-            "spp": spp,
-            "seed": seed,
-            "noise_floor_seed": seed + 1,
-            "channels": list(groups),
-            "variant": ref_meta["variant"],
-            "versions": ref_meta["versions"],
-            "cache_key": ref_meta["cache_key"],
-            "filter": ref_meta["filter"],
-        },
-        "candidate_info": infos,
-        "wall_seconds": time.perf_counter() - t0,
-    }
+        }
+    result.record = _record(
+        result,
+        loaded,
+        ref_meta,
+        channel=channel,
+        summary=_summary(result, temporal=bool(frames) and n >= 2),
+        frames=frames,
+        camera_path=camera_path,
+        tone=tone,
+        ppd=ppd,
+        spp=spp,
+        seed=seed,
+    )
+    result.record["candidate_info"] = infos
+    result.record["wall_seconds"] = time.perf_counter() - t0
     return result
 
 
@@ -381,19 +432,3 @@ def parse_thresholds(pairs: list[str] | None) -> dict[str, float]:
 def failures(record: dict, thresholds: dict[str, float]) -> list[str]:
     """Metrics whose value exceeds its threshold (a metric that does not apply never fails)."""
     return [k for k, limit in thresholds.items() if record.get(k) is not None and record[k] > limit]
-
-
-def to_json(record: dict) -> bytes:
-    return json.dumps(record, indent=2, default=_json_default).encode()
-
-
-def _json_default(obj):
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.floating):
-        return float(obj)
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, tuple | set | frozenset):
-        return list(obj)
-    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")

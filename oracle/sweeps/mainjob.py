@@ -133,7 +133,7 @@ def run_main(
     size : ``(width, height)`` instead of the spec's 640x360.
     quick : the extremes' and claims' quick form (the main job's time budget).
     """
-    from ..cli.sweeps import sweep_report
+    from .report import sweep_report
     from .run import run_sweep
     from .spec import expand_spec
 

@@ -17,19 +17,27 @@ tuning, debugging).
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import time
 import uuid
 from pathlib import Path
 
-import numpy as np
+import raster_models
+from scenes.records import package_versions
 
+from ..errors import InputError, one_line
+from ..reference.cache import ORACLE_VERSION, ReferenceCache
+from ..reference.render import ReferenceSettings
+from ..reference.store import get_reference
+from ..scoring.score import METRIC_KEYS, REFERENCE_GROUPS
+from ..scoring.technique import score_model, technique_channels
 from .spec import Case, Expansion
 from .store import SweepStore, case_key
+from .thumbnails import case_images
 
 __all__ = [
-    "CASE_METRICS_EXTRA",
     "SweepError",
     "check_scheduler",
     "evaluate_case",
@@ -38,10 +46,6 @@ __all__ = [
     "run_sweep",
     "sweep_keys",
 ]
-
-#: Per-case entries stored in ``metrics`` next to the metric keys (deterministic values
-#: only: the same spec gives the same ``metrics`` bytes; times go to ``wall_seconds``).
-CASE_METRICS_EXTRA = ("noise_floor", "receiver_count")
 
 #: Seconds to wait for a ``--scheduler`` to answer.
 SCHEDULER_TIMEOUT_S = 20
@@ -53,22 +57,22 @@ _THREADS: list = []
 _FLOORS: dict = {}
 
 
-class SweepError(ValueError):
+class SweepError(InputError):
     """A sweep cannot run (no scheduler at the given address)."""
 
 
-def _family(technique: str) -> str:
-    from ..cli.score import technique_family
+#: Longest error message kept in a failed case's row, in characters.
+MAX_ERROR_CHARS = 2000
 
-    return technique_family(technique)
+
+def _error(exc: BaseException) -> str:
+    """A failed case's ``error``: the exception's type and message on one line."""
+    return one_line(exc, with_type=True)[:MAX_ERROR_CHARS]
 
 
 def _reference_groups(technique: str) -> list[tuple[str, ...]]:
     """Channel groups of the references scoring ``technique`` reads (one per channel)."""
-    from ..cli.score import FAMILY_CHANNELS
-    from ..scoring.score import _REF_GROUPS
-
-    return [_REF_GROUPS[c] for c in FAMILY_CHANNELS.get(_family(technique), ("visibility",))]
+    return [REFERENCE_GROUPS[c] for c in technique_channels(technique)]
 
 
 def _ensure_backend(variant: str | None) -> None:
@@ -128,10 +132,6 @@ def reference_jobs(rec: dict) -> list[dict]:
 
 def render_reference(job: dict, cache_root: str, variant: str | None) -> str:
     """Worker task: render one reference into the cache (or find it there); its status."""
-    from ..reference.cache import ReferenceCache
-    from ..reference.render import ReferenceSettings
-    from ..reference.store import get_reference
-
     _ensure_backend(variant)
     settings = ReferenceSettings(
         spp=job["spp"], seed=job["seed"], channels=tuple(job["channels"])
@@ -150,9 +150,6 @@ def evaluate_case(
     coverage metrics merged in, exactly as ``raster-oracle score --technique`` does. With
     ``images``, ``"images"`` holds thumbnails (:func:`case_images`).
     """
-    from ..cli.score import score_model
-    from ..scoring.score import METRIC_KEYS
-
     result = score_model(
         loaded, technique, params, spp=spp, seed=seed, cache=cache, quiet=True, floor_cache=_FLOORS
     )
@@ -167,54 +164,8 @@ def evaluate_case(
     return out
 
 
-#: Longer side of the thumbnails kept per case, in pixels (the image is reduced by the
-#: smallest integer factor that fits).
-THUMBNAIL_SIZE = 320
-#: Primary error map of each scored channel: map name, palette, fixed range.
-_ERROR_MAPS = {
-    "visibility": ("visibility_error", "signed", (-1.0, 1.0)),
-    "color": ("flip", "magma", (0.0, 1.0)),
-    "coverage": ("coverage_error", "signed", (-1.0, 1.0)),
-}
-
-
-def case_images(result) -> dict:
-    """Thumbnails of a score result as data URIs: ``reference``, ``candidate``, ``error``
-    (visibility as grey PNG, colour through the shared tone mapper as WebP/JPEG, the primary
-    error map with its fixed-range palette, reduced keeping the largest error per block)."""
-    import metrics as M
-    from reports import images as _images
-
-    frame = result.frames[0]
-    channel = result.record["channel"]
-    factor = _images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
-    out = {}
-    for name, image in (("reference", frame.reference), ("candidate", frame.candidate)):
-        if image.ndim == 2:
-            out[name] = _images.encode_visibility(
-                _images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
-            )
-        else:
-            exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
-            shown = M.tonemap(image, exposure=exposure)
-            out[name] = _images.encode_color(_images.reduce_image(shown, factor, srgb=True))
-    key, style, value_range = _ERROR_MAPS[channel]
-    if key in frame.maps:
-        data = _images.reduce_error(np.nan_to_num(frame.maps[key]), factor)
-        out["error"] = _images.encode_heatmap(data, style=style, value_range=value_range)
-        out["error_map"] = key
-    return out
-
-
-def _one_line(exc: BaseException) -> str:
-    text = f"{type(exc).__name__}: {exc}"
-    return "".join(c if c >= " " else " " for c in text)[:2000]
-
-
 def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bool = False) -> dict:
     """Worker task: evaluate one case record; never raises (a failure is a result)."""
-    from ..reference.cache import ReferenceCache
-
     t0 = time.perf_counter()
     try:
         _ensure_backend(variant)
@@ -229,31 +180,21 @@ def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bo
         )
         out["status"], out["error"] = "done", None
     except Exception as exc:  # recorded in the store; the sweep goes on
-        out = {"status": "failed", "error": _one_line(exc), "metrics": None, "cost": None}
+        out = {"status": "failed", "error": _error(exc), "metrics": None, "cost": None}
         out["params"] = rec["params"]
     out["wall_seconds"] = time.perf_counter() - t0
     return out
 
 
 def _versions(variant: str) -> dict:
-    from importlib import metadata
-
-    from ..reference.cache import ORACLE_VERSION
-
-    out = {"variant": variant, "oracle_version": ORACLE_VERSION}
-    for name in ("raster-oracle", "mitsuba", "drjit"):
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
+    """What a case's result depends on besides its inputs: backend, oracle and packages."""
+    return {"variant": variant, "oracle_version": ORACLE_VERSION, **package_versions()}
 
 
 def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
     """``(key, record, row)`` of each case: the store key, the worker record and the row
     fields known before it runs (scene content hash and every parameter resolved)."""
-    import raster_models
-    from raster_models import params as _params
+    from raster_models import params
 
     versions = _versions(variant)
     out = []
@@ -262,7 +203,7 @@ def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
         base = _base_scene(rec)
         rec["width"], rec["height"] = base.width, base.height
         tech = raster_models.TECHNIQUES[case.technique]
-        full = _params.as_dict(_params.make(case.technique, tech.params, case.params))
+        full = params.as_dict(params.make(case.technique, tech.params, case.params))
         identity = {
             "scene": Path(case.scene).name if case.scene.endswith(".xml") else case.scene,
             "scene_hash": base.content_hash,
@@ -276,7 +217,7 @@ def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
         row = {
             "scene": base.name,
             "technique": case.technique,
-            "family": _family(case.technique),
+            "family": raster_models.family_of(case.technique),
             "frame": case.frame,
             "path": case.frame_path,
             "width": base.width,
@@ -406,8 +347,6 @@ def run_sweep(
 
 
 def _unique_references(todo) -> dict[str, dict]:
-    import json
-
     refs: dict[str, dict] = {}
     for _, rec, _ in todo:
         for job in reference_jobs(rec):
@@ -424,9 +363,8 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
             try:
                 render_reference(job, cache_root, variant)
             except Exception as exc:  # the cases that need it fail with this error
-                failed_refs[text] = _one_line(exc)
+                failed_refs[text] = _error(exc)
             bar.update()
-    import json
 
     with _progress(len(todo), quiet=quiet, desc=summary["sweep"]) as bar:
         for key, rec, row in todo:
@@ -444,8 +382,6 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
 
 
 def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, images):
-    import json
-
     from distributed import Client, LocalCluster, as_completed
 
     cluster = None
@@ -486,7 +422,7 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, 
                 try:
                     res = fut.result()
                 except Exception as exc:  # a reference failed, or a worker died
-                    res = {"status": "failed", "error": _one_line(exc), "wall_seconds": None}
+                    res = {"status": "failed", "error": _error(exc), "wall_seconds": None}
                 bar.update()
                 yield key, rec, row, res
     finally:

@@ -42,6 +42,10 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from scenes.light_paths import LIGHT_PATHS, check_light_path
+
+from ..errors import InputError
+
 __all__ = ["Case", "Expansion", "SpecError", "expand_spec", "expand_values", "load_spec"]
 
 _TOP_KEYS = ("name", "defaults", "case")
@@ -71,7 +75,7 @@ RANGE_END_SLACK = 1e-9
 FLOAT_DIGITS = 12
 
 
-class SpecError(ValueError):
+class SpecError(InputError):
     """A malformed sweep spec; the message starts with the offending key."""
 
 
@@ -262,15 +266,11 @@ def _frames(where: str, table: dict) -> tuple[str | None, str | None, list[int],
             f"{where}.camera_path: unknown camera path {camera_path!r}; choose one of "
             f"{', '.join(scenes.CAMERA_PATHS)}"
         )
-    if light_path is not None:
-        names = _light_paths()
-        if names is None:
-            raise SpecError(f"{where}.light_path: light paths are not available in this version")
-        if light_path not in names:
-            raise SpecError(
-                f"{where}.light_path: unknown light path {light_path!r}; choose one of "
-                f"{', '.join(names)}"
-            )
+    if light_path is not None and light_path not in LIGHT_PATHS:
+        raise SpecError(
+            f"{where}.light_path: unknown light path {light_path!r}; choose one of "
+            f"{', '.join(LIGHT_PATHS)}"
+        )
     path = camera_path or light_path
     n_frames = _int_value(f"{where}.n_frames", table.get("n_frames", 8), minimum=1)
     if "frames" not in table:
@@ -291,16 +291,6 @@ def _frames(where: str, table: dict) -> tuple[str | None, str | None, list[int],
     if bad:
         raise SpecError(f"{where}.frames: frame {bad[0]} is outside [0, {n_frames}) (n_frames)")
     return camera_path, light_path, list(dict.fromkeys(frames)), n_frames
-
-
-def _light_paths() -> list[str] | None:
-    """Names of the light paths (``scenes.light_paths``), or None where there are none."""
-    try:
-        from scenes import light_paths
-    except ImportError:
-        return None
-    names = getattr(light_paths, "LIGHT_PATHS", None)
-    return list(names) if names else None
 
 
 def _scene_name(where: str, name, base_dir: Path | None) -> str:
@@ -408,8 +398,6 @@ def expand_spec(
             light = _scene_light(scene, settings["light"], kinds)
             kind = light.kind
             if light_path is not None:
-                from scenes.light_paths import check_light_path
-
                 try:
                     check_light_path(light_path, light)
                 except ValueError as exc:

@@ -20,11 +20,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import sqlite3
 import time
 from pathlib import Path
+
+from scenes.records import jsonable
+
+from ..errors import InputError
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -89,26 +92,13 @@ CREATE TABLE IF NOT EXISTS sweep_images (key TEXT PRIMARY KEY, images TEXT NOT N
 """
 
 
-class StoreError(ValueError):
+class StoreError(InputError):
     """The store file cannot be used (not SQLite, another schema, not writable)."""
-
-
-def _jsonable(value):
-    """JSON value with non-finite floats as the strings ``"nan"``, ``"inf"``, ``"-inf"``."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_jsonable(v) for v in value]
-    if hasattr(value, "item") and callable(value.item):  # NumPy scalars
-        return _jsonable(value.item())
-    return value
 
 
 def dumps(value) -> str:
     """Canonical JSON (sorted keys, no NaN literals)."""
-    return json.dumps(_jsonable(value), sort_keys=True, allow_nan=False)
+    return json.dumps(jsonable(value), sort_keys=True, allow_nan=False)
 
 
 def case_key(record: dict) -> str:

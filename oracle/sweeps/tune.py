@@ -20,7 +20,21 @@ import hashlib
 import json
 import math
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
+
+import optuna
+
+import raster_models
+import raster_models.params
+import scenes
+from scenes import backend
+
+from ..errors import InputError
+from ..scoring.score import METRIC_KEYS
+from .run import run_case, sweep_keys
+from .spec import Case
+from .store import SweepStore
 
 __all__ = ["DEFAULT_COST", "TuneError", "parse_space", "parse_target", "run_tune"]
 
@@ -32,14 +46,12 @@ DEFAULT_RESOLUTION = (64, 4096)
 FAILED_CONSTRAINT = 1e30
 
 
-class TuneError(ValueError):
+class TuneError(InputError):
     """Bad tuning request (target, search space, cost key)."""
 
 
 def parse_target(text: str) -> tuple[str, float]:
     """``"flip_mean<=0.05"`` -> ``("flip_mean", 0.05)``; the metric must be a metric key."""
-    from ..scoring.score import METRIC_KEYS
-
     metric, sep, value = str(text).partition("<=")
     metric = metric.strip()
     if not sep:
@@ -64,14 +76,14 @@ def parse_space(technique: str, vary: list[str]) -> dict[str, tuple]:
     ``KEY=a,b,c`` a set of choices (parsed as ``--set`` values are). Without ``--vary`` the
     space is ``resolution`` over :data:`DEFAULT_RESOLUTION` when the technique has one.
     """
-    import raster_models
-    from raster_models import params as _params
-
     if technique not in raster_models.TECHNIQUES:
         raise TuneError(
             f"unknown technique {technique!r}; choose one of {', '.join(raster_models.TECHNIQUES)}"
         )
-    fields = {p["name"]: p for p in _params.describe(raster_models.TECHNIQUES[technique].params)}
+    fields = {
+        p["name"]: p
+        for p in raster_models.params.describe(raster_models.TECHNIQUES[technique].params)
+    }
     if not vary:
         if "resolution" not in fields:
             raise TuneError(f"{technique} has no resolution parameter: give --vary KEY=SPEC")
@@ -136,45 +148,28 @@ def _grid(space: dict) -> dict | None:
     return None
 
 
-def run_tune(
-    scene: str,
-    *,
-    technique: str,
-    target: tuple[str, float],
-    minimize: str | None = None,
-    trials: int = 20,
-    vary: list[str] | None = None,
-    fixed: list[str] | None = None,
-    width: int | None = None,
-    height: int | None = None,
-    light: int = 0,
-    spp: int = 64,
-    seed: int = 0,
-    db: str | Path,
-    study_name: str | None = None,
-    cache,
-    quiet: bool = True,
-) -> dict:
-    """Find the cheapest configuration meeting ``target``; returns the study's summary.
+@dataclass(frozen=True)
+class _Problem:
+    """A tuning problem: what is varied and fixed, on which scene, against which target."""
 
-    Returns
-    -------
-    dict
-        ``{"study", "db", "sampler", "target", "minimize", "trials", "feasible", "best":
-        {"params", "cost", "metric", "key"} or None, "evaluated": [{"params", "cost",
-        "metric", "feasible"}]}`` (``evaluated`` sorted by cost).
-    """
-    import optuna
+    scene: str
+    technique: str
+    loaded: object
+    space: dict
+    fixed: dict
+    metric: str
+    limit: float
+    cost_key: str
+    name: str
+    spp: int
+    seed: int
+    light: int
 
-    import raster_models
-    import scenes
-    from raster_models import params as _params
-    from scenes import backend
 
-    from .run import run_case, sweep_keys
-    from .spec import Case
-    from .store import SweepStore
-
+def _problem(
+    scene, *, technique, target, minimize, vary, fixed, width, height, light, spp, seed, study_name
+) -> _Problem:
+    """Check the request and name the study (the same request continues the same study)."""
     metric, limit = target
     space = parse_space(technique, list(vary or []))
     try:
@@ -187,9 +182,7 @@ def run_tune(
     loaded = scenes.load(scene, width=width, height=height, light=light)
     if loaded.light.kind not in raster_models.TECHNIQUES[technique].lights:
         raise TuneError(f"{technique} does not support the {loaded.light.kind} light of {scene}")
-    from .run import _family
-
-    cost_key = minimize or DEFAULT_COST.get(_family(technique))
+    cost_key = minimize or DEFAULT_COST.get(raster_models.family_of(technique))
     ident = json.dumps(
         [
             scene,
@@ -211,105 +204,141 @@ def run_tune(
         f"{technique} on {loaded.name}: min {cost_key} s.t. {metric}<={limit:g} "
         f"[{hashlib.sha256(ident.encode()).hexdigest()[:10]}]"
     )
-    variant = backend.active().variant
-    store = SweepStore(db)
+    return _Problem(
+        scene,
+        technique,
+        loaded,
+        space,
+        fixed_params,
+        metric,
+        limit,
+        cost_key,
+        name,
+        spp,
+        seed,
+        light,
+    )
 
-    def evaluate(params: dict) -> dict:
-        case = Case(
-            scene=scene,
-            technique=technique,
-            params={**fixed_params, **params},
-            width=loaded.width,
-            height=loaded.height,
-            spp=spp,
-            seed=seed,
-            light=light,
+
+def _evaluate(problem: _Problem, params: dict, *, store: SweepStore, cache, variant) -> dict:
+    """The store row of one configuration: scored now, or found in the store."""
+    case = Case(
+        scene=problem.scene,
+        technique=problem.technique,
+        params={**problem.fixed, **params},
+        width=problem.loaded.width,
+        height=problem.loaded.height,
+        spp=problem.spp,
+        seed=problem.seed,
+        light=problem.light,
+    )
+    key, rec, row = sweep_keys([case], variant)[0]
+    stored = store.get(key)
+    if stored is None or stored["status"] != "done":
+        res = run_case(rec, str(cache.root), variant)
+        store.put(
+            {
+                **row,
+                "key": key,
+                "sweep": f"tune:{problem.name}",
+                "params": res.get("params") or rec["params"],
+                "metrics": res.get("metrics"),
+                "cost": res.get("cost"),
+                "wall_seconds": res.get("wall_seconds"),
+                "status": res["status"],
+                "error": res.get("error"),
+                "run_id": "tune",
+            }
         )
-        key, rec, row = sweep_keys([case], variant)[0]
         stored = store.get(key)
-        if stored is None or stored["status"] != "done":
-            res = run_case(rec, str(cache.root), variant)
-            store.put(
-                {
-                    **row,
-                    "key": key,
-                    "sweep": f"tune:{name}",
-                    "params": res.get("params") or rec["params"],
-                    "metrics": res.get("metrics"),
-                    "cost": res.get("cost"),
-                    "wall_seconds": res.get("wall_seconds"),
-                    "status": res["status"],
-                    "error": res.get("error"),
-                    "run_id": "tune",
-                }
-            )
-            stored = store.get(key)
-        return stored
+    return stored
+
+
+def _infeasible(trial, error: str) -> None:
+    trial.set_user_attr("error", error)
+    trial.set_user_attr("constraint", FAILED_CONSTRAINT)
+    trial.set_constraint("target", FAILED_CONSTRAINT)
+    raise optuna.TrialPruned(error)
+
+
+def _cost_of(problem: _Problem, row: dict) -> float:
+    cost = (row["cost"] or {}).get(problem.cost_key)
+    if not isinstance(cost, int | float) or isinstance(cost, bool):
+        numeric = [
+            k
+            for k, v in (row["cost"] or {}).items()
+            if isinstance(v, int | float) and not isinstance(v, bool)
+        ]
+        raise TuneError(
+            f"--minimize {problem.cost_key}: not a cost of {problem.technique}; "
+            f"choose from {', '.join(numeric)}"
+        )
+    return float(cost)
+
+
+def _objective(problem: _Problem, *, store: SweepStore, cache, variant):
+    """Optuna's objective: the configuration's cost, its metric's excess as the constraint."""
+    technique = problem.technique
 
     def objective(trial):
-        params = _suggest(trial, space)
+        params = _suggest(trial, problem.space)
         try:
-            _params.make(
-                technique, raster_models.TECHNIQUES[technique].params, {**fixed_params, **params}
+            raster_models.params.make(
+                technique, raster_models.TECHNIQUES[technique].params, {**problem.fixed, **params}
             )
         except raster_models.ModelError as exc:
-            trial.set_user_attr("error", str(exc))
-            trial.set_user_attr("constraint", FAILED_CONSTRAINT)
-            trial.set_constraint("target", FAILED_CONSTRAINT)
-            raise optuna.TrialPruned(str(exc)) from None
-        row = evaluate(params)
+            _infeasible(trial, str(exc))
+        row = _evaluate(problem, params, store=store, cache=cache, variant=variant)
         trial.set_user_attr("key", row["key"])
         if row["status"] != "done":
-            trial.set_user_attr("error", row["error"])
-            trial.set_user_attr("constraint", FAILED_CONSTRAINT)
-            trial.set_constraint("target", FAILED_CONSTRAINT)
-            raise optuna.TrialPruned(row["error"])
-        value = row["metrics"].get(metric)
+            _infeasible(trial, row["error"])
+        value = row["metrics"].get(problem.metric)
         if value is None:
-            raise TuneError(f"metric {metric} does not apply to {technique}")
-        cost = (row["cost"] or {}).get(cost_key)
-        if not isinstance(cost, int | float) or isinstance(cost, bool):
-            numeric = [
-                k
-                for k, v in (row["cost"] or {}).items()
-                if isinstance(v, int | float) and not isinstance(v, bool)
-            ]
-            raise TuneError(
-                f"--minimize {cost_key}: not a cost of {technique}; "
-                f"choose from {', '.join(numeric)}"
-            )
+            raise TuneError(f"metric {problem.metric} does not apply to {technique}")
+        cost = _cost_of(problem, row)
         trial.set_user_attr("metric", float(value))
-        trial.set_user_attr("constraint", float(value) - limit)
+        trial.set_user_attr("constraint", float(value) - problem.limit)
         # Optuna's constrained TPE reads this: feasible when <= 0
-        trial.set_constraint("target", float(value) - limit)
-        return float(cost)
+        trial.set_constraint("target", float(value) - problem.limit)
+        return cost
 
-    grid = _grid(space)
+    return objective
+
+
+def _optimize(problem: _Problem, objective, *, store: SweepStore, trials: int, quiet: bool):
+    """Create (or continue) the study and run its remaining trials; ``(study, sampler name)``.
+
+    A discrete space no larger than ``trials`` is searched exhaustively by Optuna's grid
+    sampler; anything else by constrained TPE.
+    """
+    grid = _grid(problem.space)
     n_grid = math.prod(len(v) for v in grid.values()) if grid is not None else None
     if grid is not None and n_grid <= trials:
-        sampler = optuna.samplers.GridSampler(grid, seed=seed)
+        sampler = optuna.samplers.GridSampler(grid, seed=problem.seed)
         sampler_name = "grid"
     else:
-        sampler = optuna.samplers.TPESampler(seed=seed)
+        sampler = optuna.samplers.TPESampler(seed=problem.seed)
         sampler_name = "tpe"
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    try:
-        with warnings.catch_warnings():
-            # GridSampler and the SQLite storage are marked experimental by Optuna
-            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            study = optuna.create_study(
-                study_name=name,
-                storage=store.url(),
-                sampler=sampler,
-                direction="minimize",
-                load_if_exists=True,
-            )
-            done = [t for t in study.trials if t.state.is_finished()]
-            budget = trials if sampler_name == "tpe" else max(0, min(trials, n_grid) - len(done))
-            if budget:
-                study.optimize(objective, n_trials=budget, show_progress_bar=not quiet)
-    finally:
-        store.close()
+    with warnings.catch_warnings():
+        # GridSampler and the SQLite storage are marked experimental by Optuna
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        study = optuna.create_study(
+            study_name=problem.name,
+            storage=store.url(),
+            sampler=sampler,
+            direction="minimize",
+            load_if_exists=True,
+        )
+        done = [t for t in study.trials if t.state.is_finished()]
+        budget = trials if sampler_name == "tpe" else max(0, min(trials, n_grid) - len(done))
+        if budget:
+            study.optimize(objective, n_trials=budget, show_progress_bar=not quiet)
+    return study, sampler_name
+
+
+def _evaluated(study, space: dict) -> list[dict]:
+    """Every distinct configuration the study completed, cheapest first."""
     results, seen = [], set()
     for t in study.trials:
         key = t.user_attrs.get("key")
@@ -328,17 +357,77 @@ def run_tune(
             }
         )
     results.sort(key=lambda r: (r["cost"], r["metric"]))
+    return results
+
+
+def run_tune(
+    scene: str,
+    *,
+    technique: str,
+    target: tuple[str, float],
+    minimize: str | None = None,
+    trials: int = 20,
+    vary: list[str] | None = None,
+    fixed: list[str] | None = None,
+    width: int | None = None,
+    height: int | None = None,
+    light: int = 0,
+    spp: int = 64,
+    seed: int = 0,
+    db: str | Path,
+    study_name: str | None = None,
+    cache,
+    quiet: bool = True,
+) -> dict:
+    """Find the cheapest configuration meeting ``target``; returns the study's summary.
+
+    Parameters
+    ----------
+    target : ``(metric, limit)`` from :func:`parse_target`.
+    vary, fixed : ``--vary`` texts (:func:`parse_space`) and ``--set`` ``KEY=VALUE`` texts.
+    db : the sweep store holding the study and the evaluated cases.
+    cache : the reference cache (a :class:`oracle.reference.cache.ReferenceCache`).
+
+    Returns
+    -------
+    dict
+        ``{"study", "db", "sampler", "target", "minimize", "trials", "feasible", "best":
+        {"params", "cost", "metric", "key"} or None, "evaluated": [{"params", "cost",
+        "metric", "feasible"}]}`` (``evaluated`` sorted by cost).
+    """
+    problem = _problem(
+        scene,
+        technique=technique,
+        target=target,
+        minimize=minimize,
+        vary=vary,
+        fixed=fixed,
+        width=width,
+        height=height,
+        light=light,
+        spp=spp,
+        seed=seed,
+        study_name=study_name,
+    )
+    store = SweepStore(db)
+    try:
+        variant = backend.active().variant
+        objective = _objective(problem, store=store, cache=cache, variant=variant)
+        study, sampler_name = _optimize(problem, objective, store=store, trials=trials, quiet=quiet)
+    finally:
+        store.close()
+    results = _evaluated(study, problem.space)
     feasible = [r for r in results if r["feasible"]]
     best = feasible[0] if feasible else None
     return {
-        "study": name,
+        "study": problem.name,
         "db": str(db),
         "sampler": sampler_name,
-        "target": {"metric": metric, "max": limit},
-        "minimize": cost_key,
-        "fixed": fixed_params,
+        "target": {"metric": problem.metric, "max": problem.limit},
+        "minimize": problem.cost_key,
+        "fixed": problem.fixed,
         "trials": len(study.trials),
         "feasible": len(feasible),
-        "best": None if best is None else {**best, "params": {**fixed_params, **best["params"]}},
+        "best": None if best is None else {**best, "params": {**problem.fixed, **best["params"]}},
         "evaluated": results,
     }

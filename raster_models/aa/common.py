@@ -219,16 +219,16 @@ def package(
         "bandwidth_bytes": int(bandwidth_bytes),
         "shadow_rays": int(shadow_rays),
     }
-    from ..shadowmaps.engine import _jsonable, _provenance
+    from scenes.records import jsonable, provenance
 
     diag = dict(diagnostics)
     diag["scene"] = scene.provenance()
-    diag["provenance"] = _provenance()
+    diag["provenance"] = provenance()
     return ModelResult(
         technique=name,
         outputs=outputs,
         cost=cost,
-        diagnostics=_jsonable(diag),
+        diagnostics=jsonable(diag),
         params=_params.as_dict(params),
         wall_seconds=time.perf_counter() - t0,
     )

@@ -56,13 +56,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenes.records import jsonable, provenance
+
 from .. import params as _params
 from ..errors import ModelError
 from ..gbuffer import trace_gbuffer
 from ..light_frame import Projection, make_frame
 from ..params import param
 from ..result import ModelResult
-from ..shadowmaps.engine import _jsonable, _provenance
 from . import kernels as _coherent_dr
 from . import rays as _coherent_maps
 from .hilbert import hilbert_cell, hilbert_index
@@ -662,7 +663,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         "receivers": int(len(rec)),
         "uncovered_receivers": n_uncovered,
         "scene": scene.provenance(),
-        "provenance": _provenance(),
+        "provenance": provenance(),
     }
     outputs = {
         "visibility": gbuf.image(vis_all),  # 0 or 1 only
@@ -673,8 +674,8 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     return ModelResult(
         technique=NAME,
         outputs=outputs,
-        cost=_jsonable(cost),
-        diagnostics=_jsonable(diagnostics),
+        cost=jsonable(cost),
+        diagnostics=jsonable(diagnostics),
         params=_params.as_dict(p),
         wall_seconds=time.perf_counter() - t0,
     )

@@ -66,6 +66,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenes.records import jsonable, provenance
 from scenes.tangent32 import tangent_offsets
 
 from .. import params as _params
@@ -75,7 +76,6 @@ from ..gbuffer import trace_gbuffer
 from ..light_frame import make_frame
 from ..params import param
 from ..result import ModelResult
-from ..shadowmaps.engine import _jsonable, _provenance
 from ..shadowmaps.fit import light_frame_for
 from .build import BUILD_CHUNK, Ortho32Build, grid, texel
 from .geometry import conservative_fragments, scene_triangles, shadow_volumes
@@ -467,13 +467,13 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
             for c, box in enumerate(boxes)
         ],
         "scene": scene.provenance(),
-        "provenance": _provenance(),
+        "provenance": provenance(),
     }
     return ModelResult(
         technique=NAME,
         outputs=outputs,
         cost=cost,
-        diagnostics=_jsonable(diagnostics),
+        diagnostics=jsonable(diagnostics),
         params=_params.as_dict(p),
         wall_seconds=time.perf_counter() - t0,
     )

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
+from scenes.records import jsonable, provenance
 
 from .. import depth as _depth
 from ..result import MapData, ModelResult, Partition, Setup
@@ -92,32 +92,16 @@ def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: di
     diagnostics["blended_receivers"] = summary["blended_receivers"]
     diagnostics["outside_all_partitions"] = summary["outside_all_partitions"]
     diagnostics["scene"] = scene.provenance()
-    diagnostics["provenance"] = _provenance()
+    diagnostics["provenance"] = provenance()
     cost = _cost(setup, maps, params, summary)
     return ModelResult(
         technique=technique,
         outputs=outputs,
         cost=cost,
-        diagnostics=_jsonable(diagnostics),
+        diagnostics=jsonable(diagnostics),
         params=params_record,
         wall_seconds=time.perf_counter() - t0,
     )
-
-
-def _provenance() -> dict:
-    """Backend and versions the result was computed with."""
-    from importlib import metadata
-
-    from scenes import backend
-
-    info = backend.active()
-    versions = {}
-    for pkg in ("mitsuba", "drjit", "numpy", "scipy"):
-        try:
-            versions[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:  # pragma: no cover - installed with the project
-            versions[pkg] = None
-    return {"backend": info.variant, "libllvm": info.libllvm, "versions": versions}
 
 
 def _finite(x):
@@ -125,25 +109,3 @@ def _finite(x):
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
     return x
-
-
-def _jsonable(obj):
-    """Plain JSON types: numpy scalars/arrays converted, non-finite floats as strings."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, np.bool_ | bool):
-        return bool(obj)
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.floating | float):
-        f = float(obj)
-        if math.isnan(f):
-            return "nan"
-        if math.isinf(f):
-            return "inf" if f > 0 else "-inf"
-        return f
-    return obj

@@ -1,0 +1,264 @@
+"""Argument types, shared options and argument checks of the command line.
+
+Every command module adds its parser with the helpers here and turns its parsed arguments
+into keyword calls of the library; nothing here is called by the library.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = [
+    "MAX_SPP",
+    "CliError",
+    "Parser",
+    "add_cache_args",
+    "add_reference_args",
+    "add_scene_args",
+    "add_set_arg",
+    "check_db",
+    "check_dir",
+    "check_out",
+    "input_errors",
+    "load_scene",
+    "names",
+    "nonneg_int",
+    "path",
+    "positive_float",
+    "positive_int",
+    "reference_cache",
+    "spp",
+]
+
+
+class CliError(InputError):
+    """Bad command-line input."""
+
+
+def input_errors() -> tuple[type[BaseException], ...]:
+    """Exceptions that mean bad input: reported in one line with exit code 2.
+
+    The oracle's own derive from :class:`oracle.errors.InputError`; the other packages' are
+    named here.
+    """
+    from metrics import MetricError
+    from raster_models import ModelError
+    from scenes import SceneError
+    from scenes.backend import BackendError
+
+    from ..studies.converge import ConvergeError
+
+    return (InputError, SceneError, BackendError, MetricError, ModelError, ConvergeError)
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (raised, not printed with the usage)."""
+
+    def error(self, message):
+        where = self.prog.split(" ", 1)[1] + ": " if " " in self.prog else ""
+        raise CliError(f"{where}{message}")
+
+
+def _number(kind: type, *, minimum: float, strict: bool):
+    """An argparse type: ``kind`` parsed from text, bounded below by ``minimum``."""
+    noun = "an integer" if kind is int else "a number"
+    relation = ">" if strict else ">="
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
+        if not (value > minimum if strict else value >= minimum):
+            raise argparse.ArgumentTypeError(f"must be {relation} {minimum:g}, got {value}")
+        return value
+
+    return parse
+
+
+#: argparse types: an integer > 0, an integer >= 0, a number > 0.
+positive_int = _number(int, minimum=0, strict=True)
+nonneg_int = _number(int, minimum=0, strict=False)
+positive_float = _number(float, minimum=0.0, strict=True)
+
+#: Largest ``--spp`` / ``--max-spp``: 2^20 samples per pixel (a 1-pixel reference then takes
+#: seconds; beyond it the standard error, 0.0005 at worst, stops mattering).
+MAX_SPP = 2**20
+
+
+def spp(text: str) -> int:
+    """An argparse type: samples per pixel, an integer in [1, MAX_SPP]."""
+    value = positive_int(text)
+    if value > MAX_SPP:
+        raise argparse.ArgumentTypeError(f"must be <= {MAX_SPP} (2^20), got {value}")
+    return value
+
+
+def path(text: str) -> Path:
+    """An argparse type: a non-empty path without control characters."""
+    if not text:
+        raise argparse.ArgumentTypeError("expected a path, got ''")
+    if any(ord(c) < 32 for c in text):
+        raise argparse.ArgumentTypeError(f"path contains control characters: {text!r}")
+    return Path(text)
+
+
+def names(text: str) -> list[str]:
+    """The non-empty items of a comma-separated option value, stripped."""
+    return [item.strip() for item in text.split(",") if item.strip()]
+
+
+def add_scene_args(p: argparse.ArgumentParser) -> None:
+    """``SCENE --light --width --height --camera-path --light-path --frame --frames``."""
+    p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
+    p.add_argument("--light", type=nonneg_int, default=0, help="index of the light (default 0)")
+    p.add_argument("--width", type=positive_int, help="film width in pixels")
+    p.add_argument("--height", type=positive_int, help="film height in pixels")
+    p.add_argument(
+        "--camera-path",
+        default=None,
+        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly",
+    )
+    p.add_argument(
+        "--light-path",
+        default=None,
+        help="light path for moving-light work: orbit-sun (directional), moving-point "
+        "(point/spot); --frame K picks its frame",
+    )
+    p.add_argument(
+        "--frame", type=nonneg_int, default=0, help="frame of the camera and/or light path"
+    )
+    p.add_argument(
+        "--frames",
+        type=positive_int,
+        default=None,
+        help="frames in the camera path (default 8); for `score`: score that many frames of "
+        "the path (default dolly) and add the temporal metrics",
+    )
+
+
+def add_set_arg(p: argparse.ArgumentParser, *, help: str = "technique parameter") -> None:
+    """``--set KEY=VALUE`` (repeatable), into ``args.params``."""
+    p.add_argument(
+        "--set",
+        dest="params",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help=f"{help} (repeatable)",
+    )
+
+
+def add_cache_args(p: argparse.ArgumentParser, *, no_cache: bool = True) -> None:
+    """``--cache-dir DIR`` (and ``--no-cache``) and ``--quiet``."""
+    p.add_argument(
+        "--cache-dir",
+        type=path,
+        default=None,
+        help="reference cache (default ~/.cache/raster-oracle)",
+    )
+    if no_cache:
+        p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> None:
+    """Reference sampling options: ``--spp --seed --adaptive --target-stderr --max-spp`` and
+    the cache options."""
+    p.add_argument(
+        "--spp",
+        type=spp,
+        default=default_spp,
+        help=f"sub-pixel samples per pixel (default {default_spp})",
+    )
+    p.add_argument("--seed", type=nonneg_int, default=0, help="random seed (default 0)")
+    p.add_argument(
+        "--adaptive",
+        action="store_true",
+        help="adaptive sampling: more samples only where pixels are not uniform",
+    )
+    p.add_argument(
+        "--target-stderr",
+        type=positive_float,
+        default=0.01,
+        help="adaptive: target standard error (default 0.01)",
+    )
+    p.add_argument(
+        "--max-spp",
+        type=spp,
+        default=4096,
+        help="adaptive: most samples a pixel gets (default 4096)",
+    )
+    add_cache_args(p)
+
+
+def load_scene(args):
+    """The scene of ``add_scene_args`` options (its frame of a camera or light path)."""
+    import scenes
+
+    light_path = args.light_path
+    if args.frame and args.camera_path is None and light_path is None and not args.frames:
+        raise CliError(
+            f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
+            "scene's own camera and light)"
+        )
+    return scenes.load(
+        args.scene,
+        width=args.width,
+        height=args.height,
+        light=args.light,
+        camera_path=args.camera_path,
+        frame=args.frame,
+        n_frames=args.frames or 8,
+        light_path=light_path,
+    )
+
+
+def reference_cache(args):
+    """The reference cache of ``--cache-dir`` (checked), or None with ``--no-cache``."""
+    from ..reference.cache import ReferenceCache, default_cache_dir
+
+    if getattr(args, "no_cache", False):
+        return None
+    root = args.cache_dir if args.cache_dir is not None else default_cache_dir()
+    check_dir(root, label="--cache-dir" if args.cache_dir is not None else "cache folder")
+    return ReferenceCache(root)
+
+
+def check_dir(folder: Path, *, label: str) -> None:
+    """``folder`` is a writable folder, or can be created: its nearest existing ancestor is
+    one. ``label`` names the option in the message."""
+    text = os.fspath(folder)
+    if not text:
+        raise CliError(f"{label}: expected a path, got ''")
+    if os.path.exists(text) or os.path.islink(text):
+        if not os.path.isdir(text):
+            raise CliError(f"{label} {folder} exists and is not a folder")
+        if not os.access(text, os.W_OK | os.X_OK):
+            raise CliError(f"{label} {folder} is not writable")
+        return
+    parent = os.path.dirname(os.path.abspath(text))
+    while not os.path.exists(parent):
+        if os.path.islink(parent):  # a dangling link: nothing can be created under it
+            raise CliError(f"{label} {folder}: {parent} is a broken link")
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise CliError(f"{label} {folder}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise CliError(f"{label} {folder}: {parent} is not writable")
+
+
+def check_out(out: Path) -> None:
+    """``--out`` is a folder that can be written (or created)."""
+    check_dir(out, label="--out")
+
+
+def check_db(db: Path) -> None:
+    """``--db`` is a file (or can be created) in a writable folder."""
+    if db.exists() and not db.is_file():
+        raise CliError(f"--db {db} exists and is not a file")
+    check_dir(db.parent if str(db.parent) else Path("."), label=f"--db {db}: folder")

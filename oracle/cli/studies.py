@@ -1,0 +1,181 @@
+"""Commands that measure the oracle and the models: ``bench``, ``aa-memory``, ``converge``,
+``extremes`` and ``claims``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from . import args as A
+
+__all__ = ["COMMANDS", "add_parsers"]
+
+
+def add_parsers(sub) -> None:
+    """Add ``bench``, ``aa-memory``, ``converge``, ``extremes`` and ``claims`` to ``sub``."""
+    p = sub.add_parser("bench", help="benchmarks that print JSON figures")
+    p.add_argument("what", choices=["oracle", "models"], help="what to benchmark")
+    p.add_argument("--width", type=A.positive_int, default=1920)
+    p.add_argument("--height", type=A.positive_int, default=1080)
+    p.add_argument("--spp", type=A.positive_int, default=32)
+    p.add_argument(
+        "--only",
+        default="",
+        help="models: comma-separated techniques to time (default: every row)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    p = sub.add_parser(
+        "aa-memory", help="AA framebuffer memory (models' accounting) vs the quoted figures"
+    )
+    p.add_argument("--out", type=A.path, default=Path("out/aa-memory"), help="output folder")
+
+    p = sub.add_parser("converge", help="oracle true error against spp (and adaptive)")
+    p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
+    p.add_argument("--width", type=A.positive_int, help="film width in pixels")
+    p.add_argument("--height", type=A.positive_int, help="film height in pixels")
+    p.add_argument("--max-spp", type=A.spp, default=4096, help="largest spp (default 4096)")
+    p.add_argument("--truth-spp", type=A.spp, default=None, help="truth spp (default 4x max)")
+    p.add_argument(
+        "--target",
+        type=A.positive_float,
+        action="append",
+        default=None,
+        help="true RMS visibility error to find the spp for (repeatable; default 0.01)",
+    )
+    p.add_argument("--seed", type=A.nonneg_int, default=0)
+    p.add_argument("--no-adaptive", action="store_true", help="skip the adaptive rendering")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--out", type=A.path, default=Path("out/converge"), help="output folder")
+
+    p = sub.add_parser("extremes", help="every model x every numerical extreme vs the oracle")
+    p.add_argument("--quick", action="store_true", help="the main job's size (64x36, 4096^2)")
+    p.add_argument(
+        "--huge", type=A.positive_int, default=None, help="huge map size (default 16384)"
+    )
+    A.add_cache_args(p)
+    p.add_argument("--out", type=A.path, default=Path("out/extremes"), help="output folder")
+
+    p = sub.add_parser("claims", help="measure the seed documents' headline claims")
+    p.add_argument("--quick", action="store_true", help="the main job's size (160x90, 16 spp)")
+    p.add_argument("--only", default=None, help="comma-separated claim ids (default: all)")
+    A.add_cache_args(p)
+    p.add_argument("--out", type=A.path, default=Path("out/claims"), help="output folder")
+
+
+def cmd_bench(args) -> int:
+    from ..studies.bench import bench_models, bench_oracle
+
+    kwargs = dict(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet)
+    if args.what == "models":
+        try:
+            figures = bench_models(only=tuple(A.names(args.only)), **kwargs)
+        except ValueError as exc:
+            raise A.CliError(str(exc)) from None
+    elif args.only:
+        raise A.CliError("bench oracle: --only applies to 'bench models' only")
+    else:
+        figures = bench_oracle(**kwargs)
+    print(json.dumps(figures, indent=2))
+    return 0
+
+
+def cmd_aa_memory(args) -> int:
+    from ..studies.aa_memory import write_memory_report
+
+    A.check_out(args.out)
+    data = write_memory_report(args.out)
+    (w0, h0), (w1, h1) = data["resolutions"][:2]
+    print(f"{'configuration':32s} {'B/px':>5s} {f'{w0}x{h0} MB':>14s} {f'{w1}x{h1} MB':>14s}")
+    for row in data["rows"]:
+        per = row["bytes_per_pixel"]["total"]
+        a, b = row["at"][f"{w0}x{h0}"]["total_MB"], row["at"][f"{w1}x{h1}"]["total_MB"]
+        print(f"{row['label']:32s} {per:5d} {a:14.1f} {b:14.1f}")
+    for q in data["quoted"]:
+        print(f"quoted: {q['text']}: {'reproduced' if q['reproduced'] else 'not reproduced'}")
+    print(f"aa-memory: {args.out / 'aa_memory.json'} and {args.out / 'aa_memory.html'}")
+    return 0
+
+
+def cmd_converge(args) -> int:
+    from ..studies.converge import run_converge
+
+    if args.truth_spp is not None and args.truth_spp <= args.max_spp:
+        raise A.CliError(f"--truth-spp ({args.truth_spp}) must be larger than --max-spp")
+    A.check_out(args.out)
+    data = run_converge(
+        args.scene,
+        out=args.out,
+        max_spp=args.max_spp,
+        truth_spp=args.truth_spp,
+        targets=tuple(args.target or (0.01,)),
+        adaptive=not args.no_adaptive,
+        width=args.width,
+        height=args.height,
+        seed=args.seed,
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+    )
+    for t in data["targets"]:
+        print(f"target RMS {t['target_rms']:g}: {t['spp_measured']} spp (fit {t['spp_fitted']})")
+    print(f"converge: {args.out / 'converge.json'} and {args.out / 'converge.html'}")
+    return 0
+
+
+def cmd_extremes(args) -> int:
+    from ..studies.extremes.run import run_extremes
+
+    if args.huge is not None and not 8 <= args.huge <= 16384:
+        raise A.CliError(f"--huge must be in [8, 16384], got {args.huge}")
+    A.check_out(args.out)
+    data = run_extremes(
+        args.out,
+        cache=A.reference_cache(args),
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+        quick=args.quick,
+        huge=args.huge,
+    )
+    cells, unexpected = data["cells"], data["unexpected"]
+    print(
+        f"extremes: {len(cells)} cells, {len(unexpected)} not as documented"
+        + (f" ({', '.join(unexpected)})" if unexpected else "")
+    )
+    print(f"extremes: {args.out / 'extremes.json'} and {args.out / 'extremes.html'}")
+    return 0
+
+
+def cmd_claims(args) -> int:
+    from ..studies.claims.run import CLAIMS, run_claims
+
+    only = None
+    if args.only is not None:
+        only = A.names(args.only)
+        known = [c.id for c in CLAIMS]
+        unknown = [c for c in only if c not in known]
+        if unknown or not only:
+            raise A.CliError(
+                f"--only: unknown claim(s) {', '.join(unknown) or '(none given)'}; choose from "
+                f"{', '.join(known)}"
+            )
+    A.check_out(args.out)
+    data = run_claims(
+        args.out,
+        cache=A.reference_cache(args),
+        quiet=args.quiet,
+        echo=None if args.quiet else print,
+        quick=args.quick,
+        only=only,
+    )
+    print("claims: " + ", ".join(f"{k} {v}" for k, v in data["counts"].items()))
+    print(f"claims: {args.out / 'claims.json'} and {args.out / 'claims.html'}")
+    return 0
+
+
+COMMANDS = {
+    "bench": cmd_bench,
+    "aa-memory": cmd_aa_memory,
+    "converge": cmd_converge,
+    "extremes": cmd_extremes,
+    "claims": cmd_claims,
+}

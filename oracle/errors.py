@@ -1,0 +1,29 @@
+"""Errors of the oracle: one base class for bad input and one way to print an exception.
+
+Library code raises; only the command line turns an exception into a message and an exit
+code (``InputError`` and the other packages' input errors: one line on stderr, exit 2).
+"""
+
+from __future__ import annotations
+
+__all__ = ["InputError", "one_line"]
+
+
+class InputError(ValueError):
+    """Bad input from the user: an option, a file, a spec, a request the library refuses.
+
+    Every input error of the oracle derives from it (``ScoreError``, ``SpecError``, ...).
+    """
+
+
+def one_line(exc: BaseException, *, with_type: bool = False) -> str:
+    """The message of ``exc`` on one line: control characters (newlines in file names, ...)
+    are escaped as Python writes them (``\\n``), tabs kept.
+
+    Parameters
+    ----------
+    with_type : prefix the exception's class name (``"ValueError: ..."``), for records of
+        failures whose type is not otherwise known (a sweep case, a report section).
+    """
+    text = f"{type(exc).__name__}: {exc}" if with_type else str(exc)
+    return "".join(c if c >= " " or c == "\t" else repr(c)[1:-1] for c in text)

@@ -1,0 +1,147 @@
+"""Score a technique model: run it on each frame's scene and score what it produces.
+
+Shadow techniques are scored on visibility; anti-aliasing techniques on colour, with the
+coverage metrics (against the straight-edge floor of their sample count) merged in. The model
+runs once per frame whatever the number of channels scored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import metrics as M
+import raster_models
+
+from .score import COVERAGE_KEYS, ScoreError, ScoreResult, score
+
+__all__ = ["FAMILY_CHANNELS", "model_candidate", "score_model", "technique_channels"]
+
+#: Candidate channels each technique family produces (the first is scored first).
+FAMILY_CHANNELS = {"shadow": ("visibility",), "aa": ("color", "coverage")}
+
+
+def technique_channels(technique: str) -> tuple[str, ...]:
+    """The channels a registered technique's model produces and is scored on (first: the
+    primary one). Raises ``raster_models.ModelError`` for an unknown technique."""
+    return FAMILY_CHANNELS[raster_models.family_of(technique)]
+
+
+def model_candidate(technique: str, params: dict, *, channel: str = "visibility", runs=None):
+    """Candidate callable ``(frame_scene, k) -> (image, info)`` running a technique model.
+
+    ``channel`` picks the output scored (``visibility``; ``color`` or ``coverage`` for the
+    anti-aliasing family). ``runs``, a dict shared between callables, keeps each frame's
+    model result so that scoring colour and coverage runs the model once per frame.
+    """
+    runs = {} if runs is None else runs
+
+    def run(frame_scene, k):
+        if k not in runs:
+            runs[k] = raster_models.run(technique, frame_scene, **params)
+        res = runs[k]
+        info = {
+            "frame": k,
+            "technique": technique,
+            "cost": res.cost,
+            "params": res.params,
+            "diagnostics": res.diagnostics,
+            "model_seconds": res.wall_seconds,
+        }
+        return np.asarray(res.outputs[channel], dtype=np.float32), info
+
+    return run
+
+
+def _sample_count(res) -> int:
+    """Samples per pixel of an AA model run: its cost record's ``samples``, else its
+    ``samples`` parameter, else 1 (no AA, FXAA: one sample at the pixel centre)."""
+    n = res.cost.get("samples", res.params.get("samples", 1))
+    return int(n) if isinstance(n, int | np.integer) and not isinstance(n, bool) else 1
+
+
+def _merge_coverage(result: ScoreResult, coverage: ScoreResult) -> None:
+    """Add the coverage metrics, floor and error map of ``coverage`` to the colour result."""
+    for key in COVERAGE_KEYS:
+        result.record[key] = coverage.record.get(key)
+    floor = result.record.get("noise_floor")
+    cov_floor = coverage.record.get("noise_floor") or {}
+    if floor is not None:
+        floor.update({k: v for k, v in cov_floor.items() if k in COVERAGE_KEYS})
+    if result.record.get("frames") and coverage.record.get("frames"):
+        for mine, theirs in zip(result.record["frames"], coverage.record["frames"], strict=True):
+            mine.update({k: theirs.get(k) for k in COVERAGE_KEYS})
+    for mine, theirs in zip(result.frames, coverage.frames, strict=True):
+        mine.metrics.update({k: theirs.metrics.get(k) for k in COVERAGE_KEYS})
+        if "coverage_error" in theirs.maps:
+            mine.maps["coverage_error"] = theirs.maps["coverage_error"]
+    result.record["coverage_reference"] = coverage.record["reference"]
+    result.record["wall_seconds"] += coverage.record["wall_seconds"]
+
+
+def score_model(
+    loaded,
+    technique: str,
+    params: dict,
+    *,
+    spp: int,
+    seed: int,
+    cache,
+    quiet: bool,
+    channel: str | None = None,
+    frames: int | None = None,
+    camera_path: str | None = "dolly",
+    flip_mode: str = "LDR",
+    ppd: float = M.DEFAULT_PPD,
+    floor_cache: dict | None = None,
+) -> ScoreResult:
+    """Score one technique configuration on ``loaded`` (``raster-oracle score --technique``).
+
+    Parameters
+    ----------
+    params : the technique's parameters (validated values, e.g. from
+        ``raster_models.parse_params``).
+    channel : the channel asked for (None: the technique's primary one); a channel the
+        technique does not produce is a :class:`ScoreError`.
+    frames, camera_path, flip_mode, ppd : as in :func:`oracle.scoring.score.score`.
+    floor_cache : see :func:`oracle.scoring.score.score` (a sweep worker's noise floors).
+    """
+    produced = technique_channels(technique)
+    if channel is not None and channel not in produced:
+        raise ScoreError(
+            f"technique {technique} produces {' and '.join(produced)}; "
+            f"--channel {channel} does not apply"
+        )
+    runs: dict = {}
+    aa_samples = None
+    if "coverage" in produced:
+        # run frame 0 first: its full parameter record gives the sample count
+        scene0 = loaded.with_frame(0, path=camera_path, n_frames=frames) if frames else loaded
+        model_candidate(technique, params, channel=produced[0], runs=runs)(scene0, 0)
+        aa_samples = _sample_count(runs[0])
+    kw = dict(
+        spp=spp,
+        seed=seed,
+        frames=frames,
+        camera_path=camera_path,
+        cache=cache,
+        quiet=quiet,
+        flip_mode=flip_mode,
+        ppd=ppd,
+        aa_samples=aa_samples,
+        floor_cache=floor_cache,
+    )
+    result = score(
+        loaded,
+        channel=produced[0],
+        candidate_frames=model_candidate(technique, params, channel=produced[0], runs=runs),
+        **kw,
+    )
+    if "coverage" in produced:
+        coverage = score(
+            loaded,
+            channel="coverage",
+            candidate_frames=model_candidate(technique, params, channel="coverage", runs=runs),
+            **kw,
+        )
+        _merge_coverage(result, coverage)
+    return result

@@ -1,0 +1,69 @@
+"""The report of a sweep store: Pareto fronts, sensitivity and every case
+(``raster-oracle report --sweep``, the end of ``sweep`` and of the main job)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from reports.sweep import with_memory, write_sweep_report
+
+from .run import SweepError
+from .store import SweepStore
+
+__all__ = ["sweep_report"]
+
+
+def _check_keys(rows, costs, metrics) -> None:
+    """Requested cost and metric keys must be in some finished case of the store."""
+    done = [r for r in rows if r["status"] == "done"]
+    have = {
+        "--cost": sorted({k for r in done for k in with_memory(r.get("cost"))}),
+        "--metric": sorted({k for r in done for k in (r.get("metrics") or {})} - {"noise_floor"}),
+    }
+    for option, wanted in (("--cost", costs or []), ("--metric", metrics or [])):
+        for key in wanted:
+            if key not in have[option]:
+                raise SweepError(
+                    f"report {option} {key}: in no finished case; choose from "
+                    f"{', '.join(have[option]) or '(none)'}"
+                )
+
+
+def sweep_report(
+    db: Path,
+    out: Path,
+    *,
+    sweep: str | None = None,
+    title: str | None = None,
+    costs=None,
+    metrics=None,
+    extra_sections=None,
+) -> Path:
+    """Write the sweep report of the store ``db`` (rows of ``sweep``, or all) to ``out``.
+
+    Parameters
+    ----------
+    costs, metrics : cost and metric keys of the fronts (None: the report's defaults); a key
+        in no finished case is a :class:`oracle.sweeps.run.SweepError`.
+    extra_sections : report sections after the sweep's (``{"id", "title", "html"}`` records).
+
+    Returns
+    -------
+    Path
+        ``out``.
+    """
+    with SweepStore(db, readonly=True) as store:
+        rows = store.rows(sweep=sweep)
+        images = store.images(r["key"] for r in rows if r["status"] == "done")
+    _check_keys(rows, costs, metrics)
+    write_sweep_report(
+        rows,
+        out,
+        title=title or f"raster-oracle sweep {sweep or Path(db).name}",
+        provenance={"database": str(Path(db).resolve()), "sweep": sweep or "all"},
+        costs=costs,
+        metrics=metrics,
+        extra_sections=extra_sections,
+        images=images,
+    )
+    return out
