@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
 from collections.abc import Mapping
 from pathlib import Path
+
+from scenes.files import atomic_write_bytes
 
 from ._build import REPORT_SCHEMA
 from ._env import environment
 from ._validate import check_report_urls
 
-__all__ = ["atomic_write_text", "render_html", "write_report"]
+__all__ = ["render_html", "write_report"]
 
 
 def _page_data(report: Mapping) -> dict:
@@ -46,20 +47,6 @@ def render_html(report: Mapping) -> str:
     return template.render(report=report, page_data=_page_data(report))
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` (UTF-8, LF) to ``path`` through a temporary file and ``os.replace``."""
-    # open(..., "x") on a random name rather than tempfile.mkstemp: mkstemp creates the file
-    # with mode 0600, and the page should get the usual umask-derived permissions.
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(8)}.tmp")
-    try:
-        with open(tmp, "x", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def write_report(report: Mapping, path: str | os.PathLike) -> None:
     """Write ``report`` as self-contained HTML at ``path`` and as JSON beside it.
 
@@ -81,5 +68,5 @@ def write_report(report: Mapping, path: str | os.PathLike) -> None:
     html = render_html(report)
     text = json.dumps(report, ensure_ascii=False, allow_nan=False, indent=1)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path.with_suffix(".json"), text + "\n")
-    atomic_write_text(path, html)
+    atomic_write_bytes(path.with_suffix(".json"), (text + "\n").encode("utf-8"))
+    atomic_write_bytes(path, html.encode("utf-8"))

@@ -28,8 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.files import atomic_write_bytes
+
 from ._tradeoff import pareto_front
-from ._write import atomic_write_text
 from .sections.page import render_sweep_page
 
 __all__ = [
@@ -415,6 +416,6 @@ def write_sweep_report(
     text = json.dumps(record, indent=1, allow_nan=False, default=str)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path.with_suffix(".json"), text)
-    atomic_write_text(path, html)
+    atomic_write_bytes(path.with_suffix(".json"), text.encode("utf-8"))
+    atomic_write_bytes(path, html.encode("utf-8"))
     return record

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from oracle.errors import InputError, one_line
-from oracle.files import atomic_copy, atomic_write, atomic_write_bytes, atomic_write_json
+from scenes.files import atomic_copy, atomic_write, atomic_write_bytes, atomic_write_json
 from scenes.records import jsonable, package_versions
 
 

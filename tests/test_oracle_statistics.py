@@ -195,14 +195,14 @@ def test_exposure_ignores_black_sky_and_shadow():
 def _convex_shapes_scene(width, height):
     """A cylinder (open tube) and a sphere in the sky under a sun: closed form, nothing can
     shadow the outer light-facing side of either."""
-    from scenes.builtin import _sensor, _sun
+    from scenes.factories import sensor, sun
 
     return {
         "type": "scene",
-        "camera": _sensor(
+        "camera": sensor(
             width, height, origin=(0, 4, 8), target=(0, 0.5, 0), fov=45, near=0.1, far=200
         ),
-        "sun": _sun((0.5, -0.8, -0.3)),
+        "sun": sun((0.5, -0.8, -0.3)),
         "tube": {
             "type": "cylinder",
             "p0": [-2.5, 0.6, 1.0],

@@ -94,7 +94,7 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
     rows = [dict(r) for r in ROWS]
     rows[0]["scene"] = "<script>alert(1)</script>"
     failed = failed_section(
-        kind="claims", section_id="claims", title="Claims", error=ValueError("<i>claims broke</i>")
+        kind="claims", section_id="claims", title="Claims", error="ValueError: <i>claims broke</i>"
     )
     out = tmp_path / "r.html"
     write_sweep_report(

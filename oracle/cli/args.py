@@ -50,9 +50,7 @@ def input_errors() -> tuple[type[BaseException], ...]:
     from scenes import SceneError
     from scenes.backend import BackendError
 
-    from ..studies.converge import ConvergeError
-
-    return (InputError, SceneError, BackendError, MetricError, ModelError, ConvergeError)
+    return (InputError, SceneError, BackendError, MetricError, ModelError)
 
 
 class Parser(argparse.ArgumentParser):

@@ -81,18 +81,11 @@ def cmd_bench(args) -> int:
 
 
 def cmd_aa_memory(args) -> int:
-    from ..studies.aa_memory import write_memory_report
+    from ..studies.aa_memory import summary_lines, write_memory_report
 
     A.check_out(args.out)
     data = write_memory_report(args.out)
-    (w0, h0), (w1, h1) = data["resolutions"][:2]
-    print(f"{'configuration':32s} {'B/px':>5s} {f'{w0}x{h0} MB':>14s} {f'{w1}x{h1} MB':>14s}")
-    for row in data["rows"]:
-        per = row["bytes_per_pixel"]["total"]
-        a, b = row["at"][f"{w0}x{h0}"]["total_MB"], row["at"][f"{w1}x{h1}"]["total_MB"]
-        print(f"{row['label']:32s} {per:5d} {a:14.1f} {b:14.1f}")
-    for q in data["quoted"]:
-        print(f"quoted: {q['text']}: {'reproduced' if q['reproduced'] else 'not reproduced'}")
+    print("\n".join(summary_lines(data)))
     print(f"aa-memory: {args.out / 'aa_memory.json'} and {args.out / 'aa_memory.html'}")
     return 0
 

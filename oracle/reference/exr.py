@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from scenes.files import atomic_write
+
 from ..errors import InputError
-from ..files import atomic_write
 
 __all__ = ["ExrError", "read_exr", "write_exr"]
 

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 
 import raster_models
+from scenes.files import atomic_write_json
 from scenes.records import jsonable
 
-from ..files import atomic_write_json
 from ..reference.exr import write_exr
 
 __all__ = ["output_channels", "run_model_to_folder"]

@@ -14,9 +14,9 @@ import numpy as np
 import metrics as M
 import raster_models
 import reports
+from scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from scenes.records import jsonable, package_versions
 
-from ..files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ..reference.exr import write_exr
 from .score import METRIC_KEYS, ScoreResult, failures
 

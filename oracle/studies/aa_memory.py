@@ -29,10 +29,10 @@ half the multisample framebuffer memory.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from reports.sections import aa_memory_section
 
+from ..scoring.output import MEMORY_RESOLUTIONS
 from .output import write_study
 
 __all__ = [
@@ -42,7 +42,6 @@ __all__ = [
     "Config",
     "Quote",
     "aggregate_layout_bound",
-    "cmd_aa_memory",
     "compare_quoted",
     "memory_report",
     "memory_table",
@@ -50,8 +49,6 @@ __all__ = [
     "write_memory_report",
 ]
 
-#: Resolutions of the table: the AGAA slides' 1280x736 and 1080p.
-MEMORY_RESOLUTIONS = ((1280, 736), (1920, 1080))
 #: Film size of the accounting runs (any size gives the same bytes per pixel).
 _PROBE_SIZE = (8, 6)
 #: Scene of the accounting runs (a directional light, which every AA model takes).
@@ -386,14 +383,3 @@ def summary_lines(data: dict) -> list[str]:
         verdict = "reproduced" if q["reproduced"] else "not reproduced"
         lines.append(f"quoted: {q['text']}: {verdict}")
     return lines
-
-
-def cmd_aa_memory(*, out, echo=print) -> int:
-    """``raster-oracle aa-memory``: write the section's files into ``out`` and ``echo`` the
-    table (:func:`summary_lines`) and the files' paths; returns the exit status (0)."""
-    data = write_memory_report(out)
-    for line in summary_lines(data):
-        echo(line)
-    out = Path(out)
-    echo(f"aa-memory: {out / 'aa_memory.json'} and {out / 'aa_memory.html'}")
-    return 0

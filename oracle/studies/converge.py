@@ -34,6 +34,7 @@ import numpy as np
 
 from reports.sections import converge_section
 
+from ..errors import InputError
 from .output import write_study
 
 __all__ = [
@@ -57,7 +58,7 @@ Z_BOUND = 3.0
 TRUTH_SEED_OFFSET = 1000
 
 
-class ConvergeError(ValueError):
+class ConvergeError(InputError):
     """Bad convergence settings (spp ladder, target, truth)."""
 
 

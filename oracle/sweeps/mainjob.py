@@ -27,6 +27,7 @@ from reports.sections import (
     failed_section,
 )
 
+from ..errors import one_line
 from ..studies.aa_memory import memory_report
 from ..studies.claims.run import run_claims
 from ..studies.extremes.run import run_extremes
@@ -104,7 +105,9 @@ def run_sections(
             data = study(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
             record = section(data, section_id=sid, title=title)
         except Exception as exc:  # in the page and in the exit status, not fatal
-            record = failed_section(kind=kind, section_id=sid, title=title, error=exc)
+            record = failed_section(
+                kind=kind, section_id=sid, title=title, error=one_line(exc, with_type=True)
+            )
             echo(f"{sid}: failed: {record['error']}")
             failed.append(sid)
         sections.append(record)

@@ -45,11 +45,10 @@ def section_record(kind: str, *, section_id: str, title: str, data: Mapping, **v
     }
 
 
-def failed_section(*, kind: str, section_id: str, title: str, error: BaseException | str) -> dict:
-    """The record of a section whose study raised ``error``: the page says so in its place."""
+def failed_section(*, kind: str, section_id: str, title: str, error: str) -> dict:
+    """The record of a section whose study failed with the one-line message ``error``: the
+    page says so in its place."""
     _check_frame(kind, section_id, title)
-    if isinstance(error, BaseException):
-        error = f"{type(error).__name__}: {error}"
     return {
         "schema": SECTION_SCHEMA,
         "kind": kind,

@@ -85,10 +85,10 @@ class ClaimContext:
         """Shadow metrics of a model result against the oracle (receivers only)."""
         import metrics as M
 
-        from ...scoring.score import _receivers
+        from ...scoring.score import reference_receivers
 
         ref = self.reference(loaded)
-        rec = _receivers(ref, loaded.light)
+        rec = reference_receivers(ref, loaded.light)
         vis = np.clip(np.asarray(result.outputs["visibility"], dtype=np.float32), 0.0, 1.0)
         return M.shadow_metrics(ref["visibility"], vis, receivers=rec)
 

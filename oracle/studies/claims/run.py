@@ -21,16 +21,15 @@ the blog in seed 003 describes the uncompressed algorithm it builds on.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from reports.sections import claims_section
+from scenes.records import jsonable
 
+from ...errors import one_line
 from ..output import write_study
 from .aa import ACAA_EQUAL, ACAA_HALF, AGAA_COMPARABLE, AGAA_SAVING, _acaa, _agaa, _coherent
 from .base import NOT, PARTLY, REPRODUCED, ClaimContext, summary
@@ -221,7 +220,7 @@ def _measure(claim: Claim, ctx: ClaimContext) -> dict:
     try:
         result = claim.measure(ctx)
     except Exception as exc:  # a failed measurement is reported in its row
-        row.update(verdict="not measured", note=f"not measured: {type(exc).__name__}: {exc}")
+        row.update(verdict="not measured", note=f"not measured: {one_line(exc, with_type=True)}")
         return row
     row.update(result)
     row["seconds"] = time.perf_counter() - t0
@@ -278,20 +277,8 @@ def run_claims(
         },
         "wall_seconds": time.perf_counter() - t0,
     }
-    data = json.loads(json.dumps(data, default=_jsonable))
+    data = jsonable(data)
     if out is not None:
         section = claims_section(data)
         write_study(out, name="claims", data=data, section=section, title="raster-oracle claims")
     return data
-
-
-def _jsonable(obj):
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.floating):
-        return float(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON-serialisable: {type(obj).__name__}")

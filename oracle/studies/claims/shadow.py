@@ -65,14 +65,14 @@ def _sdsm_vs_pssm(ctx: ClaimContext) -> dict:
 
 def _temporal_pairs(ctx, loaded_frames, technique, params) -> list[float]:
     """Mean |e[t+1] - e[t]| of each consecutive frame pair (e = model - oracle, receivers)."""
-    from ...scoring.score import _receivers
+    from ...scoring.score import reference_receivers
 
     errs, masks = [], []
     for loaded in loaded_frames:
         ref = ctx.reference(loaded)
         vis = np.asarray(_run(technique, loaded, **params).outputs["visibility"], np.float64)
         errs.append(np.clip(vis, 0, 1) - ref["visibility"])
-        masks.append(_receivers(ref, loaded.light))
+        masks.append(reference_receivers(ref, loaded.light))
     out = []
     for t in range(len(errs) - 1):
         m = masks[t] & masks[t + 1]

@@ -25,6 +25,7 @@ import numpy as np
 
 from reports.sections import extremes_section
 
+from ...errors import one_line
 from ..output import write_study
 from .cases import (
     DEFAULT_AA_EXPECTATION,
@@ -166,12 +167,12 @@ def _finite_result(res) -> bool:
 def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
     import metrics as M
 
-    from ...scoring.score import _receivers
+    from ...scoring.score import reference_receivers
 
     if family == "aa" and "coverage" in res.outputs:
         d = np.asarray(res.outputs["coverage"], np.float64) - ref["coverage"]
         return "coverage_rmse", float(np.sqrt(np.mean(d * d))), {}
-    rec = _receivers(ref, loaded.light)
+    rec = reference_receivers(ref, loaded.light)
     vis = np.clip(np.asarray(res.outputs["visibility"], dtype=np.float32), 0.0, 1.0)
     sm = M.shadow_metrics(ref["visibility"], vis, receivers=rec)
     detail = {k: sm[k] for k in ("false_lit_fraction", "false_shadow_fraction", "receiver_count")}
@@ -185,7 +186,7 @@ def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> di
     from raster_models import ModelError
     from raster_models import run as run_model
 
-    family = raster_models.TECHNIQUES[technique.name].family
+    family = raster_models.family_of(technique.name)
     exp = expectation(technique.name, extreme.name, family)
     metric = "coverage_rmse" if family == "aa" else "misclassified_fraction"
     cell = {
@@ -242,7 +243,7 @@ def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> di
     except Exception as exc:  # an unexpected failure is a result of the matrix
         cell.update(
             status="error",
-            message=f"{type(exc).__name__}: {exc}",
+            message=one_line(exc, with_type=True),
             seconds=time.perf_counter() - t0,
         )
         cell["outcome_met"] = False

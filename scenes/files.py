@@ -15,7 +15,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from scenes.records import jsonable
+from .records import jsonable
 
 __all__ = ["atomic_copy", "atomic_write", "atomic_write_bytes", "atomic_write_json"]
 
