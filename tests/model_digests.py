@@ -8,8 +8,8 @@ Run from the project root, before and after a change, and compare::
 Cases: every registered technique on every built-in scene whose light it accepts (the scene's
 own size), and on one scene each, every non-default choice of every parameter with choices and
 every boolean parameter flipped. A case's digest is the SHA-256 of its output arrays (name,
-dtype, shape, bytes) and of its cost and diagnostics records (timings left out). Exit 1 when
-``--compare`` finds a digest that differs or a case missing on either side.
+dtype, shape, bytes) and of its cost and diagnostics records (timings and provenance left
+out). Exit 1 when ``--compare`` finds a digest that differs or a case missing on either side.
 """
 
 from __future__ import annotations
@@ -25,7 +25,9 @@ import numpy as np
 import raster_models
 import scenes
 
-_TIMING_WORDS = ("seconds", "time", "wall")
+#: Record keys left out of a digest: timings, and the provenance (package versions), which
+#: says how a result was made, not what it is.
+_SKIPPED_WORDS = ("seconds", "time", "wall", "provenance")
 
 
 def _clean(record):
@@ -33,7 +35,7 @@ def _clean(record):
         return {
             k: _clean(v)
             for k, v in sorted(record.items())
-            if not any(w in str(k) for w in _TIMING_WORDS)
+            if not any(w in str(k) for w in _SKIPPED_WORDS)
         }
     if isinstance(record, list | tuple):
         return [_clean(v) for v in record]
