@@ -27,7 +27,7 @@ from .aa import (
 from .coherent import CoherentParams
 from .errors import ModelError
 from .izb import IzbParams
-from .registry import TECHNIQUES, Technique, list_techniques, parse_params, run
+from .registry import TECHNIQUES, Technique, family_of, list_techniques, parse_params, run
 from .result import ModelResult
 from .shadowmaps import CsmParams, SdsmParams, ShadowMapParams
 
@@ -52,6 +52,7 @@ __all__ = [
     "ShadowMapParams",
     "SsaaParams",
     "Technique",
+    "family_of",
     "list_techniques",
     "parse_params",
     "run",

@@ -12,10 +12,10 @@ import numpy as np
 
 from .. import depth as _depth
 from ..light_frame import Projection
-from ..result import MapData, Partition, Setup
 from . import filters as _filters
 from .depth_dr import fused_bias
 from .raycast import GRID_CHUNK, iter_grid
+from .records import MapData, Partition, Setup
 
 __all__ = ["render_maps"]
 
@@ -94,8 +94,7 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
             # One launch: the map is a view of the kernel's output, which lookups reuse.
             ((_, _, hits),) = launches
             stored = hits["stored"].reshape(r, r)
-            _filters.register_drjit_texture(stored, hits["texels"])
-            return MapData(stored, None, (0.0, 0.0), hits["covered"], z_start)
+            return MapData(stored, None, (0.0, 0.0), hits["covered"], z_start, hits["texels"])
         stored = np.empty(r * r, dtype=np.float32)
         for start, stop, hits in launches:
             stored[start:stop] = hits["stored"]
@@ -133,8 +132,6 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
 
 
 def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
-    if params.filter not in _filters.MOMENT_FILTERS:
-        return
     exponents = (0.0, 0.0)
     if params.filter != "vsm":
         scale = 1.0
@@ -152,7 +149,9 @@ def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
 
 
 def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
-    """Render every non-empty partition's map (one Dr.Jit launch per map chunk)."""
+    """Render every non-empty partition's map (one Dr.Jit launch per map chunk): its stored
+    depth and, for the compare filters, the same texels as a Dr.Jit array
+    (:attr:`MapData.texels`), for VSM/EVSM its moments."""
     need_slope = params.slope_scaled_bias != 0.0
     maps: list[MapData | None] = []
     for part in setup.partitions:
@@ -160,6 +159,10 @@ def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
             maps.append(None)
             continue
         data = _render_one(scene, part, params, need_slope)
-        _add_moments(data, part, params, setup)
+        if params.filter in _filters.MOMENT_FILTERS:
+            _add_moments(data, part, params, setup)
+            data.texels = None
+        elif data.texels is None:
+            data.texels = _filters.upload_texels(data.depth)
         maps.append(data)
     return maps

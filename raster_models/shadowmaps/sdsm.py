@@ -59,13 +59,17 @@ from ..gbuffer import trace_gbuffer
 from ..light_frame import Projection
 from ..params import param
 from .common import CommonParams
-from .engine import Partition, Setup, execute
+from .engine import execute
 from .fit import aabb, box_corners, light_frame_for
 from .frustum import frustum_slice
+from .records import Partition, Setup
 
-__all__ = ["SdsmParams", "build", "run"]
+__all__ = ["LIGHTS", "NAME", "SdsmParams", "build", "run"]
 
 NAME = "sdsm"
+
+#: Light kinds the technique supports.
+LIGHTS = ("directional",)
 
 #: Compute dispatches of the sample's reduce path (clear/reduce z bounds, partitions, clear/
 #: reduce light-space bounds, custom partitions) and of its histogram paths.
@@ -428,7 +432,7 @@ def _partitions_from_depth(scene, gb, camera, light, p: SdsmParams):
 def build(scene, gbuf, p: SdsmParams) -> Setup:
     """SDSM partitions from the current frame's depth, or from ``latency`` frames earlier."""
     light = scene.light
-    if light.kind != "directional":
+    if light.kind not in LIGHTS:
         raise ModelError(
             f"{NAME} needs a directional light; the scene's light is a {light.kind} light "
             "(use shadow-map)"

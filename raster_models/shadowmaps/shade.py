@@ -21,10 +21,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..result import MapData, Setup
 from . import filters as _filters
+from .records import MapData, Setup
 
-__all__ = ["shade"]
+__all__ = [
+    "DrjitColumns",
+    "normal_offset_texels",
+    "partition_geometry",
+    "perspective_reference",
+    "select_partitions",
+    "shade",
+]
 
 
 def normal_offset_texels(params, proj) -> float:
@@ -59,7 +66,7 @@ def perspective_reference(params, proj, z):
     return np.where(np.isfinite(ref), ref, z)
 
 
-def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
+def select_partitions(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
     """Partition index per pixel of ``idx`` (-1: none)."""
     parts = setup.partitions
     k = len(parts)
@@ -143,14 +150,15 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.
         ref = z - params.bias if ref is None else ref
         plane = None
     common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
+    tex = data.texels
     if kind == "point":
-        return _filters.compare_point(data.depth, u, v, ref, address=params.address_mode)
+        return _filters.compare_point(tex, u, v, ref, address=params.address_mode)
     if kind == "hw_pcf":
-        return _filters.compare_bilinear(data.depth, u, v, ref, **common)
+        return _filters.compare_bilinear(tex, u, v, ref, **common)
     if kind == "pcf":
-        return _filters.pcf_grid(data.depth, u, v, ref, params.pcf_size, plane=plane, **common)
+        return _filters.pcf_grid(tex, u, v, ref, params.pcf_size, plane=plane, **common)
     return _filters.pcf_poisson(
-        data.depth,
+        tex,
         u,
         v,
         ref,
@@ -174,25 +182,42 @@ def _singular_min(ju, jv):
         return np.where(smax > 0, det / smax, 0.0)
 
 
-#: Pixels from which a partition's geometry runs as one Dr.Jit kernel (LLVM backend, float64)
-#: instead of NumPy (same formulas; results agree to a few ulps, FMA contraction).
-DRJIT_MIN_PIXELS = 1 << 14
-
 #: Pixels per Dr.Jit launch of :func:`_geometry_drjit` (bounded memory).
 DRJIT_CHUNK = 1 << 21
 
 
-def _partition_geometry(params, part, gbuf, pix):
-    """Shadow coordinates (with the normal offset), Jacobian, texel density and resolution
-    error for pixels ``pix`` (Dr.Jit for large float64 sets, else NumPy)."""
-    proj = part.projection
-    geo = None
-    if proj.precision == "float64" and len(pix) >= DRJIT_MIN_PIXELS:
-        from scenes import backend
+class DrjitColumns:
+    """Flat Dr.Jit ``Float64`` copies of a G-buffer's fields (``(N, 3)`` fields row-major),
+    uploaded on first use and shared by every partition (and blend band) one :func:`shade`
+    call looks up; pass a new one after changing the G-buffer."""
 
-        if not backend.active().variant.startswith("scalar"):
-            geo = _geometry_drjit(params, proj, gbuf, pix)
-    if geo is None:
+    def __init__(self, gbuf):
+        self.gbuf = gbuf
+        self._columns: dict = {}
+
+    def __getitem__(self, name: str):
+        col = self._columns.get(name)
+        if col is None:
+            from scenes import backend
+
+            flat = np.ascontiguousarray(getattr(self.gbuf, name), dtype=np.float64).reshape(-1)
+            col = self._columns[name] = backend.mitsuba().Float64(flat)
+        return col
+
+
+def partition_geometry(params, part, gbuf, pix, columns: DrjitColumns | None = None) -> dict:
+    """Shadow coordinates (with the normal offset), Jacobian, texel density and resolution
+    error for pixels ``pix`` of ``gbuf`` in the map of ``part``.
+
+    float64 projections run as one fused Dr.Jit kernel per chunk of pixels, reading the
+    G-buffer through ``columns`` (a new :class:`DrjitColumns` when ``None``); float32
+    projections (``matrix_precision="float32"``, modelling float32 shadow lookups) in NumPy,
+    in float32 as :meth:`Projection.project` computes them.
+    """
+    proj = part.projection
+    if proj.precision == "float64":
+        geo = _geometry_drjit(params, proj, columns or DrjitColumns(gbuf), pix)
+    else:
         geo = _geometry_numpy(params, proj, gbuf, pix)
     geo["proj"] = proj
     return geo
@@ -250,23 +275,9 @@ def _geometry_numpy(params, proj, gbuf, pix):
     )
 
 
-def _drjit_fields(mi, gbuf, names) -> dict:
-    """Flat Dr.Jit ``Float64`` copies of G-buffer fields (``(N, 3)`` fields row-major), made
-    once per G-buffer and kept on it for every partition (and blend band) it shades."""
-    cache = gbuf.__dict__.setdefault("_drjit_fields", {})
-    fields = {}
-    for name in names:
-        arr = getattr(gbuf, name)
-        hit = cache.get(name)
-        if hit is None or hit[0] is not arr:  # a replaced array is uploaded again
-            flat = np.ascontiguousarray(arr, dtype=np.float64).reshape(-1)
-            hit = cache[name] = (arr, mi.Float64(flat))
-        fields[name] = hit[1]
-    return fields
-
-
-def _geometry_drjit(params, proj, gbuf, pix):
-    """:func:`_geometry_numpy` as one fused Dr.Jit float64 kernel per chunk of pixels."""
+def _geometry_drjit(params, proj, cols: DrjitColumns, pix):
+    """Shadow coordinates and texel density of float64 projections: one fused Dr.Jit float64
+    kernel per chunk of pixels, the formulas of :func:`_geometry_numpy`."""
     from scenes import backend
 
     mi = backend.mitsuba()
@@ -288,7 +299,7 @@ def _geometry_drjit(params, proj, gbuf, pix):
     keys = ("u", "v", "z", "tpp", "err")
     if need_j:
         keys += ("jux", "juy", "jvx", "jvy", "jzx", "jzy")
-    single = n <= DRJIT_CHUNK
+    single = 0 < n <= DRJIT_CHUNK
     out = {} if single else {k: np.empty(n) for k in keys}
     inside_out = None if single else np.empty(n, dtype=bool)
     tan2 = const(2.0 * float(proj.extent[0]) / res if persp else 0.0)
@@ -301,10 +312,6 @@ def _geometry_drjit(params, proj, gbuf, pix):
             return rows[0], rows[1], rows[2], f64(1.0)
         w = rows[3]
         return rows[0] / w, rows[1] / w, rows[2] / w, w
-
-    cols = _drjit_fields(mi, gbuf, ("position", "dpdx", "dpdy"))
-    if offset > 0.0:
-        cols |= _drjit_fields(mi, gbuf, ("normal", "cos_l"))
 
     def gather(name, base, k):
         # The pixels' float64 G-buffer values, read inside the kernel (no NumPy gathers).
@@ -377,7 +384,7 @@ def _geometry_drjit(params, proj, gbuf, pix):
 
 
 def _lookup_subset(params, data, geo, mask, rotation):
-    """Visibility of the pixels ``mask`` of a :func:`_partition_geometry` record."""
+    """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
@@ -399,8 +406,13 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     uncovered = np.zeros(n)
     lookups = np.zeros(n)
     valid_idx = np.nonzero(gbuf.valid)[0]
+    columns = DrjitColumns(gbuf)
     vis[valid_idx] = 0.0
-    sel = _select(setup, gbuf, valid_idx, params) if len(valid_idx) else np.zeros(0, np.int64)
+    sel = (
+        select_partitions(setup, gbuf, valid_idx, params)
+        if len(valid_idx)
+        else np.zeros(0, np.int64)
+    )
     cascade[valid_idx] = sel
     receiver = gbuf.receiver
     rotation_all = None
@@ -423,7 +435,7 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             stats.append(st)
             continue
         data = maps[i]
-        geo = _partition_geometry(params, part, gbuf, pix)
+        geo = partition_geometry(params, part, gbuf, pix, columns)
         e = geo["err"]
         tpp[pix] = geo["tpp"]
         err[pix] = e
@@ -464,7 +476,7 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             if len(band) == 0:
                 continue
             rot = rotation_all[band] if rotation_all is not None else None
-            geo = _partition_geometry(params, nxt, gbuf, band)
+            geo = partition_geometry(params, nxt, gbuf, band, columns)
             nxt_vis = _lookup_subset(params, maps[i + 1], geo, np.ones(len(band), bool), rot)
             amt = _smoothstep(0.0, setup.blend_band, (part.z_end - gbuf.depth[band]) / size)
             vis[band] = nxt_vis * (1.0 - amt) + vis[band] * amt
