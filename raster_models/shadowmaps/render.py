@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from scenes import backend
+
 from .. import depth as _depth
 from ..light_frame import Projection
 from . import filters as _filters
-from .depth_dr import fused_bias
+from .depth_dr import fused_bias, stored_depth_dr
 from .raycast import GRID_CHUNK, iter_grid
 from .records import MapData, Partition, Setup
 
@@ -100,12 +102,14 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
             stored[start:stop] = hits["stored"]
             covered += hits["covered"]
         return MapData(stored.reshape(r, r), None, (0.0, 0.0), covered, z_start)
+    # A per-texel bias: computed in NumPy from each texel's depth (and caster slope), added
+    # and stored by the same Dr.Jit rule as the constant bias.
+    mi = backend.mitsuba()
     stored = np.empty(r * r, dtype=np.float32)
     for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
         z = hits["z"]
         hit = np.isfinite(z)
         covered += int(hit.sum())
-        z = np.where(hit, z, 1.0)
         slope = None
         if need_slope:
             idx = np.nonzero(hit)[0]
@@ -116,17 +120,16 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
             slope[idx] = _max_depth_slope(
                 proj, grid, hits["normal"][idx], s, t, hits["t"][idx], hits["dir_norm"][idx]
             )
-        # Bias first, then the viewport clamp (D3D11 order).
-        z = _depth.rasterized_depth(
-            z,
+        texel_bias = _depth.hardware_bias(
+            np.where(hit, z, 1.0),
             slope,
             params.format,
             depth_bias=params.depth_bias,
             slope_scaled=params.slope_scaled_bias,
             clamp=params.depth_bias_clamp,
         )
-        # Stored as float32: D3D compares a depth texel converted to float32.
-        stored[start:stop] = np.where(hit, _depth.quantize(z, params.format), 1.0)
+        texels, _ = stored_depth_dr(mi, mi.Float64(z), params.format, mi.Float64(texel_bias))
+        stored[start:stop] = texels.numpy()
     stored = stored.reshape(r, r)
     return MapData(stored, None, (0.0, 0.0), covered, z_start)
 
