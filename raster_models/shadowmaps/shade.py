@@ -171,17 +171,6 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.
     )
 
 
-def _singular_min(ju, jv):
-    """Smallest singular value of the 2x2 Jacobians with rows ``ju``, ``jv`` (N, 2)."""
-    a, b = ju[:, 0], ju[:, 1]
-    c, d = jv[:, 0], jv[:, 1]
-    fro = a * a + b * b + c * c + d * d
-    det = np.abs(a * d - b * c)
-    smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(smax > 0, det / smax, 0.0)
-
-
 #: Pixels per Dr.Jit launch of :func:`_geometry_drjit` (bounded memory).
 DRJIT_CHUNK = 1 << 21
 
@@ -209,75 +198,63 @@ def partition_geometry(params, part, gbuf, pix, columns: DrjitColumns | None = N
     """Shadow coordinates (with the normal offset), Jacobian, texel density and resolution
     error for pixels ``pix`` of ``gbuf`` in the map of ``part``.
 
-    float64 projections run as one fused Dr.Jit kernel per chunk of pixels, reading the
-    G-buffer through ``columns`` (a new :class:`DrjitColumns` when ``None``); float32
-    projections (``matrix_precision="float32"``, modelling float32 shadow lookups) in NumPy,
-    in float32 as :meth:`Projection.project` computes them.
+    One fused Dr.Jit kernel per chunk of pixels, reading the G-buffer through ``columns``
+    (a new :class:`DrjitColumns` when ``None``). The projection to ``(u, v, z, w)`` runs in
+    the projection's precision (float32 for ``matrix_precision="float32"``, with its float32
+    matrix, as :meth:`Projection.project`); the normal offset, the Jacobian
+    ``J = d(u, v, z)/d(pixel)`` and the texel density in float64.
+
+    Returns a dict: ``u``, ``v``, ``z`` (float64; non-finite values replaced by 0, 0, 1),
+    ``inside`` (bool: within the map's texture and in front of the light), ``tpp`` (smallest
+    singular value of the ``(u, v)`` rows of ``J`` in texels per pixel), ``err`` (Intel's
+    resolution error) and, with ``receiver_plane_bias``, ``j3`` ``(N, 3, 2)``, ``ju``,
+    ``jv``; ``proj``.
     """
     proj = part.projection
-    if proj.precision == "float64":
-        geo = _geometry_drjit(params, proj, columns or DrjitColumns(gbuf), pix)
-    else:
-        geo = _geometry_numpy(params, proj, gbuf, pix)
+    geo = _geometry_drjit(params, proj, columns or DrjitColumns(gbuf), pix)
     geo["proj"] = proj
     return geo
 
 
-def _density(geo: dict) -> dict:
-    """Add ``tpp`` (smallest singular value of J) and ``err`` (Intel resolution error)."""
-    smin = _singular_min(geo["ju"], geo["jv"])
-    fw_u = np.maximum(np.abs(geo["ju"][:, 0]), np.abs(geo["ju"][:, 1]))
-    fw_v = np.maximum(np.abs(geo["jv"][:, 0]), np.abs(geo["jv"][:, 1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lod = np.log2(np.sqrt(fw_u * fw_v))
-    geo["err"] = np.where(np.isfinite(lod), np.maximum(-lod, 0.0), 0.0)
-    geo["tpp"] = np.where(np.isfinite(smin), smin, 0.0)
-    return geo
+def _projector(mi, proj):
+    """``project(p) -> (u, v, z, w)`` (Dr.Jit ``Float64``) of points ``p`` (three
+    ``Float64``), evaluated in the projection's precision."""
+    import drjit as dr
+
+    persp = proj.kind != "ortho"
+    f64 = mi.Float64
+    ftype = mi.Float if proj.precision == "float32" else f64
+    # Kernel parameters, not literals: one compiled kernel serves every projection.
+    m = [[dr.opaque(ftype, float(c)) for c in row] for row in np.asarray(proj.matrix_used)]
+
+    def project(p):
+        q = [ftype(c) for c in p]
+        rows = [m[i][0] * q[0] + m[i][1] * q[1] + m[i][2] * q[2] + m[i][3] for i in range(4)]
+        if not persp:
+            return f64(rows[0]), f64(rows[1]), f64(rows[2]), f64(1.0)
+        w = rows[3]
+        return f64(rows[0] / w), f64(rows[1] / w), f64(rows[2] / w), f64(w)
+
+    return project
 
 
-def _geometry_numpy(params, proj, gbuf, pix):
-    pos = gbuf.position[pix]
-    u, v, z, w = proj.project(pos)
-    offset = normal_offset_texels(params, proj)
-    if offset > 0.0:
-        texel = np.broadcast_to(np.asarray(proj.texel_world_size(w), dtype=np.float64), u.shape)
-        n_dot_l = np.clip(gbuf.cos_l[pix], 0.0, 1.0)
-        scale = offset * texel * (1.0 - n_dot_l)
-        u, v, z, w = proj.project(pos + gbuf.normal[pix] * scale[:, None])
-    dpdx, dpdy = gbuf.dpdx[pix], gbuf.dpdy[pix]
-    m = proj.matrix
-    if proj.kind == "ortho":
-        # Affine map: d(u, v, z)/dP is the matrix itself.
-        j3 = np.stack([dpdx @ m[:3, :3].T, dpdy @ m[:3, :3].T], axis=-1)
-    else:
-        # d(q / w) = (dq - (q / w) dw) / w for homogeneous q = M P.
-        t = np.stack([u, v, z], axis=-1)
-        cols = []
-        for dp in (dpdx, dpdy):
-            dq = dp @ m[:3, :3].T
-            dw = dp @ m[3, :3]
-            with np.errstate(invalid="ignore", divide="ignore"):
-                cols.append((dq - t * dw[:, None]) / w[:, None])
-        j3 = np.stack(cols, axis=-1)  # (N, 3, 2): rows u, v, z; columns x, y
-    res = proj.resolution
-    with np.errstate(invalid="ignore"):
-        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & np.isfinite(u + v)
-    return _density(
-        {
-            "u": np.where(np.isfinite(u), u, 0.0),
-            "v": np.where(np.isfinite(v), v, 0.0),
-            "z": np.where(np.isfinite(z), z, 1.0),
-            "j3": j3,
-            "ju": j3[:, 0, :] * res,
-            "jv": j3[:, 1, :] * res,
-            "inside": inside,
-        }
-    )
+def _texel_density(dr, a, b, c, d):
+    """Smallest singular value of ``[[a, b], [c, d]]`` (texels per pixel; 0 where
+    undefined) and Intel's resolution error ``max(0, -log2(sqrt(fw_u fw_v)))``."""
+    fro = a * a + b * b + c * c + d * d
+    det = dr.abs(a * d - b * c)
+    smax = dr.sqrt(0.5 * (fro + dr.sqrt(dr.maximum(fro * fro - 4.0 * det * det, 0.0))))
+    smin = dr.select(smax > 0, det / smax, 0.0)
+    fw_u = dr.maximum(dr.abs(a), dr.abs(b))
+    fw_v = dr.maximum(dr.abs(c), dr.abs(d))
+    lod = dr.log2(dr.sqrt(fw_u * fw_v))
+    err = dr.select(dr.isfinite(lod), dr.maximum(-lod, 0.0), 0.0)
+    return dr.select(dr.isfinite(smin), smin, 0.0), err
 
 
 def _geometry_drjit(params, proj, cols: DrjitColumns, pix):
-    """Shadow coordinates and texel density of float64 projections: one fused Dr.Jit float64
-    kernel per chunk of pixels, the formulas of :func:`_geometry_numpy`."""
+    """:func:`partition_geometry`'s kernel, launched per chunk of :data:`DRJIT_CHUNK`
+    pixels (one launch: its evaluated arrays are the outputs)."""
     from scenes import backend
 
     mi = backend.mitsuba()
@@ -306,12 +283,7 @@ def _geometry_drjit(params, proj, cols: DrjitColumns, pix):
     texel_ortho = const(0.0 if persp else float(proj.texel_world_size()))
     offset_k = const(offset)
 
-    def project(p):
-        rows = [m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3] for i in range(4)]
-        if not persp:
-            return rows[0], rows[1], rows[2], f64(1.0)
-        w = rows[3]
-        return rows[0] / w, rows[1] / w, rows[2] / w, w
+    project = _projector(mi, proj)
 
     def gather(name, base, k):
         # The pixels' float64 G-buffer values, read inside the kernel (no NumPy gathers).
@@ -338,21 +310,13 @@ def _geometry_drjit(params, proj, cols: DrjitColumns, pix):
                 dq = [(dq[i] - t * dw) / w for i, t in enumerate((u, v, z))]
             jac.append(dq)
         (ux, vx, zx), (uy, vy, zy) = jac
-        a, b, c, d = ux * res_k, uy * res_k, vx * res_k, vy * res_k
-        fro = a * a + b * b + c * c + d * d
-        det = dr.abs(a * d - b * c)
-        smax = dr.sqrt(0.5 * (fro + dr.sqrt(dr.maximum(fro * fro - 4.0 * det * det, 0.0))))
-        smin = dr.select(smax > 0, det / smax, 0.0)
-        fw_u = dr.maximum(dr.abs(a), dr.abs(b))
-        fw_v = dr.maximum(dr.abs(c), dr.abs(d))
-        lod = dr.log2(dr.sqrt(fw_u * fw_v))
-        err = dr.select(dr.isfinite(lod), dr.maximum(-lod, 0.0), 0.0)
+        tpp, err = _texel_density(dr, ux * res_k, uy * res_k, vx * res_k, vy * res_k)
         inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & dr.isfinite(u + v)
         vals = {
             "u": dr.select(dr.isfinite(u), u, 0.0),
             "v": dr.select(dr.isfinite(v), v, 0.0),
             "z": dr.select(dr.isfinite(z), z, 1.0),
-            "tpp": dr.select(dr.isfinite(smin), smin, 0.0),
+            "tpp": tpp,
             "err": err,
         }
         if need_j:
