@@ -18,6 +18,8 @@ import numpy as np
 from scenes import backend
 from scenes.raycast import CHUNK, trace_film_dr
 
+from .drjit import numpy_view
+
 __all__ = ["GBuffer", "points_gbuffer", "plane_derivatives", "trace_gbuffer"]
 
 
@@ -115,17 +117,6 @@ def points_gbuffer(scene, *, position, normal, geo_normal, depth, valid) -> GBuf
     )
 
 
-def _np(a) -> np.ndarray:
-    """NumPy view of an evaluated Dr.Jit array (a Vector3f gives ``(3, N)``).
-
-    ``.numpy()`` exposes the evaluated array's own memory (the view keeps it alive);
-    ``np.array`` on a Dr.Jit vector goes through the array protocol component by component
-    and is ~20x slower at 1080p. Callers copy the view into their own arrays.
-    """
-    to_numpy = getattr(a, "numpy", None)
-    return to_numpy() if to_numpy is not None else np.asarray(a)
-
-
 def _vec(mi, a):
     import drjit as dr
 
@@ -214,16 +205,16 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             # strided NumPy writes into freshly allocated memory.
             flat = {key: dr.ravel(mi.Vector3d(*val)) for key, val in vectors.items()}
             dr.eval(*flat.values())
-            out |= {key: _np(val).reshape(n_pix, 3) for key, val in flat.items()}
+            out |= {key: numpy_view(val).reshape(n_pix, 3) for key, val in flat.items()}
         else:
             for key, val in vectors.items():
                 for k in range(3):
-                    out[key][sl, k] = _np(val[k])
+                    out[key][sl, k] = numpy_view(val[k])
         for key, val in arrays.items():
             if single:
-                out[key] = _np(val)
+                out[key] = numpy_view(val)
             else:
-                out[key][sl] = _np(val)
+                out[key][sl] = numpy_view(val)
     valid = out["valid"]
     pos, nrm, cos_l, depth = out["p"], out["n"], out["cos_l"], out["depth"]
     receiver = valid & (cos_l > 0.0) & out["cone"]

@@ -16,18 +16,13 @@ import numpy as np
 
 from scenes import backend
 
+from ..drjit import numpy_view
 from .depth_dr import stored_depth_dr
 
 __all__ = ["GRID_CHUNK", "iter_grid"]
 
 #: Texels per Dr.Jit launch (bounded memory: about 0.3 GiB a launch with normals).
 GRID_CHUNK = 1 << 22
-
-
-def _np(a) -> np.ndarray:
-    """NumPy copy of an evaluated Dr.Jit array (one memory copy; a Vector3f gives (3, N))."""
-    to_numpy = getattr(a, "numpy", None)
-    return np.array(to_numpy() if to_numpy is not None else a)
 
 
 def iter_grid(
@@ -125,12 +120,12 @@ def iter_grid(
         if normals:
             dr.eval(z, si.n, dist, dnorm, valid)
             chunk = {
-                "z": _np(z),
-                "normal": _np(si.n).T.astype(np.float32),
-                "t": np.where(_np(valid), _np(dist), np.inf),
-                "dir_norm": _np(dnorm),
+                "z": numpy_view(z),
+                "normal": numpy_view(si.n).T.astype(np.float32),
+                "t": np.where(numpy_view(valid), numpy_view(dist), np.inf),
+                "dir_norm": numpy_view(dnorm),
             }
         else:
             dr.eval(z)
-            chunk = {"z": _np(z)}
+            chunk = {"z": numpy_view(z)}
         yield start, stop, chunk
