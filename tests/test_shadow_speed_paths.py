@@ -70,8 +70,9 @@ def _numpy_stored(z, fmt, *, depth_bias=0, slope=None, slope_scaled=0.0, clamp=0
 def _flush_subnormals(x):
     """Dr.Jit's LLVM backend treats subnormal operands and results as (signed) zero: a
     depth or bias below 2^-1022 is +-0 in the add, and a D32F texel below 2^-126 (a bias of
-    a few 2^-149 at depth 0) is stored as +-0. The compare ``ref <= texel`` is the same for +-0 and any reference >= 0;
-    only texels in (0, 2^-126) differ, from references in that range."""
+    a few 2^-149 at depth 0) is stored as +-0. The compare ``ref <= texel`` is the same
+    for +-0 and any reference >= 0; only texels in (0, 2^-126) differ, from references in
+    that range."""
     tiny = np.abs(x) < np.finfo(x.dtype).tiny
     return np.where(tiny, np.copysign(x.dtype.type(0.0), x), x)
 
@@ -151,23 +152,7 @@ def test_rendered_maps_equal_numpy_reference(technique, fmt):
     for part, m in zip(setup.partitions, maps, strict=True):
         if m is None:
             continue
-        proj = part.projection
-        grid = proj.grid_rays(
-            m.z_start, float(proj.extent[5] if proj.kind == "ortho" else proj.extent[2])
-        )
-        mat = proj.matrix
-        if proj.kind == "ortho":
-            m2 = mat[2, :3]
-            dcoef = (
-                "ortho",
-                m2 @ grid["A"] + mat[2, 3],
-                m2 @ grid["U"],
-                m2 @ grid["V"],
-                m2 @ grid["D"],
-            )
-        else:
-            _, near, far = (float(v) for v in proj.extent)
-            dcoef = ("persp", far / (far - near), far * near / (far - near))
+        grid, dcoef, _ = render.map_rays(loaded, part.projection, depth_clamp=p.depth_clamp)
         ((_, _, hits),) = raycast.iter_grid(loaded, grid, 96, dcoef)
         want, hit = _numpy_stored(hits["z"], fmt)
         assert m.depth.dtype == np.float32

@@ -1,5 +1,9 @@
 """Shadow-map filters, vectorized over receivers: depth compare (point, PCF) and moments.
 
+The compare filters read a map's float32 texels as a Dr.Jit array (:attr:`MapData.texels`,
+:func:`upload_texels`) and run as one fused kernel per chunk of lookups
+(:func:`compare_taps`); the moment filters (VSM/EVSM) are NumPy.
+
 Texture conventions: a map is ``(R, R)`` (row ``j``, column ``i``); texel ``(i, j)`` covers
 ``u in [i, i+1)/R``, ``v in [j, j+1)/R``; its centre is ``((i + 0.5)/R, (j + 0.5)/R)``.
 A compare returns 1 (lit) when ``reference <= stored`` (D3D ``COMPARISON_LESS_EQUAL``, the
