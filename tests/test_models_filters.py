@@ -10,7 +10,7 @@ import pytest
 
 from raster_models import depth, splits
 from raster_models.light_frame import Projection, make_frame
-from raster_models.shadowmaps import filters
+from raster_models.shadowmaps import depth_dr, filters
 
 RNG = np.random.default_rng(1234)
 
@@ -68,15 +68,21 @@ def test_hardware_bias_units():
     assert b[0] == 0.005
 
 
-def test_depth_bias_is_added_before_the_viewport_clamp():
+def test_depth_bias_is_added_before_the_viewport_clamp(mi):
     # A pancaked caster (z < 0, in front of the near plane) stays at 0 whatever its bias: the
     # rasterizer adds the bias, then clamps (before issue 8 the clamp came first and the
     # caster was pushed to the bias). Values above 1 stay at 1.
     z = np.array([-0.5, -1e-3, 0.3, 0.99999, 1.5])
-    out = depth.rasterized_depth(z, None, "D24", depth_bias=1000)
     r = 1.0 / (2**24 - 1)
-    np.testing.assert_array_equal(out, [0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0])
-    np.testing.assert_array_equal(depth.rasterized_depth(z, None, "D24"), np.clip(z, 0, 1))
+    bias = depth_dr.fused_bias("D24", depth_bias=1000, slope_scaled=0.0, clamp=0.0)
+    assert bias == 1000 * r
+    out, hit = depth_dr.stored_depth_dr(mi, mi.Float64(z), "D24", bias)
+    want = depth.quantize(np.array([0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0]), "D24")
+    np.testing.assert_array_equal(out.numpy(), want.astype(np.float32))
+    assert hit.numpy().all()
+    plain, _ = depth_dr.stored_depth_dr(mi, mi.Float64(z), "D24", 0.0)
+    want = depth.quantize(np.clip(z, 0, 1), "D24").astype(np.float32)
+    np.testing.assert_array_equal(plain.numpy(), want)
 
 
 # ---------------------------------------------------------------------- filters

@@ -13,7 +13,7 @@ import scenes
 from oracle.cli.app import main
 from raster_models import params
 from raster_models.gbuffer import trace_gbuffer
-from raster_models.shadowmaps import csm, filters, sdsm, shade, shadow_map
+from raster_models.shadowmaps import csm, filters, geometry, sdsm, shade, shadow_map
 
 #: False-lit fraction of receivers allowed for the default spot/point configuration at
 #: 2048^2 (measured 0.0001 spot / 0.0005 point at 320x180; the old constant bias 0.005 on
@@ -208,9 +208,9 @@ def test_drjit_geometry_matches_numpy_reference(scene_name, technique, kw):
             continue
         proj = part.projection
         pix = np.nonzero(gb.valid)[0]
-        geo = shade.partition_geometry(p, part, gb, pix)
+        geo = geometry.partition_geometry(p, part, gb, pix)
         pos = gb.position[pix]
-        offset = shade.normal_offset_texels(p, proj)
+        offset = geometry.normal_offset_texels(p, proj)
         if offset > 0.0:
             _, _, _, w = proj.project(pos)
             texel = np.broadcast_to(proj.texel_world_size(w), len(pix))

@@ -16,10 +16,10 @@ from raster_models.shadowmaps import (
     csm,
     depth_dr,
     filters,
+    geometry,
     raycast,
     render,
     sdsm,
-    shade,
     shadow_map,
 )
 
@@ -199,8 +199,8 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
 
     loaded = scenes.load(scene_name, width=96, height=54)
     outs = []
-    for chunk in (shade.DRJIT_CHUNK, 777):
-        monkeypatch.setattr(shade, "DRJIT_CHUNK", chunk)
+    for chunk in (geometry.DRJIT_CHUNK, 777):
+        monkeypatch.setattr(geometry, "DRJIT_CHUNK", chunk)
         outs.append(rm.run(technique, loaded, resolution=128, **kw).outputs)
     for key in outs[0]:
         assert outs[1][key].tobytes() == outs[0][key].tobytes(), key
@@ -210,10 +210,10 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
     gb = trace_gbuffer(loaded)
     part = next(q for q in setup.partitions if q.projection is not None)
     pix = np.nonzero(gb.valid)[0]
-    first = shade.partition_geometry(p, part, gb, pix, shade.DrjitColumns(gb))
+    first = geometry.partition_geometry(p, part, gb, pix, geometry.DrjitColumns(gb))
     # Twice the screen derivatives: twice the texels per pixel.
     gb.dpdx, gb.dpdy = gb.dpdx * 2.0, gb.dpdy * 2.0
-    second = shade.partition_geometry(p, part, gb, pix, shade.DrjitColumns(gb))
+    second = geometry.partition_geometry(p, part, gb, pix, geometry.DrjitColumns(gb))
     np.testing.assert_allclose(second["tpp"], 2.0 * first["tpp"], rtol=1e-12)
     assert second["u"].tobytes() == first["u"].tobytes()
 
