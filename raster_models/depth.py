@@ -13,9 +13,10 @@ Hardware depth bias (D3D11 rasterizer, applied to every fragment written to the 
 texel's own depth, a per-texel stand-in for the primitive's maximum). ``MaxDepthSlope`` is
 ``max(|dz/dx|, |dz/dy|)`` of the primitive in normalized depth per texel. The bias is added
 to the fragment's depth before the viewport depth clamp to ``[0, 1]`` (D3D11 order: bias,
-then clamp), see :func:`rasterized_depth`.
+then clamp), see :func:`raster_models.shadowmaps.depth_dr.stored_depth_dr`.
 
-Shader-side biases (constant, receiver-plane, normal offset) live in :mod:`_shade`.
+Shader-side biases (constant, receiver-plane, normal offset) live in
+:mod:`raster_models.shadowmaps.shade`.
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ __all__ = [
     "hardware_bias",
     "quantize",
     "quantum",
-    "rasterized_depth",
 ]
 
 #: Format name -> (kind, bits).
@@ -83,26 +83,6 @@ def hardware_bias(
     elif clamp < 0.0:
         bias = np.maximum(bias, clamp)
     return bias
-
-
-def rasterized_depth(
-    z: np.ndarray,
-    max_slope: np.ndarray | None,
-    fmt: str,
-    *,
-    depth_bias: int = 0,
-    slope_scaled: float = 0.0,
-    clamp: float = 0.0,
-) -> np.ndarray:
-    """Depth a rasterizer writes for fragments at unclamped normalized depth ``z``: the
-    hardware bias added first, then the viewport clamp to ``[0, 1]`` (pancaked casters in
-    front of the near plane end at 0 whatever their bias). Not yet quantized."""
-    z = np.asarray(z, dtype=np.float64)
-    if depth_bias != 0 or slope_scaled != 0.0:
-        z = z + hardware_bias(
-            z, max_slope, fmt, depth_bias=depth_bias, slope_scaled=slope_scaled, clamp=clamp
-        )
-    return np.clip(z, 0.0, 1.0)
 
 
 def bytes_per_texel(fmt: str) -> int:

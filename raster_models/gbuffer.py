@@ -18,7 +18,9 @@ import numpy as np
 from scenes import backend
 from scenes.raycast import CHUNK, trace_film_dr
 
-__all__ = ["GBuffer", "trace_gbuffer"]
+from .drjit import numpy_view
+
+__all__ = ["GBuffer", "points_gbuffer", "plane_derivatives", "trace_gbuffer"]
 
 
 @dataclass
@@ -51,15 +53,68 @@ class GBuffer:
         return np.asarray(flat, dtype=np.float32).reshape(self.height, self.width)
 
 
-def _np(a) -> np.ndarray:
-    """NumPy view of an evaluated Dr.Jit array (a Vector3f gives ``(3, N)``).
+def plane_derivatives(camera, position, geo_normal) -> tuple[np.ndarray, np.ndarray]:
+    """``dP/dx``, ``dP/dy`` (world units per pixel, ``(N, 3)`` float64) on the planes through
+    world points ``position`` with geometric normals ``geo_normal`` (``(N, 3)``): the ray
+    differentials of ``camera``'s pixel grid, in float64 (:func:`trace_gbuffer` computes the
+    same in its kernel, at pixel centres)."""
+    m = np.asarray(camera.to_world, np.float64)
+    rot = m[:3, :3]
+    w, h = camera.width, camera.height
+    dsx, dsy = -2.0 / w, -2.0 / (h * camera.aspect)
+    cam_o = m[:3, 3]
+    if camera.kind == "perspective":
+        t = camera.tan_half_x
+        dd = [rot @ np.array([dsx * t, 0, 0]), rot @ np.array([0, dsy * t, 0])]
+        do = [np.zeros(3), np.zeros(3)]
+        d = position - cam_o
+        tau = np.ones(len(position))
+    else:
+        dd = [np.zeros(3), np.zeros(3)]
+        do = [rot @ np.array([dsx, 0, 0]), rot @ np.array([0, dsy, 0])]
+        d = np.broadcast_to(rot[:, 2], position.shape)
+        tau = np.zeros(len(position))
+    nd = np.sum(geo_normal * d, axis=1)
+    nd = np.where(np.abs(nd) > 1e-12, nd, 1e-12)
+    out = []
+    for o_k, d_k in zip(do, dd, strict=True):
+        dtau = -((geo_normal @ o_k) + tau * (geo_normal @ d_k)) / nd
+        out.append(o_k[None, :] + d * dtau[:, None] + d_k[None, :] * tau[:, None])
+    return out[0], out[1]
 
-    ``.numpy()`` exposes the evaluated array's own memory (the view keeps it alive);
-    ``np.array`` on a Dr.Jit vector goes through the array protocol component by component
-    and is ~20x slower at 1080p. Callers copy the view into their own arrays.
+
+def points_gbuffer(scene, *, position, normal, geo_normal, depth, valid) -> GBuffer:
+    """A G-buffer of ``N`` arbitrary shading points (one row of ``N`` "pixels"), e.g. the
+    fragments of an anti-aliasing model, for a shadow technique to shade.
+
+    Parameters
+    ----------
+    scene : scenes.LoadedScene (its camera and light).
+    position, normal, geo_normal : ``(N, 3)`` world points, shading and geometric normals.
+    depth : ``(N,)`` view depth (camera units along its forward axis).
+    valid : ``(N,)`` bool, False where no surface was hit.
+
+    ``cos_l``, ``receiver`` (valid, N.L > 0, inside a spot light's cone) and the screen
+    derivatives (:func:`plane_derivatives`) are computed here, in float64.
     """
-    to_numpy = getattr(a, "numpy", None)
-    return to_numpy() if to_numpy is not None else np.asarray(a)
+    pos = np.asarray(position, np.float64)
+    nrm = np.asarray(normal, np.float64)
+    valid = np.asarray(valid, bool)
+    wl, _ = scene.light.to_light(pos)
+    cos_l = np.where(valid, np.sum(nrm * wl, axis=1), 0.0)
+    dpdx, dpdy = plane_derivatives(scene.camera, pos, np.asarray(geo_normal, float))
+    return GBuffer(
+        width=len(pos),
+        height=1,
+        valid=valid,
+        depth=np.asarray(depth, np.float64),
+        position=pos,
+        normal=nrm,
+        cos_l=cos_l,
+        receiver=valid & (cos_l > 0.0) & np.asarray(scene.light.in_cone(wl), bool),
+        dpdx=dpdx,
+        dpdy=dpdy,
+    )
 
 
 def _vec(mi, a):
@@ -150,16 +205,16 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             # strided NumPy writes into freshly allocated memory.
             flat = {key: dr.ravel(mi.Vector3d(*val)) for key, val in vectors.items()}
             dr.eval(*flat.values())
-            out |= {key: _np(val).reshape(n_pix, 3) for key, val in flat.items()}
+            out |= {key: numpy_view(val).reshape(n_pix, 3) for key, val in flat.items()}
         else:
             for key, val in vectors.items():
                 for k in range(3):
-                    out[key][sl, k] = _np(val[k])
+                    out[key][sl, k] = numpy_view(val[k])
         for key, val in arrays.items():
             if single:
-                out[key] = _np(val)
+                out[key] = numpy_view(val)
             else:
-                out[key][sl] = _np(val)
+                out[key][sl] = numpy_view(val)
     valid = out["valid"]
     pos, nrm, cos_l, depth = out["p"], out["n"], out["cos_l"], out["depth"]
     receiver = valid & (cos_l > 0.0) & out["cone"]

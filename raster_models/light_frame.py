@@ -219,19 +219,6 @@ class Projection:
             "origin_along_dir": True,
         }
 
-    def depth_from_light_z(self, lz: np.ndarray) -> np.ndarray:
-        """Normalized depth of light-frame ``z`` (ortho) or light-view depth (persp)."""
-        lz = np.asarray(lz, dtype=np.float64)
-        if self.kind == "ortho":
-            m = self.matrix
-            # z_ndc is affine in light z: recover its slope and offset from the matrix.
-            slope = float(np.linalg.norm(m[2, :3]))
-            z0 = float(self.extent[4])
-            return (lz - z0) * slope
-        _, n, f = (float(v) for v in self.extent)
-        with np.errstate(divide="ignore"):
-            return f / (f - n) - f * n / ((f - n) * lz)
-
     def texel_world_size(self, w: np.ndarray | None = None) -> np.ndarray | float:
         """World size of one texel (the larger axis), at light-view depth ``w`` for persp."""
         r = self.resolution

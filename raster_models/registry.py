@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import params as _params
+from . import params
 from .aa import fxaa as fxaa_model  # noqa: I001
 from .aa import msaa, ssaa
 from .aa.acaa import model as acaa
@@ -19,7 +19,10 @@ __all__ = ["TECHNIQUES", "Technique", "family_of", "list_techniques", "parse_par
 
 @dataclass(frozen=True)
 class Technique:
-    """A registered technique: its parameter dataclass and entry point."""
+    """A registered technique: its parameter dataclass and entry point.
+
+    ``family``: ``shadow`` (visibility outputs, scored on receivers) or ``aa`` (colour and
+    coverage outputs, scored against the reference image)."""
 
     name: str
     description: str
@@ -48,7 +51,7 @@ TECHNIQUES: dict[str, Technique] = {
             ),
             shadow_map.ShadowMapParams,
             shadow_map.run,
-            ("directional", "spot", "point"),
+            shadow_map.LIGHTS,
         ),
         Technique(
             "csm",
@@ -63,7 +66,7 @@ TECHNIQUES: dict[str, Technique] = {
             ),
             csm.CsmParams,
             csm.run,
-            ("directional",),
+            csm.LIGHTS,
         ),
         Technique(
             "sdsm",
@@ -77,7 +80,7 @@ TECHNIQUES: dict[str, Technique] = {
             ),
             sdsm.SdsmParams,
             sdsm.run,
-            ("directional",),
+            sdsm.LIGHTS,
         ),
         Technique(
             "izb",
@@ -190,12 +193,12 @@ def _technique(name: str) -> Technique:
 
 
 def family_of(technique: str) -> str:
-    """The family of a registered technique: ``"shadow"`` or ``"aa"``.
+    """The family of a registered technique: ``shadow`` or ``aa``.
 
     Raises
     ------
     ModelError
-        Unknown technique (lists them).
+        Unknown technique (lists the registered ones).
     """
     return _technique(technique).family
 
@@ -212,7 +215,7 @@ def list_techniques() -> list[dict]:
             "description": t.description,
             "references": list(t.references),
             "lights": list(t.lights),
-            "params": _params.describe(t.params),
+            "params": params.describe(t.params),
         }
         for t in TECHNIQUES.values()
     ]
@@ -228,17 +231,17 @@ def parse_params(technique: str, pairs: list[str]) -> dict:
         of the wrong type, range or choice (says what was expected).
     """
     t = _technique(technique)
-    return _params.parse_pairs(t.name, t.params, list(pairs))
+    return params.parse_pairs(t.name, t.params, list(pairs))
 
 
-def run(technique: str, scene, **params):
+def run(technique: str, scene, **values):
     """Run a technique on a loaded scene (its current camera frame and light).
 
     Parameters
     ----------
     technique : a name of :data:`TECHNIQUES`.
     scene : :class:`scenes.LoadedScene`.
-    **params : parameter values (Python types; see :func:`list_techniques`).
+    **values : parameter values (Python types; see :func:`list_techniques`).
 
     Returns
     -------
@@ -248,7 +251,7 @@ def run(technique: str, scene, **params):
         ``wall_seconds``.
     """
     t = _technique(technique)
-    p = _params.make(t.name, t.params, params)
+    p = params.make(t.name, t.params, values)
     if scene.light.kind not in t.lights:
         raise ModelError(
             f"{t.name} needs a {' or '.join(t.lights)} light; the scene's light is a "

@@ -210,3 +210,60 @@ def test_cost_record_counts_passes_and_lookups(plate):
     r = rm.run("sdsm", plate, resolution=SMALL_MAP, latency=2, filter="point")
     assert r.cost["readback_latency_frames"] == 2
     assert r.cost["compute_passes"] == 6
+
+
+def test_family_of_every_technique():
+    assert rm.family_of("csm") == "shadow"
+    assert rm.family_of("coherent-shadow-map") == "shadow"
+    assert rm.family_of("msaa") == "aa"
+    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {"shadow", "aa"}
+    with pytest.raises(rm.ModelError, match=r"unknown technique 'nope'; choose one of shadow-map"):
+        rm.family_of("nope")
+
+
+#: Receivers whose visibility may differ between the model's own G-buffer and the same
+#: points handed to visibility_at: that G-buffer's cos_l is the kernel's float32 value, the
+#: points' cos_l is recomputed in float64, so grazing receivers (N.L ~ 0) can flip.
+VISIBILITY_AT_MISMATCH_MAX = 0.01
+
+
+@pytest.mark.parametrize(("scene_name", "technique"), [("city", "csm"), ("spot", "shadow-map")])
+def test_visibility_at_pixel_centres_is_the_models_visibility(scene_name, technique):
+    from raster_models.gbuffer import trace_gbuffer
+    from raster_models.shadowmaps import visibility_at
+
+    scene = scenes.load(scene_name, **SMALL)
+    g = trace_gbuffer(scene)
+    vis = visibility_at(
+        scene,
+        technique,
+        position=g.position,
+        normal=g.normal,
+        geo_normal=g.normal,
+        depth=g.depth,
+        valid=g.valid,
+    )
+    want = rm.run(technique, scene).outputs["visibility"].ravel()
+    assert vis.shape == want.shape and vis.dtype == np.float64
+    assert 0.0 < want[g.receiver].mean() < 1.0  # lit and shadowed receivers
+    assert np.mean(np.abs(vis - want) > 1e-6) <= VISIBILITY_AT_MISMATCH_MAX
+    assert np.all(vis[~g.valid] == 1.0)
+
+
+def test_visibility_at_refuses_unknown_techniques_and_lights():
+    from raster_models.shadowmaps import supported_lights, visibility_at
+
+    spot = scenes.load("spot", **SMALL)
+    pts = {
+        "position": np.zeros((1, 3)),
+        "normal": np.array([[0.0, 1.0, 0.0]]),
+        "geo_normal": np.array([[0.0, 1.0, 0.0]]),
+        "depth": np.ones(1),
+        "valid": np.ones(1, bool),
+    }
+    assert supported_lights("csm") == ("directional",)
+    assert "point" in supported_lights("shadow-map")
+    with pytest.raises(rm.ModelError, match="csm needs a directional light; the scene's light"):
+        visibility_at(spot, "csm", **pts)
+    with pytest.raises(rm.ModelError, match="unknown shadow-map technique 'izb'"):
+        visibility_at(spot, "izb", **pts)

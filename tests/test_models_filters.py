@@ -8,71 +8,81 @@ import math
 import numpy as np
 import pytest
 
-from raster_models import depth as _depth
-from raster_models import splits as _splits
+from raster_models import depth, splits
 from raster_models.light_frame import Projection, make_frame
-from raster_models.shadowmaps import filters as _filters
+from raster_models.shadowmaps import depth_dr, filters
 
 RNG = np.random.default_rng(1234)
+
+
+def tex(depth_map):
+    """The Dr.Jit texels the compare filters read (float32, as a rendered map stores)."""
+    return filters.upload_texels(depth_map)
 
 
 # ---------------------------------------------------------------------- depth formats
 @pytest.mark.parametrize(("fmt", "bits"), [("D16", 16), ("D24", 24)])
 def test_unorm_quantization(fmt, bits):
     d = RNG.random(10000)
-    q = _depth.quantize(d, fmt)
+    q = depth.quantize(d, fmt)
     steps = q * (2**bits - 1)
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
     assert np.abs(q - d).max() <= 0.5 / (2**bits - 1) + 1e-12
-    assert _depth.quantum(fmt) == pytest.approx(1 / (2**bits - 1))
-    np.testing.assert_array_equal(_depth.quantize([-0.5, 1.5], fmt), [0.0, 1.0])
+    assert depth.quantum(fmt) == pytest.approx(1 / (2**bits - 1))
+    np.testing.assert_array_equal(depth.quantize([-0.5, 1.5], fmt), [0.0, 1.0])
 
 
 def test_float_quantization_is_float32_rounding():
     d = RNG.random(1000)
-    np.testing.assert_array_equal(_depth.quantize(d, "D32F"), d.astype(np.float32))
+    np.testing.assert_array_equal(depth.quantize(d, "D32F"), d.astype(np.float32))
 
 
 def test_hardware_bias_units():
     # UNORM: r = 1 / (2^n - 1), the format's smallest value > 0 (D3D11 functional spec; was
     # 2^-n before issue 8); D32F: r = 2^(exponent(z) - 23)
-    assert _depth.hardware_bias(
+    assert depth.hardware_bias(
         np.array([0.3]), None, "D24", depth_bias=1, slope_scaled=0.0, clamp=0.0
     )[0] == 1.0 / (2**24 - 1)
     assert (
-        _depth.hardware_bias(
+        depth.hardware_bias(
             np.array([0.3]), None, "D16", depth_bias=3, slope_scaled=0.0, clamp=0.0
         )[0]
         == 3.0 / 65535.0
     )
     # One UNORM step: a biased depth moves exactly one representable value.
-    d = _depth.quantize(np.array([0.5]), "D16")
-    b = _depth.hardware_bias(d, None, "D16", depth_bias=1, slope_scaled=0.0, clamp=0.0)
-    assert _depth.quantize(d + b, "D16")[0] == d[0] + 1.0 / 65535.0
-    b = _depth.hardware_bias(
+    d = depth.quantize(np.array([0.5]), "D16")
+    b = depth.hardware_bias(d, None, "D16", depth_bias=1, slope_scaled=0.0, clamp=0.0)
+    assert depth.quantize(d + b, "D16")[0] == d[0] + 1.0 / 65535.0
+    b = depth.hardware_bias(
         np.array([0.5, 0.3, 0.9]), None, "D32F", depth_bias=1, slope_scaled=0.0, clamp=0.0
     )
     np.testing.assert_array_equal(b, [2.0**-24, 2.0**-25, 2.0**-24])
     slope = np.array([0.01, 1e9])
-    b = _depth.hardware_bias(
+    b = depth.hardware_bias(
         np.array([0.5, 0.5]), slope, "D24", depth_bias=0, slope_scaled=2.0, clamp=0.0
     )
-    np.testing.assert_allclose(b, [0.02, 2.0 * _depth.MAX_DEPTH_SLOPE])
-    b = _depth.hardware_bias(
+    np.testing.assert_allclose(b, [0.02, 2.0 * depth.MAX_DEPTH_SLOPE])
+    b = depth.hardware_bias(
         np.array([0.5]), np.array([0.01]), "D24", depth_bias=0, slope_scaled=2.0, clamp=0.005
     )
     assert b[0] == 0.005
 
 
-def test_depth_bias_is_added_before_the_viewport_clamp():
+def test_depth_bias_is_added_before_the_viewport_clamp(mi):
     # A pancaked caster (z < 0, in front of the near plane) stays at 0 whatever its bias: the
     # rasterizer adds the bias, then clamps (before issue 8 the clamp came first and the
     # caster was pushed to the bias). Values above 1 stay at 1.
     z = np.array([-0.5, -1e-3, 0.3, 0.99999, 1.5])
-    out = _depth.rasterized_depth(z, None, "D24", depth_bias=1000)
     r = 1.0 / (2**24 - 1)
-    np.testing.assert_array_equal(out, [0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0])
-    np.testing.assert_array_equal(_depth.rasterized_depth(z, None, "D24"), np.clip(z, 0, 1))
+    bias = depth_dr.fused_bias("D24", depth_bias=1000, slope_scaled=0.0, clamp=0.0)
+    assert bias == 1000 * r
+    out, hit = depth_dr.stored_depth_dr(mi, mi.Float64(z), "D24", bias)
+    want = depth.quantize(np.array([0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0]), "D24")
+    np.testing.assert_array_equal(out.numpy(), want.astype(np.float32))
+    assert hit.numpy().all()
+    plain, _ = depth_dr.stored_depth_dr(mi, mi.Float64(z), "D24", 0.0)
+    want = depth.quantize(np.clip(z, 0, 1), "D24").astype(np.float32)
+    np.testing.assert_array_equal(plain.numpy(), want)
 
 
 # ---------------------------------------------------------------------- filters
@@ -84,8 +94,8 @@ def test_point_and_bilinear_compare_on_a_step():
     v = np.full(5, 0.5)
     u = (np.array([3.5, 4.0, 4.25, 4.5, 5.5])) / r  # texel centres at (i + 0.5) / r
     ref = np.full(5, 0.5)
-    np.testing.assert_array_equal(_filters.compare_point(depth_map, u, v, ref), [0, 1, 1, 1, 1])
-    got = _filters.compare_bilinear(depth_map, u, v, ref, subtexel_bits=0)
+    np.testing.assert_array_equal(filters.compare_point(tex(depth_map), u, v, ref), [0, 1, 1, 1, 1])
+    got = filters.compare_bilinear(tex(depth_map), u, v, ref, subtexel_bits=0)
     # Bilinear PCF: 0 at the last occluded texel centre, 1 at the first lit one.
     np.testing.assert_allclose(got, [0.0, 0.5, 0.75, 1.0, 1.0])
 
@@ -93,9 +103,9 @@ def test_point_and_bilinear_compare_on_a_step():
 def test_bilinear_subtexel_precision():
     depth_map = np.array([[0.0, 1.0], [0.0, 1.0]])
     u = np.array([0.25 + 0.5 * 0.3001])  # fraction 0.3001 between the two texel centres
-    got8 = _filters.compare_bilinear(depth_map, u, np.array([0.5]), np.array([0.5]))
-    exact = _filters.compare_bilinear(
-        depth_map, u, np.array([0.5]), np.array([0.5]), subtexel_bits=0
+    got8 = filters.compare_bilinear(tex(depth_map), u, np.array([0.5]), np.array([0.5]))
+    exact = filters.compare_bilinear(
+        tex(depth_map), u, np.array([0.5]), np.array([0.5]), subtexel_bits=0
     )
     assert exact[0] == pytest.approx(0.3001)
     assert got8[0] == round(0.3001 * 256) / 256
@@ -107,10 +117,10 @@ def test_address_modes():
     v = np.array([0.5, 0.5, 0.5])
     ref = np.full(3, 0.5)
     np.testing.assert_array_equal(
-        _filters.compare_point(depth_map, u, v, ref, address="clamp"), [0, 0, 0]
+        filters.compare_point(tex(depth_map), u, v, ref, address="clamp"), [0, 0, 0]
     )
     np.testing.assert_array_equal(
-        _filters.compare_point(depth_map, u, v, ref, address="border"), [1, 1, 0]
+        filters.compare_point(tex(depth_map), u, v, ref, address="border"), [1, 1, 0]
     )
 
 
@@ -119,13 +129,13 @@ def test_address_modes():
 def test_pcf_footprint_equals_sum_of_taps(size, address):
     depth_map = RNG.random((32, 32))
     u, v, ref = RNG.random(3000) * 1.2 - 0.1, RNG.random(3000) * 1.2 - 0.1, RNG.random(3000)
-    fast = _filters.pcf_grid(depth_map, u, v, ref, size, address=address)
+    fast = filters.pcf_grid(tex(depth_map), u, v, ref, size, address=address)
     zero_plane = (np.zeros(3000), np.zeros(3000))
-    taps = _filters.pcf_grid(depth_map, u, v, ref, size, address=address, plane=zero_plane)
+    taps = filters.pcf_grid(tex(depth_map), u, v, ref, size, address=address, plane=zero_plane)
     np.testing.assert_allclose(fast, taps, atol=1e-12)
     if size == 1:
         np.testing.assert_array_equal(
-            fast, _filters.compare_bilinear(depth_map, u, v, ref, address=address)
+            fast, filters.compare_bilinear(tex(depth_map), u, v, ref, address=address)
         )
 
 
@@ -141,50 +151,50 @@ def test_receiver_plane_tilts_each_tap():
     u = np.array([0.5]) + 0.25 / r
     v = np.array([0.5])
     ref = 0.2 + slope_u * u - slope_u / r
-    flat = _filters.pcf_grid(depth_map, u, v, ref, 5, subtexel_bits=0)
-    tilted = _filters.pcf_grid(
-        depth_map, u, v, ref, 5, subtexel_bits=0, plane=(np.array([slope_u]), np.zeros(1))
+    flat = filters.pcf_grid(tex(depth_map), u, v, ref, 5, subtexel_bits=0)
+    tilted = filters.pcf_grid(
+        tex(depth_map), u, v, ref, 5, subtexel_bits=0, plane=(np.array([slope_u]), np.zeros(1))
     )
     assert flat[0] < 0.9
     assert tilted[0] == pytest.approx(1.0)
 
 
 def test_poisson_disc_is_a_spread_deterministic_pattern():
-    a = _filters.poisson_disc(16, 0)
+    a = filters.poisson_disc(16, 0)
     assert a.shape == (16, 2)
     assert (np.hypot(a[:, 0], a[:, 1]) <= 1.0).all()
     d = np.hypot(*(a[:, None, :] - a[None, :, :]).transpose(2, 0, 1))
     d[np.diag_indices(16)] = np.inf
     assert d.min() > 0.25
-    np.testing.assert_array_equal(a, _filters.poisson_disc(16, 0))
-    assert not np.array_equal(a, _filters.poisson_disc(16, 1))
+    np.testing.assert_array_equal(a, filters.poisson_disc(16, 0))
+    assert not np.array_equal(a, filters.poisson_disc(16, 1))
 
 
 def test_chebyshev_bound():
     m1 = np.full(4, 0.5)
     m2 = m1 * m1 + 0.01
     mean = np.array([0.4, 0.5, 0.6, 0.9])
-    p = _filters.chebyshev(m1, m2, mean, 1e-4, 0.0)
+    p = filters.chebyshev(m1, m2, mean, 1e-4, 0.0)
     assert p[0] == 1.0 and p[1] == 1.0
     assert p[2] == pytest.approx(0.01 / (0.01 + 0.01))
     assert p[3] < p[2]
-    reduced = _filters.chebyshev(m1, m2, mean, 1e-4, 0.5)
+    reduced = filters.chebyshev(m1, m2, mean, 1e-4, 0.5)
     assert reduced[2] == pytest.approx(0.0) and reduced[0] == 1.0
 
 
 def test_evsm_exponent_limits():
-    assert _filters.evsm_exponents(800, 100, "float32") == (42.0, 42.0)
-    assert _filters.evsm_exponents(40, 5, "float16") == (5.54, 5.0)
-    assert _filters.evsm_exponents(800, 100, "float32", scale=0.01) == (8.0, 1.0)
+    assert filters.evsm_exponents(800, 100, "float32") == (42.0, 42.0)
+    assert filters.evsm_exponents(40, 5, "float16") == (5.54, 5.0)
+    assert filters.evsm_exponents(800, 100, "float32", scale=0.01) == (8.0, 1.0)
 
 
 @pytest.mark.parametrize("kind", ["vsm", "evsm2", "evsm4"])
 def test_moment_filters_on_a_flat_occluder(kind):
     depth_map = np.full((16, 16), 0.3)
     exps = (40.0, 5.0) if kind != "vsm" else (0.0, 0.0)
-    m = _filters.blur_moments(_filters.moments_from_depth(depth_map, kind, exps), 3, "float32")
+    m = filters.blur_moments(filters.moments_from_depth(depth_map, kind, exps), 3, "float32")
     u = v = np.full(3, 0.5)
-    vis = _filters.moment_lookup(
+    vis = filters.moment_lookup(
         m,
         u,
         v,
@@ -205,10 +215,10 @@ def test_moment_filters_on_a_flat_occluder(kind):
 def test_banded_moment_texture_equals_the_whole_map(monkeypatch, kind, fmt, size):
     """Bands of 7 rows / 5 columns (bands that do not divide the map) give the same bytes."""
     depth_map = np.random.default_rng(3).random((37, 23))
-    exps = _filters.evsm_exponents(40.0, 5.0, fmt) if kind != "vsm" else (0.0, 0.0)
-    whole = _filters.blur_moments(_filters.moments_from_depth(depth_map, kind, exps), size, fmt)
-    monkeypatch.setattr(_filters, "MOMENT_BAND_TEXELS", 7 * 23)
-    banded = _filters.moment_texture(depth_map, kind, exps, size, fmt)
+    exps = filters.evsm_exponents(40.0, 5.0, fmt) if kind != "vsm" else (0.0, 0.0)
+    whole = filters.blur_moments(filters.moments_from_depth(depth_map, kind, exps), size, fmt)
+    monkeypatch.setattr(filters, "MOMENT_BAND_TEXELS", 7 * 23)
+    banded = filters.moment_texture(depth_map, kind, exps, size, fmt)
     assert banded.dtype == whole.dtype and banded.shape == whole.shape
     assert banded.tobytes() == whole.tobytes()
 
@@ -216,15 +226,15 @@ def test_banded_moment_texture_equals_the_whole_map(monkeypatch, kind, fmt, size
 # ---------------------------------------------------------------------- splits
 def test_split_formulas():
     n, f, k = 0.1, 2000.0, 4
-    np.testing.assert_allclose(_splits.log_splits(n, f, k), n * (f / n) ** (np.arange(5) / 4))
-    np.testing.assert_allclose(_splits.uniform_splits(n, f, k), n + (f - n) * np.arange(5) / 4)
+    np.testing.assert_allclose(splits.log_splits(n, f, k), n * (f / n) ** (np.arange(5) / 4))
+    np.testing.assert_allclose(splits.uniform_splits(n, f, k), n + (f - n) * np.arange(5) / 4)
     for lam in (0.0, 0.5, 0.8, 1.0):
-        c = _splits.practical_splits(n, f, k, lam)
+        c = splits.practical_splits(n, f, k, lam)
         i = np.arange(5)
         want = lam * n * (f / n) ** (i / k) + (1 - lam) * (n + (f - n) * i / k)
         np.testing.assert_allclose(c, want, rtol=1e-12)
     np.testing.assert_allclose(
-        _splits.manual_splits(1.0, 11.0, (0.05, 0.15, 0.5, 1.0)), [1, 1.5, 2.5, 6, 11]
+        splits.manual_splits(1.0, 11.0, (0.05, 0.15, 0.5, 1.0)), [1, 1.5, 2.5, 6, 11]
     )
 
 
@@ -235,11 +245,11 @@ def _log_uniform_samples(n, zmin, zmax):
 
 def test_histogram_log_partitions_follow_log_splits():
     z, lc = _log_uniform_samples(200000, 5.0, 500.0)
-    h = _splits.build_histogram(z, lc, 0.1, 2000.0, 1024, 10.0)
+    h = splits.build_histogram(z, lc, 0.1, 2000.0, 1024, 10.0)
     assert h.count.sum() == len(z)
-    ends = _splits.log_bins(h, 4)
+    ends = splits.log_bins(h, 4)
     edges = h.bin_to_z(ends[:-1])
-    want = _splits.log_splits(5.0, 500.0, 4)[1:-1]
+    want = splits.log_splits(5.0, 500.0, 4)[1:-1]
     np.testing.assert_allclose(edges, want, rtol=0.02)  # 1024 warped bins
     # Bins hold their samples' bounds.
     b = h.z_to_bin(z)
@@ -250,13 +260,13 @@ def test_adaptive_log_skips_empty_bins_and_kmeans_centres_clusters():
     # Two clusters of depths: near 2-3 and far 900-1000, nothing between.
     z = np.concatenate([RNG.uniform(2, 3, 5000), RNG.uniform(900, 1000, 5000)])
     lc = np.stack([z, z, z], axis=1)
-    h = _splits.build_histogram(z, lc, 0.1, 2000.0, 1024, 10.0)
-    ends = _splits.adaptive_log_bins(h, 4)
+    h = splits.build_histogram(z, lc, 0.1, 2000.0, 1024, 10.0)
+    ends = splits.adaptive_log_bins(h, 4)
     assert (np.diff(ends) >= 0).all() and ends[-1] == h.bins
     populated = h.count > 0
     for b in ends[:-1]:
         assert b == h.bins or populated[b], "each split is pushed to a populated bin"
-    km = _splits.kmeans_bins(h, 2, 32)
+    km = splits.kmeans_bins(h, 2, 32)
     split = h.bin_to_z(km[0])
     assert 3.0 < split < 900.0  # the split separates the clusters
 

@@ -9,10 +9,10 @@ import pytest
 
 import raster_models as rm
 import scenes
-from raster_models import params as _params
+from raster_models import params
 from raster_models.gbuffer import trace_gbuffer
 from raster_models.shadowmaps import csm, sdsm, shadow_map
-from raster_models.shadowmaps import engine as _engine
+from raster_models.shadowmaps.render import render_maps
 
 SIZE = {"width": 96, "height": 54}
 GOOD_BIAS = {"bias": 0.0005, "normal_offset": 1.5}
@@ -60,29 +60,29 @@ def test_every_filter_finds_the_shadows(city, technique, filter_):
 def test_depth_formats_quantize_the_stored_maps(plate):
     for fmt, bits in (("D16", 16), ("D24", 24)):
         values = {"resolution": 64, "format": fmt}
-        p = _params.make("shadow-map", shadow_map.ShadowMapParams, values)
+        p = params.make("shadow-map", shadow_map.ShadowMapParams, values)
         setup = shadow_map.build(plate, None, p)
-        depth = _engine.render_maps(plate, setup, p)[0].depth
+        depth = render_maps(plate, setup, p)[0].depth
         steps = depth * (2**bits - 1)
         np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
         assert depth.min() < 1.0  # the ground and the plate are in the map
-    p = _params.make("shadow-map", shadow_map.ShadowMapParams, {"resolution": 64})
+    p = params.make("shadow-map", shadow_map.ShadowMapParams, {"resolution": 64})
     setup = shadow_map.build(plate, None, p)
-    depth = _engine.render_maps(plate, setup, p)[0].depth
+    depth = render_maps(plate, setup, p)[0].depth
     np.testing.assert_array_equal(depth, depth.astype(np.float32))
 
 
 def test_hardware_slope_scaled_bias_pushes_tilted_casters_back():
     s = scenes.load("curved", **SIZE)
-    base = _params.make("shadow-map", shadow_map.ShadowMapParams, {"resolution": 128})
-    biased = _params.make(
+    base = params.make("shadow-map", shadow_map.ShadowMapParams, {"resolution": 128})
+    biased = params.make(
         "shadow-map",
         shadow_map.ShadowMapParams,
         {"resolution": 128, "slope_scaled_bias": 1.0, "depth_bias": 1000, "format": "D24"},
     )
     setup = shadow_map.build(s, None, base)
-    d0 = _engine.render_maps(s, setup, base)[0].depth
-    d1 = _engine.render_maps(s, setup, biased)[0].depth
+    d0 = render_maps(s, setup, base)[0].depth
+    d1 = render_maps(s, setup, biased)[0].depth
     hit = d0 < 1.0
     diff = (d1 - d0)[hit]
     assert (diff >= 1000 * 2.0**-24 - 2.0**-23).all()  # at least DepthBias * r everywhere
@@ -93,16 +93,16 @@ def test_hardware_slope_scaled_bias_pushes_tilted_casters_back():
 def test_maps_rendered_in_launches_equal_one_launch(monkeypatch, scene_name):
     """Launches of 1000 texels (not dividing the map) give the same map bytes and moments as
     one launch: per-launch slopes use the launch's texel offset (ortho and perspective)."""
-    from raster_models.shadowmaps import raycast as _raycast
+    from raster_models.shadowmaps import raycast
 
     s = scenes.load(scene_name, **SIZE)
     values = {"resolution": 96, "slope_scaled_bias": 1.0, "depth_bias": 100, "format": "D24"}
     values["filter"] = "evsm4" if scene_name == "curved" else "pcf"
-    p = _params.make("shadow-map", shadow_map.ShadowMapParams, values)
+    p = params.make("shadow-map", shadow_map.ShadowMapParams, values)
     setup = shadow_map.build(s, None, p)
-    whole = _engine.render_maps(s, setup, p)
-    monkeypatch.setattr(_raycast, "GRID_CHUNK", 1000)
-    parts = _engine.render_maps(s, setup, p)
+    whole = render_maps(s, setup, p)
+    monkeypatch.setattr(raycast, "GRID_CHUNK", 1000)
+    parts = render_maps(s, setup, p)
     for a, b in zip(whole, parts, strict=True):
         assert a.depth.tobytes() == b.depth.tobytes()
         assert a.texels_covered == b.texels_covered
@@ -146,7 +146,7 @@ def test_split_schemes(city, split):
 
 
 def test_stable_fit_rounds_the_sphere_and_snaps_the_origin(city):
-    p = _params.make("csm", csm.CsmParams, {"resolution": 512, "fit": "stable"})
+    p = params.make("csm", csm.CsmParams, {"resolution": 512, "fit": "stable"})
     setup = csm.build(city, None, p)
     for part in setup.partitions:
         radius = part.info["sphere_radius"]
@@ -255,7 +255,7 @@ def test_partition_record_lists_bounds_and_statistics(city):
 
 def test_sdsm_setup_is_reusable_for_the_uncovered_map(plate):
     """The current-frame SDSM's partitions contain every sample they were built from."""
-    p = _params.make("sdsm", sdsm.SdsmParams, {"resolution": 256, "filter": "point"})
+    p = params.make("sdsm", sdsm.SdsmParams, {"resolution": 256, "filter": "point"})
     g = trace_gbuffer(plate)
     setup = sdsm.build(plate, g, p)
     for part in setup.partitions:

@@ -16,10 +16,11 @@ import pytest
 import raster_models as rm
 import scenes
 from oracle.reference.render import ReferenceSettings, render_reference
-from raster_models import params as _params
+from raster_models import params
 from raster_models.gbuffer import trace_gbuffer
 from raster_models.shadowmaps import csm
-from raster_models.shadowmaps import engine as _engine
+from raster_models.shadowmaps.render import render_maps
+from raster_models.shadowmaps.shade import shade
 
 W, H = 160, 90
 #: A small constant bias plus a normal offset: no acne at any resolution tested, so the
@@ -100,15 +101,15 @@ def test_readback_latency_leaves_uncovered_receivers_along_a_dolly():
     assert min(counts[2]) > min(counts[1])  # more motion, more uncovered receivers
 
 
-def _shade_fixed_points(scene0, params, frames):
+def _shade_fixed_points(scene0, p, frames):
     """Visibility of frame 0's visible points under each frame's cascades."""
     g0 = trace_gbuffer(scene0)
     out = []
     for k in frames:
         sk = scene0.with_frame(k)
-        setup = csm.build(sk, g0, params)
-        maps = _engine.render_maps(sk, setup, params)
-        vis, _ = _engine.shade(g0, setup, maps, params)
+        setup = csm.build(sk, g0, p)
+        maps = render_maps(sk, setup, p)
+        vis, _ = shade(g0, setup, maps, p)
         out.append(vis["visibility"])
     return out
 
@@ -116,7 +117,7 @@ def _shade_fixed_points(scene0, params, frames):
 @pytest.mark.parametrize(("fit", "stable"), [("stable", True), ("corners", False)])
 def test_stable_cascades_do_not_change_under_a_subtexel_pan(fit, stable):
     s0 = scenes.load("city", width=W, height=H, camera_path="subtexel-pan", frame=0)
-    p = _params.make("csm", csm.CsmParams, {"resolution": 512, "fit": fit})
+    p = params.make("csm", csm.CsmParams, {"resolution": 512, "fit": fit})
     vis = _shade_fixed_points(s0, p, range(4))
     changed = [int((v != vis[0]).sum()) for v in vis[1:]]
     if stable:
@@ -130,7 +131,7 @@ def test_float32_combined_inverse_shimmers_at_far_plane_2000():
     assert s0.camera.far >= 1000
     changed = {}
     for inverse in ("separate", "combined"):
-        p = _params.make(
+        p = params.make(
             "csm",
             csm.CsmParams,
             {

@@ -11,20 +11,21 @@ import pytest
 import raster_models as rm
 import scenes
 from oracle.cli.app import main
+from raster_models import params
 from raster_models.gbuffer import trace_gbuffer
-from raster_models.shadowmaps import filters as _filters
-from raster_models.shadowmaps import shade as _shade
+from raster_models.shadowmaps import csm, filters, geometry, sdsm, shade, shadow_map
 
 #: False-lit fraction of receivers allowed for the default spot/point configuration at
 #: 2048^2 (measured 0.0001 spot / 0.0005 point at 320x180; the old constant bias 0.005 on
 #: hyperbolic depth gave 0.045 / 0.084, every spot shadow and half the point shadows).
 FALSE_LIT_MAX = 0.003
 
+#: Each shadow-map technique's set-up (where its maps go).
+BUILD = {"shadow-map": shadow_map.build, "csm": csm.build, "sdsm": sdsm.build}
+
 
 def _records(tech):
-    from raster_models import params as _params
-
-    return _params.describe(tech.params)
+    return params.describe(tech.params)
 
 
 @pytest.mark.parametrize(
@@ -94,42 +95,94 @@ def test_perspective_bias_is_linear_in_light_depth():
     proj = Projection("persp", frame, (tan_half, near, far), 256)
     a, b = far / (far - near), far * near / (far - near)
     tau = np.array([1.0, 5.0, 10.0])
-    ref = _shade.perspective_reference(p, proj, a - b / tau)
+    ref = shade.perspective_reference(p, proj, a - b / tau)
     tau_ref = b / (a - ref)
     k = 2.0 * tan_half / 256
     np.testing.assert_allclose(tau_ref, tau * (1.0 - k), rtol=1e-9)
 
 
-#: The Dr.Jit kernels use FMA contraction; results agree with NumPy to a few ulps.
+#: The Dr.Jit compare kernel against the NumPy reference below: the weights are the same
+#: float64 operations, but the LLVM backend contracts ``w * lit + acc`` into FMAs, so sums
+#: of tap weights may differ in the last bits (a few ulps of values <= 1).
 DRJIT_ULP_TOL = 1e-12
 
 
-def test_drjit_compare_filters_match_numpy(monkeypatch):
+def _fetch_reference(depth_map, ix, iy, address):
+    r = depth_map.shape[0]
+    vals = depth_map.reshape(-1).take(np.clip(iy, 0, r - 1) * r + np.clip(ix, 0, r - 1))
+    if address == "border":
+        inside = (ix >= 0) & (ix < r) & (iy >= 0) & (iy < r)
+        return np.where(inside, vals, 1.0)
+    return vals
+
+
+def _compare_reference(depth_map, u, v, ref, size, *, address, subtexel_bits):
+    """NumPy form of :func:`filters.compare_taps`: nearest texel (``size=0``) or the
+    ``(size + 1)^2`` footprint of ``size x size`` bilinear compare taps."""
+    r = depth_map.shape[0]
+    refc = np.clip(ref, 0.0, 1.0)
+    if size == 0:
+        ix, iy = np.floor(u * r).astype(np.int64), np.floor(v * r).astype(np.int64)
+        return (refc <= _fetch_reference(depth_map, ix, iy, address)).astype(np.float64)
+    half = (size - 1) / 2.0
+    x, y = u * r - 0.5 - half, v * r - 0.5 - half
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = x - x0, y - y0
+    if subtexel_bits > 0:
+        scale = float(1 << subtexel_bits)
+        fx, fy = np.round(fx * scale) / scale, np.round(fy * scale) / scale
+    ix0, iy0 = x0.astype(np.int64), y0.astype(np.int64)
+
+    def weights(f, m):
+        return (1.0 - f) * (m < size) + f * (m > 0)
+
+    acc = np.zeros_like(u)
+    for my in range(size + 1):
+        for mx in range(size + 1):
+            lit = refc <= _fetch_reference(depth_map, ix0 + mx, iy0 + my, address)
+            acc += weights(fy, my) * weights(fx, mx) * lit
+    return acc / float(size * size)
+
+
+def test_drjit_compare_filters_match_numpy_reference():
     rng = np.random.default_rng(3)
     r = 32
     depth = rng.uniform(0, 1, (r, r)).astype(np.float32)
+    texels = filters.upload_texels(depth)
     n = 4000
     u, v = rng.uniform(-0.2, 1.2, n), rng.uniform(-0.2, 1.2, n)
     ref = rng.uniform(-0.1, 1.1, n)
     u[:200] = (np.arange(200) % r + 0.5 + 0.5 / 256) / r  # sub-texel ties (round half even)
     for address in ("clamp", "border"):
         for bits in (0, 8):
-            got = {}
-            for threshold in (1 << 62, 1):
-                monkeypatch.setattr(_filters, "DRJIT_MIN_LOOKUPS", threshold)
-                got[threshold] = [
-                    _filters.compare_point(depth, u, v, ref, address=address),
-                    _filters.compare_bilinear(
-                        depth, u, v, ref, address=address, subtexel_bits=bits
-                    ),
-                    *[
-                        _filters.pcf_grid(depth, u, v, ref, s, address=address, subtexel_bits=bits)
-                        for s in (2, 3, 5)
-                    ],
-                ]
-            for a, b in zip(got[1 << 62], got[1], strict=True):
-                np.testing.assert_allclose(b, a, rtol=0, atol=DRJIT_ULP_TOL)
-                assert a.std() > 0  # both lit and shadowed taps
+            for size in (0, 1, 2, 3, 5):
+                got = filters.compare_taps(
+                    texels, u, v, ref, size, address=address, subtexel_bits=bits
+                )
+                want = _compare_reference(
+                    depth, u, v, ref, size, address=address, subtexel_bits=bits
+                )
+                np.testing.assert_allclose(got, want, rtol=0, atol=DRJIT_ULP_TOL)
+                assert want.std() > 0  # both lit and shadowed taps
+
+
+#: The Dr.Jit shading geometry against :meth:`Projection.project` / ``derivative`` in NumPy:
+#: the same float64 quantities by a different operation order (explicit sums with FMA
+#: contraction against matrix products), a few ulps, amplified by ``1/w`` and by the
+#: singular-value formula for the texel density.
+GEOMETRY_RTOL = 1e-9
+
+#: Absolute tolerance of texture coordinates and depth: they are differences of terms of the
+#: light matrix times world positions (up to ~1e6 for SDSM's tight partitions), so rounding
+#: is an ulp of those terms, ~1e-10, whatever the result's own size.
+GEOMETRY_ATOL = 1e-9
+
+#: With ``matrix_precision="float32"`` the projection runs in float32 on both sides, by a
+#: different operation order (FMA against NumPy's matrix product): a few float32 ulps
+#: (2^-24 ~ 6e-8) of coordinates near [0, 1] (measured <= 2.4e-7), and as much relative
+#: error in the Jacobian through ``u, v, z, w``.
+GEOMETRY_ATOL_F32 = 1e-6
+GEOMETRY_RTOL_F32 = 1e-5
 
 
 @pytest.mark.parametrize(
@@ -139,33 +192,58 @@ def test_drjit_compare_filters_match_numpy(monkeypatch):
         ("city", "csm", {"receiver_plane_bias": True, "filter": "pcf", "normal_offset": 1.0}),
         ("spot", "shadow-map", {"filter": "poisson"}),
         ("point", "shadow-map", {"filter": "hw_pcf"}),
+        ("city", "csm", {"matrix_precision": "float32", "normal_offset": 1.0}),
+        ("spot", "shadow-map", {"matrix_precision": "float32"}),
     ],
 )
-def test_drjit_geometry_matches_numpy(monkeypatch, scene_name, technique, kw):
+def test_drjit_geometry_matches_numpy_reference(scene_name, technique, kw):
     scene = scenes.load(scene_name, width=96, height=54)
-    outs = []
-    for threshold in (1 << 62, 1):
-        monkeypatch.setattr(_shade, "DRJIT_MIN_PIXELS", threshold)
-        monkeypatch.setattr(_filters, "DRJIT_MIN_LOOKUPS", threshold)
-        outs.append(rm.run(technique, scene, resolution=256, **kw).outputs)
-    for key in outs[0]:
-        np.testing.assert_array_equal(outs[1][key], outs[0][key])
-    assert outs[0]["texels_per_pixel"].max() > 0
+    tech = rm.TECHNIQUES[technique]
+    p = params.make(technique, tech.params, {"resolution": 256, **kw})
+    gb = trace_gbuffer(scene)
+    setup = BUILD[technique](scene, gb, p)
+    checked = 0
+    for part in setup.partitions:
+        if part.projection is None:
+            continue
+        proj = part.projection
+        pix = np.nonzero(gb.valid)[0]
+        geo = geometry.partition_geometry(p, part, gb, pix)
+        pos = gb.position[pix]
+        offset = geometry.normal_offset_texels(p, proj)
+        if offset > 0.0:
+            _, _, _, w = proj.project(pos)
+            texel = np.broadcast_to(proj.texel_world_size(w), len(pix))
+            scale = offset * texel * (1.0 - np.clip(gb.cos_l[pix], 0.0, 1.0))
+            pos = pos + gb.normal[pix] * scale[:, None]
+        u, v, z, w = proj.project(pos)
+        jac = proj.derivative(pos, u, v, z, w)
+        j3 = np.einsum("nij,njk->nik", jac, np.stack([gb.dpdx[pix], gb.dpdy[pix]], axis=-1))
+        tpp = np.linalg.svd(j3[:, :2, :] * proj.resolution, compute_uv=False)[:, -1]
+        # Near the map (texture coordinates far outside it lose digits to cancellation).
+        ok = (np.abs(u - 0.5) < 2.0) & (np.abs(v - 0.5) < 2.0) & (w > 0)
+        f32 = p.matrix_precision == "float32"
+        atol = GEOMETRY_ATOL_F32 if f32 else GEOMETRY_ATOL
+        for got, want in ((geo["u"], u), (geo["v"], v), (geo["z"], z)):
+            np.testing.assert_allclose(got[ok], want[ok], rtol=0, atol=atol)
+        rtol = GEOMETRY_RTOL_F32 if f32 else GEOMETRY_RTOL
+        np.testing.assert_allclose(geo["tpp"][ok], tpp[ok], rtol=rtol)
+        if p.receiver_plane_bias:
+            np.testing.assert_allclose(geo["j3"][ok], j3[ok], rtol=GEOMETRY_RTOL, atol=1e-15)
+        checked += int(ok.sum())
+    assert checked > 1000
 
 
 def test_projection_selection_checks_depth_too():
     """CSM projection selection picks a cascade only when the pixel is inside its whole
     texture volume, depth included (the ``thin`` scene had 10 receivers selected into a
     cascade whose depth range they are outside of)."""
-    from raster_models import params as _params
-    from raster_models.shadowmaps import csm
-
     scene = scenes.load("thin", width=160, height=90)
     g = trace_gbuffer(scene)
-    p = _params.make("csm", csm.CsmParams, {"selection": "projection", "resolution": 512})
+    p = params.make("csm", csm.CsmParams, {"selection": "projection", "resolution": 512})
     setup = csm.build(scene, g, p)
     idx = np.nonzero(g.valid)[0]
-    sel = _shade._select(setup, g, idx, p)
+    sel = shade.select_partitions(setup, g, idx, p)
     assert (sel >= 0).mean() > 0.9
     for i, part in enumerate(setup.partitions):
         _, _, z, _ = part.projection.project(g.position[idx[sel == i]])

@@ -1,7 +1,7 @@
-"""The fast paths of the shadow-map models give the bytes of the plain NumPy paths they
-replace: the Dr.Jit texel post-processing of :mod:`raster_models.shadowmaps.depth_dr`, SDSM's
-per-partition bounds from light-frame extremes, and the Dr.Jit gathers of the shading
-geometry. Equality is exact (``tobytes``), on random and edge inputs."""
+"""The Dr.Jit paths of the shadow-map models against NumPy references kept here: the stored
+texels of :mod:`raster_models.shadowmaps.depth_dr` (bias, clamp, quantization), SDSM's
+per-partition bounds from light-frame extremes, launches split into chunks, and the map's
+Dr.Jit texels. Equality is exact (``tobytes``), on random and edge inputs."""
 
 from __future__ import annotations
 
@@ -9,11 +9,19 @@ import numpy as np
 import pytest
 
 import scenes
-from raster_models import depth as _depth
+from raster_models import depth, gbuffer, params
+from raster_models.gbuffer import trace_gbuffer
 from raster_models.light_frame import make_frame
-from raster_models.shadowmaps import depth_dr as _depth_dr
-from raster_models.shadowmaps import render as _render
-from raster_models.shadowmaps import sdsm
+from raster_models.shadowmaps import (
+    csm,
+    depth_dr,
+    filters,
+    geometry,
+    raycast,
+    render,
+    sdsm,
+    shadow_map,
+)
 
 RNG = np.random.default_rng(20261123)
 
@@ -43,68 +51,114 @@ EDGE = np.array(
 )
 
 
-def _numpy_stored(z, fmt, depth_bias, clamp):
-    """The NumPy path of ``_render._render_one`` (no slope-scaled bias)."""
+def _numpy_stored(z, fmt, *, depth_bias=0, slope=None, slope_scaled=0.0, clamp=0.0):
+    """NumPy reference of the stored texels: the D3D11 hardware bias added first (when there
+    is one), then the viewport clamp to [0, 1], then the format's quantization, as float32;
+    misses (non-finite ``z``) store 1."""
     hit = np.isfinite(z)
-    d = _depth.rasterized_depth(
-        np.where(hit, z, 1.0), None, fmt, depth_bias=depth_bias, clamp=clamp
-    )
-    return np.where(hit, _depth.quantize(d, fmt), 1.0).astype(np.float32), hit
+    d = np.where(hit, z, 1.0)
+    if depth_bias != 0 or slope_scaled != 0.0:
+        bias = depth.hardware_bias(
+            d, slope, fmt, depth_bias=depth_bias, slope_scaled=slope_scaled, clamp=clamp
+        )
+        d = _flush_subnormals(_flush_subnormals(d) + _flush_subnormals(bias))
+    d = np.clip(d, 0.0, 1.0)
+    stored = np.where(hit, depth.quantize(d, fmt), 1.0).astype(np.float32)
+    return _flush_subnormals(stored), hit
 
 
-@pytest.mark.parametrize("fmt", sorted(_depth.FORMATS))
-@pytest.mark.parametrize(("depth_bias", "clamp"), [(0, 0.0), (3, 0.0), (-40, -1e-4), (900, 2e-5)])
-def test_stored_depth_dr_matches_numpy(mi, fmt, depth_bias, clamp):
-    bias = _depth_dr.fused_bias(fmt, depth_bias=depth_bias, slope_scaled=0.0, clamp=clamp)
-    if bias is None:
-        # D32F's DepthBias scales with each texel's exponent: the NumPy path keeps it.
-        assert fmt == "D32F" and depth_bias != 0
-        return
+def _flush_subnormals(x):
+    """Dr.Jit's LLVM backend treats subnormal operands and results as (signed) zero: a
+    depth or bias below 2^-1022 is +-0 in the add, and a D32F texel below 2^-126 (a bias of
+    a few 2^-149 at depth 0) is stored as +-0. The compare ``ref <= texel`` is the same
+    for +-0 and any reference >= 0; only texels in (0, 2^-126) differ, from references in
+    that range."""
+    tiny = np.abs(x) < np.finfo(x.dtype).tiny
+    return np.where(tiny, np.copysign(x.dtype.type(0.0), x), x)
+
+
+def _edge_depths(fmt):
     z = np.concatenate([EDGE, RNG.uniform(-0.2, 1.2, 20000), RNG.random(20000)])
     # Exact UNORM ties after scaling (round-half-even must agree).
-    steps = float((1 << _depth.FORMATS[fmt][1]) - 1)
-    z = np.concatenate([z, (np.arange(200) + 0.5) / steps])
-    want, want_hit = _numpy_stored(z, fmt, depth_bias, clamp)
-    got, got_hit = _depth_dr.stored_depth_dr(mi, mi.Float64(z), fmt, bias)
+    steps = float((1 << depth.FORMATS[fmt][1]) - 1)
+    return np.concatenate([z, (np.arange(200) + 0.5) / steps])
+
+
+@pytest.mark.parametrize("fmt", sorted(depth.FORMATS))
+@pytest.mark.parametrize(("depth_bias", "clamp"), [(0, 0.0), (3, 0.0), (-40, -1e-4), (900, 2e-5)])
+def test_stored_depth_dr_matches_numpy(mi, fmt, depth_bias, clamp):
+    z = _edge_depths(fmt)
+    want, want_hit = _numpy_stored(z, fmt, depth_bias=depth_bias, clamp=clamp)
+    bias = depth_dr.fused_bias(fmt, depth_bias=depth_bias, slope_scaled=0.0, clamp=clamp)
+    if bias is None:
+        # D32F's DepthBias scales with each texel's exponent: a per-texel bias array.
+        assert fmt == "D32F" and depth_bias != 0
+        d = np.where(np.isfinite(z), z, 1.0)
+        bias = mi.Float64(
+            depth.hardware_bias(d, None, fmt, depth_bias=depth_bias, slope_scaled=0.0, clamp=clamp)
+        )
+    got, got_hit = depth_dr.stored_depth_dr(mi, mi.Float64(z), fmt, bias)
     got = got.numpy()
     assert got.dtype == np.float32
     assert got.tobytes() == want.tobytes()
     np.testing.assert_array_equal(got_hit.numpy(), want_hit)
 
 
+@pytest.mark.parametrize("fmt", sorted(depth.FORMATS))
+def test_stored_depth_dr_per_texel_slope_bias(mi, fmt):
+    """A slope-scaled bias per texel, passed as an array: the reference's bytes."""
+    z = _edge_depths(fmt)
+    slope = RNG.uniform(0.0, 2e3, len(z))
+    kw = {"depth_bias": 2, "slope_scaled": 1.5, "clamp": 0.01}
+    want, _ = _numpy_stored(z, fmt, slope=slope, **kw)
+    d = np.where(np.isfinite(z), z, 1.0)
+    bias = mi.Float64(depth.hardware_bias(d, slope, fmt, **kw))
+    got, _ = depth_dr.stored_depth_dr(mi, mi.Float64(z), fmt, bias)
+    assert got.numpy().tobytes() == want.tobytes()
+
+
 def test_fused_bias_only_for_constant_bias():
-    assert _depth_dr.fused_bias("D32F", depth_bias=0, slope_scaled=0.0, clamp=0.0) == 0.0
-    assert _depth_dr.fused_bias("D32F", depth_bias=1, slope_scaled=0.0, clamp=0.0) is None
-    assert _depth_dr.fused_bias("D24", depth_bias=0, slope_scaled=1.0, clamp=0.0) is None
+    assert depth_dr.fused_bias("D32F", depth_bias=0, slope_scaled=0.0, clamp=0.0) == 0.0
+    assert depth_dr.fused_bias("D32F", depth_bias=1, slope_scaled=0.0, clamp=0.0) is None
+    assert depth_dr.fused_bias("D24", depth_bias=0, slope_scaled=1.0, clamp=0.0) is None
     # UNORM: DepthBias * 1 / (2^n - 1), clamped (hand-computed).
-    assert _depth_dr.fused_bias("D16", depth_bias=2, slope_scaled=0.0, clamp=0.0) == 2 / 65535
-    assert _depth_dr.fused_bias("D16", depth_bias=9, slope_scaled=0.0, clamp=1e-4) == 1e-4
+    assert depth_dr.fused_bias("D16", depth_bias=2, slope_scaled=0.0, clamp=0.0) == 2 / 65535
+    assert depth_dr.fused_bias("D16", depth_bias=9, slope_scaled=0.0, clamp=1e-4) == 1e-4
+
+
+#: Each shadow-map technique's set-up (where its maps go).
+BUILD = {"shadow-map": shadow_map.build, "csm": csm.build, "sdsm": sdsm.build}
+PARAMS = {
+    "shadow-map": shadow_map.ShadowMapParams,
+    "csm": csm.CsmParams,
+    "sdsm": sdsm.SdsmParams,
+}
+
+
+def _setup(loaded, technique, values):
+    p = params.make(technique, PARAMS[technique], values)
+    return BUILD[technique](loaded, trace_gbuffer(loaded), p), p
 
 
 @pytest.mark.parametrize("fmt", ["D16", "D32F"])
 @pytest.mark.parametrize("technique", ["shadow-map", "csm"])
-def test_fused_maps_equal_numpy_maps(monkeypatch, technique, fmt):
-    """Whole maps: the kernel-finished texels against the NumPy post-processing."""
-    import raster_models
-    from raster_models.gbuffer import trace_gbuffer
-    from raster_models.registry import TECHNIQUES
-
+def test_rendered_maps_equal_numpy_reference(technique, fmt):
+    """Whole maps: the kernel-finished texels against the NumPy reference applied to the
+    cast depths, and the map's Dr.Jit texels are its stored depths."""
     loaded = scenes.load("city" if technique == "csm" else "spot", width=64, height=36)
-    tech = TECHNIQUES[technique]
-    module = __import__(tech.runner.__module__, fromlist=["build"])
-    p = raster_models.params.make(technique, tech.params, {"format": fmt, "resolution": 96})
-    setup = module.build(loaded, trace_gbuffer(loaded), p)
-    fused = _render.render_maps(loaded, setup, p)
-    monkeypatch.setattr(_render, "fused_bias", lambda *a, **k: None)
-    plain = _render.render_maps(loaded, setup, p)
-    assert sum(m is not None for m in fused) >= 1
-    for a, b in zip(fused, plain, strict=True):
-        assert (a is None) == (b is None)
-        if a is not None:
-            assert a.depth.dtype == np.float32
-            assert a.depth.tobytes() == b.depth.tobytes()
-            assert a.texels_covered == b.texels_covered
-            assert a.texels_covered > 0
+    setup, p = _setup(loaded, technique, {"format": fmt, "resolution": 96})
+    maps = render.render_maps(loaded, setup, p)
+    assert sum(m is not None for m in maps) >= 1
+    for part, m in zip(setup.partitions, maps, strict=True):
+        if m is None:
+            continue
+        grid, dcoef, _ = render.map_rays(loaded, part.projection, depth_clamp=p.depth_clamp)
+        ((_, _, hits),) = raycast.iter_grid(loaded, grid, 96, dcoef)
+        want, hit = _numpy_stored(hits["z"], fmt)
+        assert m.depth.dtype == np.float32
+        assert m.depth.tobytes() == want.reshape(96, 96).tobytes()
+        assert m.texels_covered == int(hit.sum()) > 0
+        assert m.texels.numpy().tobytes() == m.depth.tobytes()
 
 
 def test_partition_bounds_equal_bruteforce():
@@ -118,8 +172,8 @@ def test_partition_bounds_equal_bruteforce():
     # Partition 2 empty, some samples in none (-1).
     part = RNG.choice(np.array([-1, 0, 1, 3]), size=len(pts), p=[0.1, 0.5, 0.3, 0.1])
     k = 4
-    lo, hi, counts = sdsm._partition_texture_bounds(frame, gmin, gdim, pts.copy(), part, k)
-    tc = sdsm._to_texture(frame, gmin, gdim, pts)
+    lo, hi, counts = sdsm.partition_texture_bounds(frame, gmin, gdim, pts.copy(), part, k)
+    tc = sdsm.to_texture(frame, gmin, gdim, pts)
     for i in range(k):
         sel = tc[part == i]
         assert counts[i] == len(sel)
@@ -139,33 +193,27 @@ def test_partition_bounds_equal_bruteforce():
 )
 def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique, kw):
     """The Dr.Jit shading geometry gathers the G-buffer in the kernel: several launches
-    (scattered into NumPy arrays) give the bytes of one launch (views), and a G-buffer whose
-    field is replaced is gathered from the new field, not the uploaded copy."""
+    (scattered into NumPy arrays) give the bytes of one launch (views), and fresh G-buffer
+    columns read a changed G-buffer field."""
     import raster_models as rm
-    from raster_models.gbuffer import trace_gbuffer
-    from raster_models.shadowmaps import shade as _shade
 
     loaded = scenes.load(scene_name, width=96, height=54)
-    monkeypatch.setattr(_shade, "DRJIT_MIN_PIXELS", 1)
     outs = []
-    for chunk in (_shade.DRJIT_CHUNK, 777):
-        monkeypatch.setattr(_shade, "DRJIT_CHUNK", chunk)
+    for chunk in (geometry.DRJIT_CHUNK, 777):
+        monkeypatch.setattr(geometry, "DRJIT_CHUNK", chunk)
         outs.append(rm.run(technique, loaded, resolution=128, **kw).outputs)
     for key in outs[0]:
         assert outs[1][key].tobytes() == outs[0][key].tobytes(), key
     assert outs[0]["texels_per_pixel"].max() > 0
 
-    tech = rm.TECHNIQUES[technique]
-    module = __import__(tech.runner.__module__, fromlist=["build"])
-    p = rm.params.make(technique, tech.params, {"resolution": 128, **kw})
+    setup, p = _setup(loaded, technique, {"resolution": 128, **kw})
     gb = trace_gbuffer(loaded)
-    setup = module.build(loaded, gb, p)
     part = next(q for q in setup.partitions if q.projection is not None)
     pix = np.nonzero(gb.valid)[0]
-    first = _shade._partition_geometry(p, part, gb, pix)
+    first = geometry.partition_geometry(p, part, gb, pix, geometry.DrjitColumns(gb))
     # Twice the screen derivatives: twice the texels per pixel.
     gb.dpdx, gb.dpdy = gb.dpdx * 2.0, gb.dpdy * 2.0
-    second = _shade._partition_geometry(p, part, gb, pix)
+    second = geometry.partition_geometry(p, part, gb, pix, geometry.DrjitColumns(gb))
     np.testing.assert_allclose(second["tpp"], 2.0 * first["tpp"], rtol=1e-12)
     assert second["u"].tobytes() == first["u"].tobytes()
 
@@ -173,12 +221,10 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
 def test_gbuffer_launches_equal_one_launch(monkeypatch):
     """Several G-buffer launches (copied into NumPy) give the bytes of one launch (the
     kernel's own arrays as views, (N, 3) fields interleaved by scatters)."""
-    from raster_models import gbuffer as _gbuffer
-
     loaded = scenes.load("city", width=80, height=45)  # sky and shadowed pixels
-    one = _gbuffer.trace_gbuffer(loaded, with_lit=True)
-    monkeypatch.setattr(_gbuffer, "CHUNK", 1000)  # 4 launches, the last one partial
-    many = _gbuffer.trace_gbuffer(loaded, with_lit=True)
+    one = gbuffer.trace_gbuffer(loaded, with_lit=True)
+    monkeypatch.setattr(gbuffer, "CHUNK", 1000)  # 4 launches, the last one partial
+    many = gbuffer.trace_gbuffer(loaded, with_lit=True)
     fields = ("valid", "depth", "position", "normal", "cos_l", "receiver", "dpdx", "dpdy", "lit")
     for name in fields:
         a, b = getattr(one, name), getattr(many, name)
@@ -188,62 +234,66 @@ def test_gbuffer_launches_equal_one_launch(monkeypatch):
     assert 0 < one.valid.sum() < one.size and one.receiver.any() and not one.lit.all()
 
 
-def test_registered_texture_lookups(mi):
-    """A map that is a view of a Dr.Jit array is looked up from that array: same results as
-    an uploaded copy, one kernel output per launch or several, and the registry entry leaves
-    with the map."""
-    import gc
-
-    from raster_models.shadowmaps import filters as _filters
-
+def test_map_texels_lookups(mi):
+    """Lookups read a map's Dr.Jit texels: the kernel output a fused map is a view of gives
+    the results of an uploaded copy of the NumPy map."""
     r = 64
     texels = mi.Float(RNG.random(r * r).astype(np.float32))
     view = texels.numpy().reshape(r, r)
-    copy = view.copy()
-    _filters.register_drjit_texture(view, texels)
+    copy = filters.upload_texels(view.copy())
     n = 50000
     u, v = RNG.uniform(-0.1, 1.1, n), RNG.uniform(-0.1, 1.1, n)
     ref = np.concatenate([RNG.uniform(-0.2, 1.2, n - len(EDGE[:-1])), EDGE[:-1]])
     for size in (0, 1, 3):
-        a = _filters.compare_taps_drjit(view, u, v, ref, size, address="clamp", subtexel_bits=8)
-        b = _filters.compare_taps_drjit(copy, u, v, ref, size, address="clamp", subtexel_bits=8)
+        a = filters.compare_taps(texels, u, v, ref, size, address="clamp", subtexel_bits=8)
+        b = filters.compare_taps(copy, u, v, ref, size, address="clamp", subtexel_bits=8)
         assert a.tobytes() == b.tobytes()
         assert 0.0 < a.mean() < 1.0
-    key = id(view)
-    assert key in _filters._DRJIT_TEXTURES
-    del view
-    gc.collect()
-    assert key not in _filters._DRJIT_TEXTURES
+
+
+@pytest.mark.parametrize(
+    ("values", "has_texels"),
+    [
+        ({"slope_scaled_bias": 2.0}, True),  # per-texel bias: texels uploaded after the map
+        ({"filter": "vsm"}, False),  # moment filters read the moments
+    ],
+)
+def test_map_texels_follow_the_filter(values, has_texels):
+    loaded = scenes.load("city", width=32, height=18)
+    setup, p = _setup(loaded, "csm", {"resolution": 64, **values})
+    maps = [m for m in render.render_maps(loaded, setup, p) if m is not None]
+    assert maps
+    for m in maps:
+        assert (m.texels is not None) == has_texels
+        if has_texels:
+            assert m.texels.numpy().tobytes() == m.depth.tobytes()
+        else:
+            assert m.moments is not None
 
 
 def test_filter_launches_equal_one_launch(monkeypatch):
     """Several compare launches (copied into NumPy) give the bytes of one (a view)."""
-    from raster_models.shadowmaps import filters as _filters
-
-    depth = RNG.random((48, 48)).astype(np.float32)
+    texels = filters.upload_texels(RNG.random((48, 48)).astype(np.float32))
     u, v, ref = RNG.random(30000), RNG.random(30000), RNG.random(30000)
-    one = _filters.compare_taps_drjit(depth, u, v, ref, 3, address="border", subtexel_bits=8)
-    monkeypatch.setattr(_filters, "DRJIT_CHUNK", 7000)
-    many = _filters.compare_taps_drjit(depth, u, v, ref, 3, address="border", subtexel_bits=8)
+    one = filters.compare_taps(texels, u, v, ref, 3, address="border", subtexel_bits=8)
+    monkeypatch.setattr(filters, "DRJIT_CHUNK", 7000)
+    many = filters.compare_taps(texels, u, v, ref, 3, address="border", subtexel_bits=8)
     assert one.tobytes() == many.tobytes()
 
 
-def test_fused_map_launches_equal_one_launch(monkeypatch):
-    """A map finished in the kernel over several launches (copied into NumPy) has the bytes
-    and covered count of the single-launch map (a view of the kernel's output)."""
-    import raster_models as rm
-    from raster_models.gbuffer import trace_gbuffer
-    from raster_models.shadowmaps import raycast as _raycast
-
+@pytest.mark.parametrize("values", [{"format": "D24"}, {"format": "D32F", "depth_bias": 4}])
+def test_map_launches_equal_one_launch(monkeypatch, values):
+    """A map over several launches (copied into NumPy) has the bytes and covered count of
+    the single-launch map (a view of the kernel's output), constant or per-texel bias."""
     loaded = scenes.load("city", width=64, height=36)
-    p = rm.params.make("csm", rm.CsmParams, {"resolution": 80, "format": "D24"})
-    setup = rm.shadowmaps.csm.build(loaded, trace_gbuffer(loaded), p)
-    one = _render.render_maps(loaded, setup, p)
-    monkeypatch.setattr(_raycast, "GRID_CHUNK", 1000)  # 7 launches, the last one partial
-    monkeypatch.setattr(_render, "GRID_CHUNK", 1000)
-    many = _render.render_maps(loaded, setup, p)
+    setup, p = _setup(loaded, "csm", {"resolution": 80, **values})
+    one = render.render_maps(loaded, setup, p)
+    monkeypatch.setattr(raycast, "GRID_CHUNK", 1000)  # 7 launches, the last one partial
+    monkeypatch.setattr(render, "GRID_CHUNK", 1000)
+    many = render.render_maps(loaded, setup, p)
     for a, b in zip(one, many, strict=True):
         assert (a is None) == (b is None)
         if a is not None:
             assert a.depth.tobytes() == b.depth.tobytes()
+            assert a.texels.numpy().tobytes() == b.texels.numpy().tobytes()
             assert a.texels_covered == b.texels_covered > 0

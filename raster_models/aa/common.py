@@ -29,6 +29,7 @@ import numpy as np
 from .. import params as _params
 from ..errors import ModelError
 from ..result import ModelResult
+from ..shadowmaps import visibility_at
 from . import resolve as _resolve
 from .fragments import Fragments, sample_film_positions, shading_positions
 from .trace import fragment_attributes, shade_points
@@ -97,65 +98,15 @@ def shadow_visibility(scene, attrs: dict, shadows: str):
     """Visibility at shading points from a shadow technique (None for ``exact``)."""
     if shadows == "exact":
         return None
-    from ..gbuffer import GBuffer, trace_gbuffer
-    from ..registry import TECHNIQUES
-    from ..shadowmaps.render import render_maps
-    from ..shadowmaps.shade import shade
-
-    check_shadows(scene, shadows)
-    tech = TECHNIQUES[shadows]
-    module = __import__(tech.runner.__module__, fromlist=["build"])
-    p = _params.make(shadows, tech.params, {})
-    setup = module.build(scene, trace_gbuffer(scene), p)
-    maps = render_maps(scene, setup, p)
-    pos = np.asarray(attrs["position"], np.float64)
-    nrm = np.asarray(attrs["normal"], np.float64)
-    valid = np.asarray(attrs["valid"], bool)
-    wl, _ = scene.light.to_light(pos)
-    cos_l = np.where(valid, np.sum(nrm * wl, axis=1), 0.0)
-    dpdx, dpdy = _plane_derivatives(scene.camera, pos, np.asarray(attrs["geo_normal"], float))
-    gb = GBuffer(
-        width=len(pos),
-        height=1,
-        valid=valid,
-        depth=np.asarray(attrs["depth"], np.float64),
-        position=pos,
-        normal=nrm,
-        cos_l=cos_l,
-        receiver=valid & (cos_l > 0.0) & np.asarray(scene.light.in_cone(wl), bool),
-        dpdx=dpdx,
-        dpdy=dpdy,
+    return visibility_at(
+        scene,
+        shadows,
+        position=attrs["position"],
+        normal=attrs["normal"],
+        geo_normal=attrs["geo_normal"],
+        depth=attrs["depth"],
+        valid=attrs["valid"],
     )
-    outputs, _ = shade(gb, setup, maps, p)
-    return np.asarray(outputs["visibility"], np.float64).ravel()
-
-
-def _plane_derivatives(camera, pos, ng):
-    """``dP/dx``, ``dP/dy`` (world units per pixel) on the plane through ``pos`` with normal
-    ``ng`` (ray differentials, as :mod:`raster_models.gbuffer` computes them)."""
-    m = np.asarray(camera.to_world, np.float64)
-    rot = m[:3, :3]
-    w, h = camera.width, camera.height
-    dsx, dsy = -2.0 / w, -2.0 / (h * camera.aspect)
-    cam_o = m[:3, 3]
-    if camera.kind == "perspective":
-        t = camera.tan_half_x
-        dd = [rot @ np.array([dsx * t, 0, 0]), rot @ np.array([0, dsy * t, 0])]
-        do = [np.zeros(3), np.zeros(3)]
-        d = pos - cam_o
-        tau = np.ones(len(pos))
-    else:
-        dd = [np.zeros(3), np.zeros(3)]
-        do = [rot @ np.array([dsx, 0, 0]), rot @ np.array([0, dsy, 0])]
-        d = np.broadcast_to(rot[:, 2], pos.shape)
-        tau = np.zeros(len(pos))
-    nd = np.sum(ng * d, axis=1)
-    nd = np.where(np.abs(nd) > 1e-12, nd, 1e-12)
-    out = []
-    for o_k, d_k in zip(do, dd, strict=True):
-        dtau = -((ng @ o_k) + tau * (ng @ d_k)) / nd
-        out.append(o_k[None, :] + d * dtau[:, None] + d_k[None, :] * tau[:, None])
-    return out[0], out[1]
 
 
 def shade_fragments(scene, frags: Fragments, offsets, *, centroid: bool, shadows: str):

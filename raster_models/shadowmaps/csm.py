@@ -41,13 +41,17 @@ from ..gbuffer import trace_gbuffer
 from ..light_frame import Projection
 from ..params import param
 from .common import CommonParams
-from .engine import Partition, Setup, execute
+from .engine import execute
 from .fit import aabb, filter_kernel_texels, light_frame_for
 from .frustum import frustum_slice
+from .records import Partition, Setup
 
-__all__ = ["CsmParams", "build", "cascade_projection", "run", "split_depths"]
+__all__ = ["LIGHTS", "NAME", "CsmParams", "build", "cascade_projection", "run", "split_depths"]
 
 NAME = "csm"
+
+#: Light kinds the technique supports.
+LIGHTS = ("directional",)
 
 
 @dataclass(frozen=True)
@@ -213,7 +217,7 @@ def cascade_projection(scene, p: CsmParams, z_a: float, z_b: float, frame) -> tu
 def build(scene, gbuf, p: CsmParams) -> Setup:
     """One orthographic map per cascade."""
     light = scene.light
-    if light.kind != "directional":
+    if light.kind not in LIGHTS:
         raise ModelError(
             f"{NAME} needs a directional light; the scene's light is a {light.kind} light "
             "(use shadow-map)"

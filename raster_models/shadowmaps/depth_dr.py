@@ -1,16 +1,22 @@
-"""Dr.Jit twin of the texel post-processing of :mod:`_render` for maps without a per-texel
-bias: the depth a rasterizer writes (:func:`_depth.rasterized_depth`, a constant hardware
-bias at most), quantized to the format (:func:`_depth.quantize`) and stored as float32,
-computed in the kernel that casts the texels' rays instead of in NumPy afterwards.
+"""The texels a rasterizer stores in a shadow map, on Dr.Jit: the hardware depth bias added
+first, then the viewport clamp to [0, 1] (D3D11 order: a pancaked caster in front of the
+near plane ends at 0 whatever its bias), then the depth format's quantization
+(:func:`raster_models.depth.quantize`), stored as float32.
 
-Every step is the same IEEE float64 operation in the same order as the NumPy path (one add,
-a clamp, a multiply, round-half-even and a divide: nothing an FMA could contract), and the
-clamp is written with selects that reproduce ``np.clip`` exactly (``-0.0`` kept, NaN
-propagated), so the stored bytes are identical; ``tests/test_shadow_speed_paths.py`` pins
-that on random and edge inputs for every format.
+For a constant bias (:func:`fused_bias`) this runs in the kernel that casts the texels'
+rays; a per-texel bias (slope-scaled, or D32F's exponent-scaled ``DepthBias``) is computed
+by :func:`raster_models.depth.hardware_bias` and passed as an array.
+
+Every step is one IEEE float64 operation (an add, a clamp, a multiply, round-half-even and a
+divide: nothing an FMA could contract), and the clamp is written with selects that
+reproduce ``np.clip`` exactly (``-0.0`` kept, NaN propagated), so the stored bytes equal
+the NumPy reference in ``tests/test_shadow_speed_paths.py`` on random and edge inputs for
+every format.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from .. import depth as _depth
 
@@ -20,9 +26,9 @@ __all__ = ["clip01_dr", "fused_bias", "stored_depth_dr"]
 def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) -> float | None:
     """The constant hardware bias every texel of a map gets, or ``None`` when the bias
     varies per texel (a slope-scaled bias, or a D32F ``DepthBias`` that scales with each
-    texel's exponent): those maps keep the NumPy path.
+    texel's exponent): those maps pass a per-texel bias to :func:`stored_depth_dr`.
 
-    ``0.0`` means no bias at all (:func:`_depth.rasterized_depth` then adds nothing)."""
+    ``0.0`` means no bias at all (nothing is added)."""
     if slope_scaled != 0.0:
         return None
     if depth_bias == 0:
@@ -30,9 +36,7 @@ def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) 
     kind, _ = _depth.FORMATS[fmt]
     if kind != "unorm":
         return None
-    import numpy as np
-
-    # The NumPy path's own arithmetic on one texel: the UNORM bias does not depend on depth.
+    # The per-texel rule on one texel: the UNORM bias does not depend on depth.
     bias = _depth.hardware_bias(
         np.zeros(1), None, fmt, depth_bias=depth_bias, slope_scaled=0.0, clamp=clamp
     )
@@ -52,25 +56,23 @@ def clip01_dr(mi, x):
     return dr.select((x <= 1.0) | dr.isnan(x), x, 1.0)
 
 
-def stored_depth_dr(mi, z, fmt: str, bias: float):
+def stored_depth_dr(mi, z, fmt: str, bias):
     """Stored float32 texels and the hit mask of unclamped normalized depths ``z``
     (Dr.Jit ``Float64``; ``inf`` on a miss).
 
-    Equal, bit for bit, to the NumPy path of :mod:`_render`::
-
-        hit = np.isfinite(z)
-        d = rasterized_depth(np.where(hit, z, 1.0), None, fmt, depth_bias=..., clamp=...)
-        np.where(hit, quantize(d, fmt), 1.0).astype(np.float32)
-
-    for the constant ``bias`` of :func:`fused_bias` (``0.0``: none added).
+    ``bias``: the constant of :func:`fused_bias` (a float; ``0.0``: none added) or a
+    per-texel Dr.Jit ``Float64`` array (always added). Misses store 1.0.
     """
     import drjit as dr
 
     kind, bits = _depth.FORMATS[fmt]
     hit = dr.isfinite(z)
     d = dr.select(hit, z, 1.0)
-    if bias != 0.0:
-        d = d + dr.opaque(mi.Float64, bias)
+    if isinstance(bias, float):
+        if bias != 0.0:
+            d = d + dr.opaque(mi.Float64, bias)
+    else:
+        d = d + bias
     d = clip01_dr(mi, d)
     if kind == "unorm":
         scale = dr.opaque(mi.Float64, float((1 << bits) - 1))

@@ -1,11 +1,11 @@
 """The machinery every shadow-map technique shares: render the maps of a set of partitions by
-casting rays at texel centres (:mod:`_render`), shade a G-buffer with them (:mod:`_shade`),
+casting rays at texel centres (:mod:`.render`), shade a G-buffer with them (:mod:`.shade`),
 and package the outputs, cost record and diagnostics (here).
 
 A technique module only decides *where* its maps go (a :class:`Setup`: projections, view-depth
 intervals, how a pixel picks its map); rendering, depth formats, biases, filters, blending,
 diagnostics and the cost record are shared, identical for all. The output images are
-described in :mod:`_shade`.
+described in :mod:`.shade`.
 """
 
 from __future__ import annotations
@@ -16,12 +16,13 @@ import time
 from scenes.records import jsonable, provenance
 
 from .. import depth as _depth
-from ..result import MapData, ModelResult, Partition, Setup
+from ..result import ModelResult
 from . import filters as _filters
+from .records import Setup
 from .render import render_maps
 from .shade import shade
 
-__all__ = ["MapData", "ModelResult", "Partition", "Setup", "execute", "render_maps", "shade"]
+__all__ = ["execute"]
 
 
 def _cost(setup: Setup, maps, params, summary) -> dict:

@@ -1,5 +1,9 @@
 """Shadow-map filters, vectorized over receivers: depth compare (point, PCF) and moments.
 
+The compare filters read a map's float32 texels as a Dr.Jit array (:attr:`MapData.texels`,
+:func:`upload_texels`) and run as one fused kernel per chunk of lookups
+(:func:`compare_taps`); the moment filters (VSM/EVSM) are NumPy.
+
 Texture conventions: a map is ``(R, R)`` (row ``j``, column ``i``); texel ``(i, j)`` covers
 ``u in [i, i+1)/R``, ``v in [j, j+1)/R``; its centre is ``((i + 0.5)/R, (j + 0.5)/R)``.
 A compare returns 1 (lit) when ``reference <= stored`` (D3D ``COMPARISON_LESS_EQUAL``, the
@@ -23,6 +27,7 @@ Address modes: ``clamp`` repeats the edge texels (D3D ``ADDRESS_CLAMP``: Intel s
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -37,7 +42,7 @@ __all__ = [
     "chebyshev",
     "compare_bilinear",
     "compare_point",
-    "compare_taps_drjit",
+    "compare_taps",
     "evsm_exponents",
     "lookups_per_pixel",
     "moment_lookup",
@@ -46,7 +51,7 @@ __all__ = [
     "pcf_grid",
     "pcf_poisson",
     "poisson_disc",
-    "register_drjit_texture",
+    "upload_texels",
 ]
 
 FILTERS = ("point", "hw_pcf", "pcf", "poisson", "vsm", "evsm2", "evsm4")
@@ -56,87 +61,64 @@ MOMENT_FILTERS = ("vsm", "evsm2", "evsm4")
 EVSM_MAX_EXPONENT = {"float32": 42.0, "float16": 5.54}
 
 
-def _fetch(depth_map: np.ndarray, ix: np.ndarray, iy: np.ndarray, address: str) -> np.ndarray:
-    r = depth_map.shape[0]
-    flat = depth_map.reshape(-1)
-    if address == "border":
-        inside = (ix >= 0) & (ix < r) & (iy >= 0) & (iy < r)
-        vals = flat.take(np.clip(iy, 0, r - 1) * r + np.clip(ix, 0, r - 1))
-        return np.where(inside, vals, 1.0)
-    return flat.take(np.clip(iy, 0, r - 1) * r + np.clip(ix, 0, r - 1))
-
-
-#: Receivers from which the compare filters run as one Dr.Jit kernel (LLVM backend) instead
-#: of NumPy; both give the same float64 results (tests/test_models_filters.py checks it).
-DRJIT_MIN_LOOKUPS = 1 << 14
-
 #: Lookups per Dr.Jit launch (bounded memory: a few hundred MiB at most).
 DRJIT_CHUNK = 1 << 22
 
 
-def _use_drjit(n: int) -> bool:
-    if n < DRJIT_MIN_LOOKUPS:
-        return False
+def upload_texels(depth_map: np.ndarray):
+    """The Dr.Jit ``Float`` texels (flat, row-major) of a float32 ``(R, R)`` depth map, as
+    the compare filters read them (:attr:`MapData.texels` of a rendered map)."""
     from scenes import backend
 
-    return not backend.active().variant.startswith("scalar")
-
-
-#: Depth maps whose memory is a Dr.Jit array (maps finished in the ray-casting kernel):
-#: ``id(map) -> (weak reference to the map, the Dr.Jit Float array)``. The map is a NumPy
-#: view of that array's memory, so the two can never disagree; lookups use the array
-#: instead of uploading a copy. Entries leave with their map.
-_DRJIT_TEXTURES: dict = {}
-
-
-def register_drjit_texture(depth_map: np.ndarray, texels) -> None:
-    """Record that ``depth_map`` is a NumPy view of the Dr.Jit ``Float`` array ``texels``."""
-    import weakref
-
-    key = id(depth_map)
-    _DRJIT_TEXTURES[key] = (
-        weakref.ref(depth_map, lambda _: _DRJIT_TEXTURES.pop(key, None)),
-        texels,
-    )
-
-
-def _drjit_texture(mi, depth_map):
-    """The Dr.Jit texels of ``depth_map``: its registered array, else an uploaded copy."""
-    entry = _DRJIT_TEXTURES.get(id(depth_map))
-    if entry is not None and entry[0]() is depth_map:
-        return entry[1]
+    mi = backend.mitsuba()
     return mi.Float(np.ascontiguousarray(depth_map, dtype=np.float32).ravel())
 
 
-def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexel_bits: int):
-    """Depth compares on Dr.Jit: nearest texel (``size=0``) or ``size x size`` hardware-PCF
-    taps one texel apart (``size=1``: one 2x2 hardware-PCF tap), as :func:`compare_point` and
-    :func:`pcf_grid` compute them (float64 coordinates and weights, float32 texels).
+def _resolution(texels) -> int:
+    import drjit as dr
 
-    All gathers, compares and weights of a chunk are one fused kernel.
+    n = dr.width(texels)
+    r = math.isqrt(n)
+    if r * r != n:
+        raise ValueError(f"texels must hold a square map, got {n} texels")
+    return r
+
+
+def compare_taps(texels, u, v, ref, size: int, *, address: str, subtexel_bits: int):
+    """Depth compares of receivers at texture coordinates ``(u, v)`` against reference
+    depths ``ref``: nearest texel (``size=0``) or ``size x size`` hardware-PCF taps one texel
+    apart (``size=1``: one 2x2 hardware-PCF tap), float64 coordinates and weights against
+    the float32 ``texels`` of an ``(R, R)`` map (:func:`upload_texels`).
+
+    All taps of a lookup share the same sub-texel position, so the kernel is evaluated
+    exactly on its ``(size + 1)^2`` texel footprint with separable tent weights (each texel
+    compared once). All gathers, compares and weights of a chunk of :data:`DRJIT_CHUNK`
+    lookups are one fused Dr.Jit kernel. Returns float64 visibility in [0, 1], shaped as
+    ``u``.
     """
     from scenes import backend
 
     mi = backend.mitsuba()
     import drjit as dr
 
-    r = depth_map.shape[0]
-    tex = _drjit_texture(mi, depth_map)
+    r = _resolution(texels)
     f64, i32 = mi.Float64, mi.Int32
     # Resolution as a kernel parameter (not a literal): one compiled kernel per filter shape.
     r_i, r_f = dr.opaque(i32, r), dr.opaque(f64, float(r))
     u = np.asarray(u, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
-    ref = np.asarray(ref, dtype=np.float64)
+    ref = np.broadcast_to(np.asarray(ref, dtype=np.float64), u.shape)
+    shape = u.shape
     single = 0 < u.size <= DRJIT_CHUNK
-    out = None if single else np.empty(u.shape, dtype=np.float64)
+    out = None if single else np.empty(u.size, dtype=np.float64)
+    u, v, ref = u.ravel(), v.ravel(), ref.ravel()
     # Index range that decides every fetch (clamp and border alike); keeps int32 safe.
     lo_idx = -float(size) - 2.0
 
     def fetch(ix, iy, rr):
         inside = (ix >= 0) & (ix < r_i) & (iy >= 0) & (iy < r_i)
         idx = dr.clip(iy, 0, r_i - 1) * r_i + dr.clip(ix, 0, r_i - 1)
-        val = f64(dr.gather(mi.Float, tex, idx))
+        val = f64(dr.gather(mi.Float, texels, idx))
         if address == "border":
             val = dr.select(inside, val, 1.0)
         return dr.select(rr <= val, f64(1.0), f64(0.0))
@@ -146,6 +128,15 @@ def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexe
             return frac
         scale = float(1 << subtexel_bits)
         return dr.round(frac * scale) / scale
+
+    def weight(f, m):
+        # Footprint texel m in 0..size gets (1 - f) from tap m and f from tap m - 1.
+        w = f64(0.0)
+        if m < size:
+            w = w + (1.0 - f)
+        if m > 0:
+            w = w + f
+        return w
 
     for start in range(0, u.size, DRJIT_CHUNK):
         sl = slice(start, min(u.size, start + DRJIT_CHUNK))
@@ -157,21 +148,13 @@ def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexe
             acc = fetch(ix, iy, rr)
         else:
             half = (size - 1) / 2.0
+            # First tap centre, in texel units with texel centres at integers.
             x = uu * r_f - 0.5 - half
             y = vv * r_f - 0.5 - half
             x0, y0 = dr.floor(x), dr.floor(y)
             fx, fy = sub(x - x0), sub(y - y0)
             ix0 = i32(dr.clip(x0, lo_idx, r_f + 1.0))
             iy0 = i32(dr.clip(y0, lo_idx, r_f + 1.0))
-
-            def weight(f, m):
-                w = f64(0.0)
-                if m < size:
-                    w = w + (1.0 - f)
-                if m > 0:
-                    w = w + f
-                return w
-
             wx = [weight(fx, m) for m in range(size + 1)]
             acc = f64(0.0)
             for my in range(size + 1):
@@ -182,54 +165,19 @@ def compare_taps_drjit(depth_map, u, v, ref, size: int, *, address: str, subtexe
             acc = acc / float(size * size)
         dr.eval(acc)
         if single:
-            return acc.numpy().reshape(u.shape)  # the kernel's own output (a view)
+            return acc.numpy().reshape(shape)  # the kernel's own output (a view)
         out[sl] = acc.numpy()
-    return out
+    return out.reshape(shape)
 
 
-def compare_point(depth_map, u, v, ref, *, address: str = "clamp") -> np.ndarray:
+def compare_point(texels, u, v, ref, *, address: str = "clamp") -> np.ndarray:
     """Nearest-texel depth compare: 1.0 where lit, 0.0 where shadowed."""
-    if _use_drjit(np.size(u)):
-        return compare_taps_drjit(depth_map, u, v, ref, 0, address=address, subtexel_bits=0)
-    r = depth_map.shape[0]
-    ix = np.floor(np.asarray(u) * r).astype(np.int64)
-    iy = np.floor(np.asarray(v) * r).astype(np.int64)
-    stored = _fetch(depth_map, ix, iy, address)
-    return (np.clip(ref, 0.0, 1.0) <= stored).astype(np.float64)
+    return compare_taps(texels, u, v, ref, 0, address=address, subtexel_bits=0)
 
 
-def _subtexel(frac: np.ndarray, bits: int) -> np.ndarray:
-    if bits <= 0:
-        return frac
-    scale = float(1 << bits)
-    return np.round(frac * scale) / scale
-
-
-def compare_bilinear(
-    depth_map, u, v, ref, *, address: str = "clamp", subtexel_bits: int = 8
-) -> np.ndarray:
+def compare_bilinear(texels, u, v, ref, *, address: str = "clamp", subtexel_bits: int = 8):
     """Hardware 2x2 PCF (compare four texels, then bilinear weights)."""
-    if _use_drjit(np.size(u)):
-        return compare_taps_drjit(
-            depth_map, u, v, ref, 1, address=address, subtexel_bits=subtexel_bits
-        )
-    r = depth_map.shape[0]
-    x = np.asarray(u) * r - 0.5
-    y = np.asarray(v) * r - 0.5
-    x0 = np.floor(x)
-    y0 = np.floor(y)
-    fx = _subtexel(x - x0, subtexel_bits)
-    fy = _subtexel(y - y0, subtexel_bits)
-    ix = x0.astype(np.int64)
-    iy = y0.astype(np.int64)
-    refc = np.clip(ref, 0.0, 1.0)
-    c00 = refc <= _fetch(depth_map, ix, iy, address)
-    c10 = refc <= _fetch(depth_map, ix + 1, iy, address)
-    c01 = refc <= _fetch(depth_map, ix, iy + 1, address)
-    c11 = refc <= _fetch(depth_map, ix + 1, iy + 1, address)
-    top = c00 * (1.0 - fx) + c10 * fx
-    bottom = c01 * (1.0 - fx) + c11 * fx
-    return top * (1.0 - fy) + bottom * fy
+    return compare_taps(texels, u, v, ref, 1, address=address, subtexel_bits=subtexel_bits)
 
 
 def _tap_ref(ref, du, dv, plane):
@@ -239,64 +187,26 @@ def _tap_ref(ref, du, dv, plane):
 
 
 def pcf_grid(
-    depth_map, u, v, ref, size: int, *, address="clamp", subtexel_bits=8, plane=None
+    texels, u, v, ref, size: int, *, address="clamp", subtexel_bits=8, plane=None
 ) -> np.ndarray:
     """``size x size`` hardware-PCF taps one texel apart (``plane``: receiver-plane slopes
-    ``(dz/du, dz/dv)`` applied per tap).
-
-    All taps share the same sub-texel position, so without a receiver plane the kernel is
-    evaluated exactly on its ``(size + 1)^2`` texel footprint with separable tent weights
-    (each texel compared once) instead of ``4 size^2`` fetches.
-    """
-    r = depth_map.shape[0]
-    if plane is not None:
-        offsets = (np.arange(size) - (size - 1) / 2.0) / r
-        acc = np.zeros(np.shape(u), dtype=np.float64)
-        for oy in offsets:
-            for ox in offsets:
-                acc += compare_bilinear(
-                    depth_map,
-                    u + ox,
-                    v + oy,
-                    _tap_ref(ref, ox, oy, plane),
-                    address=address,
-                    subtexel_bits=subtexel_bits,
-                )
-        return acc / float(size * size)
-    if _use_drjit(np.size(u)):
-        return compare_taps_drjit(
-            depth_map, u, v, ref, size, address=address, subtexel_bits=subtexel_bits
-        )
-    half = (size - 1) / 2.0
-    # First tap centre, in texel units with texel centres at integers.
-    x = np.asarray(u) * r - 0.5 - half
-    y = np.asarray(v) * r - 0.5 - half
-    x0 = np.floor(x)
-    y0 = np.floor(y)
-    fx = _subtexel(x - x0, subtexel_bits)
-    fy = _subtexel(y - y0, subtexel_bits)
-    ix0 = x0.astype(np.int64)
-    iy0 = y0.astype(np.int64)
-    refc = np.clip(ref, 0.0, 1.0)
-
-    def weights(f, m):
-        # Footprint texel m in 0..size gets (1 - f) from tap m and f from tap m - 1.
-        w = np.zeros_like(f)
-        if m < size:
-            w = w + (1.0 - f)
-        if m > 0:
-            w = w + f
-        return w
-
-    wx = [weights(fx, m) for m in range(size + 1)]
+    ``(dz/du, dz/dv)`` applied per tap, one 2x2 compare per tap; without it, one footprint
+    kernel, :func:`compare_taps`)."""
+    if plane is None:
+        return compare_taps(texels, u, v, ref, size, address=address, subtexel_bits=subtexel_bits)
+    r = _resolution(texels)
+    offsets = (np.arange(size) - (size - 1) / 2.0) / r
     acc = np.zeros(np.shape(u), dtype=np.float64)
-    for my in range(size + 1):
-        wy = weights(fy, my)
-        row = np.zeros_like(acc)
-        for mx in range(size + 1):
-            lit = refc <= _fetch(depth_map, ix0 + mx, iy0 + my, address)
-            row += wx[mx] * lit
-        acc += wy * row
+    for oy in offsets:
+        for ox in offsets:
+            acc += compare_bilinear(
+                texels,
+                u + ox,
+                v + oy,
+                _tap_ref(ref, ox, oy, plane),
+                address=address,
+                subtexel_bits=subtexel_bits,
+            )
     return acc / float(size * size)
 
 
@@ -321,7 +231,7 @@ def poisson_disc(taps: int, seed: int = 0) -> np.ndarray:
 
 
 def pcf_poisson(
-    depth_map,
+    texels,
     u,
     v,
     ref,
@@ -335,7 +245,7 @@ def pcf_poisson(
     seed: int = 0,
 ) -> np.ndarray:
     """Poisson-disc PCF: ``taps`` hardware-PCF taps in a disc of ``diameter`` texels."""
-    r = depth_map.shape[0]
+    r = _resolution(texels)
     disc = poisson_disc(int(taps), int(seed)) * (0.5 * diameter / r)
     acc = np.zeros(np.shape(u), dtype=np.float64)
     if rotation is not None:
@@ -346,7 +256,7 @@ def pcf_poisson(
         else:
             dx, dy = ox, oy
         acc += compare_bilinear(
-            depth_map,
+            texels,
             u + dx,
             v + dy,
             _tap_ref(ref, dx, dy, plane),
@@ -416,6 +326,13 @@ def moment_texture(depth_map: np.ndarray, kind: str, exponents, size: int, fmt: 
                 m = out[band].astype(np.float64)
                 out[band] = ndimage.uniform_filter1d(m, size, axis=axis, mode="nearest")
     return out
+
+
+def _subtexel(frac: np.ndarray, bits: int) -> np.ndarray:
+    if bits <= 0:
+        return frac
+    scale = float(1 << bits)
+    return np.round(frac * scale) / scale
 
 
 def _bilinear(tex: np.ndarray, u, v, subtexel_bits: int) -> np.ndarray:

@@ -16,18 +16,13 @@ import numpy as np
 
 from scenes import backend
 
+from ..drjit import numpy_view
 from .depth_dr import stored_depth_dr
 
-__all__ = ["GRID_CHUNK", "cast_grid", "iter_grid"]
+__all__ = ["GRID_CHUNK", "iter_grid"]
 
 #: Texels per Dr.Jit launch (bounded memory: about 0.3 GiB a launch with normals).
 GRID_CHUNK = 1 << 22
-
-
-def _np(a) -> np.ndarray:
-    """NumPy copy of an evaluated Dr.Jit array (one memory copy; a Vector3f gives (3, N))."""
-    to_numpy = getattr(a, "numpy", None)
-    return np.array(to_numpy() if to_numpy is not None else a)
 
 
 def iter_grid(
@@ -39,16 +34,31 @@ def iter_grid(
     normals: bool = False,
     store: tuple[str, float] | None = None,
 ):
-    """Cast the rays of :func:`cast_grid` in launches of :data:`GRID_CHUNK` texels and yield
-    ``(start, stop, chunk)`` per launch, ``chunk`` holding that launch's flat slices of the
-    arrays :func:`cast_grid` returns (``z`` float64; with ``normals`` also ``t``,
-    ``dir_norm`` and ``normal`` ``(n, 3)``). Memory stays bounded by the launch size at any
-    map resolution.
+    """Cast one ray per texel centre of a ``resolution``-square map, in launches of
+    :data:`GRID_CHUNK` texels, and yield ``(start, stop, chunk)`` per launch (flat texel
+    range ``[start, stop)``, row-major). Memory stays bounded by the launch size at any map
+    resolution.
 
-    ``store=(format, bias)`` (without ``normals``): the texels are post-processed in the
-    same kernel (:func:`_depth_dr.stored_depth_dr`) and ``chunk`` holds ``stored`` (float32
-    map texels, a view of the Dr.Jit array ``texels``) and ``covered`` (texels hit) instead
-    of ``z``."""
+    Parameters
+    ----------
+    scene : scenes.LoadedScene
+    grid : the affine ray description of :meth:`Projection.grid_rays`.
+    resolution : texels per side ``R``; texel ``(i, j)`` (column, row) has texture
+        coordinates ``s = (i + 0.5) / R``, ``t = (j + 0.5) / R``.
+    depth : how a hit becomes normalized depth, evaluated in float64: ``("ortho", c0, cs,
+        ct, cd)`` for ``z = c0 + s cs + t ct + d cd`` (``d`` = hit distance along the unit
+        direction), or ``("persp", a, b)`` for ``z = a - b / tau`` with light-view depth
+        ``tau = z_start + d / |direction|``.
+    normals : also give the geometric normal ``normal`` ``(n, 3)`` float32, hit distance
+        ``t`` (``inf`` on a miss) and direction length ``dir_norm`` per texel (for the
+        slope-scaled bias).
+    store : ``(format, bias)`` (without ``normals``): the texels are finished in the same
+        kernel (:func:`.depth_dr.stored_depth_dr`) and ``chunk`` holds ``stored`` (float32
+        map texels, a view of the Dr.Jit array ``texels``) and ``covered`` (texels hit)
+        instead of ``z``.
+
+    ``chunk["z"]``: float64 normalized depth, unclamped, ``inf`` on a miss.
+    """
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -110,44 +120,12 @@ def iter_grid(
         if normals:
             dr.eval(z, si.n, dist, dnorm, valid)
             chunk = {
-                "z": _np(z),
-                "normal": _np(si.n).T.astype(np.float32),
-                "t": np.where(_np(valid), _np(dist), np.inf),
-                "dir_norm": _np(dnorm),
+                "z": numpy_view(z),
+                "normal": numpy_view(si.n).T.astype(np.float32),
+                "t": np.where(numpy_view(valid), numpy_view(dist), np.inf),
+                "dir_norm": numpy_view(dnorm),
             }
         else:
             dr.eval(z)
-            chunk = {"z": _np(z)}
+            chunk = {"z": numpy_view(z)}
         yield start, stop, chunk
-
-
-def cast_grid(scene, grid: dict, resolution: int, depth: tuple, *, normals: bool = False) -> dict:
-    """Cast one ray per texel centre of a ``resolution``-square map.
-
-    Parameters
-    ----------
-    scene : scenes.LoadedScene
-    grid : the affine ray description of :meth:`Projection.grid_rays`.
-    resolution : texels per side ``R``; texel ``(i, j)`` (column, row) has texture
-        coordinates ``s = (i + 0.5) / R``, ``t = (j + 0.5) / R``.
-    depth : how a hit becomes normalized depth, evaluated in float64: ``("ortho", c0, cs,
-        ct, cd)`` for ``z = c0 + s cs + t ct + d cd`` (``d`` = hit distance along the unit
-        direction), or ``("persp", a, b)`` for ``z = a - b / tau`` with light-view depth
-        ``tau = z_start + d / |direction|``.
-    normals : also return the geometric normal, hit distance and direction length per texel
-        (for the slope-scaled bias).
-
-    Returns
-    -------
-    dict with ``z`` ((R, R) float64 normalized depth, unclamped; ``inf`` on a miss) and, with
-    ``normals``: ``t`` (hit distance, ``inf`` on a miss), ``dir_norm`` and ``normal``
-    ((R, R, 3) float32). Row index = ``j``.
-    """
-    r = int(resolution)
-    out: dict = {}
-    for start, stop, chunk in iter_grid(scene, grid, r, depth, normals=normals):
-        for k, v in chunk.items():
-            if k not in out:
-                out[k] = np.empty((r * r,) + v.shape[1:], dtype=v.dtype)
-            out[k][start:stop] = v
-    return {k: v.reshape((r, r) + v.shape[1:]) for k, v in out.items()}

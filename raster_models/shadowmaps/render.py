@@ -1,5 +1,6 @@
 """Rendering shadow maps: one ray per texel centre from the light, then the depth format,
-depth clamp and hardware bias a rasterizer applies, and the VSM/EVSM moments.
+depth clamp and hardware bias a rasterizer applies (:mod:`.depth_dr`), and the VSM/EVSM
+moments.
 
 Depth clamp ("pancaking"): orthographic maps start their rays behind the scene's bounds (not
 at the near plane) and clamp depths in front of the near plane to 0; perspective maps start
@@ -10,14 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from scenes import backend
+
 from .. import depth as _depth
 from ..light_frame import Projection
-from ..result import MapData, Partition, Setup
 from . import filters as _filters
-from .depth_dr import fused_bias
+from .depth_dr import fused_bias, stored_depth_dr
 from .raycast import GRID_CHUNK, iter_grid
+from .records import MapData, Partition, Setup
 
-__all__ = ["render_maps"]
+__all__ = ["map_rays", "render_maps"]
 
 
 def _scene_light_z_range(scene, proj: Projection) -> tuple[float, float]:
@@ -56,20 +59,26 @@ def _max_depth_slope(proj: Projection, grid, n, s, t, thit, dnorm):
     return np.maximum(slopes[0], slopes[1])
 
 
-def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
-    proj = part.projection
-    r = proj.resolution
+def map_rays(scene, proj: Projection, *, depth_clamp: bool) -> tuple[dict, tuple, float]:
+    """The rays of a map's texel centres and how their hits become normalized depth.
+
+    Returns ``(grid, depth, z_start)``: the affine ray description of
+    :meth:`Projection.grid_rays`, the depth coefficients of :func:`.raycast.iter_grid`, and
+    the light depth the rays start at. With ``depth_clamp`` ("pancaking") orthographic rays
+    start behind the scene's bounds and perspective rays at the light; without it at the
+    near plane, so casters in front of it are clipped.
+    """
     if proj.kind == "ortho":
         z0, z1 = float(proj.extent[4]), float(proj.extent[5])
         z_start = z0
-        if params.depth_clamp:
+        if depth_clamp:
             scene_lo, _ = _scene_light_z_range(scene, proj)
             margin = 1e-3 * max(z1 - z0, 1e-6)
             z_start = min(z0, scene_lo - margin)
         z_end = z1
     else:
         _, near, far = (float(v) for v in proj.extent)
-        z_start = 0.0 if params.depth_clamp else near
+        z_start = 0.0 if depth_clamp else near
         z_end = far
     grid = proj.grid_rays(z_start, z_end)
     m = proj.matrix
@@ -79,8 +88,14 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     else:
         _, near, far = (float(v) for v in proj.extent)
         depth = ("persp", far / (far - near), far * near / (far - near))
+    return grid, depth, z_start
+
+
+def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
+    proj = part.projection
+    r = proj.resolution
+    grid, depth, z_start = map_rays(scene, proj, depth_clamp=params.depth_clamp)
     # One launch at a time (bounded memory at any map size): only the float32 map is whole.
-    covered = 0
     bias = fused_bias(
         params.format,
         depth_bias=params.depth_bias,
@@ -94,19 +109,29 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
             # One launch: the map is a view of the kernel's output, which lookups reuse.
             ((_, _, hits),) = launches
             stored = hits["stored"].reshape(r, r)
-            _filters.register_drjit_texture(stored, hits["texels"])
-            return MapData(stored, None, (0.0, 0.0), hits["covered"], z_start)
+            return MapData(stored, None, (0.0, 0.0), hits["covered"], z_start, hits["texels"])
         stored = np.empty(r * r, dtype=np.float32)
+        covered = 0
         for start, stop, hits in launches:
             stored[start:stop] = hits["stored"]
             covered += hits["covered"]
         return MapData(stored.reshape(r, r), None, (0.0, 0.0), covered, z_start)
+    stored, covered = _render_per_texel_bias(scene, proj, grid, depth, params, need_slope)
+    return MapData(stored, None, (0.0, 0.0), covered, z_start)
+
+
+def _render_per_texel_bias(scene, proj, grid, depth, params, need_slope: bool):
+    """Stored texels ``(R, R)`` and texels hit of a map whose hardware bias varies per
+    texel: computed in NumPy from each texel's depth (and caster slope), then added and
+    stored by the same Dr.Jit rule as a constant bias."""
+    mi = backend.mitsuba()
+    r = proj.resolution
+    covered = 0
     stored = np.empty(r * r, dtype=np.float32)
     for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
         z = hits["z"]
         hit = np.isfinite(z)
         covered += int(hit.sum())
-        z = np.where(hit, z, 1.0)
         slope = None
         if need_slope:
             idx = np.nonzero(hit)[0]
@@ -117,24 +142,20 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
             slope[idx] = _max_depth_slope(
                 proj, grid, hits["normal"][idx], s, t, hits["t"][idx], hits["dir_norm"][idx]
             )
-        # Bias first, then the viewport clamp (D3D11 order).
-        z = _depth.rasterized_depth(
-            z,
+        texel_bias = _depth.hardware_bias(
+            np.where(hit, z, 1.0),
             slope,
             params.format,
             depth_bias=params.depth_bias,
             slope_scaled=params.slope_scaled_bias,
             clamp=params.depth_bias_clamp,
         )
-        # Stored as float32: D3D compares a depth texel converted to float32.
-        stored[start:stop] = np.where(hit, _depth.quantize(z, params.format), 1.0)
-    stored = stored.reshape(r, r)
-    return MapData(stored, None, (0.0, 0.0), covered, z_start)
+        texels, _ = stored_depth_dr(mi, mi.Float64(z), params.format, mi.Float64(texel_bias))
+        stored[start:stop] = texels.numpy()
+    return stored.reshape(r, r), covered
 
 
 def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
-    if params.filter not in _filters.MOMENT_FILTERS:
-        return
     exponents = (0.0, 0.0)
     if params.filter != "vsm":
         scale = 1.0
@@ -152,7 +173,9 @@ def _add_moments(data: MapData, part: Partition, params, setup: Setup) -> None:
 
 
 def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
-    """Render every non-empty partition's map (one Dr.Jit launch per map chunk)."""
+    """Render every non-empty partition's map (one Dr.Jit launch per map chunk): its stored
+    depth and, for the compare filters, the same texels as a Dr.Jit array
+    (:attr:`MapData.texels`), for VSM/EVSM its moments."""
     need_slope = params.slope_scaled_bias != 0.0
     maps: list[MapData | None] = []
     for part in setup.partitions:
@@ -160,6 +183,10 @@ def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
             maps.append(None)
             continue
         data = _render_one(scene, part, params, need_slope)
-        _add_moments(data, part, params, setup)
+        if params.filter in _filters.MOMENT_FILTERS:
+            _add_moments(data, part, params, setup)
+            data.texels = None
+        elif data.texels is None:
+            data.texels = _filters.upload_texels(data.depth)
         maps.append(data)
     return maps

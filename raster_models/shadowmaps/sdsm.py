@@ -59,13 +59,25 @@ from ..gbuffer import trace_gbuffer
 from ..light_frame import Projection
 from ..params import param
 from .common import CommonParams
-from .engine import Partition, Setup, execute
+from .engine import execute
 from .fit import aabb, box_corners, light_frame_for
 from .frustum import frustum_slice
+from .records import Partition, Setup
 
-__all__ = ["SdsmParams", "build", "run"]
+__all__ = [
+    "LIGHTS",
+    "NAME",
+    "SdsmParams",
+    "build",
+    "partition_texture_bounds",
+    "run",
+    "to_texture",
+]
 
 NAME = "sdsm"
+
+#: Light kinds the technique supports.
+LIGHTS = ("directional",)
 
 #: Compute dispatches of the sample's reduce path (clear/reduce z bounds, partitions, clear/
 #: reduce light-space bounds, custom partitions) and of its histogram paths.
@@ -310,28 +322,28 @@ def _partition_box(lo_tc, hi_tc, p: SdsmParams, gmin, gdim):
     return (x0, x1, y0, y1, z0, z1), info
 
 
-def _to_texture(frame, gmin, gdim, points):
+def to_texture(frame, gmin, gdim, points):
     """Global light-box texture coordinates (u right, v down, z in [0, 1]) of world points."""
     return _light_to_texture(frame.to_light(points), gmin, gdim)
 
 
 def _light_to_texture(lc, gmin, gdim):
-    """:func:`_to_texture` of light-frame coordinates ``lc`` (N, 3)."""
+    """:func:`to_texture` of light-frame coordinates ``lc`` (N, 3)."""
     u = (lc[:, 0] - gmin[0]) / gdim[0]
     v = (gmin[1] + gdim[1] - lc[:, 1]) / gdim[1]
     z = (lc[:, 2] - gmin[2]) / gdim[2]
     return np.stack([u, v, z], axis=1)
 
 
-def _partition_texture_bounds(frame, gmin, gdim, points, part, k):
-    """Per-partition min/max of the :func:`_to_texture` coordinates of ``points`` (partition
+def partition_texture_bounds(frame, gmin, gdim, points, part, k):
+    """Per-partition min/max of the :func:`to_texture` coordinates of ``points`` (partition
     ``part``, ``-1`` for none) and the sample counts: the sample's per-partition reduction.
     ``points`` (float64, the caller's own copy) is overwritten.
 
     Each texture coordinate is a monotone function of one light-frame coordinate (IEEE
     rounding is monotone; ``v`` decreases with light y), so the extremes of the texture
     coordinates are the transformed extremes of the light-frame coordinates: the same values
-    as reducing :func:`_to_texture` of every sample, without transforming every sample.
+    as reducing :func:`to_texture` of every sample, without transforming every sample.
     """
     # frame.to_light(points), its subtraction made in place (``points`` is our own gather).
     points -= frame.origin
@@ -388,9 +400,9 @@ def _partitions_from_depth(scene, gb, camera, light, p: SdsmParams):
         # Number of interior boundaries at or below z (boundaries increase).
         part = np.searchsorted(bounds[1:-1], z, side="right")
         part = np.where(keep, part, -1)
-        lo, hi, counts = _partition_texture_bounds(frame, gmin, gdim, gb.position[samples], part, k)
+        lo, hi, counts = partition_texture_bounds(frame, gmin, gdim, gb.position[samples], part, k)
     else:
-        tc = _to_texture(frame, gmin, gdim, gb.position[samples])
+        tc = to_texture(frame, gmin, gdim, gb.position[samples])
         h = _splits.build_histogram(
             z, tc, camera.near, camera.far, p.histogram_bins, p.histogram_power
         )
@@ -428,7 +440,7 @@ def _partitions_from_depth(scene, gb, camera, light, p: SdsmParams):
 def build(scene, gbuf, p: SdsmParams) -> Setup:
     """SDSM partitions from the current frame's depth, or from ``latency`` frames earlier."""
     light = scene.light
-    if light.kind != "directional":
+    if light.kind not in LIGHTS:
         raise ModelError(
             f"{NAME} needs a directional light; the scene's light is a {light.kind} light "
             "(use shadow-map)"

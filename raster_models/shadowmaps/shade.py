@@ -21,20 +21,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..result import MapData, Setup
 from . import filters as _filters
+from .geometry import DrjitColumns, normal_offset_texels, partition_geometry
+from .records import MapData, Setup
 
-__all__ = ["shade"]
-
-
-def normal_offset_texels(params, proj) -> float:
-    """Normal offset (texels) of a map: ``perspective_normal_offset`` on spot/point maps of
-    techniques that have it, else ``normal_offset``."""
-    if proj is not None and proj.kind == "persp":
-        persp = getattr(params, "perspective_normal_offset", None)
-        if persp is not None:
-            return float(persp)
-    return float(params.normal_offset)
+__all__ = ["perspective_reference", "select_partitions", "shade"]
 
 
 def perspective_reference(params, proj, z):
@@ -59,7 +50,7 @@ def perspective_reference(params, proj, z):
     return np.where(np.isfinite(ref), ref, z)
 
 
-def _select(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
+def select_partitions(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray:
     """Partition index per pixel of ``idx`` (-1: none)."""
     parts = setup.partitions
     k = len(parts)
@@ -143,14 +134,15 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.
         ref = z - params.bias if ref is None else ref
         plane = None
     common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
+    tex = data.texels
     if kind == "point":
-        return _filters.compare_point(data.depth, u, v, ref, address=params.address_mode)
+        return _filters.compare_point(tex, u, v, ref, address=params.address_mode)
     if kind == "hw_pcf":
-        return _filters.compare_bilinear(data.depth, u, v, ref, **common)
+        return _filters.compare_bilinear(tex, u, v, ref, **common)
     if kind == "pcf":
-        return _filters.pcf_grid(data.depth, u, v, ref, params.pcf_size, plane=plane, **common)
+        return _filters.pcf_grid(tex, u, v, ref, params.pcf_size, plane=plane, **common)
     return _filters.pcf_poisson(
-        data.depth,
+        tex,
         u,
         v,
         ref,
@@ -163,221 +155,8 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.
     )
 
 
-def _singular_min(ju, jv):
-    """Smallest singular value of the 2x2 Jacobians with rows ``ju``, ``jv`` (N, 2)."""
-    a, b = ju[:, 0], ju[:, 1]
-    c, d = jv[:, 0], jv[:, 1]
-    fro = a * a + b * b + c * c + d * d
-    det = np.abs(a * d - b * c)
-    smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(smax > 0, det / smax, 0.0)
-
-
-#: Pixels from which a partition's geometry runs as one Dr.Jit kernel (LLVM backend, float64)
-#: instead of NumPy (same formulas; results agree to a few ulps, FMA contraction).
-DRJIT_MIN_PIXELS = 1 << 14
-
-#: Pixels per Dr.Jit launch of :func:`_geometry_drjit` (bounded memory).
-DRJIT_CHUNK = 1 << 21
-
-
-def _partition_geometry(params, part, gbuf, pix):
-    """Shadow coordinates (with the normal offset), Jacobian, texel density and resolution
-    error for pixels ``pix`` (Dr.Jit for large float64 sets, else NumPy)."""
-    proj = part.projection
-    geo = None
-    if proj.precision == "float64" and len(pix) >= DRJIT_MIN_PIXELS:
-        from scenes import backend
-
-        if not backend.active().variant.startswith("scalar"):
-            geo = _geometry_drjit(params, proj, gbuf, pix)
-    if geo is None:
-        geo = _geometry_numpy(params, proj, gbuf, pix)
-    geo["proj"] = proj
-    return geo
-
-
-def _density(geo: dict) -> dict:
-    """Add ``tpp`` (smallest singular value of J) and ``err`` (Intel resolution error)."""
-    smin = _singular_min(geo["ju"], geo["jv"])
-    fw_u = np.maximum(np.abs(geo["ju"][:, 0]), np.abs(geo["ju"][:, 1]))
-    fw_v = np.maximum(np.abs(geo["jv"][:, 0]), np.abs(geo["jv"][:, 1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        lod = np.log2(np.sqrt(fw_u * fw_v))
-    geo["err"] = np.where(np.isfinite(lod), np.maximum(-lod, 0.0), 0.0)
-    geo["tpp"] = np.where(np.isfinite(smin), smin, 0.0)
-    return geo
-
-
-def _geometry_numpy(params, proj, gbuf, pix):
-    pos = gbuf.position[pix]
-    u, v, z, w = proj.project(pos)
-    offset = normal_offset_texels(params, proj)
-    if offset > 0.0:
-        texel = np.broadcast_to(np.asarray(proj.texel_world_size(w), dtype=np.float64), u.shape)
-        n_dot_l = np.clip(gbuf.cos_l[pix], 0.0, 1.0)
-        scale = offset * texel * (1.0 - n_dot_l)
-        u, v, z, w = proj.project(pos + gbuf.normal[pix] * scale[:, None])
-    dpdx, dpdy = gbuf.dpdx[pix], gbuf.dpdy[pix]
-    m = proj.matrix
-    if proj.kind == "ortho":
-        # Affine map: d(u, v, z)/dP is the matrix itself.
-        j3 = np.stack([dpdx @ m[:3, :3].T, dpdy @ m[:3, :3].T], axis=-1)
-    else:
-        # d(q / w) = (dq - (q / w) dw) / w for homogeneous q = M P.
-        t = np.stack([u, v, z], axis=-1)
-        cols = []
-        for dp in (dpdx, dpdy):
-            dq = dp @ m[:3, :3].T
-            dw = dp @ m[3, :3]
-            with np.errstate(invalid="ignore", divide="ignore"):
-                cols.append((dq - t * dw[:, None]) / w[:, None])
-        j3 = np.stack(cols, axis=-1)  # (N, 3, 2): rows u, v, z; columns x, y
-    res = proj.resolution
-    with np.errstate(invalid="ignore"):
-        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & np.isfinite(u + v)
-    return _density(
-        {
-            "u": np.where(np.isfinite(u), u, 0.0),
-            "v": np.where(np.isfinite(v), v, 0.0),
-            "z": np.where(np.isfinite(z), z, 1.0),
-            "j3": j3,
-            "ju": j3[:, 0, :] * res,
-            "jv": j3[:, 1, :] * res,
-            "inside": inside,
-        }
-    )
-
-
-def _drjit_fields(mi, gbuf, names) -> dict:
-    """Flat Dr.Jit ``Float64`` copies of G-buffer fields (``(N, 3)`` fields row-major), made
-    once per G-buffer and kept on it for every partition (and blend band) it shades."""
-    cache = gbuf.__dict__.setdefault("_drjit_fields", {})
-    fields = {}
-    for name in names:
-        arr = getattr(gbuf, name)
-        hit = cache.get(name)
-        if hit is None or hit[0] is not arr:  # a replaced array is uploaded again
-            flat = np.ascontiguousarray(arr, dtype=np.float64).reshape(-1)
-            hit = cache[name] = (arr, mi.Float64(flat))
-        fields[name] = hit[1]
-    return fields
-
-
-def _geometry_drjit(params, proj, gbuf, pix):
-    """:func:`_geometry_numpy` as one fused Dr.Jit float64 kernel per chunk of pixels."""
-    from scenes import backend
-
-    mi = backend.mitsuba()
-    import drjit as dr
-
-    f64 = mi.Float64
-
-    def const(x):
-        # Kernel parameters, not literals: one compiled kernel serves every projection.
-        return dr.opaque(f64, float(x))
-
-    m = [[const(c) for c in row] for row in np.asarray(proj.matrix, dtype=np.float64)]
-    res = float(proj.resolution)
-    res_k = const(res)
-    persp = proj.kind != "ortho"
-    offset = normal_offset_texels(params, proj)
-    n = len(pix)
-    need_j = bool(params.receiver_plane_bias)
-    keys = ("u", "v", "z", "tpp", "err")
-    if need_j:
-        keys += ("jux", "juy", "jvx", "jvy", "jzx", "jzy")
-    single = n <= DRJIT_CHUNK
-    out = {} if single else {k: np.empty(n) for k in keys}
-    inside_out = None if single else np.empty(n, dtype=bool)
-    tan2 = const(2.0 * float(proj.extent[0]) / res if persp else 0.0)
-    texel_ortho = const(0.0 if persp else float(proj.texel_world_size()))
-    offset_k = const(offset)
-
-    def project(p):
-        rows = [m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3] for i in range(4)]
-        if not persp:
-            return rows[0], rows[1], rows[2], f64(1.0)
-        w = rows[3]
-        return rows[0] / w, rows[1] / w, rows[2] / w, w
-
-    cols = _drjit_fields(mi, gbuf, ("position", "dpdx", "dpdy"))
-    if offset > 0.0:
-        cols |= _drjit_fields(mi, gbuf, ("normal", "cos_l"))
-
-    def gather(name, base, k):
-        # The pixels' float64 G-buffer values, read inside the kernel (no NumPy gathers).
-        return dr.gather(f64, cols[name], base + k)
-
-    for start in range(0, n, DRJIT_CHUNK):
-        sl = slice(start, min(n, start + DRJIT_CHUNK))
-        idx = mi.UInt32(np.asarray(pix[sl], dtype=np.uint32))
-        base = idx * 3
-        p = [gather("position", base, k) for k in range(3)]
-        u, v, z, w = project(p)
-        if offset > 0.0:
-            texel = tan2 * w if persp else texel_ortho
-            n_dot_l = dr.clip(dr.gather(f64, cols["cos_l"], idx), 0.0, 1.0)
-            scale = offset_k * texel * (1.0 - n_dot_l)
-            p = [p[k] + gather("normal", base, k) * scale for k in range(3)]
-            u, v, z, w = project(p)
-        jac = []
-        for name in ("dpdx", "dpdy"):
-            dp = [gather(name, base, k) for k in range(3)]
-            dq = [m[i][0] * dp[0] + m[i][1] * dp[1] + m[i][2] * dp[2] for i in range(3)]
-            if persp:
-                dw = m[3][0] * dp[0] + m[3][1] * dp[1] + m[3][2] * dp[2]
-                dq = [(dq[i] - t * dw) / w for i, t in enumerate((u, v, z))]
-            jac.append(dq)
-        (ux, vx, zx), (uy, vy, zy) = jac
-        a, b, c, d = ux * res_k, uy * res_k, vx * res_k, vy * res_k
-        fro = a * a + b * b + c * c + d * d
-        det = dr.abs(a * d - b * c)
-        smax = dr.sqrt(0.5 * (fro + dr.sqrt(dr.maximum(fro * fro - 4.0 * det * det, 0.0))))
-        smin = dr.select(smax > 0, det / smax, 0.0)
-        fw_u = dr.maximum(dr.abs(a), dr.abs(b))
-        fw_v = dr.maximum(dr.abs(c), dr.abs(d))
-        lod = dr.log2(dr.sqrt(fw_u * fw_v))
-        err = dr.select(dr.isfinite(lod), dr.maximum(-lod, 0.0), 0.0)
-        inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (w > 0) & dr.isfinite(u + v)
-        vals = {
-            "u": dr.select(dr.isfinite(u), u, 0.0),
-            "v": dr.select(dr.isfinite(v), v, 0.0),
-            "z": dr.select(dr.isfinite(z), z, 1.0),
-            "tpp": dr.select(dr.isfinite(smin), smin, 0.0),
-            "err": err,
-        }
-        if need_j:
-            vals.update(jux=ux, juy=uy, jvx=vx, jvy=vy, jzx=zx, jzy=zy)
-        dr.eval(inside, *vals.values())
-        if single:
-            # One launch: its evaluated arrays are the outputs (views, no copies).
-            out = {k: val.numpy() for k, val in vals.items()}
-            inside_out = inside.numpy()
-            continue
-        for k, val in vals.items():
-            out[k][sl] = val.numpy()
-        inside_out[sl] = inside.numpy()
-    geo = {
-        "u": out["u"],
-        "v": out["v"],
-        "z": out["z"],
-        "inside": inside_out,
-        "tpp": out["tpp"],
-        "err": out["err"],
-    }
-    if need_j:
-        # The Jacobian itself only feeds the receiver-plane bias (tpp, err are done above).
-        j_u = np.stack([out["jux"], out["juy"]], axis=-1)
-        j_v = np.stack([out["jvx"], out["jvy"]], axis=-1)
-        jz = np.stack([out["jzx"], out["jzy"]], axis=-1)
-        geo.update(ju=j_u * res, jv=j_v * res, j3=np.stack([j_u, j_v, jz], axis=1))
-    return geo
-
-
 def _lookup_subset(params, data, geo, mask, rotation):
-    """Visibility of the pixels ``mask`` of a :func:`_partition_geometry` record."""
+    """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
@@ -387,6 +166,39 @@ def _lookup_subset(params, data, geo, mask, rotation):
 def _smoothstep(e0, e1, x):
     t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+def _blend_cascades(
+    gbuf, setup, maps, params, rec_idx, rec_sel, *, vis, lookups, rotation_all, columns, per_lookup
+) -> int:
+    """Blend band between consecutive cascades (MJP ``FilterAcrossCascades``): receivers
+    ``rec_idx`` (selected partitions ``rec_sel``) within ``blend_band`` of their cascade's
+    far end also look up the next cascade and blend with a smoothstep. Updates ``vis`` and
+    ``lookups`` in place; returns the number of receivers blended."""
+    k = len(setup.partitions)
+    blended = 0
+    if not (setup.blend_band > 0.0 and setup.selection == "depth" and k > 1):
+        return blended
+    for i in range(k - 1):
+        part, nxt = setup.partitions[i], setup.partitions[i + 1]
+        if part.projection is None or nxt.projection is None or maps[i + 1] is None:
+            continue
+        rec = rec_idx[rec_sel == i]
+        z = gbuf.depth[rec]
+        start = 0.0 if i == 0 else setup.partitions[i - 1].z_end
+        size = part.z_end - start
+        split_dist = (part.z_end - z) / size
+        band = rec[split_dist <= setup.blend_band]
+        if len(band) == 0:
+            continue
+        rot = rotation_all[band] if rotation_all is not None else None
+        geo = partition_geometry(params, nxt, gbuf, band, columns)
+        nxt_vis = _lookup_subset(params, maps[i + 1], geo, np.ones(len(band), bool), rot)
+        amt = _smoothstep(0.0, setup.blend_band, (part.z_end - gbuf.depth[band]) / size)
+        vis[band] = nxt_vis * (1.0 - amt) + vis[band] * amt
+        lookups[band] += per_lookup
+        blended += len(band)
+    return blended
 
 
 def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
@@ -399,8 +211,13 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     uncovered = np.zeros(n)
     lookups = np.zeros(n)
     valid_idx = np.nonzero(gbuf.valid)[0]
+    columns = DrjitColumns(gbuf)
     vis[valid_idx] = 0.0
-    sel = _select(setup, gbuf, valid_idx, params) if len(valid_idx) else np.zeros(0, np.int64)
+    sel = (
+        select_partitions(setup, gbuf, valid_idx, params)
+        if len(valid_idx)
+        else np.zeros(0, np.int64)
+    )
     cascade[valid_idx] = sel
     receiver = gbuf.receiver
     rotation_all = None
@@ -411,7 +228,6 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         params.filter, pcf_size=params.pcf_size, taps=params.poisson_taps
     )
     stats = []
-    k = len(setup.partitions)
     for i, part in enumerate(setup.partitions):
         pix = valid_idx[sel == i]
         rec = pix[receiver[pix]]
@@ -423,7 +239,7 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             stats.append(st)
             continue
         data = maps[i]
-        geo = _partition_geometry(params, part, gbuf, pix)
+        geo = partition_geometry(params, part, gbuf, pix, columns)
         e = geo["err"]
         tpp[pix] = geo["tpp"]
         err[pix] = e
@@ -448,28 +264,19 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     rec_none = none[receiver[none]]
     uncovered[rec_none] = 1.0
     vis[rec_none] = 0.0 if setup.outside == "discard" else 1.0
-    # Blend band between consecutive cascades (MJP FilterAcrossCascades).
-    blended = 0
-    if setup.blend_band > 0.0 and setup.selection == "depth" and k > 1:
-        for i in range(k - 1):
-            part, nxt = setup.partitions[i], setup.partitions[i + 1]
-            if part.projection is None or nxt.projection is None or maps[i + 1] is None:
-                continue
-            rec = valid_idx[(sel == i) & receiver[valid_idx]]
-            z = gbuf.depth[rec]
-            start = 0.0 if i == 0 else setup.partitions[i - 1].z_end
-            size = part.z_end - start
-            split_dist = (part.z_end - z) / size
-            band = rec[split_dist <= setup.blend_band]
-            if len(band) == 0:
-                continue
-            rot = rotation_all[band] if rotation_all is not None else None
-            geo = _partition_geometry(params, nxt, gbuf, band)
-            nxt_vis = _lookup_subset(params, maps[i + 1], geo, np.ones(len(band), bool), rot)
-            amt = _smoothstep(0.0, setup.blend_band, (part.z_end - gbuf.depth[band]) / size)
-            vis[band] = nxt_vis * (1.0 - amt) + vis[band] * amt
-            lookups[band] += per_lookup
-            blended += len(band)
+    blended = _blend_cascades(
+        gbuf,
+        setup,
+        maps,
+        params,
+        valid_idx[receiver[valid_idx]],
+        sel[receiver[valid_idx]],
+        vis=vis,
+        lookups=lookups,
+        rotation_all=rotation_all,
+        columns=columns,
+        per_lookup=per_lookup,
+    )
     # Receivers only see the light where the oracle says the light reaches them.
     non_rec = gbuf.valid & ~receiver
     vis[non_rec] = 0.0

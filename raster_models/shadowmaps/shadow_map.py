@@ -35,13 +35,17 @@ from ..gbuffer import trace_gbuffer
 from ..light_frame import Projection, make_frame
 from ..params import param
 from .common import CommonParams
-from .engine import Partition, Setup, execute
+from .engine import execute
 from .fit import aabb, box_corners, filter_kernel_texels, light_frame_for
 from .frustum import frustum_slice
+from .records import Partition, Setup
 
-__all__ = ["ShadowMapParams", "build", "run"]
+__all__ = ["LIGHTS", "NAME", "ShadowMapParams", "build", "run"]
 
 NAME = "shadow-map"
+
+#: Light kinds the technique supports.
+LIGHTS = ("directional", "spot", "point")
 
 #: Relative margin added around fitted boxes so that geometry on the boundary stays inside.
 BOX_MARGIN = 1e-4
