@@ -33,9 +33,9 @@ from scenes import backend
 from scenes.raycast import (
     SHADOW_OFFSET,
     SHADOW_OFFSET_MESH,
-    shape_table,
     camera_rays_dr,
     shadow_ray_dr,
+    shape_table,
 )
 from scenes.shading import facing, shade
 

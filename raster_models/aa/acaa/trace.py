@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from scenes import backend
-from scenes.raycast import shape_table, camera_rays_dr
+from scenes.raycast import camera_rays_dr, shape_table
 
 from .. import trace as _trace
 from ..trace import _np, _view_depth, attributes_dr, shade_dr
