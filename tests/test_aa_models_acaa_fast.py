@@ -14,6 +14,7 @@ import raster_models as rm
 import scenes
 from raster_models.aa import samples as _samples
 from raster_models.aa import trace as _trace
+from raster_models.aa.acaa import groups
 from raster_models.aa.acaa import model as acaa
 from raster_models.aa.acaa import ties as _acaa_ties
 from raster_models.aa.acaa import trace as _acaa_trace
@@ -39,10 +40,10 @@ def _grid_lookup_equals_direct(mi, dr, cam, grid, direct, pts):
     return ref
 
 
-def _no_filter(scene, groups, fmt):
+def _no_filter(scene, found, fmt):
     """Every sample a tie candidate of every group (the unfiltered tie search)."""
     box = np.zeros((0, 3), np.float32)
-    return [_acaa_ties.GroupFilter(True, box, box) for _ in groups]
+    return [_acaa_ties.GroupFilter(True, box, box) for _ in found]
 
 
 @pytest.mark.parametrize(
@@ -98,7 +99,7 @@ def test_radius_is_twice_the_tie_distance_plus_slack():
     z = np.array([0.05, 1.0, 10.0, 100.0, 1000.0, 1999.0])
     for fmt in ("D24", "D32F"):
         got = _acaa_ties.radius_np(cam, fmt, z, 50.0)
-        expect = 2.0 * acaa.tie_distance(cam, z, fmt) + _acaa_ties.POSITION_ERROR * (z + 50.0)
+        expect = 2.0 * groups.tie_distance(cam, z, fmt) + _acaa_ties.POSITION_ERROR * (z + 50.0)
         assert np.allclose(got, expect, rtol=CLOSED_FORM_RTOL, atol=0)
         p = mi.Point3f(mi.Float(np.full(len(z), 50.0)), 0.0, 0.0)
         r32 = _acaa_ties.radius_dr(mi, dr, cam, fmt, mi.Float(z), p).numpy()
@@ -122,8 +123,7 @@ def test_grid_lookup_equals_testing_every_member():
 
     scene = scenes.load("city", **SMALL)
     cam = scene.camera
-    groups = acaa.tie_groups(scene, "D24")
-    big = max(groups, key=len)
+    big = max(groups.tie_groups(scene, "D24"), key=len)
     grid = _acaa_ties.group_filters(scene, [big], "D24")[0]
     assert grid.starts is not None and grid.longest >= 1
     direct = dataclasses.replace(grid, starts=None, members=None)
@@ -275,7 +275,9 @@ def test_grid_margin_covers_radii_wider_than_cells():
         f"cube_{k}": {"type": "cube", "to_world": T().translate(c.tolist()).scale(0.5)}
         for k, c in enumerate(centres)
     }
-    scene = types.SimpleNamespace(camera=cam, mi_scene=mi.load_dict({"type": "scene", **shapes}))
+    scene = types.SimpleNamespace(
+        camera=cam, mi_scene=mi.load_dict({"type": "scene", **shapes}), memo={}
+    )
     grid = _acaa_ties.group_filters(scene, [list(range(len(centres)))], "D24")[0]
     assert grid.starts is not None and grid.longest <= _acaa_ties.CELL_LIST
     direct = dataclasses.replace(grid, starts=None, members=None)

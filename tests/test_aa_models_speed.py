@@ -1,7 +1,7 @@
 """The faster paths of the AA models give the results of the direct ones.
 
-ACAA's tie search traces groups of shapes (:func:`raster_models.aa.acaa.model.tie_groups`) instead
-of one scene per shape: the outputs must be those of the per-shape search, byte for byte,
+ACAA's tie search traces groups of shapes (:func:`raster_models.aa.acaa.groups.tie_groups`)
+instead of one scene per shape: the outputs must be those of the per-shape search, byte for byte,
 on scenes with ties (decal), with many shapes (city) and with many surfaces a pixel (thin).
 """
 
@@ -12,6 +12,7 @@ import pytest
 
 import raster_models as rm
 import scenes
+from raster_models.aa.acaa import groups
 from raster_models.aa.acaa import model as acaa
 
 SMALL = {"width": 64, "height": 36}
@@ -49,14 +50,14 @@ def test_tie_groups_split_touching_shapes_only():
     within a tie distance of each other (decimetres at the city's depths) and share one.
     Decal: the decal lies on the wall and the panel is duplicated: never in one group."""
     city = scenes.load("city", **SMALL)
-    groups = acaa.tie_groups(city, "D24")
+    found = groups.tie_groups(city, "D24")
     names = city.shape_names
-    assert len(groups) == 2
-    ground = [g for g in groups if any(names[k] == "ground" for k in g)]
+    assert len(found) == 2
+    ground = [g for g in found if any(names[k] == "ground" for k in g)]
     assert ground == [[names.index("ground")]]
     decal = scenes.load("decal", **SMALL)
     for fmt in ("D24", "D32F"):
-        for g in acaa.tie_groups(decal, fmt):
+        for g in groups.tie_groups(decal, fmt):
             members = {decal.shape_names[k] for k in g}
             assert not ({"wall", "decal"} <= members), members
             assert not ({"panel", "panel_copy"} <= members), members
@@ -68,13 +69,13 @@ def test_tie_distance_grows_with_depth_and_precision():
     :data:`TIE_QUANTA` of them over the corner cosine, and grows with depth."""
     cam = scenes.load("city", **SMALL).camera
     z = np.array([10.0, 100.0, 400.0])
-    got = acaa.tie_distance(cam, z, "D24")
+    got = groups.tie_distance(cam, z, "D24")
     assert np.all(np.diff(got) > 0)
     n, f = cam.near, cam.far
     step = z**2 * (f - n) / (f * n) / ((1 << 24) - 1)
     t = cam.tan_half_x
     cos_min = 1.0 / np.sqrt(1.0 + t * t + (t / cam.aspect) ** 2)
-    expect = acaa.TIE_QUANTA * step / cos_min + acaa.TIE_SLACK
+    expect = groups.TIE_QUANTA * step / cos_min + groups.TIE_SLACK
     assert np.allclose(got, expect, rtol=1e-2)
 
 

@@ -43,8 +43,9 @@ from .. import samples as _samples
 from ..common import DEPTH_FORMATS, ShadowParams, check_shadows, package, shadow_visibility
 from ..trace import fragment_attributes, shade_points
 from . import trace as _acaa_trace
+from .groups import group_scenes, normalized_depth, tie_distance, tie_groups
 
-__all__ = ["ACCUMULATIONS", "AcaaParams", "normalized_depth", "rgba8_accumulate", "run"]
+__all__ = ["ACCUMULATIONS", "AcaaParams", "rgba8_accumulate", "run"]
 
 NAME = "acaa"
 #: Accumulation target formats and their bytes per pixel.
@@ -82,15 +83,6 @@ class AcaaParams(ShadowParams):
 
     def check(self, technique: str) -> None:
         _samples.check_standard_count(technique, self.samples)
-
-
-def normalized_depth(camera, view_depth) -> np.ndarray:
-    """D3D-style window depth in [0, 1] of view depths (float64)."""
-    z = np.asarray(view_depth, np.float64)
-    n, f = camera.near, camera.far
-    if camera.kind == "perspective":
-        return f / (f - n) * (1.0 - n / np.maximum(z, 1e-300))
-    return (z - n) / (f - n)
 
 
 def _stored_depth(camera, view_depth, valid, fmt: str) -> np.ndarray:
@@ -150,105 +142,6 @@ def _rows(a: np.ndarray) -> np.ndarray:
 def _take_rows(a: np.ndarray, rows) -> np.ndarray:
     """``a[rows]`` for a C-contiguous ``(N, K)`` array (the same bytes, row by row)."""
     return _rows(a)[rows].view(a.dtype).reshape(-1, a.shape[1])
-
-
-def _shape_scenes(scene) -> list:
-    """One Mitsuba scene per shape (cached on the loaded scene)."""
-    from scenes import backend
-
-    mi = backend.mitsuba()
-    cache = scene.__dict__.setdefault("_aa_shape_scenes", {})
-    if "scenes" not in cache:
-        cache["scenes"] = [
-            mi.load_dict({"type": "scene", "shape": sh}) for sh in scene.mi_scene.shapes()
-        ]
-    return cache["scenes"]
-
-
-#: Depth quanta of slack on each side of a tie window (covers rounding and the float32 view
-#: depth of the hits; a tie needs the two stored values equal: one quantum apart at most).
-TIE_QUANTA = 4.0
-#: World-unit slack added to every tie distance (float32 hit positions of the shapes).
-TIE_SLACK = 1e-3
-
-
-def tie_distance(camera, view_depth, fmt: str) -> np.ndarray:
-    """Largest distance along a camera ray between two points that can store equal depths
-    in ``fmt`` when the farther has view depth at most ``view_depth`` (inf: unbounded).
-
-    :data:`TIE_QUANTA` quanta of normalized depth, as view depth (the inverse of
-    :func:`normalized_depth`), over the smallest cosine between a film ray and the view axis.
-    """
-    z = np.clip(np.asarray(view_depth, np.float64), camera.near, camera.far)
-    kind, bits = _depth.FORMATS[fmt]
-    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # float32 ulp below 2
-    d = normalized_depth(camera, z) + TIE_QUANTA * q
-    n, f = camera.near, camera.far
-    if camera.kind == "perspective":
-        den = 1.0 - d * (f - n) / f
-        far = np.where(den > 0, n / np.where(den > 0, den, 1.0), np.inf)
-        t = camera.tan_half_x
-        cos_min = 1.0 / np.sqrt(1.0 + t * t + (t / camera.aspect) ** 2)
-    else:
-        far = n + d * (f - n)
-        cos_min = 1.0
-    return (far - z) / cos_min + TIE_SLACK
-
-
-def tie_groups(scene, fmt: str) -> list[list[int]]:
-    """Shapes in groups whose members can never tie with each other (cached on the scene).
-
-    Two shapes may tie at a sample only if points of both lie on the sample's ray within
-    :func:`tie_distance` of each other, so only if their bounding boxes are that close
-    (the distance taken at the larger of the two boxes' farthest view depths). Shapes are
-    coloured greedily, in scene order, so that no two close shapes share a group. Within a
-    group, the nearest hit on a ray at a tie depth is the hit of the one member that can be
-    there: a trace of the group gives every member's tie test of a trace of that member
-    alone.
-    """
-    cache = scene.__dict__.setdefault("_aa_tie_groups", {})
-    if fmt in cache:
-        return cache[fmt]
-    cam = scene.camera
-    boxes = [sh.bbox() for sh in scene.mi_scene.shapes()]
-    lo = np.array([[float(c) for c in b.min] for b in boxes], np.float64).reshape(-1, 3)
-    hi = np.array([[float(c) for c in b.max] for b in boxes], np.float64).reshape(-1, 3)
-    corners = np.stack(
-        [np.where(np.array(m, bool), hi, lo) for m in np.ndindex(2, 2, 2)], axis=1
-    )  # (S, 8, 3)
-    zfar = ((corners - cam.position) @ cam.forward).max(axis=1)
-    gap = np.sqrt(
-        np.sum(
-            np.maximum(np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]), 0.0) ** 2,
-            axis=2,
-        )
-    )
-    close = gap <= tie_distance(cam, np.maximum(zfar[:, None], zfar[None]), fmt)
-    groups: list[list[int]] = []
-    for k in range(len(boxes)):  # one round per shape (a list-length loop)
-        for g in groups:
-            if not close[k, g].any():
-                g.append(k)
-                break
-        else:
-            groups.append([k])
-    cache[fmt] = groups
-    return groups
-
-
-def _group_scene(scene, members: list[int]):
-    """A Mitsuba scene of the given shapes of ``scene`` (cached on the loaded scene)."""
-    from scenes import backend
-
-    if len(members) == 1:
-        return _shape_scenes(scene)[members[0]]
-    mi = backend.mitsuba()
-    cache = scene.__dict__.setdefault("_aa_group_scenes", {})
-    key = tuple(members)
-    if key not in cache:
-        shapes = scene.mi_scene.shapes()
-        cache[key] = mi.load_dict({"type": "scene", **{f"shape_{k}": shapes[k] for k in members}})
-    return cache[key]
 
 
 def _fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
@@ -344,7 +237,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     n_pix = w * h
     cam = scene.camera
     groups = tie_groups(scene, p.depth_format)
-    subs = [_group_scene(scene, members) for members in groups]
+    subs = group_scenes(scene, groups)
     pre = _acaa_trace.prepass(scene, offsets, groups, subs, p.depth_format, centroid=p.centroid)
     # the largest tie distance (at the far plane): a view-depth bound on every tie
     window = float(tie_distance(cam, cam.far, p.depth_format))

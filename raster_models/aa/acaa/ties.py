@@ -3,7 +3,7 @@ test run before the group is traced, so the tie search traces only those samples
 
 A sample whose nearest surface lies at ``P`` (view depth ``z``) ties with a surface ``Q`` of
 another shape only where both store the same depth: ``Q`` lies on the sample's ray within
-``r(z)`` of ``P``, ``r`` the :func:`.acaa.tie_distance` bound (``TIE_QUANTA`` quanta of
+``r(z)`` of ``P``, ``r`` the :func:`.groups.tie_distance` bound (``TIE_QUANTA`` quanta of
 normalized depth over the smallest film-ray cosine, plus slack). ``Q`` lies in its shape's
 bounding box, so ``P`` lies within ``r(z)`` of that box. The test here keeps every sample
 with ``dist(P, box_k) <= radius(z)`` for some member ``k`` of the group, where ``radius`` is
@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ... import depth as _depth
+from .groups import TIE_QUANTA, TIE_SLACK, camera_key
 
 __all__ = ["GroupFilter", "group_filters", "near_dr", "radius_dr", "radius_np"]
 
@@ -44,10 +45,8 @@ UNBOUNDED_CZ = 0.5
 def _constants(camera, fmt: str):
     """``(c, cos_min, ortho_r)`` of the tie radius: ``far(z) - z = c z^2 / (1 - c z)`` for
     a perspective camera (``1/far = 1/z - c``), ``ortho_r`` for an orthographic one."""
-    from .model import TIE_QUANTA
-
     kind, bits = _depth.FORMATS[fmt]
-    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # as acaa.tie_distance
+    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # as groups.tie_distance
     n, f = camera.near, camera.far
     if camera.kind == "perspective":
         t = camera.tan_half_x
@@ -61,11 +60,9 @@ def radius_np(camera, fmt: str, z, p_max) -> np.ndarray:
     ``z`` whose hit position has largest absolute coordinate ``p_max``.
 
     ``2 r(z) + 2 TIE_SLACK + POSITION_ERROR (|z| + p_max)``, with ``r(z) = c z'^2 / (1 - c
-    z') / cos_min``, ``z' = max(z, near)`` (the depth bound of :func:`.acaa.tie_distance`
+    z') / cos_min``, ``z' = max(z, near)`` (the depth bound of :func:`.groups.tie_distance`
     in closed form; orthographic: ``TIE_QUANTA q (f - n)``); increasing in ``z`` and ``p_max``.
     """
-    from .model import TIE_SLACK
-
     c, cos_min, ortho_r = _constants(camera, fmt)
     z = np.asarray(z, np.float64)
     slack = 2.0 * TIE_SLACK + POSITION_ERROR * (np.abs(z) + np.asarray(p_max, np.float64))
@@ -81,8 +78,6 @@ def radius_np(camera, fmt: str, z, p_max) -> np.ndarray:
 def radius_dr(mi, dr, camera, fmt: str, z, p):
     """:func:`radius_np` on the Dr.Jit side (Float ``z``, Point3f ``p``), in float32: the
     factor 2 on ``r`` covers float32's relative error many times over."""
-    from .model import TIE_SLACK
-
     c, cos_min, ortho_r = _constants(camera, fmt)
     p_max = dr.maximum(dr.maximum(dr.abs(p.x), dr.abs(p.y)), dr.abs(p.z))
     slack = 2.0 * TIE_SLACK + POSITION_ERROR * (dr.abs(z) + p_max)
@@ -178,12 +173,14 @@ def _build(scene, members: list[int], fmt: str) -> GroupFilter:
 
 
 def group_filters(scene, groups: list[list[int]], fmt: str) -> list[GroupFilter]:
-    """One :class:`GroupFilter` per tie group (cached on the loaded scene)."""
-    cache = scene.__dict__.setdefault("_acaa_group_filters", {})
-    key = (fmt, tuple(tuple(g) for g in groups))
-    if key not in cache:
-        cache[key] = [_build(scene, g, fmt) for g in groups]
-    return cache[key]
+    """One :class:`GroupFilter` per tie group, memoized in ``scene.memo`` for the last
+    (camera, format, groups): the grid's radii depend on the camera."""
+    key = (fmt, camera_key(scene.camera), tuple(tuple(g) for g in groups))
+    slot = scene.memo.get("acaa.group_filters")
+    if slot is None or slot[0] != key:
+        slot = (key, [_build(scene, g, fmt) for g in groups])
+        scene.memo["acaa.group_filters"] = slot
+    return slot[1]
 
 
 def _dist2(dr, p, lo, hi):
