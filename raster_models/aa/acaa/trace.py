@@ -21,7 +21,7 @@ from scenes import backend
 from scenes.raycast import camera_rays_dr, shape_table
 
 from .. import trace as _trace
-from ..trace import _np, _view_depth, attributes_dr, shade_dr
+from ..trace import attributes_dr, shade_dr, to_numpy, view_depth
 from .ties import group_filters, near_dr, radius_dr
 
 __all__ = ["prepass", "shade_exact"]
@@ -52,7 +52,7 @@ def _launch(scene, table, ox, oy, base, count: int, n: int, tests: list, fmt: st
     pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
     valid = pi.is_valid()
     p_hit = ray.o + ray.d * pi.t
-    depth = dr.select(valid, _view_depth(cam, p_hit), 0.0)
+    depth = dr.select(valid, view_depth(cam, p_hit), 0.0)
     shape = _shape_of(mi, dr, table, pi)
     radius = radius_dr(mi, dr, cam, fmt, depth, p_hit)
     shape_1 = mi.UInt32(shape + 1)
@@ -205,7 +205,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 row["sum_x"], row["sum_y"] = _position_sums(valid, shape, prim, rep, n, offs64)
             dr.eval(*row.values())
             for key in keys:
-                near[key].append(_np(row[key]).copy())
+                near[key].append(to_numpy(row[key]).copy())
         for gi, mask in enumerate(masks):  # one trace per group, of its candidates only
             cand = dr.compress(mask)
             if dr.width(cand) == 0:
@@ -213,7 +213,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
             ray = _rays(scene, ox, oy, base, cand, n)
             pi = group_scenes[gi].ray_intersect_preliminary(ray, coherent=True)
             hit = pi.is_valid()
-            hit_depth = dr.select(hit, _view_depth(cam, ray.o + ray.d * pi.t), 0.0)
+            hit_depth = dr.select(hit, view_depth(cam, ray.o + ray.d * pi.t), 0.0)
             vals = (
                 cand,
                 dr.gather(mi.Float, depth, cand),
@@ -223,12 +223,12 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 pi.prim_index,
             )
             dr.eval(*vals)
-            c = _np(cand).astype(np.int64)
+            c = to_numpy(cand).astype(np.int64)
             out = cands[gi]
             out[0].append(p0 + c // n)
             out[1].append(c % n)
             for k, v in enumerate(vals[1:]):
-                out[k + 2].append(_np(v).copy())
+                out[k + 2].append(to_numpy(v).copy())
             traced += len(c)
     dtypes = (np.int64, np.int64, np.float32, bool, np.float32, np.int64, np.int64)
     dtypes_near = {"pixel": np.uint32, "sample": np.uint32, "shape": np.int32}
@@ -299,5 +299,5 @@ def shade_exact(scene, groups: list, group_scenes: list, frag: dict, offsets, ce
                 dr.scatter(rgb[c], color[c], part)
             dr.eval(rgb, count)
             rays += int(count[0])
-    rgb = np.stack([_np(c) for c in rgb], axis=1)
+    rgb = np.stack([to_numpy(c) for c in rgb], axis=1)
     return rgb, rays
