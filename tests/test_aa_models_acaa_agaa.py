@@ -15,7 +15,7 @@ from oracle.reference.cache import ReferenceCache
 from oracle.reference.render import ReferenceSettings
 from oracle.reference.store import get_reference
 from raster_models.aa import pixel_dr, samples, trace
-from raster_models.aa.acaa.model import rgba8_accumulate
+from raster_models.aa.acaa.blend import rgba8_accumulate
 from raster_models.aa.agaa.pixels import cluster_pixels
 from scenes import backend
 from tests.aa_reference import first_of_key, group_fragments

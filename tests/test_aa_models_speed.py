@@ -79,28 +79,13 @@ def test_tie_distance_grows_with_depth_and_precision():
     assert np.allclose(got, expect, rtol=1e-2)
 
 
-def test_agaa_segment_sums_are_reduceats_own_additions():
-    """AGAA's material sums: ``reduceat`` on the multi-row segments only must give the bytes
-    of ``reduceat`` on all rows (its float32 addition order is not left to right, so a
-    hand-written loop would not)."""
-    from raster_models.aa.agaa.model import _segment_sums
-
-    rng = np.random.default_rng(1)
-    for _ in range(50):
-        lens = rng.integers(1, 17, size=int(rng.integers(1, 400)))
-        lens[rng.random(len(lens)) < rng.random()] = 1
-        first = np.r_[0, np.cumsum(lens)[:-1]]
-        rows = (rng.standard_normal((int(lens.sum()), 15)) * 1e3).astype(np.float32)
-        assert np.array_equal(_segment_sums(rows, first), np.add.reduceat(rows, first, axis=0))
-
-
 @pytest.mark.parametrize("n", [1, 2, 4, 8, 16])
 @pytest.mark.parametrize("planar", [False, True])
 def test_box_resolve_fast_path_equals_the_weighted_sum(n, planar):
     """The unit-weight box resolve (a float64 reduction over the sample axis, on interleaved
     or planar colours) gives the bytes of the weighted einsum form it replaces, on colours
     spanning 60 binades (where float64 sums of float32 values could round)."""
-    from raster_models.aa import resolve as _resolve
+    from raster_models.aa import resolve
 
     rng = np.random.default_rng(n)
     h, w = 7, 5
@@ -111,6 +96,6 @@ def test_box_resolve_fast_path_equals_the_weighted_sum(n, planar):
     offsets = rng.random((n, 2))
     c = np.asarray(colors, np.float64).reshape(h, w, n, 3)
     expected = (np.einsum("hwn,hwnc->hwc", np.ones((h, w, n)), c) / n).astype(np.float32)
-    got = _resolve.resolve(colors, offsets, w, h, "box")
+    got = resolve.resolve(colors, offsets, w, h, "box")
     assert got.dtype == np.float32 and got.shape == (h, w, 3)
     assert got.tobytes() == expected.tobytes()
