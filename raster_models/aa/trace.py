@@ -93,7 +93,7 @@ def trace_samples(
     Parameters
     ----------
     scene : scenes.LoadedScene
-    offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`._samples`).
+    offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`.samples`).
     normals : also return the geometric normal turned towards the viewer.
     mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: a group of
         the scene's shapes).

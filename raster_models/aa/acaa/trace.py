@@ -165,7 +165,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     ----------
     groups : tie groups (lists of shape indices, :func:`.groups.tie_groups`).
     group_scenes : one Mitsuba scene per group holding its members.
-    fmt : depth format (the tie radius, :mod:`._acaa_ties`).
+    fmt : depth format (the tie radius, :mod:`.ties`).
     centroid : also return the sums of each fragment's sample positions.
 
     Returns
