@@ -13,7 +13,14 @@ slots while a kernel is being traced (at most 16 rounds), never over pixels or d
 
 from __future__ import annotations
 
-__all__ = ["first_of_key", "fragments_of", "slots", "store_normal", "to_sample_lanes"]
+__all__ = [
+    "VALUES_PER_WORD",
+    "first_of_key",
+    "fragments_of",
+    "slots",
+    "store_normal",
+    "to_sample_lanes",
+]
 
 
 def slots(mi, dr, tp, arr, n: int) -> list:
@@ -23,15 +30,34 @@ def slots(mi, dr, tp, arr, n: int) -> list:
     return [dr.gather(tp, arr, lane * n + j) for j in range(n)]
 
 
-def to_sample_lanes(mi, dr, tp, per_slot: list):
-    """The inverse of :func:`slots`: a list of ``N`` pixel-lane arrays as one sample-lane
-    array of type ``tp`` (evaluated by the scatters)."""
+#: Per-slot values packed per UInt32 word by :func:`to_sample_lanes` (5 bits each: 0 to 31,
+#: enough for a slot index or a sample count of up to 16 samples, and for ``N`` itself).
+VALUES_PER_WORD = 6
+
+
+def to_sample_lanes(mi, dr, per_slot: list):
+    """The inverse of :func:`slots` for small counts: a list of ``N`` pixel-lane UInt32
+    arrays of values in ``[0, 31]`` as one sample-lane UInt32 array (evaluated).
+
+    One lane a pixel packs its values, :data:`VALUES_PER_WORD` to a word; one lane a sample
+    then unpacks its own (two kernels, one or three word reads a sample).
+    """
     n = len(per_slot)
     width = max(dr.width(x) for x in per_slot)
-    lane = dr.arange(mi.UInt32, width)
-    out = dr.zeros(tp, width * n)
-    for j in range(n):
-        dr.scatter(out, tp(per_slot[j]), lane * n + j)
+    words = [mi.UInt32(0) for _ in range(-(-n // VALUES_PER_WORD))]
+    for j in range(n):  # sample slots (at most 16 rounds)
+        i, shift = j // VALUES_PER_WORD, 5 * (j % VALUES_PER_WORD)
+        words[i] = words[i] | (mi.UInt32(per_slot[j]) << shift)
+    words = [w + dr.zeros(mi.UInt32, width) for w in words]
+    dr.eval(*words)
+    idx = dr.arange(mi.UInt32, width * n)
+    local = idx // n
+    s = idx - local * n
+    word = dr.gather(mi.UInt32, words[0], local)
+    for i in range(1, len(words)):
+        word = dr.select(s >= i * VALUES_PER_WORD, dr.gather(mi.UInt32, words[i], local), word)
+    out = (word >> (5 * (s % VALUES_PER_WORD))) & 31
+    dr.eval(out)
     return out
 
 

@@ -225,7 +225,7 @@ def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, fra
             _pixel_dr.slots(mi, dr, mi.Int32, shape, n),
             _pixel_dr.slots(mi, dr, mi.UInt32, prim, n),
         )
-        extra["first"] = _pixel_dr.to_sample_lanes(mi, dr, mi.UInt32, per_slot)
+        extra["first"] = _pixel_dr.to_sample_lanes(mi, dr, per_slot)
         extra.update(
             _pixel_dr.fragments_of(
                 mi, dr, valid, extra["first"], local, n, s, dr.opaque(mi.UInt32, frag_offset)

@@ -34,7 +34,6 @@ from ..trace import (
 from .ties import group_filters, near_dr, point_radius_dr
 
 __all__ = [
-    "COUNTS_PER_WORD",
     "fragments_of_pixels",
     "launch_prepass",
     "position_sums",
@@ -94,18 +93,13 @@ def _rays(scene, ox, oy, base, idx, n: int):
     return camera_rays_dr(scene.camera, x, y)
 
 
-#: Fragment sample counts packed per UInt32 word (5 bits each: 0 to 16).
-COUNTS_PER_WORD = 6
-
-
 def fragments_of_pixels(valid, shape, prim, count: int, n: int):
     """Nearest fragments of ``count`` pixels: per sample, the number of samples of its pixel
     with its (shape, primitive) where it is the first of them (its fragment's
     representative), else 0 (UInt32, sample layout, evaluated).
 
     One lane a pixel groups the pixel's ``n`` samples (:func:`..pixel_dr.first_of_key`) and
-    packs the counts, :data:`COUNTS_PER_WORD` to a word; one lane a sample then unpacks its
-    own.
+    counts them; :func:`..pixel_dr.to_sample_lanes` hands each sample its own count.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -118,23 +112,13 @@ def fragments_of_pixels(valid, shape, prim, count: int, n: int):
         _pixel_dr.slots(mi, dr, mi.UInt32, prim, n),
     )
     one, zero = mi.UInt32(1), mi.UInt32(0)
-    words = [mi.UInt32(0) for _ in range(-(-n // COUNTS_PER_WORD))]
+    counts = []
     for j in range(n):  # sample slots (at most 16 rounds): slot j's fragment size, if first
         c = zero
         for i in range(j, n):  # first[i] == j only for i >= j, and never for sky (first = n)
             c = c + dr.select(first[i] == j, one, zero)
-        i, shift = j // COUNTS_PER_WORD, 5 * (j % COUNTS_PER_WORD)
-        words[i] = words[i] | (c << shift)
-    dr.eval(*words)
-    idx = dr.arange(mi.UInt32, count * n)
-    local = idx // n
-    s = idx - local * n
-    word = dr.gather(mi.UInt32, words[0], local)
-    for i in range(1, len(words)):
-        word = dr.select(s >= i * COUNTS_PER_WORD, dr.gather(mi.UInt32, words[i], local), word)
-    counts = (word >> (5 * (s % COUNTS_PER_WORD))) & 31
-    dr.eval(counts)
-    return counts
+        counts.append(c)
+    return _pixel_dr.to_sample_lanes(mi, dr, counts)
 
 
 def position_sums(valid, shape, prim, rep, n: int, offs64):
