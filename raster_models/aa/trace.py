@@ -82,11 +82,8 @@ def trace_samples(
     offsets: np.ndarray,
     *,
     normals: bool = False,
-    mi_scene=None,
-    pixels=None,
     group: bool = False,
     keep: tuple = ("valid", "shape", "prim", "depth", "first"),
-    scene_shapes: bool = False,
 ) -> dict:
     """Nearest surface at every sub-sample of every pixel (a depth prepass).
 
@@ -95,34 +92,27 @@ def trace_samples(
     scene : scenes.LoadedScene
     offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`.samples`).
     normals : also return the geometric normal turned towards the viewer.
-    mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: a group of
-        the scene's shapes).
-    pixels : pixel indices (row-major) to trace; default every pixel.
     group : also return ``first`` ((P, N) int8): the first sample of the pixel with the same
         (shape, primitive), ``N`` for sky (:func:`.pixel_dr.first_of_key`), and the fragment
         bookkeeping of :func:`.pixel_dr.fragments_of` (``rep``, ``of``, ``count``).
     keep : which of ``valid``, ``shape``, ``prim``, ``depth`` (and with ``group``,
         ``first``) to copy back to NumPy (the per-pixel kernels read them on the Dr.Jit side
         either way).
-    scene_shapes : ``mi_scene`` holds shape objects of ``scene`` itself: report ``shape`` as
-        their indices into ``scene.shape_names`` (else -1 or 0).
 
     Returns
     -------
     dict of ``(P, N)`` arrays: ``valid`` (bool), ``shape`` (int32, index into
-    ``scene.shape_names``, -1 sky; with ``mi_scene`` -1 or 0), ``prim`` (int64, -1 sky),
-    ``depth`` (float32 view depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``;
-    with ``mi_scene`` and ``scene_shapes``, ``shape`` indexes ``scene.shape_names``.
+    ``scene.shape_names``, -1 sky), ``prim`` (int64, -1 sky), ``depth`` (float32 view
+    depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``; with ``group`` the
+    fragment bookkeeping.
     """
     mi = backend.mitsuba()
     import drjit as dr
 
     cam = scene.camera
-    target = mi_scene if mi_scene is not None else scene.mi_scene
     offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
     n = len(offs)
-    pix_all = np.arange(cam.width * cam.height) if pixels is None else np.asarray(pixels)
-    n_pix = len(pix_all)
+    n_pix = cam.width * cam.height
     total = n_pix * n
     dtypes = {"valid": bool, "shape": np.int32, "prim": np.int64, "depth": np.float32}
     out = {key: np.empty(total, dtypes[key]) for key in keep if key in dtypes}
@@ -136,14 +126,15 @@ def trace_samples(
         out["count"] = np.empty(total, np.int8)
     n_frag = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
-    table = shape_table(mi, dr, scene) if mi_scene is None or scene_shapes else None
+    table = shape_table(mi, dr, scene)
     step = max(n, (CHUNK // n) * n)
     for start in range(0, total, step):
         stop = min(total, start + step)
-        pix = mi.UInt32(pix_all[start // n : stop // n].astype(np.uint32))
+        # an opaque offset: one kernel for every launch, not one per start
+        pix = dr.arange(mi.UInt32, (stop - start) // n) + dr.opaque(mi.UInt32, start // n)
         valid, depth, prim, shape, nrm, extra = prepass_dr(
             scene,
-            target,
+            scene.mi_scene,
             table,
             ox,
             oy,
@@ -178,13 +169,13 @@ def trace_samples(
 
 def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, frag_offset=0):
     """One launch of the prepass on the Dr.Jit side: ``n`` lanes a pixel, pixel ``i`` of the
-    launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float).
+    launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float);
+    ``target`` the Mitsuba scene intersected, ``table`` :func:`scenes.raycast.shape_table`.
 
     Returns ``(valid, depth, prim, shape, nrm, extra)``: Dr.Jit arrays as described in
-    :func:`trace_samples` (``nrm`` None unless ``normals``; ``shape`` -1/0 without
-    ``table``), ``extra`` the per-pixel results of ``group`` (fragment ids from
-    ``frag_offset``), all evaluated; ``extra`` also holds ``local`` and ``s``
-    (each lane's pixel within the launch and sample slot) unevaluated.
+    :func:`trace_samples` (``nrm`` None unless ``normals``), ``extra`` the per-pixel results
+    of ``group`` (fragment ids from ``frag_offset``), all evaluated; ``extra`` also holds
+    ``local`` and ``s`` (each lane's pixel within the launch and sample slot) unevaluated.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -207,13 +198,9 @@ def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, fra
         pi = target.ray_intersect_preliminary(ray, coherent=True)
         valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
     depth = dr.select(valid, view_depth(cam, ray.o + ray.d * t), 0.0)
-    if table is not None:
-        # masked: a preliminary intersection leaves the shape of a miss undefined
-        ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
-        shape = dr.gather(mi.Int32, table, ids, valid)
-        shape = dr.select(valid, shape, -1)
-    else:
-        shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
+    # masked: a preliminary intersection leaves the shape of a miss undefined
+    ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
+    shape = dr.select(valid, dr.gather(mi.Int32, table, ids, valid), -1)
     extra = {}
     if group:
         # one tracing kernel; the per-pixel kernels then gather from stored arrays
