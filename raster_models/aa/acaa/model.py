@@ -5,7 +5,7 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
    depth per sample, stored in ``depth_format`` (D24 UNORM or D32F of the D3D-style
    ``[0, 1]`` depth ``f/(f-n) (1 - n/z)``; orthographic ``(z-n)/(f-n)``).
 2. Shading pass, depth test LEQUAL, depth writes off: every fragment (primitive, pixel) is
-   shaded once (pixel centre on its plane, or centroid, as :mod:`.msaa`) and added to the
+   shaded once (pixel centre on its plane, or centroid, as :mod:`..msaa`) and added to the
    colour target with weight ``popcount(post-depth coverage) / N``, in submission order
    (shape, then primitive index). A fragment passes at a sample when its stored-format depth
    equals the prepass value there: the nearest surface, and any surface of another shape
@@ -20,7 +20,7 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
 3. ``accumulation="rgba8"`` rounds the target to 8-bit UNORM (``round(255 x) / 255`` of the
    saturated sum) at every addition; ``float32`` adds in float32.
 
-Where no depths tie the result equals :mod:`.msaa`'s box resolve up to float32 summation
+Where no depths tie the result equals :mod:`..msaa`'s box resolve up to float32 summation
 order. Memory = N x depth + one colour per pixel.
 
 References

@@ -10,7 +10,7 @@
    relative to the pixel's mean depth; normals from the prepass; the mean normal is the
    unnormalized average).
 3. Material accumulation (a second geometry pass): every fragment (primitive, pixel) adds its
-   attributes at the shading position (pixel centre on its plane, as :mod:`.msaa`) to the
+   attributes at the shading position (pixel centre on its plane, as :mod:`..msaa`) to the
    aggregate of each sample it owns, weighted by those samples: albedo, shading normal,
    position. Each aggregate's average albedo and position, and its *unnormalized* average
    normal, are shaded once (:func:`..trace.shade_dr` with ``filtered_normal``: diffuse
@@ -19,7 +19,7 @@
 4. The pixel is the coverage-weighted sum of its aggregates (sky samples add 0).
 
 With ``K`` at least the number of distinct surfaces in every pixel each aggregate holds one
-surface and the result equals :mod:`.msaa`; with more surfaces (foliage) albedo/normal
+surface and the result equals :mod:`..msaa`; with more surfaces (foliage) albedo/normal
 correlation is lost and shadows are tested at a blended position.
 
 The whole frame runs on the Dr.Jit side (:func:`.kernels.render`, per launch, per-pixel
