@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from . import params
 from .aa import fxaa as fxaa_model  # noqa: I001
-from .aa import msaa, ssaa
+from .aa import msaa, noaa, ssaa
 from .aa.acaa import model as acaa
 from .aa.agaa import model as agaa
 from .coherent import model as coherent
@@ -115,8 +115,8 @@ TECHNIQUES: dict[str, Technique] = {
             "noaa",
             "no anti-aliasing: one sample at each pixel centre, shaded there",
             ("F. C. Crow, The aliasing problem in computer-generated shaded images, CACM 1977",),
-            ssaa.NoAAParams,
-            ssaa.run_noaa,
+            noaa.NoAAParams,
+            noaa.run,
             _ALL_LIGHTS,
             "aa",
         ),

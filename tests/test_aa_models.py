@@ -17,8 +17,7 @@ from oracle.reference.cache import ReferenceCache
 from oracle.reference.render import ReferenceSettings
 from oracle.reference.store import get_reference
 from oracle.scoring.score import COVERAGE_FLOOR_RMS
-from raster_models.aa import resolve as _resolve
-from raster_models.aa import samples as _samples
+from raster_models.aa import resolve, samples
 from scenes.builtin import BuiltinScene
 from scenes.factories import mesh, sensor, sun
 from tests._geometry import polygon_coverage
@@ -54,21 +53,21 @@ def _triangle_scene(verts):
 
 
 def test_standard_positions():
-    for n in _samples.STANDARD_COUNTS:
-        p = _samples.positions(n)
+    for n in samples.STANDARD_COUNTS:
+        p = samples.positions(n)
         assert p.shape == (n, 2) and (p >= 0).all() and (p < 1).all()
         assert len({tuple(q) for q in p}) == n
     # 4x: D3D's (-2,-6) (6,-2) (-6,2) (2,6) sixteenths from the centre, y down
     d3d = np.array([(-2, -6), (6, -2), (-6, 2), (2, 6)]) / 16 + 0.5
-    assert np.array_equal(_samples.positions(4), d3d)
-    assert np.allclose(_samples.positions(16).mean(axis=0), (0.46875, 0.46875))
-    assert np.allclose(_samples.positions(8).mean(axis=0), (0.5, 0.5))
-    grid = _samples.positions(6, "ordered-grid")
+    assert np.array_equal(samples.positions(4), d3d)
+    assert np.allclose(samples.positions(16).mean(axis=0), (0.46875, 0.46875))
+    assert np.allclose(samples.positions(8).mean(axis=0), (0.5, 0.5))
+    grid = samples.positions(6, "ordered-grid")
     assert sorted(map(tuple, grid)) == sorted(
         (x, y) for x in (1 / 6, 0.5, 5 / 6) for y in (0.25, 0.75)
     )
     with pytest.raises(rm.ModelError, match="standard pattern"):
-        _samples.positions(3)
+        samples.positions(3)
 
 
 @pytest.mark.parametrize("n", [1, 2, 4, 8, 16])
@@ -78,7 +77,7 @@ def test_msaa_coverage_is_the_exact_sample_count(n):
     verts = np.array([(-2.1, -1.3, 0.0), (2.45, -0.9, 0.0), (0.3, 1.7, 0.0)])
     scene = _triangle_scene(verts)
     film = scene.camera.project(verts)
-    offs = _samples.positions(n)
+    offs = samples.positions(n)
     yy, xx = np.mgrid[0:H, 0:W]
     sx = xx[..., None] + offs[:, 0]
     sy = yy[..., None] + offs[:, 1]
@@ -160,7 +159,7 @@ def test_straight_edge_coverage_error_reproduces_the_floor_table():
             near_corner[max(y0 - 1, 0) : y0 + 2, max(x0 - 1, 0) : x0 + 2] = True
     single = (exact > 0) & (exact < 1) & ~near_corner & (touched == 1)
     assert single.sum() > 2500
-    for n in _samples.STANDARD_COUNTS:
+    for n in samples.STANDARD_COUNTS:
         cov = rm.run("msaa", scene, samples=n).outputs["coverage"]
         rms = float(np.sqrt(np.mean((cov - exact)[single] ** 2)))
         assert rms == pytest.approx(COVERAGE_FLOOR_RMS[n], rel=FLOOR_RTOL), n
@@ -210,7 +209,7 @@ def test_noaa_is_the_centre_sample(star):
 
 
 def test_filter_kernels_closed_form():
-    f = _resolve.filter_weight
+    f = resolve.filter_weight
     assert f("catmull-rom", np.array([0.0, 1.0, 2.0])) == pytest.approx([1.0, 0.0, 0.0])
     # Mitchell-Netravali B = C = 1/3: f(0) = (6 - 2B)/6 = 8/9, f(1) = B/6 = 1/18
     assert f("mitchell", np.array([0.0, 1.0, 2.0])) == pytest.approx([8 / 9, 1 / 18, 0.0])
@@ -220,21 +219,21 @@ def test_filter_kernels_closed_form():
     assert f("blackman-harris", np.array([2.0]))[0] == pytest.approx(6e-5, abs=1e-4)
 
 
-@pytest.mark.parametrize("name", _resolve.FILTERS)
+@pytest.mark.parametrize("name", resolve.FILTERS)
 def test_resolve_of_constant_samples_is_the_constant(name):
-    offs = _samples.positions(8)
+    offs = samples.positions(8)
     c = np.full((6 * 5, 8, 3), 0.37, np.float32)
-    out = _resolve.resolve(c, offs, 6, 5, name, inverse_luminance=True)
+    out = resolve.resolve(c, offs, 6, 5, name, inverse_luminance=True)
     assert np.allclose(out, 0.37, rtol=1e-6)
 
 
 def test_box_resolve_with_inverse_luminance_by_hand():
     """Two samples, luminance 0 and 3 (grey 3): weights 1 and 1/4, so
     (1 * 0 + 0.25 * 3) / 1.25 = 0.6 instead of the plain mean 1.5."""
-    offs = _samples.positions(2)
+    offs = samples.positions(2)
     c = np.array([[[0.0] * 3, [3.0] * 3]], np.float32)
-    assert _resolve.resolve(c, offs, 1, 1, "box")[0, 0] == pytest.approx([1.5] * 3)
-    out = _resolve.resolve(c, offs, 1, 1, "box", inverse_luminance=True)
+    assert resolve.resolve(c, offs, 1, 1, "box")[0, 0] == pytest.approx([1.5] * 3)
+    out = resolve.resolve(c, offs, 1, 1, "box", inverse_luminance=True)
     assert out[0, 0] == pytest.approx([0.6] * 3, rel=1e-6)
 
 
@@ -386,9 +385,9 @@ def test_box_resolve_per_fragment_equals_per_sample(inverse_luminance):
     from raster_models.aa import msaa
 
     s = scenes.load("thin", **SMALL)
-    offs = _samples.positions(8)
+    offs = samples.positions(8)
     ms = msaa.multisample(s, offs, centroid=False, shadows="exact")
-    per_sample = _resolve.resolve(
+    per_sample = resolve.resolve(
         msaa.sample_colors(ms["frags"], ms["rgb"]),
         offs,
         W,

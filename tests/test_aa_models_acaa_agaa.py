@@ -14,9 +14,11 @@ import scenes
 from oracle.reference.cache import ReferenceCache
 from oracle.reference.render import ReferenceSettings
 from oracle.reference.store import get_reference
-from raster_models.aa import trace as _trace
-from raster_models.aa.acaa.model import rgba8_accumulate
-from raster_models.aa.agaa.model import cluster, quantize_normals
+from raster_models.aa import pixel_dr, samples, trace
+from raster_models.aa.acaa.blend import rgba8_accumulate
+from raster_models.aa.agaa.pixels import cluster_pixels
+from scenes import backend
+from tests.aa_reference import first_of_key, group_fragments
 
 W, H = 64, 36
 SMALL = {"width": W, "height": H}
@@ -136,6 +138,30 @@ def test_agaa_degrades_on_foliage():
     assert np.abs(g2.outputs["color"] - m.outputs["color"])[many].mean() > 1000 * FLOAT_TOL
 
 
+def cluster(valid, depth, normal, k, threshold, weight):
+    """AGAA's clustering of ``(P, N)`` samples by the model's Dr.Jit rule, as a list."""
+    mi = backend.mitsuba()
+    n = valid.shape[1]
+    out = cluster_pixels(
+        mi,
+        __import__("drjit"),
+        [mi.Bool(valid[:, j]) for j in range(n)],
+        [mi.Float(depth[:, j]) for j in range(n)],
+        [mi.Vector3f(*(mi.Float(normal[:, j, c]) for c in range(3))) for j in range(n)],
+        k,
+        threshold,
+        weight,
+    )
+    return np.stack([a.numpy() for a in out], axis=1).tolist()
+
+
+def stored_normals(n, fmt):
+    """Unit normals ``(M, 3)`` as the model stores them in ``fmt`` and reads them back."""
+    mi = backend.mitsuba()
+    v = mi.Vector3f(*(mi.Float(np.asarray(n, np.float32)[:, a]) for a in range(3)))
+    return trace.to_numpy(pixel_dr.store_normal(mi, __import__("drjit"), v, fmt)).T
+
+
 def test_cluster_by_hand():
     """Four samples: two at depth 1, two at depth 2, same normal. Distances to the mean
     (1.5) tie, so the first sample seeds; the farthest from it is sample 2 (relative gap
@@ -143,25 +169,25 @@ def test_cluster_by_hand():
     valid = np.ones((1, 4), bool)
     depth = np.array([[1.0, 1.0, 2.0, 2.0]])
     normal = np.tile([0.0, 0.0, 1.0], (1, 4, 1))
-    assert cluster(valid, depth, normal, 2, 0.1, 1.0).tolist() == [[0, 0, 1, 1]]
-    assert cluster(valid, depth, normal, 1, 0.1, 1.0).tolist() == [[0, 0, 0, 0]]
-    assert cluster(valid, depth, normal, 2, 0.7, 1.0).tolist() == [[0, 0, 0, 0]]
+    assert cluster(valid, depth, normal, 2, 0.1, 1.0) == [[0, 0, 1, 1]]
+    assert cluster(valid, depth, normal, 1, 0.1, 1.0) == [[0, 0, 0, 0]]
+    assert cluster(valid, depth, normal, 2, 0.7, 1.0) == [[0, 0, 0, 0]]
     # opposite normals at one depth; the mean normal is (0, 0, 1/3), so the odd sample is
     # the farthest from the mean (1 + 1/3) and seeds aggregate 0; sky samples get -1
     normal2 = np.array([[[0, 0, 1.0], [0, 0, -1.0], [0, 0, 1.0], [0, 0, 1.0]]])
     v2 = np.array([[True, True, True, False]])
-    assert cluster(v2, np.ones((1, 4)), normal2, 2, 0.1, 1.0).tolist() == [[1, 0, 1, -1]]
+    assert cluster(v2, np.ones((1, 4)), normal2, 2, 0.1, 1.0) == [[1, 0, 1, -1]]
 
 
 def test_normal_formats():
     n = np.array([[1.0, 0.0, 0.0], [0.0, 0.6, 0.8]])
-    q = quantize_normals(n, "rgb10a2")
+    q = stored_normals(n, "rgb10a2")
     # 0 stores as round(0.5 * 1023) = 512 -> 2 * 512/1023 - 1 = 1/1023
     assert q[0] == pytest.approx([1.0, 1 / 1023, 1 / 1023], abs=1e-6)
     for fmt, tol in (("rgb10a2", 1.5e-3), ("oct16", 1e-4), ("rgba16f", 1e-3)):
         r = np.random.default_rng(1).normal(size=(1000, 3))
         r /= np.linalg.norm(r, axis=1, keepdims=True)
-        assert np.abs(quantize_normals(r, fmt) - r).max() < tol, fmt
+        assert np.abs(stored_normals(r, fmt) - r).max() < tol, fmt
 
 
 def test_filtered_normal_shading_by_hand():
@@ -185,7 +211,7 @@ def test_filtered_normal_shading_by_hand():
             "offset": np.zeros(1),
             "valid": np.ones(1, bool),
         }
-        rgb, rays = _trace.shade_points(s, attrs, visibility=np.ones(1), filtered_normal=True)
+        rgb, rays = trace.shade_points(s, attrs, visibility=np.ones(1), filtered_normal=True)
         assert rays == 0
         sh = spec.shininess
         ft = length / (length + sh * (1 - length))
@@ -194,39 +220,32 @@ def test_filtered_normal_shading_by_hand():
         assert rgb[0] == pytest.approx(expect, rel=1e-5)
 
 
-@pytest.mark.parametrize("fmt", ["rgb10a2", "oct16", "rgba16f"])
-def test_drjit_grouping_and_clustering_match_numpy(fmt):
-    """The prepass's per-pixel work on the Dr.Jit side (fragment representatives, AGAA
-    aggregates on stored normals) equals the NumPy reference rule sample for sample."""
-    from raster_models.aa import samples as _samples
-    from raster_models.aa.fragments import first_of_key
-
+@pytest.mark.parametrize("n", [4, 16])
+def test_drjit_grouping_matches_numpy(n):
+    """The prepass's fragment representatives on the Dr.Jit side (MSAA's grouping) equal
+    the NumPy reference rule sample for sample (AGAA's own per-pixel work:
+    ``test_agaa_fused.py``)."""
     s = scenes.load("foliage", **SMALL)
-    for n in (4, 16):
-        b = _trace.trace_samples(
-            s, _samples.positions(n), normals=True, group=True, cluster=(2, 0.1, 1.0, fmt)
-        )
-        v = b["valid"]
-        assert np.array_equal(np.where(v, first_of_key(v, b["shape"], b["prim"]), n), b["first"])
-        ref = cluster(v, b["depth"], quantize_normals(b["normal"], fmt), 2, 0.1, 1.0)
-        assert np.array_equal(ref, b["aggregate"])
-        assert (b["aggregate"] == 1).sum() > 0.05 * v.sum()
+    b = trace.trace_samples(
+        s, samples.positions(n), group=True, keep=("valid", "shape", "prim", "first")
+    )
+    v = b["valid"]
+    assert np.array_equal(np.where(v, first_of_key(v, b["shape"], b["prim"]), n), b["first"])
+    assert (b["first"][v] > 0).any()
 
 
 def test_chunked_prepass_equals_one_launch(monkeypatch):
     """Launch size is a memory bound only: a prepass cut into many chunks (a chunk ends
     mid-image, not on a row) gives the same bytes as one launch."""
-    from raster_models.aa import samples as _samples
-
     s = scenes.load("thin", **SMALL)
-    offs = _samples.positions(8)
-    whole = _trace.trace_samples(s, offs, group=True, cluster=(2, 0.1, 1.0, "rgb10a2"))
-    monkeypatch.setattr(_trace, "CHUNK", 8 * 97)
-    parts = _trace.trace_samples(s, offs, group=True, cluster=(2, 0.1, 1.0, "rgb10a2"))
+    offs = samples.positions(8)
+    whole = trace.trace_samples(s, offs, group=True, normals=True)
+    monkeypatch.setattr(trace, "CHUNK", 8 * 97)
+    parts = trace.trace_samples(s, offs, group=True, normals=True)
     for key, val in whole.items():
         assert np.array_equal(val, parts[key]), key
     a = rm.run("agaa", s)
-    monkeypatch.setattr(_trace, "CHUNK", 1 << 21)
+    monkeypatch.setattr(trace, "CHUNK", 1 << 21)
     b = rm.run("agaa", s)
     assert a.outputs["color"].tobytes() == b.outputs["color"].tobytes()
 
@@ -234,19 +253,13 @@ def test_chunked_prepass_equals_one_launch(monkeypatch):
 def test_drjit_fragment_bookkeeping_matches_numpy(monkeypatch):
     """Fragment ids, representatives and sample counts from the Dr.Jit prepass (prefix sums
     across launches) equal the NumPy grouping of the same samples."""
-    from raster_models.aa import samples as _samples
-    from raster_models.aa.fragments import fragments_from_prepass, group_fragments
+    from raster_models.aa.fragments import fragments_from_prepass
 
-    monkeypatch.setattr(_trace, "CHUNK", 8 * 333)
+    monkeypatch.setattr(trace, "CHUNK", 8 * 333)
     s = scenes.load("thin", **SMALL)
-    b = _trace.trace_samples(s, _samples.positions(8), group=True, cluster=(2, 0.1, 1.0, "oct16"))
+    b = trace.trace_samples(s, samples.positions(8), group=True)
     got = fragments_from_prepass(b, 8)
     ref = group_fragments(b["valid"], b["shape"], b["prim"])
     assert np.array_equal(got.of_sample, ref.of_sample)
     assert np.array_equal(got.pixel, ref.pixel) and np.array_equal(got.sample, ref.sample)
     assert np.array_equal(got.count, ref.count)
-    # (fragment, aggregate) pairs: each pair counted once, counts add up to the samples
-    pairs = np.flatnonzero(b["pair_rep"].ravel())
-    assert b["pair_count"].ravel()[pairs].sum() == b["valid"].sum()
-    key = b["of"].ravel() * 2 + b["aggregate"].ravel()
-    assert len(np.unique(key[b["valid"].ravel()])) == len(pairs)

@@ -1,7 +1,8 @@
 """ACAA's fast paths give the bytes of the direct ones: the proximity test that picks the
-samples of the tie search (:mod:`raster_models.aa.acaa.ties`), the per-pixel fragment
-grouping and the fused prepass/shading on the Dr.Jit side
-(:mod:`raster_models.aa.acaa.trace`), and the blend on pixel-sorted runs."""
+samples of the tie search (:mod:`raster_models.aa.acaa.ties`) against tracing every sample,
+the grid lookup against testing every box, the per-pixel fragment grouping on the Dr.Jit
+side (:mod:`raster_models.aa.acaa.trace`) against the NumPy rule, and the blend on
+pixel-sorted runs against one addition at a time."""
 
 from __future__ import annotations
 
@@ -12,12 +13,13 @@ import pytest
 
 import raster_models as rm
 import scenes
-from raster_models.aa import samples as _samples
-from raster_models.aa import trace as _trace
+from raster_models.aa import samples, trace
+from raster_models.aa.acaa import blend, groups, ties
 from raster_models.aa.acaa import model as acaa
-from raster_models.aa.acaa import ties as _acaa_ties
-from raster_models.aa.acaa import trace as _acaa_trace
-from raster_models.aa.fragments import group_fragments
+from raster_models.aa.acaa import trace as acaa_trace
+from scenes import backend
+from scenes.raycast import shape_table
+from tests.aa_reference import group_fragments
 
 SMALL = {"width": 64, "height": 36}
 #: Relative agreement of the float32 tie radius with its float64 twin (float32 rounding of
@@ -32,17 +34,17 @@ def _grid_lookup_equals_direct(mi, dr, cam, grid, direct, pts):
     box; asserts they are equal and returns them."""
     pf = mi.Point3f(*(mi.Float(np.ascontiguousarray(pts[:, a], np.float32)) for a in range(3)))
     zf = mi.Float(((pts - cam.position) @ cam.forward).astype(np.float32))
-    radius = _acaa_ties.radius_dr(mi, dr, cam, "D24", zf, pf)
-    got = _acaa_ties.near_dr(mi, dr, grid, pf, radius).numpy()
-    ref = _acaa_ties.near_dr(mi, dr, direct, pf, radius).numpy()
+    radius = ties.point_radius_dr(dr, cam, "D24", zf, pf)
+    got = ties.near_dr(mi, dr, grid, pf, radius).numpy()
+    ref = ties.near_dr(mi, dr, direct, pf, radius).numpy()
     assert np.array_equal(got, ref)
     return ref
 
 
-def _no_filter(scene, groups, fmt):
+def _no_filter(scene, found, fmt):
     """Every sample a tie candidate of every group (the unfiltered tie search)."""
     box = np.zeros((0, 3), np.float32)
-    return [_acaa_ties.GroupFilter(True, box, box) for _ in groups]
+    return [ties.GroupFilter(True, box, box) for _ in found]
 
 
 @pytest.mark.parametrize(
@@ -60,7 +62,7 @@ def test_proximity_filtered_tie_search_equals_unfiltered(monkeypatch, name, para
     sample)."""
     scene = scenes.load(name, **SMALL)
     fast = rm.run("acaa", scene, **params)
-    monkeypatch.setattr(_acaa_trace, "group_filters", _no_filter)
+    monkeypatch.setattr(acaa_trace, "group_filters", _no_filter)
     full = rm.run("acaa", scenes.load(name, **SMALL), **params)
     for key, value in full.outputs.items():
         assert value.tobytes() == fast.outputs[key].tobytes(), key
@@ -78,7 +80,7 @@ def test_chunked_acaa_equals_one_launch(monkeypatch):
     one launch."""
     scene = scenes.load("decal", **SMALL)
     whole = rm.run("acaa", scene, samples=8, centroid=True)
-    monkeypatch.setattr(_trace, "CHUNK", 8 * 97)
+    monkeypatch.setattr(trace, "CHUNK", 8 * 97)
     parts = rm.run("acaa", scenes.load("decal", **SMALL), samples=8, centroid=True)
     for key, value in whole.outputs.items():
         assert value.tobytes() == parts.outputs[key].tobytes(), key
@@ -89,25 +91,23 @@ def test_radius_is_twice_the_tie_distance_plus_slack():
     """Perspective: ``radius(z) = 2 tie_distance(z) + POSITION_ERROR (z + p_max)`` (the
     closed form ``c z^2 / (1 - c z)`` of the tie distance's inverse depth); unbounded once
     ``c z`` reaches :data:`UNBOUNDED_CZ`; the float32 Dr.Jit twin agrees."""
-    from scenes import backend
-
     mi = backend.mitsuba()
     import drjit as dr
 
     cam = scenes.load("city", **SMALL).camera
     z = np.array([0.05, 1.0, 10.0, 100.0, 1000.0, 1999.0])
     for fmt in ("D24", "D32F"):
-        got = _acaa_ties.radius_np(cam, fmt, z, 50.0)
-        expect = 2.0 * acaa.tie_distance(cam, z, fmt) + _acaa_ties.POSITION_ERROR * (z + 50.0)
+        got = ties.tie_radius(cam, fmt, z, 50.0)
+        expect = 2.0 * groups.tie_distance(cam, z, fmt) + ties.POSITION_ERROR * (z + 50.0)
         assert np.allclose(got, expect, rtol=CLOSED_FORM_RTOL, atol=0)
         p = mi.Point3f(mi.Float(np.full(len(z), 50.0)), 0.0, 0.0)
-        r32 = _acaa_ties.radius_dr(mi, dr, cam, fmt, mi.Float(z), p).numpy()
+        r32 = ties.point_radius_dr(dr, cam, fmt, mi.Float(z), p).numpy()
         assert np.allclose(r32, got, rtol=RADIUS_RTOL, atol=0)
     far_near = dataclasses.replace(cam, near=1e-4, far=1e5)
-    c = _acaa_ties._constants(far_near, "D24")[0]
+    c = ties.radius_constants(far_near, "D24")[0]
     zs = np.array([0.4, 0.6]) / c
-    assert np.isfinite(_acaa_ties.radius_np(far_near, "D24", zs[0], 0.0))
-    assert np.isinf(_acaa_ties.radius_np(far_near, "D24", zs[1], 0.0))
+    assert np.isfinite(ties.tie_radius(far_near, "D24", zs[0], 0.0))
+    assert np.isinf(ties.tie_radius(far_near, "D24", zs[1], 0.0))
 
 
 def test_grid_lookup_equals_testing_every_member():
@@ -115,16 +115,13 @@ def test_grid_lookup_equals_testing_every_member():
     whose box can lie within the point's tie radius, so its answer equals the test against
     every box, point for point (points inside, around and just off the boxes' faces, within
     a few radii)."""
-    from scenes import backend
-
     mi = backend.mitsuba()
     import drjit as dr
 
     scene = scenes.load("city", **SMALL)
     cam = scene.camera
-    groups = acaa.tie_groups(scene, "D24")
-    big = max(groups, key=len)
-    grid = _acaa_ties.group_filters(scene, [big], "D24")[0]
+    big = max(groups.tie_groups(scene, "D24"), key=len)
+    grid = ties.group_filters(scene, [big], "D24")[0]
     assert grid.starts is not None and grid.longest >= 1
     direct = dataclasses.replace(grid, starts=None, members=None)
     rng = np.random.default_rng(7)
@@ -133,7 +130,7 @@ def test_grid_lookup_equals_testing_every_member():
     pts = lo + rng.random((len(k), 3)) * (hi - lo)
     # move half the points onto a face, then off it by up to three radii either way
     z = (pts - cam.position) @ cam.forward
-    r_est = _acaa_ties.radius_np(cam, "D24", z, np.abs(pts).max(axis=1))
+    r_est = ties.tie_radius(cam, "D24", z, np.abs(pts).max(axis=1))
     face = rng.random(len(k)) < 0.5
     axis = rng.integers(0, 3, len(k))
     side = np.where(rng.random((len(k), 1)) < 0.5, lo, hi)[np.arange(len(k)), axis]
@@ -146,28 +143,29 @@ def test_grid_lookup_equals_testing_every_member():
 @pytest.mark.parametrize(("name", "n"), [("thin", 4), ("foliage", 16), ("decal", 8)])
 def test_per_pixel_grouping_matches_numpy(name, n):
     """Representatives, sample counts and centroid sums from one lane a pixel equal the
-    NumPy grouping (:func:`._fragments.group_fragments`) and ``np.bincount``'s sums."""
-    from scenes import backend
-    from scenes.raycast import shape_table
-
+    NumPy grouping (:func:`tests.aa_reference.group_fragments`) and ``np.bincount``'s sums
+    exactly (the standard positions are multiples of 1/16: their float64 sums are exact in
+    any order)."""
     mi = backend.mitsuba()
     import drjit as dr
 
     scene = scenes.load(name, **SMALL)
-    offs = _samples.positions(n)
-    b = _trace.trace_samples(scene, offs, keep=("valid", "shape", "prim", "depth"))
+    offs = samples.positions(n)
+    b = trace.trace_samples(scene, offs, keep=("valid", "shape", "prim", "depth"))
     ref = group_fragments(b["valid"], b["shape"], b["prim"])
     ox, oy = (mi.Float(offs[:, a].astype(np.float32)) for a in range(2))
     count = scene.width * scene.height
     table = shape_table(mi, dr, scene)
     base = dr.opaque(mi.UInt32, 0)
-    valid, _, prim, shape, _ = _acaa_trace._launch(scene, table, ox, oy, base, count, n, [], "D24")
-    counts = _acaa_trace._fragments_of_pixels(valid, shape, prim, count, n)
+    valid, _, prim, shape, _ = acaa_trace.launch_prepass(
+        scene, table, ox, oy, base, count, n, [], "D24"
+    )
+    counts = acaa_trace.fragments_of_pixels(valid, shape, prim, count, n)
     rep = dr.compress(counts > 0)
     r = rep.numpy().astype(np.int64)
     assert np.array_equal(r // n, ref.pixel) and np.array_equal(r % n, ref.sample)
     assert np.array_equal(dr.gather(mi.UInt32, counts, rep).numpy(), ref.count)
-    sums = _acaa_trace._position_sums(valid, shape, prim, rep, n, offs.astype(np.float64))
+    sums = acaa_trace.position_sums(valid, shape, prim, rep, n, offs.astype(np.float64))
     of = ref.of_sample.ravel()
     ok = of >= 0
     slot = np.flatnonzero(ok) % n
@@ -196,14 +194,14 @@ def test_blend_equals_one_addition_at_a_time(rgba8):
             if rgba8:
                 s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
             ref[pixel[i]] = s
-        got = acaa._blend(values, pixel, start, rgba8=rgba8)
+        got = blend.blend(values, pixel, start, rgba8=rgba8)
         assert got.dtype == dtype and got.tobytes() == ref.tobytes()
         # pixels grouped (contiguous runs) but not sorted: no sort needed
         grouped = np.argsort(pixel % 7 * 1000 + pixel, kind="stable")
-        got = acaa._blend(values[grouped], pixel[grouped], start, rgba8=rgba8, grouped=True)
+        got = blend.blend(values[grouped], pixel[grouped], start, rgba8=rgba8, grouped=True)
         assert got.tobytes() == ref.tobytes()
         if not start.any():
-            zero = acaa._blend(values, pixel, n_pix, rgba8=rgba8)
+            zero = blend.blend(values, pixel, n_pix, rgba8=rgba8)
             assert zero.tobytes() == ref.tobytes()
 
 
@@ -212,7 +210,7 @@ def test_fragment_merge_equals_sorting_everything():
     sorting every entry by (pixel, shape, primitive, sample) and merging equal keys."""
     rng = np.random.default_rng(5)
     n, n_pix = 8, 400
-    offs = _samples.positions(n)
+    offs = samples.positions(n)
     # nearest fragments: pixel order, distinct (shape, prim) and first samples in a pixel
     per = rng.integers(0, 4, n_pix)
     pixel = np.repeat(np.arange(n_pix), per)
@@ -230,7 +228,7 @@ def test_fragment_merge_equals_sorting_everything():
     pick = rng.choice(len(pixel), 60, replace=False)
     t_shape = np.where(rng.random(60) < 0.5, near["shape"][pick], 7)
     ties = [(pixel[pick], (rank[pick] * 2 + 1) % n, t_shape, near["prim"][pick])]
-    got = acaa._fragments(near, ties, offs, n_pix, centroid=True)
+    got = acaa.merge_fragments(near, ties, offs, n_pix, centroid=True)
     # reference: every entry sorted, equal (pixel, shape, prim) merged
     cat = {
         k: np.concatenate([near[k], v])
@@ -256,8 +254,6 @@ def test_grid_margin_covers_radii_wider_than_cells():
     any radius a tie with it can have (points up to three radii off the faces)."""
     import types
 
-    from scenes import backend
-
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -275,15 +271,17 @@ def test_grid_margin_covers_radii_wider_than_cells():
         f"cube_{k}": {"type": "cube", "to_world": T().translate(c.tolist()).scale(0.5)}
         for k, c in enumerate(centres)
     }
-    scene = types.SimpleNamespace(camera=cam, mi_scene=mi.load_dict({"type": "scene", **shapes}))
-    grid = _acaa_ties.group_filters(scene, [list(range(len(centres)))], "D24")[0]
-    assert grid.starts is not None and grid.longest <= _acaa_ties.CELL_LIST
+    scene = types.SimpleNamespace(
+        camera=cam, mi_scene=mi.load_dict({"type": "scene", **shapes}), memo={}
+    )
+    grid = ties.group_filters(scene, [list(range(len(centres)))], "D24")[0]
+    assert grid.starts is not None and grid.longest <= ties.CELL_LIST
     direct = dataclasses.replace(grid, starts=None, members=None)
     rng = np.random.default_rng(11)
     k = rng.integers(0, len(centres), 100_000)
     lo, hi = grid.lo[k].astype(np.float64), grid.hi[k].astype(np.float64)
     z = (np.asarray(centres)[k] - cam.position) @ cam.forward
-    r_est = _acaa_ties.radius_np(cam, "D24", z, np.abs(hi).max(axis=1))
+    r_est = ties.tie_radius(cam, "D24", z, np.abs(hi).max(axis=1))
     assert r_est.min() > 3.0 * grid.cell  # radii span several cells
     pts = lo + rng.random((len(k), 3)) * (hi - lo)
     axis = rng.integers(0, 3, len(k))

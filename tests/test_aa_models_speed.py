@@ -1,7 +1,7 @@
 """The faster paths of the AA models give the results of the direct ones.
 
-ACAA's tie search traces groups of shapes (:func:`raster_models.aa.acaa.model.tie_groups`) instead
-of one scene per shape: the outputs must be those of the per-shape search, byte for byte,
+ACAA's tie search traces groups of shapes (:func:`raster_models.aa.acaa.groups.tie_groups`)
+instead of one scene per shape: the outputs must be those of the per-shape search, byte for byte,
 on scenes with ties (decal), with many shapes (city) and with many surfaces a pixel (thin).
 """
 
@@ -12,6 +12,7 @@ import pytest
 
 import raster_models as rm
 import scenes
+from raster_models.aa.acaa import groups
 from raster_models.aa.acaa import model as acaa
 
 SMALL = {"width": 64, "height": 36}
@@ -49,14 +50,14 @@ def test_tie_groups_split_touching_shapes_only():
     within a tie distance of each other (decimetres at the city's depths) and share one.
     Decal: the decal lies on the wall and the panel is duplicated: never in one group."""
     city = scenes.load("city", **SMALL)
-    groups = acaa.tie_groups(city, "D24")
+    found = groups.tie_groups(city, "D24")
     names = city.shape_names
-    assert len(groups) == 2
-    ground = [g for g in groups if any(names[k] == "ground" for k in g)]
+    assert len(found) == 2
+    ground = [g for g in found if any(names[k] == "ground" for k in g)]
     assert ground == [[names.index("ground")]]
     decal = scenes.load("decal", **SMALL)
     for fmt in ("D24", "D32F"):
-        for g in acaa.tie_groups(decal, fmt):
+        for g in groups.tie_groups(decal, fmt):
             members = {decal.shape_names[k] for k in g}
             assert not ({"wall", "decal"} <= members), members
             assert not ({"panel", "panel_copy"} <= members), members
@@ -68,29 +69,14 @@ def test_tie_distance_grows_with_depth_and_precision():
     :data:`TIE_QUANTA` of them over the corner cosine, and grows with depth."""
     cam = scenes.load("city", **SMALL).camera
     z = np.array([10.0, 100.0, 400.0])
-    got = acaa.tie_distance(cam, z, "D24")
+    got = groups.tie_distance(cam, z, "D24")
     assert np.all(np.diff(got) > 0)
     n, f = cam.near, cam.far
     step = z**2 * (f - n) / (f * n) / ((1 << 24) - 1)
     t = cam.tan_half_x
     cos_min = 1.0 / np.sqrt(1.0 + t * t + (t / cam.aspect) ** 2)
-    expect = acaa.TIE_QUANTA * step / cos_min + acaa.TIE_SLACK
+    expect = groups.TIE_QUANTA * step / cos_min + groups.TIE_SLACK
     assert np.allclose(got, expect, rtol=1e-2)
-
-
-def test_agaa_segment_sums_are_reduceats_own_additions():
-    """AGAA's material sums: ``reduceat`` on the multi-row segments only must give the bytes
-    of ``reduceat`` on all rows (its float32 addition order is not left to right, so a
-    hand-written loop would not)."""
-    from raster_models.aa.agaa.model import _segment_sums
-
-    rng = np.random.default_rng(1)
-    for _ in range(50):
-        lens = rng.integers(1, 17, size=int(rng.integers(1, 400)))
-        lens[rng.random(len(lens)) < rng.random()] = 1
-        first = np.r_[0, np.cumsum(lens)[:-1]]
-        rows = (rng.standard_normal((int(lens.sum()), 15)) * 1e3).astype(np.float32)
-        assert np.array_equal(_segment_sums(rows, first), np.add.reduceat(rows, first, axis=0))
 
 
 @pytest.mark.parametrize("n", [1, 2, 4, 8, 16])
@@ -99,7 +85,7 @@ def test_box_resolve_fast_path_equals_the_weighted_sum(n, planar):
     """The unit-weight box resolve (a float64 reduction over the sample axis, on interleaved
     or planar colours) gives the bytes of the weighted einsum form it replaces, on colours
     spanning 60 binades (where float64 sums of float32 values could round)."""
-    from raster_models.aa import resolve as _resolve
+    from raster_models.aa import resolve
 
     rng = np.random.default_rng(n)
     h, w = 7, 5
@@ -110,6 +96,6 @@ def test_box_resolve_fast_path_equals_the_weighted_sum(n, planar):
     offsets = rng.random((n, 2))
     c = np.asarray(colors, np.float64).reshape(h, w, n, 3)
     expected = (np.einsum("hwn,hwnc->hwc", np.ones((h, w, n)), c) / n).astype(np.float32)
-    got = _resolve.resolve(colors, offsets, w, h, "box")
+    got = resolve.resolve(colors, offsets, w, h, "box")
     assert got.dtype == np.float32 and got.shape == (h, w, 3)
     assert got.tobytes() == expected.tobytes()

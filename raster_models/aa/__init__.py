@@ -11,7 +11,8 @@ from .acaa import AcaaParams
 from .agaa import AgaaParams
 from .fxaa import FxaaParams
 from .msaa import MsaaParams
-from .ssaa import NoAAParams, SsaaParams
+from .noaa import NoAAParams
+from .ssaa import SsaaParams
 
 #: Output channels of the anti-aliasing models (``ties``: ACAA, ``aggregates``: AGAA).
 AA_OUTPUT_CHANNELS = ("color", "coverage", "shading_events")

@@ -29,7 +29,7 @@ import numpy as np
 from .. import params as _params
 from ..errors import ModelError
 from ..result import ModelResult
-from ..shadowmaps import visibility_at
+from ..shadowmaps import SHADOW_TECHNIQUES, supported_lights, visibility_at
 from . import resolve as _resolve
 from .fragments import Fragments, sample_film_positions, shading_positions
 from .trace import fragment_attributes, shade_points
@@ -49,7 +49,7 @@ COLOR_FORMATS = {"rgba8": 4, "rgba16f": 8, "rgba32f": 16}
 #: Bytes per depth sample (D24 is stored as D24S8).
 DEPTH_FORMATS = {"D24": 4, "D32F": 4}
 #: Shadow techniques a colour model can take its visibility from instead of exact rays.
-SHADOW_CHOICES = ("exact", "shadow-map", "csm", "sdsm")
+SHADOW_CHOICES = ("exact", *SHADOW_TECHNIQUES)
 
 
 @dataclass(frozen=True)
@@ -84,12 +84,10 @@ def check_shadows(scene, shadows: str) -> None:
     """Refuse a shadow technique the scene's light does not support (before any work)."""
     if shadows == "exact":
         return
-    from ..registry import TECHNIQUES
-
-    tech = TECHNIQUES[shadows]
-    if scene.light.kind not in tech.lights:
+    lights = supported_lights(shadows)
+    if scene.light.kind not in lights:
         raise ModelError(
-            f"shadows={shadows} needs a {' or '.join(tech.lights)} light; the scene's light "
+            f"shadows={shadows} needs a {' or '.join(lights)} light; the scene's light "
             f"is a {scene.light.kind} light"
         )
 

@@ -1,26 +1,17 @@
-"""Fragments of a multisampled pixel: the samples one primitive owns, found by grouping.
+"""Fragments of a multisampled pixel: the samples one primitive owns.
 
-A fragment is a (primitive, pixel) pair with at least one visible sample. Grouping compares
-every sample's ``(shape, primitive)`` key with every other sample's of the same pixel
-(``(P, N, N)`` comparisons, vectorized over pixels in chunks), giving for each sample the
-first sample of its pixel with the same key: its fragment's representative.
+A fragment is a (primitive, pixel) pair with at least one visible sample. The prepass groups
+the samples on the Dr.Jit side (:func:`.pixel_dr.first_of_key`: for each sample the first
+sample of its pixel with the same ``(shape, primitive)`` key, its fragment's representative;
+:func:`.pixel_dr.fragments_of`); :func:`fragments_from_prepass` takes its bookkeeping, and
+the functions here give each fragment's film positions.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = [
-    "Fragments",
-    "first_of_key",
-    "fragments_from_prepass",
-    "group_fragments",
-    "sample_film_positions",
-    "shading_positions",
-]
-
-#: Pixels per grouping chunk (keeps the ``(P, N, N)`` comparison cache-sized: 8 MiB at N = 16).
-GROUP_CHUNK = 1 << 15
+__all__ = ["Fragments", "fragments_from_prepass", "sample_film_positions", "shading_positions"]
 
 
 class Fragments:
@@ -45,40 +36,6 @@ class Fragments:
     def per_pixel(self, n_pix: int) -> np.ndarray:
         """Fragments (shading events) per pixel, ``(P,)`` int."""
         return np.bincount(self.pixel, minlength=n_pix)
-
-
-def first_of_key(valid: np.ndarray, shape: np.ndarray, prim: np.ndarray) -> np.ndarray:
-    """``(P, N)`` first sample of each sample's pixel with the same (shape, primitive)."""
-    n_pix, n = valid.shape
-    key = np.where(valid, (shape.astype(np.int64) << 40) ^ prim.astype(np.int64), -1)
-    first = np.empty((n_pix, n), np.int64)
-    for start in range(0, n_pix, GROUP_CHUNK):
-        k = key[start : start + GROUP_CHUNK]
-        eq = k[:, :, None] == k[:, None, :]
-        first[start : start + GROUP_CHUNK] = np.argmax(eq, axis=2)
-    return first
-
-
-def group_fragments(valid: np.ndarray, shape=None, prim=None, *, first=None) -> Fragments:
-    """Group the samples of each pixel by primitive; ``valid``/``shape``/``prim`` are (P, N).
-
-    ``first`` (from :func:`._pixel_dr.first_of_key` on the Dr.Jit side) skips the NumPy
-    comparison of :func:`first_of_key`.
-    """
-    n_pix, n = valid.shape
-    if first is None:
-        first = first_of_key(valid, shape, prim)
-    first = np.asarray(first)
-    rep = (first == np.arange(n, dtype=first.dtype)[None, :]) & valid
-    flat = rep.ravel()
-    # fragment ids in pixel-major order; a sample's fragment is its representative's id
-    fid = np.cumsum(flat, dtype=np.int64) - 1
-    lane = np.where(valid, np.arange(n_pix)[:, None] * n + first, 0)
-    of_sample = np.where(valid, fid[lane], -1)
-    reps = np.flatnonzero(flat)
-    fp, fs = reps // n, reps % n
-    count = np.bincount(of_sample.ravel() + 1, minlength=len(reps) + 1)[1:]
-    return Fragments(fp, fs, count, of_sample)
 
 
 def fragments_from_prepass(buf: dict, n: int) -> Fragments:

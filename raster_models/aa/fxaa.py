@@ -1,11 +1,13 @@
-"""The ``fxaa`` technique: FXAA 3.11 (:mod:`.fxaa`) on the one-sample image.
+"""The ``fxaa`` technique: the FXAA 3.11 filter (:mod:`.fxaa_filter`) on the one-sample
+image.
 
-The 1x image is ``noaa``'s (one sample at each pixel centre, the oracle's shading and exact
-shadow rays). FXAA runs after tone mapping, on a display-referred image where 1 is white:
-the image is scaled by the exposure that maps its log-average luminance (over non-black
-pixels) to the key ``exposure_key`` (Reinhard's auto-exposure, the oracle's tone-mapping
-exposure rule applied to the model's own image), FXAA is applied, and the result is scaled
-back. FXAA's output is a blend of input colours, so the output stays linear radiance.
+The 1x image is ``noaa``'s (:mod:`.noaa`: one sample at each pixel centre, the oracle's
+shading and exact shadow rays). FXAA runs after tone mapping, on a display-referred image
+where 1 is white: the image is scaled by the exposure that maps its log-average luminance
+(over non-black pixels) to the key ``exposure_key`` (Reinhard's auto-exposure, the oracle's
+tone-mapping exposure rule applied to the model's own image), FXAA is applied, and the
+result is scaled back. FXAA's output is a blend of input colours, so the output stays linear
+radiance.
 
 References
 ----------

@@ -1,4 +1,5 @@
-"""FXAA 3.11, quality path, ported to NumPy (vectorized over pixels).
+"""The FXAA 3.11 filter, quality path, ported to NumPy (vectorized over pixels); the
+``fxaa`` technique that runs it on the one-sample image is :mod:`.fxaa`.
 
 The port follows ``FxaaPixelShader`` of FXAA 3.11 (``FXAA_PC 1``, ``FXAA_GREEN_AS_LUMA 0``)
 operation for operation, in float32 like the shader: the 3x3 luma neighbourhood and the early
@@ -114,6 +115,132 @@ def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (top * (_F(1.0) - fy) + bottom * fy).astype(_F)
 
 
+def _neighbourhood(luma: np.ndarray, q_thr, q_thr_min):
+    """Step 1 of ``FxaaPixelShader``: the 3x3 luma taps (clamp to edge) and the early exit
+    on local contrast. Returns ``(taps, luma_range, early_exit)``, ``taps`` a function of
+    the integer offset ``(dx, dy)`` (y down) giving the whole ``(H, W)`` tap image."""
+    h, w = luma.shape
+    lp = np.pad(luma, 1, mode="edge")  # clamp-to-edge taps
+
+    def tap(dx: int, dy: int) -> np.ndarray:
+        return lp[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
+
+    luma_m = luma
+    luma_s, luma_e, luma_n, luma_w = tap(0, 1), tap(1, 0), tap(0, -1), tap(-1, 0)
+    range_max = np.maximum(
+        np.maximum(luma_n, luma_w), np.maximum(luma_e, np.maximum(luma_s, luma_m))
+    )
+    range_min = np.minimum(
+        np.minimum(luma_n, luma_w), np.minimum(luma_e, np.minimum(luma_s, luma_m))
+    )
+    luma_range = range_max - range_min
+    early_exit = luma_range < np.maximum(q_thr_min, range_max * q_thr)
+    return tap, luma_range, early_exit
+
+
+def _edge(t: dict) -> dict:
+    """Step 2: the horizontal/vertical edge decision, the sub-pixel term and the steeper
+    neighbour pair, on the taps ``t`` (``m, s, e, n, w, nw, se, ne, sw`` and ``range``: 1-D
+    arrays over the pixels past the early exit), with the shader's grouping of sums."""
+    two = _F(2.0)
+    l_m, l_n, l_s, l_w, l_e = t["m"], t["n"], t["s"], t["w"], t["e"]
+    l_nw, l_se, l_ne, l_sw, rng = t["nw"], t["se"], t["ne"], t["sw"], t["range"]
+    luma_ns = l_n + l_s
+    luma_we = l_w + l_e
+    with np.errstate(divide="ignore"):
+        subpix_rcp_range = np.where(rng > 0, _F(1.0) / np.where(rng > 0, rng, _F(1.0)), _F(0.0))
+    subpix_nswe = luma_ns + luma_we
+    edge_horz1 = -two * l_m + luma_ns
+    edge_vert1 = -two * l_m + luma_we
+    luma_nese = l_ne + l_se
+    luma_nwne = l_nw + l_ne
+    edge_horz2 = -two * l_e + luma_nese
+    edge_vert2 = -two * l_n + luma_nwne
+    luma_nwsw = l_nw + l_sw
+    luma_swse = l_sw + l_se
+    edge_horz4 = np.abs(edge_horz1) * two + np.abs(edge_horz2)
+    edge_vert4 = np.abs(edge_vert1) * two + np.abs(edge_vert2)
+    edge_horz3 = -two * l_w + luma_nwsw
+    edge_vert3 = -two * l_s + luma_swse
+    edge_horz = np.abs(edge_horz3) + edge_horz4
+    edge_vert = np.abs(edge_vert3) + edge_vert4
+    subpix_nwswnese = luma_nwsw + luma_nese
+    horz_span = edge_horz >= edge_vert
+    subpix_a = subpix_nswe * two + subpix_nwswnese
+    # For a vertical edge the "north/south" pair is west/east; the search runs along the edge.
+    l_n = np.where(horz_span, l_n, l_w)
+    l_s = np.where(horz_span, l_s, l_e)
+    subpix_b = subpix_a * _F(1.0 / 12.0) - l_m
+    gradient_n = l_n - l_m
+    gradient_s = l_s - l_m
+    luma_nn = l_n + l_m
+    luma_ss = l_s + l_m
+    pair_n = np.abs(gradient_n) >= np.abs(gradient_s)
+    gradient = np.maximum(np.abs(gradient_n), np.abs(gradient_s))
+    subpix_c = np.clip(np.abs(subpix_b) * subpix_rcp_range, _F(0.0), _F(1.0))
+    subpix_d = _F(-2.0) * subpix_c + _F(3.0)
+    subpix_e = subpix_c * subpix_c
+    luma_nn = np.where(pair_n, luma_nn, luma_ss)
+    return {
+        "horz_span": horz_span,
+        "length_sign": np.where(pair_n, _F(-1.0), _F(1.0)).astype(_F),  # rcpFrame = 1 pixel
+        "gradient_scaled": gradient * _F(1.0 / 4.0),
+        "half_nn": luma_nn * _F(0.5),
+        "luma_mlt_zero": (l_m - luma_nn * _F(0.5)) < 0,
+        "subpix_f": subpix_d * subpix_e,
+    }
+
+
+def _end_search(luma, steps, edge: dict, pos_b, off):
+    """Step 3: the edge-end search along the edge from ``posB``, ``FXAA_QUALITY__PS`` steps
+    of the preset (every pixel at once, a fixed number of vectorized rounds). Returns
+    ``(dst_n, dst_p, luma_end_n, luma_end_p)``: the distances (texels) of ``posN``/``posP``
+    from ``posM`` and the lumas found there, relative to the edge's mean luma."""
+    pos_b_x, pos_b_y = pos_b
+    off_x, off_y = off
+    half_nn, gradient_scaled = edge["half_nn"], edge["gradient_scaled"]
+    dst_n = np.full(len(pos_b_x), steps[0], dtype=_F)
+    dst_p = np.full(len(pos_b_x), steps[0], dtype=_F)
+
+    def end_luma(dist: np.ndarray, sign: float) -> np.ndarray:
+        x = pos_b_x + _F(sign) * off_x * dist
+        y = pos_b_y + _F(sign) * off_y * dist
+        return _bilinear(luma, x, y) - half_nn
+
+    luma_end_n = end_luma(dst_n, -1.0)
+    luma_end_p = end_luma(dst_p, 1.0)
+    for k in range(1, len(steps)):
+        done_n = np.abs(luma_end_n) >= gradient_scaled
+        done_p = np.abs(luma_end_p) >= gradient_scaled
+        dst_n = np.where(done_n, dst_n, dst_n + _F(steps[k]))
+        dst_p = np.where(done_p, dst_p, dst_p + _F(steps[k]))
+        if k < len(steps) - 1:  # the shader reads no luma after its last step
+            if (~done_n).any():
+                luma_end_n = np.where(done_n, luma_end_n, end_luma(dst_n, -1.0))
+            if (~done_p).any():
+                luma_end_p = np.where(done_p, luma_end_p, end_luma(dst_p, 1.0))
+    return dst_n, dst_p, luma_end_n, luma_end_p
+
+
+def _pixel_offset(edge: dict, search, q_subpix) -> np.ndarray:
+    """Step 4: the offset across the edge (texels): the span's end-distance offset where
+    the span is good, at least the sub-pixel offset."""
+    dst_n, dst_p, luma_end_n, luma_end_p = search
+    luma_mlt_zero = edge["luma_mlt_zero"]
+    good_span_n = (luma_end_n < 0) != luma_mlt_zero
+    good_span_p = (luma_end_p < 0) != luma_mlt_zero
+    span_length = dst_p + dst_n
+    span_length_rcp = _F(1.0) / span_length
+    direction_n = dst_n < dst_p
+    dst = np.minimum(dst_n, dst_p)
+    good_span = np.where(direction_n, good_span_n, good_span_p)
+    subpix_g = edge["subpix_f"] * edge["subpix_f"]
+    pixel_offset = dst * (-span_length_rcp) + _F(0.5)
+    subpix_h = subpix_g * q_subpix
+    pixel_offset_good = np.where(good_span, pixel_offset, _F(0.0))
+    return np.maximum(pixel_offset_good, subpix_h)
+
+
 def fxaa(
     rgb_linear: np.ndarray,
     *,
@@ -163,127 +290,31 @@ def fxaa(
     q_subpix = _F(_check_unit("subpix", subpix, low_open=False))
     q_thr = _F(_check_unit("edge_threshold", edge_threshold, low_open=True))
     q_thr_min = _F(_check_unit("edge_threshold_min", edge_threshold_min, low_open=False))
-    steps = FXAA_PRESETS[preset]
-
-    h, w = rgb.shape[:2]
     luma = fxaa_luma(rgb)
-    lp = np.pad(luma, 1, mode="edge")  # clamp-to-edge taps
-
-    def tap(dx: int, dy: int) -> np.ndarray:
-        return lp[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
-
-    luma_m = luma
-    luma_s, luma_e, luma_n, luma_w = tap(0, 1), tap(1, 0), tap(0, -1), tap(-1, 0)
-    range_max = np.maximum(
-        np.maximum(luma_n, luma_w), np.maximum(luma_e, np.maximum(luma_s, luma_m))
-    )
-    range_min = np.minimum(
-        np.minimum(luma_n, luma_w), np.minimum(luma_e, np.minimum(luma_s, luma_m))
-    )
-    luma_range = range_max - range_min
-    early_exit = luma_range < np.maximum(q_thr_min, range_max * q_thr)
-
+    tap, luma_range, early_exit = _neighbourhood(luma, q_thr, q_thr_min)
     out = rgb.copy()
     iy, ix = np.nonzero(~early_exit)
     if iy.size == 0:
         return out
-
-    def sel(a: np.ndarray) -> np.ndarray:
-        return a[iy, ix]
-
-    l_m, l_s, l_e, l_n, l_w = sel(luma_m), sel(luma_s), sel(luma_e), sel(luma_n), sel(luma_w)
-    l_nw, l_se, l_ne, l_sw = sel(tap(-1, -1)), sel(tap(1, 1)), sel(tap(1, -1)), sel(tap(-1, 1))
-    rng = sel(luma_range)
-
-    two = _F(2.0)
-    luma_ns = l_n + l_s
-    luma_we = l_w + l_e
-    with np.errstate(divide="ignore"):
-        subpix_rcp_range = np.where(rng > 0, _F(1.0) / np.where(rng > 0, rng, _F(1.0)), _F(0.0))
-    subpix_nswe = luma_ns + luma_we
-    edge_horz1 = -two * l_m + luma_ns
-    edge_vert1 = -two * l_m + luma_we
-    luma_nese = l_ne + l_se
-    luma_nwne = l_nw + l_ne
-    edge_horz2 = -two * l_e + luma_nese
-    edge_vert2 = -two * l_n + luma_nwne
-    luma_nwsw = l_nw + l_sw
-    luma_swse = l_sw + l_se
-    edge_horz4 = np.abs(edge_horz1) * two + np.abs(edge_horz2)
-    edge_vert4 = np.abs(edge_vert1) * two + np.abs(edge_vert2)
-    edge_horz3 = -two * l_w + luma_nwsw
-    edge_vert3 = -two * l_s + luma_swse
-    edge_horz = np.abs(edge_horz3) + edge_horz4
-    edge_vert = np.abs(edge_vert3) + edge_vert4
-    subpix_nwswnese = luma_nwsw + luma_nese
-    horz_span = edge_horz >= edge_vert
-    subpix_a = subpix_nswe * two + subpix_nwswnese
-    # For a vertical edge the "north/south" pair is west/east; the search runs along the edge.
-    l_n = np.where(horz_span, l_n, l_w)
-    l_s = np.where(horz_span, l_s, l_e)
-    subpix_b = subpix_a * _F(1.0 / 12.0) - l_m
-    gradient_n = l_n - l_m
-    gradient_s = l_s - l_m
-    luma_nn = l_n + l_m
-    luma_ss = l_s + l_m
-    pair_n = np.abs(gradient_n) >= np.abs(gradient_s)
-    gradient = np.maximum(np.abs(gradient_n), np.abs(gradient_s))
-    length_sign = np.where(pair_n, _F(-1.0), _F(1.0)).astype(_F)  # rcpFrame = 1 pixel
-    subpix_c = np.clip(np.abs(subpix_b) * subpix_rcp_range, _F(0.0), _F(1.0))
-
+    offsets = {"m": (0, 0), "s": (0, 1), "e": (1, 0), "n": (0, -1), "w": (-1, 0)}
+    offsets.update(nw=(-1, -1), se=(1, 1), ne=(1, -1), sw=(-1, 1))
+    taps = {key: tap(dx, dy)[iy, ix] for key, (dx, dy) in offsets.items()}
+    taps["range"] = luma_range[iy, ix]
+    edge = _edge(taps)
+    horz_span, length_sign = edge["horz_span"], edge["length_sign"]
     # posB: half a pixel across the edge, toward the steeper neighbour; offNP along the edge.
     cx = ix.astype(_F) + _F(0.5)
     cy = iy.astype(_F) + _F(0.5)
-    pos_b_x = np.where(horz_span, cx, cx + length_sign * _F(0.5))
-    pos_b_y = np.where(horz_span, cy + length_sign * _F(0.5), cy)
-    off_x = np.where(horz_span, _F(1.0), _F(0.0)).astype(_F)
-    off_y = np.where(horz_span, _F(0.0), _F(1.0)).astype(_F)
-
-    subpix_d = _F(-2.0) * subpix_c + _F(3.0)
-    subpix_e = subpix_c * subpix_c
-    luma_nn = np.where(pair_n, luma_nn, luma_ss)
-    gradient_scaled = gradient * _F(1.0 / 4.0)
-    half_nn = luma_nn * _F(0.5)
-    luma_mm = l_m - half_nn
-    subpix_f = subpix_d * subpix_e
-    luma_mlt_zero = luma_mm < 0
-
-    # Edge-end search: dst_n / dst_p are the distances (texels) of posN / posP from posM.
-    dst_n = np.full(iy.size, steps[0], dtype=_F)
-    dst_p = np.full(iy.size, steps[0], dtype=_F)
-
-    def end_luma(dist: np.ndarray, sign: float) -> np.ndarray:
-        x = pos_b_x + _F(sign) * off_x * dist
-        y = pos_b_y + _F(sign) * off_y * dist
-        return _bilinear(luma, x, y) - half_nn
-
-    luma_end_n = end_luma(dst_n, -1.0)
-    luma_end_p = end_luma(dst_p, 1.0)
-    for k in range(1, len(steps)):
-        done_n = np.abs(luma_end_n) >= gradient_scaled
-        done_p = np.abs(luma_end_p) >= gradient_scaled
-        dst_n = np.where(done_n, dst_n, dst_n + _F(steps[k]))
-        dst_p = np.where(done_p, dst_p, dst_p + _F(steps[k]))
-        if k < len(steps) - 1:  # the shader reads no luma after its last step
-            if (~done_n).any():
-                luma_end_n = np.where(done_n, luma_end_n, end_luma(dst_n, -1.0))
-            if (~done_p).any():
-                luma_end_p = np.where(done_p, luma_end_p, end_luma(dst_p, 1.0))
-
-    good_span_n = (luma_end_n < 0) != luma_mlt_zero
-    good_span_p = (luma_end_p < 0) != luma_mlt_zero
-    span_length = dst_p + dst_n
-    span_length_rcp = _F(1.0) / span_length
-    direction_n = dst_n < dst_p
-    dst = np.minimum(dst_n, dst_p)
-    good_span = np.where(direction_n, good_span_n, good_span_p)
-    subpix_g = subpix_f * subpix_f
-    pixel_offset = dst * (-span_length_rcp) + _F(0.5)
-    subpix_h = subpix_g * q_subpix
-    pixel_offset_good = np.where(good_span, pixel_offset, _F(0.0))
-    pixel_offset_subpix = np.maximum(pixel_offset_good, subpix_h)
-
-    shift = pixel_offset_subpix * length_sign
+    pos_b = (
+        np.where(horz_span, cx, cx + length_sign * _F(0.5)),
+        np.where(horz_span, cy + length_sign * _F(0.5), cy),
+    )
+    off = (
+        np.where(horz_span, _F(1.0), _F(0.0)).astype(_F),
+        np.where(horz_span, _F(0.0), _F(1.0)).astype(_F),
+    )
+    search = _end_search(luma, FXAA_PRESETS[preset], edge, pos_b, off)
+    shift = _pixel_offset(edge, search, q_subpix) * length_sign
     px = np.where(horz_span, cx, cx + shift).astype(_F)
     py = np.where(horz_span, cy + shift, cy).astype(_F)
     out[iy, ix] = _bilinear(rgb, px, py)

@@ -1,13 +1,13 @@
 """Multisample anti-aliasing (MSAA): N coverage/depth samples, one shade per primitive.
 
 Per pixel, a primary ray through each of the ``N`` standard sample positions (y down, see
-:mod:`._samples`) finds the nearest surface: the inside test and depth test of a rasterizer
+:mod:`.samples`) finds the nearest surface: the inside test and depth test of a rasterizer
 at those points (ARCHITECTURE.md). Each (primitive, pixel) pair owning at least one visible
 sample is shaded once, at the pixel centre on the primitive's plane with its attributes
 extrapolated (hardware's default, even where the centre lies outside the triangle) or, with
 ``centroid``, at the centroid of the samples it owns (the centre when it owns them all);
 its colour is written to every sample it owns. The resolve averages the samples in linear
-(``box``) or applies a wide filter (:mod:`._resolve`). Shading is the oracle's, with an
+(``box``) or applies a wide filter (:mod:`.resolve`). Shading is the oracle's, with an
 exact shadow ray from each shading point unless a shadow technique is chosen.
 
 Outputs: ``color`` (linear, (H, W, 3)), ``coverage`` (fraction of samples on geometry),

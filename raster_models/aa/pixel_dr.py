@@ -1,44 +1,78 @@
 """Per-pixel work on a multisample prepass, on the Dr.Jit side (no NumPy round trip).
 
-Lanes hold the samples of consecutive pixels, ``N`` lanes a pixel. Pixel-wide quantities are
-block reductions (:func:`drjit.block_reduce` over ``N`` lanes) gathered back to each lane;
-"the value of sample ``j`` of my pixel" is a gather at ``pixel * N + j``. The loops below run
-over the ``N`` sample slots while the kernel is being traced (at most 16 rounds), never over
-pixels or data.
+Two layouts of a launch's samples: *sample lanes* (``N`` consecutive lanes a pixel, the
+layout of the prepass's rays) and *pixel lanes* (one lane a pixel holding its ``N`` samples
+as Python lists over the slots, :func:`slots`). The loops below run over the ``N`` sample
+slots while a kernel is being traced (at most 16 rounds), never over pixels or data.
 
-- :func:`first_of_key`: for every sample, the first sample of its pixel with the same
-  (shape, primitive): its fragment's representative (MSAA/AGAA grouping);
-- :func:`store_normal`: a unit normal as stored in a G-buffer format and read back;
-- :func:`aggregate_of`: AGAA's clustering (see :mod:`.agaa`), identical in rule to the NumPy
-  reference :func:`.agaa.cluster`.
+- :func:`first_of_key` (pixel lanes): for every sample, the first sample of its pixel with
+  the same (shape, primitive): its fragment's representative (MSAA/AGAA grouping);
+- :func:`fragments_of` (sample lanes): fragment ids, representatives and sample counts;
+- :func:`store_normal`: a unit normal as stored in a G-buffer format and read back.
 """
 
 from __future__ import annotations
 
-__all__ = ["aggregate_of", "first_of_key", "fragments_of", "store_normal"]
+__all__ = [
+    "VALUES_PER_WORD",
+    "first_of_key",
+    "fragments_of",
+    "slots",
+    "store_normal",
+    "to_sample_lanes",
+]
 
 
-def _slot(dr, tp, arr, local, n: int, j):
-    """Value of sample ``j`` (int or per-lane UInt32) of each lane's pixel."""
-    return dr.gather(tp, arr, local * n + j)
+def slots(mi, dr, tp, arr, n: int) -> list:
+    """Pixel lanes of a sample-lane array ``arr`` (``n`` lanes a pixel): the list of its
+    ``n`` slot values, each an array of type ``tp`` with one lane a pixel."""
+    lane = dr.arange(mi.UInt32, dr.width(arr) // n)
+    return [dr.gather(tp, arr, lane * n + j) for j in range(n)]
 
 
-def _bcast(dr, mode, tp, x, local, n: int, op):
-    """Block reduction of ``x`` over each pixel's ``n`` lanes, back on every lane."""
-    return dr.gather(tp, dr.block_reduce(op, x, n, mode=mode), local)
+#: Per-slot values packed per UInt32 word by :func:`to_sample_lanes` (5 bits each: 0 to 31,
+#: enough for a slot index or a sample count of up to 16 samples, and for ``N`` itself).
+VALUES_PER_WORD = 6
 
 
-def first_of_key(mi, dr, valid, shape, prim, local, n: int):
-    """UInt32 slot of the first sample of the pixel with the same key (``n`` for sky)."""
-    first = dr.full(mi.UInt32, n, dr.width(valid))
-    for j in range(n):
-        same = (
-            _slot(dr, mi.Bool, valid, local, n, j)
-            & (_slot(dr, mi.UInt32, prim, local, n, j) == prim)
-            & (_slot(dr, mi.Int32, shape, local, n, j) == shape)
-        )
-        first = dr.select(same & (first == n), j, first)
-    return dr.select(valid, first, n)
+def to_sample_lanes(mi, dr, per_slot: list):
+    """The inverse of :func:`slots` for small counts: a list of ``N`` pixel-lane UInt32
+    arrays of values in ``[0, 31]`` as one sample-lane UInt32 array (evaluated).
+
+    One lane a pixel packs its values, :data:`VALUES_PER_WORD` to a word; one lane a sample
+    then unpacks its own (two kernels, one or three word reads a sample).
+    """
+    n = len(per_slot)
+    width = max(dr.width(x) for x in per_slot)
+    words = [mi.UInt32(0) for _ in range(-(-n // VALUES_PER_WORD))]
+    for j in range(n):  # sample slots (at most 16 rounds)
+        i, shift = j // VALUES_PER_WORD, 5 * (j % VALUES_PER_WORD)
+        words[i] = words[i] | (mi.UInt32(per_slot[j]) << shift)
+    words = [w + dr.zeros(mi.UInt32, width) for w in words]
+    dr.eval(*words)
+    idx = dr.arange(mi.UInt32, width * n)
+    local = idx // n
+    s = idx - local * n
+    word = dr.gather(mi.UInt32, words[0], local)
+    for i in range(1, len(words)):
+        word = dr.select(s >= i * VALUES_PER_WORD, dr.gather(mi.UInt32, words[i], local), word)
+    out = (word >> (5 * (s % VALUES_PER_WORD))) & 31
+    dr.eval(out)
+    return out
+
+
+def first_of_key(mi, dr, valid, shape, prim) -> list:
+    """Per sample slot ``j``: UInt32 first slot of the pixel with the same (shape,
+    primitive), ``N`` for sky; the arguments are lists over the slots (pixel lanes)."""
+    n = len(valid)
+    first = []
+    for i in range(n):
+        f = mi.UInt32(n)
+        for j in range(i + 1):  # slot i itself matches when valid: no later slot can be first
+            same = valid[j] & (prim[j] == prim[i]) & (shape[j] == shape[i])
+            f = dr.select(same & (f == n), j, f)
+        first.append(dr.select(valid[i], f, n))
+    return first
 
 
 def store_normal(mi, dr, nrm, fmt: str):
@@ -64,72 +98,25 @@ def store_normal(mi, dr, nrm, fmt: str):
     return dr.normalize(mi.Vector3f(u, v, zz))
 
 
-def _argmax_slot(mi, dr, mode, d, local, n: int):
-    """Lowest slot holding the pixel's maximum of ``d`` (``-inf`` on sky lanes)."""
-    top = _bcast(dr, mode, mi.Float, d, local, n, dr.ReduceOp.Max)
-    seed = dr.full(mi.UInt32, n - 1, dr.width(d))
-    for j in reversed(range(n)):
-        seed = dr.select(_slot(dr, mi.Float, d, local, n, j) == top, j, seed)
-    return seed, top
-
-
-def aggregate_of(mi, dr, valid, z, nrm, local, n: int, k: int, threshold, weight):
-    """Int32 aggregate of every sample (0 or 1; -1 sky): AGAA's published clustering."""
-    mode = "evaluated"
-    vf = dr.select(valid, 1.0, 0.0)
-    z = z * vf
-    cnt = dr.maximum(_bcast(dr, mode, mi.Float, vf, local, n, dr.ReduceOp.Add), 1.0)
-    z_mean = _bcast(dr, mode, mi.Float, z, local, n, dr.ReduceOp.Add) / cnt
-    z_mean = dr.select(z_mean > 0, z_mean, 1.0)
-    n_mean = mi.Vector3f(
-        *(_bcast(dr, mode, mi.Float, c * vf, local, n, dr.ReduceOp.Add) / cnt for c in nrm)
-    )
-
-    def dist(z_b, n_b):
-        return weight * dr.abs(z - z_b) / z_mean + (1.0 - dr.dot(nrm, n_b))
-
-    low = -dr.inf
-    d_mean = dr.select(valid, dist(z_mean, n_mean), low)
-    seed1, _ = _argmax_slot(mi, dr, mode, d_mean, local, n)
-    at1 = local * n + seed1
-    z1 = dr.gather(mi.Float, z, at1)
-    n1 = dr.gather(mi.Vector3f, nrm, at1)
-    d1 = dist(z1, n1)
-    seed2, top2 = _argmax_slot(mi, dr, mode, dr.select(valid, d1, low), local, n)
-    at2 = local * n + seed2
-    d2 = dist(dr.gather(mi.Float, z, at2), dr.gather(mi.Vector3f, nrm, at2))
-    split = (top2 > threshold) if k >= 2 else dr.full(mi.Bool, False, dr.width(z))
-    agg = dr.select(split & (d2 < d1), 1, 0)
-    return dr.select(valid, mi.Int32(agg), -1)
-
-
-def fragments_of(mi, dr, valid, first, local, n: int, s, offset: int, agg=None) -> dict:
-    """Fragment bookkeeping of every sample from its representative slot ``first``.
+def fragments_of(mi, dr, valid, first, local, n: int, s, offset) -> dict:
+    """Fragment bookkeeping of every sample (sample lanes) from its representative slot
+    ``first`` (UInt32, sample lanes; ``local`` and ``s`` each lane's pixel in the launch
+    and slot).
 
     Returns Dr.Jit arrays: ``rep`` (the sample is its fragment's representative), ``of``
-    (Int32 fragment id, numbered over all pixels in lane order from ``offset``; -1 sky),
-    ``count`` (samples of the sample's fragment) and, with ``agg``, ``pair_rep`` and
-    ``pair_count``: the same for (fragment, aggregate) pairs.
+    (Int32 fragment id, numbered over all pixels in lane order from ``offset``; -1 sky) and
+    ``count`` (samples of the sample's fragment).
     """
     rep = valid & (first == s)
     fid = dr.prefix_sum(dr.select(rep, mi.UInt32(1), mi.UInt32(0))) + offset
     fid = dr.gather(mi.UInt32, fid, local * n + dr.select(valid, first, 0))
-    out = {"rep": rep, "of": dr.select(valid, mi.Int32(fid), -1)}
     count = dr.zeros(mi.UInt32, dr.width(valid))
-    if agg is not None:
-        pair_count = dr.zeros(mi.UInt32, dr.width(valid))
-        pair_first = dr.full(mi.UInt32, n, dr.width(valid))
     for j in range(n):
-        same = _slot(dr, mi.Bool, valid, local, n, j) & (
-            _slot(dr, mi.UInt32, first, local, n, j) == first
-        )
+        at = local * n + j
+        same = dr.gather(mi.Bool, valid, at) & (dr.gather(mi.UInt32, first, at) == first)
         count += dr.select(same, mi.UInt32(1), mi.UInt32(0))
-        if agg is not None:
-            pair = same & (_slot(dr, mi.Int32, agg, local, n, j) == agg)
-            pair_count += dr.select(pair, mi.UInt32(1), mi.UInt32(0))
-            pair_first = dr.select(pair & (pair_first == n), j, pair_first)
-    out["count"] = dr.select(valid, count, 0)
-    if agg is not None:
-        out["pair_rep"] = valid & (pair_first == s)
-        out["pair_count"] = dr.select(valid, pair_count, 0)
-    return out
+    return {
+        "rep": rep,
+        "of": dr.select(valid, mi.Int32(fid), -1),
+        "count": dr.select(valid, count, 0),
+    }

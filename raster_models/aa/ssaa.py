@@ -1,10 +1,10 @@
-"""Supersampling (SSAA) and no anti-aliasing: every sample shaded where it lies.
+"""Supersampling (SSAA): every sample shaded where it lies.
 
 ``ssaa`` traces and shades each of ``N`` sub-samples per pixel (standard multisample
 positions or an ordered grid) with the oracle's own per-sample path
 (:func:`scenes.raycast.trace_film_dr`: shading at the hit, exact shadow ray) and resolves
-them; with many samples it converges to the oracle's box-filtered reference. ``noaa`` is
-one sample at the pixel centre.
+them; with many samples it converges to the oracle's box-filtered reference.
+:func:`supersample` is also ``noaa``'s frame (:mod:`.noaa`: one sample at the pixel centre).
 
 References
 ----------
@@ -27,7 +27,7 @@ from . import samples as _samples
 from .common import COLOR_FORMATS, DEPTH_FORMATS, ResolveParams, package
 from .trace import sample_colors
 
-__all__ = ["NoAAParams", "SsaaParams", "run", "run_noaa"]
+__all__ = ["SsaaParams", "run", "supersample"]
 
 
 @dataclass(frozen=True)
@@ -53,16 +53,10 @@ class SsaaParams(ResolveParams):
             _samples.check_standard_count(technique, self.samples, why="with pattern=standard")
 
 
-@dataclass(frozen=True)
-class NoAAParams:
-    """``noaa`` has no parameter but the shadow source (exact rays only: one sample)."""
-
-    samples: int = _params.param(
-        1, source="no anti-aliasing: one sample at the pixel centre", help="always 1", lo=1, hi=1
-    )
-
-
-def _supersample(name, scene, p, offsets, t0):
+def supersample(name: str, scene, p, offsets, *, t0: float):
+    """Every sample at ``offsets`` ((N, 2), in the pixel, y down) traced, shaded with an
+    exact shadow ray and resolved with ``p``'s filter (box without one); the packaged
+    :class:`raster_models.result.ModelResult` of technique ``name``, timed from ``t0``."""
     w, h = scene.width, scene.height
     n = len(offsets)
     res, rays = sample_colors(scene, offsets)
@@ -103,11 +97,4 @@ def run(scene, params: SsaaParams | None = None, **kwargs):
     """Run ``ssaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
     p = params or _params.make("ssaa", SsaaParams, kwargs)
-    return _supersample("ssaa", scene, p, _samples.positions(p.samples, p.pattern), t0)
-
-
-def run_noaa(scene, params: NoAAParams | None = None, **kwargs):
-    """Run ``noaa`` (one sample at each pixel centre); see :func:`raster_models.run`."""
-    t0 = time.perf_counter()
-    p = params or _params.make("noaa", NoAAParams, kwargs)
-    return _supersample("noaa", scene, p, _samples.positions(1), t0)
+    return supersample("ssaa", scene, p, _samples.positions(p.samples, p.pattern), t0=t0)

@@ -20,7 +20,8 @@ intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engin
 
 Values are float32 (Mitsuba's ``Float``), as a GPU computes them. The Dr.Jit side of each
 (:func:`prepass_dr`, :func:`attributes_dr`, :func:`shade_dr`) is also callable on Dr.Jit
-arrays, for models that chain them without NumPy round trips (:mod:`._agaa_dr`).
+arrays, for models that chain them without NumPy round trips (:mod:`.agaa.kernels`,
+:mod:`.acaa.trace`).
 """
 
 from __future__ import annotations
@@ -49,21 +50,25 @@ __all__ = [
     "sample_colors",
     "shade_dr",
     "shade_points",
+    "to_numpy",
     "trace_samples",
+    "view_depth",
 ]
 
 #: Rays per Dr.Jit launch (bounded memory; ~0.5 GiB a launch at most).
 CHUNK = 1 << 21
 
 
-def _np(a) -> np.ndarray:
+def to_numpy(a) -> np.ndarray:
     """NumPy view of an evaluated Dr.Jit array (a vector gives ``(3, N)``); every caller
     copies it into its own output at once."""
-    to_numpy = getattr(a, "numpy", None)
-    return np.asarray(to_numpy() if to_numpy is not None else a)
+    method = getattr(a, "numpy", None)
+    return np.asarray(method() if method is not None else a)
 
 
-def _view_depth(camera, p):
+def view_depth(camera, p):
+    """View depth (distance along the camera's forward axis, camera units) of Dr.Jit
+    points ``p``, in float32."""
     fwd, pos = camera.forward, camera.position
     return (
         (p.x - float(pos[0])) * float(fwd[0])
@@ -77,51 +82,37 @@ def trace_samples(
     offsets: np.ndarray,
     *,
     normals: bool = False,
-    mi_scene=None,
-    pixels=None,
     group: bool = False,
-    cluster: tuple | None = None,
     keep: tuple = ("valid", "shape", "prim", "depth", "first"),
-    scene_shapes: bool = False,
 ) -> dict:
     """Nearest surface at every sub-sample of every pixel (a depth prepass).
 
     Parameters
     ----------
     scene : scenes.LoadedScene
-    offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`._samples`).
+    offsets : ``(N, 2)`` sample positions in the pixel (y down, see :mod:`.samples`).
     normals : also return the geometric normal turned towards the viewer.
-    mi_scene : intersect this Mitsuba scene instead of the scene's own (ACAA: a group of
-        the scene's shapes).
-    pixels : pixel indices (row-major) to trace; default every pixel.
     group : also return ``first`` ((P, N) int8): the first sample of the pixel with the same
-        (shape, primitive), ``N`` for sky (:func:`._pixel_dr.first_of_key`), and the fragment
-        bookkeeping of :func:`._pixel_dr.fragments_of` (``rep``, ``of``, ``count``; with
-        ``cluster`` also ``pair_rep``, ``pair_count``).
-    cluster : ``(k, threshold, depth_weight, normal_format)``: also return ``aggregate``
-        ((P, N) int8), AGAA's clustering on the stored normals (:func:`._pixel_dr.aggregate_of`).
+        (shape, primitive), ``N`` for sky (:func:`.pixel_dr.first_of_key`), and the fragment
+        bookkeeping of :func:`.pixel_dr.fragments_of` (``rep``, ``of``, ``count``).
     keep : which of ``valid``, ``shape``, ``prim``, ``depth`` (and with ``group``,
         ``first``) to copy back to NumPy (the per-pixel kernels read them on the Dr.Jit side
         either way).
-    scene_shapes : ``mi_scene`` holds shape objects of ``scene`` itself: report ``shape`` as
-        their indices into ``scene.shape_names`` (else -1 or 0).
 
     Returns
     -------
     dict of ``(P, N)`` arrays: ``valid`` (bool), ``shape`` (int32, index into
-    ``scene.shape_names``, -1 sky; with ``mi_scene`` -1 or 0), ``prim`` (int64, -1 sky),
-    ``depth`` (float32 view depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``;
-    with ``mi_scene`` and ``scene_shapes``, ``shape`` indexes ``scene.shape_names``.
+    ``scene.shape_names``, -1 sky), ``prim`` (int64, -1 sky), ``depth`` (float32 view
+    depth, 0 sky) and with ``normals`` ``normal`` ``(P, N, 3)``; with ``group`` the
+    fragment bookkeeping.
     """
     mi = backend.mitsuba()
     import drjit as dr
 
     cam = scene.camera
-    target = mi_scene if mi_scene is not None else scene.mi_scene
     offs = np.asarray(offsets, dtype=np.float32).reshape(-1, 2)
     n = len(offs)
-    pix_all = np.arange(cam.width * cam.height) if pixels is None else np.asarray(pixels)
-    n_pix = len(pix_all)
+    n_pix = cam.width * cam.height
     total = n_pix * n
     dtypes = {"valid": bool, "shape": np.int32, "prim": np.int64, "depth": np.float32}
     out = {key: np.empty(total, dtypes[key]) for key in keep if key in dtypes}
@@ -133,65 +124,58 @@ def trace_samples(
         out["rep"] = np.empty(total, bool)
         out["of"] = np.empty(total, np.int32)
         out["count"] = np.empty(total, np.int8)
-    if cluster is not None:
-        out["aggregate"] = np.empty(total, np.int8)
-        if group:
-            out["pair_rep"] = np.empty(total, bool)
-            out["pair_count"] = np.empty(total, np.int8)
     n_frag = 0
     ox, oy = mi.Float(offs[:, 0]), mi.Float(offs[:, 1])
-    table = shape_table(mi, dr, scene) if mi_scene is None or scene_shapes else None
+    table = shape_table(mi, dr, scene)
     step = max(n, (CHUNK // n) * n)
     for start in range(0, total, step):
         stop = min(total, start + step)
-        pix = mi.UInt32(pix_all[start // n : stop // n].astype(np.uint32))
+        # an opaque offset: one kernel for every launch, not one per start
+        pix = dr.arange(mi.UInt32, (stop - start) // n) + dr.opaque(mi.UInt32, start // n)
         valid, depth, prim, shape, nrm, extra = prepass_dr(
             scene,
-            target,
+            scene.mi_scene,
             table,
             ox,
             oy,
             pix,
             n,
-            normals=normals or cluster is not None,
+            normals=normals,
             group=group,
-            cluster=cluster,
             frag_offset=n_frag,
         )
         del extra["local"], extra["s"]
         sl = slice(start, stop)
         if "valid" in out or "prim" in out:
-            v = _np(valid)
+            v = to_numpy(valid)
         if "valid" in out:
             out["valid"][sl] = v
         if "depth" in out:
-            out["depth"][sl] = _np(depth)
+            out["depth"][sl] = to_numpy(depth)
         if "shape" in out:
-            out["shape"][sl] = _np(shape)
+            out["shape"][sl] = to_numpy(shape)
         if "prim" in out:
-            out["prim"][sl] = np.where(v, _np(prim).astype(np.int64), -1)
+            out["prim"][sl] = np.where(v, to_numpy(prim).astype(np.int64), -1)
         if normals:
-            out["normal"][sl] = _np(nrm).T
+            out["normal"][sl] = to_numpy(nrm).T
         for key, val in extra.items():
             if key in out:
-                out[key][sl] = _np(val)
+                out[key][sl] = to_numpy(val)
         if group:
             n_frag += int(np.count_nonzero(out["rep"][sl]))
     res = {k: v.reshape((n_pix, n) + v.shape[1:]) for k, v in out.items()}
     return res
 
 
-def prepass_dr(
-    scene, target, table, ox, oy, pix, n: int, *, normals, group, cluster, frag_offset=0
-):
+def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, frag_offset=0):
     """One launch of the prepass on the Dr.Jit side: ``n`` lanes a pixel, pixel ``i`` of the
-    launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float).
+    launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float);
+    ``target`` the Mitsuba scene intersected, ``table`` :func:`scenes.raycast.shape_table`.
 
     Returns ``(valid, depth, prim, shape, nrm, extra)``: Dr.Jit arrays as described in
-    :func:`trace_samples` (``nrm`` None unless ``normals``; ``shape`` -1/0 without
-    ``table``), ``extra`` the per-pixel results of ``group`` (fragment ids from
-    ``frag_offset``) and ``cluster``, all evaluated; ``extra`` also holds ``local`` and ``s``
-    (each lane's pixel within the launch and sample slot) unevaluated.
+    :func:`trace_samples` (``nrm`` None unless ``normals``), ``extra`` the per-pixel results
+    of ``group`` (fragment ids from ``frag_offset``), all evaluated; ``extra`` also holds
+    ``local`` and ``s`` (each lane's pixel within the launch and sample slot) unevaluated.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -213,39 +197,25 @@ def prepass_dr(
     else:
         pi = target.ray_intersect_preliminary(ray, coherent=True)
         valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
-    depth = dr.select(valid, _view_depth(cam, ray.o + ray.d * t), 0.0)
-    if table is not None:
-        # masked: a preliminary intersection leaves the shape of a miss undefined
-        ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
-        shape = dr.gather(mi.Int32, table, ids, valid)
-        shape = dr.select(valid, shape, -1)
-    else:
-        shape = dr.select(valid, mi.Int32(0), mi.Int32(-1))
+    depth = dr.select(valid, view_depth(cam, ray.o + ray.d * t), 0.0)
+    # masked: a preliminary intersection leaves the shape of a miss undefined
+    ids = dr.select(valid, dr.reinterpret_array(mi.UInt32, shape_ptr), 0)
+    shape = dr.select(valid, dr.gather(mi.Int32, table, ids, valid), -1)
     extra = {}
-    if group or cluster is not None:
+    if group:
         # one tracing kernel; the per-pixel kernels then gather from stored arrays
-        dr.eval(valid, depth, prim, shape, *([nrm] if cluster is not None else []))
-    if group:
-        extra["first"] = _pixel_dr.first_of_key(mi, dr, valid, shape, prim, local, n)
-    if cluster is not None:
-        k, threshold, weight, fmt = cluster
-        stored = _pixel_dr.store_normal(mi, dr, nrm, fmt)
-        extra["aggregate"] = _pixel_dr.aggregate_of(
-            mi, dr, valid, depth, stored, local, n, k, threshold, weight
+        dr.eval(valid, depth, prim, shape)
+        per_slot = _pixel_dr.first_of_key(
+            mi,
+            dr,
+            _pixel_dr.slots(mi, dr, mi.Bool, valid, n),
+            _pixel_dr.slots(mi, dr, mi.Int32, shape, n),
+            _pixel_dr.slots(mi, dr, mi.UInt32, prim, n),
         )
-    if group:
-        dr.eval(*extra.values())
+        extra["first"] = _pixel_dr.to_sample_lanes(mi, dr, per_slot)
         extra.update(
             _pixel_dr.fragments_of(
-                mi,
-                dr,
-                valid,
-                extra["first"],
-                local,
-                n,
-                s,
-                dr.opaque(mi.UInt32, frag_offset),
-                extra.get("aggregate"),
+                mi, dr, valid, extra["first"], local, n, s, dr.opaque(mi.UInt32, frag_offset)
             )
         )
     dr.eval(valid, depth, prim, shape, *([nrm] if nrm is not None else []), *extra.values())
@@ -293,9 +263,9 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
         vals = attributes_dr(scene, target, *(mi.Float(a[sl]) for a in (sx, sy, cx, cy)))
         valid = vals["valid"]
         dr.eval(*vals.values())
-        v = _np(valid)
+        v = to_numpy(valid)
         for key, val in vals.items():
-            arr = _np(val)
+            arr = to_numpy(val)
             if key in planar:
                 planar[key][:, sl] = np.where(v, arr, 0)
             elif key == "valid":
@@ -342,7 +312,7 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
     bsdf = si.bsdf(ray_s)
     albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
     offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
-    depth = _view_depth(cam, xc)
+    depth = view_depth(cam, xc)
     vals = {
         "valid": valid,
         "position": xc,
@@ -418,7 +388,7 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
             rays += int(count[0])
         else:
             dr.eval(rgb)
-        rgb_out[sl] = _np(rgb).T
+        rgb_out[sl] = to_numpy(rgb).T
     return rgb_out, rays
 
 
@@ -514,8 +484,8 @@ def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
         res = trace_film_dr(scene, x, y, color=True)
         count = dr.count(res["shadow_tested"])
         dr.eval(res["valid"], res["color"], count)
-        valid_out[start:stop] = _np(res["valid"])
-        planar[:, start:stop] = _np(res["color"])
+        valid_out[start:stop] = to_numpy(res["valid"])
+        planar[:, start:stop] = to_numpy(res["color"])
         rays += int(count[0])
     return {
         "valid": valid_out.reshape(n_pix, n),

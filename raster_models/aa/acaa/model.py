@@ -5,7 +5,7 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
    depth per sample, stored in ``depth_format`` (D24 UNORM or D32F of the D3D-style
    ``[0, 1]`` depth ``f/(f-n) (1 - n/z)``; orthographic ``(z-n)/(f-n)``).
 2. Shading pass, depth test LEQUAL, depth writes off: every fragment (primitive, pixel) is
-   shaded once (pixel centre on its plane, or centroid, as :mod:`.msaa`) and added to the
+   shaded once (pixel centre on its plane, or centroid, as :mod:`..msaa`) and added to the
    colour target with weight ``popcount(post-depth coverage) / N``, in submission order
    (shape, then primitive index). A fragment passes at a sample when its stored-format depth
    equals the prepass value there: the nearest surface, and any surface of another shape
@@ -15,12 +15,12 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
    boxes are too far apart to tie (:func:`tie_groups`; the hit there is the hit of a scene
    holding that shape alone wherever a tie is possible), traced only from samples whose
    nearest hit lies within a tie distance of a member's bounding box
-   (:mod:`._acaa_ties`; the others cannot tie with the group); two coplanar triangles of
+   (:mod:`.ties`; the others cannot tie with the group); two coplanar triangles of
    one mesh are not told apart.
 3. ``accumulation="rgba8"`` rounds the target to 8-bit UNORM (``round(255 x) / 255`` of the
    saturated sum) at every addition; ``float32`` adds in float32.
 
-Where no depths tie the result equals :mod:`.msaa`'s box resolve up to float32 summation
+Where no depths tie the result equals :mod:`..msaa`'s box resolve up to float32 summation
 order. Memory = N x depth + one colour per pixel.
 
 References
@@ -41,10 +41,11 @@ from ... import depth as _depth
 from ... import params as _params
 from .. import samples as _samples
 from ..common import DEPTH_FORMATS, ShadowParams, check_shadows, package, shadow_visibility
-from ..trace import fragment_attributes, shade_points
 from . import trace as _acaa_trace
+from .blend import blend
+from .groups import group_scenes, normalized_depth, tie_distance, tie_groups
 
-__all__ = ["ACCUMULATIONS", "AcaaParams", "normalized_depth", "rgba8_accumulate", "run"]
+__all__ = ["ACCUMULATIONS", "AcaaParams", "find_ties", "merge_fragments", "run"]
 
 NAME = "acaa"
 #: Accumulation target formats and their bytes per pixel.
@@ -84,176 +85,15 @@ class AcaaParams(ShadowParams):
         _samples.check_standard_count(technique, self.samples)
 
 
-def normalized_depth(camera, view_depth) -> np.ndarray:
-    """D3D-style window depth in [0, 1] of view depths (float64)."""
-    z = np.asarray(view_depth, np.float64)
-    n, f = camera.near, camera.far
-    if camera.kind == "perspective":
-        return f / (f - n) * (1.0 - n / np.maximum(z, 1e-300))
-    return (z - n) / (f - n)
-
-
 def _stored_depth(camera, view_depth, valid, fmt: str) -> np.ndarray:
     """Depth as stored in ``fmt`` where ``valid``; 2 (behind everything) elsewhere."""
     z = normalized_depth(camera, np.where(valid, view_depth, camera.far))
     return np.where(valid, _depth.quantize(z, fmt), 2.0)
 
 
-def rgba8_accumulate(values: np.ndarray, slot: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Blend ``values`` (F, 3) additively into ``target`` (P, 3) at ``slot`` (F,) pixels, one
-    blend at a time per pixel (fragments of one pixel in order), rounding the saturated sum
-    to 8-bit UNORM after each addition. Returns the target (float64, multiples of 1/255)."""
-    return _blend(values, slot, target, rgba8=True)
-
-
-def _blend(values, pixel, target, *, rgba8: bool, grouped: bool = False):
-    """Blend of ``values`` into ``target`` (an array, or a pixel count: a zero target) in
-    the order of :func:`rgba8_accumulate` (float32, or RGBA8 rounding in float64);
-    ``grouped``: each pixel's values are already contiguous (in their order)."""
-    values = np.asarray(values, np.float64 if rgba8 else np.float32)
-    dtype = np.float64 if rgba8 else np.float32
-    zero = isinstance(target, (int, np.integer))
-    out = np.zeros((target, 3), dtype) if zero else np.array(target, dtype=dtype)
-    pixel = np.asarray(pixel, np.int64)
-    if len(pixel) == 0:
-        return out
-    if not grouped and np.any(pixel[1:] < pixel[:-1]):
-        order = np.argsort(pixel, kind="stable")
-        values, pixel = values[order], pixel[order]
-    # one run a pixel: blend j adds each pixel's j-th value (its rank within its run); the
-    # running sums are kept per run and written to the target once
-    start = np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])
-    run = np.diff(np.r_[start, len(pixel)])
-    values = np.ascontiguousarray(values)
-    acc = None
-    for j in range(int(run.max())):  # one round per blend of the busiest pixel
-        sel = np.flatnonzero(run > j) if j else slice(None)
-        if acc is None:  # first blend: onto zeros (+0: the same addition) or the target
-            s = (dtype(0.0) if zero else _take_rows(out, pixel[start])) + _take_rows(values, start)
-        else:
-            s = acc[sel] + _take_rows(values, start[sel] + j)
-        if rgba8:
-            s = np.floor(np.clip(s, 0.0, 1.0) * 255.0 + 0.5) / 255.0
-        if acc is None:
-            acc = s
-        else:
-            acc[sel] = s
-    _rows(out)[pixel[start]] = _rows(np.ascontiguousarray(acc))
-    return out
-
-
-def _rows(a: np.ndarray) -> np.ndarray:
-    """A C-contiguous ``(N, K)`` array as ``N`` opaque rows (fast row gathers/scatters)."""
-    return a.view(np.dtype((np.void, a.itemsize * a.shape[1]))).reshape(len(a))
-
-
-def _take_rows(a: np.ndarray, rows) -> np.ndarray:
-    """``a[rows]`` for a C-contiguous ``(N, K)`` array (the same bytes, row by row)."""
-    return _rows(a)[rows].view(a.dtype).reshape(-1, a.shape[1])
-
-
-def _shape_scenes(scene) -> list:
-    """One Mitsuba scene per shape (cached on the loaded scene)."""
-    from scenes import backend
-
-    mi = backend.mitsuba()
-    cache = scene.__dict__.setdefault("_aa_shape_scenes", {})
-    if "scenes" not in cache:
-        cache["scenes"] = [
-            mi.load_dict({"type": "scene", "shape": sh}) for sh in scene.mi_scene.shapes()
-        ]
-    return cache["scenes"]
-
-
-#: Depth quanta of slack on each side of a tie window (covers rounding and the float32 view
-#: depth of the hits; a tie needs the two stored values equal: one quantum apart at most).
-TIE_QUANTA = 4.0
-#: World-unit slack added to every tie distance (float32 hit positions of the shapes).
-TIE_SLACK = 1e-3
-
-
-def tie_distance(camera, view_depth, fmt: str) -> np.ndarray:
-    """Largest distance along a camera ray between two points that can store equal depths
-    in ``fmt`` when the farther has view depth at most ``view_depth`` (inf: unbounded).
-
-    :data:`TIE_QUANTA` quanta of normalized depth, as view depth (the inverse of
-    :func:`normalized_depth`), over the smallest cosine between a film ray and the view axis.
-    """
-    z = np.clip(np.asarray(view_depth, np.float64), camera.near, camera.far)
-    kind, bits = _depth.FORMATS[fmt]
-    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # float32 ulp below 2
-    d = normalized_depth(camera, z) + TIE_QUANTA * q
-    n, f = camera.near, camera.far
-    if camera.kind == "perspective":
-        den = 1.0 - d * (f - n) / f
-        far = np.where(den > 0, n / np.where(den > 0, den, 1.0), np.inf)
-        t = camera.tan_half_x
-        cos_min = 1.0 / np.sqrt(1.0 + t * t + (t / camera.aspect) ** 2)
-    else:
-        far = n + d * (f - n)
-        cos_min = 1.0
-    return (far - z) / cos_min + TIE_SLACK
-
-
-def tie_groups(scene, fmt: str) -> list[list[int]]:
-    """Shapes in groups whose members can never tie with each other (cached on the scene).
-
-    Two shapes may tie at a sample only if points of both lie on the sample's ray within
-    :func:`tie_distance` of each other, so only if their bounding boxes are that close
-    (the distance taken at the larger of the two boxes' farthest view depths). Shapes are
-    coloured greedily, in scene order, so that no two close shapes share a group. Within a
-    group, the nearest hit on a ray at a tie depth is the hit of the one member that can be
-    there: a trace of the group gives every member's tie test of a trace of that member
-    alone.
-    """
-    cache = scene.__dict__.setdefault("_aa_tie_groups", {})
-    if fmt in cache:
-        return cache[fmt]
-    cam = scene.camera
-    boxes = [sh.bbox() for sh in scene.mi_scene.shapes()]
-    lo = np.array([[float(c) for c in b.min] for b in boxes], np.float64).reshape(-1, 3)
-    hi = np.array([[float(c) for c in b.max] for b in boxes], np.float64).reshape(-1, 3)
-    corners = np.stack(
-        [np.where(np.array(m, bool), hi, lo) for m in np.ndindex(2, 2, 2)], axis=1
-    )  # (S, 8, 3)
-    zfar = ((corners - cam.position) @ cam.forward).max(axis=1)
-    gap = np.sqrt(
-        np.sum(
-            np.maximum(np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]), 0.0) ** 2,
-            axis=2,
-        )
-    )
-    close = gap <= tie_distance(cam, np.maximum(zfar[:, None], zfar[None]), fmt)
-    groups: list[list[int]] = []
-    for k in range(len(boxes)):  # one round per shape (a list-length loop)
-        for g in groups:
-            if not close[k, g].any():
-                g.append(k)
-                break
-        else:
-            groups.append([k])
-    cache[fmt] = groups
-    return groups
-
-
-def _group_scene(scene, members: list[int]):
-    """A Mitsuba scene of the given shapes of ``scene`` (cached on the loaded scene)."""
-    from scenes import backend
-
-    if len(members) == 1:
-        return _shape_scenes(scene)[members[0]]
-    mi = backend.mitsuba()
-    cache = scene.__dict__.setdefault("_aa_group_scenes", {})
-    key = tuple(members)
-    if key not in cache:
-        shapes = scene.mi_scene.shapes()
-        cache[key] = mi.load_dict({"type": "scene", **{f"shape_{k}": shapes[k] for k in members}})
-    return cache[key]
-
-
-def _fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
+def merge_fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
     """Fragments passing LEQUAL: the nearest surface's (``near``, one row per fragment in
-    pixel order, from :func:`._acaa_trace.prepass`) merged with the tie samples ``(pixel,
+    pixel order, from :func:`.trace.prepass`) merged with the tie samples ``(pixel,
     sample, shape, prim)`` of other shapes.
 
     Fragments are in pixel order and, within a pixel, in submission order (shape, then
@@ -298,9 +138,9 @@ def _fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> d
     return {key: np.insert(near[key][keep], at, merged[key]) for key in merged}
 
 
-def _ties(cam, candidates: list, window: float, fmt: str) -> list:
+def find_ties(cam, candidates: list, window: float, fmt: str) -> list:
     """Tie samples ``(pixel, sample, shape, prim)`` of each group from its candidates' hits
-    (:func:`._acaa_trace.prepass`): a hit within the tie window whose stored depth passes
+    (:func:`.trace.prepass`): a hit within the tie window whose stored depth passes
     LEQUAL against the prepass's."""
     found = []
     for pix, smp, depth, hit, hit_depth, hit_shape, hit_prim in candidates:
@@ -316,23 +156,6 @@ def _ties(cam, candidates: list, window: float, fmt: str) -> list:
     return found
 
 
-def _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, shadows: str):
-    """Fragment colours with a shadow technique's visibility (attributes copied to NumPy for
-    the technique). Returns ``(rgb, shadow_rays)``."""
-    attrs = None
-    for members, sub in zip(groups, subs, strict=True):  # each fragment in its group's scene
-        sel = np.nonzero(np.isin(f_shape, members))[0]
-        if len(sel) == 0:
-            continue
-        a = fragment_attributes(scene, sx[sel], sy[sel], cx[sel], cy[sel], mi_scene=sub)
-        if attrs is None:
-            attrs = {key: np.zeros((len(f_shape),) + v.shape[1:], v.dtype) for key, v in a.items()}
-        for key, v in a.items():
-            attrs[key][sel] = v
-    vis = shadow_visibility(scene, attrs, shadows)
-    return shade_points(scene, attrs, visibility=vis)
-
-
 def run(scene, params: AcaaParams | None = None, **kwargs):
     """Run ``acaa`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
@@ -344,36 +167,38 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     n_pix = w * h
     cam = scene.camera
     groups = tie_groups(scene, p.depth_format)
-    subs = [_group_scene(scene, members) for members in groups]
+    subs = group_scenes(scene, groups)
     pre = _acaa_trace.prepass(scene, offsets, groups, subs, p.depth_format, centroid=p.centroid)
     # the largest tie distance (at the far plane): a view-depth bound on every tie
     window = float(tie_distance(cam, cam.far, p.depth_format))
-    ties_found = _ties(cam, pre["candidates"], window, p.depth_format)
-    frag = _fragments(pre["near"], ties_found, offsets, n_pix, p.centroid)
-    f_pix, f_smp, f_shape, count = frag["pixel"], frag["sample"], frag["shape"], frag["count"]
+    ties_found = find_ties(cam, pre["candidates"], window, p.depth_format)
+    frag = merge_fragments(pre["near"], ties_found, offsets, n_pix, p.centroid)
+    f_pix, count = frag["pixel"], frag["count"]
     n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
     target = np.zeros((n_pix, 3), np.float32)
     rays = 0
     if n_frag:
         centre = None
-        if p.centroid or p.shadows != "exact":
-            fx, fy = f_pix % w, f_pix // w
         if p.centroid:
+            fx, fy = f_pix % w, f_pix // w
             partial = count < n
             centre = (
                 np.where(partial, fx + frag["sum_x"] / count, fx + 0.5),
                 np.where(partial, fy + frag["sum_y"] / count, fy + 0.5),
             )
-        if p.shadows == "exact":
-            rgb, rays = _acaa_trace.shade_exact(scene, groups, subs, frag, offsets, centre)
-        else:
-            sx, sy = fx + offsets[f_smp, 0], fy + offsets[f_smp, 1]
-            cx, cy = centre if centre is not None else (fx + 0.5, fy + 0.5)
-            rgb, rays = _shade_with(scene, groups, subs, f_shape, sx, sy, cx, cy, p.shadows)
+        visibility = None
+        if p.shadows != "exact":
+
+            def visibility(attrs):
+                return shadow_visibility(scene, attrs, p.shadows)
+
+        rgb, rays = _acaa_trace.shade(
+            scene, groups, subs, frag, offsets, centre, visibility=visibility
+        )
         weighted = rgb * (count / np.float32(n)).astype(np.float32)[:, None]
         rgba8 = p.accumulation == "rgba8"
-        target = _blend(weighted, f_pix, n_pix, rgba8=rgba8, grouped=True)
+        target = blend(weighted, f_pix, n_pix, rgba8=rgba8, grouped=True)
     events = np.bincount(f_pix, minlength=n_pix)
     # samples with at least one tie (a sample may tie with several groups)
     keys = [pix * n + smp for pix, smp, _, _ in ties_found]

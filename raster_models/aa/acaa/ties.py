@@ -3,11 +3,11 @@ test run before the group is traced, so the tie search traces only those samples
 
 A sample whose nearest surface lies at ``P`` (view depth ``z``) ties with a surface ``Q`` of
 another shape only where both store the same depth: ``Q`` lies on the sample's ray within
-``r(z)`` of ``P``, ``r`` the :func:`.acaa.tie_distance` bound (``TIE_QUANTA`` quanta of
+``r(z)`` of ``P``, ``r`` the :func:`.groups.tie_distance` bound (``TIE_QUANTA`` quanta of
 normalized depth over the smallest film-ray cosine, plus slack). ``Q`` lies in its shape's
 bounding box, so ``P`` lies within ``r(z)`` of that box. The test here keeps every sample
 with ``dist(P, box_k) <= radius(z)`` for some member ``k`` of the group, where ``radius`` is
-twice ``r`` plus a float32 position error (:func:`radius_np`, :func:`radius_dr`): a
+twice ``r`` plus a float32 position error (:func:`tie_radius`): a
 superset of the samples that can tie, which the tie search then traces and tests exactly.
 
 Groups with few members test every member's box; larger groups look the members up in a
@@ -24,8 +24,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ... import depth as _depth
+from .groups import TIE_QUANTA, TIE_SLACK, camera_key
 
-__all__ = ["GroupFilter", "group_filters", "near_dr", "radius_dr", "radius_np"]
+__all__ = [
+    "GroupFilter",
+    "group_filters",
+    "near_dr",
+    "point_radius_dr",
+    "radius_constants",
+    "tie_radius",
+]
 
 #: Groups with at most this many members test each member's box directly (no grid).
 DIRECT_MEMBERS = 8
@@ -37,17 +45,15 @@ CELL_LIST = 32
 #: and the tie's alike: a few roundings of the larger of their coordinates and depth).
 POSITION_ERROR = 1e-5
 #: Tie radii at or beyond this fraction of the depth where the tie window becomes unbounded
-#: (``c z -> 1``, see :func:`radius_np`) count as unbounded: every such sample is kept.
+#: (``c z -> 1``, see :func:`tie_radius`) count as unbounded: every such sample is kept.
 UNBOUNDED_CZ = 0.5
 
 
-def _constants(camera, fmt: str):
+def radius_constants(camera, fmt: str):
     """``(c, cos_min, ortho_r)`` of the tie radius: ``far(z) - z = c z^2 / (1 - c z)`` for
     a perspective camera (``1/far = 1/z - c``), ``ortho_r`` for an orthographic one."""
-    from .model import TIE_QUANTA
-
     kind, bits = _depth.FORMATS[fmt]
-    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # as acaa.tie_distance
+    q = 1.0 / ((1 << bits) - 1) if kind == "unorm" else 2.0**-23  # as groups.tie_distance
     n, f = camera.near, camera.far
     if camera.kind == "perspective":
         t = camera.tan_half_x
@@ -56,43 +62,34 @@ def _constants(camera, fmt: str):
     return 0.0, 1.0, TIE_QUANTA * q * (f - n)
 
 
-def radius_np(camera, fmt: str, z, p_max) -> np.ndarray:
-    """Tie radius (world units, float64, ``inf`` where unbounded) of samples at view depth
-    ``z`` whose hit position has largest absolute coordinate ``p_max``.
+def tie_radius(camera, fmt: str, z, p_max, *, xp=np):
+    """Tie radius (world units, ``inf`` where unbounded) of samples at view depth ``z``
+    whose hit position has largest absolute coordinate ``p_max``.
 
     ``2 r(z) + 2 TIE_SLACK + POSITION_ERROR (|z| + p_max)``, with ``r(z) = c z'^2 / (1 - c
-    z') / cos_min``, ``z' = max(z, near)`` (the depth bound of :func:`.acaa.tie_distance`
-    in closed form; orthographic: ``TIE_QUANTA q (f - n)``); increasing in ``z`` and ``p_max``.
+    z') / cos_min``, ``z' = max(z, near)`` (the depth bound of :func:`.groups.tie_distance`
+    in closed form; orthographic: ``TIE_QUANTA q (f - n)``); increasing in ``z`` and
+    ``p_max``. ``xp`` is the array module of ``z`` and ``p_max``: ``numpy`` (float64
+    arrays: the grid's bounds) or ``drjit`` (Float: every sample of the prepass, in float32,
+    where the factor 2 on ``r`` covers float32's relative error many times over).
     """
-    from .model import TIE_SLACK
-
-    c, cos_min, ortho_r = _constants(camera, fmt)
-    z = np.asarray(z, np.float64)
-    slack = 2.0 * TIE_SLACK + POSITION_ERROR * (np.abs(z) + np.asarray(p_max, np.float64))
+    c, cos_min, ortho_r = radius_constants(camera, fmt)
+    where = np.where if xp is np else xp.select
+    slack = 2.0 * TIE_SLACK + POSITION_ERROR * (xp.abs(z) + p_max)
     if ortho_r is not None:
         return 2.0 * ortho_r + slack
-    zc = np.maximum(z, camera.near)
+    zc = xp.maximum(z, camera.near)
     cz = c * zc
     bounded = cz < UNBOUNDED_CZ
-    r = c * zc * zc / np.where(bounded, 1.0 - cz, 1.0) / cos_min
-    return np.where(bounded, 2.0 * r + slack, np.inf)
+    r = c * zc * zc / where(bounded, 1.0 - cz, 1.0) / cos_min
+    return where(bounded, 2.0 * r + slack, xp.inf)
 
 
-def radius_dr(mi, dr, camera, fmt: str, z, p):
-    """:func:`radius_np` on the Dr.Jit side (Float ``z``, Point3f ``p``), in float32: the
-    factor 2 on ``r`` covers float32's relative error many times over."""
-    from .model import TIE_SLACK
-
-    c, cos_min, ortho_r = _constants(camera, fmt)
+def point_radius_dr(dr, camera, fmt: str, z, p):
+    """:func:`tie_radius` of Dr.Jit samples at view depth ``z`` (Float) and position ``p``
+    (Point3f)."""
     p_max = dr.maximum(dr.maximum(dr.abs(p.x), dr.abs(p.y)), dr.abs(p.z))
-    slack = 2.0 * TIE_SLACK + POSITION_ERROR * (dr.abs(z) + p_max)
-    if ortho_r is not None:
-        return 2.0 * ortho_r + slack
-    zc = dr.maximum(z, camera.near)
-    cz = c * zc
-    bounded = cz < UNBOUNDED_CZ
-    r = c * zc * zc / dr.select(bounded, 1.0 - cz, 1.0) / cos_min
-    return dr.select(bounded, 2.0 * r + slack, dr.inf)
+    return tie_radius(camera, fmt, z, p_max, xp=dr)
 
 
 @dataclass(frozen=True)
@@ -143,8 +140,8 @@ def _build(scene, members: list[int], fmt: str) -> GroupFilter:
     # a tie of member k has its sample within r0 of the box (view depth <= zfar, up to
     # rounding), so its coordinates within p_max + r0
     z_bound = np.abs(zfar) * 1.01 + 1.0
-    r0 = radius_np(cam, fmt, z_bound, p_max)
-    grow = radius_np(cam, fmt, z_bound, p_max + r0) * 1.01
+    r0 = tie_radius(cam, fmt, z_bound, p_max)
+    grow = tie_radius(cam, fmt, z_bound, p_max + r0) * 1.01
     if not np.isfinite(grow).all():
         return GroupFilter(True, *boxes)
     glo, ghi = lo - grow[:, None], hi + grow[:, None]
@@ -178,12 +175,14 @@ def _build(scene, members: list[int], fmt: str) -> GroupFilter:
 
 
 def group_filters(scene, groups: list[list[int]], fmt: str) -> list[GroupFilter]:
-    """One :class:`GroupFilter` per tie group (cached on the loaded scene)."""
-    cache = scene.__dict__.setdefault("_acaa_group_filters", {})
-    key = (fmt, tuple(tuple(g) for g in groups))
-    if key not in cache:
-        cache[key] = [_build(scene, g, fmt) for g in groups]
-    return cache[key]
+    """One :class:`GroupFilter` per tie group, memoized in ``scene.memo`` for the last
+    (camera, format, groups): the grid's radii depend on the camera."""
+    key = (fmt, camera_key(scene.camera), tuple(tuple(g) for g in groups))
+    slot = scene.memo.get("acaa.group_filters")
+    if slot is None or slot[0] != key:
+        slot = (key, [_build(scene, g, fmt) for g in groups])
+        scene.memo["acaa.group_filters"] = slot
+    return slot[1]
 
 
 def _dist2(dr, p, lo, hi):

@@ -1,16 +1,17 @@
 """Ray work of ACAA on the Dr.Jit side: the depth prepass with its tie search, and the
 shading of fragments with exact shadow rays, copying back only compact results.
 
-- :func:`prepass`: per launch of :data:`._trace.CHUNK` rays, one kernel tracing every
-  sample (nearest surface, as :func:`._trace.trace_samples`) and testing which samples can
-  tie with each group (:mod:`._acaa_ties`); one lane a pixel then groups its samples into
+- :func:`prepass`: per launch of :data:`..trace.CHUNK` rays, one kernel tracing every
+  sample (nearest surface, as :func:`..trace.trace_samples`) and testing which samples can
+  tie with each group (:mod:`.ties`); one lane a pixel then groups its samples into
   fragments; each group's candidates are compressed and traced against the group's scene.
   NumPy receives the nearest fragments (one row each) and the hits of the tie candidates,
   never the ``(P, N)`` sample arrays.
-- :func:`shade_exact`: fragment attributes (:func:`._trace.attributes_dr`) and the oracle's
-  shading with an exact shadow ray (:func:`._trace.shade_dr`) in one kernel per group and
-  launch, as :func:`._trace.fragment_attributes` followed by :func:`._trace.shade_points`
-  compute them (the same float32 operations, without the round trip through NumPy).
+- :func:`shade`: fragment attributes (:func:`..trace.attributes_dr`) and the oracle's
+  shading with an exact shadow ray (:func:`..trace.shade_dr`) in one kernel per group and
+  launch; with a shadow technique's visibility, the same kernels with the attributes copied
+  to NumPy once for the technique (:func:`..trace.fragment_attributes`,
+  :func:`..trace.shade_points`).
 """
 
 from __future__ import annotations
@@ -20,11 +21,25 @@ import numpy as np
 from scenes import backend
 from scenes.raycast import camera_rays_dr, shape_table
 
+from .. import pixel_dr as _pixel_dr
 from .. import trace as _trace
-from ..trace import _np, _view_depth, attributes_dr, shade_dr
-from .ties import group_filters, near_dr, radius_dr
+from ..trace import (
+    attributes_dr,
+    fragment_attributes,
+    shade_dr,
+    shade_points,
+    to_numpy,
+    view_depth,
+)
+from .ties import group_filters, near_dr, point_radius_dr
 
-__all__ = ["prepass", "shade_exact"]
+__all__ = [
+    "fragments_of_pixels",
+    "launch_prepass",
+    "position_sums",
+    "prepass",
+    "shade",
+]
 
 
 def _cat(parts: list, dtype) -> np.ndarray:
@@ -38,9 +53,9 @@ def _shape_of(mi, dr, table, pi):
     return dr.select(valid, dr.gather(mi.Int32, table, ids, valid), -1)
 
 
-def _launch(scene, table, ox, oy, base, count: int, n: int, tests: list, fmt: str):
+def launch_prepass(scene, table, ox, oy, base, count: int, n: int, tests: list, fmt: str):
     """Prepass of ``count`` pixels from ``base`` (``n`` lanes a pixel): ``valid``, view
-    ``depth``, ``prim``, ``shape`` as :func:`._trace.trace_samples` computes them, and per
+    ``depth``, ``prim``, ``shape`` as :func:`..trace.trace_samples` computes them, and per
     group ``(member lut, filter)`` of ``tests`` the lanes that can tie with the group (hit,
     nearest shape not a member, near a member's box), all evaluated in one kernel."""
     mi = backend.mitsuba()
@@ -52,9 +67,9 @@ def _launch(scene, table, ox, oy, base, count: int, n: int, tests: list, fmt: st
     pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
     valid = pi.is_valid()
     p_hit = ray.o + ray.d * pi.t
-    depth = dr.select(valid, _view_depth(cam, p_hit), 0.0)
+    depth = dr.select(valid, view_depth(cam, p_hit), 0.0)
     shape = _shape_of(mi, dr, table, pi)
-    radius = radius_dr(mi, dr, cam, fmt, depth, p_hit)
+    radius = point_radius_dr(dr, cam, fmt, depth, p_hit)
     shape_1 = mi.UInt32(shape + 1)
     masks = []
     for lut, filt in tests:
@@ -78,57 +93,37 @@ def _rays(scene, ox, oy, base, idx, n: int):
     return camera_rays_dr(scene.camera, x, y)
 
 
-#: Fragment sample counts packed per UInt32 word (5 bits each: 0 to 16).
-COUNTS_PER_WORD = 6
-
-
-def _fragments_of_pixels(valid, shape, prim, count: int, n: int):
+def fragments_of_pixels(valid, shape, prim, count: int, n: int):
     """Nearest fragments of ``count`` pixels: per sample, the number of samples of its pixel
     with its (shape, primitive) where it is the first of them (its fragment's
     representative), else 0 (UInt32, sample layout, evaluated).
 
-    One lane a pixel compares the pixel's ``n`` samples pairwise and packs the counts,
-    :data:`COUNTS_PER_WORD` to a word; one lane a sample then unpacks its own.
+    One lane a pixel groups the pixel's ``n`` samples (:func:`..pixel_dr.first_of_key`) and
+    counts them; :func:`..pixel_dr.to_sample_lanes` hands each sample its own count.
     """
     mi = backend.mitsuba()
     import drjit as dr
 
-    lane = dr.arange(mi.UInt32, count)
-    at = [lane * n + j for j in range(n)]
-    v = [dr.gather(mi.Bool, valid, a) for a in at]
-    sh = [dr.gather(mi.Int32, shape, a) for a in at]
-    pr = [dr.gather(mi.UInt32, prim, a) for a in at]
+    first = _pixel_dr.first_of_key(
+        mi,
+        dr,
+        _pixel_dr.slots(mi, dr, mi.Bool, valid, n),
+        _pixel_dr.slots(mi, dr, mi.Int32, shape, n),
+        _pixel_dr.slots(mi, dr, mi.UInt32, prim, n),
+    )
     one, zero = mi.UInt32(1), mi.UInt32(0)
-    same = {
-        (k, j): v[k] & v[j] & (sh[k] == sh[j]) & (pr[k] == pr[j])
-        for j in range(n)
-        for k in range(j)
-    }  # sample slot pairs of the pixel (at most 120 for 16 samples)
-    words = [mi.UInt32(0) for _ in range(-(-n // COUNTS_PER_WORD))]
-    for j in range(n):  # sample slots (at most 16 rounds)
-        first = v[j]
-        for k in range(j):
-            first = first & ~same[k, j]
-        c = one
-        for k in range(j + 1, n):
-            c = c + dr.select(same[j, k], one, zero)
-        i, shift = j // COUNTS_PER_WORD, 5 * (j % COUNTS_PER_WORD)
-        words[i] = words[i] | (dr.select(first, c, 0) << shift)
-    dr.eval(*words)
-    idx = dr.arange(mi.UInt32, count * n)
-    local = idx // n
-    s = idx - local * n
-    word = dr.gather(mi.UInt32, words[0], local)
-    for i in range(1, len(words)):
-        word = dr.select(s >= i * COUNTS_PER_WORD, dr.gather(mi.UInt32, words[i], local), word)
-    counts = (word >> (5 * (s % COUNTS_PER_WORD))) & 31
-    dr.eval(counts)
-    return counts
+    counts = []
+    for j in range(n):  # sample slots (at most 16 rounds): slot j's fragment size, if first
+        c = zero
+        for i in range(j, n):  # first[i] == j only for i >= j, and never for sky (first = n)
+            c = c + dr.select(first[i] == j, one, zero)
+        counts.append(c)
+    return _pixel_dr.to_sample_lanes(mi, dr, counts)
 
 
-def _position_sums(valid, shape, prim, rep, n: int, offs64):
+def position_sums(valid, shape, prim, rep, n: int, offs64):
     """Sums of the sample positions of the fragments of representatives ``rep`` (lane
-    indices), float64, added in sample order (as ``np.bincount`` adds them)."""
+    indices), float64, added in sample-slot order."""
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -152,9 +147,9 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
 
     Parameters
     ----------
-    groups : tie groups (lists of shape indices, :func:`.acaa.tie_groups`).
+    groups : tie groups (lists of shape indices, :func:`.groups.tie_groups`).
     group_scenes : one Mitsuba scene per group holding its members.
-    fmt : depth format (the tie radius, :mod:`._acaa_ties`).
+    fmt : depth format (the tie radius, :mod:`.ties`).
     centroid : also return the sums of each fragment's sample positions.
 
     Returns
@@ -164,7 +159,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     ``sum_x``, ``sum_y`` float64); ``candidates``, per group ``(pixel, sample, depth,
     hit_valid, hit_depth, hit_shape, hit_prim)``: the candidate samples in pixel-sample
     order with their prepass view depth and the group's nearest hit (float32 depths, as
-    :func:`._trace.trace_samples` computes them); ``traced``, the number of candidate rays.
+    :func:`..trace.trace_samples` computes them); ``traced``, the number of candidate rays.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -189,8 +184,10 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     for p0 in range(0, n_pix, per_launch):  # one launch of CHUNK rays at most
         m = min(n_pix, p0 + per_launch) - p0
         base = dr.opaque(mi.UInt32, p0)
-        valid, depth, prim, shape, masks = _launch(scene, table, ox, oy, base, m, n, tests, fmt)
-        counts = _fragments_of_pixels(valid, shape, prim, m, n)
+        valid, depth, prim, shape, masks = launch_prepass(
+            scene, table, ox, oy, base, m, n, tests, fmt
+        )
+        counts = fragments_of_pixels(valid, shape, prim, m, n)
         # nearest fragments: their representative samples, compressed
         rep = dr.compress(counts > 0)
         if dr.width(rep) > 0:  # an all-sky launch has no fragment (and no candidate)
@@ -202,10 +199,10 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 "count": dr.gather(mi.UInt32, counts, rep),
             }
             if centroid:
-                row["sum_x"], row["sum_y"] = _position_sums(valid, shape, prim, rep, n, offs64)
+                row["sum_x"], row["sum_y"] = position_sums(valid, shape, prim, rep, n, offs64)
             dr.eval(*row.values())
             for key in keys:
-                near[key].append(_np(row[key]).copy())
+                near[key].append(to_numpy(row[key]).copy())
         for gi, mask in enumerate(masks):  # one trace per group, of its candidates only
             cand = dr.compress(mask)
             if dr.width(cand) == 0:
@@ -213,7 +210,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
             ray = _rays(scene, ox, oy, base, cand, n)
             pi = group_scenes[gi].ray_intersect_preliminary(ray, coherent=True)
             hit = pi.is_valid()
-            hit_depth = dr.select(hit, _view_depth(cam, ray.o + ray.d * pi.t), 0.0)
+            hit_depth = dr.select(hit, view_depth(cam, ray.o + ray.d * pi.t), 0.0)
             vals = (
                 cand,
                 dr.gather(mi.Float, depth, cand),
@@ -223,12 +220,12 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 pi.prim_index,
             )
             dr.eval(*vals)
-            c = _np(cand).astype(np.int64)
+            c = to_numpy(cand).astype(np.int64)
             out = cands[gi]
             out[0].append(p0 + c // n)
             out[1].append(c % n)
             for k, v in enumerate(vals[1:]):
-                out[k + 2].append(_np(v).copy())
+                out[k + 2].append(to_numpy(v).copy())
             traced += len(c)
     dtypes = (np.int64, np.int64, np.float32, bool, np.float32, np.int64, np.int64)
     dtypes_near = {"pixel": np.uint32, "sample": np.uint32, "shape": np.int32}
@@ -242,17 +239,23 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     }
 
 
-def shade_exact(scene, groups: list, group_scenes: list, frag: dict, offsets, centre=None):
+def shade(
+    scene, groups: list, group_scenes: list, frag: dict, offsets, centre=None, *, visibility=None
+):
     """Colour of every fragment of ``frag`` (``pixel``, ``sample``: a sample it covers,
     ``shape``), shaded on the surface the ray through that sample meets in its group's scene,
     at the pixel centre or at ``centre`` (``(cx, cy)`` film positions), with an exact shadow
-    ray from the shading point.
+    ray from the shading point, or with ``visibility``: a function of the fragments'
+    attributes (the dict of :func:`..trace.fragment_attributes`) giving their light
+    visibility (a shadow technique, :func:`..common.shadow_visibility`).
 
     Film positions are formed in float32 (pixel + offset: exact, as in float64).
 
     Returns ``(rgb, shadow_rays)``: ``(F, 3)`` float32 linear radiance (0 where no surface)
-    and the number of shadow rays cast.
+    and the number of shadow rays cast (0 with ``visibility``).
     """
+    if visibility is not None:
+        return _shade_with(scene, groups, group_scenes, frag, offsets, centre, visibility)
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -299,5 +302,29 @@ def shade_exact(scene, groups: list, group_scenes: list, frag: dict, offsets, ce
                 dr.scatter(rgb[c], color[c], part)
             dr.eval(rgb, count)
             rays += int(count[0])
-    rgb = np.stack([_np(c) for c in rgb], axis=1)
+    rgb = np.stack([to_numpy(c) for c in rgb], axis=1)
     return rgb, rays
+
+
+def _shade_with(scene, groups, group_scenes, frag, offsets, centre, visibility):
+    """:func:`shade` with a visibility function: the fragments' attributes (each in its
+    group's scene, the launches of the exact path) copied to NumPy for it, then shaded."""
+    w = scene.width
+    f_pix = np.asarray(frag["pixel"], np.int64)
+    f_smp = np.asarray(frag["sample"], np.int64)
+    f_shape = np.asarray(frag["shape"], np.int64)
+    offs = np.asarray(offsets, np.float64)
+    fx, fy = f_pix % w, f_pix // w
+    sx, sy = fx + offs[f_smp, 0], fy + offs[f_smp, 1]
+    cx, cy = centre if centre is not None else (fx + 0.5, fy + 0.5)
+    attrs = None
+    for members, sub in zip(groups, group_scenes, strict=True):  # each in its group's scene
+        sel = np.flatnonzero(np.isin(f_shape, members))
+        if len(sel) == 0:
+            continue
+        a = fragment_attributes(scene, sx[sel], sy[sel], cx[sel], cy[sel], mi_scene=sub)
+        if attrs is None:
+            attrs = {key: np.zeros((len(f_shape),) + v.shape[1:], v.dtype) for key, v in a.items()}
+        for key, v in a.items():
+            attrs[key][sel] = v
+    return shade_points(scene, attrs, visibility=visibility(attrs))

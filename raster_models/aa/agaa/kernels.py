@@ -1,26 +1,23 @@
 """AGAA's frame on the Dr.Jit side: prepass, aggregates, material accumulation and shading
 chained per launch, with only per-pixel results copied back to NumPy.
 
-Per launch of at most :data:`LAUNCH_CHUNKS` x :data:`._trace.CHUNK` samples (whole pixels):
+Per launch of at most :data:`LAUNCH_CHUNKS` x :data:`..trace.CHUNK` samples (whole pixels):
 
-1. the samples' nearest surfaces (:func:`._trace.prepass_dr`), then, one lane a pixel, its
-   fragment representatives and aggregates (:func:`._agaa_pixels.pixel_prepass`);
+1. the samples' nearest surfaces (:func:`..trace.prepass_dr`), then, one lane a pixel, its
+   fragment representatives and aggregates (:func:`.pixels.pixel_prepass`);
 2. the fragments (representative lanes, :func:`drjit.compress`) and their attributes
-   (:func:`._trace.attributes_dr`, zero where the ray misses, as
-   :func:`._trace.fragment_attributes`);
+   (:func:`..trace.attributes_dr`, zero where the ray misses);
 3. one lane a pixel: every aggregate's weighted material sums over its (fragment,
-   aggregate) pairs and its averages; each existing aggregate shaded once
-   (:func:`._trace.shade_dr`, filtered normal, exact shadow ray); the pixel's
-   coverage-weighted colour.
-
-The arithmetic is that of the NumPy path of :func:`.agaa.run` (shadow techniques), operation
-for operation, so the bytes are the same: the pairs of an aggregate are summed in float32 in
-the order of ``np.add.reduceat`` (:func:`add_reduceat_order`), the averages divided and
-normalized in float32 (a norm as ``np.linalg.norm``: ``sqrt((x^2 + y^2) + z^2)``), the
-colour summed in float64 from 0 in slot order (``np.bincount``) and rounded to float32 once.
+   aggregate) pairs, in sample-slot order, and its float32 averages; each existing
+   aggregate shaded once (:func:`..trace.shade_dr`, filtered normal) with an exact shadow
+   ray from its average position, or with the visibility a shadow technique gives there
+   (``visibility``: the launch's aggregates copied to NumPy once); the pixel's
+   coverage-weighted colour, summed in float64 and rounded to float32 once.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
@@ -30,81 +27,46 @@ from scenes.raycast import shape_table
 from .. import trace as _trace
 from . import pixels as _agaa_pixels
 
-__all__ = ["CHANNELS", "LAUNCH_CHUNKS", "add_reduceat_order", "render"]
+__all__ = ["CHANNELS", "LAUNCH_CHUNKS", "render"]
 
-#: Attribute channels summed per aggregate, in the NumPy path's table order (the averages
-#: are stored per aggregate in this order, then its shadow-ray offset and its sample count).
+#: Attribute channels summed per aggregate (the averages are stored per aggregate in this
+#: order, then its shadow-ray offset and its sample count).
 CHANNELS = ("albedo", "normal", "position", "to_eye", "geo_normal")
-#: Prepass samples a launch, in :data:`._trace.CHUNK` s (``1 << 23``): every launch
+#: Prepass samples a launch, in :data:`..trace.CHUNK` s (``1 << 23``): every launch
 #: generates its kernels' code again (the intersection and BSDF calls of every shape), so
-#: fewer, larger launches save time; peak memory at 1920x1080 x 8 samples is about 1.1 GiB
-#: (the NumPy path's: 1.45 GiB), under the oracle's own bound (``oracle.reference.render``'s
-#: ``SAMPLES_PER_CHUNK``: about 1.5 GiB).
+#: fewer, larger launches save time; peak memory at 1920x1080 x 8 samples is about 1.1 GiB,
+#: under the oracle's own bound (``oracle.reference.render``'s ``SAMPLES_PER_CHUNK``: about
+#: 1.5 GiB).
 LAUNCH_CHUNKS = 4
-#: ``pairwise_sum`` of NumPy's float add: sums of fewer terms than this run left to right.
-_PW_UNROLL = 8
 
 
-def add_reduceat_order(dr, rows, active, at, n_rows: int):
-    """Sum of ``rows`` in the order of ``np.add.reduceat`` on one segment.
+def render(
+    scene,
+    offsets,
+    *,
+    k: int,
+    threshold: float,
+    depth_weight: float,
+    fmt: str,
+    visibility: Callable[[dict], np.ndarray] | None = None,
+):
+    """AGAA's frame.
 
-    ``rows`` is a list of ``n_rows`` candidate rows (lists of arrays); ``active[i]`` says
-    whether row ``i`` is in the segment and ``at[i]`` its position there (the segment is the
-    active rows in list order). ``reduceat`` adds to the first row the ``pairwise_sum`` of
-    the rest: left to right below :data:`_PW_UNROLL` terms, else the tree of eight partial
-    sums ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))`` followed by the remaining
-    terms left to right (at most 15 terms here, so one block). Returns ``(sum, count)``;
-    the sum is undefined where ``count`` is 0.
-    """
-    width = len(rows[0])
-    first = list(rows[0])
-    rest = list(rows[0])
-    tree = [list(rows[0]) for _ in range(_PW_UNROLL)]
-    tail = [list(rows[0]) for _ in range(max(0, n_rows - 1 - _PW_UNROLL))]
-    for i in range(n_rows):
-        act, m, row = active[i], at[i], rows[i]
-        is_first = act & (m == 0)
-        is_second = act & (m == 1)
-        later = act & (m >= 2)
-        for c in range(width):
-            first[c] = dr.select(is_first, row[c], first[c])
-            rest[c] = dr.select(is_second, row[c], dr.select(later, rest[c] + row[c], rest[c]))
-        if n_rows - 1 >= _PW_UNROLL:
-            for j in range(_PW_UNROLL):
-                hit = act & (m == j + 1)
-                tree[j] = [dr.select(hit, row[c], tree[j][c]) for c in range(width)]
-            for j in range(len(tail)):
-                hit = act & (m == _PW_UNROLL + 1 + j)
-                tail[j] = [dr.select(hit, row[c], tail[j][c]) for c in range(width)]
-    count = at[-1] + dr.select(active[-1], 1, 0)
-    n_rest = count - 1
-    if n_rows - 1 >= _PW_UNROLL:
-        t = tree
-        blocked = [
-            ((t[0][c] + t[1][c]) + (t[2][c] + t[3][c]))
-            + ((t[4][c] + t[5][c]) + (t[6][c] + t[7][c]))
-            for c in range(width)
-        ]
-        for j in range(len(tail)):
-            more = n_rest > _PW_UNROLL + j
-            blocked = [dr.select(more, blocked[c] + tail[j][c], blocked[c]) for c in range(width)]
-        big = n_rest >= _PW_UNROLL
-        rest = [dr.select(big, blocked[c], rest[c]) for c in range(width)]
-    one = count <= 1
-    return [dr.select(one, first[c], first[c] + rest[c]) for c in range(width)], count
+    Parameters
+    ----------
+    offsets : ``(N, 2)`` standard sample positions in the pixel (y down).
+    k, threshold, depth_weight, fmt : the clustering (:class:`.model.AgaaParams`).
+    visibility : None for an exact shadow ray from every aggregate's average position, or a
+        function of the aggregates' shading points (a dict of ``(A, 3)`` float32
+        ``position``, ``normal``, ``geo_normal``, ``albedo``, ``to_eye`` and ``(A,)``
+        ``offset``, ``valid``, float64 view ``depth``) returning their light visibility in
+        [0, 1] (a shadow technique, :func:`..common.shadow_visibility`).
 
-
-def _norm(dr, v):
-    """``np.linalg.norm`` of a float32 3-vector, operation for operation."""
-    return dr.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
-
-
-def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt: str):
-    """AGAA's frame with exact shadow rays.
-
-    Returns a dict of per-pixel NumPy arrays (row-major, ``(P,)``): ``color`` ``(P, 3)``
-    float32 linear radiance, ``covered`` (samples hitting a surface), ``aggregates`` and
-    ``surfaces`` (fragments), and ``shadow_rays`` (int).
+    Returns
+    -------
+    dict of per-pixel NumPy arrays (row-major, ``(P,)``): ``color`` ``(P, 3)`` float32
+    linear radiance, ``covered`` (samples hitting a surface), ``aggregates`` and
+    ``surfaces`` (fragments), and ``shadow_rays`` (int, 0 with ``visibility``).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -124,16 +86,7 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
         start = dr.opaque(mi.UInt32, p0)  # one kernel for every launch, not one per p0
         local = dr.arange(mi.UInt32, p1 - p0)
         valid, depth, prim, shape, nrm, _ = _trace.prepass_dr(
-            scene,
-            scene.mi_scene,
-            table,
-            ox,
-            oy,
-            local + start,
-            n,
-            normals=True,
-            group=False,
-            cluster=None,
+            scene, scene.mi_scene, table, ox, oy, local + start, n, normals=True, group=False
         )
         first, agg, rep_bits = _agaa_pixels.pixel_prepass(
             mi, dr, (valid, depth, prim, shape, nrm), n, k, threshold, depth_weight, fmt
@@ -148,13 +101,13 @@ def render(scene, offsets, *, k: int, threshold: float, depth_weight: float, fmt
             mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k
         )
         n_agg = sum(dr.select(e, 1, 0) for e in exists)
-        rgb32, shadow = _shade_resolve(mi, dr, scene, store, exists, p1 - p0, n)
+        rgb32, shadow = _shade_resolve(mi, dr, scene, store, exists, n, visibility)
         rays += shadow
         sl = slice(p0, p1)
-        color[sl] = _trace._np(rgb32).T
-        counts["aggregates"][sl] = _trace._np(n_agg)
-        counts["surfaces"][sl] = _trace._np(surfaces)
-        counts["covered"][sl] = _trace._np(covered)
+        color[sl] = _trace.to_numpy(rgb32).T
+        counts["aggregates"][sl] = _trace.to_numpy(n_agg)
+        counts["surfaces"][sl] = _trace.to_numpy(surfaces)
+        counts["covered"][sl] = _trace.to_numpy(covered)
     return {"color": color, **counts, "shadow_rays": rays}
 
 
@@ -186,18 +139,15 @@ def _fragment_table(mi, dr, scene, rep_bits, start, ox, oy, n):
 def _aggregates(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k):
     """Per pixel lane and aggregate index: the averaged attributes (:data:`CHANNELS`), the
     shadow-ray offset and the samples held (``store[a]``, a list of Float), and whether the
-    aggregate exists. Each (fragment, aggregate) pair adds its fragment's attributes times
-    the samples it owns, as :func:`._pixel_dr.fragments_of` pairs them."""
+    aggregate exists. Each (fragment, aggregate) pair, taken at its first sample slot, adds
+    its fragment's attributes times the samples it owns, in slot order."""
     n = len(first)
-    rows, act = [], {a: [] for a in range(k)}
-    at = {a: [] for a in range(k)}
-    seen = {a: mi.UInt32(0) for a in range(k)}
-    offset_max = {a: mi.Float(0.0) for a in range(k)}
+    sums = {a: [mi.Float(0.0) for _ in table_f] for a in range(k)}
+    offset_max = {a: mi.Float(0.0) for a in range(k)}  # offsets are positive
     weights = {a: mi.Float(0.0) for a in range(k)}  # samples each aggregate holds
     for j in range(n):
-        valid_j = first[j] < n
         same = [(first[i] == first[j]) & (agg[i] == agg[j]) for i in range(n)]
-        pair_rep = valid_j
+        pair_rep = first[j] < n
         for i in range(j):
             pair_rep &= ~same[i]
         pair_count = sum(dr.select(same[i] & (first[i] < n), mi.UInt32(1), 0) for i in range(n))
@@ -206,22 +156,13 @@ def _aggregates(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k):
         wt = mi.Float(pair_count)
         row = [dr.gather(mi.Float, c, f, pair_rep) * wt for c in table_f]
         off = dr.gather(mi.Float, offset_f, f, pair_rep)
-        rows.append(row)
         for a in range(k):
             on = pair_rep & (agg[j] == a)
-            act[a].append(on)
-            at[a].append(seen[a])
-            offset_max[a] = dr.select(
-                on, dr.select(seen[a] == 0, off, dr.maximum(offset_max[a], off)), offset_max[a]
-            )
-            seen[a] = seen[a] + dr.select(on, 1, 0)
+            sums[a] = [dr.select(on, s + r, s) for s, r in zip(sums[a], row, strict=True)]
+            offset_max[a] = dr.select(on, dr.maximum(offset_max[a], off), offset_max[a])
             weights[a] = weights[a] + dr.select(on, wt, 0.0)
-    store, exists = [], []
-    for a in range(k):
-        sums, count = add_reduceat_order(dr, rows, act[a], at[a], n)
-        store.append(_averages(dr, sums, weights[a], offset_max[a]))
-        exists.append(count > 0)
-    return store, exists
+    store = [_averages(dr, sums[a], weights[a], offset_max[a]) for a in range(k)]
+    return store, [weights[a] > 0.0 for a in range(k)]
 
 
 def _averages(dr, sums, weight, offset):
@@ -231,11 +172,11 @@ def _averages(dr, sums, weight, offset):
     means = [c / weight for c in sums]
     m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
     g = m["geo_normal"]
-    g_len = _norm(dr, g)
+    g_len = dr.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
     g_safe = dr.maximum(g_len, 1e-30)
     m["geo_normal"] = [dr.select(g_len > 1e-6, g[c] / g_safe, m["normal"][c]) for c in range(3)]
     e = m["to_eye"]
-    e_len = dr.maximum(_norm(dr, e), 1e-30)
+    e_len = dr.maximum(dr.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]), 1e-30)
     m["to_eye"] = [c / e_len for c in e]
     return [c for key in CHANNELS for c in m[key]] + [offset, weight]
 
@@ -292,37 +233,83 @@ def _aggregate_store(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f,
     return store, exists
 
 
-def _shade_resolve(mi, dr, scene, store, exists, n_lanes, n):
-    """Shading, once per aggregate (exact shadow ray from its average position), then the
-    resolve: float64 from 0, aggregates in slot order, as ``np.bincount``. Returns the
-    pixels' Color3f (evaluated) and the shadow rays cast."""
+#: Record fields of an aggregate (:func:`_averages`) a shadow technique reads, as slices.
+_RECORD = {
+    "albedo": slice(0, 3),
+    "normal": slice(3, 6),
+    "position": slice(6, 9),
+    "to_eye": slice(9, 12),
+    "geo_normal": slice(12, 15),
+}
+
+
+def _technique_visibility(mi, dr, scene, records: list, visibility) -> list:
+    """Visibility of every existing aggregate of a launch from a shadow technique: the
+    records of all aggregate indices copied to NumPy together, one call of ``visibility``,
+    split back (a Float per index, None where an index has no aggregate)."""
+    live = [c for c in records if c is not None]
+    if not live:
+        return [None] * len(records)
+    dr.eval(live)
+    cols = [np.concatenate([_trace.to_numpy(c[i]) for c in live]) for i in range(16)]
+    attrs = {key: np.stack(cols[sl], axis=1) for key, sl in _RECORD.items()}
+    attrs["offset"] = cols[15]
+    attrs["valid"] = np.ones(len(cols[0]), bool)
+    cam = scene.camera
+    attrs["depth"] = (attrs["position"].astype(np.float64) - cam.position) @ cam.forward
+    vis = np.asarray(visibility(attrs), np.float32)
+    out, at = [], 0
+    for c in records:
+        if c is None:
+            out.append(None)
+            continue
+        m = dr.width(c[0])
+        out.append(mi.Float(vis[at : at + m]))
+        at += m
+    return out
+
+
+def _shade_resolve(mi, dr, scene, store, exists, n, visibility):
+    """Shading, once per aggregate (exact shadow ray from its average position, or the
+    ``visibility`` of :func:`render`), then the resolve: the coverage-weighted colours summed
+    in float64 in aggregate order. Returns the pixels' Color3f (evaluated) and the shadow
+    rays cast."""
+    n_lanes = dr.width(exists[0])
+    idx = [dr.compress(e) for e in exists]
+    records = [
+        [dr.gather(mi.Float, s, i) for s in st] if dr.width(i) else None
+        for st, i in zip(store, idx, strict=True)
+    ]
+    vis = [None] * len(store)
+    if visibility is not None:
+        vis = _technique_visibility(mi, dr, scene, records, visibility)
     acc = mi.Vector3d(0.0)
     rays = 0
-    for a in range(len(store)):
-        idx = dr.compress(exists[a])
-        if not dr.width(idx):
+    for a, c in enumerate(records):
+        if c is None:
             continue
-        c = [dr.gather(mi.Float, s, idx) for s in store[a]]
         rgb, cand = _trace.shade_dr(
             scene,
-            dr.full(mi.Bool, True, dr.width(idx)),
-            mi.Point3f(*c[6:9]),
-            mi.Vector3f(*c[3:6]),
-            mi.Vector3f(*c[12:15]),
-            mi.Color3f(*c[0:3]),
-            mi.Vector3f(*c[9:12]),
-            offset=c[15],
+            dr.full(mi.Bool, True, dr.width(idx[a])),
+            mi.Point3f(*c[_RECORD["position"]]),
+            mi.Vector3f(*c[_RECORD["normal"]]),
+            mi.Vector3f(*c[_RECORD["geo_normal"]]),
+            mi.Color3f(*c[_RECORD["albedo"]]),
+            mi.Vector3f(*c[_RECORD["to_eye"]]),
+            offset=c[15] if visibility is None else None,
+            visibility=vis[a],
             filtered_normal=True,
         )
-        count = dr.count(cand)
-        dr.eval(rgb, count)
-        rays += int(count[0])
+        if visibility is None:
+            count = dr.count(cand)
+            dr.eval(rgb, count)
+            rays += int(count[0])
+        else:
+            dr.eval(rgb)
         rgb_pix = dr.zeros(mi.Color3f, n_lanes)
-        dr.scatter(rgb_pix, rgb, idx)
+        dr.scatter(rgb_pix, rgb, idx[a])
         share = mi.Float64(store[a][-1]) / n
         acc = dr.select(exists[a], acc + mi.Vector3d(rgb_pix) * share, acc)
-    # 0 + x is +0 for x = -0 in bincount's accumulator
-    acc = dr.select(acc == 0.0, 0.0, acc)
     rgb32 = mi.Color3f(acc)
     dr.eval(rgb32)
     return rgb32, rays

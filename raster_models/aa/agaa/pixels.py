@@ -1,45 +1,42 @@
 """AGAA's per-pixel prepass work with one Dr.Jit lane a pixel (its samples in registers).
 
-:mod:`._pixel_dr` does the same work with one lane a *sample*: every pixel-wide quantity is
-a block reduction gathered back to ``N`` lanes and every "sample ``j`` of my pixel" a
-gather, ``O(N^2)`` memory reads a pixel. Here a lane reads its pixel's ``N`` samples once
-and the rest runs on registers. The rules and the float32 operations are those of
-:func:`._pixel_dr.first_of_key` and :func:`._pixel_dr.aggregate_of`, in their order:
-the pixel sums of :func:`drjit.block_reduce` (``mode="evaluated"``) are pairwise sums of
-halves (``(x0 + x4) + (x2 + x6)`` ... for ``N = 8``; a zero sum is +0) for ``N >= 2`` and the
-sample itself for ``N = 1``, which :func:`block_sum` repeats; tested equal sample for sample.
+A lane reads its pixel's ``N`` samples once (:func:`..pixel_dr.slots`) and the rest runs on
+registers: the fragment representatives (:func:`..pixel_dr.first_of_key`), the normals as
+stored in the G-buffer format (:func:`..pixel_dr.store_normal`) and AGAA's clustering
+(:func:`cluster_pixels`, the rule of :mod:`.model`), whose pixel means are pairwise sums
+over the slots (:func:`pairwise_sum`).
 """
 
 from __future__ import annotations
 
-__all__ = ["block_sum", "cluster_pixels", "first_of_key", "pixel_prepass"]
+from .. import pixel_dr as _pixel_dr
+
+__all__ = ["cluster_pixels", "pairwise_sum", "pixel_prepass"]
 
 
 def pixel_prepass(mi, dr, samples, n: int, k: int, threshold, weight, fmt: str):
     """Fragment keys and aggregates of every pixel of a launch, one lane a pixel.
 
     ``samples`` is ``(valid, depth, prim, shape, normal)`` of the launch's samples, ``n``
-    lanes a pixel (:func:`._trace.prepass_dr` with ``normals``). Returns lists over the
-    sample slots of per-pixel UInt32 ``first`` (:func:`first_of_key`) and Int32 aggregate
-    (:func:`cluster_pixels` on the normals stored in ``fmt``), and the UInt32 mask of the
-    fragment representatives (bit ``j``: slot ``j`` is the first of its fragment);
+    lanes a pixel (:func:`..trace.prepass_dr` with ``normals``). Returns lists over the
+    sample slots of per-pixel UInt32 ``first`` (:func:`..pixel_dr.first_of_key`) and Int32
+    aggregate (:func:`cluster_pixels` on the normals stored in ``fmt``), and the UInt32 mask
+    of the fragment representatives (bit ``j``: slot ``j`` is the first of its fragment);
     unevaluated.
     """
-    from ..pixel_dr import store_normal
-
     valid, depth, prim, shape, nrm = samples
-    local = dr.arange(mi.UInt32, dr.width(valid) // n)
-    lane = [local * n + j for j in range(n)]
-    v = [dr.gather(mi.Bool, valid, at) for at in lane]
-    first = first_of_key(
+    v = _pixel_dr.slots(mi, dr, mi.Bool, valid, n)
+    first = _pixel_dr.first_of_key(
         mi,
         dr,
         v,
-        [dr.gather(mi.Int32, shape, at) for at in lane],
-        [dr.gather(mi.UInt32, prim, at) for at in lane],
+        _pixel_dr.slots(mi, dr, mi.Int32, shape, n),
+        _pixel_dr.slots(mi, dr, mi.UInt32, prim, n),
     )
-    stored = [store_normal(mi, dr, dr.gather(mi.Vector3f, nrm, at), fmt) for at in lane]
-    z = [dr.gather(mi.Float, depth, at) for at in lane]
+    stored = [
+        _pixel_dr.store_normal(mi, dr, x, fmt) for x in _pixel_dr.slots(mi, dr, mi.Vector3f, nrm, n)
+    ]
+    z = _pixel_dr.slots(mi, dr, mi.Float, depth, n)
     agg = cluster_pixels(mi, dr, v, z, stored, k, threshold, weight)
     rep_bits = mi.UInt32(0)
     for j in range(n):
@@ -47,43 +44,28 @@ def pixel_prepass(mi, dr, samples, n: int, k: int, threshold, weight, fmt: str):
     return first, agg, rep_bits
 
 
-def block_sum(dr, xs):
-    """``drjit.block_reduce(Add, x, N)`` of one pixel's ``N`` values ``xs`` (a list):
-    pairwise sums of halves, +0 for a zero sum (``N >= 2``)."""
-    if len(xs) == 1:
-        return xs[0]
+def pairwise_sum(xs: list):
+    """Sum of one pixel's ``N`` values ``xs`` (a list over the slots) as a tree of halves,
+    ``(x0 + x4) + (x2 + x6)`` ... for ``N = 8`` (a power of two), the value itself for
+    ``N = 1``: a GPU's parallel reduction, with the error of a pairwise sum."""
     while len(xs) > 1:
         h = len(xs) // 2
         xs = [xs[i] + xs[i + h] for i in range(h)]
-    return dr.select(xs[0] == 0.0, 0.0, xs[0])
-
-
-def first_of_key(mi, dr, valid, shape, prim):
-    """Per sample slot ``j``: the first slot of the pixel with the same (shape, primitive),
-    ``N`` for sky (:func:`._pixel_dr.first_of_key`); the arguments are lists over slots."""
-    n = len(valid)
-    first = []
-    for i in range(n):
-        f = mi.UInt32(n)
-        for j in range(i + 1):  # slot i itself matches when valid: no later slot can be first
-            same = valid[j] & (prim[j] == prim[i]) & (shape[j] == shape[i])
-            f = dr.select(same & (f == n), j, f)
-        first.append(dr.select(valid[i], f, n))
-    return first
+    return xs[0]
 
 
 def cluster_pixels(mi, dr, valid, z, nrm, k: int, threshold, weight):
-    """Aggregate (0 or 1; -1 sky, Int32) of each sample slot by AGAA's clustering, as
-    :func:`._pixel_dr.aggregate_of`; ``valid``, ``z`` (view depth), ``nrm`` (stored normal,
-    Vector3f) are lists over the pixel's slots."""
+    """Aggregate (0 or 1; -1 sky, Int32) of each sample slot by AGAA's clustering
+    (:mod:`.model`); ``valid``, ``z`` (view depth), ``nrm`` (stored normal, Vector3f) are
+    lists over the pixel's slots. Distances are float32, the G-buffer's precision."""
     n = len(valid)
     vf = [dr.select(v, 1.0, 0.0) for v in valid]
     z = [z[j] * vf[j] for j in range(n)]
-    cnt = dr.maximum(block_sum(dr, vf), 1.0)
-    z_mean = block_sum(dr, z) / cnt
+    cnt = dr.maximum(pairwise_sum(vf), 1.0)
+    z_mean = pairwise_sum(z) / cnt
     z_mean = dr.select(z_mean > 0, z_mean, 1.0)
     n_mean = mi.Vector3f(
-        *(block_sum(dr, [nrm[j][c] * vf[j] for j in range(n)]) / cnt for c in range(3))
+        *(pairwise_sum([nrm[j][c] * vf[j] for j in range(n)]) / cnt for c in range(3))
     )
 
     def dist(z_b, n_b):
