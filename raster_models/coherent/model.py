@@ -224,7 +224,7 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
     )
 
 
-def map_orders(id_tex: np.ndarray, *, seed: int) -> dict:
+def _map_orders(id_tex: np.ndarray, *, seed: int) -> dict:
     """The storage orders of :data:`ORDERINGS`: permutations of the map ids."""
     n = id_tex.size
     rng = np.random.default_rng(seed)
@@ -255,7 +255,7 @@ def _schedule_maps(scene, projs, used: np.ndarray, id_tex: np.ndarray, bounds, *
         return lambda: (maps, None)
     lo, hi = bounds
     n = id_tex.size
-    orders = map_orders(id_tex, seed=seed)
+    orders = _map_orders(id_tex, seed=seed)
     compressed = launch_compression(
         lo, hi, n, list(orders.values()), decode=list(orders).index("hilbert"), rows=used
     )
