@@ -14,9 +14,12 @@ import pytest
 import raster_models as rm
 import scenes
 from oracle.cli.app import main
-from raster_models.coherent import model as coherent
+from raster_models.coherent.directions import Projections, map_directions, uv
 from raster_models.coherent.hilbert import hilbert_cell, hilbert_index
+from raster_models.coherent.model import ORDERINGS
+from raster_models.coherent.surfaces import surfaces
 from raster_models.gbuffer import trace_gbuffer
+from tests._coherent_reference import compress_runs, visibility_intervals
 
 W, H = 96, 54
 #: Small bias plus normal offset (as the shadow-map convergence tests): acne-free on plate,
@@ -56,13 +59,13 @@ def test_hilbert_refuses_a_side_that_is_not_a_power_of_two():
 # ------------------------------------------------------------------------------ lookup
 @pytest.mark.parametrize("n", [16, 256, 4096])
 def test_id_texture_and_directions_agree(n):
-    dirs, ids = coherent.map_directions(n)
+    dirs, ids = map_directions(n)
     g = math.isqrt(n)
     assert ids.shape == (g, g)
     assert sorted(ids.ravel().tolist()) == list(range(n))
     assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0)
     # A map's own direction looks up that map.
-    u, v = coherent._uv(dirs)
+    u, v = uv(dirs)
     looked = ids[(v * g).astype(int), (u * g).astype(int)]
     assert np.array_equal(looked, np.arange(n))
     # Equal-area cells: the directions' mean is the centre of the sphere (to 1/g).
@@ -126,11 +129,11 @@ def test_compress_runs_by_hand():
     # One texel, four maps: [0,1] [0.5,2] -> run [0.5,1]; [1.5,3] [0,4] -> run [1.5,3].
     lo = np.array([[0.0], [0.5], [1.5], [0.0]], dtype=np.float32)
     hi = np.array([[1.0], [2.0], [3.0], [4.0]], dtype=np.float32)
-    runs, decoded = coherent.compress_runs(lo, hi, np.arange(4))
+    runs, decoded = compress_runs(lo, hi, np.arange(4))
     assert runs == 2
     assert decoded.ravel().tolist() == [0.5, 0.5, 1.5, 1.5]
     # Reversed order: [0,4] [1.5,3] -> [1.5,3]; [0.5,2] -> [1.5,2]; [0,1] breaks.
-    runs, decoded = coherent.compress_runs(lo, hi, np.arange(4)[::-1])
+    runs, decoded = compress_runs(lo, hi, np.arange(4)[::-1])
     assert runs == 2
     assert decoded.ravel().tolist() == [0.0, 1.5, 1.5, 1.5]
 
@@ -141,19 +144,19 @@ def test_decompressed_visibility_equals_uncompressed_at_texel_centres(name):
     the same answer from the decompressed maps as from the uncompressed ones."""
     s = scenes.load(name, width=48, height=27)
     n, r, bias = 256, 32, 0.005
-    dirs, ids = coherent.map_directions(n)
-    projs = coherent._Projections(s, dirs, r)
-    parts = list(coherent._surfaces(s, projs, np.arange(n), second=True))
+    dirs, ids = map_directions(n)
+    projs = Projections(s, dirs, r)
+    parts = list(surfaces(s, projs, np.arange(n), second=True))
     z1, z2, dz1, dz2 = (
         np.concatenate([rec[k] for _, _, rec in parts]).reshape(n, r * r)
         for k in ("z1", "z2", "dz1", "dz2")
     )
-    lo, hi = coherent.visibility_intervals(z1, z2, bias, dz1=dz1, dz2=dz2)
+    lo, hi = visibility_intervals(z1, z2, bias, dz1=dz1, dz2=dz2)
     assert np.all(lo <= hi)
     stored = lo.astype(np.float64)
     orders = {"hilbert": np.arange(n), "row_major": ids.ravel(), "random": np.arange(n)[::-1]}
     for order in orders.values():
-        runs, decoded = coherent.compress_runs(lo, hi, order)
+        runs, decoded = compress_runs(lo, hi, order)
         assert runs <= n * r * r
         assert np.all((decoded >= lo) & (decoded <= hi))
         dec = decoded.astype(np.float64)
@@ -168,7 +171,7 @@ def test_compression_ratios_are_reported_per_ordering(lossless):
     s = scenes.load("curved", width=48, height=27)
     res = rm.run("coherent-shadow-map", s, directions=1024, resolution=32, lossless=lossless)
     comp = res.cost["compression"]
-    assert set(comp) == set(coherent.ORDERINGS)
+    assert set(comp) == set(ORDERINGS)
     for rec in comp.values():
         assert rec["ratio"] == pytest.approx(1024 * 32 * 32 / rec["stored_values"])
         assert 1.0 <= rec["ratio"] <= 1024.0

@@ -1,6 +1,8 @@
-"""The Dr.Jit kernels of coherent shadow maps give the bytes of their NumPy references:
-visibility intervals (with misses, edge-on spreads, ties at the stored value) and the greedy
-run compression of several orderings at once, with its decoded maps."""
+"""The Dr.Jit kernels of coherent shadow maps give the bytes of their NumPy references
+(``tests/_coherent_reference.py``, compared exactly): visibility intervals (with misses,
+edge-on spreads, ties at the stored value) and the greedy run compression of several
+orderings at once, with its decoded maps; the stacked ray descriptions give the bytes of the
+one-map projections."""
 
 from __future__ import annotations
 
@@ -8,10 +10,24 @@ import numpy as np
 import pytest
 
 import scenes
-from raster_models.coherent import kernels as _coherent_dr
-from raster_models.coherent import model as coherent
-from raster_models.coherent import rays as _coherent_maps
+from raster_models.coherent import surfaces
+from raster_models.coherent.directions import Projections, map_directions, uv
+from raster_models.coherent.kernels import (
+    MAX_CAPTURED,
+    below_f32,
+    intervals,
+    launch_compression,
+)
+from raster_models.coherent.rays import ray_table
+from raster_models.coherent.shading import (
+    DIRECTIONAL_ROWS,
+    direction_error,
+    lookup,
+    travel,
+)
+from raster_models.coherent.surfaces import SPREAD_GUARD, render_intervals
 from scenes import backend
+from tests._coherent_reference import below, compress_runs, visibility_intervals
 
 
 @pytest.fixture(scope="module")
@@ -45,12 +61,12 @@ def _random_surfaces(rng, m):
 def test_drjit_intervals_equal_the_numpy_reference(mi, footprint, bias):
     z1, z2, dz1, dz2 = _random_surfaces(np.random.default_rng(11), 1 << 16)
     spreads = {"dz1": dz1, "dz2": dz2} if footprint else {}
-    lo, hi = coherent.visibility_intervals(z1, z2, bias, **spreads)
-    d_lo, d_hi = _coherent_dr.intervals(
+    lo, hi = visibility_intervals(z1, z2, bias, **spreads)
+    d_lo, d_hi = intervals(
         mi.Float64(z1),
         mi.Float64(z2),
         bias,
-        coherent.SPREAD_GUARD,
+        SPREAD_GUARD,
         **{k: mi.Float64(v) for k, v in spreads.items()},
     )
     assert np.array_equal(d_lo.numpy(), lo)
@@ -60,8 +76,8 @@ def test_drjit_intervals_equal_the_numpy_reference(mi, footprint, bias):
 
 def test_drjit_step_below_equals_nextafter(mi):
     x = np.array([1e-3, 0.5, 1.0, 0.75, 3.0e38, 1e-45, np.inf, 1.0 + 1e-12, 0.1, 0.0, -0.5])
-    expect = coherent._below(x)
-    got = _coherent_dr.below_f32(mi.Float64(x)).numpy()
+    expect = below(x)
+    got = below_f32(mi.Float64(x)).numpy()
     assert np.array_equal(got, expect)
     finite = np.isfinite(x)
     assert np.all(got[finite].astype(np.float64) < x[finite])
@@ -74,15 +90,24 @@ def test_drjit_compression_equals_the_numpy_reference(mi, n, t):
     # Narrow and wide intervals, exact ties (hi == lo) and cleared texels (hi = inf).
     hi = lo + rng.choice([0.0, 0.01, 0.2, np.inf], size=(n, t)).astype(np.float32)
     orders = [np.arange(n), rng.permutation(n), np.arange(n)[::-1], rng.permutation(n)]
-    ref = [coherent.compress_runs(lo, hi, o) for o in orders]
+    ref = [compress_runs(lo, hi, o) for o in orders]
     d_lo, d_hi = mi.Float(lo.ravel()), mi.Float(hi.ravel())
     for decode in range(len(orders)):
-        runs, decoded = _coherent_dr.compress_orders(d_lo, d_hi, n, orders, decode=decode)
+        runs, decoded = launch_compression(d_lo, d_hi, n, orders, decode=decode)()
         assert runs == [r for r, _ in ref]
         assert decoded.dtype == np.float32 and decoded.shape == (n, t)
         assert np.array_equal(decoded, ref[decode][1])
-    runs, decoded = _coherent_dr.compress_orders(d_lo, d_hi, n, orders, decode=None)
+    runs, decoded = launch_compression(d_lo, d_hi, n, orders, decode=None)()
     assert runs == [r for r, _ in ref] and decoded is None
+
+
+def _one_map(projs, m: int) -> np.ndarray:
+    """The ray description of map ``m`` from its own projection's grid rays."""
+    p = projs[m]
+    grid = p.grid_rays(float(p.extent[4]), float(p.extent[5]))
+    return np.concatenate(
+        [grid["A"], grid["U"], grid["V"], grid["D"], [grid["z_end"] - grid["z_start"]]]
+    ).astype(np.float64)
 
 
 @pytest.mark.parametrize("name", ["plate", "city", "point"])
@@ -91,11 +116,11 @@ def test_ray_table_equals_the_one_map_path(name):
     (frame, matrix, inverse, grid rays) for every map, at every grid size."""
     s = scenes.load(name, width=16, height=12)
     for n in (4, 64, 1024, 16384):
-        dirs, _ = coherent.map_directions(n)
-        projs = coherent._Projections(s, dirs, 32)
+        dirs, _ = map_directions(n)
+        projs = Projections(s, dirs, 32)
         ids = np.arange(n) if n <= 1024 else np.random.default_rng(n).choice(n, 1024)
-        table = _coherent_maps.ray_table(projs, ids)
-        one = np.stack([_coherent_maps._one_map(projs, int(m)) for m in ids])
+        table = ray_table(projs, ids)
+        one = np.stack([_one_map(projs, int(m)) for m in ids])
         assert table.tobytes() == one.tobytes()
 
 
@@ -103,16 +128,14 @@ def test_ray_table_handles_a_direction_along_the_up_axis():
     """A map looking straight down +-Y takes make_frame's next up hint."""
     s = scenes.load("plate", width=16, height=12)
     dirs = np.array([[0.0, -1.0, 0.0], [0.6, 0.0, 0.8], [0.0, 1.0, 0.0]])
-    projs = coherent._Projections(s, dirs, 16)
-    table = _coherent_maps.ray_table(projs, np.arange(3))
-    one = np.stack([_coherent_maps._one_map(projs, m) for m in range(3)])
+    projs = Projections(s, dirs, 16)
+    table = ray_table(projs, np.arange(3))
+    one = np.stack([_one_map(projs, m) for m in range(3)])
     assert table.tobytes() == one.tobytes()
     assert np.allclose(table[:, 9:12], dirs)
 
 
-@pytest.mark.parametrize(
-    "n_rows", [0, 1, 3, _coherent_dr.MAX_CAPTURED, _coherent_dr.MAX_CAPTURED + 1]
-)
+@pytest.mark.parametrize("n_rows", [0, 1, 3, MAX_CAPTURED, MAX_CAPTURED + 1])
 def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
     """Decoded maps of a few looked-up maps (followed during the walk) and of many (the
     backward pass) are the rows of the NumPy decoding, for every ordering decoded."""
@@ -125,10 +148,8 @@ def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
     rows = np.unique(np.concatenate([[0, n - 1], rng.choice(n, n_rows, replace=False)]))[:n_rows]
     d_lo, d_hi = mi.Float(lo.ravel()), mi.Float(hi.ravel())
     for decode, order in enumerate(orders):
-        ref_runs, ref_decoded = coherent.compress_runs(lo, hi, order)
-        runs, decoded = _coherent_dr.compress_orders(
-            d_lo, d_hi, n, orders, decode=decode, rows=rows
-        )
+        ref_runs, ref_decoded = compress_runs(lo, hi, order)
+        runs, decoded = launch_compression(d_lo, d_hi, n, orders, decode=decode, rows=rows)()
         assert runs[decode] == ref_runs
         assert np.array_equal(decoded, ref_decoded[rows])
 
@@ -142,23 +163,21 @@ def test_directional_lookup_is_the_full_evaluation():
     assert s.light.kind == "directional"
     gbuf = trace_gbuffer(s)
     pos = gbuf.position[gbuf.receiver]
-    assert len(pos) > 10 * coherent.DIRECTIONAL_ROWS
-    dirs, id_tex = coherent.map_directions(1024)
-    w, sel, shared = coherent._lookup(s, pos, id_tex)
+    assert len(pos) > 10 * DIRECTIONAL_ROWS
+    dirs, id_tex = map_directions(1024)
+    w, sel, shared = lookup(s, pos, id_tex)
     assert shared
     g = id_tex.shape[0]
-    w_full = coherent._travel(s, pos)
-    u, v = coherent._uv(w_full)
+    w_full = travel(s, pos)
+    u, v = uv(w_full)
     sel_full = id_tex[
         np.minimum((v * g).astype(np.int64), g - 1), np.minimum((u * g).astype(np.int64), g - 1)
     ]
     assert w.tobytes() == w_full.tobytes()
     assert np.array_equal(sel, sel_full)
-    part = slice(0, coherent.DIRECTIONAL_ROWS)
-    err = coherent._direction_error(
-        np.ascontiguousarray(w[part]), dirs, np.ascontiguousarray(sel[part])
-    )
-    full = coherent._direction_error(w_full, dirs, sel_full)
+    part = slice(0, DIRECTIONAL_ROWS)
+    err = direction_error(np.ascontiguousarray(w[part]), dirs, np.ascontiguousarray(sel[part]))
+    full = direction_error(w_full, dirs, sel_full)
     assert np.all(full.view(np.int64) == err[0].view(np.int64))
 
 
@@ -166,17 +185,10 @@ def test_interval_kernel_launches_do_not_change_the_intervals(monkeypatch):
     """Launching the map kernel in several chunks (scattered into one array) gives the
     bytes of one launch."""
     s = scenes.load("curved", width=16, height=12)
-    dirs, _ = coherent.map_directions(64)
-    projs = coherent._Projections(s, dirs, 32)
-    one = [a.numpy() for a in coherent._render_intervals(s, projs, np.arange(64), 0.005)]
-    monkeypatch.setattr(coherent, "SURFACE_CHUNK", 1000)  # not a multiple of a map
-    # The default chunk argument was bound at definition: pass the patched value.
-    chunks = coherent._surface_chunks
-    monkeypatch.setattr(
-        coherent,
-        "_surface_chunks",
-        lambda *a, **k: chunks(*a, **{**k, "chunk": coherent.SURFACE_CHUNK}),
-    )
-    many = [a.numpy() for a in coherent._render_intervals(s, projs, np.arange(64), 0.005)]
+    dirs, _ = map_directions(64)
+    projs = Projections(s, dirs, 32)
+    one = [a.numpy() for a in render_intervals(s, projs, np.arange(64), 0.005)]
+    monkeypatch.setattr(surfaces, "SURFACE_CHUNK", 1000)  # not a multiple of a map
+    many = [a.numpy() for a in render_intervals(s, projs, np.arange(64), 0.005)]
     assert one[0].tobytes() == many[0].tobytes() and one[1].tobytes() == many[1].tobytes()
     assert np.any(one[1] > one[0])

@@ -16,7 +16,9 @@ from oracle.cli.app import main
 from oracle.reference.exr import read_exr
 from oracle.reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
 from raster_models.gbuffer import trace_gbuffer
+from raster_models.izb import geometry, kernel
 from raster_models.izb import model as izb
+from raster_models.izb.kernel import PairTester
 from scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
 
 SMALL = {"width": 160, "height": 90}
@@ -92,15 +94,13 @@ def test_conservative_rasterization_hand_count():
 
 
 def test_conservative_rasterization_covers_every_interior_point(monkeypatch):
-    from raster_models.izb import geometry as _izb_geometry
-
-    monkeypatch.setattr(_izb_geometry, "RASTER_CHUNK", 97)  # many chunks, rows split
+    monkeypatch.setattr(geometry, "RASTER_CHUNK", 97)  # many chunks, rows split
     rng = np.random.default_rng(3)
     r = 32
     uv = rng.uniform(-4, r + 4, (60, 3, 2))
     uv[:20] = uv[:20, :1] + rng.uniform(-0.3, 0.3, (20, 3, 2))  # sub-texel triangles
     frags = set()
-    for t, x in _izb_geometry.conservative_fragments(uv, r):
+    for t, x in geometry.conservative_fragments(uv, r):
         frags.update(zip(t.tolist(), x.tolist(), strict=True))
     w = rng.dirichlet(np.ones(3), (60, 400))
     pts = np.einsum("tkv,tnk->tnv", uv, w)
@@ -413,14 +413,18 @@ def test_scene_far_from_the_origin(tmp_path):
     assert (vis[0.0] != vis[1e5]).mean() < 0.01
 
 
-def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16, epsilon=0.05):
+#: Epsilon of :func:`_random_pairs` (world units): wide enough that every class of pair
+#: occurs, the epsilon band included.
+PAIR_EPSILON = 0.05
+
+
+def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16):
     """Shadow volumes of random triangles over random receivers (points, derivatives)
     around them, and random (triangle, receiver) pairs: every class of pair occurs."""
     from raster_models.izb.geometry import shadow_volumes
-    from raster_models.izb.lists import band_floor
 
     tris = rng.uniform(-1.0, 1.0, (n_tri, 3, 3)) + [0.0, 2.0, 0.0]
-    keep, planes = shadow_volumes(tris, (0.3, -1.0, 0.1), epsilon)
+    keep, planes = shadow_volumes(tris, (0.3, -1.0, 0.1), PAIR_EPSILON)
     pts = rng.uniform(-1.5, 1.5, (n_recv, 3)) + [0.0, 1.5, 0.0]
     recv = {
         "p": pts,
@@ -430,28 +434,29 @@ def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16, epsilon=0.05):
     recv["a"], recv["b"] = tangent_offsets()
     tri = rng.integers(0, int(keep.sum()), n_pairs)
     r = rng.integers(0, n_recv, n_pairs)
-    return planes, recv, band_floor(pts, epsilon), tri, r
+    return planes, recv, tri, r
 
 
 @pytest.mark.parametrize("samples", [1, 32])
-def test_drjit_pair_tests_equal_the_numpy_reference(samples):
-    from raster_models.izb.kernel import PairTester
-
-    planes, recv, floor, tri, r = _random_pairs(np.random.default_rng(7))
+def test_drjit_pair_tests_equal_the_numpy_tests(samples):
+    """The two implementations of the sample-triangle tests (NumPy for small joins, the
+    Dr.Jit kernels for large ones) pair by pair: exactly the same flags and masks (integers
+    and booleans: no tolerance)."""
+    planes, recv, tri, r = _random_pairs(np.random.default_rng(7))
     if samples == 1:
         recv = {"p": recv["p"]}
-    tester = PairTester(planes, recv, floor)
-    ref = tester.numpy(tri, r)
-    fast = tester.drjit(tri, r)
-    for x, y in zip(ref, fast, strict=True):
+    hit, near = PairTester(planes, recv, epsilon=PAIR_EPSILON).numpy(tri, r)
+    # On Dr.Jit, through the join: each pair its own receiver (a copy of its row) and a
+    # fragment whose list is that one node.
+    n = len(tri)
+    rows = {k: v[r] if k in ("p", "dpdx", "dpdy") else v for k, v in recv.items()}
+    keys = ("mask", "band") if samples == 32 else ("shadowed", "band")
+    state = {k: np.zeros(n, dtype=hit.dtype) for k in keys}
+    tester = PairTester(planes, rows, epsilon=PAIR_EPSILON)
+    tester.join_drjit(tri, np.arange(n), np.ones(n, dtype=np.int64), np.arange(n), state)
+    for x, y in zip((hit, near), (state[keys[0]], state["band"]), strict=True):
         assert x.dtype == y.dtype
         np.testing.assert_array_equal(x, y)
-    # the floor computed where needed (NumPy per pair, Dr.Jit in the row packing kernel)
-    lazy = PairTester(planes, recv, epsilon=0.05)  # _random_pairs' epsilon
-    for got in (lazy.numpy(tri, r), lazy.drjit(tri, r)):
-        for x, y in zip(ref, got, strict=True):
-            np.testing.assert_array_equal(x, y)
-    hit, near = ref
     assert hit.any() and near.any() and (~hit.astype(bool)).any()
     if samples == 32:
         partial = (hit != 0) & (hit != 0xFFFFFFFF)
@@ -461,24 +466,46 @@ def test_drjit_pair_tests_equal_the_numpy_reference(samples):
 @pytest.mark.parametrize("samples", [1, 32])
 def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch, samples):
     """The whole model, Dr.Jit joins against NumPy joins: the same bytes."""
-    from raster_models.izb import kernel as _izb_kernel
-
     loaded = scenes.load("city", width=96, height=54)
     calls = []
-    drjit_join = _izb_kernel.PairTester.join_drjit
+    drjit_join = PairTester.join_drjit
     monkeypatch.setattr(
-        _izb_kernel.PairTester,
+        PairTester,
         "join_drjit",
         lambda self, *args: calls.append(1) or drjit_join(self, *args),
     )
-    monkeypatch.setattr(_izb_kernel, "DRJIT_MIN_PAIRS", 1)
-    monkeypatch.setattr(_izb_kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches
+    monkeypatch.setattr(kernel, "DRJIT_MIN_PAIRS", 1)
+    monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches
     fast = rm.run("izb", loaded, samples=samples, resolution=64)
     n_fast = len(calls)
     assert n_fast  # the Dr.Jit join ran
-    monkeypatch.setattr(_izb_kernel, "DRJIT_MIN_PAIRS", 1 << 62)
+    monkeypatch.setattr(kernel, "DRJIT_MIN_PAIRS", 1 << 62)
     ref = rm.run("izb", loaded, samples=samples, resolution=64)
     assert len(calls) == n_fast  # the reference ran on NumPy only
     assert ref.cost == fast.cost
     for key in ref.outputs:
         np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
+
+
+def test_occluder_triangles_are_kept_in_the_scene_memo():
+    """The tessellated occluders are a per-scene memo (geometry only): shared by a camera
+    frame made with ``dataclasses.replace``, never written into the scene's ``__dict__``."""
+    from dataclasses import replace
+
+    s = scenes.load("plate", width=48, height=27)
+    first = rm.run("izb", s)
+    tris = s.memo[geometry.MEMO_KEY]
+    assert tris.shape[1:] == (3, 3) and len(tris) == first.diagnostics["triangles"]
+    assert not any(k.startswith("_izb") for k in vars(s))
+    moved = replace(s, light_index=s.light_index)
+    assert moved.memo is s.memo
+    again = rm.run("izb", moved)
+    assert s.memo[geometry.MEMO_KEY] is tris
+    np.testing.assert_array_equal(first.outputs["visibility"], again.outputs["visibility"])
+
+
+def test_32_samples_directional_needs_a_vectorized_variant(plate, monkeypatch):
+    monkeypatch.setattr(izb, "vectorized", lambda: False)
+    with pytest.raises(rm.ModelError, match="needs a vectorized Mitsuba variant"):
+        rm.run("izb", plate, samples=32)
+    assert rm.run("izb", plate).outputs["visibility"].size  # 1 sample: NumPy or Dr.Jit joins

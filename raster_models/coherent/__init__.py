@@ -1,5 +1,11 @@
-"""Coherent shadow maps: the model, the map and compression kernels, the ray grids and the
-Hilbert curve."""
+"""Coherent shadow maps.
+
+Modules (package internals, one step each): ``model`` (parameters, run, orderings, cost),
+``directions`` (map directions, id texture, projections), ``surfaces`` (the maps' rendering
+and visibility intervals), ``kernels`` (the intervals and run-compression Dr.Jit kernels),
+``shading`` (the receivers' lookup and depth test), ``rays`` (the maps' ray grids),
+``hilbert`` (the Hilbert curve).
+"""
 
 from .model import CoherentParams, run
 

@@ -2,13 +2,14 @@
 
 :func:`ray_table` gives, for every map, the affine ray description
 (:meth:`Projection.grid_rays`) of the orthographic map over the bounding sphere that
-``coherent._Projections`` builds one map at a time (:func:`make_frame` with the ``world_y``
-hint, the ortho :class:`Projection`, its ``grid_rays`` from the near plane). Each step is the
-same NumPy operation applied to a stack of maps: element-wise arithmetic and cross products
-stay element-wise, matrix products and inverses run per map through NumPy's stacked
-``matmul`` / ``inv`` (the same BLAS/LAPACK call per matrix), and vector norms are taken per
-map with :func:`np.linalg.norm`, so every value has the bytes of the one-map-at-a-time path
-(pinned by ``tests/test_coherent_dr.py``). Maps whose frame would need another up hint
+:class:`raster_models.coherent.directions.Projections` builds one map at a time
+(:func:`make_frame` with the ``world_y`` hint, the ortho :class:`Projection`, its
+``grid_rays`` from the near plane). Each step is the same NumPy operation applied to a stack
+of maps: element-wise arithmetic and cross products stay element-wise, matrix products and
+inverses run per map through NumPy's stacked ``matmul`` / ``inv`` (the same BLAS/LAPACK call
+per matrix), and vector norms are taken per map with :func:`np.linalg.norm`, so every value
+has the bytes of the one-map-at-a-time path (pinned by ``tests/test_coherent_dr.py``). Maps
+whose frame would need another up hint
 (direction within ``PARALLEL_TOLERANCE`` of +-Y) are built one at a time.
 """
 
@@ -32,7 +33,8 @@ def _norms(v: np.ndarray) -> np.ndarray:
 
 def ray_table(projs, ids) -> np.ndarray:
     """``(len(ids), 13)`` float64 ray descriptions of maps ``ids`` (see module docstring and
-    :data:`TABLE_COLUMNS`); ``projs`` is a ``coherent._Projections``."""
+    :data:`TABLE_COLUMNS`); ``projs``: the maps'
+    :class:`~raster_models.coherent.directions.Projections`."""
     ids = np.asarray(ids, dtype=np.int64)
     k = len(ids)
     out = np.zeros((k, 13))

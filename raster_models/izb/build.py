@@ -14,11 +14,13 @@ in a fixed order, whatever the chunking: first the one-texel receivers (one node
 receiver order), then the others (in receiver order, one node per distinct texel, in the
 order of the points' first occurrences).
 
-Two implementations give the same bits (``tests/test_izb_build.py``): NumPy (the reference,
-small inputs) and Dr.Jit (LLVM) kernels, one per receiver (bounds, centre texel, one-texel
-decision) and one per other receiver (its 32 points' texels, duplicates dropped). Both
-evaluate every value in float64 in the same order without fused multiply-adds:
-``spread = |ldx| amax + |ldy| bmax``, ``(lc + ldx a) + ldy b``, ``(x - x0) / s``.
+The build runs in Dr.Jit kernels (a vectorized variant: LLVM or CUDA), one per receiver
+(bounds, centre texel, one-texel decision) and one per other receiver (its 32 points'
+texels, duplicates dropped), every value in float64 in a fixed order without fused
+multiply-adds: ``spread = |ldx| amax + |ldy| bmax``, ``(lc + ldx a) + ldy b``,
+``(x - x0) / s``. ``tests/_izb_reference.py`` holds a NumPy version of the same steps, the
+reference ``tests/test_izb_build.py`` compares the kernels with (exactly: texel ids, receiver
+indices and the bounds' float64 bits).
 """
 
 from __future__ import annotations
@@ -28,14 +30,13 @@ import importlib
 import numpy as np
 
 __all__ = [
-    "BUILD_CHUNK",
     "DRJIT_BUILD_CHUNK",
-    "DRJIT_MIN_RECEIVERS",
     "GRID_MARGIN",
+    "MAX_RECEIVERS",
     "ONE_TEXEL_SLACK",
     "Ortho32Build",
     "grid",
-    "one_texel",
+    "one_texel_reach",
     "texel",
 ]
 
@@ -46,15 +47,12 @@ GRID_MARGIN = 1e-6
 #: texel: the points' float64 rounding is a few 2^-53 of ``|x| + spread``.
 ONE_TEXEL_SLACK = 1e-12
 
-#: Receivers per NumPy build chunk (32 samples each: about 50 MiB of float64 coordinates).
-BUILD_CHUNK = 1 << 16
-
-#: Receivers from which the build runs on Dr.Jit (LLVM) instead of NumPy.
-DRJIT_MIN_RECEIVERS = 1 << 14
-
 #: Receivers per Dr.Jit launch (bounded memory: a few tens of bytes per receiver, plus
 #: 128 bytes (32 texel ids) per receiver over several texels).
 DRJIT_BUILD_CHUNK = 1 << 20
+
+#: Most receivers of a build: the kernels index the ``(M, 3)`` rows with 32-bit integers.
+MAX_RECEIVERS = 2**32 // 3 - 1
 
 #: Dr.Jit: the texel id of a duplicate point (never a texel: ids are below 2^26 per grid).
 _NONE = 0xFFFFFFFF
@@ -78,26 +76,11 @@ def texel(x, y, box, r):
     return i, j
 
 
-def _reach(x, w):
-    """Half-size of the slackened box around the points (NumPy and Dr.Jit alike)."""
+def one_texel_reach(x, w):
+    """Half-size of the slackened box around a receiver's points: ``x`` the centre
+    coordinate, ``w`` its spread (NumPy arrays or Dr.Jit Float64 alike). The texels of the
+    box's corners bound those of the points (:func:`texel` is monotone in x and y)."""
     return w + (ONE_TEXEL_SLACK * (abs(x) + w) + _TINY)
-
-
-def one_texel(lc: np.ndarray, spread: np.ndarray, box, r: int):
-    """Receivers whose 32 points all fall in one texel, and that texel (``j R + i``).
-
-    Every point ``lc + a ldx + b ldy`` lies within ``spread`` of ``lc`` (up to float64
-    rounding, well inside :data:`ONE_TEXEL_SLACK`); :func:`texel` is monotone in x and y,
-    so the texels of the slackened box's corners bound those of the points.
-    """
-    ends = []
-    for q in range(2):  # x, y (columns: strided 2D arithmetic is several times slower)
-        x, w = lc[:, q], spread[:, q]
-        reach = _reach(x, w)
-        ends.append((x - reach, x + reach))
-    i0, j0 = texel(ends[0][0], ends[1][1], box, r)
-    i1, j1 = texel(ends[0][1], ends[1][0], box, r)
-    return (i0 == i1) & (j0 == j1), j0 * r + i0
 
 
 class Ortho32Build:
@@ -105,41 +88,35 @@ class Ortho32Build:
 
     Parameters
     ----------
-    lc, ldx, ldy : ``(M, 3)`` float64 light-frame centre and derivatives of every receiver.
+    lc, ldx, ldy : ``(M, 3)`` float64 light-frame centre and derivatives of every receiver
+        (at most :data:`MAX_RECEIVERS`).
     a, b : ``(32,)`` float64 tangent-plane offsets (pixels).
-    drjit : run on Dr.Jit (LLVM kernels; 32-bit indices: fewer than 2^32 / 3 receivers) or
-        NumPy; ``None``: Dr.Jit from :data:`DRJIT_MIN_RECEIVERS` receivers on a vectorized
-        variant.
     """
 
-    def __init__(self, lc, ldx, ldy, a, b, *, drjit: bool | None = None):
+    def __init__(self, lc, ldx, ldy, a, b):
+        if len(lc) > MAX_RECEIVERS:
+            raise ValueError(f"at most {MAX_RECEIVERS} receivers, got {len(lc)}")
         self.lc, self.ldx, self.ldy = lc, ldx, ldy
         self.a, self.b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
         self.amax, self.bmax = np.abs(self.a).max(), np.abs(self.b).max()
-        if drjit is None:
-            drjit = DRJIT_MIN_RECEIVERS <= len(lc) < 2**32 // 3 and _vectorized()
-        self.drjit = drjit
-        self._spread = None
         self._dr = None
-
-    # ---- NumPy (the reference)
-    @property
-    def spread(self) -> np.ndarray:
-        """``(M, 3)`` half-size of the box around each receiver's points (NumPy)."""
-        if self._spread is None:
-            self._spread = np.abs(self.ldx) * self.amax + np.abs(self.ldy) * self.bmax
-        return self._spread
 
     def bounds(self, sel: np.ndarray | None):
         """Light-frame ``lo``, ``hi`` ``(3,)`` of the points of receivers ``sel`` (all:
-        ``None``): the boxes around them, which contain the points."""
-        if self.drjit:
-            return self._bounds_drjit(sel)
-        lcs = self.lc if sel is None else self.lc[sel]
-        sps = self.spread if sel is None else self.spread[sel]
-        # per column: an axis-0 reduction over (n, 3) is several times slower
-        lo = np.array([(lcs[:, q] - sps[:, q]).min() for q in range(3)])
-        hi = np.array([(lcs[:, q] + sps[:, q]).max() for q in range(3)])
+        ``None``): the boxes around them (half-size ``spread``), which contain the points."""
+        import drjit as dr
+
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        for idx in self._chunks(sel):  # chunks of receivers
+            ends = []
+            for q in range(3):  # x, y, z
+                c, w = self._column("lc", idx, q), self._spread_dr(idx, q)
+                ends += [c - w, c + w]
+            dr.eval(*ends)  # one kernel; then the reductions
+            v = [(dr.min if k % 2 == 0 else dr.max)(e) for k, e in enumerate(ends)]
+            dr.eval(*v)
+            v = np.array([e.numpy()[0] for e in v])
+            lo, hi = np.minimum(lo, v[0::2]), np.maximum(hi, v[1::2])
         return lo, hi
 
     def nodes(self, sel: np.ndarray | None, box, r: int):
@@ -151,37 +128,35 @@ class Ortho32Build:
         node_texel, node_recv : texel (int32) and receiver index (into ``lc``; int32 below
             2^31 receivers) of every node, in the order of the module docstring.
         """
-        if self.drjit:
-            return self._nodes_drjit(sel, box, r)
-        n = len(self.lc) if sel is None else len(sel)
-        idx = np.arange(n) if sel is None else np.asarray(sel)
-        lcs = self.lc if sel is None else self.lc[idx]
-        ci, cj = texel(lcs[:, 0], lcs[:, 1], box, r)
-        ones, others = [], []
-        for s0 in range(0, n, BUILD_CHUNK):  # chunks of receivers
-            ch = idx[s0 : s0 + BUILD_CHUNK]
-            one, t = one_texel(self.lc[ch], self.spread[ch], box, r)
-            ones.append((t[one], ch[one]))
-            ch = ch[~one]
-            x, y = (
-                self.lc[ch, q, None]
-                + self.ldx[ch, q, None] * self.a
-                + self.ldy[ch, q, None] * self.b
-                for q in range(2)
-            )
-            i, j = texel(x, y, box, r)
-            tex = j * r + i
-            # each distinct texel at its first point: sorted stably, first of each run
-            order = np.argsort(tex, axis=1, kind="stable")
-            srt = np.take_along_axis(tex, order, axis=1)
-            run = np.ones_like(srt, dtype=bool)
-            run[:, 1:] = srt[:, 1:] != srt[:, :-1]
-            first = np.zeros_like(run)
-            np.put_along_axis(first, order, run, axis=1)
-            others.append((tex[first], np.repeat(ch, first.sum(axis=1))))
-        return cj * r + ci, *_concat(ones + others, len(self.lc))
+        import drjit as dr
 
-    # ---- Dr.Jit
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        ti, tj = self._texel_dr(box, r)
+        rr = dr.opaque(u32, r)
+        centres, ones, others = [], [], []
+        for idx in self._chunks(sel):  # chunks of receivers
+            x, y = self._column("lc", idx, 0), self._column("lc", idx, 1)
+            reach_x = one_texel_reach(x, self._spread_dr(idx, 0))
+            reach_y = one_texel_reach(y, self._spread_dr(idx, 1))
+            i0, j0 = ti(x - reach_x), tj(y + reach_y)
+            i1, j1 = ti(x + reach_x), tj(y - reach_y)
+            one = (i0 == i1) & (j0 == j1)
+            t = j0 * rr + i0
+            centre = tj(y) * rr + ti(x)
+            dr.eval(t, one, centre)
+            centres.append(centre.numpy().astype(np.int64))
+            k = dr.compress(one)  # compacted in Dr.Jit (both threads), in receiver order
+            ones.append((dr.gather(u32, t, k), dr.gather(u32, idx, k)))
+            rest = dr.gather(u32, idx, dr.compress(~one))
+            if dr.width(rest):
+                tex = self._point_texels(rest, ti, tj, rr)
+                k = dr.compress(tex != u32(_NONE))  # row-major: receiver, then point order
+                others.append((dr.gather(u32, tex, k), dr.gather(u32, rest, k // 32)))
+        parts = [(t.numpy().view(np.int32), c.numpy()) for t, c in ones + others]
+        return np.concatenate(centres), *_concat(parts, len(self.lc))
+
+    # ---- kernels' inputs and steps
     def _inputs(self):
         if self._dr is None:
             from scenes import backend
@@ -220,22 +195,6 @@ class Ortho32Build:
         dx, dy = self._column("ldx", idx, q), self._column("ldy", idx, q)
         return dr.abs(dx) * float(self.amax) + dr.abs(dy) * float(self.bmax)
 
-    def _bounds_drjit(self, sel):
-        import drjit as dr
-
-        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-        for idx in self._chunks(sel):  # chunks of receivers
-            ends = []
-            for q in range(3):  # x, y, z
-                c, w = self._column("lc", idx, q), self._spread_dr(idx, q)
-                ends += [c - w, c + w]
-            dr.eval(*ends)  # one kernel; then the reductions
-            v = [(dr.min if k % 2 == 0 else dr.max)(e) for k, e in enumerate(ends)]
-            dr.eval(*v)
-            v = np.array([e.numpy()[0] for e in v])
-            lo, hi = np.minimum(lo, v[0::2]), np.maximum(hi, v[1::2])
-        return lo, hi
-
     def _texel_dr(self, box, r):
         """Dr.Jit texel functions ``i(x)``, ``j(y)`` of the grid (UInt32)."""
         import drjit as dr
@@ -255,35 +214,6 @@ class Ortho32Build:
             return u32(dr.clip(dr.floor((y1_ - y) / sy_), 0.0, top))
 
         return ti, tj
-
-    def _nodes_drjit(self, sel, box, r):
-        import drjit as dr
-
-        mi, _ = self._inputs()
-        u32 = mi.UInt32
-        ti, tj = self._texel_dr(box, r)
-        rr = dr.opaque(u32, r)
-        centres, ones, others = [], [], []
-        for idx in self._chunks(sel):  # chunks of receivers
-            x, y = self._column("lc", idx, 0), self._column("lc", idx, 1)
-            reach_x = _reach(x, self._spread_dr(idx, 0))
-            reach_y = _reach(y, self._spread_dr(idx, 1))
-            i0, j0 = ti(x - reach_x), tj(y + reach_y)
-            i1, j1 = ti(x + reach_x), tj(y - reach_y)
-            one = (i0 == i1) & (j0 == j1)
-            t = j0 * rr + i0
-            centre = tj(y) * rr + ti(x)
-            dr.eval(t, one, centre)
-            centres.append(centre.numpy().astype(np.int64))
-            k = dr.compress(one)  # compacted in Dr.Jit (both threads), in receiver order
-            ones.append((dr.gather(u32, t, k), dr.gather(u32, idx, k)))
-            rest = dr.gather(u32, idx, dr.compress(~one))
-            if dr.width(rest):
-                tex = self._point_texels(rest, ti, tj, rr)
-                k = dr.compress(tex != u32(_NONE))  # row-major: receiver, then point order
-                others.append((dr.gather(u32, tex, k), dr.gather(u32, rest, k // 32)))
-        parts = [(t.numpy().view(np.int32), c.numpy()) for t, c in ones + others]
-        return np.concatenate(centres), *_concat(parts, len(self.lc))
 
     def _point_texels(self, idx, ti, tj, rr):
         """Dr.Jit ``(n * 32,)`` texels of the 32 points of receivers ``idx`` (row-major: by
@@ -319,9 +249,3 @@ def _concat(parts, m: int):
     if node_recv.dtype == np.uint32:  # from Dr.Jit: ids below 2^32 / 3, within int32
         node_recv = node_recv.view(np.int32)
     return node_texel, node_recv.astype(np.int32 if m < 2**31 else np.int64, copy=False)
-
-
-def _vectorized() -> bool:
-    from scenes import backend
-
-    return not backend.active().variant.startswith("scalar")

@@ -25,6 +25,7 @@ import numpy as np
 
 __all__ = [
     "CONSERVATIVE_MARGIN",
+    "MEMO_KEY",
     "RASTER_CHUNK",
     "chunks_by_total",
     "conservative_fragments",
@@ -39,6 +40,9 @@ CONSERVATIVE_MARGIN = 1e-6
 #: Candidate (texel) tests per rasterization chunk: bounds memory (~100 MiB a chunk).
 RASTER_CHUNK = 1 << 22
 
+#: Key of the occluder triangles in ``LoadedScene.memo``.
+MEMO_KEY = "izb_triangles"
+
 #: Triangles whose unit normal has ``|n . d|`` below this are edge-on to the light: zero
 #: projected area, no shadow (their neighbours' volumes cover the same rays).
 EDGE_ON = 1e-9
@@ -47,9 +51,10 @@ EDGE_ON = 1e-9
 def scene_triangles(scene) -> np.ndarray:
     """World-space triangles ``(T, 3, 3)`` float64 of every shape of the scene, in the
     scene's shape order (analytic shapes tessellated as :func:`scenes.export.shape_mesh`
-    does). Cached on the scene object."""
-    cache = scene.__dict__.setdefault("_izb_triangles", {})
-    if "tris" not in cache:
+    does). Kept in ``scene.memo["izb_triangles"]`` (geometry only: shared by every camera
+    and light of the scene)."""
+    tris = scene.memo.get(MEMO_KEY)
+    if tris is None:
         from scenes import backend
         from scenes.export import shape_mesh
 
@@ -59,8 +64,8 @@ def scene_triangles(scene) -> np.ndarray:
             v, f = shape_mesh(mi, shape)
             parts.append(np.asarray(v, dtype=np.float64)[np.asarray(f, dtype=np.int64)])
         tris = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
-        cache["tris"] = tris
-    return cache["tris"]
+        scene.memo[MEMO_KEY] = tris
+    return tris
 
 
 def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None):
