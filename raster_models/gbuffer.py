@@ -17,6 +17,7 @@ import numpy as np
 
 from scenes import backend
 from scenes.raycast import CHUNK, trace_film_dr
+from scenes.shading import receiver_mask
 
 from .drjit import numpy_view
 
@@ -111,7 +112,7 @@ def points_gbuffer(scene, *, position, normal, geo_normal, depth, valid) -> GBuf
         position=pos,
         normal=nrm,
         cos_l=cos_l,
-        receiver=valid & (cos_l > 0.0) & np.asarray(scene.light.in_cone(wl), bool),
+        receiver=receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=scene.light),
         dpdx=dpdx,
         dpdy=dpdy,
     )
@@ -145,7 +146,7 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
         out = {k: np.empty(n_pix, dtype=np.float64) for k in ("depth", "cos_l")} | {
             k: np.empty((n_pix, 3), dtype=np.float64) for k in ("p", "n", "dpdx", "dpdy")
         }
-        out |= {k: np.empty(n_pix, dtype=bool) for k in ("valid", "cone")}
+        out |= {k: np.empty(n_pix, dtype=bool) for k in ("valid", "receiver")}
         if with_lit:
             out["lit"] = np.empty(n_pix, dtype=bool)
     for start in range(0, n_pix, CHUNK):
@@ -180,7 +181,6 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             dtau = -(dr.dot(n, do_v) + tau * dr.dot(n, dd_v)) / nd
             derivs.append(dr.select(valid, do_v + d * dtau + dd_v * tau, mi.Vector3f(0.0)))
         wl, _ = scene.light.to_light(p)
-        cone = scene.light.in_cone(wl)
         f64 = mi.Float64
 
         def wide(a, valid=valid, f64=f64):
@@ -194,7 +194,13 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             "depth": wide(res["depth"]),
             "cos_l": wide(res["cos_l"]),
         }
-        arrays = {"depth": cols["depth"], "cos_l": cols["cos_l"], "valid": valid, "cone": cone}
+        receiver = receiver_mask(valid=valid, cos_l=res["cos_l"], to_light=wl, light=scene.light)
+        arrays = {
+            "depth": cols["depth"],
+            "cos_l": cols["cos_l"],
+            "valid": valid,
+            "receiver": receiver,
+        }
         if with_lit:
             arrays["lit"] = res["lit"]
         vectors = {key: cols[key] for key in ("p", "n", "dpdx", "dpdy")}
@@ -217,7 +223,7 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
                 out[key][sl] = numpy_view(val)
     valid = out["valid"]
     pos, nrm, cos_l, depth = out["p"], out["n"], out["cos_l"], out["depth"]
-    receiver = valid & (cos_l > 0.0) & out["cone"]
+    receiver = out["receiver"]
     return GBuffer(
         width=w,
         height=h,

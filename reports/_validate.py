@@ -17,7 +17,6 @@ content or carry a script link.
 from __future__ import annotations
 
 import math
-import os
 import posixpath
 import re
 import urllib.parse
@@ -25,6 +24,8 @@ from collections.abc import Mapping
 from numbers import Real
 
 import numpy as np
+
+from scenes.records import encode_float, jsonable
 
 __all__ = [
     "KINDS",
@@ -56,16 +57,6 @@ STYLES = {"signed": (-1.0, 1.0), "magma": (0.0, 1.0)}
 RANGE_TOLERANCE = 1e-3
 
 _NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
-
-
-def encode_float(value: float) -> float | str:
-    """Return ``value`` as a float, or as ``"nan"``/``"inf"``/``"-inf"`` when not finite."""
-    value = float(value)
-    if math.isfinite(value):
-        return value
-    if math.isnan(value):
-        return "nan"
-    return "inf" if value > 0 else "-inf"
 
 
 def decode_float(value: object) -> float:
@@ -225,31 +216,15 @@ def check_cost(value: object) -> dict[str, int | float] | None:
 
 
 def to_jsonable(value: object, name: str) -> object:
-    """Convert a plain record (params, provenance) to JSON-compatible values.
-
-    numpy scalars become Python numbers, tuples and small arrays become lists, paths become
-    strings and non-finite floats become ``"nan"``/``"inf"``/``"-inf"``.
-    """
-    if value is None or isinstance(value, str | bool):
-        return value
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, int | np.integer):
-        return int(value)
-    if isinstance(value, float | np.floating):
-        return encode_float(value)
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    if isinstance(value, Mapping):
-        return {str(k): to_jsonable(v, f"{name}[{k!r}]") for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [to_jsonable(v, f"{name}[{i}]") for i, v in enumerate(value)]
-    if isinstance(value, np.ndarray) and value.size <= 64:
-        return to_jsonable(value.tolist(), name)
-    raise TypeError(
-        f"{name} must hold only str, number, bool, None, list or dict values, "
-        f"got {type(value).__name__}"
-    )
+    """A plain record (params, provenance) as JSON values: :func:`scenes.records.jsonable`
+    (NumPy scalars to numbers, tuples and arrays to lists, paths to strings, non-finite
+    floats to ``"nan"``/``"inf"``/``"-inf"``), with ``name`` in the error message."""
+    try:
+        return jsonable(value)
+    except TypeError as exc:
+        raise TypeError(
+            f"{name} must hold only str, number, bool, None, list or dict values: {exc}"
+        ) from None
 
 
 #: The only URIs a report embeds: base64 PNG, WebP or JPEG images.

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import backend
-from .shading import facing, shade
+from .shading import facing, receiver_mask, shade
 
 __all__ = ["CHUNK", "intersect", "occluded", "shape_table", "trace_film", "trace_film_dr"]
 
@@ -177,7 +177,7 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     n = facing(si.sh_frame.n, to_eye)
     wl, dist = light.to_light(si.p)
     cos_l = dr.dot(n, wl)
-    candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+    candidate = receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=light)
     occluded_ = shadow_occluded_dr(scene, light, si, wl, candidate)
     lit = dr.select(valid, candidate & ~occluded_, True)
     fwd = camera.forward

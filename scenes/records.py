@@ -19,7 +19,7 @@ from importlib import metadata
 
 import numpy as np
 
-__all__ = ["PACKAGES", "jsonable", "package_versions", "provenance"]
+__all__ = ["encode_float", "PACKAGES", "jsonable", "package_versions", "provenance"]
 
 #: Packages whose versions every result records (distribution names).
 PACKAGES = (
@@ -35,7 +35,10 @@ PACKAGES = (
 )
 
 
-def _float(value: float) -> float | str:
+def encode_float(value: float) -> float | str:
+    """``value`` as a float, or as ``"nan"``/``"inf"``/``"-inf"`` when not finite (strict JSON
+    has no non-finite numbers)."""
+    value = float(value)
     if math.isnan(value):
         return "nan"
     if math.isinf(value):
@@ -63,7 +66,7 @@ def jsonable(obj):
     if isinstance(obj, int | np.integer):
         return int(obj)
     if isinstance(obj, float | np.floating):
-        return _float(float(obj))
+        return encode_float(obj)
     if isinstance(obj, dict):
         return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):

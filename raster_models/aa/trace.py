@@ -38,7 +38,7 @@ from scenes.raycast import (
     shadow_ray_dr,
     shape_table,
 )
-from scenes.shading import facing, shade
+from scenes.shading import facing, receiver_mask, shade
 
 from . import pixel_dr as _pixel_dr
 
@@ -420,7 +420,7 @@ def shade_dr(
     else:
         length, nh = mi.Float(1.0), n
     cos_l = dr.dot(nh, wl)
-    candidate = valid & (cos_l > 0.0) & light.in_cone(wl)
+    candidate = receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=light)
     if visibility is None:
         ray = shadow_ray_dr(light, p, ng, wl, offset)
         occ = scene.mi_scene.ray_test(ray, candidate)

@@ -10,7 +10,6 @@ described in :mod:`.shade`.
 
 from __future__ import annotations
 
-import math
 import time
 
 from scenes.records import jsonable, provenance
@@ -71,8 +70,8 @@ def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: di
     for i, part in enumerate(setup.partitions):
         rec = {
             "index": i,
-            "z_begin": _finite(part.z_begin),
-            "z_end": _finite(part.z_end),
+            "z_begin": float(part.z_begin),
+            "z_end": float(part.z_end),
             "empty": part.projection is None,
         }
         if part.projection is not None:
@@ -84,8 +83,8 @@ def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: di
         rec.update(part.info)
         rec["statistics"] = summary["partitions"][i]
         diagnostics["partitions"].append(rec)
-    diagnostics["split_depths"] = [_finite(p.z_begin) for p in setup.partitions] + [
-        _finite(setup.partitions[-1].z_end)
+    diagnostics["split_depths"] = [float(p.z_begin) for p in setup.partitions] + [
+        float(setup.partitions[-1].z_end)
     ]
     diagnostics["selection"] = setup.selection
     diagnostics["receivers"] = summary["receivers"]
@@ -103,10 +102,3 @@ def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: di
         params=params_record,
         wall_seconds=time.perf_counter() - t0,
     )
-
-
-def _finite(x):
-    x = float(x)
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return x
