@@ -22,8 +22,7 @@ from oracle.reference.exr import read_exr, write_exr
 from oracle.reference.render import ReferenceSettings
 from oracle.reference.store import get_reference
 from oracle.scoring.score import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, METRIC_KEYS, coverage_metrics
-from raster_models import params as _params
-from raster_models import registry as _registry
+from raster_models import params, registry
 from raster_models.result import ModelResult
 
 SCENE = "star"  # spokes against the sky: fractional coverage on hundreds of pixels
@@ -36,8 +35,8 @@ TOL = 1e-6
 
 @dataclasses.dataclass(frozen=True)
 class FakeAAParams:
-    samples: int = _params.param(8, source="test", help="samples per pixel", lo=1, hi=16)
-    mode: str = _params.param(
+    samples: int = params.param(8, source="test", help="samples per pixel", lo=1, hi=16)
+    mode: str = params.param(
         "exact", source="test", help="what to return", choices=("exact", "binary")
     )
 
@@ -80,7 +79,7 @@ def _fake_run(scene, p):
 
 
 @dataclasses.dataclass(frozen=True)
-class _FakeTechnique(_registry.Technique):
+class _FakeTechnique(registry.Technique):
     family: str = "aa"
 
 
@@ -94,7 +93,7 @@ def fake_aa(monkeypatch):
         _fake_run,
         ("directional", "spot", "point"),
     )
-    monkeypatch.setitem(_registry.TECHNIQUES, "fake-aa", tech)
+    monkeypatch.setitem(registry.TECHNIQUES, "fake-aa", tech)
     assert raster_models.TECHNIQUES["fake-aa"] is tech
     return tech
 

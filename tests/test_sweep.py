@@ -20,8 +20,7 @@ from oracle.cli import main
 from oracle.sweeps.run import run_sweep, sweep_keys
 from oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
 from oracle.sweeps.store import SweepStore
-from raster_models import params as _params
-from raster_models import registry
+from raster_models import params, registry
 from raster_models.shadowmaps import shadow_map
 
 SIZE = "width = 48\nheight = 27\n"
@@ -277,7 +276,7 @@ def test_same_spec_twice_gives_identical_metrics_inline_and_on_a_dask_scheduler(
 
 @dataclasses.dataclass(frozen=True)
 class _FlakyParams:
-    resolution: int = _params.param(512, source="test", help="13 fails", lo=1, hi=16384)
+    resolution: int = params.param(512, source="test", help="13 fails", lo=1, hi=16384)
 
 
 def _flaky_run(scene, p):
