@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
-__all__ = ["ModelResult"]
+from scenes.records import jsonable, provenance
+
+__all__ = ["ModelResult", "model_result"]
 
 
 @dataclass
@@ -37,3 +40,26 @@ class ModelResult:
             "wall_seconds": self.wall_seconds,
             "outputs": sorted(self.outputs),
         }
+
+
+def model_result(
+    technique: str, scene, *, outputs: dict, cost: dict, diagnostics: dict, params: dict, t0: float
+) -> ModelResult:
+    """The result of a model run that started at ``t0`` (``time.perf_counter()``).
+
+    The diagnostics get the scene's provenance (``scene``) and the packages' (``provenance``)
+    as their last keys and are cleaned to JSON values (:func:`scenes.records.jsonable`);
+    ``cost`` and ``params`` (a plain record, see :func:`raster_models.params.as_dict`) are
+    kept as given.
+    """
+    diag = dict(diagnostics)
+    diag["scene"] = scene.provenance()
+    diag["provenance"] = provenance()
+    return ModelResult(
+        technique=technique,
+        outputs=outputs,
+        cost=cost,
+        diagnostics=jsonable(diag),
+        params=params,
+        wall_seconds=time.perf_counter() - t0,
+    )

@@ -21,14 +21,13 @@ Cost record (the technique's own GPU budget, not the model's run time):
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import params as _params
 from ..errors import ModelError
-from ..result import ModelResult
+from ..result import ModelResult, model_result
 from ..shadowmaps import SHADOW_TECHNIQUES, supported_lights, visibility_at
 from . import resolve as _resolve
 from .fragments import Fragments, sample_film_positions, shading_positions
@@ -168,16 +167,12 @@ def package(
         "bandwidth_bytes": int(bandwidth_bytes),
         "shadow_rays": int(shadow_rays),
     }
-    from scenes.records import jsonable, provenance
-
-    diag = dict(diagnostics)
-    diag["scene"] = scene.provenance()
-    diag["provenance"] = provenance()
-    return ModelResult(
-        technique=name,
+    return model_result(
+        name,
+        scene,
         outputs=outputs,
         cost=cost,
-        diagnostics=jsonable(diag),
+        diagnostics=diagnostics,
         params=_params.as_dict(params),
-        wall_seconds=time.perf_counter() - t0,
+        t0=t0,
     )

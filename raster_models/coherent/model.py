@@ -57,13 +57,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.records import jsonable, provenance
+from scenes.records import jsonable
 
 from .. import params as _params
 from ..errors import ModelError
 from ..gbuffer import trace_gbuffer
 from ..params import param
-from ..result import ModelResult
+from ..result import ModelResult, model_result
 from .directions import Projections, map_directions
 from .kernels import launch_compression, launch_rows
 from .shading import DIRECTIONAL_ROWS, direction_error, lookup, project, shade
@@ -212,16 +212,15 @@ def run(scene, params: CoherentParams | None = None, **kwargs) -> ModelResult:
         "direction_error_deg_max": float(err_rec.max()) if len(rec) else 0.0,
         "receivers": int(len(rec)),
         "uncovered_receivers": int(np.count_nonzero(images["uncovered"])),
-        "scene": scene.provenance(),
-        "provenance": provenance(),
     }
-    return ModelResult(
-        technique=NAME,
+    return model_result(
+        NAME,
+        scene,
         outputs=outputs,
         cost=jsonable(cost),
-        diagnostics=jsonable(diagnostics),
+        diagnostics=diagnostics,
         params=_params.as_dict(p),
-        wall_seconds=time.perf_counter() - t0,
+        t0=t0,
     )
 
 

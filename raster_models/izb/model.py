@@ -66,14 +66,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.records import jsonable, provenance
-
 from .. import params as _params
 from ..errors import ModelError
 from ..gbuffer import trace_gbuffer
 from ..light_frame import make_frame
 from ..params import param
-from ..result import ModelResult
+from ..result import ModelResult, model_result
 from ..shadowmaps.fit import light_frame_for
 from .geometry import conservative_fragments, scene_triangles, shadow_volumes
 from .grids import Grids, build_grids
@@ -181,16 +179,15 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         "triangles_culled_edge_on": trav.culled,
         "split_depths": [float(z) for z in splits],
         "partitions": _partitions_record(grids.boxes, part, p.resolution),
-        "scene": scene.provenance(),
-        "provenance": provenance(),
     }
-    return ModelResult(
-        technique=NAME,
+    return model_result(
+        NAME,
+        scene,
         outputs=outputs,
         cost=cost,
-        diagnostics=jsonable(diagnostics),
+        diagnostics=diagnostics,
         params=_params.as_dict(p),
-        wall_seconds=time.perf_counter() - t0,
+        t0=t0,
     )
 
 

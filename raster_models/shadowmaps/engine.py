@@ -10,12 +10,8 @@ described in :mod:`.shade`.
 
 from __future__ import annotations
 
-import time
-
-from scenes.records import jsonable, provenance
-
 from .. import depth as _depth
-from ..result import ModelResult
+from ..result import model_result
 from . import filters as _filters
 from .records import Setup
 from .render import render_maps
@@ -91,14 +87,13 @@ def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: di
     diagnostics["uncovered_receivers"] = summary["uncovered_receivers"]
     diagnostics["blended_receivers"] = summary["blended_receivers"]
     diagnostics["outside_all_partitions"] = summary["outside_all_partitions"]
-    diagnostics["scene"] = scene.provenance()
-    diagnostics["provenance"] = provenance()
     cost = _cost(setup, maps, params, summary)
-    return ModelResult(
-        technique=technique,
+    return model_result(
+        technique,
+        scene,
         outputs=outputs,
         cost=cost,
-        diagnostics=jsonable(diagnostics),
+        diagnostics=diagnostics,
         params=params_record,
-        wall_seconds=time.perf_counter() - t0,
+        t0=t0,
     )
