@@ -41,6 +41,7 @@ __all__ = [
     "ScoreResult",
     "coverage_metrics",
     "failures",
+    "metric_limit",
     "parse_thresholds",
     "reference_receivers",
     "score",
@@ -407,26 +408,33 @@ def score(
     return result
 
 
+def metric_limit(
+    text: str, *, separator: str, option: str, error: type[Exception] = ScoreError
+) -> tuple[str, float]:
+    """``"flip_mean<sep>0.1"`` -> ``("flip_mean", 0.1)``: a metric key and a finite limit.
+
+    Raises ``error`` with a message naming ``option`` (the command-line option) for a missing
+    separator, an unknown metric (listing the valid ones) or a value that is not a finite
+    number.
+    """
+    metric, sep, value = str(text).partition(separator)
+    metric, value = metric.strip(), value.strip()
+    if not sep:
+        raise error(f"{option} expects METRIC{separator}VALUE, got {text!r}")
+    if metric not in METRIC_KEYS:
+        raise error(f"{option}: unknown metric {metric!r}; choose from {', '.join(METRIC_KEYS)}")
+    try:
+        limit = float(value)
+    except ValueError:
+        raise error(f"{option} {metric}: expected a number, got {value!r}") from None
+    if not math.isfinite(limit):
+        raise error(f"{option} {metric}: expected a finite number, got {value!r}")
+    return metric, limit
+
+
 def parse_thresholds(pairs: list[str] | None) -> dict[str, float]:
     """``["flip_mean=0.1", ...]`` -> ``{"flip_mean": 0.1}``; unknown metrics are errors."""
-    out = {}
-    for pair in pairs or []:
-        key, sep, value = pair.partition("=")
-        key = key.strip()
-        if not sep:
-            raise ScoreError(f"--fail-above expects METRIC=VALUE, got {pair!r}")
-        if key not in METRIC_KEYS:
-            raise ScoreError(
-                f"--fail-above: unknown metric {key!r}; choose from {', '.join(METRIC_KEYS)}"
-            )
-        try:
-            limit = float(value)
-        except ValueError:
-            raise ScoreError(f"--fail-above {key}: expected a number, got {value!r}") from None
-        if not math.isfinite(limit):
-            raise ScoreError(f"--fail-above {key}: expected a finite number, got {value!r}")
-        out[key] = limit
-    return out
+    return dict(metric_limit(p, separator="=", option="--fail-above") for p in pairs or [])
 
 
 def failures(record: dict, thresholds: dict[str, float]) -> list[str]:

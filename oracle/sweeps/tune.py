@@ -31,7 +31,7 @@ import scenes
 from scenes import backend
 
 from ..errors import InputError
-from ..scoring.score import METRIC_KEYS
+from ..scoring.score import metric_limit
 from .run import run_case, sweep_keys
 from .spec import Case
 from .store import SweepStore
@@ -52,21 +52,7 @@ class TuneError(InputError):
 
 def parse_target(text: str) -> tuple[str, float]:
     """``"flip_mean<=0.05"`` -> ``("flip_mean", 0.05)``; the metric must be a metric key."""
-    metric, sep, value = str(text).partition("<=")
-    metric = metric.strip()
-    if not sep:
-        raise TuneError(f"--target expects METRIC<=VALUE, got {text!r}")
-    if metric not in METRIC_KEYS:
-        raise TuneError(
-            f"--target: unknown metric {metric!r}; choose from {', '.join(METRIC_KEYS)}"
-        )
-    try:
-        limit = float(value)
-    except ValueError:
-        raise TuneError(f"--target {metric}: expected a number, got {value.strip()!r}") from None
-    if not math.isfinite(limit):
-        raise TuneError(f"--target {metric}: expected a finite number, got {value.strip()!r}")
-    return metric, limit
+    return metric_limit(text, separator="<=", option="--target", error=TuneError)
 
 
 def parse_space(technique: str, vary: list[str]) -> dict[str, tuple]:
