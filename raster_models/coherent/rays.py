@@ -27,11 +27,6 @@ __all__ = ["TABLE_COLUMNS", "ray_table"]
 TABLE_COLUMNS = ("Ax", "Ay", "Az", "Ux", "Uy", "Uz", "Vx", "Vy", "Vz", "Dx", "Dy", "Dz", "span")
 
 
-def _norms(v: np.ndarray) -> np.ndarray:
-    """Euclidean norms of the rows of ``v`` (``(k, 3)`` float64), vectorized."""
-    return np.linalg.norm(v, axis=1)
-
-
 def ray_table(projs, ids) -> np.ndarray:
     """``(len(ids), 13)`` float64 ray descriptions of maps ``ids`` (see module docstring and
     :data:`TABLE_COLUMNS`); ``projs``: the maps'
@@ -42,10 +37,10 @@ def ray_table(projs, ids) -> np.ndarray:
     if k == 0:
         return out
     f = projs.directions[ids]
-    f = f / _norms(f)[:, None]
+    f = f / np.linalg.norm(f, axis=1)[:, None]
     up = np.array([0.0, 1.0, 0.0])
     c = np.cross(up[None, :], f)
-    c_norm = _norms(c)
+    c_norm = np.linalg.norm(c, axis=1)
     fast = np.isfinite(c_norm) & (c_norm >= PARALLEL_TOLERANCE)
     for row in np.nonzero(~fast)[0]:  # directions along +-Y: another up hint (rare)
         out[row] = _one_map(projs, int(ids[row]))
@@ -79,7 +74,7 @@ def ray_table(projs, ids) -> np.ndarray:
     u_vec = inv @ np.array([1.0, 0.0, 0.0, 0.0])
     v_vec = inv @ np.array([0.0, 1.0, 0.0, 0.0])
     zdir = inv @ np.array([0.0, 0.0, 1.0, 0.0])
-    depth_axis = zdir[:, :3] / _norms(zdir[:, :3])[:, None]
+    depth_axis = zdir[:, :3] / np.linalg.norm(zdir[:, :3], axis=1)[:, None]
     # The rays start on the sphere's near plane: z_start = z0.
     z_start, z_end = z0, z1
     rows = out[fast]
