@@ -1,6 +1,7 @@
 """Depth-buffer formats, their quantization, and depth bias as hardware and shaders apply it.
 
-Normalized depth ``d`` is in ``[0, 1]`` (D3D: 0 at the near plane). Stored values:
+Normalized depth ``d`` is in ``[0, 1]`` (D3D: 0 at the near plane). Stored values
+(:func:`quantize_dr`, on Dr.Jit values: the one implementation of the rule):
 
 - ``D16``, ``D24``: UNORM, ``round(d * (2^n - 1)) / (2^n - 1)`` after clamping to [0, 1];
 - ``D32F``: ``float32(d)``.
@@ -25,10 +26,11 @@ import numpy as np
 
 __all__ = [
     "FORMATS",
+    "MAX_DEPTH_SLOPE",
     "bytes_per_texel",
+    "clip01_dr",
     "hardware_bias",
-    "quantize",
-    "quantum",
+    "quantize_dr",
 ]
 
 #: Format name -> (kind, bits).
@@ -39,22 +41,37 @@ FORMATS = {"D16": ("unorm", 16), "D24": ("unorm", 24), "D32F": ("float", 32)}
 MAX_DEPTH_SLOPE = 1e3
 
 
-def quantize(d: np.ndarray, fmt: str) -> np.ndarray:
-    """Stored depth of normalized depths ``d`` (float64 in, float64 out)."""
-    kind, bits = FORMATS[fmt]
-    d = np.asarray(d, dtype=np.float64)
-    if kind == "unorm":
-        scale = float((1 << bits) - 1)
-        return np.round(np.clip(d, 0.0, 1.0) * scale) / scale
-    return d.astype(np.float32).astype(np.float64)
+def clip01_dr(mi, x):
+    """``np.clip(x, 0.0, 1.0)`` bit for bit on a Dr.Jit ``Float64``: NaN and ``-0.0`` pass
+    through unchanged.
+
+    "Below zero" is read from the bits (sign set, not ``-0.0``, not NaN): the LLVM backend
+    treats subnormal inputs as zero in comparisons, NumPy does not."""
+    import drjit as dr
+
+    bits = dr.reinterpret_array(mi.Int64, x)
+    below = (bits < 0) & (bits != dr.opaque(mi.Int64, -(1 << 63))) & ~dr.isnan(x)
+    x = dr.select(below, 0.0, x)
+    return dr.select((x <= 1.0) | dr.isnan(x), x, 1.0)
 
 
-def quantum(fmt: str, d: np.ndarray | float = 1.0) -> np.ndarray | float:
-    """Spacing of representable depths near ``d`` (the UNORM step, or the float32 ulp)."""
+def quantize_dr(mi, d, fmt: str):
+    """Stored depth of normalized depths ``d`` in format ``fmt`` (Dr.Jit ``Float64`` in and
+    out): the one implementation of the format rule, used by the shadow maps' texels
+    (:func:`raster_models.shadowmaps.depth_dr.stored_depth_dr`) and ACAA's depth tests.
+
+    UNORM: ``round(clip(d, 0, 1) * (2^n - 1)) / (2^n - 1)`` (round half to even; every step
+    one IEEE float64 operation, nothing an FMA could contract). D32F: ``float32(d)`` (no
+    clamp), returned as float64. On the LLVM backend a D32F value in ``(0, 2^-126)`` is
+    stored as ``+-0`` (subnormals flushed), where NumPy keeps the float32 subnormal.
+    """
+    import drjit as dr
+
     kind, bits = FORMATS[fmt]
     if kind == "unorm":
-        return 1.0 / float((1 << bits) - 1)
-    return np.spacing(np.asarray(d, dtype=np.float32)).astype(np.float64)
+        scale = dr.opaque(mi.Float64, float((1 << bits) - 1))
+        return dr.round(clip01_dr(mi, d) * scale) / scale
+    return mi.Float64(mi.Float32(d))
 
 
 def hardware_bias(

@@ -22,22 +22,23 @@ def tex(depth_map):
 
 # ---------------------------------------------------------------------- depth formats
 @pytest.mark.parametrize(("fmt", "bits"), [("D16", 16), ("D24", 24)])
-def test_unorm_quantization(fmt, bits):
+def test_unorm_quantization(mi, fmt, bits):
     d = RNG.random(10000)
-    q = depth.quantize(d, fmt)
+    q = depth.quantize_dr(mi, mi.Float64(d), fmt).numpy()
     steps = q * (2**bits - 1)
     np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
     assert np.abs(q - d).max() <= 0.5 / (2**bits - 1) + 1e-12
-    assert depth.quantum(fmt) == pytest.approx(1 / (2**bits - 1))
-    np.testing.assert_array_equal(depth.quantize([-0.5, 1.5], fmt), [0.0, 1.0])
+    clamped = depth.quantize_dr(mi, mi.Float64([-0.5, 1.5]), fmt).numpy()
+    np.testing.assert_array_equal(clamped, [0.0, 1.0])
 
 
-def test_float_quantization_is_float32_rounding():
+def test_float_quantization_is_float32_rounding(mi):
     d = RNG.random(1000)
-    np.testing.assert_array_equal(depth.quantize(d, "D32F"), d.astype(np.float32))
+    q = depth.quantize_dr(mi, mi.Float64(d), "D32F").numpy()
+    np.testing.assert_array_equal(q, d.astype(np.float32))
 
 
-def test_hardware_bias_units():
+def test_hardware_bias_units(mi):
     # UNORM: r = 1 / (2^n - 1), the format's smallest value > 0 (D3D11 functional spec; was
     # 2^-n before issue 8); D32F: r = 2^(exponent(z) - 23)
     assert depth.hardware_bias(
@@ -50,9 +51,9 @@ def test_hardware_bias_units():
         == 3.0 / 65535.0
     )
     # One UNORM step: a biased depth moves exactly one representable value.
-    d = depth.quantize(np.array([0.5]), "D16")
+    d = depth.quantize_dr(mi, mi.Float64([0.5]), "D16").numpy()
     b = depth.hardware_bias(d, None, "D16", depth_bias=1, slope_scaled=0.0, clamp=0.0)
-    assert depth.quantize(d + b, "D16")[0] == d[0] + 1.0 / 65535.0
+    assert depth.quantize_dr(mi, mi.Float64(d + b), "D16").numpy()[0] == d[0] + 1.0 / 65535.0
     b = depth.hardware_bias(
         np.array([0.5, 0.3, 0.9]), None, "D32F", depth_bias=1, slope_scaled=0.0, clamp=0.0
     )
@@ -77,11 +78,13 @@ def test_depth_bias_is_added_before_the_viewport_clamp(mi):
     bias = depth_dr.fused_bias("D24", depth_bias=1000, slope_scaled=0.0, clamp=0.0)
     assert bias == 1000 * r
     out, hit = depth_dr.stored_depth_dr(mi, mi.Float64(z), "D24", bias)
-    want = depth.quantize(np.array([0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0]), "D24")
+    # D24 UNORM by hand: k / (2^24 - 1) for the nearest step k.
+    steps = 2.0**24 - 1.0
+    want = np.round(np.array([0.0, 0.0, 0.3 + 1000 * r, 1.0, 1.0]) * steps) / steps
     np.testing.assert_array_equal(out.numpy(), want.astype(np.float32))
     assert hit.numpy().all()
     plain, _ = depth_dr.stored_depth_dr(mi, mi.Float64(z), "D24", 0.0)
-    want = depth.quantize(np.clip(z, 0, 1), "D24").astype(np.float32)
+    want = (np.round(np.clip(z, 0, 1) * steps) / steps).astype(np.float32)
     np.testing.assert_array_equal(plain.numpy(), want)
 
 

@@ -51,6 +51,18 @@ EDGE = np.array(
 )
 
 
+def _numpy_quantize(d, fmt):
+    """NumPy reference of the depth-format rule (:func:`raster_models.depth.quantize_dr`):
+    UNORM ``round(clip(d, 0, 1) * (2^n - 1)) / (2^n - 1)``, D32F ``float32(d)``; float64."""
+    kind, bits = depth.FORMATS[fmt]
+    d = np.asarray(d, dtype=np.float64)
+    if kind == "unorm":
+        scale = float((1 << bits) - 1)
+        return np.round(np.clip(d, 0.0, 1.0) * scale) / scale
+    with np.errstate(over="ignore"):  # +-1e300 -> +-inf, the IEEE cast as on Dr.Jit
+        return d.astype(np.float32).astype(np.float64)
+
+
 def _numpy_stored(z, fmt, *, depth_bias=0, slope=None, slope_scaled=0.0, clamp=0.0):
     """NumPy reference of the stored texels: the D3D11 hardware bias added first (when there
     is one), then the viewport clamp to [0, 1], then the format's quantization, as float32;
@@ -63,7 +75,7 @@ def _numpy_stored(z, fmt, *, depth_bias=0, slope=None, slope_scaled=0.0, clamp=0
         )
         d = _flush_subnormals(_flush_subnormals(d) + _flush_subnormals(bias))
     d = np.clip(d, 0.0, 1.0)
-    stored = np.where(hit, depth.quantize(d, fmt), 1.0).astype(np.float32)
+    stored = np.where(hit, _numpy_quantize(d, fmt), 1.0).astype(np.float32)
     return _flush_subnormals(stored), hit
 
 
@@ -82,6 +94,20 @@ def _edge_depths(fmt):
     # Exact UNORM ties after scaling (round-half-even must agree).
     steps = float((1 << depth.FORMATS[fmt][1]) - 1)
     return np.concatenate([z, (np.arange(200) + 0.5) / steps])
+
+
+@pytest.mark.parametrize("fmt", sorted(depth.FORMATS))
+def test_quantize_dr_matches_numpy(mi, fmt):
+    """The one format rule on Dr.Jit values (as ACAA's tie test calls it, unclamped depths
+    in, float64 out) against the NumPy reference, bytes equal on random and edge inputs
+    (float32 subnormals flushed to +-0 on the LLVM backend, see :func:`_flush_subnormals`)."""
+    z = _edge_depths(fmt)
+    got = depth.quantize_dr(mi, mi.Float64(z), fmt).numpy()
+    assert got.dtype == np.float64
+    want = _numpy_quantize(z, fmt)
+    if depth.FORMATS[fmt][0] == "float":
+        want = _flush_subnormals(want.astype(np.float32)).astype(np.float64)
+    assert got.tobytes() == want.tobytes()
 
 
 @pytest.mark.parametrize("fmt", sorted(depth.FORMATS))

@@ -17,7 +17,7 @@ import pytest
 
 import raster_models
 from oracle.cli import main
-from oracle.sweeps.run import run_sweep, sweep_keys
+from oracle.sweeps.run import WorkerCache, run_sweep, sweep_keys
 from oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
 from oracle.sweeps.store import SweepStore
 from raster_models import params, registry
@@ -238,6 +238,19 @@ camera_path = "dolly"
 def _rows(db) -> dict:
     with SweepStore(db, readonly=True) as store:
         return {r["key"]: r for r in store.rows()}
+
+
+def test_worker_cache_loads_each_base_scene_once():
+    cache = WorkerCache()
+    rec = {"scene": "plate", "width": 48, "height": 27, "light": 0, "frame": 0}
+    first = cache.base_scene(rec)
+    assert (first.width, first.height) == (48, 27)
+    assert cache.base_scene({**rec, "frame": 3}) is first  # frames share the base scene
+    other = cache.base_scene({**rec, "width": 32})
+    assert other is not first and other.width == 32
+    assert len(cache.scenes) == 2
+    cache.ensure_backend(None)  # no variant named: nothing selected
+    assert cache.variant is None
 
 
 def test_same_spec_twice_gives_identical_metrics_inline_and_on_a_dask_scheduler(tmp_path):

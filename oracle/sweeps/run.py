@@ -22,6 +22,7 @@ import logging
 import os
 import time
 import uuid
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import raster_models
@@ -38,7 +39,9 @@ from .store import SweepStore, case_key
 from .thumbnails import case_images
 
 __all__ = [
+    "WORKER_CACHE",
     "SweepError",
+    "WorkerCache",
     "check_scheduler",
     "evaluate_case",
     "reference_jobs",
@@ -50,11 +53,56 @@ __all__ = [
 #: Seconds to wait for a ``--scheduler`` to answer.
 SCHEDULER_TIMEOUT_S = 20
 
-_SCENES: dict = {}
-_BACKEND: list = []
-_THREADS: list = []
-#: Noise floors computed in this process, by reference (``oracle.scoring.score.score``'s cache).
-_FLOORS: dict = {}
+
+@dataclass
+class WorkerCache:
+    """What a process running sweep tasks keeps from one task to the next.
+
+    Lifetime: the process. On a Dask worker (a process of its own, one task at a time) it
+    lives as long as the worker; with ``workers=0`` and in tuning it is the client's, and
+    :func:`sweep_keys` fills its scenes there too. Nothing in it changes a result: the
+    scenes and noise floors are memos keyed by everything they depend on, the backend is
+    selected once per process (by the variant of the sweep's first task).
+    """
+
+    #: Loaded base scenes by ``(scene, width, height, light)``; frames are derived from them.
+    scenes: dict = field(default_factory=dict)
+    #: Noise floors by reference and options (``floor_cache`` of
+    #: :func:`oracle.scoring.score.score`).
+    floors: dict = field(default_factory=dict)
+    #: The Mitsuba variant this process selected (``None``: not yet selected here).
+    variant: str | None = None
+    #: Dr.Jit threads of this worker (its share of the cores, set by ``Client.run``), applied
+    #: when the backend is selected; ``None``: Dr.Jit's default.
+    threads: int | None = None
+
+    def ensure_backend(self, variant: str | None) -> None:
+        """Select ``variant`` (and this worker's thread count) once in this process."""
+        if variant is None or self.variant is not None:
+            return
+        from scenes import backend
+
+        backend.select(variant)
+        self.variant = variant
+        if self.threads is not None:
+            import drjit as dr
+
+            dr.set_thread_count(self.threads)
+
+    def base_scene(self, rec: dict):
+        """The loaded base scene of a case record (loaded once per process)."""
+        import scenes
+
+        key = (rec["scene"], rec["width"], rec["height"], rec["light"])
+        if key not in self.scenes:
+            self.scenes[key] = scenes.load(
+                rec["scene"], width=rec["width"], height=rec["height"], light=rec["light"]
+            )
+        return self.scenes[key]
+
+
+#: This process's :class:`WorkerCache` (the one instance; its lifetime is the process's).
+WORKER_CACHE = WorkerCache()
 
 
 class SweepError(InputError):
@@ -75,38 +123,15 @@ def _reference_groups(technique: str) -> list[tuple[str, ...]]:
     return [REFERENCE_GROUPS[c] for c in technique_channels(technique)]
 
 
-def _ensure_backend(variant: str | None) -> None:
-    if variant is not None and not _BACKEND:
-        from scenes import backend
-
-        backend.select(variant)
-        _BACKEND.append(variant)
-        if _THREADS:
-            import drjit as dr
-
-            dr.set_thread_count(_THREADS[0])
-
-
 def _share_cores(threads: int) -> None:
     """Worker set-up (``Client.run``): this worker's Dr.Jit threads, its share of the cores,
     so that the local cluster's workers do not oversubscribe the machine."""
-    _THREADS[:] = [max(1, int(threads))]
-
-
-def _base_scene(rec: dict):
-    import scenes
-
-    key = (rec["scene"], rec["width"], rec["height"], rec["light"])
-    if key not in _SCENES:
-        _SCENES[key] = scenes.load(
-            rec["scene"], width=rec["width"], height=rec["height"], light=rec["light"]
-        )
-    return _SCENES[key]
+    WORKER_CACHE.threads = max(1, int(threads))
 
 
 def case_scene(rec: dict):
     """The loaded scene of a case record: its frame of its camera or light path."""
-    base = _base_scene(rec)
+    base = WORKER_CACHE.base_scene(rec)
     if rec.get("light_path"):
         return base.with_light_frame(rec["frame"], path=rec["light_path"], n_frames=rec["n_frames"])
     if rec.get("camera_path"):
@@ -132,7 +157,7 @@ def reference_jobs(rec: dict) -> list[dict]:
 
 def render_reference(job: dict, cache_root: str, variant: str | None) -> str:
     """Worker task: render one reference into the cache (or find it there); its status."""
-    _ensure_backend(variant)
+    WORKER_CACHE.ensure_backend(variant)
     settings = ReferenceSettings(
         spp=job["spp"], seed=job["seed"], channels=tuple(job["channels"])
     ).validate()
@@ -151,7 +176,14 @@ def evaluate_case(
     ``images``, ``"images"`` holds thumbnails (:func:`case_images`).
     """
     result = score_model(
-        loaded, technique, params, spp=spp, seed=seed, cache=cache, quiet=True, floor_cache=_FLOORS
+        loaded,
+        technique,
+        params,
+        spp=spp,
+        seed=seed,
+        cache=cache,
+        quiet=True,
+        floor_cache=WORKER_CACHE.floors,
     )
     record = result.record
     info = record["candidate_info"][0]
@@ -168,7 +200,7 @@ def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bo
     """Worker task: evaluate one case record; never raises (a failure is a result)."""
     t0 = time.perf_counter()
     try:
-        _ensure_backend(variant)
+        WORKER_CACHE.ensure_backend(variant)
         out = evaluate_case(
             case_scene(rec),
             rec["technique"],
@@ -200,7 +232,7 @@ def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
     out = []
     for case in cases:
         rec = case.record()
-        base = _base_scene(rec)
+        base = WORKER_CACHE.base_scene(rec)
         rec["width"], rec["height"] = base.width, base.height
         tech = raster_models.TECHNIQUES[case.technique]
         full = params.as_dict(params.make(case.technique, tech.params, case.params))

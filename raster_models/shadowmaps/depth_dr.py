@@ -1,17 +1,18 @@
 """The texels a rasterizer stores in a shadow map, on Dr.Jit: the hardware depth bias added
 first, then the viewport clamp to [0, 1] (D3D11 order: a pancaked caster in front of the
 near plane ends at 0 whatever its bias), then the depth format's quantization
-(:func:`raster_models.depth.quantize`), stored as float32.
+(:func:`raster_models.depth.quantize_dr`, the one implementation of the rule), stored as
+float32.
 
 For a constant bias (:func:`fused_bias`) this runs in the kernel that casts the texels'
 rays; a per-texel bias (slope-scaled, or D32F's exponent-scaled ``DepthBias``) is computed
 by :func:`raster_models.depth.hardware_bias` and passed as an array.
 
 Every step is one IEEE float64 operation (an add, a clamp, a multiply, round-half-even and a
-divide: nothing an FMA could contract), and the clamp is written with selects that
-reproduce ``np.clip`` exactly (``-0.0`` kept, NaN propagated), so the stored bytes equal
-the NumPy reference in ``tests/test_shadow_speed_paths.py`` on random and edge inputs for
-every format.
+divide: nothing an FMA could contract), and the clamp
+(:func:`raster_models.depth.clip01_dr`) is written with selects that reproduce ``np.clip``
+exactly (``-0.0`` kept, NaN propagated), so the stored bytes equal the NumPy reference in
+``tests/test_shadow_speed_paths.py`` on random and edge inputs for every format.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 from .. import depth as _depth
 
-__all__ = ["clip01_dr", "fused_bias", "stored_depth_dr"]
+__all__ = ["fused_bias", "stored_depth_dr"]
 
 
 def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) -> float | None:
@@ -43,19 +44,6 @@ def fused_bias(fmt: str, *, depth_bias: int, slope_scaled: float, clamp: float) 
     return float(bias[0])
 
 
-def clip01_dr(mi, x):
-    """``np.clip(x, 0.0, 1.0)`` bit for bit: NaN and ``-0.0`` pass through unchanged.
-
-    "Below zero" is read from the bits (sign set, not ``-0.0``, not NaN): the LLVM backend
-    treats subnormal inputs as zero in comparisons, NumPy does not."""
-    import drjit as dr
-
-    bits = dr.reinterpret_array(mi.Int64, x)
-    below = (bits < 0) & (bits != dr.opaque(mi.Int64, -(1 << 63))) & ~dr.isnan(x)
-    x = dr.select(below, 0.0, x)
-    return dr.select((x <= 1.0) | dr.isnan(x), x, 1.0)
-
-
 def stored_depth_dr(mi, z, fmt: str, bias):
     """Stored float32 texels and the hit mask of unclamped normalized depths ``z``
     (Dr.Jit ``Float64``; ``inf`` on a miss).
@@ -65,7 +53,6 @@ def stored_depth_dr(mi, z, fmt: str, bias):
     """
     import drjit as dr
 
-    kind, bits = _depth.FORMATS[fmt]
     hit = dr.isfinite(z)
     d = dr.select(hit, z, 1.0)
     if isinstance(bias, float):
@@ -73,8 +60,5 @@ def stored_depth_dr(mi, z, fmt: str, bias):
             d = d + dr.opaque(mi.Float64, bias)
     else:
         d = d + bias
-    d = clip01_dr(mi, d)
-    if kind == "unorm":
-        scale = dr.opaque(mi.Float64, float((1 << bits) - 1))
-        d = dr.round(clip01_dr(mi, d) * scale) / scale
+    d = _depth.quantize_dr(mi, _depth.clip01_dr(mi, d), fmt)
     return mi.Float32(dr.select(hit, d, 1.0)), hit

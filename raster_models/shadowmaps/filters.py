@@ -33,7 +33,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import ndimage
 
-from .depth_dr import clip01_dr
+from ..depth import clip01_dr
 
 __all__ = [
     "FILTERS",

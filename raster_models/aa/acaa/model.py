@@ -37,6 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenes import backend
+
 from ... import depth as _depth
 from ... import params as _params
 from .. import samples as _samples
@@ -85,10 +87,12 @@ class AcaaParams(ShadowParams):
         _samples.check_standard_count(technique, self.samples)
 
 
-def _stored_depth(camera, view_depth, valid, fmt: str) -> np.ndarray:
-    """Depth as stored in ``fmt`` where ``valid``; 2 (behind everything) elsewhere."""
-    z = normalized_depth(camera, np.where(valid, view_depth, camera.far))
-    return np.where(valid, _depth.quantize(z, fmt), 2.0)
+def _stored_depths(camera, view_depth: np.ndarray, fmt: str) -> np.ndarray:
+    """Depths as stored in ``fmt`` (float64) of view depths, by the one format rule
+    (:func:`raster_models.depth.quantize_dr`, one launch)."""
+    mi = backend.mitsuba()
+    z = normalized_depth(camera, view_depth)
+    return _depth.quantize_dr(mi, mi.Float64(z), fmt).numpy()
 
 
 def merge_fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
@@ -141,16 +145,27 @@ def merge_fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool)
 def find_ties(cam, candidates: list, window: float, fmt: str) -> list:
     """Tie samples ``(pixel, sample, shape, prim)`` of each group from its candidates' hits
     (:func:`.trace.prepass`): a hit within the tie window whose stored depth passes
-    LEQUAL against the prepass's."""
-    found = []
-    for pix, smp, depth, hit, hit_depth, hit_shape, hit_prim in candidates:
+    LEQUAL against the prepass's. The stored depths of every group are quantized together
+    (one launch)."""
+    picked = []
+    for _, _, depth, hit, hit_depth, _, _ in candidates:
         near = hit.copy()
         if np.isfinite(window):  # equal stored depths lie within the tie distance
             near &= hit_depth <= depth + np.float32(window)
-        ci = np.flatnonzero(near)
-        one = np.ones(len(ci), bool)
-        zk = _stored_depth(cam, hit_depth[ci], one, fmt)
-        ci = ci[zk <= _stored_depth(cam, depth[ci], one, fmt)]
+        picked.append(np.flatnonzero(near))
+    total = sum(len(ci) for ci in picked)
+    if total == 0:
+        return []
+    pairs = list(zip(candidates, picked, strict=True))
+    view = np.concatenate([c[4][ci] for c, ci in pairs] + [c[2][ci] for c, ci in pairs])
+    stored = _stored_depths(cam, view, fmt)
+    passes = stored[:total] <= stored[total:]  # the hit's stored depth <= the prepass's
+    found = []
+    start = 0
+    for (pix, smp, _, _, _, hit_shape, hit_prim), ci in pairs:
+        stop = start + len(ci)
+        ci = ci[passes[start:stop]]
+        start = stop
         if len(ci):
             found.append((pix[ci], smp[ci], hit_shape[ci], hit_prim[ci]))
     return found
