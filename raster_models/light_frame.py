@@ -167,14 +167,6 @@ class Projection:
             u, v, z = r[:, 0] / w, r[:, 1] / w, r[:, 2] / w
         return tuple(a.astype(np.float64, copy=False) for a in (u, v, z, w))
 
-    def derivative(self, points: np.ndarray, u, v, z, w) -> np.ndarray:
-        """``d(u, v, z) / dP`` at world points, ``(N, 3, 3)`` (rows u, v, z), float64."""
-        m = self.matrix
-        t = np.stack([u, v, z], axis=-1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            d = (m[None, :3, :3] - t[:, :, None] * m[None, 3:4, :3]) / w[:, None, None]
-        return d
-
     # ------------------------------------------------------------------ rays
     def grid_rays(self, z_start: float, z_end: float) -> dict:
         """Affine description of the rays through texel centres (float64).

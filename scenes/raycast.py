@@ -221,13 +221,6 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     return out
 
 
-def _np(a, shape=None):
-    arr = np.array(a)
-    if shape is not None:
-        arr = arr.reshape(shape)
-    return arr
-
-
 def trace_film(loaded, x: np.ndarray, y: np.ndarray, *, camera=None, color: bool = False):
     """NumPy G-buffer at film positions ``x, y`` (pixels), chunked.
 
