@@ -23,23 +23,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .geometry import chunks_by_total
-from .kernel import PairTester, use_drjit
+from .kernel import DeadPairs, PairTester
 
 __all__ = [
+    "BATCH_PAIRS",
     "FULL_MASK",
-    "PAIR_CHUNK",
     "IzbLists",
     "JoinStats",
+    "Joins",
     "build_lists",
     "head_offsets",
-    "join",
+    "late_pairs",
     "list_nodes",
 ]
 
-#: (fragment, node) pairs tested per chunk: bounds memory at about 250 MiB for 32 samples
-#: ((pairs, 4, 32) float64 working arrays are only made for pairs that straddle a plane).
-PAIR_CHUNK = 1 << 18
+#: (fragment, node) pairs from which a batch of rounds is joined (:class:`Joins`): enough
+#: that a frame of many small rounds pays few kernel launches, few enough that the tests of
+#: receivers fully shadowed early in a batch stay a small share.
+BATCH_PAIRS = 1 << 16
 
 #: All 32 bits of an FTIZB mask.
 FULL_MASK = np.uint32(0xFFFFFFFF)
@@ -158,60 +159,110 @@ class JoinStats:
     nodes_removed: int = 0
 
 
-def _pairs(lo: np.ndarray, n: np.ndarray):
-    """Node index of every (fragment, node) pair: ``lo[f] + 0 .. n[f] - 1``."""
-    first = np.cumsum(n) - n
-    f = np.repeat(np.arange(len(n)), n)
-    return f, lo[f] + (np.arange(len(f)) - first[f])
+class Joins:
+    """The joins of a frame's traversal, rounds of triangles batched into few Dr.Jit joins.
 
+    The traversal's rule: each round's fragments walk the lists as they are after the
+    previous rounds, whose fully shadowed receivers have left them. Here the fragments of
+    consecutive rounds are spanned over the lists as they are at the start of a batch and
+    joined at once (:meth:`raster_models.izb.kernel.PairTester.join`, a few kernel launches)
+    once the batch holds :data:`BATCH_PAIRS` pairs; then the lists lose the receivers
+    fully shadowed by the batch. A receiver fully shadowed in an earlier round of the batch
+    is tested again in the later ones: those tests change no answer (its mask is full, or
+    its flag set, already; the band of a shadowed sample is not reported) and are left out
+    of the counters. The join returns the pairs of the receivers it leaves fully shadowed;
+    from them, the round of the batch in which each receiver became fully shadowed, and so
+    which of its pairs one join per round would not have tested (:func:`late_pairs`). The
+    answer and the counters are those of one join per round, whatever the batches
+    (``tests/test_izb.py`` checks it).
 
-def join(
-    lists: IzbLists,
-    frag_tri: np.ndarray,
-    frag_texel: np.ndarray,
-    tester: PairTester,
-    state: dict,
-    stats: JoinStats,
-) -> None:
-    """Test every node of every fragment's list against the fragment's triangle.
-
-    ``tester``: the sample-triangle tests of the frame (its shadow volumes, receivers and
-    epsilon). ``state``: ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)`` uint32
-    (32 samples), and ``band`` (same type: samples inside a volume's edge planes within
-    ``epsilon`` of its triangle plane, lit by the epsilon), updated in place.
-
-    Large joins run on Dr.Jit (:meth:`raster_models.izb.kernel.PairTester.join_drjit`:
-    pairs expanded, tested and OR-ed in the kernels), and so do small ones once a Dr.Jit
-    join has packed the rows of the same lists; other small ones on NumPy
-    (:meth:`~raster_models.izb.kernel.PairTester.numpy`, the same bits), in chunks of at
-    most :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own): a
-    frame's many joins of a few hundred pairs cost a kernel launch and a synchronisation
-    each on Dr.Jit, about twice the NumPy time on ``curved`` (measured at 320x180).
+    Parameters
+    ----------
+    lists : the frame's lists (compacted in place after each batch).
+    tester : the sample-triangle tests of the frame (its shadow volumes, receivers and
+        epsilon).
+    state : ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)`` uint32 (32 samples),
+        and ``band`` (same type: samples inside a volume's edge planes within ``epsilon`` of
+        its triangle plane, lit by the epsilon), updated in place.
     """
-    stats.fragments += len(frag_tri)
-    if len(frag_tri) == 0 or len(lists.node_texel) == 0:
-        return
-    lo, n = lists.span(frag_texel)
-    has = n > 0
-    stats.fragments_with_list += int(has.sum())
-    frag_tri, lo, n = frag_tri[has], lo[has], n[has]
-    if len(n) == 0:
-        return
-    stats.tests += int(n.sum())
-    stats.list_max = max(stats.list_max, int(n.max()))
-    ends = np.cumsum(n)
-    if tester.rows_ready(lists.node_recv) or use_drjit(int(ends[-1])):
-        tester.join_drjit(frag_tri, lo, n, lists.node_recv, state)
-        return
-    for sl in chunks_by_total(n, PAIR_CHUNK):  # chunks of fragments
-        f, node = _pairs(lo[sl], n[sl])
-        r = lists.node_recv[node]
-        hit, near = tester.numpy(frag_tri[sl][f], r)
-        if "mask" in state:
-            hit_i = np.flatnonzero(hit)
-            near_i = np.flatnonzero(near)
-            np.bitwise_or.at(state["band"], r[near_i], near[near_i])
-            np.bitwise_or.at(state["mask"], r[hit_i], hit[hit_i])
-        else:
-            state["shadowed"][r[hit]] = True
-            state["band"][r[near]] = True
+
+    def __init__(self, lists: IzbLists, tester: PairTester, state: dict):
+        self.lists = lists
+        self.tester = tester
+        self.state = state
+        self.stats = JoinStats()
+        self._batch: list[tuple] = []
+        self._pairs = 0
+        self._round = 0
+        self._dead = 0
+
+    def add(self, frag_tri: np.ndarray, frag_texel: np.ndarray) -> None:
+        """Fragments ``(triangle, global texel)`` of the current round."""
+        self.stats.fragments += len(frag_tri)
+        if len(frag_tri) == 0 or len(self.lists.node_texel) == 0:
+            return
+        lo, n = self.lists.span(frag_texel)
+        has = n > 0
+        if has.any():
+            self._batch.append((frag_tri[has], lo[has], n[has], self._round))
+            self._pairs += int(n[has].sum())
+
+    def end_round(self) -> None:
+        """Closes a round; joins the batch once it holds :data:`BATCH_PAIRS` pairs."""
+        self._round += 1
+        if self._pairs >= BATCH_PAIRS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Joins the batch, counts its tests and removes the fully shadowed receivers from
+        the lists."""
+        key = self.tester.keys[0]
+        if self._batch:
+            tri, lo, n = (np.concatenate([b[i] for b in self._batch]) for i in range(3))
+            rnd = np.repeat([b[3] for b in self._batch], [len(b[0]) for b in self._batch])
+            before = self.state[key].copy()
+            dead = self.tester.join(tri, lo, n, self.lists.node_recv, self.state)
+            live = n - late_pairs(dead, np.cumsum(n), rnd, before)
+            st = self.stats
+            st.tests += int(live.sum())
+            st.fragments_with_list += int(np.count_nonzero(live))
+            st.list_max = max(st.list_max, int(live.max()))
+        self._batch, self._pairs, self._round = [], 0, 0
+        done = self.state[key] == self.tester.full
+        n_dead = int(np.count_nonzero(done))
+        if n_dead > self._dead:  # a receiver stays dead: no new one, no node to remove
+            self.stats.nodes_removed += self.lists.compact(done)
+            self._dead = n_dead
+
+
+def late_pairs(dead: DeadPairs, ends: np.ndarray, rnd: np.ndarray, before: np.ndarray):
+    """Per fragment of a batch: its pairs tested after their receiver became fully shadowed
+    (in an earlier round of the batch), which one join per round would not have tested.
+
+    Parameters
+    ----------
+    dead : the batch's pairs whose receiver is fully shadowed after it.
+    ends : ``(F,)`` end of each fragment's pairs (the cumulative list lengths).
+    rnd : ``(F,)`` round of each fragment within the batch.
+    before : the receivers' mask (uint32) or flag (bool) before the batch.
+
+    Returns
+    -------
+    ``(F,)`` int64 counts.
+    """
+    if len(dead.pair) == 0:
+        return np.zeros(len(ends), dtype=np.int64)
+    f = np.searchsorted(ends, dead.pair, side="right")  # fragment of each pair
+    j = rnd[f]
+    bits = 32 if before.dtype == np.uint32 else 1
+    q = np.arange(bits, dtype=np.uint32)
+    recv, inv = np.unique(dead.recv, return_inverse=True)
+    # per receiver and bit, the first round that sets it (0: set before the batch; a
+    # receiver full before the batch is tested in the batch's first round, then leaves)
+    big = np.iinfo(np.int64).max
+    first = np.full((len(recv), bits), big, dtype=np.int64)
+    np.minimum.at(first, inv, np.where((dead.result[:, None] >> q) & 1 != 0, j[:, None], big))
+    first[(before[recv].astype(np.uint32)[:, None] >> q) & 1 != 0] = 0
+    died = first.max(axis=1)  # every bit is set by the end of the batch
+    late = j > died[inv]
+    return np.bincount(f[late], minlength=len(ends))
