@@ -236,7 +236,8 @@ class PairTester:
         # fragment of each pair: 1 at every later fragment's first pair, summed (lists are
         # never empty: the firsts are distinct)
         marks = dr.zeros(u32, n_pairs)
-        dr.scatter(marks, u32(1), u32(first_np[1:]))
+        if len(n) > 1:
+            dr.scatter(marks, u32(1), u32(first_np[1:]))
         f = dr.prefix_sum(marks) + marks  # inclusive
         frags = (u32(tri.astype(np.uint32)), u32(lo.astype(np.uint32)), u32(first_np))
         return frags, f, n_pairs
