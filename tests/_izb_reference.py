@@ -176,8 +176,11 @@ def pair_tests(planes, recv: dict, epsilon: float, tri: np.ndarray, r: np.ndarra
 def join(planes, recv, epsilon, frag_tri, lo, n, node_recv, state, *, chunk=PAIR_CHUNK):
     """:meth:`raster_models.izb.kernel.PairTester.join` on NumPy: every pair of the
     fragments ``(frag_tri, lo, n)`` with the nodes ``node_recv`` tested and OR-ed into
-    ``state``; returns the pairs whose receiver is fully shadowed after the join."""
+    ``state``; returns the pairs whose receiver the join left fully shadowed (not fully
+    shadowed before it)."""
     key = "mask" if "dpdx" in recv else "shadowed"
+    full = FULL if key == "mask" else 1
+    was = state[key].astype(np.uint32) == full
     ends = np.cumsum(n)
     f = np.repeat(np.arange(len(n)), n)
     node = lo[f] + (np.arange(len(f)) - (ends - n)[f])
@@ -194,6 +197,5 @@ def join(planes, recv, epsilon, frag_tri, lo, n, node_recv, state, *, chunk=PAIR
             state["band"][r[sl][near]] = True
         results.append(hit.astype(np.uint32))
     result = np.concatenate(results)
-    full = FULL if key == "mask" else 1
-    pair = np.flatnonzero(state[key][r].astype(np.uint32) == full)
+    pair = np.flatnonzero((state[key][r].astype(np.uint32) == full) & ~was[r])
     return DeadPairs(pair, r[pair].astype(np.int64), result[pair])

@@ -82,7 +82,8 @@ def vectorized() -> bool:
 
 @dataclass(frozen=True)
 class DeadPairs:
-    """The pairs of a join whose receiver is fully shadowed after it.
+    """The pairs of a join whose receiver it left fully shadowed (not fully shadowed before
+    it).
 
     Attributes
     ----------
@@ -144,7 +145,8 @@ class PairTester:
         ``state`` (the arrays :attr:`keys`, updated in place).
 
         Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
-        own). Returns the pairs whose receiver is fully shadowed after the join."""
+        own). Returns the pairs whose receiver the join left fully shadowed (not fully
+        shadowed before it)."""
         import drjit as dr
 
         mi, _ = self._inputs()
@@ -154,11 +156,13 @@ class PairTester:
         chunks = list(chunks_by_total(n, DRJIT_PAIR_CHUNK))
         for sl in chunks:  # chunks of fragments
             self._test_chunk(self._chunk(frag_tri[sl], lo[sl], n[sl]), rows, acc)
-        dead = acc[self.keys[0]] == u32(self.full)
+        # receivers fully shadowed by this join (not before it)
+        was = mi.Bool(np.asarray(state[self.keys[0]]) == self.full)
+        dead = (acc[self.keys[0]] == u32(self.full)) & ~was
         dr.eval(dead)
+        found = [(np.zeros(0, dtype=np.int64),) * 2 + (np.zeros(0, dtype=np.uint32),)]
         offsets = np.concatenate([[0], np.cumsum(n)])
-        found = []
-        for sl in chunks:  # chunks of fragments, again: the pairs of dead receivers
+        for sl in chunks if dr.count(dead)[0] else ():  # again: the pairs of dead receivers
             pair, recv, result = self._dead_chunk(
                 self._chunk(frag_tri[sl], lo[sl], n[sl]), rows, dead
             )

@@ -187,6 +187,8 @@ class Joins:
     """
 
     def __init__(self, lists: IzbLists, tester: PairTester, state: dict):
+        if np.any(state[tester.keys[0]] == tester.full):
+            raise ValueError("a receiver fully shadowed before the traversal is no receiver")
         self.lists = lists
         self.tester = tester
         self.state = state
@@ -239,12 +241,18 @@ def late_pairs(dead: DeadPairs, ends: np.ndarray, rnd: np.ndarray, before: np.nd
     """Per fragment of a batch: its pairs tested after their receiver became fully shadowed
     (in an earlier round of the batch), which one join per round would not have tested.
 
+    A receiver becomes fully shadowed in the first round by which every bit of its mask
+    (its flag, 1 sample) is set, before the batch or by a pair of that round or an earlier
+    one: no later than its first pair with a full result, earlier where the partial masks of
+    earlier rounds fill it.
+
     Parameters
     ----------
-    dead : the batch's pairs whose receiver is fully shadowed after it.
+    dead : the batch's pairs whose receiver it left fully shadowed (not fully shadowed
+        before it).
     ends : ``(F,)`` end of each fragment's pairs (the cumulative list lengths).
     rnd : ``(F,)`` round of each fragment within the batch.
-    before : the receivers' mask (uint32) or flag (bool) before the batch.
+    before : ``(M,)`` the receivers' masks (uint32) or flags (bool) before the batch.
 
     Returns
     -------
@@ -255,14 +263,27 @@ def late_pairs(dead: DeadPairs, ends: np.ndarray, rnd: np.ndarray, before: np.nd
     f = np.searchsorted(ends, dead.pair, side="right")  # fragment of each pair
     j = rnd[f]
     bits = 32 if before.dtype == np.uint32 else 1
-    q = np.arange(bits, dtype=np.uint32)
-    recv, inv = np.unique(dead.recv, return_inverse=True)
-    # per receiver and bit, the first round that sets it (0: set before the batch; a
-    # receiver full before the batch is tested in the batch's first round, then leaves)
-    big = np.iinfo(np.int64).max
-    first = np.full((len(recv), bits), big, dtype=np.int64)
-    np.minimum.at(first, inv, np.where((dead.result[:, None] >> q) & 1 != 0, j[:, None], big))
-    first[(before[recv].astype(np.uint32)[:, None] >> q) & 1 != 0] = 0
-    died = first.max(axis=1)  # every bit is set by the end of the batch
-    late = j > died[inv]
+    full = (1 << bits) - 1
+    died = np.full(len(before), np.iinfo(np.int64).max)  # per receiver
+    whole = dead.result == full
+    np.minimum.at(died, dead.recv[whole], j[whole])
+    part = ~whole & (dead.result != 0) & (j < died[dead.recv])
+    if part.any():  # partial masks of rounds before the first full one
+        recv, inv = np.unique(dead.recv[part], return_inverse=True)
+        died[recv] = np.minimum(died[recv], _filled(recv, inv, dead.result[part], j[part], before))
+    late = j > died[dead.recv]
     return np.bincount(f[late], minlength=len(ends))
+
+
+def _filled(recv, inv, result, j, before):
+    """Per receiver ``recv``: the first round by which its bits set before (``before``) and
+    by the partial masks ``result`` of rounds ``j`` (receiver ``recv[inv]``) fill its mask
+    (the largest int64 where they do not)."""
+    q = np.arange(32, dtype=np.uint32)
+    big = np.iinfo(np.int64).max
+    first = np.full(len(recv) * 32, big)
+    k, b = np.nonzero((result[:, None] >> q) & 1)  # every set bit of every mask
+    np.minimum.at(first, inv[k] * 32 + b, j[k])
+    first = first.reshape(len(recv), 32)
+    first[(before[recv][:, None] >> q) & 1 != 0] = 0
+    return first.max(axis=1)
