@@ -444,7 +444,7 @@ def _one_node_joins(recv, tri, r):
     (a copy of ``r[i]``'s row): the join's arguments, the rows and an empty state."""
     n = len(tri)
     rows = {k: v[r] if k in ("p", "dpdx", "dpdy") else v for k, v in recv.items()}
-    return rows, (tri, np.arange(n), np.ones(n, dtype=np.int64), np.arange(n))
+    return rows, (tri, np.arange(n), np.ones(n, dtype=np.int64))
 
 
 @pytest.mark.parametrize("samples", [1, 32])
@@ -459,11 +459,12 @@ def test_drjit_pair_tests_equal_the_numpy_reference(monkeypatch, samples):
     rows, args = _one_node_joins(recv, tri, r)
     keys = ("mask", "band") if samples == 32 else ("shadowed", "band")
     ref_state = {k: np.zeros(len(tri), dtype=hit.dtype) for k in keys}
-    ref_dead = join(planes, rows, PAIR_EPSILON, *args, ref_state, chunk=5000)
+    ref_dead = join(planes, rows, PAIR_EPSILON, *args, np.arange(len(tri)), ref_state, chunk=5000)
     for chunk in (kernel.DRJIT_PAIR_CHUNK, 4099):  # one launch, many launches
         monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", chunk)
         state = {k: np.zeros(len(tri), dtype=hit.dtype) for k in keys}
-        dead = PairTester(planes, rows, epsilon=PAIR_EPSILON).join(*args, state)
+        tester = PairTester(planes, rows, node_recv=np.arange(len(tri)), epsilon=PAIR_EPSILON)
+        dead = tester.join(*args, None, state)
         for x, y in zip((hit, near), (state[keys[0]], state["band"]), strict=True):
             assert x.dtype == y.dtype
             np.testing.assert_allclose(x, y, rtol=0, atol=PAIR_TOLERANCE)
@@ -507,9 +508,10 @@ def test_batches_of_rounds_do_not_change_the_model(monkeypatch, samples):
         tested.append(int(n.sum()))
         return drjit_join(self, frag_tri, lo, n, *rest)
 
-    def reference(self, *args):
-        tested.append(int(args[2].sum()))
-        return join(self.planes, self.recv, self.epsilon, *args)
+    def reference(self, frag_tri, lo, n, node_id, state):
+        tested.append(int(n.sum()))
+        node_recv = self.node_recv if node_id is None else self.node_recv[node_id]
+        return join(self.planes, self.recv, self.epsilon, frag_tri, lo, n, node_recv, state)
 
     monkeypatch.setattr(PairTester, "join", counted)
     monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches per join

@@ -12,11 +12,13 @@ Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` 
 ``tests/_izb_reference.py`` holds a NumPy version of the same tests, the reference
 ``tests/test_izb.py`` compares the kernels with (exactly: masks and flags).
 
-Launches: a join costs a few kernel launches, a synchronisation and a packing of the rows
-of its lists, whatever its size; the traversal therefore joins the fragments of many rounds
-at once (:class:`raster_models.izb.lists.Joins`), and a join returns the pairs whose
-receiver it left fully shadowed (:class:`DeadPairs`), from which the traversal tells the
-tests made after a receiver would have left the lists.
+Launches: a join costs a few kernel launches and a synchronisation, whatever its size; the
+traversal therefore joins the fragments of many rounds at once
+(:class:`raster_models.izb.lists.Joins`), and a join returns the pairs whose receiver it
+left fully shadowed (:class:`DeadPairs`), from which the traversal tells the tests made
+after a receiver would have left the lists. The receivers' rows are packed once per frame,
+in the order of the lists' nodes as built; the lists shortened by the traversal name their
+nodes' places in it (``IzbLists.node_id``).
 
 32 samples, two launches per chunk: the first bounds each plane over the pixel's points
 (affine in the offsets ``(a, b)``) and decides most pairs (all points outside one plane,
@@ -26,7 +28,8 @@ points of the remaining pairs only.
 Memory layout (the join is bound by fetching receivers, not by arithmetic): each receiver's
 values are one row in arrays of power-of-two widths (``p``, ``dP/dx``, ``dP/dy``, floor:
 8 + 2 float64; ``p``, floor: 4), rows stored in the order the pairs read them (list-node
-order), and rows and triangle planes are fetched as packet loads (``JitFlag.PacketOps``).
+order as built), and rows and triangle planes are fetched as packet loads
+(``JitFlag.PacketOps``).
 The values and the arithmetic are unchanged: the same bits.
 """
 
@@ -100,14 +103,17 @@ class DeadPairs:
 
 
 def _pair(frags, idx, f_idx):
-    """Dr.Jit triangle, receiver and node of pairs ``idx`` of fragments ``f_idx``; ``frags``:
-    per fragment triangle, first node, first pair of the chunk, and the nodes' receivers."""
+    """Dr.Jit triangle, receiver and built node of pairs ``idx`` of fragments ``f_idx``;
+    ``frags``: per fragment triangle, first node and first pair of the chunk, then the
+    built node of each node (``None``: the lists as built) and the built nodes' receivers."""
     import drjit as dr
 
-    tri, lo, first, node_recv = frags
+    tri, lo, first, ids, built_recv = frags
     u32 = type(idx)
     node = dr.gather(u32, lo, f_idx) + (idx - dr.gather(u32, first, f_idx))
-    return dr.gather(u32, tri, f_idx), dr.gather(u32, node_recv, node), node
+    if ids is not None:
+        node = dr.gather(u32, ids, node)
+    return dr.gather(u32, tri, f_idx), dr.gather(u32, built_recv, node), node
 
 
 class PairTester:
@@ -119,6 +125,8 @@ class PairTester:
         (:func:`raster_models.izb.geometry.shadow_volumes`).
     recv : ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy`` ``(M, 3)`` and the
         tangent-plane offsets ``a``, ``b`` ``(32,)``.
+    node_recv : ``(N,)`` receiver of each node of the lists as built; a join's lists are
+        these nodes or a subset of them (``node_id``, see :meth:`join`).
     epsilon : the shadow volumes' epsilon (world units); each receiver's band floor is
         :func:`band_floor` of its ``p``, computed where needed.
 
@@ -129,47 +137,48 @@ class PairTester:
     full : the value of ``state[keys[0]]`` of a fully shadowed receiver.
     """
 
-    def __init__(self, planes: np.ndarray, recv: dict, *, epsilon: float):
+    def __init__(self, planes: np.ndarray, recv: dict, *, node_recv: np.ndarray, epsilon: float):
         self.planes = planes
         self.recv = recv
+        self.node_recv = node_recv
         self.epsilon = float(epsilon)
         self.thirty_two = "dpdx" in recv
         self.keys = ("mask", "band") if self.thirty_two else ("shadowed", "band")
         self.full = _FULL if self.thirty_two else 1
         self._dr = None
-        self._node_rows = None
+        self._built = None
 
-    def join(self, frag_tri, lo, n, node_recv, state: dict) -> DeadPairs:
+    def join(self, frag_tri, lo, n, node_id, state: dict) -> DeadPairs:
         """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
-        length, every length at least 1) with the nodes ``node_recv``, tested and OR-ed into
-        ``state`` (the arrays :attr:`keys`, updated in place).
+        length, every length at least 1) with their lists' nodes, tested and OR-ed into
+        ``state`` (the arrays :attr:`keys`, updated in place). ``node_id``: the built node
+        (index into :attr:`node_recv`) of each node of the lists, or ``None`` for the lists
+        as built (the receivers' rows are packed once, in built node order).
 
         Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
         own). Returns the pairs whose receiver the join left fully shadowed (not fully
         shadowed before it)."""
-        import drjit as dr
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
-        rows = self._rows_of(node_recv)
+        nodes = self._nodes(node_id)
         acc = {k: u32(np.asarray(state[k], dtype=np.uint32)) for k in self.keys}
         chunks = list(chunks_by_total(n, DRJIT_PAIR_CHUNK))
         for sl in chunks:  # chunks of fragments
-            self._test_chunk(self._chunk(frag_tri[sl], lo[sl], n[sl]), rows, acc)
-        # receivers fully shadowed by this join (not before it)
-        was = mi.Bool(np.asarray(state[self.keys[0]]) == self.full)
-        dead = (acc[self.keys[0]] == u32(self.full)) & ~was
-        dr.eval(dead)
-        found = [(np.zeros(0, dtype=np.int64),) * 2 + (np.zeros(0, dtype=np.uint32),)]
-        offsets = np.concatenate([[0], np.cumsum(n)])
-        for sl in chunks if dr.count(dead)[0] else ():  # again: the pairs of dead receivers
-            pair, recv, result = self._dead_chunk(
-                self._chunk(frag_tri[sl], lo[sl], n[sl]), rows, dead
-            )
-            found.append((pair.astype(np.int64) + int(offsets[sl.start]), recv, result))
+            self._test_chunk(self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, acc)
+        was = state[self.keys[0]] == self.full
         for k in self.keys:
             out = acc[k].numpy()
             state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out
+        dead = (state[self.keys[0]] == self.full) & ~was  # by this join, not before it
+        found = [(np.zeros(0, dtype=np.int64),) * 2 + (np.zeros(0, dtype=np.uint32),)]
+        offsets = np.concatenate([[0], np.cumsum(n)])
+        dead_dr = mi.Bool(dead) if dead.any() else None
+        for sl in chunks if dead_dr is not None else ():  # again: the dead receivers' pairs
+            pair, recv, result = self._dead_chunk(
+                self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, dead_dr
+            )
+            found.append((pair.astype(np.int64) + int(offsets[sl.start]), recv, result))
         return DeadPairs(*(np.concatenate([x[i] for x in found]) for i in range(3)))
 
     # ---- inputs
@@ -198,14 +207,17 @@ class PairTester:
             self._dr = (mi, d)
         return self._dr
 
-    def _rows_of(self, node_recv):
-        """The Dr.Jit receivers of the nodes ``node_recv`` and their rows (:meth:`_rows`),
-        packed again only when the lists change (a fragment's pairs read consecutive rows)."""
-        if self._node_rows is None or self._node_rows[0] is not node_recv:
-            mi, _ = self._inputs()
-            recv_dr = mi.UInt32(np.asarray(node_recv, dtype=np.uint32))
-            self._node_rows = (node_recv, recv_dr, self._rows(recv_dr))
-        return self._node_rows[1:]
+    def _nodes(self, node_id):
+        """Dr.Jit ``(ids, built receivers, rows)``: the built node of each node (``None``:
+        the lists as built), the built nodes' receivers and their rows (:meth:`_rows`),
+        packed once in built node order (a fragment's pairs read consecutive rows; removed
+        nodes leave holes)."""
+        mi, _ = self._inputs()
+        if self._built is None:
+            recv_dr = mi.UInt32(np.asarray(self.node_recv, dtype=np.uint32))
+            self._built = (recv_dr, self._rows(recv_dr))
+        ids = None if node_id is None else mi.UInt32(np.asarray(node_id, dtype=np.uint32))
+        return (ids, *self._built)
 
     def _rows(self, recv) -> list:
         """Row arrays of receivers ``recv`` (Dr.Jit UInt32), one row each: ``p``,
@@ -311,16 +323,17 @@ class PairTester:
         edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
         return edges & (base[3] > 0), edges & (base[3] <= 0) & (base[3] > floor)
 
-    def _test_chunk(self, chunk, rows, acc: dict) -> None:
-        """Every pair of a chunk (:meth:`_chunk`) tested and OR-ed into ``acc``."""
+    def _test_chunk(self, chunk, nodes, acc: dict) -> None:
+        """Every pair of a chunk (:meth:`_chunk`) with the lists' ``nodes`` (:meth:`_nodes`)
+        tested and OR-ed into ``acc``."""
         import drjit as dr
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
         (tri, lo, first), f, n_pairs = chunk
-        frags = (tri, lo, first, rows[0])
+        frags = (tri, lo, first, *nodes[:2])
         ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
-        base, da, db, floor = self._plane_terms(ti, rows[1], node)
+        base, da, db, floor = self._plane_terms(ti, nodes[2], node)
         if not self.thirty_two:
             hit, near = self._single(base, floor)
             dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
@@ -334,12 +347,12 @@ class PairTester:
         idx = dr.compress(mixed)
         if dr.width(idx):
             ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
-            m, bm = self._points(*self._plane_terms(ti, rows[1], node))
+            m, bm = self._points(*self._plane_terms(ti, nodes[2], node))
             dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
             dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
             dr.eval(acc["mask"], acc["band"])
 
-    def _dead_chunk(self, chunk, rows, dead):
+    def _dead_chunk(self, chunk, nodes, dead):
         """The pairs of a chunk whose receiver is ``dead`` (Dr.Jit Bool per receiver): their
         index in the chunk, receiver and result (mask or flag, as :meth:`_test_chunk` ORs
         it), as NumPy arrays."""
@@ -348,14 +361,14 @@ class PairTester:
         mi, _ = self._inputs()
         u32 = mi.UInt32
         (tri, lo, first), f, n_pairs = chunk
-        frags = (tri, lo, first, rows[0])
+        frags = (tri, lo, first, *nodes[:2])
         _, ri, _ = _pair(frags, dr.arange(u32, n_pairs), f)
         idx = dr.compress(dr.gather(mi.Bool, dead, ri))
         if dr.width(idx) == 0:
             empty = np.zeros(0, dtype=np.int64)
             return empty, empty, np.zeros(0, dtype=np.uint32)
         ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
-        base, da, db, floor = self._plane_terms(ti, rows[1], node)
+        base, da, db, floor = self._plane_terms(ti, nodes[2], node)
         if self.thirty_two:
             none, full = self._classes(base, da, db, floor)
             m, _ = self._points(base, da, db, floor)

@@ -51,11 +51,13 @@ class IzbLists:
     """Grid-of-lists: ``node_texel`` (sorted, global texel id = cascade * R^2 + j * R + i)
     and ``node_recv`` (receiver index) per node (int32 where the ids fit); ``heads``: the
     head offsets of :func:`head_offsets` for these nodes, or ``None`` until :meth:`span`
-    needs them (reset by :meth:`compact`)."""
+    needs them (reset by :meth:`compact`); ``node_id``: the index of each node in the
+    lists as built, or ``None`` until :meth:`compact` removes one."""
 
     node_texel: np.ndarray
     node_recv: np.ndarray
     heads: np.ndarray | None = field(default=None, repr=False)
+    node_id: np.ndarray | None = field(default=None, repr=False)
 
     def lengths(self) -> np.ndarray:
         """Lengths of the non-empty lists."""
@@ -87,6 +89,11 @@ class IzbLists:
         if removed:
             self.node_texel = self.node_texel[keep]
             self.node_recv = self.node_recv[keep]
+            if self.node_id is None:
+                kept = np.flatnonzero(keep)
+                self.node_id = kept.astype(_index_type(kept), copy=False)
+            else:
+                self.node_id = self.node_id[keep]
             self.heads = None
         return removed
 
@@ -179,8 +186,8 @@ class Joins:
     Parameters
     ----------
     lists : the frame's lists (compacted in place after each batch).
-    tester : the sample-triangle tests of the frame (its shadow volumes, receivers and
-        epsilon).
+    tester : the sample-triangle tests of the frame (its shadow volumes, receivers, the
+        lists' nodes as built and epsilon).
     state : ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)`` uint32 (32 samples),
         and ``band`` (same type: samples inside a volume's edge planes within ``epsilon`` of
         its triangle plane, lit by the epsilon), updated in place.
@@ -223,7 +230,7 @@ class Joins:
             tri, lo, n = (np.concatenate([b[i] for b in self._batch]) for i in range(3))
             rnd = np.repeat([b[3] for b in self._batch], [len(b[0]) for b in self._batch])
             before = self.state[key].copy()
-            dead = self.tester.join(tri, lo, n, self.lists.node_recv, self.state)
+            dead = self.tester.join(tri, lo, n, self.lists.node_id, self.state)
             live = n - late_pairs(dead, np.cumsum(n), rnd, before)
             st = self.stats
             st.tests += int(live.sum())

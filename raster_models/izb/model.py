@@ -238,7 +238,8 @@ def _traverse(scene, light, frame, smp: Samples, grids: Grids, p: IzbParams) -> 
         state = {"mask": smp.init.copy(), "band": np.zeros(m, dtype=np.uint32)}
     else:
         state = {"shadowed": np.zeros(m, dtype=bool), "band": np.zeros(m, dtype=bool)}
-    joins = Joins(grids.lists, PairTester(planes, smp.recv, epsilon=p.epsilon), state)
+    tester = PairTester(planes, smp.recv, node_recv=grids.lists.node_recv, epsilon=p.epsilon)
+    joins = Joins(grids.lists, tester, state)
     r = p.resolution
     rounds = crossing_count = 0
     for start in range(0, len(tris), ROUND_TRIANGLES):  # rounds of triangles
