@@ -198,4 +198,4 @@ def join(planes, recv, epsilon, frag_tri, lo, n, node_recv, state, *, chunk=PAIR
         results.append(hit.astype(np.uint32))
     result = np.concatenate(results)
     pair = np.flatnonzero((state[key][r].astype(np.uint32) == full) & ~was[r])
-    return DeadPairs(pair, r[pair].astype(np.int64), result[pair])
+    return DeadPairs(f[pair].astype(np.int64), r[pair].astype(np.int64), result[pair])

@@ -464,35 +464,38 @@ def test_drjit_pair_tests_equal_the_numpy_reference(monkeypatch, samples):
         monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", chunk)
         state = {k: np.zeros(len(tri), dtype=hit.dtype) for k in keys}
         tester = PairTester(planes, rows, node_recv=np.arange(len(tri)), epsilon=PAIR_EPSILON)
-        dead = tester.join(*args, None, state)
+        dead = tester.join(*args, None, state, dead=True)
         for x, y in zip((hit, near), (state[keys[0]], state["band"]), strict=True):
             assert x.dtype == y.dtype
             np.testing.assert_allclose(x, y, rtol=0, atol=PAIR_TOLERANCE)
         for k in keys:
             np.testing.assert_array_equal(state[k], ref_state[k])
-        for k in ("pair", "recv", "result"):
+        for k in ("frag", "recv", "result"):
             np.testing.assert_array_equal(getattr(dead, k), getattr(ref_dead, k))
     assert hit.any() and near.any() and (~hit.astype(bool)).any()
-    assert 0 < len(ref_dead.pair) < len(tri)
+    assert 0 < len(ref_dead.frag) < len(tri)
     if samples == 32:
         partial = (hit != 0) & (hit != 0xFFFFFFFF)
         assert (hit == 0xFFFFFFFF).any() and partial.any()  # bounds and point-by-point paths
 
 
 def test_late_pairs_by_hand():
-    """Two fragments, rounds 0 and 1 of a batch: a receiver shadowed in round 0 (its pair
-    in round 1 is late), one shadowed only in round 1, one 32-sample receiver whose mask is
-    full after two pairs of round 0 and one of round 1 (bits set before the batch count)."""
-    ends, rnd = np.array([3, 5]), np.array([0, 1])
+    """Fragments 0-2 in round 0 of a batch, 3-4 in round 1, a pair each: a receiver
+    shadowed in round 0 (its pair in round 1 is late), one shadowed only in round 1, one
+    32-sample receiver whose mask two pairs of round 0 and one of round 1 fill (bits set
+    before the batch count), the same receiver filled in round 0."""
+    rnd = np.array([0, 0, 0, 1, 1])
     flags = DeadPairs(np.array([0, 1, 3, 4]), np.array([7, 8, 7, 9]), np.ones(4, np.uint32))
-    assert late_pairs(flags, ends, rnd, np.zeros(10, dtype=bool)).tolist() == [0, 1]
+    assert late_pairs(flags, rnd, np.zeros(10, dtype=bool)).tolist() == [0, 0, 0, 1, 0]
     before = np.zeros(10, dtype=np.uint32)
     before[2] = 0xF0000000
-    half = [0x0000FFFF, 0x00FF0000, 0x0F000000]
-    masks = DeadPairs(np.array([0, 2, 3]), np.array([2, 2, 2]), np.array(half, np.uint32))
-    assert late_pairs(masks, ends, rnd, before).tolist() == [0, 0]
-    masks = DeadPairs(np.array([0, 2, 3]), np.array([2, 2, 2]), np.full(3, 0xFFFFFFFF, np.uint32))
-    assert late_pairs(masks, ends, rnd, before).tolist() == [0, 1]
+    frag, recv = np.array([0, 2, 3]), np.array([2, 2, 2])
+    parts = np.array([0x0000FFFF, 0x00FF0000, 0x0F000000], np.uint32)
+    assert late_pairs(DeadPairs(frag, recv, parts), rnd, before).tolist() == [0] * 5
+    parts[1] = 0x0FFF0000  # full after round 0: the pair of round 1 is late
+    assert late_pairs(DeadPairs(frag, recv, parts), rnd, before).tolist() == [0, 0, 0, 1, 0]
+    whole = np.full(3, 0xFFFFFFFF, np.uint32)
+    assert late_pairs(DeadPairs(frag, recv, whole), rnd, before).tolist() == [0, 0, 0, 1, 0]
 
 
 @pytest.mark.parametrize("samples", [1, 32])
@@ -504,14 +507,15 @@ def test_batches_of_rounds_do_not_change_the_model(monkeypatch, samples):
     tested = []
     drjit_join = PairTester.join
 
-    def counted(self, frag_tri, lo, n, *rest):
+    def counted(self, frag_tri, lo, n, *rest, dead):
         tested.append(int(n.sum()))
-        return drjit_join(self, frag_tri, lo, n, *rest)
+        return drjit_join(self, frag_tri, lo, n, *rest, dead=dead)
 
-    def reference(self, frag_tri, lo, n, node_id, state):
+    def reference(self, frag_tri, lo, n, node_id, state, *, dead):
         tested.append(int(n.sum()))
         node_recv = self.node_recv if node_id is None else self.node_recv[node_id]
-        return join(self.planes, self.recv, self.epsilon, frag_tri, lo, n, node_recv, state)
+        out = join(self.planes, self.recv, self.epsilon, frag_tri, lo, n, node_recv, state)
+        return out if dead else None
 
     monkeypatch.setattr(PairTester, "join", counted)
     monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches per join

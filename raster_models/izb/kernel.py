@@ -90,14 +90,13 @@ class DeadPairs:
 
     Attributes
     ----------
-    pair : ``(P,)`` int64 index of each pair in the join's order (fragment by fragment, node
-        by node along the fragment's list).
+    frag : ``(P,)`` int64 fragment of each pair (index into the join's fragments).
     recv : ``(P,)`` int64 receiver of each pair.
     result : ``(P,)`` uint32 what the pair's test gave: its mask (32 samples) or its
         shadowed flag, 0 or 1 (1 sample).
     """
 
-    pair: np.ndarray
+    frag: np.ndarray
     recv: np.ndarray
     result: np.ndarray
 
@@ -148,7 +147,7 @@ class PairTester:
         self._dr = None
         self._built = None
 
-    def join(self, frag_tri, lo, n, node_id, state: dict) -> DeadPairs:
+    def join(self, frag_tri, lo, n, node_id, state: dict, *, dead: bool) -> DeadPairs | None:
         """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
         length, every length at least 1) with their lists' nodes, tested and OR-ed into
         ``state`` (the arrays :attr:`keys`, updated in place). ``node_id``: the built node
@@ -156,8 +155,8 @@ class PairTester:
         as built (the receivers' rows are packed once, in built node order).
 
         Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
-        own). Returns the pairs whose receiver the join left fully shadowed (not fully
-        shadowed before it)."""
+        own). Returns, where ``dead``, the pairs whose receiver the join left fully shadowed
+        (not fully shadowed before it), found in a second pass over the pairs."""
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
@@ -170,15 +169,16 @@ class PairTester:
         for k in self.keys:
             out = acc[k].numpy()
             state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out
-        dead = (state[self.keys[0]] == self.full) & ~was  # by this join, not before it
+        if not dead:
+            return None
+        newly = (state[self.keys[0]] == self.full) & ~was  # by this join, not before it
         found = [(np.zeros(0, dtype=np.int64),) * 2 + (np.zeros(0, dtype=np.uint32),)]
-        offsets = np.concatenate([[0], np.cumsum(n)])
-        dead_dr = mi.Bool(dead) if dead.any() else None
-        for sl in chunks if dead_dr is not None else ():  # again: the dead receivers' pairs
-            pair, recv, result = self._dead_chunk(
-                self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, dead_dr
+        newly_dr = mi.Bool(newly) if newly.any() else None
+        for sl in chunks if newly_dr is not None else ():  # again: the dead receivers' pairs
+            frag, recv, result = self._dead_chunk(
+                self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, newly_dr
             )
-            found.append((pair.astype(np.int64) + int(offsets[sl.start]), recv, result))
+            found.append((frag + sl.start, recv, result))
         return DeadPairs(*(np.concatenate([x[i] for x in found]) for i in range(3)))
 
     # ---- inputs
@@ -354,8 +354,8 @@ class PairTester:
 
     def _dead_chunk(self, chunk, nodes, dead):
         """The pairs of a chunk whose receiver is ``dead`` (Dr.Jit Bool per receiver): their
-        index in the chunk, receiver and result (mask or flag, as :meth:`_test_chunk` ORs
-        it), as NumPy arrays."""
+        fragment (index in the chunk), receiver and result (mask or flag, as
+        :meth:`_test_chunk` ORs it), as NumPy arrays."""
         import drjit as dr
 
         mi, _ = self._inputs()
@@ -367,7 +367,8 @@ class PairTester:
         if dr.width(idx) == 0:
             empty = np.zeros(0, dtype=np.int64)
             return empty, empty, np.zeros(0, dtype=np.uint32)
-        ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
+        fi = dr.gather(u32, f, idx)
+        ti, ri, node = _pair(frags, idx, fi)
         base, da, db, floor = self._plane_terms(ti, nodes[2], node)
         if self.thirty_two:
             none, full = self._classes(base, da, db, floor)
@@ -376,5 +377,5 @@ class PairTester:
         else:
             hit, _ = self._single(base, floor)
             result = dr.select(hit, u32(1), u32(0))
-        dr.eval(idx, ri, result)
-        return idx.numpy(), ri.numpy().astype(np.int64), result.numpy()
+        dr.eval(fi, ri, result)
+        return fi.numpy().astype(np.int64), ri.numpy().astype(np.int64), result.numpy()

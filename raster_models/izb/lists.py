@@ -45,6 +45,9 @@ BATCH_PAIRS = 1 << 16
 #: All 32 bits of an FTIZB mask.
 FULL_MASK = np.uint32(0xFFFFFFFF)
 
+#: The round of a receiver (or bit) that no pair of a batch fills.
+_NEVER = np.iinfo(np.int64).max
+
 
 @dataclass
 class IzbLists:
@@ -229,9 +232,10 @@ class Joins:
         if self._batch:
             tri, lo, n = (np.concatenate([b[i] for b in self._batch]) for i in range(3))
             rnd = np.repeat([b[3] for b in self._batch], [len(b[0]) for b in self._batch])
-            before = self.state[key].copy()
-            dead = self.tester.join(tri, lo, n, self.lists.node_id, self.state)
-            live = n - late_pairs(dead, np.cumsum(n), rnd, before)
+            several = self._batch[-1][3] > self._batch[0][3]
+            before = self.state[key].copy() if several else None
+            dead = self.tester.join(tri, lo, n, self.lists.node_id, self.state, dead=several)
+            live = n if dead is None else n - late_pairs(dead, rnd, before)
             st = self.stats
             st.tests += int(live.sum())
             st.fragments_with_list += int(np.count_nonzero(live))
@@ -244,7 +248,7 @@ class Joins:
             self._dead = n_dead
 
 
-def late_pairs(dead: DeadPairs, ends: np.ndarray, rnd: np.ndarray, before: np.ndarray):
+def late_pairs(dead: DeadPairs, rnd: np.ndarray, before: np.ndarray):
     """Per fragment of a batch: its pairs tested after their receiver became fully shadowed
     (in an earlier round of the batch), which one join per round would not have tested.
 
@@ -257,7 +261,6 @@ def late_pairs(dead: DeadPairs, ends: np.ndarray, rnd: np.ndarray, before: np.nd
     ----------
     dead : the batch's pairs whose receiver it left fully shadowed (not fully shadowed
         before it).
-    ends : ``(F,)`` end of each fragment's pairs (the cumulative list lengths).
     rnd : ``(F,)`` round of each fragment within the batch.
     before : ``(M,)`` the receivers' masks (uint32) or flags (bool) before the batch.
 
@@ -265,32 +268,41 @@ def late_pairs(dead: DeadPairs, ends: np.ndarray, rnd: np.ndarray, before: np.nd
     -------
     ``(F,)`` int64 counts.
     """
-    if len(dead.pair) == 0:
-        return np.zeros(len(ends), dtype=np.int64)
-    f = np.searchsorted(ends, dead.pair, side="right")  # fragment of each pair
-    j = rnd[f]
+    j = rnd[dead.frag]
+    if len(j) == 0 or j.min() == j.max():  # one round: none late
+        return np.zeros(len(rnd), dtype=np.int64)
     bits = 32 if before.dtype == np.uint32 else 1
-    full = (1 << bits) - 1
-    died = np.full(len(before), np.iinfo(np.int64).max)  # per receiver
-    whole = dead.result == full
-    np.minimum.at(died, dead.recv[whole], j[whole])
+    whole = dead.result == (1 << bits) - 1
+    died = _first_round(dead.recv[whole], j[whole], len(before))  # per receiver
     part = ~whole & (dead.result != 0) & (j < died[dead.recv])
     if part.any():  # partial masks of rounds before the first full one
         recv, inv = np.unique(dead.recv[part], return_inverse=True)
         died[recv] = np.minimum(died[recv], _filled(recv, inv, dead.result[part], j[part], before))
     late = j > died[dead.recv]
-    return np.bincount(f[late], minlength=len(ends))
+    return np.bincount(dead.frag[late], minlength=len(rnd))
 
 
 def _filled(recv, inv, result, j, before):
     """Per receiver ``recv``: the first round by which its bits set before (``before``) and
     by the partial masks ``result`` of rounds ``j`` (receiver ``recv[inv]``) fill its mask
-    (the largest int64 where they do not)."""
+    (:data:`_NEVER` where they do not)."""
     q = np.arange(32, dtype=np.uint32)
-    big = np.iinfo(np.int64).max
-    first = np.full(len(recv) * 32, big)
     k, b = np.nonzero((result[:, None] >> q) & 1)  # every set bit of every mask
-    np.minimum.at(first, inv[k] * 32 + b, j[k])
-    first = first.reshape(len(recv), 32)
+    first = _first_round(inv[k] * 32 + b, j[k], len(recv) * 32).reshape(len(recv), 32)
     first[(before[recv][:, None] >> q) & 1 != 0] = 0
     return first.max(axis=1)
+
+
+def _first_round(slot: np.ndarray, j: np.ndarray, size: int) -> np.ndarray:
+    """``(size,)`` the smallest round ``j`` of the entries of each ``slot`` (:data:`_NEVER`
+    where none): the entries sorted by round (a radix sort of 16-bit keys), each round's
+    slots written from the latest round to the earliest, which overwrite."""
+    first = np.full(size, _NEVER)
+    if len(j) == 0:
+        return first
+    order = np.argsort(j.astype(np.uint16 if j.max() < 1 << 16 else np.uint32), kind="stable")
+    slot, j = slot[order], j[order]
+    cuts = np.concatenate([[0], np.flatnonzero(np.diff(j)) + 1, [len(j)]])
+    for a, b in zip(cuts[-2::-1], cuts[:0:-1], strict=True):  # rounds, the latest first
+        first[slot[a:b]] = j[a]
+    return first
