@@ -19,7 +19,7 @@ from raster_models.gbuffer import trace_gbuffer
 from raster_models.izb import geometry, kernel, lists
 from raster_models.izb import model as izb
 from raster_models.izb.kernel import DeadPairs, PairTester
-from raster_models.izb.lists import late_pairs
+from raster_models.izb.lists import Joins, build_lists, late_pairs
 from scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
 from tests._izb_reference import PAIR_TOLERANCE, join, pair_tests
 
@@ -496,6 +496,18 @@ def test_late_pairs_by_hand():
     assert late_pairs(DeadPairs(frag, recv, parts), rnd, before).tolist() == [0, 0, 0, 1, 0]
     whole = np.full(3, 0xFFFFFFFF, np.uint32)
     assert late_pairs(DeadPairs(frag, recv, whole), rnd, before).tolist() == [0, 0, 0, 1, 0]
+
+
+def test_joins_refuse_a_receiver_shadowed_before_the_traversal():
+    """The joins take receivers not fully shadowed at the start (the counters could not tell
+    when one such would have left the lists; the frame's receivers exclude such pixels)."""
+    lists = build_lists([(np.array([0, 0, 1]), np.array([0, 1, 2]))])
+    tester = PairTester(
+        np.zeros((1, 4, 4)), {"p": np.zeros((3, 3))}, node_recv=lists.node_recv, epsilon=0.0
+    )
+    state = {"shadowed": np.array([False, True, False]), "band": np.zeros(3, dtype=bool)}
+    with pytest.raises(ValueError, match="fully shadowed before the traversal"):
+        Joins(lists, tester, state)
 
 
 @pytest.mark.parametrize("samples", [1, 32])

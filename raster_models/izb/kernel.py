@@ -157,7 +157,6 @@ class PairTester:
         Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
         own). Returns, where ``dead``, the pairs whose receiver the join left fully shadowed
         (not fully shadowed before it), found in a second pass over the pairs."""
-
         mi, _ = self._inputs()
         u32 = mi.UInt32
         nodes = self._nodes(node_id)
@@ -165,7 +164,7 @@ class PairTester:
         chunks = list(chunks_by_total(n, DRJIT_PAIR_CHUNK))
         for sl in chunks:  # chunks of fragments
             self._test_chunk(self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, acc)
-        was = state[self.keys[0]] == self.full
+        was = (state[self.keys[0]] == self.full) if dead else None
         for k in self.keys:
             out = acc[k].numpy()
             state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out

@@ -1,5 +1,6 @@
-"""IZB lists and traversal: the grid of per-texel sample lists, built by sorting, and the join
-of conservative fragments with those lists, chunk by chunk.
+"""IZB lists and traversal: the grid of per-texel sample lists, built by sorting, and the joins
+of conservative fragments with those lists, rounds of triangles batched into few Dr.Jit joins
+(:class:`Joins`).
 
 A GPU IZB keeps a head pointer per texel and a next pointer per node; here the lists are the
 nodes sorted by texel (``node_texel`` increasing, ties in insertion order), a list being the
@@ -7,7 +8,8 @@ run of one texel: the same lists in the same order. A fragment ``(triangle, texe
 its texel's list and tests each node's sample(s) against the triangle's shadow volume
 (:func:`raster_models.izb.geometry.shadow_volumes`). Fully shadowed receivers are removed
 from the lists after each round of triangles (the seed's "remove fully shadowed pixels",
-which gradually shortens the lists over the frame).
+which gradually shortens the lists over the frame); the counters are those of this rule,
+however the rounds are batched.
 
 One sample per pixel: a node is a receiver's G-buffer point. 32 samples (FTIZB): a node is a
 receiver inserted once in each texel that at least one of its 32 tangent-plane points falls
