@@ -16,10 +16,12 @@ from oracle.cli.app import main
 from oracle.reference.exr import read_exr
 from oracle.reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
 from raster_models.gbuffer import trace_gbuffer
-from raster_models.izb import geometry, kernel
+from raster_models.izb import geometry, kernel, lists
 from raster_models.izb import model as izb
-from raster_models.izb.kernel import PairTester
+from raster_models.izb.kernel import DeadPairs, PairTester
+from raster_models.izb.lists import Joins, build_lists, late_pairs
 from scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
+from tests._izb_reference import PAIR_TOLERANCE, join, pair_tests
 
 SMALL = {"width": 160, "height": 90}
 MEDIUM = {"width": 320, "height": 180}
@@ -437,54 +439,115 @@ def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16):
     return planes, recv, tri, r
 
 
+def _one_node_joins(recv, tri, r):
+    """Each pair ``(tri[i], r[i])`` as a fragment whose list is one node, its own receiver
+    (a copy of ``r[i]``'s row): the join's arguments, the rows and an empty state."""
+    n = len(tri)
+    rows = {k: v[r] if k in ("p", "dpdx", "dpdy") else v for k, v in recv.items()}
+    return rows, (tri, np.arange(n), np.ones(n, dtype=np.int64))
+
+
 @pytest.mark.parametrize("samples", [1, 32])
-def test_drjit_pair_tests_equal_the_numpy_tests(samples):
-    """The two implementations of the sample-triangle tests (NumPy for small joins, the
-    Dr.Jit kernels for large ones) pair by pair: exactly the same flags and masks (integers
-    and booleans: no tolerance)."""
+def test_drjit_pair_tests_equal_the_numpy_reference(monkeypatch, samples):
+    """The Dr.Jit join against the NumPy reference, pair by pair: the same flags and masks
+    (:data:`PAIR_TOLERANCE`: exact), the same state and the same dead pairs, in one launch or
+    many."""
     planes, recv, tri, r = _random_pairs(np.random.default_rng(7))
     if samples == 1:
         recv = {"p": recv["p"]}
-    hit, near = PairTester(planes, recv, epsilon=PAIR_EPSILON).numpy(tri, r)
-    # On Dr.Jit, through the join: each pair its own receiver (a copy of its row) and a
-    # fragment whose list is that one node.
-    n = len(tri)
-    rows = {k: v[r] if k in ("p", "dpdx", "dpdy") else v for k, v in recv.items()}
+    hit, near = pair_tests(planes, recv, PAIR_EPSILON, tri, r)
+    rows, args = _one_node_joins(recv, tri, r)
     keys = ("mask", "band") if samples == 32 else ("shadowed", "band")
-    state = {k: np.zeros(n, dtype=hit.dtype) for k in keys}
-    tester = PairTester(planes, rows, epsilon=PAIR_EPSILON)
-    tester.join_drjit(tri, np.arange(n), np.ones(n, dtype=np.int64), np.arange(n), state)
-    for x, y in zip((hit, near), (state[keys[0]], state["band"]), strict=True):
-        assert x.dtype == y.dtype
-        np.testing.assert_array_equal(x, y)
+    ref_state = {k: np.zeros(len(tri), dtype=hit.dtype) for k in keys}
+    ref_dead = join(planes, rows, PAIR_EPSILON, *args, np.arange(len(tri)), ref_state, chunk=5000)
+    for chunk in (kernel.DRJIT_PAIR_CHUNK, 4099):  # one launch, many launches
+        monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", chunk)
+        state = {k: np.zeros(len(tri), dtype=hit.dtype) for k in keys}
+        tester = PairTester(planes, rows, node_recv=np.arange(len(tri)), epsilon=PAIR_EPSILON)
+        dead = tester.join(*args, None, state, dead=True)
+        for x, y in zip((hit, near), (state[keys[0]], state["band"]), strict=True):
+            assert x.dtype == y.dtype
+            np.testing.assert_allclose(x, y, rtol=0, atol=PAIR_TOLERANCE)
+        for k in keys:
+            np.testing.assert_array_equal(state[k], ref_state[k])
+        for k in ("frag", "recv", "result"):
+            np.testing.assert_array_equal(getattr(dead, k), getattr(ref_dead, k))
     assert hit.any() and near.any() and (~hit.astype(bool)).any()
+    assert 0 < len(ref_dead.frag) < len(tri)
     if samples == 32:
         partial = (hit != 0) & (hit != 0xFFFFFFFF)
         assert (hit == 0xFFFFFFFF).any() and partial.any()  # bounds and point-by-point paths
 
 
-@pytest.mark.parametrize("samples", [1, 32])
-def test_drjit_is_used_for_large_joins_and_gives_the_numpy_answer(monkeypatch, samples):
-    """The whole model, Dr.Jit joins against NumPy joins: the same bytes."""
-    loaded = scenes.load("city", width=96, height=54)
-    calls = []
-    drjit_join = PairTester.join_drjit
-    monkeypatch.setattr(
-        PairTester,
-        "join_drjit",
-        lambda self, *args: calls.append(1) or drjit_join(self, *args),
+def test_late_pairs_by_hand():
+    """Fragments 0-2 in round 0 of a batch, 3-4 in round 1, a pair each: a receiver
+    shadowed in round 0 (its pair in round 1 is late), one shadowed only in round 1, one
+    32-sample receiver whose mask two pairs of round 0 and one of round 1 fill (bits set
+    before the batch count), the same receiver filled in round 0."""
+    rnd = np.array([0, 0, 0, 1, 1])
+    flags = DeadPairs(np.array([0, 1, 3, 4]), np.array([7, 8, 7, 9]), np.ones(4, np.uint32))
+    assert late_pairs(flags, rnd, np.zeros(10, dtype=bool)).tolist() == [0, 0, 0, 1, 0]
+    before = np.zeros(10, dtype=np.uint32)
+    before[2] = 0xF0000000
+    frag, recv = np.array([0, 2, 3]), np.array([2, 2, 2])
+    parts = np.array([0x0000FFFF, 0x00FF0000, 0x0F000000], np.uint32)
+    assert late_pairs(DeadPairs(frag, recv, parts), rnd, before).tolist() == [0] * 5
+    parts[1] = 0x0FFF0000  # full after round 0: the pair of round 1 is late
+    assert late_pairs(DeadPairs(frag, recv, parts), rnd, before).tolist() == [0, 0, 0, 1, 0]
+    whole = np.full(3, 0xFFFFFFFF, np.uint32)
+    assert late_pairs(DeadPairs(frag, recv, whole), rnd, before).tolist() == [0, 0, 0, 1, 0]
+
+
+def test_joins_refuse_a_receiver_shadowed_before_the_traversal():
+    """The joins take receivers not fully shadowed at the start (the counters could not tell
+    when one such would have left the lists; the frame's receivers exclude such pixels)."""
+    lists = build_lists([(np.array([0, 0, 1]), np.array([0, 1, 2]))])
+    tester = PairTester(
+        np.zeros((1, 4, 4)), {"p": np.zeros((3, 3))}, node_recv=lists.node_recv, epsilon=0.0
     )
-    monkeypatch.setattr(kernel, "DRJIT_MIN_PAIRS", 1)
-    monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches
-    fast = rm.run("izb", loaded, samples=samples, resolution=64)
-    n_fast = len(calls)
-    assert n_fast  # the Dr.Jit join ran
-    monkeypatch.setattr(kernel, "DRJIT_MIN_PAIRS", 1 << 62)
-    ref = rm.run("izb", loaded, samples=samples, resolution=64)
-    assert len(calls) == n_fast  # the reference ran on NumPy only
-    assert ref.cost == fast.cost
-    for key in ref.outputs:
-        np.testing.assert_array_equal(ref.outputs[key], fast.outputs[key])
+    state = {"shadowed": np.array([False, True, False]), "band": np.zeros(3, dtype=bool)}
+    with pytest.raises(ValueError, match="fully shadowed before the traversal"):
+        Joins(lists, tester, state)
+
+
+@pytest.mark.parametrize("samples", [1, 32])
+def test_batches_of_rounds_do_not_change_the_model(monkeypatch, samples):
+    """The whole model with one join per round, per few rounds (the default), per frame,
+    and with the NumPy reference join: the same bytes and counters, though a larger batch
+    tests receivers shadowed early in it again."""
+    loaded = scenes.load("thin", width=96, height=54)
+    tested = []
+    drjit_join = PairTester.join
+
+    def counted(self, frag_tri, lo, n, *rest, dead):
+        tested.append(int(n.sum()))
+        return drjit_join(self, frag_tri, lo, n, *rest, dead=dead)
+
+    def reference(self, frag_tri, lo, n, node_id, state, *, dead):
+        tested.append(int(n.sum()))
+        node_recv = self.node_recv if node_id is None else self.node_recv[node_id]
+        out = join(self.planes, self.recv, self.epsilon, frag_tri, lo, n, node_recv, state)
+        return out if dead else None
+
+    monkeypatch.setattr(PairTester, "join", counted)
+    monkeypatch.setattr(kernel, "DRJIT_PAIR_CHUNK", 4099)  # many launches per join
+    results = {}
+    for batch in (1, lists.BATCH_PAIRS, 1 << 40):
+        monkeypatch.setattr(lists, "BATCH_PAIRS", batch)
+        tested.clear()
+        results[batch] = (rm.run("izb", loaded, samples=samples, resolution=64), sum(tested))
+    monkeypatch.setattr(PairTester, "join", reference)
+    tested.clear()
+    results["numpy"] = (rm.run("izb", loaded, samples=samples, resolution=64), sum(tested))
+    base, n_tests = results[1]
+    assert base.diagnostics["rounds"] > 2 and base.diagnostics["nodes_removed"] > 0
+    assert n_tests == base.cost["sample_triangle_tests"]  # one join per round: no late test
+    assert results[1 << 40][1] > n_tests  # one join: receivers shadowed early tested again
+    for res, _ in results.values():
+        assert res.cost == base.cost
+        assert res.diagnostics["nodes_removed"] == base.diagnostics["nodes_removed"]
+        for key in base.outputs:
+            assert res.outputs[key].tobytes() == base.outputs[key].tobytes(), key
 
 
 def test_occluder_triangles_are_kept_in_the_scene_memo():
@@ -504,8 +567,8 @@ def test_occluder_triangles_are_kept_in_the_scene_memo():
     np.testing.assert_array_equal(first.outputs["visibility"], again.outputs["visibility"])
 
 
-def test_32_samples_directional_needs_a_vectorized_variant(plate, monkeypatch):
+@pytest.mark.parametrize("samples", [1, 32])
+def test_izb_needs_a_vectorized_variant(plate, monkeypatch, samples):
     monkeypatch.setattr(izb, "vectorized", lambda: False)
     with pytest.raises(rm.ModelError, match="needs a vectorized Mitsuba variant"):
-        rm.run("izb", plate, samples=32)
-    assert rm.run("izb", plate).outputs["visibility"].size  # 1 sample: NumPy or Dr.Jit joins
+        rm.run("izb", plate, samples=samples)

@@ -1,35 +1,42 @@
-"""IZB sample-triangle tests, on NumPy (small joins) and in Dr.Jit kernels (large joins).
+"""IZB sample-triangle tests in Dr.Jit kernels: the join of fragments with their lists.
 
-A test takes (fragment triangle, receiver) pairs and returns, per pair, the shadowed flag
-(1 sample) or the 32-bit mask of the tangent-plane points inside the triangle's shadow
-volume (32 samples), and the flag/mask of the samples in the epsilon band (inside the edge
-planes, beyond the pushed triangle plane by more than float32 rounding but by at most
-``epsilon``; see :data:`BAND_FLOOR`).
+A join takes fragments (triangle, first node, list length) and tests every (triangle,
+receiver) pair of their lists: per pair the shadowed flag (1 sample) or the 32-bit mask of
+the tangent-plane points inside the triangle's shadow volume (32 samples), and the flag/mask
+of the samples in the epsilon band (inside the edge planes, beyond the pushed triangle plane
+by more than float32 rounding but by at most ``epsilon``; see :data:`BAND_FLOOR`), OR-ed
+into the receivers' state (an OR is order-free: the same bits however the pairs are split).
 
 Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
-``(base + da a) + db b``, in float64 without fused multiply-adds, by NumPy and by the
-Dr.Jit kernels (LLVM backend, the hot path of large frames), so both give the same bits: the
-join's answer does not depend on its size (``tests/test_izb.py`` checks it, exactly: masks
-and flags). Both stay: a frame of many small joins (a round of triangles over short lists,
-a few hundred pairs each) pays a kernel launch, a synchronisation and a repacking of the rows
-per join on Dr.Jit, which measured 1.3x to 2.7x slower than NumPy on ``curved`` and
-``foliage`` at 320x180 with the joins on Dr.Jit only.
+``(base + da a) + db b``, in float64 without fused multiply-adds.
+``tests/_izb_reference.py`` holds a NumPy version of the same tests, the reference
+``tests/test_izb.py`` compares the kernels with (exactly: masks and flags).
 
-Dr.Jit, 32 samples, two launches per chunk: the first bounds each plane over the pixel's
-points (affine in the offsets ``(a, b)``) and decides most pairs (all points outside one
-plane, band included: both masks 0; all inside every plane: mask full); the second evaluates
-the 32 points of the remaining pairs only.
+Launches: a join costs a few kernel launches and a synchronisation, whatever its size; the
+traversal therefore joins the fragments of many rounds at once
+(:class:`raster_models.izb.lists.Joins`), and a join returns the pairs whose receiver it
+left fully shadowed (:class:`DeadPairs`), from which the traversal tells the tests made
+after a receiver would have left the lists. The receivers' rows are packed once per frame,
+in the order of the lists' nodes as built; the lists shortened by the traversal name their
+nodes' places in it (``IzbLists.node_id``).
+
+32 samples, two launches per chunk: the first bounds each plane over the pixel's points
+(affine in the offsets ``(a, b)``) and decides most pairs (all points outside one plane,
+band included: both masks 0; all inside every plane: mask full); the second evaluates the 32
+points of the remaining pairs only.
 
 Memory layout (the join is bound by fetching receivers, not by arithmetic): each receiver's
 values are one row in arrays of power-of-two widths (``p``, ``dP/dx``, ``dP/dy``, floor:
 8 + 2 float64; ``p``, floor: 4), rows stored in the order the pairs read them (list-node
-order), and rows and triangle planes are fetched as packet
-loads (``JitFlag.PacketOps``). The values and the arithmetic are unchanged: the same bits.
+order as built), and rows and triangle planes are fetched as packet loads
+(``JitFlag.PacketOps``).
+The values and the arithmetic are unchanged: the same bits.
 """
 
 from __future__ import annotations
 
 import importlib
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,13 +44,10 @@ from .geometry import chunks_by_total
 
 __all__ = [
     "BAND_FLOOR",
-    "DRJIT_MIN_PAIRS",
     "DRJIT_PAIR_CHUNK",
+    "DeadPairs",
     "PairTester",
     "band_floor",
-    "masks_32_numpy",
-    "flags_single_numpy",
-    "use_drjit",
     "vectorized",
 ]
 
@@ -51,9 +55,6 @@ __all__ = [
 #: (a receiver on its own triangle or a coplanar neighbour; the G-buffer position is float32,
 #: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps.
 BAND_FLOOR = 2.0**-18
-
-#: Pairs of a join from which the tests run on Dr.Jit (LLVM) instead of NumPy.
-DRJIT_MIN_PAIRS = 1 << 15
 
 #: Pairs per Dr.Jit launch (bounded memory: about 40 bytes of inputs and outputs per pair).
 DRJIT_PAIR_CHUNK = 1 << 21
@@ -82,71 +83,40 @@ def vectorized() -> bool:
     return not backend.active().variant.startswith("scalar")
 
 
-def use_drjit(n_pairs: int) -> bool:
-    """Whether ``n_pairs`` tests run on Dr.Jit (enough work, and a vectorized variant)."""
-    return n_pairs >= DRJIT_MIN_PAIRS and vectorized()
+@dataclass(frozen=True)
+class DeadPairs:
+    """The pairs of a join whose receiver it left fully shadowed (not fully shadowed before
+    it).
 
+    Attributes
+    ----------
+    frag : ``(P,)`` int64 fragment of each pair (index into the join's fragments).
+    recv : ``(P,)`` int64 receiver of each pair.
+    result : ``(P,)`` uint32 what the pair's test gave: its mask (32 samples) or its
+        shadowed flag, 0 or 1 (1 sample).
+    """
 
-def _dot_np(n: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``(P, 4)`` dot products of the four plane normals ``n (P, 4, 3)`` with ``v (P, 3)``."""
-    return n[:, :, 0] * v[:, None, 0] + n[:, :, 1] * v[:, None, 1] + n[:, :, 2] * v[:, None, 2]
-
-
-def flags_single_numpy(planes: np.ndarray, p: np.ndarray, floor: np.ndarray):
-    """Shadowed flags and epsilon-band flags of points ``p (P, 3)`` against ``planes
-    (P, 4, 4)``; ``floor (P,)``: the lower end of the band (``BAND_FLOOR (1 + max|p|) -
-    epsilon``)."""
-    v = _dot_np(planes[:, :, :3], p) + planes[:, :, 3]
-    edges = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0)
-    return edges & (v[:, 3] > 0), edges & (v[:, 3] <= 0) & (v[:, 3] > floor)
-
-
-def _masks_np(v, threshold, bits):
-    inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > threshold[:, None])
-    return (inside.astype(np.uint64) @ bits).astype(np.uint32)
-
-
-def masks_32_numpy(planes, p, dpdx, dpdy, floor, a, b):
-    """32-bit masks of the points ``p + a dpdx + b dpdy`` inside the volumes and of the
-    points in the epsilon band; bounds over the points decide most pairs (see the module)."""
-    bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
-    n = planes[:, :, :3]
-    base = _dot_np(n, p) + planes[:, :, 3]
-    da = _dot_np(n, dpdx)
-    db = _dot_np(n, dpdy)
-    spread = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
-    hi = base + spread
-    lo = base - spread
-    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= floor)
-    full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
-    masks = np.zeros(len(p), dtype=np.uint32)
-    band = np.zeros(len(p), dtype=np.uint32)
-    masks[full & ~none] = _FULL
-    mixed = np.flatnonzero(~none & ~full)
-    if len(mixed):
-        v = (
-            base[mixed, :, None]
-            + da[mixed, :, None] * a[None, None, :]
-            + db[mixed, :, None] * b[None, None, :]
-        )
-        masks[mixed] = _masks_np(v, np.zeros(len(mixed)), bits)
-        band[mixed] = _masks_np(v, floor[mixed], bits) & ~masks[mixed]
-    return masks, band
+    frag: np.ndarray
+    recv: np.ndarray
+    result: np.ndarray
 
 
 def _pair(frags, idx, f_idx):
-    """Dr.Jit triangle, receiver and node of pairs ``idx`` of fragments ``f_idx``; ``frags``:
-    per fragment triangle, first node, first pair of the chunk, and the nodes' receivers."""
+    """Dr.Jit triangle, receiver and built node of pairs ``idx`` of fragments ``f_idx``;
+    ``frags``: per fragment triangle, first node and first pair of the chunk, then the
+    built node of each node (``None``: the lists as built) and the built nodes' receivers."""
     import drjit as dr
 
-    tri, lo, first, node_recv = frags
+    tri, lo, first, ids, built_recv = frags
     u32 = type(idx)
     node = dr.gather(u32, lo, f_idx) + (idx - dr.gather(u32, first, f_idx))
-    return dr.gather(u32, tri, f_idx), dr.gather(u32, node_recv, node), node
+    if ids is not None:
+        node = dr.gather(u32, ids, node)
+    return dr.gather(u32, tri, f_idx), dr.gather(u32, built_recv, node), node
 
 
 class PairTester:
-    """Sample-triangle tests of (triangle, receiver) pairs, on Dr.Jit or NumPy.
+    """Sample-triangle tests of (triangle, receiver) pairs in Dr.Jit kernels.
 
     Parameters
     ----------
@@ -154,29 +124,63 @@ class PairTester:
         (:func:`raster_models.izb.geometry.shadow_volumes`).
     recv : ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy`` ``(M, 3)`` and the
         tangent-plane offsets ``a``, ``b`` ``(32,)``.
+    node_recv : ``(N,)`` receiver of each node of the lists as built; a join's lists are
+        these nodes or a subset of them (``node_id``, see :meth:`join`).
     epsilon : the shadow volumes' epsilon (world units); each receiver's band floor is
         :func:`band_floor` of its ``p``, computed where needed.
+
+    Attributes
+    ----------
+    keys : the state arrays a join updates: ``("mask", "band")`` (32 samples, uint32) or
+        ``("shadowed", "band")`` (1 sample, bool).
+    full : the value of ``state[keys[0]]`` of a fully shadowed receiver.
     """
 
-    def __init__(self, planes: np.ndarray, recv: dict, *, epsilon: float):
+    def __init__(self, planes: np.ndarray, recv: dict, *, node_recv: np.ndarray, epsilon: float):
         self.planes = planes
         self.recv = recv
+        self.node_recv = node_recv
         self.epsilon = float(epsilon)
         self.thirty_two = "dpdx" in recv
+        self.keys = ("mask", "band") if self.thirty_two else ("shadowed", "band")
+        self.full = _FULL if self.thirty_two else 1
         self._dr = None
-        self._node_rows = None
+        self._built = None
 
-    def numpy(self, tri: np.ndarray, r: np.ndarray):
-        """The NumPy reference on pairs ``(tri[i], r[i])``."""
-        pl = self.planes[tri]
-        p = self.recv["p"][r]
-        floor = band_floor(p, self.epsilon)
-        if self.thirty_two:
-            rv = self.recv
-            return masks_32_numpy(pl, p, rv["dpdx"][r], rv["dpdy"][r], floor, rv["a"], rv["b"])
-        return flags_single_numpy(pl, p, floor)
+    def join(self, frag_tri, lo, n, node_id, state: dict, *, dead: bool) -> DeadPairs | None:
+        """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
+        length, every length at least 1) with their lists' nodes, tested and OR-ed into
+        ``state`` (the arrays :attr:`keys`, updated in place). ``node_id``: the built node
+        (index into :attr:`node_recv`) of each node of the lists, or ``None`` for the lists
+        as built (the receivers' rows are packed once, in built node order).
 
-    # ---- Dr.Jit
+        Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
+        own). Returns, where ``dead``, the pairs whose receiver the join left fully shadowed
+        (not fully shadowed before it), found in a second pass over the pairs."""
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        nodes = self._nodes(node_id)
+        acc = {k: u32(np.asarray(state[k], dtype=np.uint32)) for k in self.keys}
+        chunks = list(chunks_by_total(n, DRJIT_PAIR_CHUNK))
+        for sl in chunks:  # chunks of fragments
+            self._test_chunk(self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, acc)
+        was = (state[self.keys[0]] == self.full) if dead else None
+        for k in self.keys:
+            out = acc[k].numpy()
+            state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out
+        if not dead:
+            return None
+        newly = (state[self.keys[0]] == self.full) & ~was  # by this join, not before it
+        found = [(np.zeros(0, dtype=np.int64),) * 2 + (np.zeros(0, dtype=np.uint32),)]
+        newly_dr = mi.Bool(newly) if newly.any() else None
+        for sl in chunks if newly_dr is not None else ():  # again: the dead receivers' pairs
+            frag, recv, result = self._dead_chunk(
+                self._chunk(frag_tri[sl], lo[sl], n[sl]), nodes, newly_dr
+            )
+            found.append((frag + sl.start, recv, result))
+        return DeadPairs(*(np.concatenate([x[i] for x in found]) for i in range(3)))
+
+    # ---- inputs
     def _inputs(self):
         if self._dr is None:
             import drjit as dr
@@ -202,6 +206,18 @@ class PairTester:
             self._dr = (mi, d)
         return self._dr
 
+    def _nodes(self, node_id):
+        """Dr.Jit ``(ids, built receivers, rows)``: the built node of each node (``None``:
+        the lists as built), the built nodes' receivers and their rows (:meth:`_rows`),
+        packed once in built node order (a fragment's pairs read consecutive rows; removed
+        nodes leave holes)."""
+        mi, _ = self._inputs()
+        if self._built is None:
+            recv_dr = mi.UInt32(np.asarray(self.node_recv, dtype=np.uint32))
+            self._built = (recv_dr, self._rows(recv_dr))
+        ids = None if node_id is None else mi.UInt32(np.asarray(node_id, dtype=np.uint32))
+        return (ids, *self._built)
+
     def _rows(self, recv) -> list:
         """Row arrays of receivers ``recv`` (Dr.Jit UInt32), one row each: ``p``,
         [``dpdx``, ``dpdy``,] the floor, split into arrays of power-of-two widths; packed by
@@ -222,6 +238,26 @@ class PairTester:
         dr.eval(*out)
         return out
 
+    def _chunk(self, tri, lo, n):
+        """A chunk's fragments on Dr.Jit: ``(frags, f, n_pairs)``, ``frags`` as
+        :func:`_pair` reads them (the nodes' receivers added by the callers), ``f`` the
+        fragment of each of the ``n_pairs`` pairs."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        first_np = (np.cumsum(n) - n).astype(np.uint32)
+        n_pairs = int(first_np[-1]) + int(n[-1])
+        # fragment of each pair: 1 at every later fragment's first pair, summed (lists are
+        # never empty: the firsts are distinct)
+        marks = dr.zeros(u32, n_pairs)
+        if len(n) > 1:
+            dr.scatter(marks, u32(1), u32(first_np[1:]))
+        f = dr.prefix_sum(marks) + marks  # inclusive
+        frags = (u32(tri.astype(np.uint32)), u32(lo.astype(np.uint32)), u32(first_np))
+        return frags, f, n_pairs
+
+    # ---- the tests
     def _plane_terms(self, tri, rows, row):
         """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs: triangles
         ``tri``, receivers at ``row`` of ``rows`` (:meth:`_rows`)."""
@@ -286,66 +322,59 @@ class PairTester:
         edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
         return edges & (base[3] > 0), edges & (base[3] <= 0) & (base[3] > floor)
 
-    def rows_ready(self, node_recv) -> bool:
-        """Whether the Dr.Jit rows of the lists ``node_recv`` are packed already."""
-        return self._node_rows is not None and self._node_rows[0] is node_recv
-
-    def join_drjit(self, frag_tri, lo, n, node_recv, state: dict) -> None:
-        """Every pair of the fragments ``(frag_tri, lo, n)`` (triangle, first node, list
-        length) with the nodes ``node_recv``, tested and OR-ed into ``state`` (the arrays of
-        :func:`raster_models.izb.lists.join`) on Dr.Jit: the pairs are expanded, gathered,
-        tested and scattered in the kernels (an OR is order-free: the same bits).
-
-        Chunks of at most :data:`DRJIT_PAIR_CHUNK` pairs (a longer list is a chunk of its
-        own)."""
+    def _test_chunk(self, chunk, nodes, acc: dict) -> None:
+        """Every pair of a chunk (:meth:`_chunk`) with the lists' ``nodes`` (:meth:`_nodes`)
+        tested and OR-ed into ``acc``."""
         import drjit as dr
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
-        if not self.rows_ready(node_recv):
-            # Rows in node order (packed again when the lists change): a fragment's pairs
-            # read consecutive rows.
-            recv_dr = u32(np.asarray(node_recv, dtype=np.uint32))
-            self._node_rows = (node_recv, recv_dr, self._rows(recv_dr))
-        _, recv_dr, rows = self._node_rows
-        if self.thirty_two:
-            keys = ("mask", "band")
-        else:
-            keys = ("shadowed", "band")
-        acc = {k: u32(np.asarray(state[k], dtype=np.uint32)) for k in keys}
-        for sl in chunks_by_total(n, DRJIT_PAIR_CHUNK):  # chunks of fragments
-            nc = n[sl]
-            first_np = (np.cumsum(nc) - nc).astype(np.uint32)
-            first = u32(first_np)
-            n_pairs = int(first_np[-1]) + int(nc[-1])
-            # fragment of each pair: 1 at every later fragment's first pair, summed (lists
-            # are never empty: the firsts are distinct)
-            marks = dr.zeros(u32, n_pairs)
-            dr.scatter(marks, u32(1), u32(first_np[1:]))
-            f = dr.prefix_sum(marks) + marks  # inclusive
-            lo_dr = u32(lo[sl].astype(np.uint32))
-            tri_dr = u32(frag_tri[sl].astype(np.uint32))
+        (tri, lo, first), f, n_pairs = chunk
+        frags = (tri, lo, first, *nodes[:2])
+        ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
+        base, da, db, floor = self._plane_terms(ti, nodes[2], node)
+        if not self.thirty_two:
+            hit, near = self._single(base, floor)
+            dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
+            dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], u32(1), ri, near)
+            dr.eval(acc["shadowed"], acc["band"])
+            return
+        none, full = self._classes(base, da, db, floor)
+        mixed = ~none & ~full
+        dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(_FULL), ri, full & ~none)
+        dr.eval(acc["mask"], mixed)
+        idx = dr.compress(mixed)
+        if dr.width(idx):
+            ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
+            m, bm = self._points(*self._plane_terms(ti, nodes[2], node))
+            dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
+            dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
+            dr.eval(acc["mask"], acc["band"])
 
-            frags = (tri_dr, lo_dr, first, recv_dr)
-            ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
-            base, da, db, floor = self._plane_terms(ti, rows, node)
-            if not self.thirty_two:
-                hit, near = self._single(base, floor)
-                dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
-                dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], u32(1), ri, near)
-                dr.eval(acc["shadowed"], acc["band"])
-            else:
-                none, full = self._classes(base, da, db, floor)
-                mixed = ~none & ~full
-                dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(_FULL), ri, full & ~none)
-                dr.eval(acc["mask"], mixed)
-                idx = dr.compress(mixed)
-                if dr.width(idx):
-                    ti, ri, node = _pair(frags, idx, dr.gather(u32, f, idx))
-                    m, bm = self._points(*self._plane_terms(ti, rows, node))
-                    dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], m, ri, m != 0)
-                    dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], bm, ri, bm != 0)
-                    dr.eval(acc["mask"], acc["band"])
-        for k in keys:
-            out = acc[k].numpy()
-            state[k][:] = out.astype(state[k].dtype) if state[k].dtype == bool else out
+    def _dead_chunk(self, chunk, nodes, dead):
+        """The pairs of a chunk whose receiver is ``dead`` (Dr.Jit Bool per receiver): their
+        fragment (index in the chunk), receiver and result (mask or flag, as
+        :meth:`_test_chunk` ORs it), as NumPy arrays."""
+        import drjit as dr
+
+        mi, _ = self._inputs()
+        u32 = mi.UInt32
+        (tri, lo, first), f, n_pairs = chunk
+        frags = (tri, lo, first, *nodes[:2])
+        _, ri, _ = _pair(frags, dr.arange(u32, n_pairs), f)
+        idx = dr.compress(dr.gather(mi.Bool, dead, ri))
+        if dr.width(idx) == 0:
+            empty = np.zeros(0, dtype=np.int64)
+            return empty, empty, np.zeros(0, dtype=np.uint32)
+        fi = dr.gather(u32, f, idx)
+        ti, ri, node = _pair(frags, idx, fi)
+        base, da, db, floor = self._plane_terms(ti, nodes[2], node)
+        if self.thirty_two:
+            none, full = self._classes(base, da, db, floor)
+            m, _ = self._points(base, da, db, floor)
+            result = dr.select(none, u32(0), dr.select(full, u32(_FULL), m))
+        else:
+            hit, _ = self._single(base, floor)
+            result = dr.select(hit, u32(1), u32(0))
+        dr.eval(fi, ri, result)
+        return fi.numpy().astype(np.int64), ri.numpy().astype(np.int64), result.numpy()

@@ -1,5 +1,6 @@
-"""IZB lists and traversal: the grid of per-texel sample lists, built by sorting, and the join
-of conservative fragments with those lists, chunk by chunk.
+"""IZB lists and traversal: the grid of per-texel sample lists, built by sorting, and the joins
+of conservative fragments with those lists, rounds of triangles batched into few Dr.Jit joins
+(:class:`Joins`).
 
 A GPU IZB keeps a head pointer per texel and a next pointer per node; here the lists are the
 nodes sorted by texel (``node_texel`` increasing, ties in insertion order), a list being the
@@ -7,7 +8,8 @@ run of one texel: the same lists in the same order. A fragment ``(triangle, texe
 its texel's list and tests each node's sample(s) against the triangle's shadow volume
 (:func:`raster_models.izb.geometry.shadow_volumes`). Fully shadowed receivers are removed
 from the lists after each round of triangles (the seed's "remove fully shadowed pixels",
-which gradually shortens the lists over the frame).
+which gradually shortens the lists over the frame); the counters are those of this rule,
+however the rounds are batched.
 
 One sample per pixel: a node is a receiver's G-buffer point. 32 samples (FTIZB): a node is a
 receiver inserted once in each texel that at least one of its 32 tangent-plane points falls
@@ -23,26 +25,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .geometry import chunks_by_total
-from .kernel import PairTester, use_drjit
+from .kernel import DeadPairs, PairTester
 
 __all__ = [
+    "BATCH_PAIRS",
     "FULL_MASK",
-    "PAIR_CHUNK",
     "IzbLists",
     "JoinStats",
+    "Joins",
     "build_lists",
     "head_offsets",
-    "join",
+    "late_pairs",
     "list_nodes",
 ]
 
-#: (fragment, node) pairs tested per chunk: bounds memory at about 250 MiB for 32 samples
-#: ((pairs, 4, 32) float64 working arrays are only made for pairs that straddle a plane).
-PAIR_CHUNK = 1 << 18
+#: (fragment, node) pairs from which a batch of rounds is joined (:class:`Joins`): enough
+#: that a frame of many small rounds pays few kernel launches, few enough that the tests of
+#: receivers fully shadowed early in a batch stay a small share.
+BATCH_PAIRS = 1 << 16
 
 #: All 32 bits of an FTIZB mask.
 FULL_MASK = np.uint32(0xFFFFFFFF)
+
+#: The round of a receiver (or bit) that no pair of a batch fills.
+_NEVER = np.iinfo(np.int64).max
 
 
 @dataclass
@@ -50,11 +56,13 @@ class IzbLists:
     """Grid-of-lists: ``node_texel`` (sorted, global texel id = cascade * R^2 + j * R + i)
     and ``node_recv`` (receiver index) per node (int32 where the ids fit); ``heads``: the
     head offsets of :func:`head_offsets` for these nodes, or ``None`` until :meth:`span`
-    needs them (reset by :meth:`compact`)."""
+    needs them (reset by :meth:`compact`); ``node_id``: the index of each node in the
+    lists as built, or ``None`` until :meth:`compact` removes one."""
 
     node_texel: np.ndarray
     node_recv: np.ndarray
     heads: np.ndarray | None = field(default=None, repr=False)
+    node_id: np.ndarray | None = field(default=None, repr=False)
 
     def lengths(self) -> np.ndarray:
         """Lengths of the non-empty lists."""
@@ -86,6 +94,11 @@ class IzbLists:
         if removed:
             self.node_texel = self.node_texel[keep]
             self.node_recv = self.node_recv[keep]
+            if self.node_id is None:
+                kept = np.flatnonzero(keep)
+                self.node_id = kept.astype(_index_type(kept), copy=False)
+            else:
+                self.node_id = self.node_id[keep]
             self.heads = None
         return removed
 
@@ -158,60 +171,140 @@ class JoinStats:
     nodes_removed: int = 0
 
 
-def _pairs(lo: np.ndarray, n: np.ndarray):
-    """Node index of every (fragment, node) pair: ``lo[f] + 0 .. n[f] - 1``."""
-    first = np.cumsum(n) - n
-    f = np.repeat(np.arange(len(n)), n)
-    return f, lo[f] + (np.arange(len(f)) - first[f])
+class Joins:
+    """The joins of a frame's traversal, rounds of triangles batched into few Dr.Jit joins.
 
+    The traversal's rule: each round's fragments walk the lists as they are after the
+    previous rounds, whose fully shadowed receivers have left them. Here the fragments of
+    consecutive rounds are spanned over the lists as they are at the start of a batch and
+    joined at once (:meth:`raster_models.izb.kernel.PairTester.join`, a few kernel launches)
+    once the batch holds :data:`BATCH_PAIRS` pairs; then the lists lose the receivers
+    fully shadowed by the batch. A receiver fully shadowed in an earlier round of the batch
+    is tested again in the later ones: those tests change no answer (its mask is full, or
+    its flag set, already; the band of a shadowed sample is not reported) and are left out
+    of the counters. The join returns the pairs of the receivers it leaves fully shadowed;
+    from them, the round of the batch in which each receiver became fully shadowed, and so
+    which of its pairs one join per round would not have tested (:func:`late_pairs`). The
+    answer and the counters are those of one join per round, whatever the batches
+    (``tests/test_izb.py`` checks it).
 
-def join(
-    lists: IzbLists,
-    frag_tri: np.ndarray,
-    frag_texel: np.ndarray,
-    tester: PairTester,
-    state: dict,
-    stats: JoinStats,
-) -> None:
-    """Test every node of every fragment's list against the fragment's triangle.
-
-    ``tester``: the sample-triangle tests of the frame (its shadow volumes, receivers and
-    epsilon). ``state``: ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)`` uint32
-    (32 samples), and ``band`` (same type: samples inside a volume's edge planes within
-    ``epsilon`` of its triangle plane, lit by the epsilon), updated in place.
-
-    Large joins run on Dr.Jit (:meth:`raster_models.izb.kernel.PairTester.join_drjit`:
-    pairs expanded, tested and OR-ed in the kernels), and so do small ones once a Dr.Jit
-    join has packed the rows of the same lists; other small ones on NumPy
-    (:meth:`~raster_models.izb.kernel.PairTester.numpy`, the same bits), in chunks of at
-    most :data:`PAIR_CHUNK` pairs (a fragment with a longer list is a chunk of its own): a
-    frame's many joins of a few hundred pairs cost a kernel launch and a synchronisation
-    each on Dr.Jit, about twice the NumPy time on ``curved`` (measured at 320x180).
+    Parameters
+    ----------
+    lists : the frame's lists (compacted in place after each batch).
+    tester : the sample-triangle tests of the frame (its shadow volumes, receivers, the
+        lists' nodes as built and epsilon).
+    state : ``shadowed`` ``(M,)`` bool (1 sample) or ``mask`` ``(M,)`` uint32 (32 samples),
+        and ``band`` (same type: samples inside a volume's edge planes within ``epsilon`` of
+        its triangle plane, lit by the epsilon), updated in place.
     """
-    stats.fragments += len(frag_tri)
-    if len(frag_tri) == 0 or len(lists.node_texel) == 0:
-        return
-    lo, n = lists.span(frag_texel)
-    has = n > 0
-    stats.fragments_with_list += int(has.sum())
-    frag_tri, lo, n = frag_tri[has], lo[has], n[has]
-    if len(n) == 0:
-        return
-    stats.tests += int(n.sum())
-    stats.list_max = max(stats.list_max, int(n.max()))
-    ends = np.cumsum(n)
-    if tester.rows_ready(lists.node_recv) or use_drjit(int(ends[-1])):
-        tester.join_drjit(frag_tri, lo, n, lists.node_recv, state)
-        return
-    for sl in chunks_by_total(n, PAIR_CHUNK):  # chunks of fragments
-        f, node = _pairs(lo[sl], n[sl])
-        r = lists.node_recv[node]
-        hit, near = tester.numpy(frag_tri[sl][f], r)
-        if "mask" in state:
-            hit_i = np.flatnonzero(hit)
-            near_i = np.flatnonzero(near)
-            np.bitwise_or.at(state["band"], r[near_i], near[near_i])
-            np.bitwise_or.at(state["mask"], r[hit_i], hit[hit_i])
-        else:
-            state["shadowed"][r[hit]] = True
-            state["band"][r[near]] = True
+
+    def __init__(self, lists: IzbLists, tester: PairTester, state: dict):
+        if np.any(state[tester.keys[0]] == tester.full):
+            raise ValueError("a receiver fully shadowed before the traversal is no receiver")
+        self.lists = lists
+        self.tester = tester
+        self.state = state
+        self.stats = JoinStats()
+        self._batch: list[tuple] = []
+        self._pairs = 0
+        self._round = 0
+        self._dead = 0
+
+    def add(self, frag_tri: np.ndarray, frag_texel: np.ndarray) -> None:
+        """Fragments ``(triangle, global texel)`` of the current round."""
+        self.stats.fragments += len(frag_tri)
+        if len(frag_tri) == 0 or len(self.lists.node_texel) == 0:
+            return
+        lo, n = self.lists.span(frag_texel)
+        has = n > 0
+        if has.any():
+            self._batch.append((frag_tri[has], lo[has], n[has], self._round))
+            self._pairs += int(n[has].sum())
+
+    def end_round(self) -> None:
+        """Closes a round; joins the batch once it holds :data:`BATCH_PAIRS` pairs."""
+        self._round += 1
+        if self._pairs >= BATCH_PAIRS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Joins the batch, counts its tests and removes the fully shadowed receivers from
+        the lists."""
+        key = self.tester.keys[0]
+        if self._batch:
+            tri, lo, n = (np.concatenate([b[i] for b in self._batch]) for i in range(3))
+            rnd = np.repeat([b[3] for b in self._batch], [len(b[0]) for b in self._batch])
+            several = self._batch[-1][3] > self._batch[0][3]
+            before = self.state[key].copy() if several else None
+            dead = self.tester.join(tri, lo, n, self.lists.node_id, self.state, dead=several)
+            live = n if dead is None else n - late_pairs(dead, rnd, before)
+            st = self.stats
+            st.tests += int(live.sum())
+            st.fragments_with_list += int(np.count_nonzero(live))
+            st.list_max = max(st.list_max, int(live.max()))
+        self._batch, self._pairs, self._round = [], 0, 0
+        done = self.state[key] == self.tester.full
+        n_dead = int(np.count_nonzero(done))
+        if n_dead > self._dead:  # a receiver stays dead: no new one, no node to remove
+            self.stats.nodes_removed += self.lists.compact(done)
+            self._dead = n_dead
+
+
+def late_pairs(dead: DeadPairs, rnd: np.ndarray, before: np.ndarray):
+    """Per fragment of a batch: its pairs tested after their receiver became fully shadowed
+    (in an earlier round of the batch), which one join per round would not have tested.
+
+    A receiver becomes fully shadowed in the first round by which every bit of its mask
+    (its flag, 1 sample) is set, before the batch or by a pair of that round or an earlier
+    one: no later than its first pair with a full result, earlier where the partial masks of
+    earlier rounds fill it.
+
+    Parameters
+    ----------
+    dead : the batch's pairs whose receiver it left fully shadowed (not fully shadowed
+        before it).
+    rnd : ``(F,)`` round of each fragment within the batch.
+    before : ``(M,)`` the receivers' masks (uint32) or flags (bool) before the batch.
+
+    Returns
+    -------
+    ``(F,)`` int64 counts.
+    """
+    j = rnd[dead.frag]
+    if len(j) == 0 or j.min() == j.max():  # one round: none late
+        return np.zeros(len(rnd), dtype=np.int64)
+    bits = 32 if before.dtype == np.uint32 else 1
+    whole = dead.result == (1 << bits) - 1
+    died = _first_round(dead.recv[whole], j[whole], len(before))  # per receiver
+    part = ~whole & (dead.result != 0) & (j < died[dead.recv])
+    if part.any():  # partial masks of rounds before the first full one
+        recv, inv = np.unique(dead.recv[part], return_inverse=True)
+        died[recv] = np.minimum(died[recv], _filled(recv, inv, dead.result[part], j[part], before))
+    late = j > died[dead.recv]
+    return np.bincount(dead.frag[late], minlength=len(rnd))
+
+
+def _filled(recv, inv, result, j, before):
+    """Per receiver ``recv``: the first round by which its bits set before (``before``) and
+    by the partial masks ``result`` of rounds ``j`` (receiver ``recv[inv]``) fill its mask
+    (:data:`_NEVER` where they do not)."""
+    q = np.arange(32, dtype=np.uint32)
+    k, b = np.nonzero((result[:, None] >> q) & 1)  # every set bit of every mask
+    first = _first_round(inv[k] * 32 + b, j[k], len(recv) * 32).reshape(len(recv), 32)
+    first[(before[recv][:, None] >> q) & 1 != 0] = 0
+    return first.max(axis=1)
+
+
+def _first_round(slot: np.ndarray, j: np.ndarray, size: int) -> np.ndarray:
+    """``(size,)`` the smallest round ``j`` of the entries of each ``slot`` (:data:`_NEVER`
+    where none): the entries sorted by round (a radix sort of 16-bit keys), each round's
+    slots written from the latest round to the earliest, which overwrite."""
+    first = np.full(size, _NEVER)
+    if len(j) == 0:
+        return first
+    order = np.argsort(j.astype(np.uint16 if j.max() < 1 << 16 else np.uint32), kind="stable")
+    slot, j = slot[order], j[order]
+    cuts = np.concatenate([[0], np.flatnonzero(np.diff(j)) + 1, [len(j)]])
+    for a, b in zip(cuts[-2::-1], cuts[:0:-1], strict=True):  # rounds, the latest first
+        first[slot[a:b]] = j[a]
+    return first

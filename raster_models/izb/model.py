@@ -76,7 +76,7 @@ from ..shadowmaps.fit import light_frame_for
 from .geometry import conservative_fragments, scene_triangles, shadow_volumes
 from .grids import Grids, build_grids
 from .kernel import PairTester, vectorized
-from .lists import FULL_MASK, JoinStats, join
+from .lists import FULL_MASK, Joins, JoinStats
 from .samples import Samples, frame_samples, partitions
 
 __all__ = ["IzbParams", "run"]
@@ -149,7 +149,7 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     t0 = time.perf_counter()
     p = params or _params.make(NAME, IzbParams, kwargs)
     light = scene.light
-    _check_light(light, p.samples)
+    _check_light(light)
     spot = light.kind == "spot"
     gbuf = trace_gbuffer(scene)
     if spot:
@@ -191,17 +191,17 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
     )
 
 
-def _check_light(light, samples: int) -> None:
-    """Directional and spot lights only; the orthographic 32-sample build runs in Dr.Jit
-    kernels (a vectorized variant)."""
+def _check_light(light) -> None:
+    """Directional and spot lights only; the joins (and the orthographic 32-sample build)
+    run in Dr.Jit kernels: a vectorized variant."""
     if light.kind not in ("directional", "spot"):
         raise ModelError(
             f"{NAME} needs a directional or spot light; the scene's light is a {light.kind} light"
         )
-    if samples == 32 and light.kind == "directional" and not vectorized():
+    if not vectorized():
         raise ModelError(
-            f"{NAME}: samples=32 under a directional light builds its lists in Dr.Jit kernels "
-            "and needs a vectorized Mitsuba variant (llvm_ad_rgb or cuda_ad_rgb), not scalar_rgb"
+            f"{NAME} tests its samples against the occluders in Dr.Jit kernels and needs a "
+            "vectorized Mitsuba variant (llvm_ad_rgb or cuda_ad_rgb), not scalar_rgb"
         )
 
 
@@ -222,7 +222,7 @@ class _Traversal:
 def _traverse(scene, light, frame, smp: Samples, grids: Grids, p: IzbParams) -> _Traversal:
     """Rounds of :data:`ROUND_TRIANGLES` occluder triangles (scene order), each rasterized
     into every grid and joined with its lists; after a round the fully shadowed receivers
-    leave the lists."""
+    leave the lists (the joins batched over rounds: :class:`raster_models.izb.lists.Joins`)."""
     spot = smp.spot
     tris = scene_triangles(scene)
     keep, planes = shadow_volumes(
@@ -235,10 +235,10 @@ def _traverse(scene, light, frame, smp: Samples, grids: Grids, p: IzbParams) -> 
         state = {"mask": smp.init.copy(), "band": np.zeros(m, dtype=np.uint32)}
     else:
         state = {"shadowed": np.zeros(m, dtype=bool), "band": np.zeros(m, dtype=bool)}
-    tester = PairTester(planes, smp.recv, epsilon=p.epsilon)
-    stats = JoinStats()
+    tester = PairTester(planes, smp.recv, node_recv=grids.lists.node_recv, epsilon=p.epsilon)
+    joins = Joins(grids.lists, tester, state)
     r = p.resolution
-    rounds = crossing_count = n_dead_before = 0
+    rounds = crossing_count = 0
     for start in range(0, len(tris), ROUND_TRIANGLES):  # rounds of triangles
         rounds += 1
         t_lc = tri_lc[start : start + ROUND_TRIANGLES]
@@ -248,12 +248,10 @@ def _traverse(scene, light, frame, smp: Samples, grids: Grids, p: IzbParams) -> 
             idx, uv, crossing = _grid_triangles(t_lc, box, grids.zmax[c], r, spot=spot)
             crossing_count += crossing
             for ft, fx in conservative_fragments(uv, r):  # chunks
-                join(grids.lists, start + idx[ft], c * r * r + fx, tester, state, stats)
-        dead = state["shadowed"] if smp.samples == 1 else state["mask"] == FULL_MASK
-        n_dead = int(np.count_nonzero(dead))
-        if n_dead > n_dead_before:  # a receiver stays dead: no new one, no node to remove
-            stats.nodes_removed += grids.lists.compact(dead)
-            n_dead_before = n_dead
+                joins.add(start + idx[ft], c * r * r + fx)
+        joins.end_round()
+    joins.flush()
+    stats = joins.stats
     return _Traversal(state, stats, rounds, crossing_count, int(len(keep)), int((~keep).sum()))
 
 
