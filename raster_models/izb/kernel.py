@@ -45,6 +45,7 @@ from .geometry import chunks_by_total
 __all__ = [
     "BAND_FLOOR",
     "DRJIT_PAIR_CHUNK",
+    "FULL_MASK",
     "DeadPairs",
     "PairTester",
     "band_floor",
@@ -60,7 +61,7 @@ BAND_FLOOR = 2.0**-18
 DRJIT_PAIR_CHUNK = 1 << 21
 
 #: All 32 bits of an FTIZB mask.
-_FULL = 0xFFFFFFFF
+FULL_MASK = np.uint32(0xFFFFFFFF)
 
 
 def band_floor(p, eps: float):
@@ -143,7 +144,7 @@ class PairTester:
         self.epsilon = float(epsilon)
         self.thirty_two = "dpdx" in recv
         self.keys = ("mask", "band") if self.thirty_two else ("shadowed", "band")
-        self.full = _FULL if self.thirty_two else 1
+        self.full = FULL_MASK if self.thirty_two else 1
         self._dr = None
         self._built = None
 
@@ -341,7 +342,7 @@ class PairTester:
             return
         none, full = self._classes(base, da, db, floor)
         mixed = ~none & ~full
-        dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(_FULL), ri, full & ~none)
+        dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(FULL_MASK), ri, full & ~none)
         dr.eval(acc["mask"], mixed)
         idx = dr.compress(mixed)
         if dr.width(idx):
@@ -372,7 +373,7 @@ class PairTester:
         if self.thirty_two:
             none, full = self._classes(base, da, db, floor)
             m, _ = self._points(base, da, db, floor)
-            result = dr.select(none, u32(0), dr.select(full, u32(_FULL), m))
+            result = dr.select(none, u32(0), dr.select(full, u32(FULL_MASK), m))
         else:
             hit, _ = self._single(base, floor)
             result = dr.select(hit, u32(1), u32(0))

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kernel import DeadPairs, PairTester
+from .kernel import FULL_MASK, DeadPairs, PairTester
 
 __all__ = [
     "BATCH_PAIRS",
@@ -43,9 +43,6 @@ __all__ = [
 #: that a frame of many small rounds pays few kernel launches, few enough that the tests of
 #: receivers fully shadowed early in a batch stay a small share.
 BATCH_PAIRS = 1 << 16
-
-#: All 32 bits of an FTIZB mask.
-FULL_MASK = np.uint32(0xFFFFFFFF)
 
 #: The round of a receiver (or bit) that no pair of a batch fills.
 _NEVER = np.iinfo(np.int64).max
