@@ -205,3 +205,74 @@ def test_runtime_warnings_do_not_add_stderr_lines(monkeypatch, capfd):
     assert main(["scenes"]) == 2
     out, err = capfd.readouterr()
     assert err == "raster-oracle: error: the one line\n" and out == ""
+
+
+def _store(path):
+    from oracle.sweeps.store import SweepStore
+
+    SweepStore(path).close()
+    return path
+
+
+def _digests(folder):
+    import hashlib
+
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+#: An output path that is, or whose JSON twin is, an input: refused before anything is written.
+OVERWRITES = {
+    "report --sweep S.db --out S.db": (lambda w: ["report", "--sweep", "S.db", "--out", "S.db"]),
+    "report --sweep S.json --out S.html (the JSON twin)": (
+        lambda w: ["report", "--sweep", "S.json", "--out", "S.html"]
+    ),
+    "report --sweep through a link to the store": (
+        lambda w: ["report", "--sweep", "S.db", "--out", "link.html"]
+    ),
+    "report DIR --out DIR/report.html (its record)": (
+        lambda w: ["report", "scored", "--out", "scored/report.html"]
+    ),
+    "sweep --out D --db D/report.json": (
+        lambda w: ["sweep", "spec.toml", "--out", "D", "--db", "D/report.json", "--workers", "0"]
+    ),
+    "sweep --out E --db E/report.json (neither exists yet)": (
+        lambda w: ["sweep", "spec.toml", "--out", "E", "--db", "E/report.json", "--workers", "0"]
+    ),
+    "sweep --out D --db D/report.html": (
+        lambda w: ["sweep", "spec.toml", "--out", "D", "--db", "D/report.html", "--workers", "0"]
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(OVERWRITES), ids=list(OVERWRITES))
+def test_output_paths_never_overwrite_inputs(case, tmp_path, monkeypatch, capfd):
+    """Issue 20's data loss: a report written over its own sweep store (or over the JSON twin
+    that is the store) is exit 2 with every input byte for byte as it was."""
+    work = tmp_path / "work"
+    work.mkdir()
+    _store(work / "S.db")
+    _store(work / "S.json")
+    (work / "link.json").symlink_to(work / "S.db")
+    (work / "scored").mkdir()
+    (work / "scored" / "report.json").write_text(json.dumps({"schema": "raster-oracle.report/1"}))
+    (work / "spec.toml").write_text(
+        'name = "t"\n[defaults]\nwidth = 8\nheight = 6\nspp = 1\n'
+        '[[case]]\nscenes = ["plate"]\ntechnique = "shadow-map"\n'
+    )
+    (work / "D").mkdir()
+    _store(work / "D" / "report.json")
+    _store(work / "D" / "report.html")
+    monkeypatch.setenv("RASTER_ORACLE_CACHE", str(tmp_path / "cache"))
+    monkeypatch.chdir(work)
+    before = _digests(work)
+    capfd.readouterr()
+    rc = main(OVERWRITES[case](work))
+    out, err = capfd.readouterr()
+    assert rc == 2, (out, err)
+    assert len(err.splitlines()) == 1 and "would destroy it" in err, err
+    assert _digests(work) == before
+    assert not (tmp_path / "cache").exists()

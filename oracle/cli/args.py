@@ -21,6 +21,7 @@ __all__ = [
     "add_scene_args",
     "add_set_arg",
     "check_db",
+    "check_distinct",
     "check_dir",
     "check_out",
     "input_errors",
@@ -253,6 +254,35 @@ def check_dir(folder: Path, *, label: str) -> None:
 def check_out(out: Path) -> None:
     """``--out`` is a folder that can be written (or created)."""
     check_dir(out, label="--out")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """``a`` and ``b`` name one file: the same absolute path, or (both existing) one inode."""
+    if os.path.abspath(a) == os.path.abspath(b) or Path(a).resolve() == Path(b).resolve():
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_distinct(*, writes: dict[str, Path], reads: dict[str, Path]) -> None:
+    """No file this command writes is one it reads: an output path that is an input (or is
+    the same file through a link) would destroy the input, so it is refused before anything
+    is written.
+
+    Parameters
+    ----------
+    writes, reads : a label for the message ("--out", "the report's JSON twin", "--db",
+        "--sweep") -> the file's path.
+    """
+    for wlabel, w in writes.items():
+        for rlabel, r in reads.items():
+            if _same_file(w, r):
+                raise CliError(
+                    f"{wlabel} {w} is {rlabel} {r}: writing it would destroy it; "
+                    "choose another output path"
+                )
 
 
 def check_db(db: Path) -> None:

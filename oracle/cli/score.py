@@ -129,6 +129,16 @@ def cmd_report(args) -> int:
     if out.is_dir():
         raise A.CliError(f"--out {out} is a folder; give the report file to write")
     A.check_dir(out.parent, label=f"--out {out}: folder")
+    writes = {"--out": out, "the report's JSON twin": out.with_suffix(".json")}
+    if args.sweep is not None:
+        A.check_distinct(writes=writes, reads={"the sweep store": args.sweep})
+    else:
+        A.check_distinct(
+            writes=writes,
+            reads={
+                f"the record of score folder {f}:": Path(f) / "report.json" for f in args.folders
+            },
+        )
     if args.sweep is not None:
         from ..sweeps.report import sweep_report
 

@@ -84,6 +84,11 @@ def cmd_sweep(args) -> int:
     A.check_out(args.out)
     db = args.db if args.db is not None else args.out / "sweep.db"
     A.check_db(db)
+    page = args.out / "report.html"
+    A.check_distinct(
+        writes={"the report": page, "the report's JSON twin": page.with_suffix(".json")},
+        reads={"the sweep store (--db)": db},
+    )
     cache = A.reference_cache(args)
     if args.scheduler is not None:
         check_scheduler(args.scheduler)  # before anything is written
