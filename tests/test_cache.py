@@ -191,3 +191,55 @@ def test_sigterm_during_a_render_leaves_no_scratch_folder(tmp_path):
     assert rc == 128 + signal.SIGTERM
     assert list(scratch.iterdir()) == []
     assert not (tmp_path / "o").exists()
+
+
+def _source(folder, text="a"):
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "reference.exr").write_bytes(b"exr " + text.encode())
+    (folder / "reference.json").write_text(json.dumps({"text": text}))
+    return folder
+
+
+def test_store_keeps_a_valid_entry_a_reader_may_hold(tmp_path):
+    """Storing a key that is already cached keeps the entry (same folder, same inode, same
+    files): a reader copying from it is never left with a removed folder (issue 20)."""
+    cache = cache_mod.ReferenceCache(tmp_path / "cache")
+    key = "ab" + "0" * 62
+    first = cache.store(key, _source(tmp_path / "one"))
+    inode = first.stat().st_ino
+    held = open(first / "reference.exr", "rb")  # a reader in the middle of its copy
+    try:
+        again = cache.store(key, _source(tmp_path / "two", "b"))
+        assert again == first and first.stat().st_ino == inode
+        assert held.read() == b"exr a"
+    finally:
+        held.close()
+    assert (first / "reference.exr").read_bytes() == b"exr a"
+    assert cache.lookup(key) == (first, "hit")
+    assert [p.name for p in first.parent.iterdir()] == [key]  # no temporary folder left
+
+
+def test_store_replaces_a_corrupted_entry(tmp_path):
+    cache = cache_mod.ReferenceCache(tmp_path / "cache")
+    key = "cd" + "1" * 62
+    entry = cache.store(key, _source(tmp_path / "one"))
+    (entry / "reference.exr").write_bytes(b"bit rot")
+    assert cache.store(key, _source(tmp_path / "two", "b")) == entry
+    assert (entry / "reference.exr").read_bytes() == b"exr b"
+    assert cache.lookup(key) == (entry, "hit")
+
+
+def test_store_sweeps_temporary_folders_of_killed_writers(tmp_path):
+    """A writer killed while storing leaves ``<shard>/.<key[:8]>.*``: the next store into that
+    shard removes it once it is older than STALE_TEMP_SECONDS, and keeps a fresh one."""
+    cache = cache_mod.ReferenceCache(tmp_path / "cache")
+    key = "ef" + "2" * 62
+    shard = cache.entry(key).parent
+    shard.mkdir(parents=True)
+    stale, fresh = shard / ".ef222222.dead", shard / ".ef222222.live"
+    for folder in (stale, fresh):
+        _source(folder)
+    old = time.time() - cache_mod.STALE_TEMP_SECONDS - 60
+    os.utime(stale, (old, old))
+    cache.store(key, _source(tmp_path / "src"))
+    assert not stale.exists() and fresh.is_dir()

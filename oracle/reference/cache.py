@@ -5,9 +5,11 @@ built-in dictionary), the light, camera frame, resolution, every :class:`Referen
 field (spp, seed, channels, adaptive settings), the Mitsuba variant and :data:`ORACLE_VERSION`.
 An entry is a folder ``<root>/<key[:2]>/<key>/`` holding ``reference.exr``,
 ``reference.json`` and ``checksums.json``; it is written under a temporary name and renamed
-into place, so readers never see a partial entry. An entry whose checksums do not match is
-reported as corrupted, removed and rendered again; so is an entry that is not a folder (a
-file, a broken link).
+into place, so readers never see a partial entry, and a valid entry is never removed or
+replaced (a reader may be copying from it; a second writer of the same key keeps it). An
+entry whose checksums do not match is reported as corrupted, removed and rendered again; so
+is an entry that is not a folder (a file, a broken link). Temporary folders left by a writer
+killed while storing are swept after :data:`STALE_TEMP_SECONDS`.
 
 The cache folder is ``$RASTER_ORACLE_CACHE`` (``$RASTER_ORACLE_CACHE_DIR`` is accepted too),
 else ``$XDG_CACHE_HOME/raster-oracle``, else ``~/.cache/raster-oracle``.
@@ -39,6 +41,7 @@ __all__ = [
     "scratch_dir",
     "scratch_mark",
     "sweep_stale_scratch",
+    "sweep_stale_temps",
 ]
 
 #: Bump when the meaning of a reference channel changes: old cache entries become misses.
@@ -54,6 +57,10 @@ SCRATCH_PREFIX = "raster-oracle-ref-"
 
 #: Age after which a scratch folder of a dead process is swept: one day.
 STALE_SECONDS = 86400.0
+
+#: Age after which a hidden temporary entry folder (``<shard>/.<key[:8]>.*``, left by a
+#: process killed while storing) is swept: an hour, far longer than copying two files takes.
+STALE_TEMP_SECONDS = 3600.0
 
 _scratch: list[Path] = []
 
@@ -179,24 +186,53 @@ class ReferenceCache:
         return None, "corrupted"
 
     def store(self, key: str, source_dir: Path) -> Path:
-        """Copy ``reference.exr`` and ``reference.json`` from ``source_dir`` into the cache."""
+        """Copy ``reference.exr`` and ``reference.json`` from ``source_dir`` into the cache.
+
+        A valid entry already there (another process stored the same key meanwhile) is kept
+        as it is, never removed or replaced, since a reader may be copying from it: the
+        entry is content-addressed, so both hold the same reference. Only a corrupted entry
+        is replaced. Temporary folders of killed writers are swept (:func:`sweep_stale_temps`).
+        """
         folder = self.entry(key)
         if os.path.lexists(folder.parent) and not folder.parent.is_dir():
             _remove(folder.parent)  # a file where the shard folder belongs: corrupted
         folder.parent.mkdir(parents=True, exist_ok=True)
+        sweep_stale_temps(folder.parent)
+        if self.lookup(key)[1] == "hit":
+            return folder
         tmp = Path(tempfile.mkdtemp(prefix=f".{key[:8]}.", dir=folder.parent))
         try:
             for name in FILES:
                 shutil.copyfile(source_dir / name, tmp / name)
             sums = {name: _sha256(tmp / name) for name in FILES}
             (tmp / "checksums.json").write_text(json.dumps(sums))
-            if os.path.lexists(folder):
-                _remove(folder)
-            os.replace(tmp, folder)
+            try:
+                os.rename(tmp, folder)  # fails when a folder appeared there meanwhile
+            except OSError:
+                if self.lookup(key)[1] != "hit":
+                    raise
+                shutil.rmtree(tmp, ignore_errors=True)  # another writer won: keep its entry
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
         return folder
+
+
+def sweep_stale_temps(shard: Path, *, now: float | None = None) -> int:
+    """Remove temporary entry folders (``.<key[:8]>.*``) older than
+    :data:`STALE_TEMP_SECONDS` from a shard folder: what a writer killed while storing
+    leaves. Returns how many were removed."""
+    now = time.time() if now is None else now
+    removed = 0
+    for tmp in shard.glob(".*"):
+        try:
+            old = now - tmp.lstat().st_mtime > STALE_TEMP_SECONDS
+        except OSError:
+            continue
+        if old:
+            _remove(tmp)
+            removed += 1
+    return removed
 
 
 def _remove(path: Path) -> None:
