@@ -65,6 +65,10 @@ def _listing(folder):
 BAD = {
     "directional light direction 0,0,0": (["reference", "zero.xml", *SMALL], "no direction"),
     "--spp 2^32": (["reference", "plate", "--spp", str(2**32), *SMALL], r"--spp: must be <="),
+    "--seed 2^32 (would wrap onto seed 0)": (
+        ["reference", "plate", "--seed", str(2**32), *SMALL],
+        r"seed must be in \[0, 4294967295\]",
+    ),
     "--spp above the maximum": (
         ["reference", "plate", "--spp", str(MAX_SPP + 1), *SMALL],
         r"--spp: must be <= 1048576",

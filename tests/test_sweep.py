@@ -115,6 +115,11 @@ BAD_SPECS = {
     "unknown top key": ("nmae = 'x'\n", "nmae: unknown key"),
     "not TOML": ("[[case]\n", "not valid TOML"),
     "no case": (_OK, "case: a spec needs at least one"),
+    "seed beyond 32 bits": (
+        'name = "t"\n[defaults]\nseed = 1180591620717411303424\n'
+        '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n',
+        r"defaults.seed: must be >= 0 and <= 4294967295",
+    ),
     "unknown technique": (
         _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "pcss"\n',
         "case[0].technique: unknown technique 'pcss'",

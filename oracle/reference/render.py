@@ -40,6 +40,7 @@ from ..errors import InputError
 __all__ = [
     "ALL_CHANNELS",
     "CHANNEL_GROUPS",
+    "MAX_SEED",
     "ReferenceSettingsError",
     "ReferenceSettings",
     "channel_names",
@@ -82,6 +83,11 @@ class ReferenceSettingsError(InputError):
     """Invalid reference settings (bad spp, unknown channel, too much memory)."""
 
 
+#: Largest seed: the sampling streams hash a 32-bit seed, so larger seeds would wrap onto
+#: smaller ones (2^32 would give the bytes of seed 0 under another cache key).
+MAX_SEED = 2**32 - 1
+
+
 @dataclass(frozen=True)
 class ReferenceSettings:
     """How a reference is rendered; every field enters the cache key."""
@@ -97,8 +103,11 @@ class ReferenceSettings:
     def validate(self) -> ReferenceSettings:
         if int(self.spp) < 1:
             raise ReferenceSettingsError(f"spp must be >= 1, got {self.spp}")
-        if int(self.seed) < 0:
-            raise ReferenceSettingsError(f"seed must be >= 0, got {self.seed}")
+        if not 0 <= int(self.seed) <= MAX_SEED:
+            raise ReferenceSettingsError(
+                f"seed must be in [0, {MAX_SEED}] (sampling streams are keyed by a 32-bit "
+                f"seed), got {self.seed}"
+            )
         unknown = [c for c in self.channels if c not in CHANNEL_GROUPS]
         if unknown or not self.channels:
             raise ReferenceSettingsError(

@@ -45,6 +45,7 @@ from pathlib import Path
 from scenes.light_paths import LIGHT_PATHS, check_light_path
 
 from ..errors import InputError
+from ..reference.render import MAX_SEED
 
 __all__ = ["Case", "Expansion", "SpecError", "expand_spec", "expand_values", "load_spec"]
 
@@ -248,6 +249,8 @@ def _settings(where: str, table: dict, base: dict) -> dict:
             out[key] = _int_value(f"{where}.{key}", v, minimum=1, maximum=16384)
         elif key == "spp":
             out[key] = _int_value(f"{where}.{key}", v, minimum=1, maximum=MAX_SPP)
+        elif key == "seed":
+            out[key] = _int_value(f"{where}.{key}", v, minimum=0, maximum=MAX_SEED)
         else:
             out[key] = _int_value(f"{where}.{key}", v, minimum=0)
     if (out["width"] is None) != (out["height"] is None):
