@@ -113,10 +113,21 @@ def test_target_and_space_parsing():
         (["--target", "nope<=1"], "unknown metric 'nope'"),
         (["--target", "flip_mean<=1", "--vary", "filter=1:2"], "needs a number parameter"),
         (["--target", "flip_mean<=1", "--technique", "pcss"], "unknown technique 'pcss'"),
+        (
+            ["--target", "misclassified_fraction<=0.1", "--minimize", "nope"],
+            "--minimize nope: not a cost of shadow-map; choose from",
+        ),
+        (
+            ["--target", "misclassified_fraction<=0.1", "--minimize", "misclassified_fraction"],
+            "--minimize misclassified_fraction: not a cost of shadow-map",
+        ),
     ],
 )
 def test_bad_tune_requests_exit_2(tmp_path, capsys, args, message):
-    argv = ["tune", SCENE, "--technique", "shadow-map", "--db", str(tmp_path / "t.db"), *args]
+    """One line, exit 2, and no store written (a bad --minimize is found before the study)."""
+    db = tmp_path / "t.db"
+    argv = ["tune", SCENE, "--technique", "shadow-map", "--db", str(db), *args]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and message in err, err
+    assert not db.exists()

@@ -169,6 +169,7 @@ def _problem(
     if loaded.light.kind not in raster_models.TECHNIQUES[technique].lights:
         raise TuneError(f"{technique} does not support the {loaded.light.kind} light of {scene}")
     cost_key = minimize or DEFAULT_COST.get(raster_models.family_of(technique))
+    _probe_cost_key(scene, technique=technique, cost_key=cost_key, light=light, params=fixed_params)
     ident = json.dumps(
         [
             scene,
@@ -247,19 +248,43 @@ def _infeasible(trial, error: str) -> None:
     raise optuna.TrialPruned(error)
 
 
-def _cost_of(problem: _Problem, row: dict) -> float:
-    cost = (row["cost"] or {}).get(problem.cost_key)
-    if not isinstance(cost, int | float) or isinstance(cost, bool):
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _cost_value(cost: dict | None, *, key: str, technique: str) -> float:
+    """The number ``cost[key]``; a key that is not a numeric cost is a TuneError naming the
+    technique's numeric costs."""
+    value = (cost or {}).get(key)
+    if not _is_number(value):
         numeric = [
             k
-            for k, v in (row["cost"] or {}).items()
+            for k, v in (cost or {}).items()
             if isinstance(v, int | float) and not isinstance(v, bool)
         ]
         raise TuneError(
-            f"--minimize {problem.cost_key}: not a cost of {problem.technique}; "
-            f"choose from {', '.join(numeric)}"
+            f"--minimize {key}: not a cost of {technique}; choose from {', '.join(numeric)}"
         )
-    return float(cost)
+    return float(value)
+
+
+#: Film size of the probe run that checks ``--minimize`` before the study starts.
+_PROBE_SIZE = (16, 9)
+
+
+def _probe_cost_key(scene, *, technique: str, cost_key: str, light: int, params: dict) -> None:
+    """Check ``cost_key`` on a tiny run of the technique, before the store is opened (a cost
+    record has the same keys at any size). A run the model refuses is left to the trials."""
+    probe = scenes.load(scene, width=_PROBE_SIZE[0], height=_PROBE_SIZE[1], light=light)
+    try:
+        result = raster_models.run(technique, probe, **params)
+    except raster_models.ModelError:
+        return
+    _cost_value(result.cost, key=cost_key, technique=technique)
+
+
+def _cost_of(problem: _Problem, row: dict) -> float:
+    return _cost_value(row["cost"], key=problem.cost_key, technique=problem.technique)
 
 
 def _objective(problem: _Problem, *, store: SweepStore, cache, variant):
