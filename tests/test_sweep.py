@@ -115,6 +115,18 @@ BAD_SPECS = {
     "unknown top key": ("nmae = 'x'\n", "nmae: unknown key"),
     "not TOML": ("[[case]\n", "not valid TOML"),
     "no case": (_OK, "case: a spec needs at least one"),
+    "technique given as a list": (
+        _OK + '[[case]]\nscenes = ["plate"]\ntechnique = ["csm"]\n',
+        "case[0].technique: unknown technique ['csm']",
+    ),
+    "arrays nested 10^5 deep": (
+        _OK + "x = " + "[" * 100000 + "]" * 100000 + "\n",
+        "nested too deeply",
+    ),
+    "larger than the spec size cap": (
+        _OK + "# " + "x" * (1 << 20) + "\n",
+        "larger than 1048576 bytes",
+    ),
     "seed beyond 32 bits": (
         'name = "t"\n[defaults]\nseed = 1180591620717411303424\n'
         '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n',
@@ -191,6 +203,24 @@ def test_unreachable_scheduler_exit_2(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler tcp://127.0.0.1:1: cannot connect" in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_spec_that_is_not_a_regular_file_exit_2(tmp_path, capsys, kind):
+    """A FIFO nobody writes would block the read forever, /dev/zero would never end: both
+    are refused before reading."""
+    import os
+
+    if kind == "fifo":
+        spec = tmp_path / "spec.toml"
+        os.mkfifo(spec)
+    else:
+        spec = "/dev/zero"
+    out = tmp_path / "o"
+    assert main(["sweep", str(spec), "--out", str(out), "--workers", "0", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a regular file" in err, err
+    assert not out.exists()
 
 
 def test_missing_spec_file_exit_2(tmp_path, capsys):

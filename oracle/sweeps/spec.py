@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -361,7 +362,7 @@ def expand_spec(
             if technique not in raster_models.TECHNIQUES:
                 skipped.append(f"{technique}: not a registered technique")
                 continue
-        if technique not in raster_models.TECHNIQUES:
+        if not isinstance(technique, str) or technique not in raster_models.TECHNIQUES:
             raise SpecError(
                 f"{where}.technique: unknown technique {technique!r}; choose one of "
                 f"{', '.join(raster_models.TECHNIQUES)}"
@@ -433,6 +434,34 @@ def expand_spec(
     return Expansion(name=name.strip(), cases=cases, skipped=skipped)
 
 
+#: Largest spec file read (a spec is a few kilobytes; this refuses /dev/zero and the like).
+MAX_SPEC_BYTES = 1 << 20
+
+
+def _read_spec(path: Path) -> str:
+    """The text of a spec file: a regular file (not a FIFO or device, which could block or
+    never end) of at most :data:`MAX_SPEC_BYTES`, in UTF-8."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise SpecError(f"spec {path}: no such file") from None
+    except OSError as exc:
+        raise SpecError(f"spec {path}: cannot read: {exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise SpecError(f"spec {path}: not a regular file")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_SPEC_BYTES + 1)
+    except OSError as exc:
+        raise SpecError(f"spec {path}: cannot read: {exc}") from None
+    if len(data) > MAX_SPEC_BYTES:
+        raise SpecError(f"spec {path}: larger than {MAX_SPEC_BYTES} bytes")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"spec {path}: cannot read: {exc}") from None
+
+
 def load_spec(path: str | Path, *, skip_unregistered: bool = False) -> Expansion:
     """Read, validate and expand the TOML spec at ``path``.
 
@@ -442,14 +471,11 @@ def load_spec(path: str | Path, *, skip_unregistered: bool = False) -> Expansion
         The file is missing or not TOML, or a key is wrong (the message names it).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError(f"spec {path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError(f"spec {path}: cannot read: {exc}") from None
+    text = _read_spec(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"spec {path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise SpecError(f"spec {path}: nested too deeply") from None
     return expand_spec(data, base_dir=path.parent, skip_unregistered=skip_unregistered)
