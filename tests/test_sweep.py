@@ -127,6 +127,21 @@ BAD_SPECS = {
         _OK + "# " + "x" * (1 << 20) + "\n",
         "larger than 1048576 bytes",
     ),
+    "range whose value count overflows": (
+        _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n[case.params]\n'
+        "bias = {range = [0.0, 1e308, 1e-308]}\n",
+        "more than",
+    ),
+    "range whose span overflows": (
+        _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n[case.params]\n'
+        "bias = {range = [-1e308, 1e308, 1.0]}\n",
+        "more than",
+    ),
+    "integer logrange whose ratio overflows": (
+        _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n[case.params]\n'
+        "resolution = {logrange = [1e-300, 1e300, 3]}\n",
+        "end / start overflows",
+    ),
     "seed beyond 32 bits": (
         'name = "t"\n[defaults]\nseed = 1180591620717411303424\n'
         '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n',

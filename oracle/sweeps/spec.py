@@ -178,7 +178,12 @@ def expand_values(where: str, value, *, kind: str = "float") -> list:
                 raise SpecError(f"{where}.range: step must be > 0, got {step:g}")
             if hi < lo:
                 raise SpecError(f"{where}.range: end {hi:g} is below start {lo:g}")
-            n = math.floor((hi - lo) / step * (1 + RANGE_END_SLACK) + RANGE_END_SLACK) + 1
+            span = (hi - lo) / step  # inf when (hi - lo) or the quotient overflows
+            if not span < MAX_CASES:
+                raise SpecError(
+                    f"{where}.range: (end - start) / step = {span:g} values (more than {MAX_CASES})"
+                )
+            n = math.floor(span * (1 + RANGE_END_SLACK) + RANGE_END_SLACK) + 1
             if n > MAX_CASES:
                 raise SpecError(f"{where}.range: {n} values (more than {MAX_CASES})")
             vals = [lo + i * step for i in range(n)]
@@ -195,6 +200,10 @@ def expand_values(where: str, value, *, kind: str = "float") -> list:
                 )
             n = int(count)
             ratio = hi / lo
+            if not math.isfinite(ratio):
+                raise SpecError(
+                    f"{where}.logrange: end / start overflows a float ({hi:g} / {lo:g})"
+                )
             vals = [lo] if n == 1 else [lo * ratio ** (i / (n - 1)) for i in range(n)]
             if n > 1:
                 vals[-1] = hi
