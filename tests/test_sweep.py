@@ -506,3 +506,27 @@ def test_store_leaves_one_file_when_the_last_writer_closes(tmp_path):
     with SweepStore(db, readonly=True) as reader:
         assert reader.conn.execute("SELECT count(*) FROM sweep_meta").fetchone()[0] >= 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.db"]
+
+
+@pytest.mark.parametrize("kind", ["other schema version", "foreign database"])
+def test_store_of_another_kind_is_refused_unchanged(tmp_path, capsys, kind):
+    """``sweep --db`` on a SQLite file that is not a store of this schema: exit 2 and the file
+    byte for byte as it was (it used to be switched to WAL and given the store's tables)."""
+    import sqlite3
+
+    db = tmp_path / "other.db"
+    conn = sqlite3.connect(db)
+    if kind == "other schema version":
+        conn.execute("CREATE TABLE sweep_meta (name TEXT PRIMARY KEY, value TEXT)")
+        conn.execute("INSERT INTO sweep_meta VALUES ('schema', '999')")
+    else:
+        conn.execute("CREATE TABLE photos (id INTEGER PRIMARY KEY, blob BLOB)")
+    conn.commit()
+    conn.close()
+    before = db.read_bytes()
+    spec = _spec(tmp_path, _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n')
+    rc = main(["sweep", str(spec), "--db", str(db), "--out", str(tmp_path / "o"), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "other.db" in err, err
+    assert db.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.db", "spec.toml"]

@@ -123,6 +123,10 @@ class SweepStore:
             raise StoreError(f"sweep database {self.path}: no such file")
         if self.path.exists() and not self.path.is_file():
             raise StoreError(f"sweep database {self.path} exists and is not a file")
+        if not readonly and self.path.is_file() and self.path.stat().st_size > 0:
+            # An existing file is checked read-only first: a foreign database or another
+            # schema version is refused without a byte of it changed.
+            SweepStore(self.path, readonly=True).conn.close()
         try:
             if readonly:
                 uri = f"file:{self.path.resolve()}?mode=ro"
