@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from reports.sections import failed_section
 from reports.sweep import best_at_equal_cost, sweep_record, write_sweep_report
 
@@ -166,3 +168,98 @@ def test_front_cases_show_their_thumbnails_and_only_data_images(tmp_path):
     assert gallery.count("<img") == 3
     assert "example.com" not in html
     assert f"#row-{1:012x}" in gallery and f"#row-{2:012x}" not in gallery
+
+
+# --- stores that are damaged or edited by hand (issue 20) --------------------------------
+
+
+def _real_store(path, n=40):
+    from oracle.sweeps.store import SweepStore
+
+    png = "data:image/png;base64,iVBORw0KGgo="
+    with SweepStore(path) as store:
+        for i in range(n):
+            row = _row(i + 1, "shadow-map", 256 + i, 100 + i, 0.3 / (i + 1))
+            store.put({**row, "sweep": "s", "seed": 0, "run_id": "r"}, images={"error": png})
+    return path
+
+
+def _report(tmp_path, db, capsys):
+    from oracle.cli import main
+
+    out = tmp_path / "r.html"
+    rc = main(["report", "--sweep", str(db), "--out", str(out)])
+    return rc, capsys.readouterr().err, out
+
+
+def _sql(db, *statements):
+    import sqlite3
+
+    conn = sqlite3.connect(db)
+    for s in statements:
+        conn.execute(s)
+    conn.commit()
+    conn.close()
+
+
+def _damage(kind, db):
+    if kind == "no sweep_cases table":
+        _sql(db, "DROP TABLE sweep_cases")
+    elif kind == "sweep_cases of another shape":
+        _sql(db, "DROP TABLE sweep_cases", "CREATE TABLE sweep_cases (key TEXT, other TEXT)")
+    elif kind == "truncated to 95%":
+        data = db.read_bytes()
+        db.write_bytes(data[: len(data) * 95 // 100])
+    elif kind == "corrupted pages":
+        data = bytearray(db.read_bytes())
+        page = 4096
+        for start in range(2 * page, len(data) - page, 3 * page):
+            data[start + 100 : start + 900] = bytes(range(256)) * 3 + bytes(32)
+        db.write_bytes(bytes(data))
+    elif kind == "params not JSON":
+        _sql(db, "UPDATE sweep_cases SET params = 'not json{' WHERE rowid = 3")
+    elif kind == "metrics a JSON list":
+        _sql(db, "UPDATE sweep_cases SET metrics = '[1, 2]' WHERE rowid = 3")
+    elif kind == "cost of the wrong type":
+        _sql(db, "UPDATE sweep_cases SET cost = '\"cheap\"' WHERE rowid = 3")
+
+
+DAMAGED = [
+    "no sweep_cases table",
+    "sweep_cases of another shape",
+    "truncated to 95%",
+    "corrupted pages",
+    "params not JSON",
+    "metrics a JSON list",
+    "cost of the wrong type",
+]
+
+
+@pytest.mark.parametrize("kind", DAMAGED)
+def test_damaged_or_edited_store_is_one_line_exit_2(tmp_path, capsys, kind):
+    db = _real_store(tmp_path / "s.db")
+    _damage(kind, db)
+    rc, err, out = _report(tmp_path, db, capsys)
+    assert rc == 2, err
+    assert err.count("\n") == 1 and "s.db" in err and "Traceback" not in err, err
+    assert not out.exists() and not out.with_suffix(".json").exists()
+
+
+@pytest.mark.parametrize(
+    "stored",
+    [
+        "X'00ff10'",  # raw bytes
+        '\'{"error": "<script>alert(1)</script>"}\'',  # markup
+        "'[1, 2, 3]'",  # a JSON list
+        '\'{"error": "https://example.com/x.png"}\'',  # a remote image
+    ],
+)
+def test_hand_edited_thumbnails_are_left_out(tmp_path, capsys, stored):
+    """Thumbnails are decoration: a bad one is dropped and the report is still written."""
+    db = _real_store(tmp_path / "s.db", n=4)
+    _sql(db, f"UPDATE sweep_images SET images = {stored}")
+    rc, err, out = _report(tmp_path, db, capsys)
+    assert rc == 0, err
+    html = out.read_text()
+    assert "<script>alert(1)" not in html and "example.com" not in html
+    assert "iVBORw0KGgo=" not in html  # every stored thumbnail was replaced by the bad one

@@ -53,6 +53,7 @@ def sweep_report(
         ``out``.
     """
     with SweepStore(db, readonly=True) as store:
+        store.check_integrity()
         rows = store.rows(sweep=sweep)
         images = store.images(r["key"] for r in rows if r["status"] == "done")
     _check_keys(rows, costs, metrics)

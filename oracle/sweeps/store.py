@@ -107,6 +107,32 @@ def case_key(record: dict) -> str:
     return hashlib.sha256(dumps({"schema": SCHEMA_VERSION, **record}).encode()).hexdigest()
 
 
+#: Prefixes of the only thumbnails a store row may carry: base64 images.
+_THUMBNAIL_PREFIXES = (
+    "data:image/png;base64,",
+    "data:image/webp;base64,",
+    "data:image/jpeg;base64,",
+)
+
+
+def _thumbnails(text) -> dict | None:
+    """A row's thumbnails (name -> data URI), or None when the stored value is not such a
+    record (a hand-edited store: raw bytes, markup, a list): thumbnails are decoration, so a
+    bad one is left out of the report, never fatal."""
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError):
+        return None
+    if not isinstance(value, dict):
+        return None
+    good = {
+        str(k): v
+        for k, v in value.items()
+        if isinstance(v, str) and v.startswith(_THUMBNAIL_PREFIXES)
+    }
+    return good or None
+
+
 class SweepStore:
     """The SQLite file of a sweep (created when missing).
 
@@ -219,13 +245,30 @@ class SweepStore:
         if clauses:
             sql += " WHERE " + " AND ".join(clauses)
         sql += " ORDER BY finished, key"
-        out = []
-        for r in self.conn.execute(sql, params):
-            row = dict(zip(_COLUMNS, r, strict=True))
-            for name in ("params", "metrics", "cost"):
-                row[name] = json.loads(row[name]) if row[name] is not None else None
-            out.append(row)
-        return out
+        try:
+            return [self._row(r) for r in self.conn.execute(sql, params).fetchall()]
+        except sqlite3.DatabaseError as exc:  # missing table, wrong shape, damaged pages
+            raise StoreError(f"sweep database {self.path}: {exc}") from None
+
+    def _row(self, values) -> dict:
+        """One row as a record; rows are untrusted (a store can be edited by hand): a JSON
+        column that is not a JSON object (or null) is a StoreError naming the row."""
+        row = dict(zip(_COLUMNS, values, strict=True))
+        for name in ("params", "metrics", "cost"):
+            text = row[name]
+            if text is None:
+                continue
+            try:
+                value = json.loads(text)
+            except (TypeError, ValueError):
+                value = None
+            if not isinstance(value, dict):
+                raise StoreError(
+                    f"sweep database {self.path}: row {str(row['key'])[:16]!r}: {name} is not "
+                    "a JSON object"
+                )
+            row[name] = value
+        return row
 
     def images(self, keys) -> dict[str, dict]:
         """Thumbnails (``reference``, ``candidate``, ``error`` data URIs) of ``keys``."""
@@ -234,11 +277,22 @@ class SweepStore:
             for key in keys:
                 r = self.conn.execute("SELECT images FROM sweep_images WHERE key = ?", (key,))
                 hit = r.fetchone()
-                if hit is not None:
-                    out[key] = json.loads(hit[0])
+                if hit is not None and (images := _thumbnails(hit[0])):
+                    out[key] = images
         except sqlite3.OperationalError:  # a store written before thumbnails were kept
             return {}
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"sweep database {self.path}: {exc}") from None
         return out
+
+    def check_integrity(self) -> None:
+        """Raise :class:`StoreError` when SQLite's ``integrity_check`` finds damage."""
+        try:
+            ok = self.integrity_ok()
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        if not ok:
+            raise StoreError(f"sweep database {self.path}: fails SQLite's integrity check")
 
     def integrity_ok(self) -> bool:
         return self.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
