@@ -246,6 +246,15 @@ OVERWRITES = {
     "sweep --out E --db E/report.json (neither exists yet)": (
         lambda w: ["sweep", "spec.toml", "--out", "E", "--db", "E/report.json", "--workers", "0"]
     ),
+    "sweep F/report.html --out F (the spec is the report)": (
+        lambda w: ["sweep", "F/report.html", "--out", "F", "--workers", "0"]
+    ),
+    "sweep F/report.json --out F (the spec is the JSON twin)": (
+        lambda w: ["sweep", "F/report.json", "--out", "F", "--db", "S.db", "--workers", "0"]
+    ),
+    "sweep spec.toml --db spec.toml": (
+        lambda w: ["sweep", "spec.toml", "--out", "D", "--db", "spec.toml", "--workers", "0"]
+    ),
     "sweep --out D --db D/report.html": (
         lambda w: ["sweep", "spec.toml", "--out", "D", "--db", "D/report.html", "--workers", "0"]
     ),
@@ -267,6 +276,9 @@ def test_output_paths_never_overwrite_inputs(case, tmp_path, monkeypatch, capfd)
         'name = "t"\n[defaults]\nwidth = 8\nheight = 6\nspp = 1\n'
         '[[case]]\nscenes = ["plate"]\ntechnique = "shadow-map"\n'
     )
+    (work / "F").mkdir()
+    for name in ("report.html", "report.json"):
+        (work / "F" / name).write_text((work / "spec.toml").read_text())
     (work / "D").mkdir()
     _store(work / "D" / "report.json")
     _store(work / "D" / "report.html")

@@ -87,8 +87,9 @@ def cmd_sweep(args) -> int:
     page = args.out / "report.html"
     A.check_distinct(
         writes={"the report": page, "the report's JSON twin": page.with_suffix(".json")},
-        reads={"the sweep store (--db)": db},
+        reads={"the sweep store (--db)": db, "the spec": args.spec},
     )
+    A.check_distinct(writes={"--db": db}, reads={"the spec": args.spec})
     cache = A.reference_cache(args)
     if args.scheduler is not None:
         check_scheduler(args.scheduler)  # before anything is written
