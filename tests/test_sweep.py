@@ -530,3 +530,48 @@ def test_store_of_another_kind_is_refused_unchanged(tmp_path, capsys, kind):
     assert rc == 2 and err.count("\n") == 1 and "other.db" in err, err
     assert db.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.db", "spec.toml"]
+
+
+def test_scheduler_without_workers_stops_with_no_workers(tmp_path, capsys):
+    """A scheduler whose workers are all gone used to make the sweep wait forever: after
+    --worker-timeout it stops with one line, exit 2 (issue 20)."""
+    from distributed import LocalCluster
+
+    spec = _spec(tmp_path, _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n')
+    db = tmp_path / "s.db"
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
+        t0 = time.monotonic()
+        rc = main(
+            [
+                "sweep",
+                str(spec),
+                "--scheduler",
+                cluster.scheduler_address,
+                "--worker-timeout",
+                "1",
+                "--db",
+                str(db),
+                "--out",
+                str(tmp_path / "o"),
+                "--quiet",
+            ]
+        )
+        waited = time.monotonic() - t0
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1, err
+    assert "no workers connected within 1 s" in err, err
+    assert waited < 60
+
+
+def test_cases_left_without_workers_stop_the_wait():
+    """The watchdog of a running sweep: pending cases with no worker connected end in a
+    SweepError after the timeout instead of a wait that never ends."""
+    from distributed import Client, LocalCluster
+
+    from oracle.sweeps.run import SweepError, completed_while_workers
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
+        with Client(cluster) as client:
+            fut = client.submit(sum, [1, 2], pure=False)
+            with pytest.raises(SweepError, match=r"no workers for 1 s; 1 case\(s\) not run"):
+                list(completed_while_workers(client, {fut: None}, worker_timeout=1, where="w"))

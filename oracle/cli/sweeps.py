@@ -19,6 +19,13 @@ def add_parsers(sub) -> None:
     p.add_argument("--db", type=A.path, default=None, help="SQLite store (default OUT/sweep.db)")
     p.add_argument("--scheduler", default=None, help="address of an existing Dask scheduler")
     p.add_argument(
+        "--worker-timeout",
+        type=A.positive_float,
+        default=None,
+        help="seconds with no Dask worker before the sweep stops with 'no workers' "
+        "(default 120; finished cases are kept)",
+    )
+    p.add_argument(
         "--workers",
         type=A.nonneg_int,
         default=None,
@@ -100,6 +107,7 @@ def cmd_sweep(args) -> int:
         cache_root=cache.root,
         workers=args.workers,
         scheduler=args.scheduler,
+        **({} if args.worker_timeout is None else {"worker_timeout": args.worker_timeout}),
         quiet=args.quiet,
         retry_failed=args.retry_failed,
     )

@@ -43,6 +43,7 @@ __all__ = [
     "SweepError",
     "WorkerCache",
     "check_scheduler",
+    "completed_while_workers",
     "evaluate_case",
     "reference_jobs",
     "run_case",
@@ -52,6 +53,13 @@ __all__ = [
 
 #: Seconds to wait for a ``--scheduler`` to answer.
 SCHEDULER_TIMEOUT_S = 20
+
+#: How long a sweep on a Dask scheduler waits with no worker connected (at the start, or
+#: after every worker is gone) before it stops with "no workers" (``--worker-timeout``).
+NO_WORKERS_TIMEOUT_S = 120.0
+
+#: Seconds between checks for finished cases and connected workers.
+WORKER_POLL_S = 1.0
 
 
 @dataclass
@@ -291,6 +299,7 @@ def run_sweep(
     quiet: bool = False,
     retry_failed: bool = False,
     images: bool = True,
+    worker_timeout: float = NO_WORKERS_TIMEOUT_S,
     echo=print,
 ) -> dict:
     """Run the cases of ``expansion`` not yet in the store ``db``; returns a summary.
@@ -306,6 +315,8 @@ def run_sweep(
         local cluster.
     retry_failed : run again the cases recorded as failed (default: they count as finished).
     images : keep thumbnails of each case (reference, candidate, error map) in the store.
+    worker_timeout : seconds without any Dask worker (at the start or after all are gone)
+        before a :class:`SweepError` "no workers"; the cases finished until then are kept.
 
     Returns
     -------
@@ -355,6 +366,7 @@ def run_sweep(
                     scheduler=scheduler,
                     quiet=quiet,
                     images=images,
+                    worker_timeout=worker_timeout,
                 )
             for key, rec, row, res in results:
                 store.put(
@@ -413,8 +425,33 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
             yield key, rec, row, res
 
 
-def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, images):
-    from distributed import Client, LocalCluster, as_completed
+def completed_while_workers(client, futures, *, worker_timeout: float, where: str):
+    """Yield ``futures`` as they finish; raise :class:`SweepError` after ``worker_timeout``
+    seconds with no worker connected (a cluster whose workers are all gone never finishes)."""
+    from distributed import wait
+
+    pending, idle_since = set(futures), None
+    while pending:
+        try:
+            done, pending = wait(pending, timeout=WORKER_POLL_S, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            if client.scheduler_info()["workers"]:
+                idle_since = None
+            elif idle_since is None:
+                idle_since = time.monotonic()
+            elif time.monotonic() - idle_since > worker_timeout:
+                raise SweepError(
+                    f"{where}: no workers for {worker_timeout:g} s; {len(pending)} case(s) not "
+                    "run (the finished ones are kept in the store)"
+                ) from None
+            continue
+        yield from done
+
+
+def _run_dask(
+    todo, cache_root, variant, summary, *, workers, scheduler, quiet, images, worker_timeout
+):
+    from distributed import Client, LocalCluster
 
     cluster = None
     if scheduler is None:
@@ -433,7 +470,15 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, 
             client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError) as exc:
             raise SweepError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
+    where = "local cluster" if scheduler is None else f"--scheduler {scheduler}"
     try:
+        if scheduler is not None:
+            try:
+                client.wait_for_workers(1, timeout=worker_timeout)
+            except TimeoutError:
+                raise SweepError(
+                    f"{where}: no workers connected within {worker_timeout:g} s"
+                ) from None
         refs = _unique_references(todo)
         summary["references"] = len(refs)
         ref_futures = {
@@ -449,7 +494,9 @@ def _run_dask(todo, cache_root, variant, summary, *, workers, scheduler, quiet, 
             )
             futures[fut] = item
         with _progress(len(futures), quiet=quiet, desc=summary["sweep"]) as bar:
-            for fut in as_completed(futures):
+            for fut in completed_while_workers(
+                client, futures, worker_timeout=worker_timeout, where=where
+            ):
                 key, rec, row = futures.pop(fut)
                 try:
                     res = fut.result()
