@@ -230,11 +230,11 @@ def test_store_replaces_a_corrupted_entry(tmp_path):
 
 
 def test_store_sweeps_temporary_folders_of_killed_writers(tmp_path):
-    """A writer killed while storing leaves ``<shard>/.<key[:8]>.*``: the next store into that
-    shard removes it once it is older than STALE_TEMP_SECONDS, and keeps a fresh one."""
+    """A writer killed while storing leaves ``<shard>/.<key[:8]>.*``: the next store (of any
+    key) removes it once it is older than STALE_TEMP_SECONDS, and keeps a fresh one."""
     cache = cache_mod.ReferenceCache(tmp_path / "cache")
     key = "ef" + "2" * 62
-    shard = cache.entry(key).parent
+    shard = cache.entry("01" + "3" * 62).parent  # another shard than the key stored
     shard.mkdir(parents=True)
     stale, fresh = shard / ".ef222222.dead", shard / ".ef222222.live"
     for folder in (stale, fresh):

@@ -191,13 +191,14 @@ class ReferenceCache:
         A valid entry already there (another process stored the same key meanwhile) is kept
         as it is, never removed or replaced, since a reader may be copying from it: the
         entry is content-addressed, so both hold the same reference. Only a corrupted entry
-        is replaced. Temporary folders of killed writers are swept (:func:`sweep_stale_temps`).
+        is replaced. Temporary folders of killed writers, in any shard, are swept
+        (:func:`sweep_stale_temps`).
         """
         folder = self.entry(key)
         if os.path.lexists(folder.parent) and not folder.parent.is_dir():
             _remove(folder.parent)  # a file where the shard folder belongs: corrupted
         folder.parent.mkdir(parents=True, exist_ok=True)
-        sweep_stale_temps(folder.parent)
+        sweep_stale_temps(self.root)
         if self.lookup(key)[1] == "hit":
             return folder
         tmp = Path(tempfile.mkdtemp(prefix=f".{key[:8]}.", dir=folder.parent))
@@ -218,13 +219,13 @@ class ReferenceCache:
         return folder
 
 
-def sweep_stale_temps(shard: Path, *, now: float | None = None) -> int:
-    """Remove temporary entry folders (``.<key[:8]>.*``) older than
-    :data:`STALE_TEMP_SECONDS` from a shard folder: what a writer killed while storing
-    leaves. Returns how many were removed."""
+def sweep_stale_temps(root: Path, *, now: float | None = None) -> int:
+    """Remove temporary entry folders (``<shard>/.<key[:8]>.*``) older than
+    :data:`STALE_TEMP_SECONDS` from every shard of the cache ``root``: what writers killed
+    while storing leave. Returns how many were removed."""
     now = time.time() if now is None else now
     removed = 0
-    for tmp in shard.glob(".*"):
+    for tmp in Path(root).glob("*/.*"):
         try:
             old = now - tmp.lstat().st_mtime > STALE_TEMP_SECONDS
         except OSError:
