@@ -292,6 +292,11 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
     ok = dr.abs(den) > 1e-12
     tc = dr.dot(ng, si.p - ray_c.o) / dr.select(ok, den, 1.0)
     xc = dr.select(ok, ray_c.o + ray_c.d * tc, si.p)
+    # ``o + t d`` carries the rounding error of the ray's origin and length (several times
+    # the mesh shadow offset, which is scaled by |p|: a tilted wall shadowed itself). One
+    # step back onto the plane by the point's own measured distance leaves an error of the
+    # order of |p|'s ulps, which the mesh offset covers, as it does for the hit itself.
+    xc = xc + ng * dr.dot(ng, si.p - xc)
     delta = xc - si.p
     a11, a12, a22 = (
         dr.dot(si.dp_du, si.dp_du),
