@@ -257,8 +257,8 @@ def check_out(out: Path) -> None:
 
 
 def _same_file(a: Path, b: Path) -> bool:
-    """``a`` and ``b`` name one file: the same absolute path, or (both existing) one inode."""
-    if os.path.abspath(a) == os.path.abspath(b) or Path(a).resolve() == Path(b).resolve():
+    """``a`` and ``b`` name one file: the same resolved path, or (both existing) one inode."""
+    if Path(a).resolve() == Path(b).resolve():
         return True
     try:
         return os.path.samefile(a, b)

@@ -107,7 +107,7 @@ def cmd_sweep(args) -> int:
         cache_root=cache.root,
         workers=args.workers,
         scheduler=args.scheduler,
-        **({} if args.worker_timeout is None else {"worker_timeout": args.worker_timeout}),
+        worker_timeout=args.worker_timeout,
         quiet=args.quiet,
         retry_failed=args.retry_failed,
     )

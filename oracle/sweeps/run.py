@@ -299,7 +299,7 @@ def run_sweep(
     quiet: bool = False,
     retry_failed: bool = False,
     images: bool = True,
-    worker_timeout: float = NO_WORKERS_TIMEOUT_S,
+    worker_timeout: float | None = None,
     echo=print,
 ) -> dict:
     """Run the cases of ``expansion`` not yet in the store ``db``; returns a summary.
@@ -316,7 +316,8 @@ def run_sweep(
     retry_failed : run again the cases recorded as failed (default: they count as finished).
     images : keep thumbnails of each case (reference, candidate, error map) in the store.
     worker_timeout : seconds without any Dask worker (at the start or after all are gone)
-        before a :class:`SweepError` "no workers"; the cases finished until then are kept.
+        before a :class:`SweepError` "no workers" (None: :data:`NO_WORKERS_TIMEOUT_S`); the
+        cases finished until then are kept.
 
     Returns
     -------
@@ -327,6 +328,8 @@ def run_sweep(
     from scenes import backend
 
     t0 = time.perf_counter()
+    if worker_timeout is None:
+        worker_timeout = NO_WORKERS_TIMEOUT_S
     variant = backend.active().variant
     cache_root = str(Path(cache_root).resolve())
     Path(cache_root).mkdir(parents=True, exist_ok=True)

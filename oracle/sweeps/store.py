@@ -107,30 +107,15 @@ def case_key(record: dict) -> str:
     return hashlib.sha256(dumps({"schema": SCHEMA_VERSION, **record}).encode()).hexdigest()
 
 
-#: Prefixes of the only thumbnails a store row may carry: base64 images.
-_THUMBNAIL_PREFIXES = (
-    "data:image/png;base64,",
-    "data:image/webp;base64,",
-    "data:image/jpeg;base64,",
-)
-
-
 def _thumbnails(text) -> dict | None:
-    """A row's thumbnails (name -> data URI), or None when the stored value is not such a
-    record (a hand-edited store: raw bytes, markup, a list): thumbnails are decoration, so a
-    bad one is left out of the report, never fatal."""
+    """A row's thumbnails (a JSON object: name -> data URI), or None when the stored value is
+    not a JSON object (a hand-edited store: raw bytes, a list): thumbnails are decoration, so
+    a bad one is left out, never fatal. The report keeps only ``data:`` image URIs of it."""
     try:
         value = json.loads(text)
     except (TypeError, ValueError):
         return None
-    if not isinstance(value, dict):
-        return None
-    good = {
-        str(k): v
-        for k, v in value.items()
-        if isinstance(v, str) and v.startswith(_THUMBNAIL_PREFIXES)
-    }
-    return good or None
+    return value if isinstance(value, dict) and value else None
 
 
 class SweepStore:
