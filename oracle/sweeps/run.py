@@ -48,6 +48,7 @@ __all__ = [
     "reference_jobs",
     "run_case",
     "run_sweep",
+    "store_row",
     "sweep_keys",
 ]
 
@@ -373,18 +374,7 @@ def run_sweep(
                 )
             for key, rec, row, res in results:
                 store.put(
-                    {
-                        **row,
-                        "key": key,
-                        "sweep": expansion.name,
-                        "params": res.get("params") or rec["params"],
-                        "metrics": res.get("metrics"),
-                        "cost": res.get("cost"),
-                        "wall_seconds": res.get("wall_seconds"),
-                        "status": res["status"],
-                        "error": res.get("error"),
-                        "run_id": run_id,
-                    },
+                    store_row(row, key=key, rec=rec, res=res, sweep=expansion.name, run_id=run_id),
                     images=res.get("images"),
                 )
                 summary["ran"] += 1
@@ -426,6 +416,23 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
                 res = run_case(rec, cache_root, variant, images=images)
             bar.update()
             yield key, rec, row, res
+
+
+def store_row(row: dict, *, key: str, rec: dict, res: dict, sweep: str, run_id: str) -> dict:
+    """The store row of a finished case: its keyed ``row`` (:func:`sweep_keys`) with the
+    result ``res`` of :func:`run_case` (parameters as run, metrics, cost, status, error)."""
+    return {
+        **row,
+        "key": key,
+        "sweep": sweep,
+        "params": res.get("params") or rec["params"],
+        "metrics": res.get("metrics"),
+        "cost": res.get("cost"),
+        "wall_seconds": res.get("wall_seconds"),
+        "status": res["status"],
+        "error": res.get("error"),
+        "run_id": run_id,
+    }
 
 
 def completed_while_workers(client, futures, *, worker_timeout: float, where: str):

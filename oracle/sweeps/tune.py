@@ -32,7 +32,7 @@ from scenes import backend
 
 from ..errors import InputError
 from ..scoring.score import metric_limit
-from .run import run_case, sweep_keys
+from .run import run_case, store_row, sweep_keys
 from .spec import Case
 from .store import SweepStore
 
@@ -223,20 +223,8 @@ def _evaluate(problem: _Problem, params: dict, *, store: SweepStore, cache, vari
     stored = store.get(key)
     if stored is None or stored["status"] != "done":
         res = run_case(rec, str(cache.root), variant)
-        store.put(
-            {
-                **row,
-                "key": key,
-                "sweep": f"tune:{problem.name}",
-                "params": res.get("params") or rec["params"],
-                "metrics": res.get("metrics"),
-                "cost": res.get("cost"),
-                "wall_seconds": res.get("wall_seconds"),
-                "status": res["status"],
-                "error": res.get("error"),
-                "run_id": "tune",
-            }
-        )
+        sweep = f"tune:{problem.name}"
+        store.put(store_row(row, key=key, rec=rec, res=res, sweep=sweep, run_id="tune"))
         stored = store.get(key)
     return stored
 
