@@ -294,14 +294,7 @@ def _filled(recv, inv, result, j, before):
 
 def _first_round(slot: np.ndarray, j: np.ndarray, size: int) -> np.ndarray:
     """``(size,)`` the smallest round ``j`` of the entries of each ``slot`` (:data:`_NEVER`
-    where none): the entries sorted by round (a radix sort of 16-bit keys), each round's
-    slots written from the latest round to the earliest, which overwrite."""
+    where none)."""
     first = np.full(size, _NEVER)
-    if len(j) == 0:
-        return first
-    order = np.argsort(j.astype(np.uint16 if j.max() < 1 << 16 else np.uint32), kind="stable")
-    slot, j = slot[order], j[order]
-    cuts = np.concatenate([[0], np.flatnonzero(np.diff(j)) + 1, [len(j)]])
-    for a, b in zip(cuts[-2::-1], cuts[:0:-1], strict=True):  # rounds, the latest first
-        first[slot[a:b]] = j[a]
+    np.minimum.at(first, slot, j)
     return first
