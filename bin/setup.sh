@@ -1,16 +1,21 @@
 #!/usr/bin/env bash
 # Idempotent set-up for raster-oracle on a Debian machine: system packages, a virtual
-# environment in .venv and an editable install with the test extras. Safe to run twice;
-# the second run only checks and returns.
+# environment in .venv and an editable install. Safe to run twice; the second run only checks
+# and returns. `bin/setup.sh` installs what the main job needs; `bin/setup.sh --test` adds what
+# the tests need (the test extras and headless Chromium for the report tests).
 set -euo pipefail
+mode=main
+[ "${1:-}" = "--test" ] && mode=test
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 
 need_apt=()
 # libLLVM >= 16 for Dr.Jit's LLVM backend (Debian's default LLVM 15 aborts it).
 ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1 || need_apt+=(libllvm19)
-# Headless Chromium for the report tests.
-command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
+# Headless Chromium for the report tests only.
+if [ "$mode" = test ]; then
+    command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
+fi
 if [ "${#need_apt[@]}" -gt 0 ]; then
     if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi
     echo "setup: installing system packages: ${need_apt[*]}" >&2
@@ -23,11 +28,12 @@ if [ ! -x .venv/bin/python ]; then
     echo "setup: creating .venv" >&2
     "$py" -m venv .venv
 fi
-stamp=".venv/.raster-oracle-stamp"
-want="$(sha256sum pyproject.toml | cut -d' ' -f1)"
+stamp=".venv/.raster-oracle-$mode-stamp"
+want="$(cat pyproject.toml setup.py | sha256sum | cut -d' ' -f1)"
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     echo "setup: installing raster-oracle into .venv" >&2
     .venv/bin/python -m pip install -q --upgrade pip >&2
-    .venv/bin/python -m pip install -q -e ".[test]" >&2
+    if [ "$mode" = test ]; then target=".[test]"; else target="."; fi
+    .venv/bin/python -m pip install -q -e "$target" >&2
     echo "$want" > "$stamp"
 fi

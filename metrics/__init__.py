@@ -10,14 +10,14 @@ Modules: :mod:`metrics.tonemap` (the shared tone-mapping pipeline), :mod:`metric
 :mod:`metrics.temporal` (flicker), :mod:`metrics.stats` (Z-test, noise floor).
 """
 
-from metrics.aliasing import (
+from .aliasing import (
     coverage_error,
     edge_interior_error,
     edges_from_id,
     half_plane_square_area,
     straight_edge_error_floor,
 )
-from metrics.perceptual import (
+from .perceptual import (
     DEFAULT_PPD,
     delta_e2000,
     delta_e2000_lab,
@@ -26,17 +26,17 @@ from metrics.perceptual import (
     psnr_db,
     ssim,
 )
-from metrics.shadow import SHADOW_KEYS, shadow_edges, shadow_metrics
-from metrics.stats import binomial_stderr_floor, exact_surrogate, noise_floor, z_test
-from metrics.temporal import flicker, temporal_error
-from metrics.tonemap import (
+from .shadow import SHADOW_KEYS, shadow_edges, shadow_metrics
+from .stats import binomial_stderr_floor, exact_surrogate, noise_floor, z_test
+from .temporal import flicker, temporal_error
+from .tonemap import (
     exposure_from_reference,
     luminance,
     srgb_decode,
     srgb_encode,
     tonemap,
 )
-from metrics.validate import MetricError
+from .validate import MetricError
 
 __all__ = [
     "DEFAULT_PPD",

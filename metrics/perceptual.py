@@ -18,14 +18,14 @@ import math
 
 import numpy as np
 
-from metrics.tonemap import (
+from .tonemap import (
     LUMINANCE_WEIGHTS,
     TONE_MAPPERS,
     exposure_from_reference,
     srgb_decode,
     tonemap,
 )
-from metrics.validate import MetricError, check_image, check_images
+from .validate import MetricError, check_image, check_images
 
 __all__ = [
     "DEFAULT_PPD",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from metrics.validate import MetricError, check_images, check_mask
+from .validate import MetricError, check_images, check_mask
 
 __all__ = ["SHADOW_KEYS", "shadow_edges", "shadow_metrics"]
 

@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import special
 
-from metrics.validate import MetricError, check_images
+from .validate import MetricError, check_images
 
 __all__ = ["CORRECTIONS", "binomial_stderr_floor", "exact_surrogate", "noise_floor", "z_test"]
 

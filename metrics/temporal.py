@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from metrics.validate import MetricError, check_images, check_mask
+from .validate import MetricError, check_images, check_mask
 
 __all__ = ["flicker", "temporal_error"]
 

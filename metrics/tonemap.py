@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from metrics.validate import MetricError, check_image
+from .validate import MetricError, check_image
 
 __all__ = [
     "LUMINANCE_WEIGHTS",

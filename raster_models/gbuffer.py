@@ -15,10 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import backend
-from scenes.raycast import CHUNK, trace_film_dr
-from scenes.shading import receiver_mask
-
+from ..scenes import backend
+from ..scenes.raycast import CHUNK, trace_film_dr
+from ..scenes.shading import receiver_mask
 from .drjit import numpy_view
 
 __all__ = ["GBuffer", "points_gbuffer", "plane_derivatives", "trace_gbuffer"]

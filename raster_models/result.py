@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from scenes.records import jsonable, provenance
+from ..scenes.records import jsonable, provenance
 
 __all__ = ["ModelResult", "model_result"]
 

@@ -56,7 +56,7 @@ def _filters() -> dict:
 def environment() -> jinja2.Environment:
     """The shared environment (built once per process; it holds no data of a page)."""
     env = jinja2.Environment(
-        loader=jinja2.PackageLoader("reports"),
+        loader=jinja2.PackageLoader(__package__),
         autoescape=True,
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,

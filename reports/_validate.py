@@ -25,7 +25,7 @@ from numbers import Real
 
 import numpy as np
 
-from scenes.records import encode_float, jsonable
+from ..scenes.records import encode_float, jsonable
 
 __all__ = [
     "KINDS",

@@ -28,8 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.files import atomic_write_bytes
-
+from ..scenes.files import atomic_write_bytes
 from ._tradeoff import pareto_front
 from .sections.page import render_sweep_page
 

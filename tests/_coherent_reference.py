@@ -10,8 +10,7 @@ float32, so they must give exactly these bytes (:data:`COMPRESSION_TOLERANCE`).
 from __future__ import annotations
 
 import numpy as np
-
-from raster_models.coherent.surfaces import SPREAD_GUARD, stored_depth
+from raster_oracle.raster_models.coherent.surfaces import SPREAD_GUARD, stored_depth
 
 __all__ = ["COMPRESSION_TOLERANCE", "below", "compress_runs", "visibility_intervals"]
 

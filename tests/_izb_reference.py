@@ -14,9 +14,8 @@ the same flags and masks (:data:`PAIR_TOLERANCE`).
 from __future__ import annotations
 
 import numpy as np
-
-from raster_models.izb.build import one_texel_reach, texel
-from raster_models.izb.kernel import DeadPairs, band_floor
+from raster_oracle.raster_models.izb.build import one_texel_reach, texel
+from raster_oracle.raster_models.izb.kernel import DeadPairs, band_floor
 
 __all__ = [
     "BUILD_CHUNK",

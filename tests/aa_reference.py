@@ -16,9 +16,12 @@ plainly in NumPy, for the tests to compare against within stated tolerances:
 from __future__ import annotations
 
 import numpy as np
-
-from raster_models.aa.fragments import Fragments, sample_film_positions, shading_positions
-from raster_models.aa.trace import fragment_attributes, shade_points
+from raster_oracle.raster_models.aa.fragments import (
+    Fragments,
+    sample_film_positions,
+    shading_positions,
+)
+from raster_oracle.raster_models.aa.trace import fragment_attributes, shade_points
 
 #: Pixels per grouping chunk (keeps the ``(P, N, N)`` comparison cache-sized).
 GROUP_CHUNK = 1 << 15

@@ -11,13 +11,13 @@ import pytest
 def _backend(tmp_path_factory):
     """Select the backend once (as the CLI does) and keep the user's cache untouched."""
     os.environ["RASTER_ORACLE_CACHE"] = str(tmp_path_factory.mktemp("cache"))
-    from scenes import backend
+    from raster_oracle.scenes import backend
 
     return backend.select()
 
 
 @pytest.fixture(scope="session")
 def mi(_backend):
-    from scenes import backend
+    from raster_oracle.scenes import backend
 
     return backend.mitsuba()

@@ -22,8 +22,7 @@ import sys
 
 import numpy as np
 
-import raster_models
-import scenes
+from raster_oracle import raster_models, scenes
 
 #: Record keys left out of a digest: timings, and the provenance (package versions), which
 #: says how a result was made, not what it is.

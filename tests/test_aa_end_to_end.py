@@ -13,13 +13,13 @@ import json
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.reference.cache import ReferenceCache
+from raster_oracle.oracle.reference.exr import read_exr, write_exr
+from raster_oracle.oracle.reference.render import ReferenceSettings
+from raster_oracle.oracle.reference.store import get_reference
 
-import scenes
-from oracle.cli.app import main
-from oracle.reference.cache import ReferenceCache
-from oracle.reference.exr import read_exr, write_exr
-from oracle.reference.render import ReferenceSettings
-from oracle.reference.store import get_reference
+from raster_oracle import scenes
 
 SCENE = "star"
 W, H = 48, 27
@@ -177,7 +177,7 @@ def _inside(loaded, verts):
 
 
 def test_acaa_doubles_the_decal_and_rgba8_rounds_each_addition():
-    import raster_models
+    from raster_oracle import raster_models
 
     s = scenes.load("decal", width=80, height=45)
     msaa = raster_models.run("msaa", s, samples=8).outputs["color"].astype(np.float64)
@@ -207,7 +207,7 @@ def test_acaa_doubles_the_decal_and_rgba8_rounds_each_addition():
 
 
 def test_stripes_alias_to_one_colour_without_samples_and_centroid_msaa_recovers_the_mix():
-    import raster_models
+    from raster_oracle import raster_models
 
     s = scenes.load("stripes", width=48, height=27)
     ref, _ = _ref_rgb(s, ("color",))
@@ -230,7 +230,7 @@ def test_stripes_alias_to_one_colour_without_samples_and_centroid_msaa_recovers_
 
 
 def test_foliage_needs_more_than_two_aggregates():
-    import raster_models
+    from raster_oracle import raster_models
 
     s = scenes.load("foliage", width=80, height=45)
     ref, _ = _ref_rgb(s, ("color",))
@@ -249,7 +249,7 @@ def test_foliage_needs_more_than_two_aggregates():
 
 
 def test_hdr_edge_inverse_luminance_resolve_darkens_the_bright_edges():
-    import raster_models
+    from raster_oracle import raster_models
 
     s = scenes.load("hdr-edge", width=80, height=45)
     ref, ch = _ref_rgb(s)
@@ -265,7 +265,7 @@ def test_hdr_edge_inverse_luminance_resolve_darkens_the_bright_edges():
 
 
 def test_glossy_highlights_need_every_sample_shaded():
-    import raster_models
+    from raster_oracle import raster_models
 
     s = scenes.load("glossy", width=80, height=45)
     ref, ch = _ref_rgb(s)

@@ -12,11 +12,11 @@ import json
 
 import jinja2
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.studies import aa_memory
+from raster_oracle.raster_models.aa.agaa import model as agaa
 
-import scenes
-from oracle.cli.app import main
-from oracle.studies import aa_memory
-from raster_models.aa.agaa import model as agaa
+from raster_oracle import scenes
 
 PX_736 = 1280 * 736
 PX_1080 = 1920 * 1080
@@ -25,7 +25,7 @@ RGBA8 = D32 = 4
 
 @pytest.fixture(scope="module")
 def report():
-    from scenes import backend
+    from raster_oracle.scenes import backend
 
     backend.select()
     return aa_memory.memory_report()
@@ -134,8 +134,8 @@ def test_cli_refuses_an_output_under_a_file(tmp_path, capsys):
 
 
 def test_study_files_are_written_together_or_not_at_all(tmp_path, report):
-    from oracle.studies.output import write_study
-    from reports.sections import aa_memory_section, claims_section
+    from raster_oracle.oracle.studies.output import write_study
+    from raster_oracle.reports.sections import aa_memory_section, claims_section
 
     out = tmp_path / "mem"
     json_path, html_path = write_study(

@@ -9,17 +9,17 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.reference.cache import ReferenceCache
+from raster_oracle.oracle.reference.render import ReferenceSettings
+from raster_oracle.oracle.reference.store import get_reference
+from raster_oracle.oracle.scoring.score import COVERAGE_FLOOR_RMS
+from raster_oracle.raster_models.aa import resolve, samples
+from raster_oracle.scenes.builtin import BuiltinScene
+from raster_oracle.scenes.factories import mesh, sensor, sun
 
-import raster_models as rm
-import scenes
-from oracle.cli.app import main
-from oracle.reference.cache import ReferenceCache
-from oracle.reference.render import ReferenceSettings
-from oracle.reference.store import get_reference
-from oracle.scoring.score import COVERAGE_FLOOR_RMS
-from raster_models.aa import resolve, samples
-from scenes.builtin import BuiltinScene
-from scenes.factories import mesh, sensor, sun
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests._geometry import polygon_coverage
 
 W, H = 48, 27
@@ -124,8 +124,8 @@ def _squares(seed: int = 5):
 
 
 def _squares_scene(width, height):
-    from scenes import meshes
-    from scenes.aa_scenes import ortho_camera
+    from raster_oracle.scenes import meshes
+    from raster_oracle.scenes.aa_scenes import ortho_camera
 
     squares = meshes.merge([meshes.quad(q) for q in _squares()])
     return {
@@ -321,7 +321,7 @@ def test_model_writes_aa_channels(tmp_path):
     out = tmp_path / "m"
     args = ["model", "acaa", "decal", "--width", "32", "--height", "18", "--out", str(out)]
     assert main(args) == 0
-    from oracle.reference.exr import read_exr
+    from raster_oracle.oracle.reference.exr import read_exr
 
     ch = read_exr(out / "output.exr")
     assert {"color.R", "color.G", "color.B", "coverage", "shading_events", "ties"} <= set(ch)
@@ -382,7 +382,7 @@ def test_shadow_technique_option():
 def test_box_resolve_per_fragment_equals_per_sample(inverse_luminance):
     """MSAA's box resolve sums fragments (colour x samples owned); averaging the sample
     array gives the same image."""
-    from raster_models.aa import msaa
+    from raster_oracle.raster_models.aa import msaa
 
     s = scenes.load("thin", **SMALL)
     offs = samples.positions(8)

@@ -8,16 +8,16 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.reference.cache import ReferenceCache
+from raster_oracle.oracle.reference.render import ReferenceSettings
+from raster_oracle.oracle.reference.store import get_reference
+from raster_oracle.raster_models.aa import pixel_dr, samples, trace
+from raster_oracle.raster_models.aa.acaa.blend import rgba8_accumulate
+from raster_oracle.raster_models.aa.agaa.pixels import cluster_pixels
+from raster_oracle.scenes import backend
 
-import raster_models as rm
-import scenes
-from oracle.reference.cache import ReferenceCache
-from oracle.reference.render import ReferenceSettings
-from oracle.reference.store import get_reference
-from raster_models.aa import pixel_dr, samples, trace
-from raster_models.aa.acaa.blend import rgba8_accumulate
-from raster_models.aa.agaa.pixels import cluster_pixels
-from scenes import backend
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests.aa_reference import first_of_key, group_fragments
 
 W, H = 64, 36
@@ -253,7 +253,7 @@ def test_chunked_prepass_equals_one_launch(monkeypatch):
 def test_drjit_fragment_bookkeeping_matches_numpy(monkeypatch):
     """Fragment ids, representatives and sample counts from the Dr.Jit prepass (prefix sums
     across launches) equal the NumPy grouping of the same samples."""
-    from raster_models.aa.fragments import fragments_from_prepass
+    from raster_oracle.raster_models.aa.fragments import fragments_from_prepass
 
     monkeypatch.setattr(trace, "CHUNK", 8 * 333)
     s = scenes.load("thin", **SMALL)

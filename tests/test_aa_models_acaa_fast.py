@@ -10,15 +10,15 @@ import dataclasses
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models.aa import samples, trace
+from raster_oracle.raster_models.aa.acaa import blend, groups, ties
+from raster_oracle.raster_models.aa.acaa import model as acaa
+from raster_oracle.raster_models.aa.acaa import trace as acaa_trace
+from raster_oracle.scenes import backend
+from raster_oracle.scenes.raycast import shape_table
 
-import raster_models as rm
-import scenes
-from raster_models.aa import samples, trace
-from raster_models.aa.acaa import blend, groups, ties
-from raster_models.aa.acaa import model as acaa
-from raster_models.aa.acaa import trace as acaa_trace
-from scenes import backend
-from scenes.raycast import shape_table
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests.aa_reference import group_fragments
 
 SMALL = {"width": 64, "height": 36}
@@ -305,8 +305,8 @@ def test_grid_margin_covers_radii_wider_than_cells():
 def test_all_sky_frame_has_no_fragment_and_no_error(technique, params):
     """A frame that sees only sky (the camera looks straight up over the star scene): every
     launch of the fused paths is empty; coverage, colour and shading events are 0."""
-    from oracle.studies.extremes.cases import EXTREMES
-    from oracle.studies.extremes.run import load_extreme
+    from raster_oracle.oracle.studies.extremes.cases import EXTREMES
+    from raster_oracle.oracle.studies.extremes.run import load_extreme
 
     scene = load_extreme(EXTREMES["all_sky"], base="star", **SMALL)
     out = rm.run(technique, scene, samples=4, **params).outputs

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models.aa.acaa import groups
+from raster_oracle.raster_models.aa.acaa import model as acaa
 
-import raster_models as rm
-import scenes
-from raster_models.aa.acaa import groups
-from raster_models.aa.acaa import model as acaa
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 SMALL = {"width": 64, "height": 36}
 
@@ -85,7 +85,7 @@ def test_box_resolve_fast_path_equals_the_weighted_sum(n, planar):
     """The unit-weight box resolve (a float64 reduction over the sample axis, on interleaved
     or planar colours) gives the bytes of the weighted einsum form it replaces, on colours
     spanning 60 binades (where float64 sums of float32 values could round)."""
-    from raster_models.aa import resolve
+    from raster_oracle.raster_models.aa import resolve
 
     rng = np.random.default_rng(n)
     h, w = 7, 5

@@ -15,12 +15,12 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle.scenes import aa_scenes, raycast
+from raster_oracle.scenes.builtin import BUILTIN_SCENES, DEFAULT_SCENES
+from raster_oracle.scenes.shading import Specular
 
-import scenes
-from oracle.reference.render import ReferenceSettings, render_reference
-from scenes import aa_scenes, raycast
-from scenes.builtin import BUILTIN_SCENES, DEFAULT_SCENES
-from scenes.shading import Specular
+from raster_oracle import scenes
 
 AA_NAMES = ("decal", "stripes", "glossy", "foliage", "hdr-edge")
 
@@ -284,7 +284,7 @@ def test_hdr_edge_dynamic_range_exceeds_100_to_1():
 def test_export_writes_the_specular_lobe(tmp_path):
     import json
 
-    from scenes.export import export
+    from raster_oracle.scenes.export import export
 
     s = scenes.load("decal", width=48, height=27)
     export(s, tmp_path / "plain")

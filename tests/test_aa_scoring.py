@@ -14,16 +14,21 @@ import json
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.cache import ReferenceCache
+from raster_oracle.oracle.reference.exr import read_exr, write_exr
+from raster_oracle.oracle.reference.render import ReferenceSettings
+from raster_oracle.oracle.reference.store import get_reference
+from raster_oracle.oracle.scoring.score import (
+    COVERAGE_FLOOR_RMS,
+    COVERAGE_KEYS,
+    METRIC_KEYS,
+    coverage_metrics,
+)
+from raster_oracle.raster_models import params, registry
+from raster_oracle.raster_models.result import ModelResult
 
-import raster_models
-from oracle.cli import main
-from oracle.reference.cache import ReferenceCache
-from oracle.reference.exr import read_exr, write_exr
-from oracle.reference.render import ReferenceSettings
-from oracle.reference.store import get_reference
-from oracle.scoring.score import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, METRIC_KEYS, coverage_metrics
-from raster_models import params, registry
-from raster_models.result import ModelResult
+from raster_oracle import raster_models
 
 SCENE = "star"  # spokes against the sky: fractional coverage on hundreds of pixels
 W, H = 48, 27
@@ -171,7 +176,7 @@ def test_binary_coverage_errors_match_hand_computation(tmp_path, fake_aa):
     )
     assert rc == 0
     m = json.loads((out / "metrics.json").read_text())
-    import scenes
+    from raster_oracle import scenes
 
     ref = _reference(scenes.load(SCENE, width=W, height=H), ("coverage", "edge", "id"))
     cov = ref["coverage"].astype(np.float64)
@@ -205,7 +210,7 @@ def test_frames_on_subpixel_pan_add_flicker(tmp_path, fake_aa):
 
 
 def test_engine_coverage_mask(tmp_path):
-    import scenes
+    from raster_oracle import scenes
 
     ref = _reference(scenes.load(SCENE, width=W, height=H), ("coverage", "edge", "id"))
     write_exr(tmp_path / "mask.exr", {"coverage": ref["coverage"]})
@@ -223,7 +228,9 @@ def test_engine_coverage_mask(tmp_path):
         tmp_path, "--candidate", str(tmp_path / "mask1.exr"), "--channel", "coverage", out="s1"
     )
     assert rc == 0
-    assert json.loads((out1 / "metrics.json").read_text())["coverage_edge_rmse"] > 0.05
+    assert (
+        json.loads((out1 / "metrics.json").read_text())["coverage_edge_rmse"] > 0.05
+    )
     # the same 0/1 mask as an 8-bit grey PNG (data, not sRGB-decoded) scores the same
     from PIL import Image
 

@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.scenes import meshes
+from raster_oracle.scenes.builtin import BuiltinScene
+from raster_oracle.scenes.factories import mesh, sensor, sun
 
-import raster_models as rm
-import scenes
-from scenes import meshes
-from scenes.builtin import BuiltinScene
-from scenes.factories import mesh, sensor, sun
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 
 def _tilted_wall(width: int, height: int, *, degrees: float, offset_x: float) -> dict:

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models.aa import samples, trace
+from raster_oracle.raster_models.aa.agaa import kernels, pixels
+from raster_oracle.scenes import backend
+from raster_oracle.scenes.raycast import shape_table
 
-import raster_models as rm
-import scenes
-from raster_models.aa import samples, trace
-from raster_models.aa.agaa import kernels, pixels
-from scenes import backend
-from scenes.raycast import shape_table
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests.aa_reference import agaa_colors, cluster, first_of_key, quantize_normals
 
 SMALL = {"width": 64, "height": 36}
@@ -178,7 +178,7 @@ def test_pixel_lanes_follow_the_numpy_rules(name, n, fmt, k):
 def test_stored_normals_match_numpy(fmt):
     """:func:`raster_models.aa.pixel_dr.store_normal` equals the NumPy storage rule within
     :data:`NORMAL_TOL`."""
-    from raster_models.aa.pixel_dr import store_normal
+    from raster_oracle.raster_models.aa.pixel_dr import store_normal
 
     mi = backend.mitsuba()
     import drjit as dr

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import pytest
-
-from scenes import backend
+from raster_oracle.scenes import backend
 
 
 def _touch(folder, *names):
@@ -85,10 +84,10 @@ def test_doctor_exits_2_with_install_hint_without_a_vectorized_backend(tmp_path)
     import sys
 
     code = (
-        "import sys; from scenes import backend\n"
+        "import sys; from raster_oracle.scenes import backend\n"
         "backend.DEFAULT_LIBRARY_DIRS = ()\n"
         "backend.cuda_works = lambda: False\n"
-        "from oracle.cli.app import main\n"
+        "from raster_oracle.oracle.cli.app import main\n"
         "sys.exit(main(['--backend', 'scalar_rgb', 'doctor']))\n"
     )
     env = {k: v for k, v in __import__("os").environ.items() if k != "DRJIT_LIBLLVM_PATH"}
@@ -105,7 +104,7 @@ def test_auto_without_llvm_falls_back_to_scalar_with_warning():
     import sys
 
     code = (
-        "import warnings, sys; from scenes import backend\n"
+        "import warnings, sys; from raster_oracle.scenes import backend\n"
         "backend.DEFAULT_LIBRARY_DIRS = ()\n"
         "backend.cuda_works = lambda: False\n"
         "with warnings.catch_warnings(record=True) as w:\n"

@@ -14,10 +14,9 @@ import tempfile
 
 import numpy as np
 import pytest
-
-from oracle.cli import main
-from oracle.cli.args import MAX_SPP, CliError
-from oracle.reference.exr import write_exr
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.cli.args import MAX_SPP, CliError
+from raster_oracle.oracle.reference.exr import write_exr
 
 SMALL = ["--width", "16", "--height", "12", "--quiet", "--no-cache"]
 
@@ -197,7 +196,7 @@ def test_runtime_warnings_do_not_add_stderr_lines(monkeypatch, capfd):
     """NumPy RuntimeWarnings raised on the way to an error are not printed."""
     import warnings
 
-    from oracle.cli import app
+    from raster_oracle.oracle.cli import app
 
     def noisy(args):
         np.log(np.zeros(1))  # a genuine NumPy "divide by zero" RuntimeWarning
@@ -212,7 +211,7 @@ def test_runtime_warnings_do_not_add_stderr_lines(monkeypatch, capfd):
 
 
 def _store(path):
-    from oracle.sweeps.store import SweepStore
+    from raster_oracle.oracle.sweeps.store import SweepStore
 
     SweepStore(path).close()
     return path

@@ -12,10 +12,10 @@ import tempfile
 import time
 
 import pytest
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference import cache as cache_mod
 
-import scenes
-from oracle.cli import main
-from oracle.reference import cache as cache_mod
+from raster_oracle import scenes
 
 SMALL = ["--width", "8", "--height", "6", "--spp", "1", "--quiet"]
 
@@ -138,8 +138,8 @@ def test_no_cache_and_failed_runs_leave_no_scratch_folder(tmp_path, monkeypatch)
     assert (tmp_path / "a" / "reference.exr").is_file()
     assert list(scratch.iterdir()) == []
 
-    from oracle.reference import store as pipeline
-    from oracle.reference.exr import ExrError
+    from raster_oracle.oracle.reference import store as pipeline
+    from raster_oracle.oracle.reference.exr import ExrError
 
     def broken(*a, **k):
         raise ExrError("disk full (simulated)")
@@ -177,7 +177,7 @@ def test_sigterm_during_a_render_leaves_no_scratch_folder(tmp_path):
     env = dict(os.environ, TMPDIR=str(scratch))
     argv = ["reference", "plate", "--no-cache", "--spp", "65536", "--width", "64"]
     argv += ["--height", "64", "--quiet", "--out", str(tmp_path / "o")]
-    proc = subprocess.Popen([sys.executable, "-m", "oracle.cli", *argv], env=env)
+    proc = subprocess.Popen([sys.executable, "-m", "raster_oracle.oracle.cli", *argv], env=env)
     try:
         deadline = time.monotonic() + 120
         while not list(scratch.iterdir()) and time.monotonic() < deadline:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raster_oracle.scenes.factories import look_at
 
-import scenes
-from scenes.factories import look_at
+from raster_oracle import scenes
 
 # float32 rays from Mitsuba against float64 ones: agreement to ~1e-6 relative
 RAY_TOL = 2e-5

@@ -7,10 +7,9 @@ import numpy as np
 import OpenEXR
 import pytest
 from PIL import Image
-
-from metrics import srgb_decode
-from oracle.reference.exr import write_exr
-from oracle.scoring.candidates import CandidateError, load_candidate
+from raster_oracle.metrics import srgb_decode
+from raster_oracle.oracle.reference.exr import write_exr
+from raster_oracle.oracle.scoring.candidates import CandidateError, load_candidate
 
 H, W = 6, 10
 # 8-bit PNG values decoded in float32: exact up to float32 rounding of the sRGB curve.
@@ -136,7 +135,7 @@ def test_png_16bit_grey(tmp_path):
 
 
 def test_png_16bit_colour_keeps_16_bits(tmp_path):
-    from metrics.tonemap import srgb_decode
+    from raster_oracle.metrics.tonemap import srgb_decode
 
     rng = np.random.default_rng(4)
     values = rng.integers(0, 65536, (H, W, 3))

@@ -9,12 +9,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.studies.claims import run as C
+from raster_oracle.reports.formatting import fmt_summary
+from raster_oracle.reports.sections import claims_section, render_section
 
-import raster_models
-from oracle.cli.app import main
-from oracle.studies.claims import run as C
-from reports.formatting import fmt_summary
-from reports.sections import claims_section, render_section
+from raster_oracle import raster_models
 
 #: Copies of the project's seed documents and TECHNIQUES.md (``../shared/`` is not part of a
 #: clone, so CI could not read them there).

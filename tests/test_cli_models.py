@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 
 import pytest
-
-from oracle.cli import main
-from oracle.reference.exr import read_exr
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.exr import read_exr
 
 SIZE = ["--width", "64", "--height", "36"]
 

@@ -8,9 +8,8 @@ import sys
 
 import numpy as np
 import pytest
-
-from oracle.cli import main
-from oracle.reference.exr import read_exr
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.exr import read_exr
 
 SMALL = ["--width", "48", "--height", "27", "--quiet"]
 
@@ -152,7 +151,15 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, cap
 
 def test_real_process_exit_code_and_no_traceback(tmp_path):
     res = subprocess.run(
-        [sys.executable, "-m", "oracle.cli", "reference", "nope", "--out", str(tmp_path / "o")],
+        [
+            sys.executable,
+            "-m",
+            "raster_oracle.oracle.cli",
+            "reference",
+            "nope",
+            "--out",
+            str(tmp_path / "o"),
+        ],
         capture_output=True,
         text=True,
         timeout=120,

@@ -10,15 +10,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.raster_models.coherent.directions import Projections, map_directions, uv
+from raster_oracle.raster_models.coherent.hilbert import hilbert_cell, hilbert_index
+from raster_oracle.raster_models.coherent.model import ORDERINGS
+from raster_oracle.raster_models.coherent.surfaces import surfaces
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
 
-import raster_models as rm
-import scenes
-from oracle.cli.app import main
-from raster_models.coherent.directions import Projections, map_directions, uv
-from raster_models.coherent.hilbert import hilbert_cell, hilbert_index
-from raster_models.coherent.model import ORDERINGS
-from raster_models.coherent.surfaces import surfaces
-from raster_models.gbuffer import trace_gbuffer
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests._coherent_reference import compress_runs, visibility_intervals
 
 W, H = 96, 54

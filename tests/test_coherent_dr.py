@@ -8,25 +8,25 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import scenes
-from raster_models.coherent import surfaces
-from raster_models.coherent.directions import Projections, map_directions, uv
-from raster_models.coherent.kernels import (
+from raster_oracle.raster_models.coherent import surfaces
+from raster_oracle.raster_models.coherent.directions import Projections, map_directions, uv
+from raster_oracle.raster_models.coherent.kernels import (
     MAX_CAPTURED,
     below_f32,
     intervals,
     launch_compression,
 )
-from raster_models.coherent.rays import ray_table
-from raster_models.coherent.shading import (
+from raster_oracle.raster_models.coherent.rays import ray_table
+from raster_oracle.raster_models.coherent.shading import (
     DIRECTIONAL_ROWS,
     direction_error,
     lookup,
     travel,
 )
-from raster_models.coherent.surfaces import SPREAD_GUARD, render_intervals
-from scenes import backend
+from raster_oracle.raster_models.coherent.surfaces import SPREAD_GUARD, render_intervals
+from raster_oracle.scenes import backend
+
+from raster_oracle import scenes
 from tests._coherent_reference import below, compress_runs, visibility_intervals
 
 #: Largest |stacked - one-map| value of a ray description, relative to the largest
@@ -173,7 +173,7 @@ def test_drjit_decoded_rows_equal_the_numpy_reference(mi, n_rows):
 def test_directional_lookup_is_the_full_evaluation():
     """A directional light's lookup, evaluated on a slice and broadcast, has the bytes of
     the evaluation over every receiver (map ids and direction errors)."""
-    from raster_models.gbuffer import trace_gbuffer
+    from raster_oracle.raster_models.gbuffer import trace_gbuffer
 
     s = scenes.load("city", width=160, height=90)
     assert s.light.kind == "directional"

@@ -6,9 +6,8 @@ import json
 
 import numpy as np
 import pytest
-
-from oracle.cli.app import main
-from oracle.studies.converge import (
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.studies.converge import (
     JITTER_EDGE_SLOPE,
     ConvergeError,
     fit_power_law,
@@ -16,7 +15,7 @@ from oracle.studies.converge import (
     spp_for_target,
     spp_ladder,
 )
-from reports.sections import converge_section, render_section
+from raster_oracle.reports.sections import converge_section, render_section
 
 #: Slope tolerance: the fit spans 4..256 spp on ~300 edge pixels of a 96x54 plate; its spread
 #: over seeds 0..3 is about +-0.03, so 0.1 still separates -0.75 (jittered samples at edges)

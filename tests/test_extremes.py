@@ -8,11 +8,11 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.studies.extremes import run as X
+from raster_oracle.reports.sections import extremes_section, render_section
 
-import raster_models
-from oracle.cli.app import main
-from oracle.studies.extremes import run as X
-from reports.sections import extremes_section, render_section
+from raster_oracle import raster_models
 
 #: Huge-map size of the test matrix: 1024^2 keeps the module under half a minute on 2 cores
 #: (the main job's quick mode runs 4096^2, the CLI's default 16384^2).
@@ -90,13 +90,13 @@ def test_documented_failures_show(matrix):
 def _raw(name, w=32, h=18):
     import copy
 
-    from scenes.builtin import BUILTIN_SCENES
+    from raster_oracle.scenes.builtin import BUILTIN_SCENES
 
     return X.EXTREMES[name].transform(copy.deepcopy(BUILTIN_SCENES["plate"].factory(w, h)), w, h)
 
 
 def test_transformations_closed_form():
-    from scenes.builtin import BUILTIN_SCENES
+    from raster_oracle.scenes.builtin import BUILTIN_SCENES
 
     base = BUILTIN_SCENES["plate"].factory(32, 18)
     far = _raw("far_1e5")
@@ -173,7 +173,7 @@ def test_cli_bad_huge(tmp_path, capsys):
 
 def test_cached_references_give_the_same_cells(tmp_path):
     """The main job passes its reference cache: a second run reads the references back."""
-    from oracle.reference.cache import ReferenceCache
+    from raster_oracle.oracle.reference.cache import ReferenceCache
 
     cache = ReferenceCache(tmp_path / "cache")
     kw = {"quick": True, "extremes": ["far_1e5"], "techniques": ["shadow-map", "msaa"]}

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from raster_models.aa.fxaa_filter import FXAA_PRESETS, fxaa, fxaa_luma
-from raster_models.errors import ModelError
+from raster_oracle.raster_models.aa.fxaa_filter import FXAA_PRESETS, fxaa, fxaa_luma
+from raster_oracle.raster_models.errors import ModelError
 
 #: float32 arithmetic in the port against exact fractions in the derivations.
 TOL = 1e-5

@@ -8,19 +8,19 @@ import json
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.reference.exr import read_exr
+from raster_oracle.oracle.reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
+from raster_oracle.raster_models.izb import geometry, kernel, lists
+from raster_oracle.raster_models.izb import model as izb
+from raster_oracle.raster_models.izb.kernel import DeadPairs, PairTester
+from raster_oracle.raster_models.izb.lists import Joins, build_lists, late_pairs
+from raster_oracle.scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
 from test_models_xml import box, ground, quad, write_scene
 
-import raster_models as rm
-import scenes
-from oracle.cli.app import main
-from oracle.reference.exr import read_exr
-from oracle.reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
-from raster_models.gbuffer import trace_gbuffer
-from raster_models.izb import geometry, kernel, lists
-from raster_models.izb import model as izb
-from raster_models.izb.kernel import DeadPairs, PairTester
-from raster_models.izb.lists import Joins, build_lists, late_pairs
-from scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests._izb_reference import PAIR_TOLERANCE, join, pair_tests
 
 SMALL = {"width": 160, "height": 90}
@@ -83,7 +83,7 @@ def test_point_table_is_a_32_rooks_net():
 
 
 def test_conservative_rasterization_hand_count():
-    from raster_models.izb.geometry import conservative_fragments
+    from raster_oracle.raster_models.izb.geometry import conservative_fragments
 
     # x >= 0.5, y >= 0.5, x + y <= 5: texel (i, j) touches it when max(i, .5) + max(j, .5)
     # <= 5 (the hypotenuse passes through the corners (4, 1) and (1, 4)): 5+5+4+3+2 = 19.
@@ -118,7 +118,7 @@ def test_conservative_rasterization_covers_every_interior_point(monkeypatch):
 
 
 def test_shadow_volume_equals_ray_triangle_intersection():
-    from raster_models.izb.geometry import shadow_volumes
+    from raster_oracle.raster_models.izb.geometry import shadow_volumes
 
     rng = np.random.default_rng(5)
     d = np.array([0.3, -1.0, 0.2])
@@ -423,7 +423,7 @@ PAIR_EPSILON = 0.05
 def _random_pairs(rng, n_tri=64, n_recv=3000, n_pairs=1 << 16):
     """Shadow volumes of random triangles over random receivers (points, derivatives)
     around them, and random (triangle, receiver) pairs: every class of pair occurs."""
-    from raster_models.izb.geometry import shadow_volumes
+    from raster_oracle.raster_models.izb.geometry import shadow_volumes
 
     tris = rng.uniform(-1.0, 1.0, (n_tri, 3, 3)) + [0.0, 2.0, 0.0]
     keep, planes = shadow_volumes(tris, (0.3, -1.0, 0.1), PAIR_EPSILON)

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models.izb import build
+from raster_oracle.raster_models.izb.build import Ortho32Build, grid, texel
+from raster_oracle.raster_models.izb.lists import build_lists
+from raster_oracle.scenes.tangent32 import tangent_offsets
 
-import raster_models as rm
-import scenes
-from raster_models.izb import build
-from raster_models.izb.build import Ortho32Build, grid, texel
-from raster_models.izb.lists import build_lists
-from scenes.tangent32 import tangent_offsets
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests._izb_reference import (
     BUILD_TOLERANCE,
     one_texel,

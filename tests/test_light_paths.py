@@ -9,18 +9,18 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-import raster_models as rm
-import scenes
-from oracle.cli import main
-from oracle.reference.cache import reference_key
-from oracle.reference.render import ReferenceSettings, render_reference
-from scenes.light_paths import (
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.cache import reference_key
+from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle.scenes.light_paths import (
     POINT_RADIUS_FRACTION,
     POINT_STEP_DEG,
     SUN_STEP_DEG,
     path_light,
 )
+
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 W, H = 48, 27
 SMALL = ["--width", str(W), "--height", str(H), "--quiet", "--no-cache", "--spp", "4"]

@@ -6,12 +6,12 @@ from __future__ import annotations
 import json
 
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.sweeps import mainjob
+from raster_oracle.oracle.sweeps.spec import expand_spec
+from raster_oracle.oracle.sweeps.store import SweepStore
 
-import raster_models
-from oracle.cli.app import main
-from oracle.sweeps import mainjob
-from oracle.sweeps.spec import expand_spec
-from oracle.sweeps.store import SweepStore
+from raster_oracle import raster_models
 
 #: Small enough for the shared test machine: 64x36 at 4 spp, in this process.
 SMALL = ["--spp", "4", "--width", "64", "--height", "36", "--workers", "0", "--quiet"]

@@ -5,8 +5,7 @@ import math
 
 import numpy as np
 import pytest
-
-from metrics import (
+from raster_oracle.metrics import (
     MetricError,
     coverage_error,
     edge_interior_error,

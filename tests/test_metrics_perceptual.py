@@ -5,9 +5,7 @@ import math
 import flip_evaluator
 import numpy as np
 import pytest
-from skimage.metrics import peak_signal_noise_ratio, structural_similarity
-
-from metrics import (
+from raster_oracle.metrics import (
     DEFAULT_PPD,
     MetricError,
     delta_e2000,
@@ -19,6 +17,7 @@ from metrics import (
     ssim,
     tonemap,
 )
+from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 # Our wrapper and a direct flip_evaluator call run the same code on the same float32
 # arrays; means agree to float32 summation order.

@@ -7,8 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-
-from metrics import SHADOW_KEYS, MetricError, shadow_edges, shadow_metrics
+from raster_oracle.metrics import SHADOW_KEYS, MetricError, shadow_edges, shadow_metrics
 
 # Fractions are ratios of integer counts; a sum of two such ratios may differ from the
 # ratio of the summed counts by an ulp.

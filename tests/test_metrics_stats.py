@@ -5,9 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.metrics import MetricError, noise_floor, shadow_metrics, z_test
 from scipy import stats as sps
-
-from metrics import MetricError, noise_floor, shadow_metrics, z_test
 
 SHAPE = (64, 64, 3)
 SIGMA = 0.05

@@ -5,8 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-
-from metrics import MetricError, flicker, temporal_error
+from raster_oracle.metrics import MetricError, flicker, temporal_error
 
 # Adding a constant to float64 values of magnitude <= 1e3 changes differences by rounding
 # only: a few ulps of 1e3.

@@ -4,9 +4,14 @@ import math
 
 import numpy as np
 import pytest
-
-from metrics import MetricError, exposure_from_reference, luminance, srgb_decode, srgb_encode
-from metrics import tonemap as tonemap_fn
+from raster_oracle.metrics import (
+    MetricError,
+    exposure_from_reference,
+    luminance,
+    srgb_decode,
+    srgb_encode,
+)
+from raster_oracle.metrics import tonemap as tonemap_fn
 
 # float32 round trip of the sRGB curve: a few ulps of values in [0, 1].
 SRGB_ROUNDTRIP_ATOL = 1e-6

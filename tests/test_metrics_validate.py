@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
+from raster_oracle.metrics import MetricError
+from raster_oracle.metrics.validate import check_images
 
-import metrics
-from metrics import MetricError
-from metrics.validate import check_images
+from raster_oracle import metrics
 
 H, W = 16, 16
 REC = np.ones((H, W), bool)

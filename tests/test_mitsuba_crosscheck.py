@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from scipy.special import erfc
 
-import scenes
-from oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle import scenes
 
 ALPHA = 0.01
 PASS_RATE = 0.9975

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-import raster_models as rm
-import scenes
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 #: Small but real: every test scene is shaded at 64x36 with 128^2 maps.
 SMALL = {"width": 64, "height": 36}
@@ -172,7 +172,7 @@ def test_result_contract(plate, technique):
 def test_sky_is_lit_and_back_faces_are_dark():
     s = scenes.load("star", **SMALL)
     r = rm.run("csm", s, resolution=SMALL_MAP)
-    from raster_models.gbuffer import trace_gbuffer
+    from raster_oracle.raster_models.gbuffer import trace_gbuffer
 
     g = trace_gbuffer(s)
     vis = r.outputs["visibility"].ravel()
@@ -229,8 +229,8 @@ VISIBILITY_AT_MISMATCH_MAX = 0.01
 
 @pytest.mark.parametrize(("scene_name", "technique"), [("city", "csm"), ("spot", "shadow-map")])
 def test_visibility_at_pixel_centres_is_the_models_visibility(scene_name, technique):
-    from raster_models.gbuffer import trace_gbuffer
-    from raster_models.shadowmaps import visibility_at
+    from raster_oracle.raster_models.gbuffer import trace_gbuffer
+    from raster_oracle.raster_models.shadowmaps import visibility_at
 
     scene = scenes.load(scene_name, **SMALL)
     g = trace_gbuffer(scene)
@@ -251,7 +251,7 @@ def test_visibility_at_pixel_centres_is_the_models_visibility(scene_name, techni
 
 
 def test_visibility_at_refuses_unknown_techniques_and_lights():
-    from raster_models.shadowmaps import supported_lights, visibility_at
+    from raster_oracle.raster_models.shadowmaps import supported_lights, visibility_at
 
     spot = scenes.load("spot", **SMALL)
     pts = {

@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 from test_models_xml import write_scene
 
-import raster_models as rm
-import scenes
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 NEAR, FAR = 1.0, 100.0
 TAN_X = 0.1

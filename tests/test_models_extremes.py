@@ -11,11 +11,11 @@ from itertools import pairwise
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
 from test_models_xml import box, ground, quad, write_scene
 
-import raster_models as rm
-import scenes
-from raster_models.gbuffer import trace_gbuffer
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 TECHNIQUES = ("shadow-map", "csm", "sdsm")
 MAP = 512

@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models import depth, splits
+from raster_oracle.raster_models.light_frame import Projection, make_frame
+from raster_oracle.raster_models.shadowmaps import depth_dr, filters
 
-from raster_models import depth, splits
-from raster_models.light_frame import Projection, make_frame
-from raster_models.shadowmaps import depth_dr, filters
 from tests._shadow_reference import projection_derivative
 
 RNG = np.random.default_rng(1234)

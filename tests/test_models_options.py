@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.raster_models import params
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
+from raster_oracle.raster_models.shadowmaps import csm, sdsm, shadow_map
+from raster_oracle.raster_models.shadowmaps.render import render_maps
 
-import raster_models as rm
-import scenes
-from raster_models import params
-from raster_models.gbuffer import trace_gbuffer
-from raster_models.shadowmaps import csm, sdsm, shadow_map
-from raster_models.shadowmaps.render import render_maps
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 SIZE = {"width": 96, "height": 54}
 GOOD_BIAS = {"bias": 0.0005, "normal_offset": 1.5}
@@ -93,7 +93,7 @@ def test_hardware_slope_scaled_bias_pushes_tilted_casters_back():
 def test_maps_rendered_in_launches_equal_one_launch(monkeypatch, scene_name):
     """Launches of 1000 texels (not dividing the map) give the same map bytes and moments as
     one launch: per-launch slopes use the launch's texel offset (ortho and perspective)."""
-    from raster_models.shadowmaps import raycast
+    from raster_oracle.raster_models.shadowmaps import raycast
 
     s = scenes.load(scene_name, **SIZE)
     values = {"resolution": 96, "slope_scaled_bias": 1.0, "depth_bias": 100, "format": "D24"}

@@ -12,15 +12,15 @@ from itertools import pairwise
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle.raster_models import params
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
+from raster_oracle.raster_models.shadowmaps import csm
+from raster_oracle.raster_models.shadowmaps.render import render_maps
+from raster_oracle.raster_models.shadowmaps.shade import shade
 
-import raster_models as rm
-import scenes
-from oracle.reference.render import ReferenceSettings, render_reference
-from raster_models import params
-from raster_models.gbuffer import trace_gbuffer
-from raster_models.shadowmaps import csm
-from raster_models.shadowmaps.render import render_maps
-from raster_models.shadowmaps.shade import shade
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 
 W, H = 160, 90
 #: A small constant bias plus a normal offset: no acne at any resolution tested, so the

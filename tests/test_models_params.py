@@ -7,13 +7,13 @@ import re
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.raster_models import params
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
+from raster_oracle.raster_models.shadowmaps import csm, filters, geometry, sdsm, shade, shadow_map
 
-import raster_models as rm
-import scenes
-from oracle.cli.app import main
-from raster_models import params
-from raster_models.gbuffer import trace_gbuffer
-from raster_models.shadowmaps import csm, filters, geometry, sdsm, shade, shadow_map
+from raster_oracle import raster_models as rm
+from raster_oracle import scenes
 from tests._shadow_reference import projection_derivative
 
 #: False-lit fraction of receivers allowed for the default spot/point configuration at
@@ -88,7 +88,7 @@ def test_perspective_bias_is_linear_in_light_depth():
     r = rm.run("shadow-map", scene, resolution=256, filter="point")
     proj_rec = r.diagnostics["partitions"][0]["projection"]
     near, far = proj_rec["near"], proj_rec["far"]
-    from raster_models.light_frame import Projection, make_frame
+    from raster_oracle.raster_models.light_frame import Projection, make_frame
 
     p = rm.TECHNIQUES["shadow-map"].params()
     frame = make_frame(scene.light.direction, [("y", (0.0, 1.0, 0.0))])

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-import scenes
+from raster_oracle import scenes
 
 
 def _vec(v) -> str:

@@ -8,12 +8,12 @@ import math
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.reference import render as R
+from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle.scenes import backend
 
-import metrics as M
-import scenes
-from oracle.reference import render as R
-from oracle.reference.render import ReferenceSettings, render_reference
-from scenes import backend
+from raster_oracle import metrics as M
+from raster_oracle import scenes
 
 CHANNELS = ("visibility", "coverage")
 
@@ -166,7 +166,7 @@ def test_a_small_kerb_keeps_its_shadow_far_from_the_origin(tmp_path, offset):
 
 
 def test_spot_receivers_are_inside_the_cone():
-    from oracle.scoring.score import reference_receivers
+    from raster_oracle.oracle.scoring.score import reference_receivers
 
     scene = scenes.load("spot", width=80, height=45)
     ch, _ = render_reference(
@@ -195,7 +195,7 @@ def test_exposure_ignores_black_sky_and_shadow():
 def _convex_shapes_scene(width, height):
     """A cylinder (open tube) and a sphere in the sky under a sun: closed form, nothing can
     shadow the outer light-facing side of either."""
-    from scenes.factories import sensor, sun
+    from raster_oracle.scenes.factories import sensor, sun
 
     return {
         "type": "scene",
@@ -222,8 +222,8 @@ def _convex_shapes_scene(width, height):
 def test_lit_side_of_convex_analytic_shapes_is_never_self_shadowed():
     """The cylinder's own intersection error exceeds the ray offset (30 % of its lit side read
     as shadowed before the self-hit skip); the outward lit side must be lit everywhere."""
-    from scenes.builtin import BuiltinScene
-    from scenes.raycast import camera_rays_dr, trace_film_dr
+    from raster_oracle.scenes.builtin import BuiltinScene
+    from raster_oracle.scenes.raycast import camera_rays_dr, trace_film_dr
 
     mi = backend.mitsuba()
     import drjit as dr

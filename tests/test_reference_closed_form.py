@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 
-import scenes
-from oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle import scenes
 from tests._geometry import polygon_coverage
 
 # A jittered 8x8 grid estimates a straight edge's area with an error of a few cells at worst:

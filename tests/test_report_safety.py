@@ -9,9 +9,9 @@ import re
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
 
-import reports
-from oracle.cli.app import main
+from raster_oracle import reports
 
 H, W = 12, 16
 

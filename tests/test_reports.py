@@ -11,10 +11,10 @@ import re
 import numpy as np
 import pytest
 from PIL import Image
+from raster_oracle.reports import formatting, images, stats, svg
+from raster_oracle.reports.formatting import json_script
 
-import reports
-from reports import formatting, images, stats, svg
-from reports.formatting import json_script
+from raster_oracle import reports
 
 # Heights/widths of the small synthetic images; tile-aligned planted errors sit at multiples
 # of the 32 px tile.

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import reports
+from raster_oracle import reports
 
 pytestmark = pytest.mark.browser
 

@@ -6,12 +6,12 @@ import json
 
 import numpy as np
 import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.oracle.reference.exr import read_exr
+from raster_oracle.oracle.reference.render import ReferenceSettings, grid_shape, render_reference
+from raster_oracle.scenes import raycast
 
-import scenes
-from oracle.cli.app import main
-from oracle.reference.exr import read_exr
-from oracle.reference.render import ReferenceSettings, grid_shape, render_reference
-from scenes import raycast
+from raster_oracle import scenes
 
 
 @pytest.mark.parametrize("name", scenes.scene_names())

@@ -6,10 +6,9 @@ import json
 
 import numpy as np
 import pytest
-
-from oracle.cli import main
-from oracle.reference.exr import read_exr, write_exr
-from oracle.scoring.score import METRIC_KEYS
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.exr import read_exr, write_exr
+from raster_oracle.oracle.scoring.score import METRIC_KEYS
 
 SIZE = ["--width", "48", "--height", "27"]
 REQUIRED = (
@@ -141,7 +140,9 @@ def test_fail_above_exit_codes(tmp_path, refs):
         out="fail",
     )
     assert rc == 1
-    assert json.loads((out / "metrics.json").read_text())["failed"] == ["visibility_mae"]
+    assert json.loads((out / "metrics.json").read_text())["failed"] == [
+        "visibility_mae"
+    ]
     rc, _ = _score(
         tmp_path,
         tmp_path / "v.exr",

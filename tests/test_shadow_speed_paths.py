@@ -7,12 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import scenes
-from raster_models import depth, gbuffer, params
-from raster_models.gbuffer import trace_gbuffer
-from raster_models.light_frame import make_frame
-from raster_models.shadowmaps import (
+from raster_oracle.raster_models import depth, gbuffer, params
+from raster_oracle.raster_models.gbuffer import trace_gbuffer
+from raster_oracle.raster_models.light_frame import make_frame
+from raster_oracle.raster_models.shadowmaps import (
     csm,
     depth_dr,
     filters,
@@ -22,6 +20,8 @@ from raster_models.shadowmaps import (
     sdsm,
     shadow_map,
 )
+
+from raster_oracle import scenes
 
 RNG = np.random.default_rng(20261123)
 
@@ -221,7 +221,7 @@ def test_drjit_geometry_launches_and_gathers(monkeypatch, scene_name, technique,
     """The Dr.Jit shading geometry gathers the G-buffer in the kernel: several launches
     (scattered into NumPy arrays) give the bytes of one launch (views), and fresh G-buffer
     columns read a changed G-buffer field."""
-    import raster_models as rm
+    from raster_oracle import raster_models as rm
 
     loaded = scenes.load(scene_name, width=96, height=54)
     outs = []

@@ -14,14 +14,14 @@ import time
 from pathlib import Path
 
 import pytest
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.sweeps.run import WorkerCache, run_sweep, sweep_keys
+from raster_oracle.oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
+from raster_oracle.oracle.sweeps.store import SweepStore
+from raster_oracle.raster_models import params, registry
+from raster_oracle.raster_models.shadowmaps import shadow_map
 
-import raster_models
-from oracle.cli import main
-from oracle.sweeps.run import WorkerCache, run_sweep, sweep_keys
-from oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
-from oracle.sweeps.store import SweepStore
-from raster_models import params, registry
-from raster_models.shadowmaps import shadow_map
+from raster_oracle import raster_models
 
 SIZE = "width = 48\nheight = 27\n"
 #: How long the SIGKILL test waits for the first committed rows / for the killed sweep's
@@ -211,7 +211,7 @@ def test_bad_spec_is_one_line_exit_2_nothing_written(tmp_path, capsys, name):
 
 
 def test_unreachable_scheduler_exit_2(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("oracle.sweeps.run.SCHEDULER_TIMEOUT_S", 1)
+    monkeypatch.setattr("raster_oracle.oracle.sweeps.run.SCHEDULER_TIMEOUT_S", 1)
     spec = _spec(tmp_path, _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n')
     args = ["sweep", str(spec), "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "o")]
     assert main([*args, "--quiet"]) == 2
@@ -408,7 +408,7 @@ def test_sigkill_loses_only_cases_in_flight_and_resume_skips_finished(tmp_path):
     total = len(load_spec(spec).cases)
     assert total == 2 * 13
     db = tmp_path / "kill.db"
-    cmd = [sys.executable, "-m", "oracle.cli", "sweep", str(spec), "--db", str(db)]
+    cmd = [sys.executable, "-m", "raster_oracle.oracle.cli", "sweep", str(spec), "--db", str(db)]
     cmd += ["--out", str(tmp_path / "o"), "--workers", "1", "--quiet"]
     proc = subprocess.Popen(
         cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
@@ -567,8 +567,7 @@ def test_cases_left_without_workers_stop_the_wait():
     """The watchdog of a running sweep: pending cases with no worker connected end in a
     SweepError after the timeout instead of a wait that never ends."""
     from distributed import Client, LocalCluster
-
-    from oracle.sweeps.run import SweepError, completed_while_workers
+    from raster_oracle.oracle.sweeps.run import SweepError, completed_while_workers
 
     with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
         with Client(cluster) as client:

@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 
 import pytest
-
-from reports.sections import failed_section
-from reports.sweep import best_at_equal_cost, sweep_record, write_sweep_report
+from raster_oracle.reports.sections import failed_section
+from raster_oracle.reports.sweep import best_at_equal_cost, sweep_record, write_sweep_report
 
 
 def _row(i, technique, resolution, cost, error, *, scene="plate", status="done", family="shadow"):
@@ -119,7 +118,7 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
 
 
 def test_front_plot_colours_each_technique_and_fills_the_front():
-    from reports.sections.sweep import PALETTE, front_svg
+    from raster_oracle.reports.sections.sweep import PALETTE, front_svg
 
     rec = sweep_record(ROWS, title="t")
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
@@ -136,7 +135,7 @@ def test_front_plot_colours_each_technique_and_fills_the_front():
 
 
 def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
-    from reports.sweep import with_memory
+    from raster_oracle.reports.sweep import with_memory
 
     assert with_memory({"shadow_map_bytes": 64})["memory_bytes"] == 64
     assert with_memory({"memory_bytes": 10, "shadow_map_bytes": 64})["memory_bytes"] == 10
@@ -174,7 +173,7 @@ def test_front_cases_show_their_thumbnails_and_only_data_images(tmp_path):
 
 
 def _real_store(path, n=40):
-    from oracle.sweeps.store import SweepStore
+    from raster_oracle.oracle.sweeps.store import SweepStore
 
     png = "data:image/png;base64,iVBORw0KGgo="
     with SweepStore(path) as store:
@@ -185,7 +184,7 @@ def _real_store(path, n=40):
 
 
 def _report(tmp_path, db, capsys):
-    from oracle.cli import main
+    from raster_oracle.oracle.cli import main
 
     out = tmp_path / "r.html"
     rc = main(["report", "--sweep", str(db), "--out", str(out)])

@@ -6,12 +6,12 @@ from __future__ import annotations
 import json
 
 import pytest
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.cache import ReferenceCache
+from raster_oracle.oracle.sweeps.run import evaluate_case
+from raster_oracle.oracle.sweeps.tune import TuneError, parse_space, parse_target, run_tune
 
-import scenes
-from oracle.cli import main
-from oracle.reference.cache import ReferenceCache
-from oracle.sweeps.run import evaluate_case
-from oracle.sweeps.tune import TuneError, parse_space, parse_target, run_tune
+from raster_oracle import scenes
 
 SCENE = "plate"
 W, H, SPP = 96, 54, 16

@@ -58,7 +58,7 @@ def _run(args) -> int:
         # results are checked for NaN/inf where they are made.
         warnings.simplefilter("ignore", RuntimeWarning)
         if args.command != "doctor":
-            from scenes import backend
+            from ...scenes import backend
 
             backend.select(args.backend)
         return COMMANDS[args.command](args)

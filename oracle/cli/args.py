@@ -46,10 +46,10 @@ def input_errors() -> tuple[type[BaseException], ...]:
     The oracle's own derive from :class:`oracle.errors.InputError`; the other packages' are
     named here.
     """
-    from metrics import MetricError
-    from raster_models import ModelError
-    from scenes import SceneError
-    from scenes.backend import BackendError
+    from ...metrics import MetricError
+    from ...raster_models import ModelError
+    from ...scenes import SceneError
+    from ...scenes.backend import BackendError
 
     return (InputError, SceneError, BackendError, MetricError, ModelError)
 
@@ -197,7 +197,7 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
 
 def load_scene(args):
     """The scene of ``add_scene_args`` options (its frame of a camera or light path)."""
-    import scenes
+    from ... import scenes
 
     light_path = args.light_path
     if args.frame and args.camera_path is None and light_path is None and not args.frames:

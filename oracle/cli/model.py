@@ -21,7 +21,7 @@ def add_parsers(sub) -> None:
 
 
 def cmd_techniques(args) -> int:
-    import raster_models
+    from ... import raster_models
 
     for tech in raster_models.list_techniques():
         print(f"{tech['name']}: {tech['description']}")
@@ -33,8 +33,7 @@ def cmd_techniques(args) -> int:
 
 
 def cmd_model(args) -> int:
-    import raster_models
-
+    from ... import raster_models
     from ..scoring.models import run_model_to_folder
 
     A.check_out(args.out)

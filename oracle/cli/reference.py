@@ -35,8 +35,8 @@ def add_parsers(sub) -> None:
 
 
 def cmd_doctor(args) -> int:
-    from scenes import backend
-    from scenes.records import package_versions
+    from ...scenes import backend
+    from ...scenes.records import package_versions
 
     info = {"cores": os.cpu_count(), "versions": package_versions()}
     try:
@@ -58,8 +58,8 @@ def cmd_doctor(args) -> int:
 
 
 def cmd_scenes(args) -> int:
-    from scenes import BUILTIN_SCENES, CAMERA_PATHS
-    from scenes.light_paths import LIGHT_PATHS
+    from ...scenes import BUILTIN_SCENES, CAMERA_PATHS
+    from ...scenes.light_paths import LIGHT_PATHS
 
     width = max(len(n) for n in BUILTIN_SCENES)
     for name, spec in BUILTIN_SCENES.items():
@@ -97,7 +97,7 @@ def cmd_reference(args) -> int:
 
 
 def cmd_export(args) -> int:
-    from scenes.export import export
+    from ...scenes.export import export
 
     A.check_out(args.out)
     loaded = A.load_scene(args)

@@ -75,9 +75,8 @@ def _check_frame_pattern(pattern: str | None) -> None:
 
 
 def cmd_score(args) -> int:
-    import metrics as M
-    import raster_models
-
+    from ... import metrics as M
+    from ... import raster_models
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError, parse_thresholds
 

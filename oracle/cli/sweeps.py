@@ -158,8 +158,7 @@ def cmd_tune(args) -> int:
 
 
 def cmd_main(args) -> int:
-    import scenes
-
+    from ... import scenes
     from ..sweeps.mainjob import run_main
 
     names = None

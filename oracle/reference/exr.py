@@ -17,8 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.files import atomic_write
-
+from ...scenes.files import atomic_write
 from ..errors import InputError
 
 __all__ = ["ExrError", "read_exr", "write_exr"]

@@ -31,10 +31,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from metrics.stats import binomial_stderr_floor
-from scenes import backend
-from scenes.raycast import trace_film_dr
-
+from ...metrics.stats import binomial_stderr_floor
+from ...scenes import backend
+from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
 
 __all__ = [
@@ -363,9 +362,9 @@ def _tangent32_channel(loaded) -> np.ndarray:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from scenes.raycast import camera_rays_dr, occluded_from_dr
-    from scenes.shading import facing, receiver_mask
-    from scenes.tangent32 import tangent_derivatives_dr, tangent_offsets
+    from ...scenes.raycast import camera_rays_dr, occluded_from_dr
+    from ...scenes.shading import facing, receiver_mask
+    from ...scenes.tangent32 import tangent_derivatives_dr, tangent_offsets
 
     w, h = loaded.width, loaded.height
     npix = w * h

@@ -256,7 +256,7 @@ def _load_png(path: Path, channel: str) -> np.ndarray:
     values = pixels.astype(np.float32) / np.float32(scale)
     if channel == "visibility":
         return _png_visibility(path, values)
-    from metrics.tonemap import srgb_decode
+    from ...metrics.tonemap import srgb_decode
 
     if values.ndim == 2:
         values = np.repeat(values[..., None], 3, axis=-1)

@@ -5,8 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import reports
-
+from ... import reports
 from .score import ScoreError
 
 __all__ = ["combine_reports"]

@@ -6,10 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-import raster_models
-from scenes.files import atomic_write_json
-from scenes.records import jsonable
-
+from ... import raster_models
+from ...scenes.files import atomic_write_json
+from ...scenes.records import jsonable
 from ..reference.exr import write_exr
 
 __all__ = ["output_channels", "run_model_to_folder"]

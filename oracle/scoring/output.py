@@ -11,12 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-import metrics as M
-import raster_models
-import reports
-from scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
-from scenes.records import jsonable, package_versions
-
+from ... import metrics as M
+from ... import raster_models, reports
+from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
+from ...scenes.records import jsonable, package_versions
 from ..reference.exr import write_exr
 from .score import METRIC_KEYS, ScoreResult, failures
 

@@ -13,8 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-import metrics as M
-
+from ... import metrics as M
 from .candidates import load_candidate
 from .output import write_score_folder
 from .score import ScoreError, score

@@ -25,9 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-import metrics as M
-from scenes.shading import receiver_mask
-
+from ... import metrics as M
+from ...scenes.shading import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-import metrics as M
-import raster_models
-
+from ... import metrics as M
+from ... import raster_models
 from .score import COVERAGE_KEYS, ScoreError, ScoreResult, score
 
 __all__ = ["FAMILY_CHANNELS", "model_candidate", "score_model", "technique_channels"]

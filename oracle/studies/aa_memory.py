@@ -30,8 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from reports.sections import aa_memory_section
-
+from ...reports.sections import aa_memory_section
 from ..scoring.output import MEMORY_RESOLUTIONS
 from .output import write_study
 
@@ -189,7 +188,7 @@ QUOTED: tuple[Quote, ...] = (
 
 
 def _probe_scene():
-    import scenes
+    from ... import scenes
 
     w, h = _PROBE_SIZE
     return scenes.load(_PROBE_SCENE, width=w, height=h)
@@ -222,7 +221,7 @@ def memory_table(
         target, the models' ``framebuffer_bytes``) and ``at``: ``"WxH" -> {"framebuffer_bytes",
         "total_bytes", "framebuffer_MB", "total_MB", "framebuffer_MiB", "total_MiB"}``.
     """
-    import raster_models
+    from ... import raster_models
 
     loaded = scene or _probe_scene()
     n_pix = loaded.width * loaded.height

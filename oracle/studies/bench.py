@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from scenes import backend
+from ...scenes import backend
 
 __all__ = ["bench_adaptive", "bench_models", "bench_oracle"]
 
@@ -22,8 +22,7 @@ def _bare_loop(loaded, spp: int, seed: int) -> tuple[float, int]:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from scenes.raycast import camera_rays_dr, shadow_ray_dr
-
+    from ...scenes.raycast import camera_rays_dr, shadow_ray_dr
     from ..reference.render import SAMPLES_PER_CHUNK, grid_shape, sample_jitter
 
     w, h = loaded.width, loaded.height
@@ -73,8 +72,7 @@ def bench_oracle(
     rounds alternate the oracle and the bare loop at the benchmark size, so that load from
     other processes hits both alike; the ratio is of the median throughputs.
     """
-    import scenes
-
+    from ... import scenes
     from ..reference.render import ReferenceSettings, render_reference
 
     loaded = scenes.load("city", width=width, height=height)
@@ -136,8 +134,7 @@ def bench_adaptive(
     adaptive samples over the samples of the cheapest uniform rendering whose true maximum
     error is no larger than adaptive's.
     """
-    import scenes
-
+    from ... import scenes
     from ..reference.render import ReferenceSettings, render_reference
 
     loaded = scenes.load(scene, width=width, height=height)
@@ -227,7 +224,7 @@ AA_ISSUE9_TARGET = 1.0
 
 def _time_models(loaded, cases: dict, times: dict) -> None:
     """Run each case once, appending its wall seconds to ``times[technique]``."""
-    import raster_models
+    from ... import raster_models
 
     for technique, params in cases.items():
         t0 = time.perf_counter()
@@ -283,9 +280,7 @@ def bench_models(
     ``only`` restricts the rows to those techniques (both references still run when a row
     of their family remains; an unknown name raises ``ValueError``).
     """
-    import raster_models
-    import scenes
-
+    from ... import raster_models, scenes
     from ..reference.render import ReferenceSettings, render_reference
 
     shadow_cases, aa_cases = SHADOW_MODEL_CASES, AA_MODEL_CASES

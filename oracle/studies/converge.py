@@ -32,8 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.sections import converge_section
-
+from ...reports.sections import converge_section
 from ..errors import InputError
 from .output import write_study
 
@@ -263,8 +262,7 @@ def run_converge(
     stderr mean/RMS per channel, rays, seconds), ``adaptive``, ``fit`` (power law per
     channel), ``targets`` (spp needed per target, measured and fitted), ``truth``.
     """
-    import scenes
-
+    from ... import scenes
     from ..reference.render import ReferenceSettings, render_reference
 
     ladder_spp, truth_spp = _check_settings(max_spp, truth_spp, targets)

@@ -20,13 +20,12 @@ import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
-from reports.sections import (
+from ...reports.sections import (
     aa_memory_section,
     claims_section,
     extremes_section,
     failed_section,
 )
-
 from ..errors import one_line
 from ..studies.aa_memory import memory_report
 from ..studies.claims.run import run_claims
@@ -62,7 +61,8 @@ SECTIONS: tuple[tuple[str, str, str, Callable[..., dict], Callable[..., dict]], 
 
 def default_spec() -> dict:
     """The parsed default spec (a fresh dict each call)."""
-    text = importlib.resources.files("oracle").joinpath(DEFAULT_SPEC).read_text("utf-8")
+    oracle_package = __package__.rpartition(".")[0]
+    text = importlib.resources.files(oracle_package).joinpath(DEFAULT_SPEC).read_text("utf-8")
     return tomllib.loads(text)
 
 

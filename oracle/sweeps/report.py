@@ -5,8 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from reports.sweep import with_memory, write_sweep_report
-
+from ...reports.sweep import with_memory, write_sweep_report
 from .run import SweepError
 from .store import SweepStore
 

@@ -25,9 +25,8 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import raster_models
-from scenes.records import package_versions
-
+from ... import raster_models
+from ...scenes.records import package_versions
 from ..errors import InputError, one_line
 from ..reference.cache import ORACLE_VERSION, ReferenceCache
 from ..reference.render import ReferenceSettings
@@ -89,7 +88,7 @@ class WorkerCache:
         """Select ``variant`` (and this worker's thread count) once in this process."""
         if variant is None or self.variant is not None:
             return
-        from scenes import backend
+        from ...scenes import backend
 
         backend.select(variant)
         self.variant = variant
@@ -100,7 +99,7 @@ class WorkerCache:
 
     def base_scene(self, rec: dict):
         """The loaded base scene of a case record (loaded once per process)."""
-        import scenes
+        from ... import scenes
 
         key = (rec["scene"], rec["width"], rec["height"], rec["light"])
         if key not in self.scenes:
@@ -235,7 +234,7 @@ def _versions(variant: str) -> dict:
 def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
     """``(key, record, row)`` of each case: the store key, the worker record and the row
     fields known before it runs (scene content hash and every parameter resolved)."""
-    from raster_models import params
+    from ...raster_models import params
 
     versions = _versions(variant)
     out = []
@@ -326,7 +325,7 @@ def run_sweep(
         ``{"sweep", "db", "cases", "skipped_done", "ran", "done", "failed", "references",
         "wall_seconds", "not_applicable"}``.
     """
-    from scenes import backend
+    from ...scenes import backend
 
     t0 = time.perf_counter()
     if worker_timeout is None:

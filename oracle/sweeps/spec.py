@@ -43,8 +43,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes.light_paths import LIGHT_PATHS, check_light_path
-
+from ...scenes.light_paths import LIGHT_PATHS, check_light_path
 from ..errors import InputError
 from ..reference.render import MAX_SEED
 
@@ -269,7 +268,7 @@ def _settings(where: str, table: dict, base: dict) -> dict:
 
 
 def _frames(where: str, table: dict) -> tuple[str | None, str | None, list[int], int]:
-    import scenes
+    from ... import scenes
 
     camera_path, light_path = table.get("camera_path"), table.get("light_path")
     if camera_path is not None and light_path is not None:
@@ -307,7 +306,7 @@ def _frames(where: str, table: dict) -> tuple[str | None, str | None, list[int],
 
 
 def _scene_name(where: str, name, base_dir: Path | None) -> str:
-    import scenes
+    from ... import scenes
 
     if not isinstance(name, str) or not name:
         raise SpecError(f"{where}: expected a scene name, got {name!r}")
@@ -326,7 +325,7 @@ def _scene_name(where: str, name, base_dir: Path | None) -> str:
 
 def _scene_light(scene: str, light: int, memo: dict):
     """The light of a scene (loaded once per scene; small film, only the light counts)."""
-    import scenes
+    from ... import scenes
 
     key = (scene, light)
     if key not in memo:
@@ -346,8 +345,8 @@ def expand_spec(
     listed in :attr:`Expansion.skipped`) instead of being an error; the main job's built-in
     spec names techniques that may not be there in every version.
     """
-    import raster_models
-    from raster_models import params as _params
+    from ... import raster_models
+    from ...raster_models import params as _params
 
     _check_keys("", data, _TOP_KEYS)
     name = data.get("name", "sweep")

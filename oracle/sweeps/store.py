@@ -25,8 +25,7 @@ import sqlite3
 import time
 from pathlib import Path
 
-from scenes.records import jsonable
-
+from ...scenes.records import jsonable
 from ..errors import InputError
 
 __all__ = [

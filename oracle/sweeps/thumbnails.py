@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-import metrics as M
-import reports.images
+from ... import metrics as M
+from ...reports import images
 
 __all__ = ["THUMBNAIL_SIZE", "case_images"]
 
@@ -26,22 +26,20 @@ def case_images(result) -> dict:
     error map with its fixed-range palette, reduced keeping the largest error per block)."""
     frame = result.frames[0]
     channel = result.record["channel"]
-    factor = reports.images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
+    factor = images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
     out = {}
     for name, image in (("reference", frame.reference), ("candidate", frame.candidate)):
         if image.ndim == 2:
-            out[name] = reports.images.encode_visibility(
-                reports.images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
+            out[name] = images.encode_visibility(
+                images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
             )
         else:
             exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
             shown = M.tonemap(image, exposure=exposure)
-            out[name] = reports.images.encode_color(
-                reports.images.reduce_image(shown, factor, srgb=True)
-            )
+            out[name] = images.encode_color(images.reduce_image(shown, factor, srgb=True))
     key, style, value_range = _ERROR_MAPS[channel]
     if key in frame.maps:
-        data = reports.images.reduce_error(np.nan_to_num(frame.maps[key]), factor)
-        out["error"] = reports.images.encode_heatmap(data, style=style, value_range=value_range)
+        data = images.reduce_error(np.nan_to_num(frame.maps[key]), factor)
+        out["error"] = images.encode_heatmap(data, style=style, value_range=value_range)
         out["error_map"] = key
     return out

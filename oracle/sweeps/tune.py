@@ -25,11 +25,9 @@ from pathlib import Path
 
 import optuna
 
-import raster_models
-import raster_models.params
-import scenes
-from scenes import backend
-
+from ... import raster_models, scenes
+from ...raster_models import params
+from ...scenes import backend
 from ..errors import InputError
 from ..scoring.score import metric_limit
 from .run import run_case, store_row, sweep_keys
@@ -66,10 +64,7 @@ def parse_space(technique: str, vary: list[str]) -> dict[str, tuple]:
         raise TuneError(
             f"unknown technique {technique!r}; choose one of {', '.join(raster_models.TECHNIQUES)}"
         )
-    fields = {
-        p["name"]: p
-        for p in raster_models.params.describe(raster_models.TECHNIQUES[technique].params)
-    }
+    fields = {p["name"]: p for p in params.describe(raster_models.TECHNIQUES[technique].params)}
     if not vary:
         if "resolution" not in fields:
             raise TuneError(f"{technique} has no resolution parameter: give --vary KEY=SPEC")

@@ -30,16 +30,15 @@ import math
 
 import numpy as np
 
-from scenes import backend
-from scenes.raycast import (
+from ...scenes import backend
+from ...scenes.raycast import (
     SHADOW_OFFSET,
     SHADOW_OFFSET_MESH,
     camera_rays_dr,
     shadow_ray_dr,
     shape_table,
 )
-from scenes.shading import facing, receiver_mask, shade
-
+from ...scenes.shading import facing, receiver_mask, shade
 from . import pixel_dr as _pixel_dr
 
 __all__ = [
@@ -466,7 +465,7 @@ def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from scenes.raycast import trace_film_dr
+    from ...scenes.raycast import trace_film_dr
 
     cam = scene.camera
     w = cam.width

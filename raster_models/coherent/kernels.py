@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import backend
+from ...scenes import backend
 
 __all__ = [
     "MAX_CAPTURED",

@@ -51,7 +51,7 @@ def surface_chunks(scene, projs, ids, *, second: bool, chunk: int | None = None)
     """The Dr.Jit side of :func:`surfaces`: yields ``(start, stop, record)`` per chunk of at
     most ``chunk`` texels (default :data:`SURFACE_CHUNK`) with ``record`` holding
     unevaluated Dr.Jit Float64 arrays."""
-    from scenes import backend
+    from ...scenes import backend
 
     mi = backend.mitsuba()
     import drjit as dr
@@ -150,7 +150,7 @@ def render_intervals(scene, projs, ids, bias: float, *, footprint: bool = True):
     arrays of ``len(ids) * R^2`` values (map-major), computed inside the rendering kernel
     chunk by chunk by :func:`raster_models.coherent.kernels.intervals` (see there;
     ``footprint=False``: texel centres only, spreads 0)."""
-    from scenes import backend
+    from ...scenes import backend
 
     mi = backend.mitsuba()
     import drjit as dr

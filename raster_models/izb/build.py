@@ -159,7 +159,7 @@ class Ortho32Build:
     # ---- kernels' inputs and steps
     def _inputs(self):
         if self._dr is None:
-            from scenes import backend
+            from ...scenes import backend
 
             mi = backend.mitsuba()
             f64 = mi.Float64

@@ -55,8 +55,8 @@ def scene_triangles(scene) -> np.ndarray:
     and light of the scene)."""
     tris = scene.memo.get(MEMO_KEY)
     if tris is None:
-        from scenes import backend
-        from scenes.export import shape_mesh
+        from ...scenes import backend
+        from ...scenes.export import shape_mesh
 
         mi = backend.mitsuba()
         parts = []

@@ -79,7 +79,7 @@ def band_floor(p, eps: float):
 
 def vectorized() -> bool:
     """Whether the active Mitsuba variant is vectorized (LLVM or CUDA): Dr.Jit kernels run."""
-    from scenes import backend
+    from ...scenes import backend
 
     return not backend.active().variant.startswith("scalar")
 
@@ -186,7 +186,7 @@ class PairTester:
         if self._dr is None:
             import drjit as dr
 
-            from scenes import backend
+            from ...scenes import backend
 
             mi = backend.mitsuba()
             f64 = mi.Float64

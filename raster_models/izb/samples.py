@@ -14,8 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes.tangent32 import tangent_offsets
-
+from ...scenes.tangent32 import tangent_offsets
 from .. import splits as _splits
 from .lists import FULL_MASK
 

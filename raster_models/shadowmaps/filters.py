@@ -68,7 +68,7 @@ DRJIT_CHUNK = 1 << 22
 def upload_texels(depth_map: np.ndarray):
     """The Dr.Jit ``Float`` texels (flat, row-major) of a float32 ``(R, R)`` depth map, as
     the compare filters read them (:attr:`MapData.texels` of a rendered map)."""
-    from scenes import backend
+    from ...scenes import backend
 
     mi = backend.mitsuba()
     return mi.Float(np.ascontiguousarray(depth_map, dtype=np.float32).ravel())
@@ -96,7 +96,7 @@ def compare_taps(texels, u, v, ref, size: int, *, address: str, subtexel_bits: i
     lookups are one fused Dr.Jit kernel. Returns float64 visibility in [0, 1], shaped as
     ``u``.
     """
-    from scenes import backend
+    from ...scenes import backend
 
     mi = backend.mitsuba()
     import drjit as dr

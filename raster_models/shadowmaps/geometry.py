@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes import backend
+from ...scenes import backend
 
 __all__ = ["DRJIT_CHUNK", "DrjitColumns", "normal_offset_texels", "partition_geometry"]
 

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes import backend
-
+from ...scenes import backend
 from ..drjit import numpy_view
 from .depth_dr import stored_depth_dr
 

@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes import backend
-
+from ...scenes import backend
 from .. import depth as _depth
 from ..light_frame import Projection
 from . import filters as _filters

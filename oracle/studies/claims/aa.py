@@ -29,7 +29,7 @@ def _fb(result) -> int:
 def _acaa(ctx: ClaimContext) -> dict:
     """ACAA against 8x MSAA: relative colour difference on scenes without and with tied
     surfaces (decal), and framebuffer bytes with RGBA8 accumulation."""
-    import scenes
+    from .... import scenes
 
     cases = []
     names = [n for n in ("plate", "star", "thin", "decal") if n in scenes.BUILTIN_SCENES]
@@ -79,7 +79,7 @@ AGAA_SAVING = (0.30, 0.37)
 def _agaa(ctx: ClaimContext) -> dict:
     """AGAA (K = 2) against 8x MSAA: relative colour error against the oracle, framebuffer
     bytes and shading events per pixel on thin, stripes, foliage and star."""
-    import scenes
+    from .... import scenes
 
     cases = []
     names = [n for n in ("thin", "stripes", "foliage", "star") if n in scenes.BUILTIN_SCENES]

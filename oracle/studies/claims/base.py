@@ -58,7 +58,7 @@ class ClaimContext:
         return self._runs[key]
 
     def scene(self, name: str, *, frame: int = 0, path: str | None = None, size=None):
-        import scenes
+        from .... import scenes
 
         w, h = size or (self.width, self.height)
         loaded = scenes.load(name, width=w, height=h)
@@ -83,8 +83,7 @@ class ClaimContext:
 
     def shadow_error(self, loaded, result) -> dict:
         """Shadow metrics of a model result against the oracle (receivers only)."""
-        import metrics as M
-
+        from .... import metrics as M
         from ...scoring.score import reference_receivers
 
         ref = self.reference(loaded)
@@ -95,6 +94,6 @@ class ClaimContext:
 
 def run_model(technique: str, loaded, **params):
     """``raster_models.run`` (imported late: the models package is optional)."""
-    import raster_models
+    from .... import raster_models
 
     return raster_models.run(technique, loaded, **params)

@@ -26,9 +26,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from reports.sections import claims_section
-from scenes.records import jsonable
-
+from ....reports.sections import claims_section
+from ....scenes.records import jsonable
 from ...errors import one_line
 from ..output import write_study
 from .aa import ACAA_EQUAL, ACAA_HALF, AGAA_COMPARABLE, AGAA_SAVING, _acaa, _agaa, _coherent
@@ -200,7 +199,7 @@ CLAIMS: tuple[Claim, ...] = (
 
 
 def _measure(claim: Claim, ctx: ClaimContext) -> dict:
-    import raster_models
+    from .... import raster_models
 
     row = {
         "id": claim.id,

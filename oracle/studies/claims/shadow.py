@@ -284,7 +284,7 @@ def _izb(ctx: ClaimContext) -> dict:
     """IZB at 1 sample per pixel against the oracle's shadow ray from each pixel centre, and
     the 32-sample / 1-sample ratio of sample-triangle tests (and model seconds), on plate and
     city at twice the claims' film size with a 256^2 grid."""
-    from raster_models.gbuffer import trace_gbuffer
+    from ....raster_models.gbuffer import trace_gbuffer
 
     cases = []
     for name in ("plate", "city"):

@@ -23,8 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reports.sections import extremes_section
-
+from ....reports.sections import extremes_section
 from ...errors import one_line
 from ..output import write_study
 from .cases import (
@@ -81,8 +80,8 @@ CELL_CAPS = {"resolution": CELL_MAP, "directions": 256}
 # ----------------------------------------------------------------------- running
 def load_extreme(extreme: Extreme, *, width: int, height: int, base: str = BASE_SCENE):
     """The base scene transformed by ``extreme`` (a :class:`scenes.LoadedScene`)."""
-    import scenes
-    from scenes.builtin import BUILTIN_SCENES, BuiltinScene
+    from .... import scenes
+    from ....scenes.builtin import BUILTIN_SCENES, BuiltinScene
 
     spec = BUILTIN_SCENES[base]
     if extreme.transform is None:
@@ -118,7 +117,7 @@ def reference_channels(loaded, *, spp: int, cache, quiet: bool) -> dict:
 
 def _defaults(technique_name: str) -> dict:
     """Parameter name -> default of a registered technique (its public records)."""
-    import raster_models
+    from .... import raster_models
 
     for t in raster_models.list_techniques():
         if t["name"] == technique_name:
@@ -165,8 +164,7 @@ def _finite_result(res) -> bool:
 
 
 def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
-    import metrics as M
-
+    from .... import metrics as M
     from ...scoring.score import reference_receivers
 
     if family == "aa" and "coverage" in res.outputs:
@@ -182,9 +180,9 @@ def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
 def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> dict:
     """Run one technique on one extreme's scene and judge the outcome against its
     expectation. Never raises for the model's own failure: it is recorded."""
-    import raster_models
-    from raster_models import ModelError
-    from raster_models import run as run_model
+    from .... import raster_models
+    from ....raster_models import ModelError
+    from ....raster_models import run as run_model
 
     family = raster_models.family_of(technique.name)
     exp = expectation(technique.name, extreme.name, family)
@@ -279,7 +277,7 @@ def run_extremes(
     otherwise 160x90, 64 spp and 16384^2 (refused when its measured peak memory exceeds half
     the available memory).
     """
-    import raster_models
+    from .... import raster_models
 
     say = echo or (lambda *_: None)
     width, height, spp = (64, 36, 16) if quick else (160, 90, 64)

@@ -124,7 +124,7 @@ def camera_key(camera) -> tuple:
 def group_scenes(scene, groups: list[list[int]]) -> list:
     """One Mitsuba scene per group of ``scene``'s shapes (a group of one: that shape alone),
     memoized in ``scene.memo`` (they depend on the geometry only)."""
-    from scenes import backend
+    from ....scenes import backend
 
     mi = backend.mitsuba()
     cache = scene.memo.setdefault("acaa.group_scenes", {})

@@ -37,8 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import backend
-
+from ....scenes import backend
 from ... import depth as _depth
 from ... import params as _params
 from .. import samples as _samples

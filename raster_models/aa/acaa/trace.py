@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes import backend
-from scenes.raycast import camera_rays_dr, shape_table
-
+from ....scenes import backend
+from ....scenes.raycast import camera_rays_dr, shape_table
 from .. import pixel_dr as _pixel_dr
 from .. import trace as _trace
 from ..trace import (

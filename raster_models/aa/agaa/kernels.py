@@ -21,9 +21,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from scenes import backend
-from scenes.raycast import shape_table
-
+from ....scenes import backend
+from ....scenes.raycast import shape_table
 from .. import trace as _trace
 from . import pixels as _agaa_pixels
 
