@@ -1,5 +1,9 @@
 """raster-oracle: ground truth for real-time shadows and anti-aliasing.
 
+``raster_oracle.reference``, ``score_image``, ``score_technique``, ``run_model``, ``check``,
+``export`` and ``load_scene`` are the Python API (:mod:`raster_oracle.api`, documented in
+``docs/python-api.md``); errors are :class:`InputError` and :class:`ModelError`.
+
 The installed import package. Its subpackages are the repository's top-level folders:
 ``raster_oracle.oracle`` (references, scoring, sweeps, studies, CLI),
 ``raster_oracle.raster_models`` (the technique models), ``raster_oracle.metrics``,
@@ -20,4 +24,32 @@ try:
 except PackageNotFoundError:  # a source tree that was not installed
     __version__ = "0+unknown"
 
-__all__ = ["__version__"]
+#: The Python API (``raster_oracle.api``), importable from here; loaded on first use so that
+#: ``import raster_oracle`` stays cheap (no Mitsuba, no Dr.Jit until a function runs).
+_API = (
+    "InputError",
+    "ModelError",
+    "ReferenceImages",
+    "check",
+    "export",
+    "load_scene",
+    "reference",
+    "run_model",
+    "score_image",
+    "score_technique",
+    "techniques",
+)
+
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'raster_oracle' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted({*globals(), *_API})

@@ -1,0 +1,435 @@
+"""The Python API of raster-oracle: references, model runs and scores as function calls.
+
+Every function takes keyword options (the command line's, in Python spelling) and wraps the
+library functions the command line calls, so a script and ``raster-oracle score`` give the
+same numbers for the same inputs and seed. Documented with examples in ``docs/python-api.md``
+(the tests run those examples).
+
+Errors: bad input (an unknown scene, a wrong candidate size, a bad option, a metric that does
+not apply) raises :class:`InputError`; an unknown technique or a bad technique parameter
+raises :class:`ModelError`. Both are ``ValueError`` subclasses with a one-line message; the
+API never calls ``sys.exit``.
+
+The backend (Mitsuba variant) is chosen on first use as the command line's ``--backend auto``
+does; set the environment variable ``RASTER_ORACLE_BACKEND`` to force one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .oracle.errors import InputError
+from .raster_models.errors import ModelError
+
+__all__ = [
+    "InputError",
+    "ModelError",
+    "ReferenceImages",
+    "check",
+    "export",
+    "load_scene",
+    "reference",
+    "run_model",
+    "score_image",
+    "score_technique",
+    "techniques",
+]
+
+
+@contextlib.contextmanager
+def _library():
+    """Run library code as the command line does: the backend selected, NumPy's
+    RuntimeWarnings hidden, the other packages' input errors raised as :class:`InputError`
+    (ModelError kept), and the scratch folders of uncached references removed at the end."""
+    from .metrics import MetricError
+    from .oracle.reference.cache import remove_scratch, scratch_mark
+    from .scenes import SceneError, backend
+
+    mark = scratch_mark()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            try:
+                backend.active()
+                yield
+            except (SceneError, backend.BackendError, MetricError) as exc:
+                raise InputError(str(exc)) from exc
+    finally:
+        remove_scratch(mark)
+
+
+def _cache(cache):
+    """``True``: the default cache folder; ``False``/``None``: no cache; else a folder."""
+    from .oracle.reference.cache import ReferenceCache
+
+    if cache is True:
+        return ReferenceCache()
+    if cache is None or cache is False:
+        return None
+    if isinstance(cache, ReferenceCache):
+        return cache
+    if isinstance(cache, str | os.PathLike):
+        return ReferenceCache(cache)
+    raise InputError(f"cache must be True, False, None or a folder, got {cache!r}")
+
+
+def load_scene(
+    scene,
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    light: int = 0,
+    camera_path: str | None = None,
+    frame: int = 0,
+    n_frames: int = 8,
+    light_path: str | None = None,
+):
+    """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, or an ``export``
+    folder (its ``scene.xml``, at the exported size). A loaded scene is returned as it is.
+
+    Returns a ``raster_oracle.scenes.LoadedScene`` (``.width``, ``.height``, ``.light``,
+    ``.camera``, ``.name``); pass it to the other functions to load a scene once.
+    """
+    from . import scenes
+
+    if isinstance(scene, scenes.LoadedScene):
+        if any(v is not None for v in (width, height, camera_path, light_path)) or frame:
+            raise InputError(
+                "width, height, camera_path, light_path and frame apply to a scene name or "
+                "file; pass them to load_scene instead of a loaded scene"
+            )
+        return scene
+    if not isinstance(scene, str | os.PathLike):
+        raise InputError(f"scene must be a name, a file, a folder or a loaded scene: {scene!r}")
+    if Path(scene).is_dir() and (Path(scene) / "scene.xml").is_file():
+        scene = Path(scene) / "scene.xml"
+    with _library():
+        return scenes.load(
+            scene,
+            width=width,
+            height=height,
+            light=light,
+            camera_path=camera_path,
+            frame=frame,
+            n_frames=n_frames,
+            light_path=light_path,
+        )
+
+
+@dataclass
+class ReferenceImages:
+    """A reference: its channels as float32 arrays and its provenance record.
+
+    ``channels`` maps the EXR channel names (``visibility``, ``color.R``, ...; see
+    ``docs/conventions.md``) to ``(H, W)`` arrays; ``meta`` is ``reference.json`` (scene,
+    spp, seed, backend, versions, cache key). The properties give the common ones as images.
+    """
+
+    channels: dict[str, np.ndarray]
+    meta: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.channels[name]
+
+    def _rgb(self, name: str) -> np.ndarray:
+        return np.stack([self.channels[f"{name}.{c}"] for c in "RGB"], -1)
+
+    @property
+    def visibility(self) -> np.ndarray:
+        """``(H, W)`` lit fraction of each pixel's samples, 1 = lit."""
+        return self.channels["visibility"]
+
+    @property
+    def visibility_stderr(self) -> np.ndarray:
+        """``(H, W)`` standard error of :attr:`visibility`."""
+        return self.channels["visibility_stderr"]
+
+    @property
+    def coverage(self) -> np.ndarray:
+        """``(H, W)`` fraction of each pixel's samples that hit geometry."""
+        return self.channels["coverage"]
+
+    @property
+    def coverage_stderr(self) -> np.ndarray:
+        """``(H, W)`` standard error of :attr:`coverage`."""
+        return self.channels["coverage_stderr"]
+
+    @property
+    def color(self) -> np.ndarray:
+        """``(H, W, 3)`` box-filtered linear radiance."""
+        return self._rgb("color")
+
+    @property
+    def color_stderr(self) -> np.ndarray:
+        """``(H, W, 3)`` standard error of :attr:`color`."""
+        return self._rgb("color_stderr")
+
+
+def reference(
+    scene,
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    spp: int = 64,
+    seed: int = 0,
+    channels: Sequence[str] | None = None,
+    adaptive: bool = False,
+    target_stderr: float = 0.01,
+    max_spp: int = 4096,
+    cache=True,
+    quiet: bool = True,
+) -> ReferenceImages:
+    """Render (or fetch from the cache) the reference of ``scene``, as ``raster-oracle
+    reference`` does.
+
+    Parameters
+    ----------
+    scene : a name, XML file, export folder or loaded scene (see :func:`load_scene`).
+    channels : channel groups (``visibility``, ``coverage``, ``color``, ``edge``, ``id``,
+        ``depth``, ``position``, ``normal``, ``albedo``, ``tangent32``); default: all but
+        ``tangent32``.
+    cache : True (the default cache folder), False (no cache) or a cache folder.
+    """
+    from .oracle.reference.render import ALL_CHANNELS, ReferenceSettings
+    from .oracle.reference.store import get_reference
+
+    if isinstance(channels, str):
+        channels = [channels]
+    settings = ReferenceSettings(
+        spp=spp,
+        seed=seed,
+        channels=tuple(channels) if channels is not None else ALL_CHANNELS,
+        adaptive=adaptive,
+        target_stderr=target_stderr,
+        max_spp=max_spp,
+    )
+    loaded = load_scene(scene, width=width, height=height)
+    with _library():
+        ref = get_reference(loaded, settings.validate(), cache=_cache(cache), quiet=quiet)
+        return ReferenceImages(channels=ref.channels(), meta=dict(ref.meta))
+
+
+def export(scene, out, *, width: int | None = None, height: int | None = None) -> dict:
+    """Write ``scene`` for an engine to render (``raster-oracle export``): ``meshes/*.ply``,
+    ``camera.json``, ``lights.json``, ``materials.json`` and a ``scene.xml`` that loads the
+    export back (pass the folder to :func:`score_image`). Returns the export's summary."""
+    from .scenes.export import export as export_scene
+
+    loaded = load_scene(scene, width=width, height=height)
+    with _library():
+        return export_scene(loaded, Path(out))
+
+
+def techniques() -> list[dict]:
+    """Every technique model with its description and parameters (name, default, source)."""
+    from . import raster_models
+
+    return raster_models.list_techniques()
+
+
+def run_model(technique: str, scene, **params):
+    """Run a technique model on ``scene`` (``raster-oracle model``) with its parameters as
+    keywords (``run_model("shadow-map", scene, resolution=1024)``).
+
+    Returns a ``ModelResult``: ``outputs`` (name -> float32 image: ``visibility`` for the
+    shadow family, ``color`` ``(H, W, 3)`` and ``coverage`` for anti-aliasing), ``cost``,
+    ``diagnostics``, ``params`` (every parameter with its value), ``wall_seconds``.
+    Raises :class:`ModelError` for an unknown technique or parameter, or a bad value.
+    """
+    from . import raster_models
+
+    loaded = load_scene(scene)
+    with _library():
+        return raster_models.run(technique, loaded, **params)
+
+
+def _write_frames(images, channel: str | None, folder: Path) -> tuple[str, str]:
+    """Engine-like EXR files of in-memory candidate frames; returns (pattern, channel)."""
+    from .oracle.reference.exr import write_exr
+
+    folder.mkdir(parents=True, exist_ok=True)
+    frames = []
+    for k, image in enumerate(images):
+        arr = np.asarray(image, dtype=np.float32)
+        if arr.ndim == 3 and arr.shape[-1] == 1:
+            arr = arr[..., 0]
+        if arr.ndim == 2:
+            kind = channel or "visibility"
+            frames.append({kind if kind in ("visibility", "coverage") else "Y": arr})
+        elif arr.ndim == 3 and arr.shape[-1] in (3, 4):
+            kind = channel or "color"
+            frames.append({c: np.ascontiguousarray(arr[..., i]) for i, c in enumerate("RGB")})
+        else:
+            raise InputError(
+                f"candidate frame {k} must be (H, W) or (H, W, 3), got shape {arr.shape}"
+            )
+        write_exr(folder / f"frame_{k:03d}.exr", frames[-1])
+    pattern = "frame_{frame:03d}.exr" if len(frames) > 1 else "frame_000.exr"
+    return str(folder / pattern), kind
+
+
+def _is_image(obj) -> bool:
+    return isinstance(obj, np.ndarray) or (
+        isinstance(obj, Sequence) and not isinstance(obj, str) and np.ndim(obj) >= 2
+    )
+
+
+def score_image(
+    scene,
+    candidate,
+    *,
+    channel: str | None = None,
+    width: int | None = None,
+    height: int | None = None,
+    spp: int = 64,
+    seed: int = 0,
+    frames: int | None = None,
+    camera_path: str | None = "dolly",
+    flip_mode: str = "LDR",
+    ppd: float | None = None,
+    out=None,
+    cache=True,
+    quiet: bool = True,
+) -> dict:
+    """Score an engine's image against the reference of ``scene`` (``raster-oracle score
+    --candidate``); returns the ``metrics.json`` record as a dict.
+
+    Parameters
+    ----------
+    scene : a name, XML file, export folder or loaded scene (see :func:`load_scene`).
+    candidate : an array (``(H, W)`` visibility or coverage, ``(H, W, 3)`` linear colour),
+        a list of arrays (one a frame, with ``frames``), or an EXR/PNG file name (a
+        ``{frame}`` pattern with ``frames``), read exactly as the command line reads it.
+    channel : what the candidate holds (``visibility``, ``color``, ``coverage``, or for a
+        file an EXR channel or layer name); default: an array's shape decides (2-D:
+        visibility, RGB: colour); a file's channels, as the command line decides.
+    frames, camera_path : score that many frames of the camera path and add the temporal
+        metrics (a list of arrays gives the frame count itself).
+    out : a folder for the score folder (metrics.json, report.html, error maps); default: a
+        temporary one, deleted.
+    cache : True (the default cache folder), False (no cache) or a cache folder.
+
+    Gate the record with :func:`check`.
+    """
+    frame_list = None
+    if isinstance(candidate, list | tuple) and candidate and _is_image(candidate[0]):
+        frame_list = list(candidate)
+        frames = frames or len(frame_list)
+        if frames != len(frame_list):
+            raise InputError(f"frames={frames} but {len(frame_list)} candidate frames given")
+    elif _is_image(candidate):
+        frame_list = [candidate]
+    elif not isinstance(candidate, str | os.PathLike):
+        raise InputError(
+            f"candidate must be an array, a list of arrays or a file name, got {candidate!r}"
+        )
+    return _score(
+        scene,
+        dict(candidate=candidate, channel=channel),
+        frame_list=frame_list,
+        load=dict(width=width, height=height),
+        opts=dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path),
+        flip_mode=flip_mode,
+        ppd=ppd,
+        out=out,
+        cache=cache,
+        quiet=quiet,
+    )
+
+
+def score_technique(
+    technique: str,
+    scene,
+    *,
+    params: dict | None = None,
+    channel: str | None = None,
+    width: int | None = None,
+    height: int | None = None,
+    spp: int = 64,
+    seed: int = 0,
+    frames: int | None = None,
+    camera_path: str | None = "dolly",
+    flip_mode: str = "LDR",
+    ppd: float | None = None,
+    out=None,
+    cache=True,
+    quiet: bool = True,
+) -> dict:
+    """Score a technique model (``raster-oracle score --technique``) with ``params`` (a dict
+    of parameter values); returns the ``metrics.json`` record, with ``cost`` and ``params``.
+    Options as in :func:`score_image`."""
+    return _score(
+        scene,
+        dict(technique=technique, params=dict(params or {}), channel=channel),
+        frame_list=None,
+        load=dict(width=width, height=height),
+        opts=dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path),
+        flip_mode=flip_mode,
+        ppd=ppd,
+        out=out,
+        cache=cache,
+        quiet=quiet,
+    )
+
+
+def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, quiet) -> dict:
+    """Score into ``out`` (or a temporary folder) with the command line's own request
+    function and read its ``metrics.json`` back: the record is the command line's."""
+    from . import metrics as M
+    from .oracle.scoring.request import score_to_folder
+
+    loaded = load_scene(scene, **load)
+    with contextlib.ExitStack() as stack:
+        tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="raster-oracle-")))
+        if frame_list is not None:
+            what["candidate"], what["channel"] = _write_frames(
+                frame_list, what["channel"], tmp / "candidate"
+            )
+        folder = Path(out) if out is not None else tmp / "score"
+        with _library():
+            score_to_folder(
+                loaded,
+                out=folder,
+                **what,
+                **opts,
+                cache=_cache(cache),
+                quiet=quiet,
+                flip_mode=flip_mode,
+                ppd=ppd or M.DEFAULT_PPD,
+                thresholds={},
+            )
+        return json.loads((folder / "metrics.json").read_text())
+
+
+def check(
+    record: dict,
+    *,
+    fail_above: dict[str, float] | None = None,
+    fail_below: dict[str, float] | None = None,
+) -> list[str]:
+    """The failed gates of a ``metrics.json`` record (empty: every gate passes).
+
+    ``fail_above={"visibility_mae": 0.02}`` fails when the value exceeds the limit,
+    ``fail_below={"ssim": 0.9}`` when it is below. A metric that does not apply to the
+    record (null) is an :class:`InputError`, never a silent pass.
+    """
+    out = []
+    for gates, worse, sign in ((fail_above, np.greater, ">"), (fail_below, np.less, "<")):
+        for metric, limit in (gates or {}).items():
+            if metric not in record:
+                raise InputError(f"unknown metric {metric!r}")
+            value = record[metric]
+            if value is None:
+                raise InputError(f"{metric} does not apply to this record (its value is null)")
+            if worse(value, limit):
+                out.append(f"{metric} {value:.4g} {sign} {limit:g}")
+    return out
