@@ -1,0 +1,195 @@
+"""A tiny engine of our own, independent of the oracle: a NumPy z-buffer rasterizer of an
+``export`` folder (``meshes/*.ply``, ``camera.json``, ``lights.json``, ``materials.json``).
+
+It renders as a real-time engine would, through none of the oracle's code: the camera's
+OpenGL matrices project the triangles, a homogeneous rasterizer (Olano and Greer 1997: 2-D
+homogeneous edge functions, so triangles crossing the camera plane need no clipping) tests
+4 samples a pixel at the Direct3D standard 4x positions, a depth buffer keeps the nearest
+triangle per sample, a shadow map rendered from a directional light (orthographic, the same
+rasterizer) gives each sample a depth-compared light visibility, and the colour is the
+two-sided diffuse shading of the export's materials, averaged over the samples (4x
+supersampling, what an MSAA resolve gives on these flat-shaded scenes).
+
+Outputs per pixel: ``shadow`` (the lit fraction of the 4 samples; sky counts as lit),
+``coverage`` (the fraction of samples that hit a triangle), ``color`` ``(H, W, 3)`` linear
+radiance. Everything is vectorised over samples x triangles in bounded chunks.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from plyfile import PlyData
+
+#: Direct3D's standard 4x sample positions in [0, 1)^2 from the pixel's upper-left corner.
+SAMPLES_4X = np.array([[0.375, 0.125], [0.875, 0.375], [0.125, 0.625], [0.625, 0.875]])
+#: Entries (samples x triangles) per chunk: bounds the rasterizer's memory.
+CHUNK = 1 << 21
+
+
+def load_export(folder) -> dict:
+    """The export's triangles (world space, float64), per-triangle albedo, camera, light."""
+    folder = Path(folder)
+    materials = json.loads((folder / "materials.json").read_text())
+    tris, albedo = [], []
+    for shape in materials["shapes"].values():
+        ply = PlyData.read(str(folder / shape["file"]))
+        v = np.stack([ply["vertex"][c] for c in "xyz"], -1).astype(np.float64)
+        faces = np.stack(ply["face"]["vertex_indices"]).astype(np.int64)
+        tris.append(v[faces])
+        albedo.append(np.repeat([shape["albedo"]], len(faces), axis=0))
+    lights = json.loads((folder / "lights.json").read_text())
+    return {
+        "triangles": np.concatenate(tris),
+        "albedo": np.concatenate(albedo).astype(np.float64),
+        "camera": json.loads((folder / "camera.json").read_text()),
+        "light": lights["lights"][lights["chosen"]],
+    }
+
+
+def rasterize(clip_tris: np.ndarray, ndc: np.ndarray, *, near_w: float = 0.0, depth=None):
+    """Nearest triangle and its perspective-correct barycentrics at each sample.
+
+    Parameters
+    ----------
+    clip_tris : ``(T, 3, 3)`` the triangles' clip-space ``(x, y, w)`` per vertex.
+    ndc : ``(S, 2)`` sample positions in NDC.
+    near_w : samples at ``w <= near_w`` are clipped (the near plane).
+    depth : ``(T, 3)`` per-vertex depth the depth test compares (default: ``w``, the view
+        depth of a perspective camera; an orthographic light passes its own depth).
+
+    Returns ``(index (S,) int, -1 where none; lam (S, 3); depth (S,), inf where none)``.
+    """
+    m = np.transpose(clip_tris, (0, 2, 1))  # columns are the vertices
+    det = np.linalg.det(m)
+    ok = np.abs(det) > 1e-12
+    inv = np.zeros_like(m)
+    inv[ok] = np.linalg.inv(m[ok])
+    n_s = len(ndc)
+    best = np.full(n_s, -1, dtype=np.int64)
+    best_w = np.full(n_s, np.inf)
+    best_lam = np.zeros((n_s, 3))
+    p = np.concatenate([ndc, np.ones((n_s, 1))], axis=1)
+    step = max(1, CHUNK // max(len(m), 1))
+    for lo in range(0, n_s, step):
+        b = np.einsum("tij,sj->sti", inv, p[lo : lo + step])  # (s, T, 3) homogeneous weights
+        total = b.sum(-1)
+        inside = (b >= 0).all(-1) & (total > 0) & ok[None, :]
+        w = np.where(inside, 1.0 / np.where(inside, total, 1.0), 0.0)
+        inside &= w > near_w
+        lam = b * w[..., None]  # perspective-correct barycentrics
+        z = w if depth is None else np.einsum("sti,ti->st", lam, depth)
+        z = np.where(inside, z, np.inf)
+        t = np.argmin(z, axis=1)
+        rows = np.arange(len(t))
+        hit = np.isfinite(z[rows, t])
+        best[lo : lo + step] = np.where(hit, t, -1)
+        best_w[lo : lo + step] = z[rows, t]
+        best_lam[lo : lo + step] = np.where(hit[:, None], lam[rows, t], 0.0)
+    return best, best_lam, best_w
+
+
+def _pixel_samples(width: int, height: int) -> np.ndarray:
+    """``(H * W * 4, 2)`` sample positions in pixels (x right, y down), pixel-major."""
+    y, x = np.mgrid[0:height, 0:width]
+    base = np.stack([x, y], -1).reshape(-1, 1, 2).astype(np.float64)
+    return (base + SAMPLES_4X[None]).reshape(-1, 2)
+
+
+def shadow_map(tris: np.ndarray, to_light: np.ndarray, *, size: int):
+    """An orthographic depth map of ``tris`` seen from a directional light; returns a
+    function ``depth_of(points) -> (map depth, point depth)`` along the light's direction."""
+    fwd = -to_light
+    helper = np.array([0.0, 1.0, 0.0]) if abs(fwd[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    right = np.cross(fwd, helper)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, fwd)
+    basis = np.stack([right, up, fwd])
+    ls = tris @ basis.T  # (T, 3, 3): light-space x, y, depth
+    lo, hi = ls[..., :2].reshape(-1, 2).min(0), ls[..., :2].reshape(-1, 2).max(0)
+    scale = (hi - lo) * (1 + 1e-6)
+
+    def to_ndc(xy):
+        return 2.0 * (xy - lo) / scale - 1.0
+
+    clip = np.concatenate([to_ndc(ls[..., :2]), np.ones(ls.shape[:2] + (1,))], -1)
+    centres = (np.stack(np.mgrid[0:size, 0:size][::-1], -1).reshape(-1, 2) + 0.5) / size
+    _, _, depth = rasterize(clip, centres * 2.0 - 1.0, depth=ls[..., 2])
+    depth = depth.reshape(size, size)
+
+    def depth_of(points):
+        q = points @ basis.T
+        uv = (to_ndc(q[:, :2]) + 1.0) * 0.5 * size
+        ij = np.clip(np.floor(uv).astype(np.int64), 0, size - 1)
+        return depth[ij[:, 1], ij[:, 0]], q[:, 2]
+
+    return depth_of
+
+
+def render(folder, *, shadow_map_size: int = 1024, bias: float = 0.05) -> dict:
+    """Render an export folder: ``shadow`` and ``coverage`` ``(H, W)``, ``color``
+    ``(H, W, 3)``, all float32 (see the module docstring)."""
+    scene = load_export(folder)
+    cam, light = scene["camera"], scene["light"]
+    if light["kind"] != "directional":
+        raise ValueError("this engine renders directional lights only")
+    width, height = cam["width"], cam["height"]
+    tris, albedo = scene["triangles"], scene["albedo"]
+    view = np.asarray(cam["opengl"]["world_to_view"])
+    proj = np.asarray(cam["opengl"]["projection"])
+    hom = np.concatenate([tris, np.ones(tris.shape[:2] + (1,))], -1)
+    clip = hom @ (proj @ view).T  # (T, 3, 4)
+    px = _pixel_samples(width, height)
+    ndc = np.stack([2.0 * px[:, 0] / width - 1.0, 1.0 - 2.0 * px[:, 1] / height], -1)
+    idx, lam, _ = rasterize(clip[..., [0, 1, 3]], ndc, near_w=cam["near"])
+    hit = idx >= 0
+    t = np.maximum(idx, 0)
+    pos = np.einsum("si,sij->sj", lam, tris[t])
+    normal = np.cross(tris[t, 1] - tris[t, 0], tris[t, 2] - tris[t, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-30)
+    to_eye = np.asarray(cam["position"])[None] - pos
+    normal *= np.where(np.einsum("sj,sj->s", normal, to_eye) < 0, -1.0, 1.0)[:, None]
+    direction = np.asarray(light["direction"], dtype=np.float64)
+    to_light = -direction / np.linalg.norm(direction)
+    cos_l = normal @ to_light
+    depth_of = shadow_map(tris, to_light, size=shadow_map_size)
+    map_depth, own_depth = depth_of(pos)
+    lit = (own_depth <= map_depth + bias) & (cos_l > 0)
+    vis = np.where(hit, lit, True).astype(np.float64)
+    irradiance = np.asarray(light["color"])[None] * (np.maximum(cos_l, 0) * vis)[:, None]
+    rgb = albedo[t] / math.pi * irradiance
+    rgb = np.where(hit[:, None], rgb, 0.0)
+    n = len(SAMPLES_4X)
+    return {
+        "shadow": vis.reshape(height, width, n).mean(-1).astype(np.float32),
+        "coverage": hit.reshape(height, width, n).mean(-1).astype(np.float32),
+        "color": rgb.reshape(height, width, n, 3).mean(2).astype(np.float32),
+    }
+
+
+def write_engine_exr(path, images: dict) -> None:
+    """Engine-style layered EXR with OpenEXR (as an engine's exporter writes it): layers
+    ``shadow.Y``, ``msaa.R/G/B`` and ``msaa.coverage``."""
+    import OpenEXR
+
+    channels = {
+        "shadow.Y": images["shadow"],
+        "msaa.R": images["color"][..., 0],
+        "msaa.G": images["color"][..., 1],
+        "msaa.B": images["color"][..., 2],
+        "msaa.coverage": images["coverage"],
+    }
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    chans = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
+    with OpenEXR.File(header, chans) as f:
+        f.write(str(path))
+
+
+def write_grey_png(path, image: np.ndarray) -> None:
+    """An 8-bit grey PNG of ``image`` in [0, 1] (an engine's shadow mask)."""
+    from PIL import Image
+
+    Image.fromarray(np.round(np.clip(image, 0, 1) * 255).astype(np.uint8), mode="L").save(path)

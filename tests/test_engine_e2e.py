@@ -1,0 +1,214 @@
+"""Score an engine's own output end to end, as an engine team's CI would (issue 17).
+
+A built-in scene is exported (``export``), rendered by an independent engine of our own
+(``tests/engine_raster.py``: a NumPy z-buffer rasterizer with a shadow map and 4 samples a
+pixel, none of the oracle's code), written as engine-style layered EXRs (``shadow.Y``,
+``msaa.R/G/B``, ``msaa.coverage``) and a grey PNG shadow mask, scored with the command line
+and the Python API, and gated with ``--fail-above``, ``--fail-below``, ``--baseline`` and
+``--junit``. Exit codes: 0 pass, 1 a gate or baseline failed, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from engine_raster import render, write_engine_exr, write_grey_png
+from raster_oracle.oracle.cli import main
+
+import raster_oracle as ro
+
+SPP = ["--spp", "16"]
+
+
+@pytest.fixture(scope="module")
+def engine(tmp_path_factory):
+    """The export of ``plate`` at 96x54, the engine's good frame and a broken one (its
+    shadow pass lost: every receiver lit), as files an engine writes."""
+    root = tmp_path_factory.mktemp("engine")
+    export = root / "export"
+    assert main(["export", "plate", "--width", "96", "--height", "54", "--out", str(export)]) == 0
+    good = render(export)
+    broken = dict(good, shadow=np.ones_like(good["shadow"]))
+    write_engine_exr(root / "good.exr", good)
+    write_engine_exr(root / "broken.exr", broken)
+    write_grey_png(root / "shadow.png", good["shadow"])
+    write_grey_png(root / "broken.png", broken["shadow"])
+    return {"root": root, "export": export, "scene": str(export / "scene.xml"), "good": good}
+
+
+def _score(engine, candidate, *extra, out="score"):
+    folder = engine["root"] / out
+    argv = ["score", engine["scene"], "--candidate", str(engine["root"] / candidate)]
+    code = main([*argv, *SPP, "--out", str(folder), *extra])
+    record = None
+    if (folder / "metrics.json").is_file():
+        record = json.loads((folder / "metrics.json").read_text())
+    return code, record
+
+
+def test_engine_agrees_with_the_reference(engine):
+    """The independent engine is a faithful renderer: its shadow mask, colour and coverage
+    are close to the oracle's reference (a wrong engine would make the gates meaningless)."""
+    ref = ro.reference(engine["export"], spp=16, channels=["visibility", "coverage", "color"])
+    good = engine["good"]
+    assert good["shadow"].shape == ref.visibility.shape == (54, 96)
+    assert 0.02 < 1.0 - ref.visibility.mean() < 0.2  # the plate's shadow is in view
+    assert np.abs(good["shadow"] - ref.visibility).mean() < 0.01
+    assert np.abs(good["coverage"] - ref.coverage).mean() < 0.01
+    assert np.abs(good["color"] - ref.color).mean() < 0.01 * ref.color.mean() + 0.005
+
+
+def test_layered_shadow_passes_its_gates(engine, capsys):
+    code, rec = _score(
+        engine,
+        "good.exr",
+        "--channel",
+        "shadow",
+        "--fail-above",
+        "misclassified_fraction=0.01",
+        "--fail-above",
+        "visibility_mae=0.02",
+        out="shadow",
+    )
+    assert code == 0, capsys.readouterr().err
+    assert rec["channel"] == "visibility"
+    assert rec["visibility_mae"] < 0.01 and rec["misclassified_fraction"] < 0.01
+
+
+def test_grey_png_is_scored_as_visibility_without_channel(engine, capsys):
+    """The silent failure of the issue: a grey mask without ``--channel`` was scored as
+    colour (exit 0, every shadow metric null)."""
+    code, rec = _score(engine, "shadow.png", "--fail-above", "misclassified_fraction=0.01")
+    assert code == 0, capsys.readouterr().err
+    assert rec["channel"] == "visibility"
+    assert rec["misclassified_fraction"] is not None and rec["misclassified_fraction"] < 0.01
+
+
+def test_broken_shadow_fails_with_numbers(engine, capsys):
+    capsys.readouterr()
+    code, rec = _score(
+        engine, "broken.png", "--fail-above", "misclassified_fraction=0.01", out="broken"
+    )
+    err = capsys.readouterr().err
+    assert code == 1
+    assert rec["misclassified_fraction"] > 0.02
+    assert "misclassified_fraction" in err and f"{rec['misclassified_fraction']:.4f}" in err
+
+
+def test_msaa_colour_and_coverage_layers(engine, capsys):
+    code, rec = _score(
+        engine,
+        "good.exr",
+        "--channel",
+        "msaa",
+        "--fail-above",
+        "flip_mean=0.02",
+        "--fail-below",
+        "ssim=0.95",
+        out="msaa",
+    )
+    assert code == 0, capsys.readouterr().err
+    assert rec["channel"] == "color" and rec["flip_mean"] < 0.02 and rec["ssim"] > 0.95
+    code, rec = _score(
+        engine,
+        "good.exr",
+        "--channel",
+        "msaa.coverage",
+        "--fail-above",
+        "coverage_mae=0.01",
+        out="coverage",
+    )
+    assert code == 0, capsys.readouterr().err
+    assert rec["channel"] == "coverage" and rec["coverage_mae"] < 0.01
+    # a higher-is-better metric above its bar fails, with the numbers
+    capsys.readouterr()
+    code, _ = _score(engine, "good.exr", "--channel", "msaa", "--fail-below", "ssim=0.9999")
+    assert code == 1 and "ssim" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "gate",
+    [
+        ["--fail-above", "ssim=0.9"],  # ssim is higher-is-better
+        ["--fail-above", "delta_e2000_mean=1"],  # a colour metric on a shadow mask
+        ["--fail-above", "flicker=0.1"],  # needs two frames or more
+    ],
+)
+def test_gates_that_cannot_apply_are_bad_input(engine, gate, capsys):
+    code, _ = _score(engine, "good.exr", "--channel", "shadow", *gate, out="bad-gate")
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and gate[1].split("=")[0] in err[0]
+
+
+def test_baseline_flags_a_regression(engine, capsys):
+    _, base = _score(engine, "good.exr", "--channel", "shadow", out="base")
+    baseline = str(engine["root"] / "base" / "metrics.json")
+    capsys.readouterr()
+    code, _ = _score(engine, "good.exr", "--channel", "shadow", "--baseline", baseline, out="same")
+    assert code == 0, capsys.readouterr().err
+    code, rec = _score(
+        engine, "broken.exr", "--channel", "shadow", "--baseline", baseline, out="worse"
+    )
+    err = capsys.readouterr().err
+    assert code == 1
+    assert "visibility_mae" in err and f"{base['visibility_mae']:.4f}" in err
+    assert rec["visibility_mae"] > base["visibility_mae"]
+    # a baseline of another channel is no comparison: bad input
+    _, _ = _score(engine, "good.exr", "--channel", "msaa", out="colour-base")
+    other = str(engine["root"] / "colour-base" / "metrics.json")
+    code, _ = _score(engine, "good.exr", "--channel", "shadow", "--baseline", other)
+    assert code == 2
+
+
+def test_junit_file(engine, capsys):
+    junit = engine["root"] / "junit.xml"
+    code, rec = _score(
+        engine,
+        "broken.exr",
+        "--channel",
+        "shadow",
+        "--fail-above",
+        "misclassified_fraction=0.01",
+        "--fail-above",
+        "visibility_mae=0.5",
+        "--fail-below",
+        "ssim=0.1",
+        "--junit",
+        str(junit),
+        out="junit",
+    )
+    assert code == 1
+    root = ET.parse(junit).getroot()
+    suites = [root] if root.tag == "testsuite" else root.findall("testsuite")
+    cases = [c for s in suites for c in s.iter("testcase")]
+    assert len(cases) == 3
+    assert sum(int(s.get("tests")) for s in suites) == 3
+    assert sum(int(s.get("failures")) for s in suites) == 1
+    failed = [c for c in cases if c.find("failure") is not None]
+    assert len(failed) == 1 and "misclassified_fraction" in failed[0].get("name")
+    message = failed[0].find("failure").get("message")
+    assert f"{rec['misclassified_fraction']:.4f}" in message
+    assert len({c.get("classname") for c in cases}) == 1 and cases[0].get("classname")
+
+
+def test_python_api_gives_the_cli_record(engine, capsys):
+    """The Python API scores the same files to the same numbers as the command line, and
+    its gate check fails the broken frame."""
+    _, cli = _score(engine, "good.exr", "--channel", "shadow", out="api-cli")
+    rec = ro.score_image(engine["export"], engine["root"] / "good.exr", channel="shadow", spp=16)
+    for key in ("visibility_mae", "misclassified_fraction", "ssim", "flip_mean"):
+        assert rec[key] == pytest.approx(cli[key], rel=1e-9, abs=1e-12)
+    # an in-memory array scores the same as the grey PNG's 8-bit values
+    grey = np.round(engine["good"]["shadow"] * 255) / 255
+    arr = ro.score_image(engine["export"], grey, spp=16)
+    _, png = _score(engine, "shadow.png", out="api-png")
+    assert arr["misclassified_fraction"] == pytest.approx(png["misclassified_fraction"])
+    assert ro.check(rec, fail_above={"misclassified_fraction": 0.01}) == []
+    broken = ro.score_image(engine["export"], engine["root"] / "broken.png", spp=16)
+    assert ro.check(broken, fail_above={"misclassified_fraction": 0.01})
+    with pytest.raises(ro.InputError):
+        ro.check(rec, fail_above={"delta_e2000_mean": 1.0})
