@@ -328,7 +328,9 @@ def score_image(
             raise InputError(f"frames={frames} but {len(frame_list)} candidate frames given")
     elif _is_image(candidate):
         frame_list = [candidate]
-    elif not isinstance(candidate, str | os.PathLike):
+    elif isinstance(candidate, str | os.PathLike):
+        candidate = os.fspath(candidate)
+    else:
         raise InputError(
             f"candidate must be an array, a list of arrays or a file name, got {candidate!r}"
         )
