@@ -39,6 +39,13 @@ def engine(tmp_path_factory):
     return {"root": root, "export": export, "scene": str(export / "scene.xml"), "good": good}
 
 
+def _said(capsys) -> str:
+    """What the command printed, stdout and stderr (gate lines go to stdout, the summary of
+    failures to stderr)."""
+    said = capsys.readouterr()
+    return said.out + said.err
+
+
 def _score(engine, candidate, *extra, out="score"):
     folder = engine["root"] / out
     argv = ["score", engine["scene"], "--candidate", str(engine["root"] / candidate)]
@@ -92,7 +99,7 @@ def test_broken_shadow_fails_with_numbers(engine, capsys):
     code, rec = _score(
         engine, "broken.png", "--fail-above", "misclassified_fraction=0.01", out="broken"
     )
-    err = capsys.readouterr().err
+    err = _said(capsys)
     assert code == 1
     assert rec["misclassified_fraction"] > 0.02
     assert "misclassified_fraction" in err and f"{rec['misclassified_fraction']:.4f}" in err
@@ -126,7 +133,7 @@ def test_msaa_colour_and_coverage_layers(engine, capsys):
     # a higher-is-better metric above its bar fails, with the numbers
     capsys.readouterr()
     code, _ = _score(engine, "good.exr", "--channel", "msaa", "--fail-below", "ssim=0.9999")
-    assert code == 1 and "ssim" in capsys.readouterr().err
+    assert code == 1 and "ssim" in _said(capsys)
 
 
 @pytest.mark.parametrize(
@@ -153,7 +160,7 @@ def test_baseline_flags_a_regression(engine, capsys):
     code, rec = _score(
         engine, "broken.exr", "--channel", "shadow", "--baseline", baseline, out="worse"
     )
-    err = capsys.readouterr().err
+    err = _said(capsys)
     assert code == 1
     assert "visibility_mae" in err and f"{base['visibility_mae']:.4f}" in err
     assert rec["visibility_mae"] > base["visibility_mae"]
