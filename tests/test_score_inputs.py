@@ -1,0 +1,183 @@
+"""What `score` reads and writes (issue 17): candidate kinds inferred only when unambiguous,
+layered EXR channels as engines write them, export folders, the memory estimate, reused
+--out folders, multi-frame records."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import OpenEXR
+import pytest
+from PIL import Image
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.exr import read_exr
+from raster_oracle.oracle.scoring.candidates import CandidateError
+from raster_oracle.oracle.scoring.layout import candidate_layout
+
+W, H = 48, 27
+SIZE = ["--width", str(W), "--height", str(H)]
+
+
+def _engine_exr(path, layers: dict) -> None:
+    """Write an EXR with OpenEXR's own API, as an engine does (half channels, layers)."""
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    chans = {k: np.ascontiguousarray(v, dtype=np.float16) for k, v in layers.items()}
+    with OpenEXR.File(header, chans) as f:
+        f.write(str(path))
+
+
+@pytest.fixture(scope="module")
+def ref(tmp_path_factory):
+    """A 4-spp reference of the plate: stands for an engine's (noisy) render."""
+    root = tmp_path_factory.mktemp("ref")
+    args = ["reference", "plate", *SIZE, "--spp", "4", "--seed", "3", "--quiet"]
+    assert main([*args, "--out", str(root)]) == 0
+    return read_exr(root / "reference.exr")
+
+
+def _score(tmp_path, candidate, *extra, out="s"):
+    code = main(
+        ["score", "plate", *SIZE, "--candidate", str(candidate), "--spp", "4", "--quiet"]
+        + ["--out", str(tmp_path / out), *extra]
+    )
+    record = None
+    if (tmp_path / out / "metrics.json").is_file():
+        record = json.loads((tmp_path / out / "metrics.json").read_text())
+    return code, record
+
+
+def _rgb(ref):
+    return np.stack([ref[f"color.{c}"] for c in "RGB"], -1)
+
+
+# --------------------------------------------------------------------------- kinds
+
+
+def test_grey_exr_y_scored_as_visibility(tmp_path, ref, capsys):
+    path = tmp_path / "shadow.exr"
+    _engine_exr(path, {"Y": ref["visibility"]})
+    code, rec = _score(tmp_path, path)
+    assert code == 0
+    assert rec["channel"] == "visibility"
+    assert rec["visibility_mae"] is not None and rec["misclassified_fraction"] is not None
+    assert rec["delta_e2000_mean"] is None
+    assert "candidate shadow.exr: visibility from channel 'Y'" in capsys.readouterr().out
+
+
+def test_grey_png_scored_as_visibility(tmp_path, ref):
+    path = tmp_path / "shadow.png"
+    Image.fromarray(np.round(ref["visibility"] * 255).astype(np.uint8), mode="L").save(path)
+    code, rec = _score(tmp_path, path)
+    assert code == 0 and rec["channel"] == "visibility"
+    assert rec["visibility_mae"] is not None
+    # 8-bit quantisation of a 4-spp mask: within half a level of the EXR
+    assert rec["visibility_mae"] < 0.2
+
+
+def test_grey_alpha_and_16bit_png_are_visibility(tmp_path):
+    la = tmp_path / "la.png"
+    Image.fromarray(np.zeros((H, W, 2), np.uint8), mode="LA").save(la)
+    g16 = tmp_path / "g16.png"
+    Image.fromarray(np.zeros((H, W), np.uint16)).save(g16)
+    rgb = tmp_path / "rgb.png"
+    Image.fromarray(np.zeros((H, W, 3), np.uint8), mode="RGB").save(rgb)
+    assert candidate_layout(la).kind == "visibility"
+    assert candidate_layout(g16).kind == "visibility"
+    assert candidate_layout(rgb).kind == "color"
+    assert candidate_layout(la, channel="coverage").kind == "coverage"
+
+
+def test_two_layers_without_channel_is_exit_2_naming_them(tmp_path, ref, capsys):
+    path = tmp_path / "frame.exr"
+    layers = {f"color.{c}": ref[f"color.{c}"] for c in "RGB"}
+    _engine_exr(path, {**layers, "shadow.Y": ref["visibility"]})
+    code, rec = _score(tmp_path, path)
+    err = capsys.readouterr().err
+    assert code == 2 and rec is None
+    assert "holds several images (color, shadow.Y)" in err
+    assert "--channel color or shadow.Y" in err
+    assert "Traceback" not in err
+
+
+def test_rgb_plus_coverage_is_ambiguous(tmp_path):
+    path = tmp_path / "c.exr"
+    z = np.zeros((H, W))
+    _engine_exr(path, {"R": z, "G": z, "B": z, "A": z, "msaa.coverage": z})
+    with pytest.raises(CandidateError, match=r"several images \(color, msaa\.coverage\)"):
+        candidate_layout(path)
+
+
+# --------------------------------------------------------------------------- layers
+
+
+def test_channel_finds_engine_layers(tmp_path, ref, capsys):
+    path = tmp_path / "engine.exr"
+    cov = ref["coverage"] if "coverage" in ref else None
+    assert cov is not None
+    layers = {f"color.{c}": ref[f"color.{c}"] for c in "RGB"}
+    _engine_exr(path, {**layers, "shadow.Y": ref["visibility"], "msaa.coverage": cov})
+    code, rec = _score(tmp_path, path, "--channel", "msaa.coverage", out="cov")
+    assert code == 0 and rec["channel"] == "coverage"
+    assert rec["coverage_mae"] is not None
+    code, rec = _score(tmp_path, path, "--channel", "shadow", out="vis")
+    assert code == 0 and rec["channel"] == "visibility"
+    assert rec["misclassified_fraction"] is not None
+    code, rec = _score(tmp_path, path, "--channel", "color", out="col")
+    assert code == 0 and rec["channel"] == "color" and rec["delta_e2000_mean"] is not None
+    # the kinds keep finding their layers
+    code, rec = _score(tmp_path, path, "--channel", "coverage", out="cov2")
+    assert code == 0 and rec["channel"] == "coverage"
+    out = capsys.readouterr().out
+    assert "candidate engine.exr: coverage from channel 'msaa.coverage'" in out
+    assert "candidate engine.exr: visibility from channel 'shadow.Y'" in out
+
+
+def test_layer_with_rgb_is_colour_and_kind_overrides(tmp_path):
+    path = tmp_path / "c.exr"
+    z = np.zeros((H, W))
+    _engine_exr(path, {"beauty.R": z, "beauty.G": z, "beauty.B": z, "mask.V": z})
+    lay = candidate_layout(path, channel="beauty")
+    assert (lay.kind, lay.names) == ("color", ("beauty.R", "beauty.G", "beauty.B"))
+    lay = candidate_layout(path, channel="mask", kind="coverage")
+    assert (lay.kind, lay.names) == ("coverage", ("mask.V",))
+
+
+def test_channel_miss_lists_channels_and_layers(tmp_path, ref, capsys):
+    path = tmp_path / "engine.exr"
+    _engine_exr(path, {"shadow.Y": ref["visibility"], "Z": ref["visibility"]})
+    code, _ = _score(tmp_path, path, "--channel", "msaa.coverage")
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "no channel or layer 'msaa.coverage'" in err
+    assert "channels: Z, shadow.Y; layers: shadow" in err
+
+
+# --------------------------------------------------------------------------- exports
+
+
+def test_score_export_dir_at_its_size_and_mismatch_names_fix(tmp_path, capsys):
+    exp = tmp_path / "exp"
+    assert main(["export", "plate", "--width", "40", "--height", "24", "--out", str(exp)]) == 0
+    rdir = tmp_path / "r"
+    args = ["reference", str(exp), "--spp", "4", "--seed", "5", "--quiet", "--out", str(rdir)]
+    assert main(args) == 0
+    vis = read_exr(rdir / "reference.exr")["visibility"]
+    assert vis.shape == (24, 40)
+    cand = exp / "render" / "shadow.exr"
+    cand.parent.mkdir()
+    _engine_exr(cand, {"Y": vis})
+    common = ["--candidate", str(cand), "--spp", "4", "--quiet"]
+    assert main(["score", str(exp), *common, "--out", str(tmp_path / "a")]) == 0
+    rec = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert rec["channel"] == "visibility" and rec["visibility_mae"] is not None
+    xml = str(exp / "scene.xml")
+    assert main(["score", xml, *common, "--out", str(tmp_path / "b")]) == 0
+    capsys.readouterr()
+    code = main(["score", "plate", *common, "--out", str(tmp_path / "c")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "candidate is 40x24, the reference is 160x90" in err
+    assert "pass --width 40 --height 24" in err
+    assert f"score the export folder {exp.resolve()} that wrote it" in err
+    assert not (tmp_path / "c").exists()
