@@ -228,7 +228,9 @@ def test_engine_coverage_mask(tmp_path):
         tmp_path, "--candidate", str(tmp_path / "mask1.exr"), "--channel", "coverage", out="s1"
     )
     assert rc == 0
-    assert json.loads((out1 / "metrics.json").read_text())["coverage_edge_rmse"] > 0.05
+    assert (
+        json.loads((out1 / "metrics.json").read_text())["coverage_edge_rmse"] > 0.05
+    )
     # the same 0/1 mask as an 8-bit grey PNG (data, not sRGB-decoded) scores the same
     from PIL import Image
 
