@@ -181,3 +181,117 @@ def test_score_export_dir_at_its_size_and_mismatch_names_fix(tmp_path, capsys):
     assert "pass --width 40 --height 24" in err
     assert f"score the export folder {exp.resolve()} that wrote it" in err
     assert not (tmp_path / "c").exists()
+
+
+# --------------------------------------------------------------------------- memory guard
+
+
+def test_memory_estimate_grows_with_size_spp_and_channels():
+    from raster_oracle.oracle.reference.render import estimate_memory
+
+    vis = ("visibility", "edge", "id", "normal", "position")
+    col = ("color", "edge", "id")
+    small = estimate_memory(160, 90, spp=4, channels=vis)
+    assert estimate_memory(160, 90, spp=64, channels=vis) > small
+    assert estimate_memory(320, 180, spp=64, channels=vis) > estimate_memory(
+        160, 90, spp=64, channels=vis
+    )
+    assert estimate_memory(320, 180, spp=64, channels=col) > estimate_memory(
+        320, 180, spp=64, channels=vis
+    )
+    # a launch is at most SAMPLES_PER_CHUNK samples: spp beyond it adds nothing
+    assert estimate_memory(320, 180, spp=4096, channels=vis) == estimate_memory(
+        320, 180, spp=1024, channels=vis
+    )
+    # the refusal: a 320x180 64-spp score on a machine with 1.4 GiB free
+    assert estimate_memory(320, 180, spp=64, channels=col) < 0.5 * 2**30
+
+
+def test_small_reference_not_refused_with_little_memory(monkeypatch):
+    from raster_oracle.oracle.reference import render
+    from raster_oracle.oracle.reference.render import ReferenceSettings, ReferenceSettingsError
+
+    from raster_oracle import scenes
+
+    loaded = scenes.load("plate", width=320, height=180)
+    settings = ReferenceSettings(spp=64, channels=("visibility", "edge", "id"))
+    monkeypatch.setattr(render, "available_memory", lambda: int(1.4 * 2**30))
+    channels, _ = render.render_reference(loaded, settings, quiet=True)
+    assert channels["visibility"].shape == (180, 320)
+    monkeypatch.setattr(render, "available_memory", lambda: 32 << 20)
+    with pytest.raises(ReferenceSettingsError, match=r"320x180 reference at 64 spp needs about"):
+        render.render_reference(loaded, settings, quiet=True)
+
+
+# --------------------------------------------------------------------------- reused --out
+
+
+def test_reused_out_holds_only_this_runs_files(tmp_path, ref):
+    vis = tmp_path / "v.exr"
+    _engine_exr(vis, {"Y": ref["visibility"]})
+    col = tmp_path / "c.exr"
+    _engine_exr(col, {c: ref[f"color.{c}"] for c in "RGB"})
+    out = tmp_path / "s"
+    assert _score(tmp_path, vis)[0] == 0
+    assert (out / "visibility_error.png").is_file() and (out / "misclassified.png").is_file()
+    (out / "notes.txt").write_text("mine")
+    code, rec = _score(tmp_path, col)
+    assert code == 0
+    files = {p.name for p in out.iterdir()}
+    assert files == set(rec["files"]) | {"notes.txt"}
+    assert not (out / "visibility_error.png").exists()
+    assert (out / "delta_e2000.png").is_file()
+    # a folder from before the manifest: its record's maps name its PNGs
+    legacy = json.loads((out / "metrics.json").read_text())
+    del legacy["files"]
+    (out / "metrics.json").write_text(json.dumps(legacy))
+    code, rec = _score(tmp_path, vis)
+    assert code == 0 and not (out / "delta_e2000.png").exists()
+    assert {p.name for p in out.iterdir()} == set(rec["files"]) | {"notes.txt"}
+
+
+# --------------------------------------------------------------------------- frames
+
+
+def test_added_flicker_is_non_negative_closed_form():
+    from raster_oracle.metrics import flicker
+    from raster_oracle.oracle.scoring.score import added_flicker
+
+    ref = np.zeros((2, 4, 4))
+    ref[1] = 0.5  # the reference changes by 0.5 everywhere
+    cand = np.zeros((2, 4, 4))
+    cand[1, :, 2:] = 1.0  # steady on the left, a change of 1 on the right
+    assert flicker(ref, cand) == pytest.approx(0.0)  # steadiness cancels the flicker
+    assert added_flicker(ref, cand) == pytest.approx(0.25)  # 0.5 excess on half the pixels
+    assert added_flicker(ref, ref) == 0.0
+    assert added_flicker(ref, np.zeros_like(ref)) == 0.0  # steadier is not negative
+
+
+def test_two_frame_record_and_report(tmp_path):
+    path_args = ["--camera-path", "subpixel-pan", "--frames", "2"]
+    for k in range(2):
+        out = tmp_path / f"r{k}"
+        args = ["reference", "plate", *SIZE, "--spp", "4", "--seed", "9", "--quiet"]
+        args += [*path_args, "--frame", str(k), "--channels", "visibility", "--out", str(out)]
+        assert main(args) == 0
+        vis = read_exr(out / "reference.exr")["visibility"]
+        # frame 1 crawls: a checkerboard of flipped pixels the reference does not have
+        if k == 1:
+            vis = vis.copy()
+            vis[::2, ::2] = 1.0 - vis[::2, ::2]
+        _engine_exr(tmp_path / f"frame_{k:03d}.exr", {"Y": vis})
+    code, rec = _score(tmp_path, tmp_path / "frame_{frame:03d}.exr", *path_args)
+    assert code == 0
+    assert [f["visibility_mae"] is not None for f in rec["frames"]] == [True, True]
+    assert rec["frames"][1]["visibility_mae"] > rec["frames"][0]["visibility_mae"]
+    assert rec["flicker"] > 0
+    assert rec["noise_floor"]["flicker"] >= 0
+    assert rec["flicker"] > rec["noise_floor"]["flicker"]
+    assert "temporal_error" in rec["noise_floor"]
+    report = json.loads((tmp_path / "s" / "report.json").read_text())
+    text = json.dumps(report)
+    assert "{frame" not in text and "frame_{" not in text
+    assert "subpixel-pan frames 0-1 on plate" in text
+    names = [c["name"] for c in report["cases"]]
+    assert "subpixel-pan frames 0-1 frame 0" in names
+    assert "subpixel-pan frames 0-1 frame 1" in names
