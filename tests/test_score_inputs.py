@@ -12,8 +12,6 @@ import pytest
 from PIL import Image
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.reference.exr import read_exr
-from raster_oracle.oracle.scoring.candidates import CandidateError
-from raster_oracle.oracle.scoring.layout import candidate_layout
 
 W, H = 48, 27
 SIZE = ["--width", str(W), "--height", str(H)]
@@ -76,6 +74,8 @@ def test_grey_png_scored_as_visibility(tmp_path, ref):
 
 
 def test_grey_alpha_and_16bit_png_are_visibility(tmp_path):
+    from raster_oracle.oracle.scoring.layout import candidate_layout
+
     la = tmp_path / "la.png"
     Image.fromarray(np.zeros((H, W, 2), np.uint8), mode="LA").save(la)
     g16 = tmp_path / "g16.png"
@@ -101,6 +101,9 @@ def test_two_layers_without_channel_is_exit_2_naming_them(tmp_path, ref, capsys)
 
 
 def test_rgb_plus_coverage_is_ambiguous(tmp_path):
+    from raster_oracle.oracle.scoring.candidates import CandidateError
+    from raster_oracle.oracle.scoring.layout import candidate_layout
+
     path = tmp_path / "c.exr"
     z = np.zeros((H, W))
     _engine_exr(path, {"R": z, "G": z, "B": z, "A": z, "msaa.coverage": z})
@@ -134,6 +137,8 @@ def test_channel_finds_engine_layers(tmp_path, ref, capsys):
 
 
 def test_layer_with_rgb_is_colour_and_kind_overrides(tmp_path):
+    from raster_oracle.oracle.scoring.layout import candidate_layout
+
     path = tmp_path / "c.exr"
     z = np.zeros((H, W))
     _engine_exr(path, {"beauty.R": z, "beauty.G": z, "beauty.B": z, "mask.V": z})
@@ -295,3 +300,20 @@ def test_two_frame_record_and_report(tmp_path):
     names = [c["name"] for c in report["cases"]]
     assert "subpixel-pan frames 0-1 frame 0" in names
     assert "subpixel-pan frames 0-1 frame 1" in names
+
+
+# --------------------------------------------------------------------------- progress
+
+
+def test_no_progress_bar_off_a_terminal(capsys):
+    from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+    from raster_oracle.oracle.sweeps.run import _progress
+
+    from raster_oracle import scenes
+
+    loaded = scenes.load("plate", width=16, height=9)
+    render_reference(loaded, ReferenceSettings(spp=4, channels=("visibility",)), quiet=False)
+    bar = _progress(3, quiet=False, desc="cases")
+    bar.update(3)
+    bar.close()
+    assert capsys.readouterr().err == ""  # captured stderr is not a terminal

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -467,7 +468,8 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     acc = _Accum(npix, color)
     t0 = time.perf_counter()
     progress = None
-    if not quiet:
+    # a bar only on a terminal: in a CI log its carriage-return redraws are noise
+    if not quiet and sys.stderr.isatty():
         from tqdm import tqdm
 
         total = npix * (settings.adaptive_spp if settings.adaptive else settings.spp)
