@@ -317,3 +317,41 @@ def test_no_progress_bar_off_a_terminal(capsys):
     bar.update(3)
     bar.close()
     assert capsys.readouterr().err == ""  # captured stderr is not a terminal
+
+
+# --------------------------------------------------------------------------- score-folder
+
+
+def test_score_folder_by_scene_and_frame(tmp_path, capsys):
+    root = tmp_path / "engine"
+    (root / "spot").mkdir(parents=True)
+    (root / "notes.txt").write_text("not an image")
+    refs = tmp_path / "refs"
+    common = ["--spp", "4", "--seed", "2", "--quiet", "--channels", "visibility"]
+    assert main(["reference", "plate", *common, "--out", str(refs / "plate")]) == 0
+    _engine_exr(root / "plate.exr", {"Y": read_exr(refs / "plate" / "reference.exr")["visibility"]})
+    for k in range(2):
+        out = refs / f"spot{k}"
+        path = ["--camera-path", "dolly", "--frames", "2", "--frame", str(k)]
+        assert main(["reference", "spot", *common, *path, "--out", str(out)]) == 0
+        vis = read_exr(out / "reference.exr")["visibility"]
+        _engine_exr(root / "spot" / f"frame_{k:03d}.exr", {"Y": vis})
+    args = ["score-folder", str(root), "--spp", "4", "--quiet", "--out", str(tmp_path / "o")]
+    assert main([*args, "--fail-above", "visibility_mae=0.5"]) == 0
+    combined = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert sorted(combined["scenes"]) == ["plate", "spot"]
+    assert combined["failed"] == {}
+    assert combined["scenes"]["plate"]["channel"] == "visibility"
+    assert combined["scenes"]["plate"]["frames"] is None
+    assert len(combined["scenes"]["spot"]["frames"]) == 2
+    assert combined["scenes"]["spot"]["flicker"] >= 0
+    assert (tmp_path / "o" / "report.html").is_file()
+    assert (tmp_path / "o" / "spot" / "metrics.json").is_file()
+    # a gate that a scene fails: exit 1, named
+    assert main([*args, "--fail-above", "visibility_mae=0"]) == 1
+    assert "plate: above threshold: visibility_mae" in capsys.readouterr().err
+    # a file named after no scene: exit 2 before anything is rendered
+    (root / "nosuch.exr").write_bytes((root / "plate.exr").read_bytes())
+    assert main([*args[:-1], str(tmp_path / "o2")]) == 2
+    assert "'nosuch' is not a built-in scene" in capsys.readouterr().err
+    assert not (tmp_path / "o2").exists()

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from . import args as A
+from . import score_folder
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -53,6 +54,8 @@ def add_parsers(sub) -> None:
     )
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
+
+    score_folder.add_parser(sub)
 
     p = sub.add_parser("report", help="combine score folders (or a sweep) into one HTML report")
     p.add_argument("folders", nargs="*", type=Path, metavar="DIR")
@@ -166,4 +169,8 @@ def cmd_report(args) -> int:
     return 0
 
 
-COMMANDS = {"score": cmd_score, "report": cmd_report}
+COMMANDS = {
+    "score": cmd_score,
+    "score-folder": score_folder.cmd_score_folder,
+    "report": cmd_report,
+}

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from . import args as A
 
-__all__ = ["candidate_inputs", "candidate_size", "find_export"]
+__all__ = ["candidate_inputs", "candidate_size", "find_export", "resolve_layout"]
 
 
 def candidate_size(path: str | Path) -> tuple[int, int] | None:
@@ -68,19 +68,25 @@ def _check_size(path: str, loaded) -> None:
     )
 
 
-def candidate_inputs(args, loaded):
-    """The layout of ``--candidate`` (frame 0's file) with ``--channel`` / ``--kind``, printed
-    as one line, after checking the file's size against the scene's; None for a technique.
-    """
+def resolve_layout(pattern: str, *, channel: str | None, kind: str | None, loaded):
+    """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
+    ``channel`` / ``kind``, printed as one line, after checking its size against
+    ``loaded``'s."""
     from ..scoring.layout import candidate_layout
     from ..scoring.request import frame_file
 
+    first = frame_file(pattern, 0)
+    layout = candidate_layout(first, channel=channel, kind=kind)
+    _check_size(first, loaded)
+    print(layout.message(Path(first).name), flush=True)
+    return layout
+
+
+def candidate_inputs(args, loaded):
+    """:func:`resolve_layout` of ``--candidate`` with ``--channel`` / ``--kind``; None for a
+    technique."""
     if args.candidate is None:
         if args.kind is not None:
             raise A.CliError("--kind applies to --candidate files, not to --technique")
         return None
-    first = frame_file(args.candidate, 0)
-    layout = candidate_layout(first, channel=args.channel, kind=args.kind)
-    _check_size(first, loaded)
-    print(layout.message(Path(first).name), flush=True)
-    return layout
+    return resolve_layout(args.candidate, channel=args.channel, kind=args.kind, loaded=loaded)

@@ -196,6 +196,10 @@ def estimate_memory(
     return _BASE_BYTES + launch * per_sample + pixels * per_pixel
 
 
+def _amount(n: int) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
+
+
 def available_memory() -> int:
     try:
         with open("/proc/meminfo") as f:
@@ -458,8 +462,8 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     have = available_memory()
     if need > have:
         raise ReferenceSettingsError(
-            f"a {w}x{h} reference at {settings.spp} spp needs about {need / 2**20:.0f} MiB; "
-            f"only {have / 2**20:.0f} MiB is available"
+            f"a {w}x{h} reference at {settings.spp} spp needs about {_amount(need)}; "
+            f"only {_amount(have)} is available"
         )
     groups = set(settings.channels)
     sampled = groups & {"visibility", "coverage", "color", "edge"}
