@@ -176,6 +176,8 @@ def test_score_export_dir_at_its_size_and_mismatch_names_fix(tmp_path, capsys):
     assert main(["score", str(exp), *common, "--out", str(tmp_path / "a")]) == 0
     rec = json.loads((tmp_path / "a" / "metrics.json").read_text())
     assert rec["channel"] == "visibility" and rec["visibility_mae"] is not None
+    report = json.loads((tmp_path / "a" / "report.json").read_text())
+    assert report["title"] == "shadow.exr on exp"  # named after the export folder
     xml = str(exp / "scene.xml")
     assert main(["score", xml, *common, "--out", str(tmp_path / "b")]) == 0
     capsys.readouterr()
@@ -355,3 +357,12 @@ def test_score_folder_by_scene_and_frame(tmp_path, capsys):
     assert main([*args[:-1], str(tmp_path / "o2")]) == 2
     assert "'nosuch' is not a built-in scene" in capsys.readouterr().err
     assert not (tmp_path / "o2").exists()
+
+
+def test_candidate_name_never_the_raw_pattern():
+    from raster_oracle.oracle.scoring.request import candidate_name
+
+    pat = "out/frame_{frame:03d}.exr"
+    assert candidate_name(pat, frames=8, camera_path="dolly") == "dolly frames 0-7"
+    assert candidate_name(pat, frames=None, camera_path="dolly") == "frame_000.exr"
+    assert candidate_name("out/x.png", frames=None, camera_path=None) == "x.png"

@@ -24,6 +24,7 @@ __all__ = [
     "check_distinct",
     "check_dir",
     "check_out",
+    "export_named",
     "export_scene",
     "input_errors",
     "load_scene",
@@ -245,7 +246,7 @@ def load_scene(args):
             f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
             "scene's own camera and light)"
         )
-    return scenes.load(
+    loaded = scenes.load(
         scene,
         width=args.width,
         height=args.height,
@@ -255,6 +256,18 @@ def load_scene(args):
         n_frames=args.frames or 8,
         light_path=light_path,
     )
+    return export_named(loaded, scene)
+
+
+def export_named(loaded, scene: str):
+    """An export's ``scene.xml`` is named after its folder (``plate320``), not ``scene``: the
+    name records and report titles show."""
+    path = Path(scene)
+    if path.name != "scene.xml" or not (path.parent / "camera.json").is_file():
+        return loaded
+    from dataclasses import replace
+
+    return replace(loaded, name=path.resolve().parent.name)
 
 
 def reference_cache(args):

@@ -63,12 +63,8 @@ def _scene_of(entry, exports: Path | None):
             f"after a scene ({', '.join(scenes.BUILTIN_SCENES)}) or pass --exports"
         )
     path, chosen = A.export_scene(scene)
-    return scenes.load(
-        path,
-        light=chosen or 0,
-        camera_path=None,
-        n_frames=entry.frames or 8,
-    )
+    loaded = scenes.load(path, light=chosen or 0, n_frames=entry.frames or 8)
+    return A.export_named(loaded, path)
 
 
 def cmd_score_folder(args) -> int:

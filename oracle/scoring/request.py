@@ -54,13 +54,13 @@ def file_candidate(
 
 
 def candidate_name(pattern: str, *, frames: int | None, camera_path: str | None) -> str:
-    """How the record and the report name an engine's candidate: the file name, or for a
-    ``{frame}`` pattern the camera path and the frame list (never the raw pattern)."""
-    if not FRAME_PATTERN.search(pattern):
-        return Path(pattern).name
+    """How the record and the report name an engine's candidate: the file name (frame 0's
+    for a one-frame pattern), or for several frames the camera path and the frame list
+    (``dolly frames 0-7``), never the raw ``{frame}`` pattern."""
     n = frames or 1
-    span = "frame 0" if n == 1 else f"frames 0-{n - 1}"
-    return f"{camera_path or 'scene camera'} {span}"
+    if n == 1 or not FRAME_PATTERN.search(pattern):
+        return Path(frame_file(pattern, 0)).name
+    return f"{camera_path or 'camera'} frames 0-{n - 1}"
 
 
 def _check_candidates(fn, loaded, frames, camera_path) -> None:
