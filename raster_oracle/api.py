@@ -87,42 +87,48 @@ def load_scene(
     *,
     width: int | None = None,
     height: int | None = None,
-    light: int = 0,
+    light: int | None = None,
     camera_path: str | None = None,
     frame: int = 0,
     n_frames: int = 8,
     light_path: str | None = None,
 ):
     """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, or an ``export``
-    folder (its ``scene.xml``, at the exported size). A loaded scene is returned as it is.
+    folder (or its ``scene.xml``: the exported size and light, named after the folder), as
+    the command line's ``SCENE`` is. A loaded scene is returned as it is.
+
+    ``light`` picks a light (default 0, an export's own light); ``camera_path``, ``frame``,
+    ``n_frames`` and ``light_path`` pick a frame of a camera or light path.
 
     Returns a ``raster_oracle.scenes.LoadedScene`` (``.width``, ``.height``, ``.light``,
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
     """
     from . import scenes
+    from .oracle.cli.args import export_named, export_scene
 
     if isinstance(scene, scenes.LoadedScene):
-        if any(v is not None for v in (width, height, camera_path, light_path)) or frame:
+        given = (width, height, light, camera_path, light_path)
+        if any(v is not None for v in given) or frame:
             raise InputError(
-                "width, height, camera_path, light_path and frame apply to a scene name or "
-                "file; pass them to load_scene instead of a loaded scene"
+                "width, height, light, camera_path, light_path and frame apply to a scene "
+                "name or file; pass them to load_scene instead of a loaded scene"
             )
         return scene
     if not isinstance(scene, str | os.PathLike):
         raise InputError(f"scene must be a name, a file, a folder or a loaded scene: {scene!r}")
-    if Path(scene).is_dir() and (Path(scene) / "scene.xml").is_file():
-        scene = Path(scene) / "scene.xml"
     with _library():
-        return scenes.load(
-            scene,
+        path, chosen = export_scene(os.fspath(scene))
+        loaded = scenes.load(
+            path,
             width=width,
             height=height,
-            light=light,
+            light=light if light is not None else (chosen or 0),
             camera_path=camera_path,
             frame=frame,
             n_frames=n_frames,
             light_path=light_path,
         )
+        return export_named(loaded, path)
 
 
 @dataclass

@@ -151,3 +151,15 @@ def test_uncached_work_leaves_no_scratch_folders(scene, monkeypatch):
     ro.score_image(scene, np.ones((H, W)), spp=SPP, cache=False)
     assert len(made) == 2  # the reference and the noise-floor reference
     assert not any(folder.exists() for folder in made)
+
+
+def test_export_folder_is_a_scene(tmp_path):
+    """An export folder loads as the command line loads it: the exported size, named after
+    its folder; a loaded scene takes no loading options."""
+    summary = ro.export("plate", tmp_path / "plate-small", width=W, height=H)
+    assert set(summary["shapes"]) == {"ground", "plate"}
+    for scene in (tmp_path / "plate-small", tmp_path / "plate-small" / "scene.xml"):
+        loaded = ro.load_scene(scene)
+        assert (loaded.width, loaded.height, loaded.name) == (W, H, "plate-small")
+    with pytest.raises(ro.InputError, match="load_scene"):
+        ro.load_scene(loaded, light=0)
