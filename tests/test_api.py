@@ -71,6 +71,10 @@ def test_exact_candidate_scores_zero_error(scene):
     assert rec["significant_fraction"] == 0.0
     assert rec["noise_floor"]["visibility_mae"] > 0.0
     assert rec["delta_e2000_mean"] is None  # a colour metric on a shadow mask
+    cov = ro.reference(scene, spp=SPP, channels=["coverage"]).coverage
+    rec = ro.score_image(scene, cov, channel="coverage", spp=SPP)
+    assert rec["channel"] == "coverage" and rec["coverage_mae"] == 0.0
+    assert rec["visibility_mae"] is None
 
 
 def test_array_candidate_is_the_cli_record(scene, tmp_path):
