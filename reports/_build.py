@@ -14,6 +14,7 @@ from . import images as _images
 from ._case import CASE_SCHEMA
 from ._tradeoff import tradeoff_section
 from ._validate import check_case_record, check_name, to_jsonable
+from .viewer import check_viewer
 
 __all__ = ["REPORT_SCHEMA", "build_report", "read_cases"]
 
@@ -133,6 +134,7 @@ def read_cases(path: str | os.PathLike, *, relative_to: str | os.PathLike) -> li
         # Untrusted data: every key, every image URI and link (inside the folder) is checked.
         case = check_case_record(f"{path} cases[{i}]", case, schema=CASE_SCHEMA)
         case.pop("id", None)
+        case["viewer"] = check_viewer(f"{path} cases[{i}]['viewer']", case.get("viewer"))
         links = []
         for link in case["exr_links"]:
             link = dict(link)

@@ -21,6 +21,7 @@ from ._validate import (
     decode_float,
     to_jsonable,
 )
+from .viewer import check_viewer
 
 __all__ = ["CASE_SCHEMA", "MAX_THUMBNAIL_BYTES", "make_case"]
 
@@ -192,6 +193,7 @@ def make_case(
     n_tiles: int = 4,
     max_size: int = 960,
     max_bytes: int = MAX_THUMBNAIL_BYTES,
+    viewer: Mapping | None = None,
 ) -> dict:
     """Compute everything the report shows about one case and return it as a JSON-safe dict.
 
@@ -235,6 +237,10 @@ def make_case(
     max_bytes : int
         Budget of the encoded thumbnails (images and error maps, data-URI characters); the
         reduction factor grows until they fit. Only noise-like content needs it.
+    viewer : dict, optional
+        The linear float images for the page's pixel viewer (zoom, exposure, readout), from
+        :func:`reports.viewer.viewer_record`; its full size must be the case's. Without it the
+        page shows the thumbnails only.
 
     Returns
     -------
@@ -261,6 +267,12 @@ def make_case(
     thresholds = check_thresholds(thresholds, metrics=metrics)
     if params is not None and not isinstance(params, Mapping):
         raise TypeError(f"params must be a dict or None, got {type(params).__name__}")
+    viewer = check_viewer("viewer", viewer)
+    if viewer is not None and (viewer["full_width"], viewer["full_height"]) != (width, height):
+        raise ValueError(
+            f"viewer images are {viewer['full_width']}x{viewer['full_height']}, "
+            f"the case's {width}x{height}"
+        )
 
     images, heatmaps, factor, size = _fit_thumbnails(
         reference,
@@ -305,4 +317,5 @@ def make_case(
             reference, candidate, maps, kind=kind, tile_size=tile_size, n_tiles=n_tiles
         ),
         "exr_links": _exr_links(exr_links),
+        "viewer": viewer,
     }
