@@ -48,10 +48,11 @@ def _display(result: ScoreResult, image: np.ndarray) -> np.ndarray:
 def _viewer(result: ScoreResult, maps: dict) -> dict:
     """The linear frames for the report's pixel viewer: reference, candidate, the reference's
     stderr (read back from each frame's reference EXR), one error map, the metrics."""
-    # signed errors read best under a cursor; colour has FLIP
-    primary = next(k for k in ("visibility_error", "coverage_error", "flip", *maps) if k in maps)
-    style, rng = MAP_STYLES[primary]
     color = result.record["channel"] == "color"
+    # colour: FLIP; visibility and coverage: the signed error, which reads best under a cursor
+    order = ("flip",) if color else ("visibility_error", "coverage_error", "flip")
+    primary = next(k for k in (*order, *maps) if k in maps)
+    style, rng = MAP_STYLES[primary]
     stderr_key = f"{result.record['channel']}_stderr"
     frames = []
     for k, frame in enumerate(result.frames):

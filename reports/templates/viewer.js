@@ -92,7 +92,8 @@
     if (Number.isNaN(value)) return "nan";
     if (!Number.isFinite(value)) return value > 0 ? "inf" : "-inf";
     if (value === 0) return "0";
-    var text = value.toPrecision(4);
+    var text = Math.abs(value) < 1e-4 || Math.abs(value) >= 1e6 ?
+      value.toExponential(3).replace(/\.?0+e/, "e") : value.toPrecision(4);
     return text.indexOf("e") < 0 && text.indexOf(".") >= 0 ? text.replace(/\.?0+$/, "") : text;
   }
 
