@@ -14,7 +14,7 @@ from . import images as _images
 from ._case import CASE_SCHEMA
 from ._tradeoff import tradeoff_section
 from ._validate import check_case_record, check_name, to_jsonable
-from .viewer import check_viewer
+from .viewer import MAX_VIEWER_PAGE_BYTES, check_viewer, fit_viewers
 
 __all__ = ["REPORT_SCHEMA", "build_report", "read_cases"]
 
@@ -84,6 +84,11 @@ def build_report(
     records = [_check_case(i, case) for i, case in enumerate(cases)]
     for i, case in enumerate(records):
         case["id"] = f"case-{i + 1}"
+    # the viewers' float data of all cases share one page budget
+    fitted = fit_viewers([case.get("viewer") for case in records], max_bytes=MAX_VIEWER_PAGE_BYTES)
+    for case, viewer in zip(records, fitted, strict=True):
+        if "viewer" in case or viewer is not None:
+            case["viewer"] = viewer
     metric_names = list(dict.fromkeys(k for case in records for k in case["metrics"]))
     cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
     styles = sorted({m["style"] for case in records for m in case["error_maps"]})

@@ -10,15 +10,17 @@ arrays are packed here:
 - reduced by the smallest integer ``factor`` whose image fits the pixel budget (box mean for
   the images, root-sum-square over the block for the stderr of that mean, the value of largest
   magnitude for the error map, so a one-pixel error stays visible); the page says so;
-- stored as little-endian float16 (values clipped to +-65504; relative precision 2**-11, so a
-  readout's fourth significant digit is float16's), channels interleaved, row 0 at the top;
-- zlib-compressed (level 9, deterministic) and base64-encoded; the page inflates them with the
+- stored as float16 (values clipped to +-65504; relative precision 2**-11, so a readout's
+  fourth significant digit is float16's), channels interleaved, row 0 at the top, the bytes
+  shuffled: every value's low byte first, then every high byte (smooth images compress about
+  twice as well);
+- zlib-compressed (level 6, deterministic) and base64-encoded; the page inflates them with the
   browser's ``DecompressionStream("deflate")``.
 
 Viewer record (the case record's ``"viewer"``, ``None`` when the case has no float data)::
 
     {"schema": "raster-oracle.viewer/1", "factor", "width", "height" (of the packed arrays),
-     "full_width", "full_height", "channels" (1 or 3), "encoding": "float16-le+zlib+base64",
+     "full_width", "full_height", "channels" (1 or 3), "encoding" (ENCODING),
      "exposure" (default stops), "tone_mapper" ("aces" | "reinhard" | "clip"),
      "srgb" (encode for display: colour yes, visibility data no), "max_pixels",
      "error": {"name", "style", "range"}, "palette": base64 of the error style's uint8 RGB LUT,
@@ -41,15 +43,19 @@ __all__ = [
     "ENCODING",
     "MAX_VIEWER_PIXELS",
     "VIEWER_SCHEMA",
+    "MAX_VIEWER_PAGE_BYTES",
     "check_viewer",
     "decode_array",
     "encode_array",
+    "fit_viewers",
+    "shrink_viewer",
+    "viewer_bytes",
     "viewer_factor",
     "viewer_record",
 ]
 
 VIEWER_SCHEMA = "raster-oracle.viewer/1"
-ENCODING = "float16-le+zlib+base64"
+ENCODING = "float16+byteshuffle+zlib+base64"
 
 #: Pixel budget of one frame's packed images (640 x 360): a colour frame (reference,
 #: candidate, stderr: 3 channels each, and the error map) is then at most 4.6 MB of float16
@@ -78,10 +84,12 @@ def viewer_factor(height: int, width: int, *, max_pixels: int, n_frames: int = 1
 
 
 def encode_array(values: np.ndarray) -> str:
-    """Pack an ``(H, W)`` or ``(H, W, C)`` float array: float16 LE, zlib level 9, base64."""
+    """Pack an ``(H, W)`` or ``(H, W, C)`` float array: float16, byte-shuffled (low bytes,
+    then high bytes), zlib level 6, base64."""
     half = np.clip(np.asarray(values, dtype=np.float64), -_FLOAT16_MAX, _FLOAT16_MAX)
-    data = np.ascontiguousarray(half.astype("<f2")).tobytes()
-    return base64.b64encode(zlib.compress(data, 9)).decode("ascii")
+    pairs = np.ascontiguousarray(half.astype("<f2")).reshape(-1).view(np.uint8).reshape(-1, 2)
+    shuffled = np.ascontiguousarray(pairs.T).tobytes()
+    return base64.b64encode(zlib.compress(shuffled, 6)).decode("ascii")
 
 
 def decode_array(text: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -93,7 +101,8 @@ def decode_array(text: str, shape: tuple[int, ...]) -> np.ndarray:
     count = math.prod(shape)
     if len(data) != 2 * count:
         raise ValueError(f"holds {len(data) // 2} values, expected {count} for shape {shape}")
-    return np.frombuffer(data, dtype="<f2").astype(np.float32).reshape(shape)
+    pairs = np.frombuffer(data, dtype=np.uint8).reshape(2, count).T
+    return np.ascontiguousarray(pairs).view("<f2").astype(np.float32).reshape(shape)
 
 
 def _reduce_mean(values: np.ndarray, factor: int) -> np.ndarray:
@@ -265,3 +274,61 @@ def check_viewer(name: str, viewer: object) -> dict | None:
             except ValueError as exc:
                 raise ValueError(f"{name}['frames'][{i}][{key!r}]: {exc}") from None
     return dict(viewer)
+
+
+#: Budget of all viewers of one page, in packed (base64) characters: with the thumbnails of
+#: ten cases (reduced to MAX_THUMBNAIL_BYTES_WITH_VIEWER when a case has a viewer) the page
+#: stays under 15 MB.
+MAX_VIEWER_PAGE_BYTES = 8_000_000
+
+_ARRAYS = ("reference", "candidate", "stderr", "error")
+
+
+def viewer_bytes(viewer: Mapping | None) -> int:
+    """Packed size of a viewer record's arrays (base64 characters); 0 for None."""
+    if viewer is None:
+        return 0
+    return sum(len(frame.get(key) or "") for frame in viewer["frames"] for key in _ARRAYS)
+
+
+def shrink_viewer(viewer: Mapping, extra: int) -> dict:
+    """Reduce a viewer record's arrays by a further integer factor ``extra`` (the same rules
+    as :func:`viewer_record`: box mean, stderr of the mean, largest-magnitude error)."""
+    h, w, c = viewer["height"], viewer["width"], viewer["channels"]
+    shape = (h, w) if c == 1 else (h, w, c)
+    frames = []
+    for frame in viewer["frames"]:
+        out = dict(frame)
+        for key in _ARRAYS:
+            if frame.get(key) is None:
+                continue
+            values = decode_array(frame[key], shape if key != "error" else (h, w))
+            if key == "stderr":
+                values = _reduce_stderr(values, extra)
+            elif key == "error":
+                values = _images.reduce_error(values, extra)
+            else:
+                values = _reduce_mean(values, extra)
+            out[key] = encode_array(values)
+        frames.append(out)
+    return {
+        **viewer,
+        "factor": viewer["factor"] * extra,
+        "width": -(-w // extra),
+        "height": -(-h // extra),
+        "frames": frames,
+    }
+
+
+def fit_viewers(viewers: Sequence[Mapping | None], *, max_bytes: int) -> list[dict | None]:
+    """The viewers reduced (all by the same further factor) until together they hold at most
+    ``max_bytes`` packed characters; unchanged when they fit."""
+    out = list(viewers)
+    total = sum(map(viewer_bytes, out))
+    extra = 1
+    while total > max_bytes and any(v and (v["width"] > 1 or v["height"] > 1) for v in out):
+        # packed size scales roughly with the pixel count, i.e. with 1 / factor^2
+        extra = max(extra + 1, math.ceil(extra * math.sqrt(total / max_bytes)))
+        out = [None if v is None else shrink_viewer(v, extra) for v in viewers]
+        total = sum(map(viewer_bytes, out))
+    return out

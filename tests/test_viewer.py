@@ -64,7 +64,8 @@ def test_arrays_round_trip_as_float16_and_pack_deterministically():
     expected = np.clip(values, -65504, 65504).astype(np.float16).astype(np.float32)
     np.testing.assert_array_equal(back, expected)  # NaN == NaN in assert_array_equal
     raw = zlib.decompress(base64.b64decode(text))
-    assert raw[:2] == np.float16(0.1).astype("<f2").tobytes()  # little-endian, row-major
+    pairs = expected.astype("<f2").reshape(-1).view(np.uint8).reshape(-1, 2)
+    assert raw == pairs[:, 0].tobytes() + pairs[:, 1].tobytes()  # low bytes, then high
     with pytest.raises(ValueError, match="holds 6 values, expected 8"):
         V.decode_array(text, (2, 4))
     with pytest.raises(ValueError, match="not float16"):
@@ -170,3 +171,58 @@ def test_score_report_views_every_frame_with_the_reference_stderr(tmp_path):
 
 
 V_KEYS = ("reference", "candidate", "stderr", "error")
+
+
+def test_shrinking_a_viewer_is_reducing_its_arrays_once_more():
+    frame = _frame(h=8, w=12, c=3)
+    frame["error"][5, 7] = 0.99
+    full = _record([frame])
+    direct = _record([frame], max_pixels=24)  # factor 2: 4 x 6
+    shrunk = V.shrink_viewer(full, 2)
+    assert (shrunk["factor"], shrunk["width"], shrunk["height"]) == (2, 6, 4)
+    assert direct["factor"] == 2
+    for key, shape in (("reference", (4, 6, 3)), ("stderr", (4, 6, 3)), ("error", (4, 6))):
+        a = V.decode_array(shrunk["frames"][0][key], shape)
+        b = V.decode_array(direct["frames"][0][key], shape)
+        np.testing.assert_allclose(a, b, rtol=2e-3)  # float16 rounding, once more
+    assert V.decode_array(shrunk["frames"][0]["error"], (4, 6))[2, 3] == np.float16(0.99)
+
+
+def test_viewers_of_one_page_share_a_budget():
+    viewers = [_record([_frame(h=40, w=60, seed=k)]) for k in range(3)]
+    total = sum(map(V.viewer_bytes, viewers))
+    assert V.fit_viewers(viewers + [None], max_bytes=total) == viewers + [None]
+    fitted = V.fit_viewers(viewers + [None], max_bytes=total // 3)
+    assert sum(map(V.viewer_bytes, fitted)) <= total // 3 and fitted[3] is None
+    assert {v["factor"] for v in fitted[:3]} == {2}  # about a quarter of the pixels
+
+
+def test_ten_noisy_colour_cases_with_viewers_stay_under_15_mb(tmp_path):
+    rng = np.random.default_rng(1)
+    h, w = 540, 960
+    cases = []
+    for k in range(10):
+        ref = rng.gamma(2.0, 0.5, (h, w, 3)).astype(np.float32)
+        cand = (ref * rng.uniform(0.8, 1.2, ref.shape)).astype(np.float32)
+        frame = {"reference": ref, "candidate": cand, "stderr": 0.1 * ref}
+        frame["error"] = np.abs(cand - ref).mean(-1)
+        viewer = _record([frame], error_style="magma", error_range=(0, 1), srgb=True)
+        shown = np.clip(ref, 0, 1)
+        cases.append(
+            reports.make_case(
+                name=f"c{k}",
+                scene="s",
+                reference=shown,
+                candidate=np.clip(cand, 0, 1),
+                kind="color",
+                metrics={"m": 1.0},
+                viewer=viewer,
+            )
+        )
+    report = reports.build_report(cases, title="size", provenance={})
+    assert sum(V.viewer_bytes(c["viewer"]) for c in report["cases"]) <= V.MAX_VIEWER_PAGE_BYTES
+    assert report["cases"][0]["viewer"]["factor"] > cases[0]["viewer"]["factor"]
+    out = tmp_path / "report.html"
+    reports.write_report(report, out)
+    assert out.stat().st_size < 15_000_000
+    assert f"Reduced 1/{report['cases'][0]['viewer']['factor']}" in out.read_text()

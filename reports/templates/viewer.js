@@ -1,7 +1,7 @@
 /* raster-oracle pixel viewer: nearest-neighbour zoom and pan, exposure, pixel readout, A/B
    and wipe, synced over the reference, candidate, error and wipe views of one case.
    Data: the "viewer" record of each case in the report-data block (reports/viewer.py):
-   float16 little-endian arrays, zlib-compressed, base64. The display transform is the one of
+   float16 arrays, byte-shuffled (low bytes, then high bytes), zlib-compressed, base64. The display transform is the one of
    metrics/tonemap.py: clamp at 0, scale by 2^exposure, curve (aces | reinhard | clip), clip to
    [0, 1], sRGB encode (colour only), round to 8 bits. */
 (function () {
@@ -31,9 +31,10 @@
     for (var i = 0; i < binary.length; i++) bytes[i] = binary.charCodeAt(i);
     var stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("deflate"));
     return new Response(stream).arrayBuffer().then(function (buffer) {
-      var view = new DataView(buffer), n = buffer.byteLength >> 1;
+      /* byte-shuffled: the n low bytes, then the n high bytes */
+      var bytes = new Uint8Array(buffer), n = bytes.length >> 1;
       var out = new Float32Array(n);
-      for (var k = 0; k < n; k++) out[k] = HALF[view.getUint16(2 * k, true)];
+      for (var k = 0; k < n; k++) out[k] = HALF[bytes[k] | (bytes[n + k] << 8)];
       return out;
     });
   }
