@@ -50,6 +50,7 @@ __all__ = [
     "fit_viewers",
     "shrink_viewer",
     "viewer_bytes",
+    "viewer_cases",
     "viewer_factor",
     "viewer_record",
 ]
@@ -332,3 +333,21 @@ def fit_viewers(viewers: Sequence[Mapping | None], *, max_bytes: int) -> list[di
         out = [None if v is None else shrink_viewer(v, extra) for v in viewers]
         total = sum(map(viewer_bytes, out))
     return out
+
+
+def viewer_cases(
+    cases: Sequence[tuple[str, str, Mapping]], *, max_bytes: int = MAX_VIEWER_PAGE_BYTES
+) -> list[dict]:
+    """The ``viewer_cases`` of ``templates/viewer_section.html`` (pixel viewers on a page
+    without ``report.js``, e.g. the sweep report): ``(id, name, viewer record)`` triples
+    checked and fitted to one page budget. ``id`` must be unique on the page."""
+    ids = [case_id for case_id, _, _ in cases]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"viewer case ids must be unique, got {ids}")
+    checked = [check_viewer(f"viewer of {case_id}", v) for case_id, _, v in cases]
+    fitted = fit_viewers(checked, max_bytes=max_bytes)
+    return [
+        {"id": case_id, "name": str(name), "viewer": viewer}
+        for (case_id, name, _), viewer in zip(cases, fitted, strict=True)
+        if viewer is not None
+    ]

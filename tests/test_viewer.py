@@ -226,3 +226,18 @@ def test_ten_noisy_colour_cases_with_viewers_stay_under_15_mb(tmp_path):
     reports.write_report(report, out)
     assert out.stat().st_size < 15_000_000
     assert f"Reduced 1/{report['cases'][0]['viewer']['factor']}" in out.read_text()
+
+
+def test_viewer_section_for_pages_without_report_js():
+    from raster_oracle.reports._env import environment
+
+    frame = _frame(c=0)
+    cases = V.viewer_cases([("row-3", "<b>pcf</b>", _record([frame]))])
+    assert [c["id"] for c in cases] == ["row-3"]
+    template = environment().get_template("viewer_section.html")
+    html = template.render(viewer_cases=cases)
+    assert html.count('class="pv"') == 1 and 'data-viewer="row-3"' in html
+    assert "&lt;b&gt;pcf&lt;/b&gt;" in html and "DecompressionStream" in html
+    assert template.render(viewer_cases=[]).strip() == ""
+    with pytest.raises(ValueError, match="unique"):
+        V.viewer_cases([("a", "x", _record([frame])), ("a", "y", _record([frame]))])
