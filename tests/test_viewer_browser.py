@@ -124,7 +124,9 @@ def page(browser, page_url):
 
 def _pixels(page, case: str, source: str) -> np.ndarray:
     """The RGB pixels of one view's canvas, (h, w, 3) uint8."""
-    canvas = page.locator(f'.pv[data-viewer="{case}"] .pv-pane[data-source="{source}"] canvas')
+    canvas = page.locator(
+        f'.pv[data-viewer="{case}"] .pv-pane[data-source="{source}"] .pv-canvas-box canvas'
+    )
     w, h, text = canvas.evaluate(
         "c => { const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
         " let s = ''; for (let i = 0; i < d.length; i += 8192)"
@@ -140,7 +142,9 @@ def _colours(pixels: np.ndarray) -> set[tuple[int, ...]]:
 
 
 def _hover_pixel(page, case: str, source: str, x: int, y: int, width: int, height: int) -> None:
-    canvas = page.locator(f'.pv[data-viewer="{case}"] .pv-pane[data-source="{source}"] canvas')
+    canvas = page.locator(
+        f'.pv[data-viewer="{case}"] .pv-pane[data-source="{source}"] .pv-canvas-box canvas'
+    )
     canvas.scroll_into_view_if_needed()
     box = canvas.bounding_box()
     page.mouse.move(
@@ -184,7 +188,8 @@ def test_zoom_and_pan_are_shared_by_every_view(page):
     reference = _pixels(page, "case-1", "reference")
     candidate = _pixels(page, "case-1", "candidate")
     assert np.array_equal(reference, candidate)  # the candidate differs only in a corner
-    canvas = viewer.locator('.pv-pane[data-source="error"] canvas')
+    canvas = viewer.locator('.pv-pane[data-source="error"] .pv-canvas-box canvas')
+    canvas.scroll_into_view_if_needed()
     box = canvas.bounding_box()
     cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
     page.mouse.move(cx, cy)

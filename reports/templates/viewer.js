@@ -119,12 +119,27 @@
     var bytes = atob(record.palette);
     this.lut = new Uint8Array(bytes.length);
     for (var i = 0; i < bytes.length; i++) this.lut[i] = bytes.charCodeAt(i);
+    this.drawColorbar(root.querySelector(".pv-colorbar canvas"));
     this.panes = Array.prototype.map.call(root.querySelectorAll(".pv-pane"), function (pane) {
-      return { el: pane, canvas: pane.querySelector("canvas"), source: pane.getAttribute("data-source") };
+      return { el: pane, canvas: pane.querySelector(".pv-canvas-box canvas"), source: pane.getAttribute("data-source") };
     });
     this.bind();
     this.load(0);
   }
+
+  /* The error palette, low end left (the palette has 255 or 256 entries: 256 columns). */
+  Viewer.prototype.drawColorbar = function (canvas) {
+    if (!canvas) return;
+    var entries = this.lut.length / 3, image = new ImageData(256, 1);
+    for (var i = 0; i < 256; i++) {
+      var j = 3 * Math.round(i * (entries - 1) / 255);
+      image.data[4 * i] = this.lut[j];
+      image.data[4 * i + 1] = this.lut[j + 1];
+      image.data[4 * i + 2] = this.lut[j + 2];
+      image.data[4 * i + 3] = 255;
+    }
+    canvas.getContext("2d").putImageData(image, 0, 0);
+  };
 
   Viewer.prototype.load = function (index) {
     var self = this, v = this.v, frame = v.frames[index];
