@@ -293,3 +293,14 @@ def test_frame_selector_shows_each_frame_and_its_metrics(page):
     _hover_pixel(page, "case-2", "reference", x, y, W, H)
     blue = viewer.locator('.pv-val[data-field="reference"]').inner_text().split(", ")[2]
     assert blue == "1.1"
+    viewer.locator("details.pv-frames-table summary").click()
+    rows = viewer.locator("table.pv-frames tbody tr")
+    assert rows.count() == 2 and rows.nth(1).get_attribute("class") == "current"
+    assert rows.nth(0).locator("td").nth(1).inner_text() == "0.1"  # flip_mean of frame 1
+    assert rows.nth(0).locator("td").nth(2).inner_text() == "—"  # ssim: None, tolerated
+    rows.nth(0).locator(".pv-link").click()
+    assert viewer.locator(".pv-frame").input_value() == "0"
+    page.wait_for_function(
+        "() => document.querySelector('.pv[data-viewer=\"case-2\"] .pv-frame-metrics')"
+        ".textContent.includes('frame 1')"
+    )

@@ -344,11 +344,21 @@
       setExposure(Number(exposure.getAttribute("data-default")));
     });
     var frame = root.querySelector(".pv-frame");
+    function setFrame(index) {
+      self.frame = index;
+      frame.value = String(index);
+      root.querySelector(".pv-frame-value").textContent = (index + 1) + " / " + self.v.frames.length;
+      root.querySelectorAll("tr[data-frame]").forEach(function (row) {
+        row.classList.toggle("current", Number(row.getAttribute("data-frame")) === index);
+      });
+      self.load(index).then(function () { self.readout(); });
+    }
     if (frame) {
-      frame.addEventListener("input", function () {
-        self.frame = Number(frame.value);
-        root.querySelector(".pv-frame-value").textContent = (self.frame + 1) + " / " + self.v.frames.length;
-        self.load(self.frame).then(function () { self.readout(); });
+      frame.addEventListener("input", function () { setFrame(Number(frame.value)); });
+      root.querySelectorAll("tr[data-frame] .pv-link").forEach(function (button) {
+        button.addEventListener("click", function () {
+          setFrame(Number(button.closest("tr").getAttribute("data-frame")));
+        });
       });
     }
     root.querySelector(".pv-ab").addEventListener("click", function () {
