@@ -241,3 +241,20 @@ def test_viewer_section_for_pages_without_report_js():
     assert template.render(viewer_cases=[]).strip() == ""
     with pytest.raises(ValueError, match="unique"):
         V.viewer_cases([("a", "x", _record([frame])), ("a", "y", _record([frame]))])
+
+
+def test_same_inputs_write_the_same_bytes(tmp_path):
+    def write(name: str) -> bytes:
+        frames = [_frame(seed=3), _frame(seed=4)]
+        frames[0]["metrics"] = {"flip": 0.5}
+        viewer = _record(frames, exposure=0.5, tone_mapper="aces", srgb=True)
+        clip = np.clip(frames[0]["reference"], 0, 1)
+        case = reports.make_case(
+            name="n", scene="s", reference=clip, candidate=clip, kind="color",
+            metrics={"m": 1.0}, viewer=viewer,
+        )  # fmt: skip
+        report = reports.build_report([case], title="t", provenance={})
+        reports.write_report(report, tmp_path / name)
+        return (tmp_path / name).read_bytes() + (tmp_path / name).with_suffix(".json").read_bytes()
+
+    assert write("a.html") == write("b.html")
