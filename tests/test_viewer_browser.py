@@ -177,7 +177,11 @@ def test_zoom_shows_unsmoothed_blocks_of_exactly_two_colours(page):
 
 
 def test_fit_view_of_the_checker_has_no_smoothing_either(page):
-    # Fit is 12.x CSS px per pixel: nearest neighbour still gives only black and white.
+    # Fit is 8 CSS px per pixel: nearest neighbour still gives only black and white (once the
+    # worst tile's outline, yellow, is switched off).
+    viewer = page.locator('.pv[data-viewer="case-1"]')
+    assert (250, 204, 21) in _colours(_pixels(page, "case-1", "reference"))  # #facc15
+    viewer.locator(".pv-tiles").uncheck()
     assert _colours(_pixels(page, "case-1", "reference")) == {(0, 0, 0), (255, 255, 255)}
 
 

@@ -100,8 +100,10 @@
 
   /* ---- one viewer ----------------------------------------------------------------- */
 
-  function Viewer(root, record, section) {
+  function Viewer(root, record, section, tiles) {
     this.root = root;
+    this.tiles = tiles || [];
+    this.hotTile = -1;
     this.v = record;
     this.section = section;
     this.zoom = 1;
@@ -123,6 +125,7 @@
     this.panes = Array.prototype.map.call(root.querySelectorAll(".pv-pane"), function (pane) {
       return { el: pane, canvas: pane.querySelector(".pv-canvas-box canvas"), source: pane.getAttribute("data-source") };
     });
+    this.showTiles = false;
     this.bind();
     this.load(0);
   }
@@ -221,6 +224,7 @@
         ctx.fillStyle = "#fff";
         ctx.fillRect(x - 1, 0, 2, canvas.height);
       }
+      if (self.showTiles) self.drawTiles(ctx, t);
       if (self.cursor) {
         ctx.setTransform(1, 0, 0, 1, 0, 0);
         var px = t.tx + self.cursor.x * t.s, py = t.ty + self.cursor.y * t.s;
@@ -242,6 +246,27 @@
     var cssPerPixel = this.panes[0].canvas.getBoundingClientRect().width / this.v.width * this.zoom;
     label.textContent = this.zoom === 1 ? "fit" : "1 px = " + fmt(cssPerPixel) + " screen px";
     this.root.setAttribute("data-zoom", String(this.zoom));
+  };
+
+  /* The worst tiles (full-resolution rectangles) as outlines with their rank. */
+  Viewer.prototype.drawTiles = function (ctx, t) {
+    var f = this.v.factor, self = this;
+    ctx.setTransform(1, 0, 0, 1, 0, 0);
+    ctx.font = "600 11px system-ui, sans-serif";
+    this.tiles.forEach(function (tile, index) {
+      var x = t.tx + tile.x / f * t.s, y = t.ty + tile.y / f * t.s;
+      var w = tile.w / f * t.s, h = tile.h / f * t.s;
+      var hot = index === self.hotTile;
+      ctx.lineWidth = hot ? 3 : 1.5;
+      ctx.strokeStyle = "rgba(0,0,0,0.6)";
+      ctx.strokeRect(x - 1, y - 1, w + 2, h + 2);
+      ctx.strokeStyle = hot ? "#22d3ee" : "#facc15";
+      ctx.strokeRect(x, y, w, h);
+      ctx.fillStyle = ctx.strokeStyle;
+      ctx.fillRect(x + w + 2, y - 1, 14, 14);
+      ctx.fillStyle = "#111";
+      ctx.fillText(String(tile.rank), x + w + 5, y + 10);
+    });
   };
 
   Viewer.prototype.maxZoom = function () {
@@ -401,8 +426,18 @@
       });
     });
 
+    var tilesBox = root.querySelector(".pv-tiles");
+    this.showTiles = Boolean(tilesBox && tilesBox.checked && this.tiles.length);
+    if (tilesBox) {
+      tilesBox.addEventListener("change", function () {
+        self.showTiles = tilesBox.checked && self.tiles.length > 0; self.draw();
+      });
+    }
     if (this.section) {
       this.section.querySelectorAll(".tile-card").forEach(function (card) {
+        var index = Number(card.getAttribute("data-tile"));
+        card.addEventListener("mouseenter", function () { self.hotTile = index; self.draw(); });
+        card.addEventListener("mouseleave", function () { self.hotTile = -1; self.draw(); });
         card.addEventListener("click", function () {
           self.zoomTo(Number(card.getAttribute("data-x")), Number(card.getAttribute("data-y")),
             Number(card.getAttribute("data-w")), Number(card.getAttribute("data-h")));
@@ -420,7 +455,7 @@
     if (!info.viewer) return;
     var root = document.querySelector('.pv[data-viewer="' + info.id + '"]');
     if (!root) return;
-    viewers.push(new Viewer(root, info.viewer, document.getElementById(info.id)));
+    viewers.push(new Viewer(root, info.viewer, document.getElementById(info.id), info.tiles));
   });
 
   function isControl(target) {
