@@ -236,6 +236,10 @@ def _jsonable_metrics(metrics: Mapping) -> dict:
     return out
 
 
+def _finite_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
 def check_viewer(name: str, viewer: object) -> dict | None:
     """Check a viewer record read back from JSON (untrusted): keys, types and that every
     packed array decodes to its shape. Returns it, or None for None; ``ValueError`` names
@@ -255,14 +259,33 @@ def check_viewer(name: str, viewer: object) -> dict | None:
     err = viewer.get("error")
     if not isinstance(err, Mapping) or err.get("style") not in ("signed", "magma"):
         raise ValueError(f"{name}['error'] must hold a style 'signed' or 'magma'")
+    rng = err.get("range")
+    if not (isinstance(err.get("name"), str) and isinstance(rng, list) and len(rng) == 2):
+        raise ValueError(f"{name}['error'] must hold a name and a range [lo, hi]")
+    if not all(_finite_number(v) for v in rng) or not rng[0] < rng[1]:
+        raise ValueError(f"{name}['error']['range'] must be two increasing numbers, got {rng}")
+    if not _finite_number(viewer.get("exposure")) or not isinstance(viewer.get("srgb"), bool):
+        raise ValueError(f"{name}: exposure must be a number and srgb a boolean")
+    try:
+        lut = base64.b64decode(str(viewer.get("palette")).encode("ascii"), validate=True)
+    except ValueError:
+        lut = b""
+    if not lut or len(lut) % 3:
+        raise ValueError(f"{name}['palette'] must be base64 of RGB byte triples")
     frames = viewer.get("frames")
     if not isinstance(frames, list) or not frames:
         raise ValueError(f"{name}['frames'] must be a non-empty list")
     shape = (viewer["height"], viewer["width"])
     image_shape = shape if viewer["channels"] == 1 else (*shape, 3)
     for i, frame in enumerate(frames):
-        if not isinstance(frame, Mapping):
-            raise ValueError(f"{name}['frames'][{i}] must be a dict")
+        if not isinstance(frame, Mapping) or not isinstance(frame.get("label"), str):
+            raise ValueError(f"{name}['frames'][{i}] must be a dict with a label")
+        metrics = frame.get("metrics")
+        if metrics is not None and not (
+            isinstance(metrics, Mapping)
+            and all(v is None or _finite_number(v) for v in metrics.values())
+        ):
+            raise ValueError(f"{name}['frames'][{i}]['metrics'] must map names to numbers or null")
         for key, want in (("reference", image_shape), ("candidate", image_shape),
                           ("stderr", image_shape), ("error", shape)):  # fmt: skip
             value = frame.get(key)

@@ -258,3 +258,25 @@ def test_same_inputs_write_the_same_bytes(tmp_path):
         return (tmp_path / name).read_bytes() + (tmp_path / name).with_suffix(".json").read_bytes()
 
     assert write("a.html") == write("b.html")
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "message"),
+    [
+        (("error", "range"), [1, 0], "two increasing numbers"),
+        (("error", "range"), "<script>", "a name and a range"),
+        (("exposure",), "1", "exposure must be a number"),
+        (("palette",), "AAA=", "RGB byte triples"),  # two bytes
+        (("frames", 0, "metrics"), {"m": "x"}, "numbers or null"),
+        (("frames", 0, "label"), 3, "with a label"),
+        (("channels",), 2, "channels must be 1 or 3"),
+    ],
+)
+def test_hostile_viewer_records_are_refused(path, value, message):
+    record = json.loads(json.dumps(_record([_frame()])))
+    target = record
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = value
+    with pytest.raises(ValueError, match=message):
+        V.check_viewer("v", record)
