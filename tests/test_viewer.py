@@ -141,7 +141,7 @@ def test_make_case_checks_the_viewer_size_and_read_cases_checks_its_data(tmp_pat
     assert html.count('class="pv"') == 1 and html.count('class="viewer frame"') == 1
 
 
-def test_score_report_views_every_frame_with_the_reference_stderr(tmp_path):
+def test_score_report_views_every_frame_with_the_reference_stderr(tmp_path, capsys):
     size = ["--width", "24", "--height", "14", "--spp", "4", "--quiet"]
     camera = ["--camera-path", "subpixel-pan", "--frames", "2"]
     for k in range(2):
@@ -168,6 +168,17 @@ def test_score_report_views_every_frame_with_the_reference_stderr(tmp_path):
         assert frame["metrics"]["misclassified_fraction"] == pytest.approx(
             metrics["frames"][k]["misclassified_fraction"]
         )
+    # combining score folders keeps the viewer; a tampered one is exit 2, nothing written
+    assert main(["report", str(out), "--out", str(tmp_path / "all" / "r.html")]) == 0
+    combined = json.loads((tmp_path / "all" / "r.json").read_text())
+    assert combined["cases"][0]["viewer"] == viewer
+    data = json.loads((out / "report.json").read_text())
+    data["cases"][0]["viewer"]["frames"][1]["error"] = "not base64!"
+    (out / "report.json").write_text(json.dumps(data))
+    rc = main(["report", str(out), "--out", str(tmp_path / "bad" / "r.html")])
+    assert rc == 2 and not (tmp_path / "bad" / "r.html").exists()
+    err = capsys.readouterr().err.strip()
+    assert "['viewer']['frames'][1]['error']" in err and "\n" not in err
 
 
 V_KEYS = ("reference", "candidate", "stderr", "error")
