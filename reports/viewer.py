@@ -77,7 +77,7 @@ def viewer_factor(height: int, width: int, *, max_pixels: int, n_frames: int = 1
     ``max_pixels * min(n_frames, MAX_FRAME_BUDGETS)``.
     """
     per_frame = max_pixels * min(n_frames, MAX_FRAME_BUDGETS) / n_frames
-    per_frame = min(per_frame, max_pixels)
+    per_frame = max(1.0, min(per_frame, max_pixels))
     factor = max(1, math.ceil(math.sqrt(height * width / per_frame)) - 1)
     while -(-height // factor) * -(-width // factor) > per_frame:
         factor += 1
@@ -184,6 +184,8 @@ def viewer_record(
         raise ValueError(f"tone_mapper must be one of {list(_TONE_MAPPERS)}, got {tone_mapper!r}")
     if not math.isfinite(exposure):
         raise ValueError(f"exposure must be finite, got {exposure!r}")
+    if not isinstance(max_pixels, int) or isinstance(max_pixels, bool) or max_pixels < 1:
+        raise ValueError(f"max_pixels must be a positive integer, got {max_pixels!r}")
     lo, hi = (float(v) for v in error_range)
     palette = _images.palette(error_style)  # raises on an unknown style
     checked, shape = [], None

@@ -44,12 +44,13 @@ def _record(frames, **kw):
         ((1080, 1920), 4, 3),  # four frames: four budgets
         ((1080, 1920), 8, 5),  # eight frames share four budgets: 480 x 270 > 115,200
         ((27, 48), 100, 1),
+        ((2, 2), 10**7, 2),  # a budget under one pixel a frame still ends: one pixel
     ],
 )
 def test_factor_is_the_smallest_that_fits_the_budget(shape, n_frames, factor):
     got = V.viewer_factor(*shape, max_pixels=640 * 360, n_frames=n_frames)
     assert got == factor
-    budget = 640 * 360 * min(n_frames, V.MAX_FRAME_BUDGETS) / n_frames
+    budget = max(1, 640 * 360 * min(n_frames, V.MAX_FRAME_BUDGETS) / n_frames)
     assert -(-shape[0] // got) * -(-shape[1] // got) <= min(budget, 640 * 360)
     if got > 1:
         f = got - 1
