@@ -185,6 +185,22 @@ def test_fit_view_of_the_checker_has_no_smoothing_either(page):
     assert _colours(_pixels(page, "case-1", "reference")) == {(0, 0, 0), (255, 255, 255)}
 
 
+def test_keyboard_zooms_pans_and_fits(page):
+    viewer = page.locator('.pv[data-viewer="case-1"]')
+    canvas = viewer.locator('.pv-pane[data-source="reference"] .pv-canvas-box canvas')
+    canvas.focus()
+    page.keyboard.press("+")
+    page.keyboard.press("+")
+    assert float(viewer.get_attribute("data-zoom")) == 4.0
+    before = _pixels(page, "case-1", "reference")
+    page.keyboard.press("ArrowLeft")
+    assert not np.array_equal(_pixels(page, "case-1", "reference"), before)
+    page.keyboard.press("-")
+    assert float(viewer.get_attribute("data-zoom")) == 2.0
+    page.keyboard.press("0")
+    assert float(viewer.get_attribute("data-zoom")) == 1.0
+
+
 def test_zoom_and_pan_are_shared_by_every_view(page):
     viewer = page.locator('.pv[data-viewer="case-1"]')
     viewer.locator(".pv-zoom-in").click()

@@ -394,6 +394,20 @@
 
     this.panes.forEach(function (pane) {
       var canvas = pane.canvas, drag = null;
+      /* keyboard: + / - zoom, 0 fits, arrows pan by a tenth of the view */
+      canvas.tabIndex = 0;
+      canvas.addEventListener("keydown", function (event) {
+        var step = self.v.width / (10 * self.zoom), c = canvas;
+        var moves = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] };
+        if (event.key === "+" || event.key === "=") self.zoomAt(2, c, c.width / 2, c.height / 2);
+        else if (event.key === "-") self.zoomAt(0.5, c, c.width / 2, c.height / 2);
+        else if (event.key === "0") { self.zoom = 1; self.clampCentre(); self.draw(); }
+        else if (moves[event.key]) {
+          self.cx += moves[event.key][0]; self.cy += moves[event.key][1];
+          self.clampCentre(); self.draw();
+        } else return;
+        event.preventDefault();
+      });
       canvas.addEventListener("wheel", function (event) {
         event.preventDefault();
         var p = self.canvasPoint(canvas, event);
