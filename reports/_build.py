@@ -56,7 +56,9 @@ def build_report(
     ----------
     cases : sequence of dict
         Records from :func:`make_case`, possibly read back from JSON (:func:`read_cases`).
-        They are copied; each gets an ``"id"`` (``"case-1"``, ...) by position.
+        They are copied; each gets an ``"id"`` (``"case-1"``, ...) by position. Their pixel
+        viewers share one page budget (:data:`reports.viewer.MAX_VIEWER_PAGE_BYTES`): over it,
+        every viewer is reduced by one further integer factor until they fit.
     title : str
         Page title.
     provenance : dict

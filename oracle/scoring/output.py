@@ -51,8 +51,8 @@ def _viewer(result: ScoreResult, maps: dict) -> dict:
     color = result.record["channel"] == "color"
     # colour: FLIP; visibility and coverage: the signed error, which reads best under a cursor
     order = ("flip",) if color else ("visibility_error", "coverage_error", "flip")
-    primary = next(k for k in (*order, *maps) if k in maps)
-    style, rng = MAP_STYLES[primary]
+    shown = next(k for k in (*order, *maps) if k in maps)
+    style, rng = MAP_STYLES[shown]
     stderr_key = f"{result.record['channel']}_stderr"
     frames = []
     for k, frame in enumerate(result.frames):
@@ -65,13 +65,13 @@ def _viewer(result: ScoreResult, maps: dict) -> dict:
                 "reference": frame.reference,
                 "candidate": frame.candidate,
                 "stderr": se,
-                "error": frame.maps[primary],
+                "error": frame.maps[shown],
             }
         )
     tm = result.record.get("tone_mapping") or {}
     return reports.viewer_record(
         frames,
-        error_name=primary,
+        error_name=shown,
         error_style=style,
         error_range=rng,
         exposure=tm.get("exposure_stops") or 0.0,
