@@ -31,9 +31,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 from markupsafe import Markup, escape  # noqa: E402
 from matplotlib import ticker  # noqa: E402
 
-from .formatting import fmt_bytes, fmt_cost, fmt_number, fmt_value  # noqa: E402
+from .formatting import fmt_cost, fmt_number, fmt_value  # noqa: E402
 
 __all__ = [
+    "DistinctFormatter",
     "EmptyPlotError",
     "axis_label",
     "front_plot",
@@ -92,16 +93,47 @@ def _is_log(values: Sequence[float]) -> bool:
     return lo > 0 and hi / lo > LOG_SPAN
 
 
-def _cost_axis(axis, key: str, values: Sequence[float], *, log: bool) -> None:
+class DistinctFormatter(ticker.Formatter):
+    """Tick labels with as many significant digits as it takes to tell the ticks apart
+    (at least three): bytes in binary units, other values as plain numbers."""
+
+    def __init__(self, *, is_bytes: bool):
+        self.is_bytes = is_bytes
+
+    def _one(self, value: float, digits: int) -> str:
+        value = float(value)
+        if self.is_bytes:
+            for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+                if abs(value) < 1024.0 or unit == "TiB":
+                    return f"{value:.{digits}g} {unit}"
+                value /= 1024.0
+        if value == 0.0:
+            return "0"
+        return f"{value:.{digits}g}".replace("-", "−")
+
+    def __call__(self, x, pos=None) -> str:
+        return self._one(x, 3)
+
+    def format_ticks(self, values) -> list[str]:
+        labels = [self._one(v, 3) for v in values]
+        for digits in range(4, 13):
+            if len(set(labels)) == len(labels):
+                break
+            labels = [self._one(v, digits) for v in values]
+        return labels
+
+
+def _cost_axis(axis, key: str, *, log: bool) -> None:
     """Locator and formatter of a cost axis: binary units for bytes, else plain numbers."""
     is_bytes = key.endswith("bytes")
-    fmt = ticker.FuncFormatter(lambda v, _pos: fmt_bytes(v) if is_bytes else fmt_number(float(v)))
     if log:
         axis.set_major_locator(ticker.LogLocator(base=2.0 if is_bytes else 10.0, numticks=8))
         axis.set_minor_formatter(ticker.NullFormatter())
     elif is_bytes:
         axis.set_major_locator(ticker.MaxNLocator(nbins=6, steps=[1, 2, 4, 5, 8, 10]))
-    axis.set_major_formatter(fmt)
+    else:
+        axis.set_major_locator(ticker.MaxNLocator(nbins=6))
+    axis.set_major_formatter(DistinctFormatter(is_bytes=is_bytes))
 
 
 #: Text stays text in the SVG; the page's sans-serif font draws it.
@@ -163,8 +195,7 @@ def _svg(fig, ax, *, salt: str, css: str, label: str, tips: Mapping[str, str], o
     text = text[text.index("<svg") :]
     text = re.sub(
         r'<svg xmlns:xlink="http://www.w3.org/1999/xlink" width="[^"]*" height="[^"]*"',
-        f'<svg class="plot {css}" role="img" aria-label="{escape(label)}" '
-        'xmlns:xlink="http://www.w3.org/1999/xlink"',
+        f'<svg class="plot {css}" role="img" aria-label="{escape(label)}"',
         text,
         count=1,
     )
@@ -177,6 +208,8 @@ def _svg(fig, ax, *, salt: str, css: str, label: str, tips: Mapping[str, str], o
         return link + (f"<title>{escape(tip)}</title>" if tip else "")
 
     text = re.sub(r'<a xlink:href="#([^"]+)"(?: target="_blank")?>', titled, text)
+    # inline in HTML: SVG 2's plain href, no XLink namespace to declare
+    text = text.replace(" xlink:href=", " href=")
     return Markup(text)
 
 
@@ -240,7 +273,7 @@ def front_plot(
     log = _is_log(costs)
     if log:
         ax.set_xscale("log", base=2.0 if cost_key.endswith("bytes") else 10.0)
-    _cost_axis(ax.xaxis, cost_key, costs, log=log)
+    _cost_axis(ax.xaxis, cost_key, log=log)
     floors = [p["floor"] for p in pts if _finite(p.get("floor"))]
     _floor_band(ax, max(floors) if floors else None)
     ax.set_ylim(bottom=0.0)
@@ -285,7 +318,7 @@ def sensitivity_plot(item: Mapping, *, salt: str = "") -> Markup:
         if len(xs) <= 8:
             ax.xaxis.set_major_locator(ticker.FixedLocator(xs))
             ax.xaxis.set_minor_locator(ticker.NullLocator())
-        ax.xaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _p: fmt_number(float(v))))
+        ax.xaxis.set_major_formatter(DistinctFormatter(is_bytes=False))
     else:
         names = list(dict.fromkeys(fmt_value(level["x"]) for level in levels))
 

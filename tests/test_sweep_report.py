@@ -53,7 +53,7 @@ def test_fronts_hold_exactly_the_non_dominated_cases():
         if f["cost_key"] == "memory_bytes" and f["metric"] == "misclassified_fraction"
     )
     on = sorted(p["case_id"] for p in front["points"] if p["on_front"])
-    assert on == sorted(f"row-{i:012x}" for i in (1, 4, 5))
+    assert on == sorted(f"case-{i:012x}" for i in (1, 4, 5))
     # the front's indices run by increasing cost
     assert [front["points"][i]["cost"] for i in front["front"]] == [100, 400, 1600]
     # city is its own group: its single case is its front
@@ -118,20 +118,32 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
 
 
 def test_front_plot_colours_each_technique_and_fills_the_front():
+    import re
+
     from raster_oracle.reports.sections.sweep import PALETTE, front_svg
 
     rec = sweep_record(ROWS, title="t")
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
-    svg = str(front_svg(plate["fronts"][0]))
-    circles = svg.split('<circle class="point')[1:]
-    assert len(circles) == 6
+    front = plate["fronts"][0]
+    svg = str(front_svg(front))
+    # one linked marker per case, with its values in a <title>; the front's marked on-front
+    links = re.findall(r'<a href="#(case-[0-9a-f]+)" class="(point[^"]*)"><title>([^<]*)', svg)
+    assert sorted(i for i, _, _ in links) == sorted(p["case_id"] for p in front["points"])
+    on = {p["case_id"] for p in front["points"] if p["on_front"]}
+    assert {i for i, c, _ in links if c == "point on-front"} == on
+    assert all(front["metric"] in tip for _, _, tip in links)
     # shadow-map first (blue), csm second (orange); on-front points filled, others hollow
-    points = plate["fronts"][0]["points"]
-    for p, c in zip(points, circles, strict=True):
-        colour = PALETTE[0] if p["technique"] == "shadow-map" else PALETTE[1]
-        assert f'stroke="{colour}"' in c
-        assert (f'fill="{colour}"' in c) == p["on_front"]
-    assert '<div class="legend">' in svg and "csm" in svg
+    marks = re.findall(
+        r'<a href="#(case-[0-9a-f]+)"[^>]*><title>[^<]*</title>\s*(?:<g [^>]*>\s*)?<use [^>]*'
+        r'style="fill: (#[0-9a-f]+); stroke: (#[0-9a-f]+)',
+        svg,
+    )
+    assert len(marks) == len(front["points"])
+    tech = {p["case_id"]: p["technique"] for p in front["points"]}
+    for case_id, fill, stroke in marks:
+        colour = PALETTE[0] if tech[case_id] == "shadow-map" else PALETTE[1]
+        assert stroke == colour and (fill == colour) == (case_id in on)
+    assert ">csm</text>" in svg  # the legend
 
 
 def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
@@ -166,7 +178,7 @@ def test_front_cases_show_their_thumbnails_and_only_data_images(tmp_path):
     # the reference, row 1's image and error map; row 4's link is dropped, it has no error map
     assert gallery.count("<img") == 3
     assert "example.com" not in html
-    assert f"#row-{1:012x}" in gallery and f"#row-{2:012x}" not in gallery
+    assert f"#case-{1:012x}" in gallery and f"#case-{2:012x}" not in gallery
 
 
 # --- stores that are damaged or edited by hand (issue 20) --------------------------------
