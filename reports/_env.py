@@ -46,6 +46,8 @@ def _filters() -> dict:
         "cell_class": extremes.cell_class,
         "cell_text": extremes.fmt_cell,
         "cell_tip": extremes.fmt_cell_tip,
+        "cell_style": extremes.cell_style,
+        "cell_mark": extremes.cell_mark,
         "slope": converge.fmt_slope,
         "quoted_value": aa_memory.fmt_quoted,
         "computed_text": aa_memory.fmt_computed,

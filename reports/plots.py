@@ -200,6 +200,8 @@ def _svg(fig, ax, *, salt: str, css: str, label: str, tips: Mapping[str, str], o
         count=1,
     )
     text = re.sub(r"<metadata>.*?</metadata>", "", text, flags=re.S)
+    # matplotlib's group ids (figure_1, xtick_3, ...) repeat in every plot of a page: classes
+    text = re.sub(r'<g id="([A-Za-z]+)_\d+">', r'<g class="\1">', text)
 
     def titled(m: re.Match) -> str:
         tip = tips.get(m.group(1))
@@ -214,12 +216,17 @@ def _svg(fig, ax, *, salt: str, css: str, label: str, tips: Mapping[str, str], o
 
 
 def _floor_band(ax, floor: float | None) -> None:
+    """The noise floor as a band from 0 (named in the legend)."""
     if floor is not None and floor > 0:
-        ax.axhspan(0.0, floor, color=FLOOR_COLOUR, alpha=0.25, linewidth=0, zorder=0.5)
-        ax.text(
-            0.99, floor, " noise floor", transform=ax.get_yaxis_transform(), ha="right",
-            va="bottom", fontsize=8, color="#475569",
-        )  # fmt: skip
+        ax.axhspan(
+            0.0, floor, color=FLOOR_COLOUR, alpha=0.3, linewidth=0, zorder=0.5, label="noise floor"
+        )
+
+
+def _value_axis(axis) -> None:
+    """A linear value axis: round ticks, labels without an offset, told apart."""
+    axis.set_major_locator(ticker.MaxNLocator(nbins=6))
+    axis.set_major_formatter(DistinctFormatter(is_bytes=False))
 
 
 @_styled
@@ -277,9 +284,10 @@ def front_plot(
     floors = [p["floor"] for p in pts if _finite(p.get("floor"))]
     _floor_band(ax, max(floors) if floors else None)
     ax.set_ylim(bottom=0.0)
+    _value_axis(ax.yaxis)
     ax.set_xlabel(axis_label(cost_key) + (", log scale" if log else ""), fontsize=9)
     ax.set_ylabel(axis_label(metric), fontsize=9)
-    ax.legend(fontsize=8, frameon=False, loc="upper right")
+    ax.legend(fontsize=8, frameon=True, framealpha=0.85, edgecolor="none", loc="best")
     on = frozenset(p["case_id"] for p in pts if p.get("on_front"))
     return _svg(fig, ax, salt=salt or label, css=css, label=label, tips=tips, on=on)
 
@@ -355,6 +363,7 @@ def sensitivity_plot(item: Mapping, *, salt: str = "") -> Markup:
         zorder=2,
         label="mean",
     )
+    _value_axis(ax.yaxis)
     ax.set_xlabel(axis_label(item["param"]), fontsize=9)
     ax.set_ylabel(axis_label(item["metric"]), fontsize=9)
     return _svg(fig, ax, salt=salt or label, css="sensitivity", label=label, tips=tips)

@@ -35,9 +35,13 @@ def _spread(items: Sequence, n: int) -> list:
 
 def _levels(front: Mapping) -> list[dict]:
     """The front's points by increasing cost: each the best of its cost level."""
-    points = [front["points"][i] for i in front["front"]]
+    points: dict[float, Mapping] = {}
+    for i in front["front"]:  # one per cost: ties on the front keep the first (lowest error)
+        p = front["points"][i]
+        if p["cost"] not in points or p["error"] < points[p["cost"]]["error"]:
+            points[p["cost"]] = p
     out = []
-    for p in _spread(sorted(points, key=lambda p: (p["cost"], p["error"])), MAX_LEVELS):
+    for p in _spread(sorted(points.values(), key=lambda p: p["cost"]), MAX_LEVELS):
         floor = p.get("floor")
         ratio = p["error"] / floor if floor else None
         out.append(
@@ -101,7 +105,7 @@ def overview_record(record: Mapping) -> dict:
                 "metric": head["metric"] if head else None,
                 "cost_key": head["cost_key"] if head else None,
                 "levels": _levels(head) if head else [],
-                "n_levels": len(head["front"]) if head else 0,
+                "n_levels": len({head["points"][i]["cost"] for i in head["front"]}) if head else 0,
                 "omitted": list(g.get("omitted") or []),
             }
         )
