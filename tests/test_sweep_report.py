@@ -274,3 +274,88 @@ def test_hand_edited_thumbnails_are_left_out(tmp_path, capsys, stored):
     html = out.read_text()
     assert "<script>alert(1)" not in html and "example.com" not in html
     assert "iVBORw0KGgo=" not in html  # every stored thumbnail was replaced by the bad one
+
+
+def _aa_row(i, technique, samples, cost, flip, *, floor=0.01):
+    row = _row(i, technique, 0, cost, 0.0, scene="decal", family="aa")
+    row["params"] = {"samples": samples}
+    row["metrics"] = {
+        "flip_mean": flip,
+        "coverage_edge_rmse": 0.0,  # the backdrop covers every pixel: undefined here
+        "noise_floor": {"flip_mean": floor},
+    }
+    row["cost"] = {"framebuffer_bytes": cost, "shading_events_mean": 1.0 + samples}
+    return row
+
+
+AA_ROWS = [
+    _aa_row(20, "noaa", 1, 1000, 0.20),
+    _aa_row(21, "fxaa", 1, 1000, 0.15),  # same cost as noaa, better: the level's best
+    _aa_row(22, "msaa", 4, 4000, 0.05),
+    _aa_row(23, "ssaa", 4, 4000, 0.004),  # within the noise floor (0.01)
+    _aa_row(24, "msaa", 8, 8000, 0.06),  # dominated
+]
+
+
+def test_a_metric_undefined_on_a_scene_is_left_out_with_its_reason(tmp_path):
+    rec = sweep_record(AA_ROWS, title="t")
+    (group,) = rec["groups"]
+    assert [o["metric"] for o in group["omitted"]] == ["coverage_edge_rmse"]
+    assert "0 for all 5 cases" in group["omitted"][0]["why"]
+    assert {f["metric"] for f in group["fronts"]} == {"flip_mean"}
+    out = tmp_path / "r.html"
+    write_sweep_report(AA_ROWS, out, title="t")
+    html = out.read_text()
+    assert "coverage_edge_rmse is not plotted: 0 for all 5 cases" in html
+    assert 'aria-label="coverage_edge_rmse against' not in html
+    assert html.count('<svg class="plot front"') == 2  # flip_mean by each of the two costs
+
+
+def test_summary_is_the_best_per_cost_level_with_its_noise_floor():
+    from raster_oracle.reports.sections.overview import overview_record
+
+    record = sweep_record(AA_ROWS, title="t")
+    claims = {
+        "kind": "claims",
+        "id": "claims",
+        "failed": False,
+        "data": {"claims": [{"id": "c1", "verdict": "partly", "value_text": "x", "value": None}]},
+    }
+    record["sections"] = [claims]
+    (group,) = overview_record(record)["groups"]
+    assert group["anchor"] == "group-aa-decal" and group["metric"] == "flip_mean"
+    levels = [(lv["cost"], lv["technique"], lv["error"]) for lv in group["levels"]]
+    assert levels == [(1000, "fxaa", 0.15), (4000, "ssaa", 0.004)]
+    assert [lv["floors_from_truth"] for lv in group["levels"]] == pytest.approx([15.0, 0.4])
+    assert [lv["within_noise"] for lv in group["levels"]] == [False, True]
+    assert overview_record(record)["claims"][0]["verdict"] == "partly"
+
+
+def test_plots_refuse_to_be_empty():
+    from raster_oracle.reports import plots
+
+    front = {"family": "x", "cost_key": "memory_bytes", "metric": "m", "front": []}
+    with pytest.raises(plots.EmptyPlotError, match="no point"):
+        plots.front_plot({**front, "points": [{"cost": 1.0, "error": float("nan")}]})
+    item = {"technique": "t", "scene": "s", "param": "p", "metric": "m", "numeric": True}
+    with pytest.raises(plots.EmptyPlotError):
+        plots.sensitivity_plot({**item, "points": [], "levels": []})
+    with pytest.raises(plots.EmptyPlotError):
+        plots.loglog_plot([{"name": "a", "x": [1, 2], "y": [0, -1]}], x_label="x", y_label="y")
+
+
+def test_tick_labels_are_told_apart_and_plots_are_deterministic():
+    from raster_oracle.reports import plots
+
+    labels = plots.DistinctFormatter(is_bytes=True).format_ticks([100, 101, 102, 102.5, 2048])
+    assert labels == ["100 B", "101 B", "102 B", "102.5 B", "2 KiB"]
+    assert plots.DistinctFormatter(is_bytes=False).format_ticks([0.1, 0.10001]) == [
+        "0.1",
+        "0.10001",
+    ]
+    rec = sweep_record(ROWS, title="t")
+    front = rec["groups"][1]["fronts"][0]
+    a = str(plots.front_plot(front, salt="s"))
+    assert a == str(plots.front_plot(front, salt="s"))
+    assert "<dc:date>" not in a and "<metadata>" not in a
+    assert "svg.fonttype" not in a and "<text" in a  # text kept as text, not glyph paths
