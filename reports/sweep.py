@@ -383,6 +383,11 @@ def sweep_record(
                 "technique": r["technique"],
                 "family": r.get("family"),
                 "params": r.get("params") or {},
+                "varied": {
+                    k: v
+                    for k, v in (r.get("params") or {}).items()
+                    if k in vary[(r["technique"], r["scene"])]
+                },
                 "frame": r.get("frame"),
                 "path": r.get("path"),
                 "resolution": f"{r.get('width')}x{r.get('height')}",

@@ -220,7 +220,7 @@ def test_clicking_a_point_opens_the_cases_and_shows_its_row(page):
 
 
 def test_cases_table_sorts_and_filters(page):
-    page.locator("#cases summary").click()
+    page.locator("#cases-detail > summary").click()
     rows = page.locator("#cases-table tbody tr")
     total = rows.count()
     assert total > 4
@@ -252,7 +252,7 @@ def test_cases_table_sorts_and_filters(page):
 
 
 def test_extremes_cells_coloured_by_error_and_the_failed_one_stands_out(page):
-    page.locator("#extremes summary").click()
+    page.locator("#extremes details.group > summary").click()
     cells = page.locator("#extremes td.cell:not(.na)")
     shade = {}
     for c in cells.all():
