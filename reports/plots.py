@@ -45,6 +45,8 @@ __all__ = [
 
 #: Most max/min ratio of positive values drawn on a linear axis (above it: logarithmic).
 LOG_SPAN = 10.0
+#: Most max/min ratio of positive errors drawn on a linear axis (above it: logarithmic).
+LOG_SPAN_ERROR = 100.0
 #: Figure size in inches (at 72 SVG user units per inch).
 FIG_SIZE = (5.6, 3.4)
 ACCENT = "#2563eb"
@@ -109,6 +111,9 @@ class DistinctFormatter(ticker.Formatter):
                 value /= 1024.0
         if value == 0.0:
             return "0"
+        for scale, suffix in ((1e12, "T"), (1e9, "G"), (1e6, "M"), (1e3, "k")):
+            if abs(value) >= scale:  # counts: 500k, 2M, not 5e+05
+                return f"{value / scale:.{digits}g}{suffix}"
         return f"{value:.{digits}g}".replace("-", "−")
 
     def __call__(self, x, pos=None) -> str:
@@ -127,7 +132,11 @@ def _cost_axis(axis, key: str, *, log: bool) -> None:
     """Locator and formatter of a cost axis: binary units for bytes, else plain numbers."""
     is_bytes = key.endswith("bytes")
     if log:
-        axis.set_major_locator(ticker.LogLocator(base=2.0 if is_bytes else 10.0, numticks=8))
+        # powers of 2 for bytes; 1, 2, 5 x 10^k otherwise (a decade and a bit has 3+ ticks)
+        subs = (1.0,) if is_bytes else (1.0, 2.0, 5.0)
+        axis.set_major_locator(
+            ticker.LogLocator(base=2.0 if is_bytes else 10.0, subs=subs, numticks=10)
+        )
         axis.set_minor_formatter(ticker.NullFormatter())
     elif is_bytes:
         axis.set_major_locator(ticker.MaxNLocator(nbins=6, steps=[1, 2, 4, 5, 8, 10]))
@@ -215,12 +224,11 @@ def _svg(fig, ax, *, salt: str, css: str, label: str, tips: Mapping[str, str], o
     return Markup(text)
 
 
-def _floor_band(ax, floor: float | None) -> None:
-    """The noise floor as a band from 0 (named in the legend)."""
-    if floor is not None and floor > 0:
-        ax.axhspan(
-            0.0, floor, color=FLOOR_COLOUR, alpha=0.3, linewidth=0, zorder=0.5, label="noise floor"
-        )
+def _floor_band(ax, floor: float | None, *, bottom: float = 0.0) -> None:
+    """The noise floor as a band from ``bottom`` (0 on a linear axis; named in the legend)."""
+    if floor is not None and floor > bottom:
+        style = {"color": FLOOR_COLOUR, "alpha": 0.3, "linewidth": 0, "zorder": 0.5}
+        ax.axhspan(bottom, floor, label="noise floor", **style)
 
 
 def _value_axis(axis) -> None:
@@ -282,11 +290,21 @@ def front_plot(
         ax.set_xscale("log", base=2.0 if cost_key.endswith("bytes") else 10.0)
     _cost_axis(ax.xaxis, cost_key, log=log)
     floors = [p["floor"] for p in pts if _finite(p.get("floor"))]
-    _floor_band(ax, max(floors) if floors else None)
-    ax.set_ylim(bottom=0.0)
-    _value_axis(ax.yaxis)
+    errors = [p["error"] for p in pts]
+    log_y = min(errors) > 0 and max(errors) / min(errors) > LOG_SPAN_ERROR
+    floor = max(floors) if floors else None
+    if log_y:
+        ax.set_yscale("log")
+        ax.yaxis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+        ax.yaxis.set_minor_formatter(ticker.NullFormatter())
+        ax.yaxis.set_major_formatter(DistinctFormatter(is_bytes=False))
+        _floor_band(ax, floor, bottom=min([*errors, floor or math.inf]) / 4.0)
+    else:
+        _floor_band(ax, floor)
+        ax.set_ylim(bottom=0.0)
+        _value_axis(ax.yaxis)
     ax.set_xlabel(axis_label(cost_key) + (", log scale" if log else ""), fontsize=9)
-    ax.set_ylabel(axis_label(metric), fontsize=9)
+    ax.set_ylabel(axis_label(metric) + (", log" if log_y else ""), fontsize=9)
     ax.legend(fontsize=8, frameon=True, framealpha=0.85, edgecolor="none", loc="best")
     on = frozenset(p["case_id"] for p in pts if p.get("on_front"))
     return _svg(fig, ax, salt=salt or label, css=css, label=label, tips=tips, on=on)
