@@ -423,11 +423,13 @@ def loglog_plot(
         raise EmptyPlotError(f"{title or y_label}: no positive value")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    for axis in (ax.xaxis, ax.yaxis):
+    for axis in (ax.xaxis, ax.yaxis):  # 1, 2, 5 x 10^k: a decade or less still has ticks
+        axis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
         axis.set_minor_formatter(ticker.NullFormatter())
+        axis.set_major_formatter(DistinctFormatter(is_bytes=False))
     ax.set_xlabel(f"{x_label}, log scale", fontsize=9)
     ax.set_ylabel(f"{y_label}, log scale", fontsize=9)
-    ax.legend(fontsize=8, frameon=False, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    ax.legend(fontsize=8, frameon=True, framealpha=0.85, edgecolor="none", loc="best")
     text = _svg(fig, ax, salt=salt or title, css="loglog", label=title, tips=tips)
     # the series' points are not cases: their links go nowhere, keep the titles only
     return Markup(re.sub(r'<a href="#s\d+-p\d+" ', "<a ", str(text)))
