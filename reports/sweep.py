@@ -369,10 +369,17 @@ def sweep_record(
     for r in rows:
         all_varying.setdefault((r["technique"], r["scene"]), []).append(r)
     vary = {k: _varying(v) for k, v in all_varying.items()}
+    # each case shows its group's headline metric and cost (a metric undefined on the scene
+    # is not the headline there), else the family's default
+    heads = {(g["family"], g["scene"]): g for g in group_records}
     cases = []
     for r in rows:
-        headline = (DEFAULT_METRICS.get(r.get("family") or "shadow") or FALLBACK_METRICS)[0]
-        cost_key = (DEFAULT_COSTS.get(r.get("family") or "shadow") or ("",))[0]
+        family = r.get("family") or "shadow"
+        g = heads.get((family, r["scene"])) or {}
+        headline = ((g.get("metrics") or []) + [None])[0] or (
+            DEFAULT_METRICS.get(family) or FALLBACK_METRICS
+        )[0]
+        cost_key = ((g.get("costs") or []) + [None])[0] or (DEFAULT_COSTS.get(family) or ("",))[0]
         cost = with_memory(r.get("cost"))
         cases.append(
             {

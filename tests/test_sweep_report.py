@@ -359,3 +359,20 @@ def test_tick_labels_are_told_apart_and_plots_are_deterministic():
     assert a == str(plots.front_plot(front, salt="s"))
     assert "<dc:date>" not in a and "<metadata>" not in a
     assert "svg.fonttype" not in a and "<text" in a  # text kept as text, not glyph paths
+
+
+def test_cases_show_a_metric_defined_on_their_scene():
+    rows = [dict(r) for r in AA_ROWS]
+    for r in rows:  # coverage_edge_rmse would be the headline if flip_mean were missing
+        r["metrics"] = {"coverage_edge_rmse": 0.0, "flip_mean": r["metrics"]["flip_mean"]}
+    rec = sweep_record(rows, title="t")
+    assert {c["metric"] for c in rec["cases"]} == {"flip_mean"}
+    star = [dict(r, scene="star") for r in ROWS[:3]]
+    for r in star:  # no shadow on the scene: misclassified is 0 everywhere
+        r["metrics"] = {
+            "misclassified_fraction": 0.0,
+            "visibility_mae": 0.01 * r["cost"]["texels_rendered"] / 100,
+        }
+    rec = sweep_record(star, title="t")
+    assert {c["metric"] for c in rec["cases"]} == {"visibility_mae"}
+    assert rec["groups"][0]["omitted"][0]["metric"] == "misclassified_fraction"
