@@ -53,7 +53,9 @@ Case record (``make_case``)
 ``failing``
     Names of the metrics outside their thresholds (NaN fails).
 ``within_noise``
-    Names of the metrics at or below their noise floor.
+    Names of the metrics no worse than their noise floor, in each metric's direction
+    (``make_case(directions=...)``: at or below it for lower-is-better metrics, the default;
+    at or above it for higher-is-better ones such as SSIM and PSNR).
 ``status``
     ``"pass"``, ``"fail"``, or ``"unchecked"`` (no thresholds).
 ``images``

@@ -51,6 +51,42 @@ def _failing(metrics: Mapping, thresholds: Mapping) -> list[str]:
     return failing
 
 
+#: ``make_case(directions=...)`` values: which way a metric is better.
+DIRECTIONS = ("lower", "higher", "zero", "info")
+
+
+def _check_directions(value: object) -> dict[str, str]:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"directions must be a dict name -> direction, got {value!r}")
+    for key, d in value.items():
+        if d not in DIRECTIONS:
+            raise ValueError(f"directions[{key!r}] must be one of {list(DIRECTIONS)}, got {d!r}")
+    return dict(value)
+
+
+def _within_noise(metrics: Mapping, noise_floor: Mapping, directions: Mapping) -> list[str]:
+    """Metrics no worse than their noise floor, in their direction: ``value <= floor``
+    (lower is better, the default), ``value >= floor`` (higher: SSIM, PSNR), ``|value| <=
+    |floor|`` (zero: a bias); never an ``info`` metric or a NaN (the same rule as
+    ``metrics.catalog.within_noise``, which this package cannot import)."""
+    out = []
+    for key, floor in noise_floor.items():
+        if key not in metrics:
+            continue
+        value, direction = decode_float(metrics[key]), directions.get(key, "lower")
+        if direction == "higher":
+            quiet = value >= floor
+        elif direction == "zero":
+            quiet = abs(value) <= abs(floor)
+        else:
+            quiet = direction == "lower" and value <= floor
+        if quiet:
+            out.append(key)
+    return out
+
+
 def _exr_links(value: object) -> list[dict]:
     if value is None:
         return []
@@ -183,6 +219,7 @@ def make_case(
     error_maps: Mapping[str, Mapping] | None = None,
     noise_floor: Mapping[str, float] | None = None,
     thresholds: Mapping[str, float | Mapping[str, float]] | None = None,
+    directions: Mapping[str, str] | None = None,
     cost: Mapping[str, float] | None = None,
     technique: str | None = None,
     family: str | None = None,
@@ -216,6 +253,10 @@ def make_case(
         Value of each metric for the reference's own noise (two independent references).
     thresholds : dict str -> float or {"min": float, "max": float}, optional
         A number is the largest passing value. NaN metrics fail.
+    directions : dict str -> str, optional
+        Which way each metric is better: ``"lower"`` (the default), ``"higher"`` (SSIM,
+        PSNR), ``"zero"`` (a signed bias) or ``"info"`` (not a score). ``within_noise`` is
+        judged in that direction: a bad SSIM below its floor is not within the noise floor.
     cost : dict str -> number, optional
         The technique's GPU budget (``memory_bytes``, ``texels_rendered``, ...).
     technique, family : str, optional
@@ -271,11 +312,7 @@ def make_case(
         max_bytes=max_bytes,
     )
     failing = _failing(metrics, thresholds)
-    within_noise = [
-        key
-        for key, floor in noise_floor.items()
-        if key in metrics and decode_float(metrics[key]) <= floor
-    ]
+    within_noise = _within_noise(metrics, noise_floor, _check_directions(directions))
     return {
         "schema": CASE_SCHEMA,
         "name": name,

@@ -43,7 +43,30 @@ def add_parsers(sub) -> None:
         action="append",
         default=[],
         metavar="METRIC=VALUE",
-        help="exit 1 when METRIC exceeds VALUE (repeatable)",
+        help="exit 1 when METRIC is above VALUE (lower-is-better metrics; repeatable)",
+    )
+    p.add_argument(
+        "--fail-below",
+        action="append",
+        default=[],
+        metavar="METRIC=VALUE",
+        help="exit 1 when METRIC is below VALUE (higher-is-better metrics such as ssim, "
+        "psnr_db; repeatable)",
+    )
+    p.add_argument(
+        "--baseline",
+        type=A.path,
+        default=None,
+        metavar="METRICS_JSON",
+        help="a previous run's metrics.json (or its folder): exit 1 when a metric is worse "
+        "by more than both runs' noise floors",
+    )
+    p.add_argument(
+        "--junit",
+        type=A.path,
+        default=None,
+        metavar="FILE",
+        help="write the gates and baseline comparisons as JUnit XML (one test case each)",
     )
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
@@ -77,12 +100,18 @@ def _check_frame_pattern(pattern: str | None) -> None:
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
+    from ..scoring.gates import load_baseline, parse_gates, write_junit
     from ..scoring.request import score_to_folder
-    from ..scoring.score import ScoreError, parse_thresholds
+    from ..scoring.score import ScoreError
 
-    thresholds = parse_thresholds(args.fail_above)
+    gates = parse_gates(args.fail_above, args.fail_below)
+    baseline = load_baseline(args.baseline) if args.baseline is not None else None
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
+    if args.junit is not None:
+        if args.junit.is_dir():
+            raise A.CliError(f"--junit {args.junit} is a folder; give the XML file to write")
+        A.check_dir(args.junit.parent, label=f"--junit {args.junit}: folder")
     loaded = A.load_scene(args)
     cache = A.reference_cache(args)
     params = None
@@ -90,7 +119,7 @@ def cmd_score(args) -> int:
         params = raster_models.parse_params(args.technique, args.params)
     elif args.params:
         raise ScoreError("--set applies to --technique, not to --candidate")
-    failed = score_to_folder(
+    verdict = score_to_folder(
         loaded,
         out=args.out,
         technique=args.technique,
@@ -106,13 +135,26 @@ def cmd_score(args) -> int:
         quiet=args.quiet,
         flip_mode=args.flip_mode,
         ppd=args.ppd or M.DEFAULT_PPD,
-        thresholds=thresholds,
+        gates=gates,
+        baseline=baseline,
+        baseline_source=str(args.baseline),
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
-    if failed:
-        print(f"raster-oracle: above threshold: {', '.join(failed)}", file=sys.stderr)
-        return 1
-    return 0
+    for check in verdict.checks:
+        if check.kind == "gate" or not check.passed:
+            print(check.line)
+    if baseline is not None:
+        n = sum(c.kind == "baseline" for c in verdict.checks)
+        bad = sum(c.kind == "baseline" and not c.passed for c in verdict.checks)
+        print(f"baseline {args.baseline}: {n} metrics compared, {bad} regressed")
+    for note in verdict.notes:
+        print(note)
+    if args.junit is not None:
+        write_junit(args.junit, [verdict])
+        print(f"junit: {args.junit}")
+    if verdict.failed:
+        print(f"raster-oracle: failed: {', '.join(verdict.failed)}", file=sys.stderr)
+    return verdict.exit_code
 
 
 def cmd_report(args) -> int:

@@ -15,6 +15,7 @@ import numpy as np
 
 from ... import metrics as M
 from .candidates import load_candidate
+from .gates import Gate, Verdict, check_applicable, compare_baseline, evaluate_gates
 from .output import write_score_folder
 from .score import ScoreError, score
 from .technique import score_model
@@ -88,9 +89,17 @@ def score_to_folder(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     thresholds: dict[str, float] | None = None,
-) -> list[str]:
+    gates: list[Gate] | None = None,
+    baseline: dict | None = None,
+    baseline_source: str = "baseline",
+) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
-    ``loaded`` and write the score folder ``out``; returns the metrics above ``thresholds``.
+    ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
+    the verdict (its checks, their lines, the exit code).
+
+    A gate that cannot be judged (a metric that does not apply to the candidate's kind or
+    frame count, a null value) or a baseline of another run is a
+    :class:`oracle.scoring.gates.GateError` raised before anything is written.
 
     Parameters
     ----------
@@ -99,11 +108,17 @@ def score_to_folder(
     channel : what is scored (None: the technique's primary channel; ``color`` for files).
     frames : score that many frames of ``camera_path`` and add the temporal metrics (None or
         1: the scene's own frame).
-    thresholds : ``{metric: limit}`` from :func:`oracle.scoring.score.parse_thresholds`.
+    thresholds : ``{metric: limit}`` (``--fail-above`` gates, as
+        :func:`oracle.scoring.score.parse_thresholds` gives them).
+    gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``).
+    baseline, baseline_source : a previous run's ``metrics.json`` record (from
+        :func:`oracle.scoring.gates.load_baseline`) and its path, for messages.
     """
     if (technique is None) == (candidate is None):
         raise ScoreError("score: give a technique or a candidate file (one of them)")
     frames = frames if frames and frames > 1 else None
+    gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
+    check_applicable(gates, frames=frames or 1)  # before rendering: the kind is checked after
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
@@ -122,13 +137,20 @@ def score_to_folder(
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=channel, candidate_frames=read, **opts)
         name = Path(candidate).name
-    return write_score_folder(
+    verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
+    if baseline is not None:
+        against = compare_baseline(result.record, baseline, source=baseline_source)
+        verdict.checks += against.checks
+        verdict.notes += against.notes
+    write_score_folder(
         result,
         out,
         loaded=loaded,
         name=name,
-        thresholds=thresholds or {},
+        gates=gates,
+        verdict=verdict,
         technique=technique,
         params=params,
         cost=cost,
     )
+    return verdict
