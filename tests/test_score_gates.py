@@ -301,3 +301,32 @@ def test_junit_file_has_one_case_per_gate_with_numbers(tmp_path, capsys, cands):
 def test_version(capsys):
     assert main(["--version"]) == 0
     assert capsys.readouterr().out.strip() == f"raster-oracle {raster_oracle.__version__}"
+
+
+def test_model_gates_follow_the_channels_the_model_produces(tmp_path, capsys):
+    base = ["score", "plate", *SIZE, "--spp", "16", "--quiet"]
+    # an anti-aliasing model is scored on colour and coverage: coverage gates apply
+    gates = ["--fail-above", "coverage_bias=0.1", "--fail-below", "coverage_bias=-0.1"]
+    rc = main([*base, "--technique", "msaa", "--out", str(tmp_path / "msaa"), *gates])
+    text = capsys.readouterr().out
+    names = [g["name"] for g in _metrics(tmp_path / "msaa")["gates"]]
+    assert rc == 0 and names == ["coverage_bias <= 0.1", "coverage_bias >= -0.1"]
+    assert re.search(r"^PASS coverage_bias \S+ >= -0\.1 \(noise floor", text, re.M), text
+    # a shadow map produces visibility only: exit 2 before the model runs
+    out = tmp_path / "sm"
+    rc = main(
+        [*base, "--technique", "shadow-map", "--out", str(out), "--fail-above", "coverage_mae=1"]
+    )
+    err = capsys.readouterr().err
+    assert (
+        rc == 2 and "coverage_mae applies to coverage candidates; this run scores visibility" in err
+    )
+    assert not out.exists()
+
+
+def test_tune_target_must_be_lower_is_better():
+    from raster_oracle.oracle.sweeps.tune import TuneError, parse_target
+
+    assert parse_target("visibility_mae<=0.01") == ("visibility_mae", 0.01)
+    with pytest.raises(TuneError, match="ssim is higher-is-better"):
+        parse_target("ssim<=0.9")

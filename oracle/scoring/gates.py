@@ -163,7 +163,7 @@ def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
             raise GateError(
                 f"{g.option} {g.metric}: {g.metric} applies to {' and '.join(m.kinds)} "
                 f"candidates; this run scores {' and '.join(kinds)} "
-                "(say what the candidate holds with --channel)"
+                "(--channel says what a candidate file holds)"
             )
         if frames < m.min_frames:
             raise GateError(

@@ -18,7 +18,7 @@ from .candidates import load_candidate
 from .gates import Gate, Verdict, check_applicable, compare_baseline, evaluate_gates
 from .output import write_score_folder
 from .score import ScoreError, score
-from .technique import score_model
+from .technique import score_model, technique_channels
 
 __all__ = ["FRAME_PATTERN", "file_candidate", "score_to_folder"]
 
@@ -118,12 +118,15 @@ def score_to_folder(
         raise ScoreError("score: give a technique or a candidate file (one of them)")
     frames = frames if frames and frames > 1 else None
     gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
-    check_applicable(gates, frames=frames or 1)  # before rendering: the kind is checked after
+    # gates are checked against the kinds scored before rendering anything, and again on
+    # the record (evaluate_gates): the kinds a candidate is read as are the record's
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
     if technique is not None:
         params = dict(params or {})
+        # a model is scored on every channel it produces: gates are checked before it runs
+        check_applicable(gates, kinds=technique_channels(technique), frames=frames or 1)
         result = score_model(loaded, technique, params, channel=channel, **opts)
         info = result.record["candidate_info"][0]
         cost, params = info["cost"], info["params"]
@@ -133,6 +136,7 @@ def score_to_folder(
             raise ScoreError("--set applies to --technique, not to --candidate")
         params = None
         channel = channel or "color"
+        check_applicable(gates, kinds=(channel,), frames=frames or 1)
         read = file_candidate(candidate, channel=channel, frames=frames)
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=channel, candidate_frames=read, **opts)
