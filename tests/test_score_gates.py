@@ -330,3 +330,34 @@ def test_tune_target_must_be_lower_is_better():
     assert parse_target("visibility_mae<=0.01") == ("visibility_mae", 0.01)
     with pytest.raises(TuneError, match="ssim is higher-is-better"):
         parse_target("ssim<=0.9")
+
+
+def test_a_null_or_nan_value_cannot_be_judged():
+    from raster_oracle.oracle.scoring.gates import GateError, evaluate_gates, parse_gates
+
+    record = {"channel": "visibility", "visibility_mae": 0.01, "noise_floor": {}}
+    (check,) = evaluate_gates(parse_gates(["visibility_mae=0.02"]), record)
+    assert check.passed and check.line == "PASS visibility_mae 0.01 <= 0.02 (noise floor n/a)"
+    for value, shown in ((None, "null"), (float("nan"), "nan")):
+        record["visibility_mae"] = value
+        with pytest.raises(GateError, match=f"visibility_mae is {shown} for this run"):
+            evaluate_gates(parse_gates(["visibility_mae=0.02"]), record)
+
+
+def test_judge_gates_a_record_as_the_cli_does(tmp_path, capsys, cands):
+    from raster_oracle.oracle.scoring.gates import GateError, judge
+
+    vis = ["--channel", "visibility"]
+    _, first, _, _ = _score(tmp_path, capsys, cands["exact_vis"], *vis, out="first")
+    _, noisy, _, _ = _score(tmp_path, capsys, cands["noisy_vis"], *vis, out="noisy")
+    record = _metrics(noisy)
+    verdict = judge(record, fail_above={"visibility_mae": 0.5}, fail_below=["ssim=0.5"])
+    assert verdict.exit_code == 0 and [c.name for c in verdict.checks] == [
+        "visibility_mae <= 0.5",
+        "ssim >= 0.5",
+    ]
+    verdict = judge(record, baseline=first / "metrics.json")
+    assert verdict.exit_code == 1 and "baseline visibility_mae" in verdict.failed
+    assert judge(_metrics(first), baseline=_metrics(first)).exit_code == 0
+    with pytest.raises(GateError, match="higher-is-better"):
+        judge(record, fail_above={"ssim": 0.9})

@@ -48,6 +48,7 @@ __all__ = [
     "check_applicable",
     "compare_baseline",
     "evaluate_gates",
+    "judge",
     "junit_xml",
     "load_baseline",
     "parse_gates",
@@ -110,6 +111,11 @@ class Verdict:
     def exit_code(self) -> int:
         """0 when every check passed, 1 otherwise."""
         return 1 if self.failed else 0
+
+    @property
+    def lines(self) -> list[str]:
+        """Every check's line (``PASS``/``FAIL``/``REGRESSION``), then the notes."""
+        return [c.line for c in self.checks] + list(self.notes)
 
 
 def _num(x: float, other: float | None = None) -> str:
@@ -275,6 +281,43 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
         verdict.checks.append(Check(f"baseline {key}", key, not bad, line, kind="baseline"))
     if skipped:
         verdict.notes.append(f"baseline: not compared (no noise floor): {', '.join(skipped)}")
+    return verdict
+
+
+def _texts(limits, op: str) -> list[str]:
+    """``{"ssim": 0.9}`` or ``["ssim=0.9"]`` -> ``["ssim=0.9"]`` (as the CLI takes them)."""
+    if limits is None:
+        return []
+    if isinstance(limits, dict):
+        return [f"{k}={float(v)!r}" for k, v in limits.items()]
+    if isinstance(limits, str):
+        raise GateError(f"{_OPTION[op]}: give a dict metric -> limit or a list, got {limits!r}")
+    return [str(t) for t in limits]
+
+
+def judge(record: dict, *, fail_above=None, fail_below=None, baseline=None) -> Verdict:
+    """Judge a ``metrics.json`` record (a dict) as ``score`` does: the library's gate.
+
+    Parameters
+    ----------
+    record : a metrics record (``score``'s ``metrics.json``, or the API's result).
+    fail_above, fail_below : ``{metric: limit}`` or ``["metric=limit", ...]``
+        (``--fail-above`` / ``--fail-below``).
+    baseline : a previous run's record (dict) or the path of its ``metrics.json``.
+
+    Returns the :class:`Verdict` (``exit_code``: 0 pass, 1 a gate failed or a metric
+    regressed; ``lines``). Raises :class:`GateError` for a gate that cannot be judged or a
+    baseline of another run (the CLI's exit 2).
+    """
+    gates = parse_gates(_texts(fail_above, "<="), _texts(fail_below, ">="))
+    scene = ((record.get("reference") or {}).get("scene") or {}).get("name", "?")
+    verdict = Verdict(scene=str(scene), checks=evaluate_gates(gates, record))
+    if baseline is not None:
+        source = "baseline" if isinstance(baseline, dict) else str(baseline)
+        previous = baseline if isinstance(baseline, dict) else load_baseline(baseline)
+        against = compare_baseline(record, previous, source=source)
+        verdict.checks += against.checks
+        verdict.notes += against.notes
     return verdict
 
 
