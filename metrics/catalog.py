@@ -119,7 +119,7 @@ _ENTRIES = (
         "lower",
         "channel units per frame",
         _ALL,
-        "frame-to-frame change in excess of the reference's (negative: steadier)",
+        "frame-to-frame change of the candidate in excess of the reference's",
         min_frames=2,
     ),
     _m(

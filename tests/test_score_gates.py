@@ -243,11 +243,12 @@ def test_baseline_of_another_run_or_file_is_exit_2(tmp_path, capsys, cands):
     vis = ["--channel", "visibility"]
     rc, first, _, _ = _score(tmp_path, capsys, cands["exact_vis"], *vis, out="first")
     record = _metrics(first)
-    other = json.loads(json.dumps(record))
-    other["reference"]["scene"]["resolution"] = [40, 24]
-    other["channel"] = "color"
+    other_size = json.loads(json.dumps(record))
+    other_size["reference"]["scene"]["resolution"] = [40, 24]
+    other_kind = dict(record, channel="color")
     bad = {
-        "size.json": (json.dumps(other), "resolution 40x24 vs 48x27; candidate kind color"),
+        "size.json": (json.dumps(other_size), "resolution 40x24 vs 48x27 (baseline vs this"),
+        "kind.json": (json.dumps(other_kind), "candidate kind color vs visibility"),
         "corrupt.json": ("{not json", "is not JSON"),
         "foreign.json": (json.dumps({"schema": "junit"}), "is not a raster-oracle metrics"),
         "missing.json": (None, "cannot read it"),
@@ -361,3 +362,23 @@ def test_judge_gates_a_record_as_the_cli_does(tmp_path, capsys, cands):
     assert judge(_metrics(first), baseline=_metrics(first)).exit_code == 0
     with pytest.raises(GateError, match="higher-is-better"):
         judge(record, fail_above={"ssim": 0.9})
+
+
+def test_temporal_gates_on_two_frames_and_a_baseline_of_one_frame(tmp_path, capsys, cands):
+    import shutil
+
+    for k in (0, 1):
+        shutil.copy(cands["exact_vis"], tmp_path / f"f_{k}.exr")
+    pattern = str(tmp_path / "f_{frame}.exr")
+    vis = ["--channel", "visibility", "--frames", "2"]
+    gates = ["--fail-above", "flicker=10", "--fail-above", "temporal_error=10"]
+    rc, two, text, _ = _score(tmp_path, capsys, pattern, *vis, *gates, out="two")
+    m = _metrics(two)
+    assert rc == 0 and len(m["frames"]) == 2, text
+    assert f"PASS flicker {m['flicker']:.4g} <= 10" in text
+    assert f"PASS temporal_error {m['temporal_error']:.4g} <= 10" in text
+    # a one-frame baseline is another run: exit 2 before rendering, naming the frame counts
+    rc, one, _, _ = _score(tmp_path, capsys, cands["exact_vis"], "--channel", "visibility")
+    assert rc == 0
+    rc, out, _, err = _score(tmp_path, capsys, pattern, *vis, "--baseline", str(one), out="against")
+    assert rc == 2 and "frames 1 vs 2" in err and not out.exists(), err

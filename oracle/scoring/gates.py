@@ -46,6 +46,7 @@ __all__ = [
     "GateError",
     "Verdict",
     "check_applicable",
+    "check_baseline_scene",
     "compare_baseline",
     "evaluate_gates",
     "judge",
@@ -249,18 +250,36 @@ def _identity(record: dict) -> dict:
     }
 
 
-def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") -> Verdict:
-    """Compare this run's ``record`` with a previous run's; returns a verdict holding one
-    check per metric with a noise floor in both (a regression fails it), and a note naming
-    the metrics left out. :class:`GateError` when the runs are not of one scene, resolution,
-    light, candidate kind and frame count."""
-    mine, theirs = _identity(record), _identity(baseline)
+def _check_same_run(mine: dict, theirs: dict, source: str) -> None:
+    """:class:`GateError` naming each field of ``mine`` that differs in ``theirs``."""
     diffs = [f"{k} {theirs[k]} vs {mine[k]}" for k in mine if mine[k] != theirs[k]]
     if diffs:
         raise GateError(
             f"--baseline {source} is another run: {'; '.join(diffs)} (baseline vs this run); "
             "compare runs of one scene, size, light, candidate kind and frame count"
         )
+
+
+def check_baseline_scene(baseline: dict, loaded, *, frames: int, source: str) -> None:
+    """Before rendering: :class:`GateError` when ``baseline`` scored another scene, size, light
+    or frame count than ``loaded`` with ``frames`` frames (the kind is checked after)."""
+    theirs = _identity(baseline)
+    mine = {
+        "scene": loaded.name,
+        "resolution": f"{loaded.width}x{loaded.height}",
+        "light": loaded.light_index,
+        "frames": frames,
+    }
+    _check_same_run(mine, theirs, source)
+
+
+def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") -> Verdict:
+    """Compare this run's ``record`` with a previous run's; returns a verdict holding one
+    check per metric with a noise floor in both (a regression fails it), and a note naming
+    the metrics left out. :class:`GateError` when the runs are not of one scene, resolution,
+    light, candidate kind and frame count."""
+    mine = _identity(record)
+    _check_same_run(mine, _identity(baseline), source)
     verdict = Verdict(scene=str(mine["scene"]))
     floors = record.get("noise_floor") or {}
     old_floors = baseline.get("noise_floor") or {}

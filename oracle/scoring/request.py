@@ -15,7 +15,14 @@ import numpy as np
 
 from ... import metrics as M
 from .candidates import load_candidate
-from .gates import Gate, Verdict, check_applicable, compare_baseline, evaluate_gates
+from .gates import (
+    Gate,
+    Verdict,
+    check_applicable,
+    check_baseline_scene,
+    compare_baseline,
+    evaluate_gates,
+)
 from .output import write_score_folder
 from .score import ScoreError, score
 from .technique import score_model, technique_channels
@@ -118,8 +125,10 @@ def score_to_folder(
         raise ScoreError("score: give a technique or a candidate file (one of them)")
     frames = frames if frames and frames > 1 else None
     gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
-    # gates are checked against the kinds scored before rendering anything, and again on
-    # the record (evaluate_gates): the kinds a candidate is read as are the record's
+    # gates and the baseline are checked before rendering anything where the kinds scored are
+    # known, and again on the record (evaluate_gates, compare_baseline)
+    if baseline is not None:
+        check_baseline_scene(baseline, loaded, frames=frames or 1, source=baseline_source)
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
@@ -136,7 +145,9 @@ def score_to_folder(
             raise ScoreError("--set applies to --technique, not to --candidate")
         params = None
         channel = channel or "color"
-        check_applicable(gates, kinds=(channel,), frames=frames or 1)
+        # a layer name (not a kind) is resolved when the file is read: checked on the record
+        kinds = (channel,) if channel in ("visibility", "color", "coverage") else None
+        check_applicable(gates, kinds=kinds, frames=frames or 1)
         read = file_candidate(candidate, channel=channel, frames=frames)
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=channel, candidate_frames=read, **opts)
