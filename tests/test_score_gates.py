@@ -357,8 +357,10 @@ def test_judge_gates_a_record_as_the_cli_does(tmp_path, capsys, cands):
         "visibility_mae <= 0.5",
         "ssim >= 0.5",
     ]
+    assert not verdict and json.dumps(verdict) == "[]"  # a list of the failed checks' names
     verdict = judge(record, baseline=first / "metrics.json")
     assert verdict.exit_code == 1 and "baseline visibility_mae" in verdict.failed
+    assert verdict and list(verdict) == verdict.failed
     assert judge(_metrics(first), baseline=_metrics(first)).exit_code == 0
     with pytest.raises(GateError, match="higher-is-better"):
         judge(record, fail_above={"ssim": 0.9})

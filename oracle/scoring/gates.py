@@ -32,7 +32,7 @@ from __future__ import annotations
 import json
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from ...metrics import catalog
@@ -96,17 +96,31 @@ class Check:
     kind: str = "gate"
 
 
-@dataclass
-class Verdict:
-    """Every check of one scored run (scene ``scene``)."""
+class Verdict(list):
+    """Every check of one scored run of scene ``scene``: ``checks`` and ``notes``.
 
-    scene: str
-    checks: list[Check] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
+    As a list, a verdict holds the names of its failed checks (what ``score_to_folder``
+    returned before verdicts: ``if verdict:`` means a check failed); :meth:`add` keeps the
+    two in step.
+    """
+
+    def __init__(self, scene: str, checks=(), notes=()):
+        super().__init__()
+        self.scene = scene
+        self.checks: list[Check] = []
+        self.notes: list[str] = []
+        self.add(checks, notes)
+
+    def add(self, checks=(), notes=()) -> Verdict:
+        """Append ``checks`` and ``notes``; returns the verdict."""
+        self.checks.extend(checks)
+        self.notes.extend(notes)
+        self[:] = [c.name for c in self.checks if not c.passed]
+        return self
 
     @property
     def failed(self) -> list[str]:
-        return [c.name for c in self.checks if not c.passed]
+        return list(self)
 
     @property
     def exit_code(self) -> int:
@@ -297,9 +311,9 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
             f"{'REGRESSION' if bad else 'PASS baseline'} {key} {_num(b, a)} "
             f"(noise floor {_num(fb)}) vs baseline {_num(a, b)} (noise floor {_num(fa)})"
         )
-        verdict.checks.append(Check(f"baseline {key}", key, not bad, line, kind="baseline"))
+        verdict.add([Check(f"baseline {key}", key, not bad, line, kind="baseline")])
     if skipped:
-        verdict.notes.append(f"baseline: not compared (no noise floor): {', '.join(skipped)}")
+        verdict.add(notes=[f"baseline: not compared (no noise floor): {', '.join(skipped)}"])
     return verdict
 
 
@@ -335,8 +349,7 @@ def judge(record: dict, *, fail_above=None, fail_below=None, baseline=None) -> V
         source = "baseline" if isinstance(baseline, dict) else str(baseline)
         previous = baseline if isinstance(baseline, dict) else load_baseline(baseline)
         against = compare_baseline(record, previous, source=source)
-        verdict.checks += against.checks
-        verdict.notes += against.notes
+        verdict.add(against.checks, against.notes)
     return verdict
 
 

@@ -102,7 +102,8 @@ def score_to_folder(
 ) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
-    the verdict (its checks, their lines, the exit code).
+    the :class:`oracle.scoring.gates.Verdict` (its checks, their lines, the exit code; as a
+    list, the names of the failed checks).
 
     A gate that cannot be judged (a metric that does not apply to the candidate's kind or
     frame count, a null value) or a baseline of another run is a
@@ -155,8 +156,7 @@ def score_to_folder(
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
     if baseline is not None:
         against = compare_baseline(result.record, baseline, source=baseline_source)
-        verdict.checks += against.checks
-        verdict.notes += against.notes
+        verdict.add(against.checks, against.notes)
     write_score_folder(
         result,
         out,
