@@ -82,7 +82,7 @@ class Gate:
     @property
     def name(self) -> str:
         """The JUnit test name, e.g. ``visibility_mae <= 0.02``."""
-        return f"{self.metric} {self.op} {self.limit:g}"
+        return f"{self.metric} {self.op} {_limit(self.limit)}"
 
 
 @dataclass(frozen=True)
@@ -133,11 +133,17 @@ class Verdict(list):
         return [c.line for c in self.checks] + list(self.notes)
 
 
+def _limit(x: float) -> str:
+    """A limit as the user wrote it: ``0.02``, ``10``, ``1e-05``, ``0.123456789``."""
+    short = f"{x:g}"
+    return short if float(short) == x else repr(float(x))
+
+
 def _num(x: float, other: float | None = None) -> str:
     """``x`` with 4 significant digits, more when needed to tell it from ``other``."""
     if x is None:
         return "n/a"
-    for digits in (4, 6, 9, 17):
+    for digits in (4, 6, 9):
         text = f"{x:.{digits}g}"
         if other is None or x == other or text != f"{other:.{digits}g}":
             return text
@@ -216,7 +222,7 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
         floor = floors.get(g.metric)
         line = (
             f"{'PASS' if passed else 'FAIL'} {g.metric} {_num(value, g.limit)} {shown} "
-            f"{g.limit:g} (noise floor {_num(floor)})"
+            f"{_limit(g.limit)} (noise floor {_num(floor)})"
         )
         checks.append(Check(g.name, g.metric, passed, line))
     return checks
