@@ -384,3 +384,43 @@ def test_temporal_gates_on_two_frames_and_a_baseline_of_one_frame(tmp_path, caps
     assert rc == 0
     rc, out, _, err = _score(tmp_path, capsys, pattern, *vis, "--baseline", str(one), out="against")
     assert rc == 2 and "frames 1 vs 2" in err and not out.exists(), err
+
+
+def test_score_folder_gates_baseline_and_junit_per_scene(tmp_path, capsys):
+    refs = tmp_path / "refs"
+    common = ["--quiet", "--channels", "visibility"]
+    for name, spp, seed in (("exact", 4, 0), ("noisy", 1, 5)):
+        args = ["reference", "plate", "--spp", str(spp), "--seed", str(seed), *common]
+        assert main([*args, "--out", str(refs / name)]) == 0
+        (tmp_path / name).mkdir()
+        vis = read_exr(refs / name / "reference.exr")["visibility"]
+        write_exr(tmp_path / name / "plate.exr", {"visibility": vis})
+    base = ["--spp", "4", "--quiet", "--channel", "visibility"]
+    first, j1 = tmp_path / "first", tmp_path / "first.xml"
+    gate = ["--fail-below", "ssim=0.5", "--junit", str(j1)]
+    rc = main(["score-folder", str(tmp_path / "exact"), *base, *gate, "--out", str(first)])
+    text = capsys.readouterr().out
+    assert rc == 0 and "plate: PASS ssim 1 >= 0.5" in text, text
+    (case,) = ET.parse(j1).getroot().iter("testcase")
+    assert case.get("classname") == "plate" and case.get("name") == "ssim >= 0.5"
+    # a worse run against the first: a failed gate and regressions, scene by scene
+    j2 = tmp_path / "worse.xml"
+    gate = ["--fail-above", "visibility_mae=0", "--baseline", str(first), "--junit", str(j2)]
+    out = tmp_path / "worse"
+    rc = main(["score-folder", str(tmp_path / "noisy"), *base, *gate, "--out", str(out)])
+    captured = capsys.readouterr()
+    record = json.loads((out / "plate" / "metrics.json").read_text())
+    assert rc == 1 and "visibility_mae" in record["regressions"]
+    assert "plate: REGRESSION visibility_mae" in captured.out
+    suite = next(ET.parse(j2).getroot().iter("testsuite"))
+    n_base = sum(g["kind"] == "baseline" for g in record["gates"])
+    assert int(suite.get("tests")) == 1 + n_base and n_base >= 5
+    assert int(suite.get("failures")) == 1 + len(record["regressions"])
+    combined = json.loads((out / "metrics.json").read_text())
+    assert "visibility_mae <= 0" in combined["failed"]["plate"]
+    # one scene's metrics.json is not a score-folder baseline: exit 2, nothing written
+    bad = ["--baseline", str(first / "plate" / "metrics.json")]
+    out = tmp_path / "bad"
+    rc = main(["score-folder", str(tmp_path / "noisy"), *base, *bad, "--out", str(out)])
+    assert rc == 2 and "is not a score-folder metrics.json" in capsys.readouterr().err
+    assert not out.exists()

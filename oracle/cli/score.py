@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from . import args as A
 from . import score_folder
+from .gate_args import add_gate_args, check_junit, print_verdict
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -45,35 +45,10 @@ def add_parsers(sub) -> None:
     p.add_argument(
         "--ppd", type=A.positive_float, default=None, help="FLIP pixels per degree (default 67.02)"
     )
-    p.add_argument(
-        "--fail-above",
-        action="append",
-        default=[],
-        metavar="METRIC=VALUE",
-        help="exit 1 when METRIC is above VALUE (lower-is-better metrics; repeatable)",
-    )
-    p.add_argument(
-        "--fail-below",
-        action="append",
-        default=[],
-        metavar="METRIC=VALUE",
-        help="exit 1 when METRIC is below VALUE (higher-is-better metrics such as ssim, "
-        "psnr_db; repeatable)",
-    )
-    p.add_argument(
-        "--baseline",
-        type=A.path,
-        default=None,
-        metavar="METRICS_JSON",
-        help="a previous run's metrics.json (or its folder): exit 1 when a metric is worse "
-        "by more than both runs' noise floors",
-    )
-    p.add_argument(
-        "--junit",
-        type=A.path,
-        default=None,
-        metavar="FILE",
-        help="write the gates and baseline comparisons as JUnit XML (one test case each)",
+    add_gate_args(
+        p,
+        baseline_help="a previous run's metrics.json (or its folder): exit 1 when a metric is "
+        "worse by more than both runs' noise floors",
     )
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
@@ -118,10 +93,7 @@ def cmd_score(args) -> int:
     baseline = load_baseline(args.baseline) if args.baseline is not None else None
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
-    if args.junit is not None:
-        if args.junit.is_dir():
-            raise A.CliError(f"--junit {args.junit} is a folder; give the XML file to write")
-        A.check_dir(args.junit.parent, label=f"--junit {args.junit}: folder")
+    check_junit(args.junit)
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -152,20 +124,10 @@ def cmd_score(args) -> int:
         layout=layout,
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
-    for check in verdict.checks:
-        if check.kind == "gate" or not check.passed:
-            print(check.line)
-    if baseline is not None:
-        n = sum(c.kind == "baseline" for c in verdict.checks)
-        bad = sum(c.kind == "baseline" and not c.passed for c in verdict.checks)
-        print(f"baseline {args.baseline}: {n} metrics compared, {bad} regressed")
-    for note in verdict.notes:
-        print(note)
+    print_verdict(verdict, baseline=args.baseline)
     if args.junit is not None:
         write_junit(args.junit, [verdict])
         print(f"junit: {args.junit}")
-    if verdict.failed:
-        print(f"raster-oracle: failed: {', '.join(verdict.failed)}", file=sys.stderr)
     return verdict.exit_code
 
 

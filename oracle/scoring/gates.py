@@ -40,6 +40,7 @@ from ...scenes.files import atomic_write_bytes
 from .score import ScoreError, metric_limit
 
 __all__ = [
+    "FOLDER_SCHEMA",
     "METRICS_SCHEMA",
     "Check",
     "Gate",
@@ -52,6 +53,7 @@ __all__ = [
     "judge",
     "junit_xml",
     "load_baseline",
+    "load_folder_baseline",
     "parse_gates",
     "scored_kinds",
     "write_junit",
@@ -59,6 +61,8 @@ __all__ = [
 
 #: ``schema`` of a ``metrics.json`` record (what ``--baseline`` accepts).
 METRICS_SCHEMA = "raster-oracle/metrics/1"
+#: ``schema`` of a ``score-folder`` run's combined ``metrics.json``.
+FOLDER_SCHEMA = "raster-oracle/score-folder/1"
 _OPTION = {"<=": "--fail-above", ">=": "--fail-below"}
 
 
@@ -228,26 +232,24 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
     return checks
 
 
-def load_baseline(path) -> dict:
-    """Read a previous run's ``metrics.json``; :class:`GateError` when it is missing, not JSON,
-    or not a raster-oracle metrics record."""
-    path = Path(path)
-    where = f"--baseline {path}"
-    if path.is_dir():
-        path = path / "metrics.json"
+def _read_record(path, where: str):
     try:
-        text = path.read_text(encoding="utf-8")
+        text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise GateError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
     try:
-        record = json.loads(text)
+        return json.loads(text)
     except ValueError as exc:
         raise GateError(f"{where} is not JSON ({exc})") from None
+
+
+def _check_record(record, where: str) -> dict:
     if not isinstance(record, dict) or record.get("schema") != METRICS_SCHEMA:
         found = record.get("schema") if isinstance(record, dict) else type(record).__name__
+        hint = " (a score-folder record: give it to score-folder --baseline)"
         raise GateError(
             f"{where} is not a raster-oracle metrics.json (schema {found!r}, "
-            f"expected {METRICS_SCHEMA!r})"
+            f"expected {METRICS_SCHEMA!r}){hint if found == FOLDER_SCHEMA else ''}"
         )
     scene = (record.get("reference") or {}).get("scene")
     if not isinstance(scene, dict) or "channel" not in record:
@@ -256,6 +258,37 @@ def load_baseline(path) -> dict:
     if floors is not None and not isinstance(floors, dict):
         raise GateError(f"{where}: its noise_floor is not a metric -> number record")
     return record
+
+
+def load_baseline(path) -> dict:
+    """Read a previous run's ``metrics.json`` (or the one in the folder ``path``);
+    :class:`GateError` when it is missing, not JSON, or not a raster-oracle metrics record."""
+    path = Path(path)
+    where = f"--baseline {path}"
+    if path.is_dir():
+        path = path / "metrics.json"
+    return _check_record(_read_record(path, where), where)
+
+
+def load_folder_baseline(path) -> dict[str, dict]:
+    """Read a previous ``score-folder`` run's ``metrics.json`` (or the one in the folder
+    ``path``): scene folder name -> that scene's metrics record. :class:`GateError` when it is
+    missing, not JSON, or not a score-folder record of metrics records."""
+    path = Path(path)
+    where = f"--baseline {path}"
+    if path.is_dir():
+        path = path / "metrics.json"
+    record = _read_record(path, where)
+    if not isinstance(record, dict) or record.get("schema") != FOLDER_SCHEMA:
+        found = record.get("schema") if isinstance(record, dict) else type(record).__name__
+        raise GateError(
+            f"{where} is not a score-folder metrics.json (schema {found!r}, "
+            f"expected {FOLDER_SCHEMA!r})"
+        )
+    scenes = record.get("scenes")
+    if not isinstance(scenes, dict):
+        raise GateError(f"{where} has no scenes record")
+    return {str(k): _check_record(v, f"{where} scene {k}") for k, v in scenes.items()}
 
 
 def _identity(record: dict) -> dict:
