@@ -424,3 +424,16 @@ def test_score_folder_gates_baseline_and_junit_per_scene(tmp_path, capsys):
     rc = main(["score-folder", str(tmp_path / "noisy"), *base, *bad, "--out", str(out)])
     assert rc == 2 and "is not a score-folder metrics.json" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_inferred_kind_decides_which_gates_apply(tmp_path, capsys, cands):
+    # RGB is colour: a shadow gate on it is exit 2 (was: exit 0 with every shadow metric null)
+    gate = ["--fail-above", "misclassified_fraction=0.01"]
+    rc, out, _, err = _score(tmp_path, capsys, cands["exact_rgb"], *gate, out="rgb")
+    assert rc == 2 and "this run scores color" in err and not out.exists()
+    # a single grey channel is visibility: the same gate is judged
+    rc, out, text, _ = _score(tmp_path, capsys, cands["noisy_vis"], *gate, out="grey")
+    m = _metrics(out)
+    assert m["channel"] == "visibility" and m["misclassified_fraction"] is not None
+    assert rc == (1 if m["misclassified_fraction"] > 0.01 else 0)
+    assert re.search(r"^(PASS|FAIL) misclassified_fraction \S+ (<=|>) 0\.01 \(noise", text, re.M)
