@@ -75,6 +75,10 @@ Case record (``make_case``)
 ``exr_links``
     List of ``{"label", "path" (as given, relative to the report's folder), "href"
     (URL-quoted path)}``.
+``viewer``
+    ``None``, or the linear float images (every frame) of the page's pixel viewer: a record
+    of :func:`reports.viewer.viewer_record` (keys in the :mod:`reports.viewer` docstring).
+    Records written before it existed lack the key; they read back as ``None``.
 
 Report record (``build_report``)
 --------------------------------
@@ -102,6 +106,7 @@ from ._case import CASE_SCHEMA, make_case
 from ._tradeoff import pareto_front
 from ._write import render_html, write_report
 from .images import colorize
+from .viewer import viewer_record
 
 __all__ = [
     "CASE_SCHEMA",
@@ -112,5 +117,6 @@ __all__ = [
     "pareto_front",
     "read_cases",
     "render_html",
+    "viewer_record",
     "write_report",
 ]

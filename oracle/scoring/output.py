@@ -16,7 +16,7 @@ from ... import metrics as M
 from ... import raster_models, reports
 from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ...scenes.records import jsonable, package_versions
-from ..reference.exr import write_exr
+from ..reference.exr import read_exr, write_exr
 from .gates import Gate, Verdict
 from .score import METRIC_KEYS, ScoreResult
 
@@ -63,6 +63,41 @@ def _bounds(gates: list[Gate]) -> dict:
     return out
 
 
+def _viewer(result: ScoreResult, maps: dict) -> dict:
+    """The linear frames for the report's pixel viewer: reference, candidate, the reference's
+    stderr (read back from each frame's reference EXR), one error map, the metrics."""
+    color = result.record["channel"] == "color"
+    # colour: FLIP; visibility and coverage: the signed error, which reads best under a cursor
+    order = ("flip",) if color else ("visibility_error", "coverage_error", "flip")
+    shown = next(k for k in (*order, *maps) if k in maps)
+    style, rng = MAP_STYLES[shown]
+    stderr_key = f"{result.record['channel']}_stderr"
+    frames = []
+    for k, frame in enumerate(result.frames):
+        ch = read_exr(result.reference_folders[k] / "reference.exr")
+        se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1) if color else ch[stderr_key]
+        frames.append(
+            {
+                "label": f"frame {k + 1}",
+                "metrics": frame.metrics,
+                "reference": frame.reference,
+                "candidate": frame.candidate,
+                "stderr": se,
+                "error": frame.maps[shown],
+            }
+        )
+    tm = result.record.get("tone_mapping") or {}
+    return reports.viewer_record(
+        frames,
+        error_name=shown,
+        error_style=style,
+        error_range=rng,
+        exposure=tm.get("exposure_stops") or 0.0,
+        tone_mapper=tm.get("tone_mapper", "clip"),
+        srgb=color,
+    )
+
+
 def _case(
     result: ScoreResult, *, name: str, scene: str, thresholds: dict, technique, params, cost
 ) -> dict:
@@ -101,6 +136,7 @@ def _case(
             "candidate": "candidate.exr",
             "error maps": "error_maps.exr",
         },
+        viewer=_viewer(result, maps),
     )
 
 
