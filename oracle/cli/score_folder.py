@@ -98,6 +98,7 @@ def cmd_score_folder(args) -> int:
                 baselines[entry.name],
                 loaded,
                 frames=entry.frames or 1,
+                kinds=(layout.kind,),
                 source=f"{args.baseline} scene {entry.name}",
             )
         plan.append((entry, loaded, layout))

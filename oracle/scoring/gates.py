@@ -313,9 +313,12 @@ def _check_same_run(mine: dict, theirs: dict, source: str) -> None:
         )
 
 
-def check_baseline_scene(baseline: dict, loaded, *, frames: int, source: str) -> None:
+def check_baseline_scene(
+    baseline: dict, loaded, *, frames: int, kinds=None, source: str = "baseline"
+) -> None:
     """Before rendering: :class:`GateError` when ``baseline`` scored another scene, size, light
-    or frame count than ``loaded`` with ``frames`` frames (the kind is checked after)."""
+    or frame count than ``loaded`` with ``frames`` frames, or (``kinds`` given: the candidate
+    kinds this run will score) another candidate kind."""
     theirs = _identity(baseline)
     mine = {
         "scene": loaded.name,
@@ -323,6 +326,8 @@ def check_baseline_scene(baseline: dict, loaded, *, frames: int, source: str) ->
         "light": loaded.light_index,
         "frames": frames,
     }
+    if kinds is not None:
+        mine["candidate kind"] = " and ".join(kinds)
     _check_same_run(mine, theirs, source)
 
 

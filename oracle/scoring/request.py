@@ -79,6 +79,14 @@ def _check_candidates(fn, loaded, frames, camera_path) -> None:
         fn(scene_k, k)
 
 
+def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source) -> None:
+    """Gates that do not apply to ``kinds`` / ``frames`` and a baseline of another scene,
+    size, light, frame count or kind fail here, before any reference is rendered."""
+    check_applicable(gates, kinds=kinds, frames=frames)
+    if baseline is not None:
+        check_baseline_scene(baseline, loaded, frames=frames, kinds=kinds, source=source)
+
+
 def score_to_folder(
     loaded,
     *,
@@ -130,17 +138,17 @@ def score_to_folder(
         raise ScoreError("score: give a technique or a candidate file (one of them)")
     frames = frames if frames and frames > 1 else None
     gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
-    # gates and the baseline are checked before rendering anything where the kinds scored are
-    # known, and again on the record (evaluate_gates, compare_baseline)
-    if baseline is not None:
-        check_baseline_scene(baseline, loaded, frames=frames or 1, source=baseline_source)
+    # gates and the baseline are checked before rendering anything, against the kinds that
+    # will be scored, and again on the record (evaluate_gates, compare_baseline)
+    check = dict(gates=gates, baseline=baseline, loaded=loaded, frames=frames or 1)
+    check.update(source=baseline_source)
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
     if technique is not None:
         params = dict(params or {})
-        # a model is scored on every channel it produces: gates are checked before it runs
-        check_applicable(gates, kinds=technique_channels(technique), frames=frames or 1)
+        # a model is scored on every channel it produces
+        _check_before_rendering(kinds=technique_channels(technique), **check)
         result = score_model(loaded, technique, params, channel=channel, **opts)
         info = result.record["candidate_info"][0]
         cost, params = info["cost"], info["params"]
@@ -151,7 +159,7 @@ def score_to_folder(
         params = None
         if layout is None:
             layout = candidate_layout(frame_file(candidate, 0), channel=channel)
-        check_applicable(gates, kinds=(layout.kind,), frames=frames or 1)
+        _check_before_rendering(kinds=(layout.kind,), **check)
         read = file_candidate(candidate, channel=channel, frames=frames, layout=layout)
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
