@@ -13,6 +13,7 @@ from . import stats
 from ._validate import (
     KINDS,
     check_cost,
+    check_directions,
     check_error_maps,
     check_image,
     check_metrics,
@@ -54,21 +55,6 @@ def _failing(metrics: Mapping, thresholds: Mapping) -> list[str]:
         if too_low or too_high or math.isnan(value):
             failing.append(name)
     return failing
-
-
-#: ``make_case(directions=...)`` values: which way a metric is better.
-DIRECTIONS = ("lower", "higher", "zero", "info")
-
-
-def _check_directions(value: object) -> dict[str, str]:
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise TypeError(f"directions must be a dict name -> direction, got {value!r}")
-    for key, d in value.items():
-        if d not in DIRECTIONS:
-            raise ValueError(f"directions[{key!r}] must be one of {list(DIRECTIONS)}, got {d!r}")
-    return dict(value)
 
 
 def _within_noise(metrics: Mapping, noise_floor: Mapping, directions: Mapping) -> list[str]:
@@ -331,7 +317,8 @@ def make_case(
         max_bytes=max_bytes,
     )
     failing = _failing(metrics, thresholds)
-    within_noise = _within_noise(metrics, noise_floor, _check_directions(directions))
+    directions = {k: d for k, d in check_directions(directions).items() if k in metrics}
+    within_noise = _within_noise(metrics, noise_floor, directions)
     return {
         "schema": CASE_SCHEMA,
         "name": name,
@@ -354,6 +341,7 @@ def make_case(
         "cost": check_cost(cost),
         "failing": failing,
         "within_noise": within_noise,
+        "directions": directions,
         "status": "unchecked" if not thresholds else ("fail" if failing else "pass"),
         "images": images,
         "error_maps": _map_records(maps, heatmaps),

@@ -195,6 +195,7 @@ def test_report_judges_the_noise_floor_in_the_metric_direction(tmp_path, capsys,
         directions={"ssim": "higher", "psnr_db": "higher", "coverage_bias": "zero"},
     )
     assert case["within_noise"] == ["flip_mean"]
+    assert case["directions"] == {"ssim": "higher", "psnr_db": "higher", "coverage_bias": "zero"}
     good = make_case(
         name="c",
         scene="s",
@@ -212,6 +213,9 @@ def test_report_judges_the_noise_floor_in_the_metric_direction(tmp_path, capsys,
     (scored,) = json.loads((out / "report.json").read_text())["cases"]
     assert scored["metrics"]["ssim"] < scored["noise_floor"]["ssim"]
     assert not {"ssim", "psnr_db"} & set(scored["within_noise"])
+    page = (out / "report.html").read_text()
+    assert 'title="ssim: higher is better"' in page
+    assert 'title="flip_mean: lower is better"' in page
 
 
 def test_baseline_passes_an_equal_run_and_flags_a_worse_one(tmp_path, capsys, cands):
