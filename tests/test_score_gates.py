@@ -441,3 +441,24 @@ def test_inferred_kind_decides_which_gates_apply(tmp_path, capsys, cands):
     assert m["channel"] == "visibility" and m["misclassified_fraction"] is not None
     assert rc == (1 if m["misclassified_fraction"] > 0.01 else 0)
     assert re.search(r"^(PASS|FAIL) misclassified_fraction \S+ (<=|>) 0\.01 \(noise", text, re.M)
+
+
+def test_baseline_values_that_are_not_numbers_are_left_out():
+    from raster_oracle.oracle.scoring.gates import compare_baseline
+
+    scene = {"name": "plate", "resolution": [48, 27], "light_index": 0}
+    mine = {
+        "channel": "visibility",
+        "reference": {"scene": scene},
+        "visibility_mae": 0.05,
+        "ssim": 0.9,
+        "flip_mean": 0.1,
+        "noise_floor": {"visibility_mae": 0.001, "ssim": 0.99, "flip_mean": 0.01},
+    }
+    old = dict(mine, visibility_mae=0.04, ssim={"bad": 1}, flip_mean="nan")
+    verdict = compare_baseline(mine, old)
+    assert [c.name for c in verdict.checks] == ["baseline visibility_mae"]
+    assert verdict.failed == ["baseline visibility_mae"]  # 0.05 - 0.04 > 0.001 + 0.001
+    assert verdict.notes == [
+        "baseline: not compared (a value or noise floor missing or not finite): flip_mean"
+    ]

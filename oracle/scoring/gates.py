@@ -203,14 +203,25 @@ def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
             )
 
 
+def _number(value) -> float | None:
+    """A record's metric value as a float (``"nan"``/``"inf"`` as JSON stores them), None
+    for null or anything that is not a number."""
+    if isinstance(value, bool) or value is None:
+        return None
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return None
+
+
 def _value(record: dict, key: str, what: str) -> float:
-    value = record.get(key)
-    if value is None or not math.isfinite(float(value)):
+    value = _number(record.get(key))
+    if value is None or not math.isfinite(value):
         raise GateError(
             f"{what}: {key} is {'null' if value is None else value} for this run "
             "(nothing to judge: e.g. no receiver or edge pixel in view)"
         )
-    return float(value)
+    return value
 
 
 def evaluate_gates(gates, record: dict) -> list[Check]:
@@ -341,13 +352,13 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
     verdict = Verdict(scene=str(mine["scene"]))
     floors = record.get("noise_floor") or {}
     old_floors = baseline.get("noise_floor") or {}
-    skipped = []
+    skipped: list[str] = []
     for key, m in catalog.CATALOG.items():
-        a, b = baseline.get(key), record.get(key)
+        a, b = _number(baseline.get(key)), _number(record.get(key))
         if m.direction == "info" or a is None or b is None:
             continue
-        fa, fb = old_floors.get(key), floors.get(key)
-        if fa is None or fb is None or not all(math.isfinite(float(v)) for v in (a, b, fa, fb)):
+        fa, fb = _number(old_floors.get(key)), _number(floors.get(key))
+        if not all(v is not None and math.isfinite(v) for v in (a, b, fa, fb)):
             skipped.append(key)
             continue
         bad = catalog.regressed(key, b, fb, a, fa)
@@ -357,7 +368,8 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
         )
         verdict.add([Check(f"baseline {key}", key, not bad, line, kind="baseline")])
     if skipped:
-        verdict.add(notes=[f"baseline: not compared (no noise floor): {', '.join(skipped)}"])
+        why = "a value or noise floor missing or not finite"
+        verdict.add(notes=[f"baseline: not compared ({why}): {', '.join(skipped)}"])
     return verdict
 
 
