@@ -250,9 +250,12 @@ def test_baseline_of_another_run_or_file_is_exit_2(tmp_path, capsys, cands):
     other_size = json.loads(json.dumps(record))
     other_size["reference"]["scene"]["resolution"] = [40, 24]
     other_kind = dict(record, channel="color")
+    malformed = json.loads(json.dumps(record))
+    malformed["reference"]["scene"]["resolution"] = "48x27"
     bad = {
         "size.json": (json.dumps(other_size), "resolution 40x24 vs 48x27 (baseline vs this"),
         "kind.json": (json.dumps(other_kind), "candidate kind color vs visibility"),
+        "malformed.json": (json.dumps(malformed), "resolution is not [width, height]"),
         "corrupt.json": ("{not json", "is not JSON"),
         "foreign.json": (json.dumps({"schema": "junit"}), "is not a raster-oracle metrics"),
         "missing.json": (None, "cannot read it"),

@@ -263,8 +263,13 @@ def _check_record(record, where: str) -> dict:
             f"expected {METRICS_SCHEMA!r}){hint if found == FOLDER_SCHEMA else ''}"
         )
     scene = (record.get("reference") or {}).get("scene")
-    if not isinstance(scene, dict) or "channel" not in record:
+    if not isinstance(scene, dict) or not isinstance(record.get("channel"), str):
         raise GateError(f"{where} is a metrics record without its scene or channel")
+    size = scene.get("resolution")
+    if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) for v in size)):
+        raise GateError(f"{where}: its scene resolution is not [width, height]")
+    if not isinstance(record.get("frames"), list | type(None)):
+        raise GateError(f"{where}: its frames are not a list")
     floors = record.get("noise_floor")
     if floors is not None and not isinstance(floors, dict):
         raise GateError(f"{where}: its noise_floor is not a metric -> number record")
