@@ -17,10 +17,12 @@ To combine score folders, read their cases back with :func:`read_cases` and pass
 
 Other pages follow the same rule (a JSON-safe record, rendered by a jinja2 template of
 ``templates/`` with autoescape on and formatting in the Python filters of
-:mod:`reports.formatting`, :mod:`reports.svg`):
+:mod:`reports.formatting`, :mod:`reports.svg`; plots drawn by matplotlib in
+:mod:`reports.plots`):
 
-- :mod:`reports.sweep`: the sweep report (Pareto fronts, sensitivity, best at equal cost,
-  every case), ``templates/sweep.html``, with study sections after the fronts;
+- :mod:`reports.sweep`: the sweep report (a summary at the top,
+  :mod:`reports.sections.overview`; Pareto fronts, sensitivity, best at equal cost, every
+  case), ``templates/sweep.html``, with study sections after the fronts;
 - :mod:`reports.sections`: the studies' section records (claims, extremes, converge,
   anti-aliasing memory: ``claims_section(data)``, ...), each shown by
   ``templates/section_<kind>.html``, on a study's own page (:func:`~reports.sections.study_page`,
