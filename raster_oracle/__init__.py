@@ -1,8 +1,8 @@
 """raster-oracle: ground truth for real-time shadows and anti-aliasing.
 
 ``raster_oracle.reference``, ``score_image``, ``score_technique``, ``run_model``, ``check``,
-``export`` and ``load_scene`` are the Python API (:mod:`raster_oracle.api`, documented in
-``docs/python-api.md``); errors are :class:`InputError` and :class:`ModelError`.
+``write_junit``, ``export`` and ``load_scene`` are the Python API (:mod:`raster_oracle.api`,
+documented in ``docs/python-api.md``); errors are :class:`InputError` and :class:`ModelError`.
 
 The installed import package. Its subpackages are the repository's top-level folders:
 ``raster_oracle.oracle`` (references, scoring, sweeps, studies, CLI),
@@ -38,6 +38,7 @@ _API = (
     "score_image",
     "score_technique",
     "techniques",
+    "write_junit",
 )
 
 __all__ = ["__version__", *_API]

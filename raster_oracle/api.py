@@ -42,6 +42,7 @@ __all__ = [
     "score_image",
     "score_technique",
     "techniques",
+    "write_junit",
 ]
 
 
@@ -423,21 +424,37 @@ def check(
     *,
     fail_above: dict[str, float] | None = None,
     fail_below: dict[str, float] | None = None,
-) -> list[str]:
-    """The failed gates of a ``metrics.json`` record (empty: every gate passes).
+    baseline=None,
+):
+    """Judge a ``metrics.json`` record as ``score`` does with ``--fail-above``,
+    ``--fail-below`` and ``--baseline`` (the same library function).
 
-    ``fail_above={"visibility_mae": 0.02}`` fails when the value exceeds the limit,
-    ``fail_below={"ssim": 0.9}`` when it is below. A metric that does not apply to the
-    record (null) is an :class:`InputError`, never a silent pass.
+    Parameters
+    ----------
+    fail_above : ``{metric: limit}``: fails when a lower-is-better metric is above it.
+    fail_below : ``{metric: limit}``: fails when a higher-is-better metric (``ssim``,
+        ``psnr_db``) is below it.
+    baseline : a previous run's record (a dict) or the path of its ``metrics.json``: fails
+        where a metric is worse by more than both runs' noise floors.
+
+    Returns the verdict: ``exit_code`` (0 every check passed, 1 otherwise), ``failed`` (the
+    names of the failed checks; the verdict itself is that list), ``lines`` (``FAIL
+    visibility_mae 0.0719 > 0.02 (noise floor 0.0011)``, ``PASS ...``, ``REGRESSION ...``)
+    and ``checks``; :func:`write_junit` writes verdicts as JUnit XML. A gate that cannot be
+    judged (an unknown metric, one against its direction such as ``fail_above={"ssim":
+    0.9}``, one that does not apply to the record's channel or frame count, a null value) or
+    a baseline of another run raises :class:`InputError`, never a silent pass.
     """
-    out = []
-    for gates, worse, sign in ((fail_above, np.greater, ">"), (fail_below, np.less, "<")):
-        for metric, limit in (gates or {}).items():
-            if metric not in record:
-                raise InputError(f"unknown metric {metric!r}")
-            value = record[metric]
-            if value is None:
-                raise InputError(f"{metric} does not apply to this record (its value is null)")
-            if worse(value, limit):
-                out.append(f"{metric} {value:.4g} {sign} {limit:g}")
-    return out
+    from .oracle.scoring.gates import judge
+
+    with _library():
+        return judge(record, fail_above=fail_above, fail_below=fail_below, baseline=baseline)
+
+
+def write_junit(path, verdicts) -> None:
+    """Write JUnit XML of :func:`check` verdicts (one, or a list of them) to ``path``
+    atomically: one test case per scene x check, as ``score --junit`` does."""
+    from .oracle.scoring.gates import write_junit as write
+
+    verdicts = [verdicts] if hasattr(verdicts, "checks") else list(verdicts)
+    write(Path(path), verdicts)

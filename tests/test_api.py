@@ -105,16 +105,43 @@ def test_colour_and_technique_scores(scene):
     assert tech["coverage_floor_rms"] == 0.159 and tech["cost"]["framebuffer_bytes"] > 0
 
 
-def test_check_closed_form():
-    record = {"visibility_mae": 0.03, "ssim": 0.9, "delta_e2000_mean": None}
-    assert ro.check(record, fail_above={"visibility_mae": 0.05}) == []
-    assert ro.check(record, fail_above={"visibility_mae": 0.02}) == ["visibility_mae 0.03 > 0.02"]
-    assert ro.check(record, fail_below={"ssim": 0.95}) == ["ssim 0.9 < 0.95"]
-    assert ro.check(record, fail_below={"ssim": 0.9}) == []  # at the bar is not below it
-    with pytest.raises(ro.InputError, match="does not apply"):
-        ro.check(record, fail_above={"delta_e2000_mean": 1.0})
-    with pytest.raises(ro.InputError, match="unknown metric"):
-        ro.check(record, fail_above={"nonsense": 1.0})
+def _record(**values) -> dict:
+    """A minimal visibility record of one frame with noise floors."""
+    base = {"schema": "raster-oracle/metrics/1", "channel": "visibility", "frames": None}
+    base["reference"] = {"scene": {"name": "plate", "resolution": [W, H], "light_index": 0}}
+    base["noise_floor"] = {"visibility_mae": 0.001, "ssim": 0.999}
+    return {**base, "delta_e2000_mean": None, **values}
+
+
+def test_check_closed_form(tmp_path):
+    """``check`` is the CLI's gate: closed-form passes, failures, regressions, refusals, and
+    the JUnit file of its verdicts."""
+    import xml.etree.ElementTree as ET
+
+    record = _record(visibility_mae=0.03, ssim=0.9)
+    assert ro.check(record, fail_above={"visibility_mae": 0.05}).exit_code == 0
+    verdict = ro.check(record, fail_above={"visibility_mae": 0.02})
+    assert verdict.exit_code == 1
+    assert verdict.lines == ["FAIL visibility_mae 0.03 > 0.02 (noise floor 0.001)"]
+    assert ro.check(record, fail_below={"ssim": 0.95}).failed == ["ssim >= 0.95"]
+    assert ro.check(record, fail_below={"ssim": 0.9}).exit_code == 0  # at the bar passes
+    # worse than the previous run by more than both floors: a regression; equal: none
+    better = _record(visibility_mae=0.01, ssim=0.95)
+    assert ro.check(record, baseline=better).failed == ["baseline visibility_mae", "baseline ssim"]
+    assert ro.check(record, baseline=record).exit_code == 0
+    for bad, why in (
+        ({"fail_above": {"delta_e2000_mean": 1.0}}, "applies to color"),
+        ({"fail_above": {"ssim": 0.9}}, "--fail-below"),
+        ({"fail_above": {"nonsense": 1.0}}, "unknown metric"),
+        ({"baseline": _record(visibility_mae=0.01, channel="color")}, "another run"),
+    ):
+        with pytest.raises(ro.InputError, match=why):
+            ro.check(record, **bad)
+    ro.write_junit(tmp_path / "junit.xml", [verdict, ro.check(better, fail_below={"ssim": 0.9})])
+    root = ET.parse(tmp_path / "junit.xml").getroot()
+    assert root.get("tests") == "2" and root.get("failures") == "1"
+    ro.write_junit(tmp_path / "one.xml", verdict)
+    assert ET.parse(tmp_path / "one.xml").getroot().get("tests") == "1"
 
 
 def test_errors_are_exceptions_not_exits(scene):

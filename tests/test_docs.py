@@ -31,8 +31,9 @@ def test_python_api_examples_run(tmp_path, monkeypatch, capsys):
         except Exception as exc:  # name the block that broke
             pytest.fail(f"docs/python-api.md block {i} raised {type(exc).__name__}: {exc}")
     out = capsys.readouterr().out
-    assert "candidate is 10x10, the reference is 96x54" in out
+    assert "candidate is 10x10, the reference is 80x45" in out
     assert (tmp_path / "score" / "metrics.json").is_file()
+    assert (tmp_path / "junit.xml").is_file()
 
 
 def _parser_options() -> dict[str, list[str]]:
