@@ -263,6 +263,10 @@ def _write_frames(images, channel: str | None, folder: Path) -> tuple[str, str]:
     """Engine-like EXR files of in-memory candidate frames; returns (pattern, channel)."""
     from .oracle.reference.exr import write_exr
 
+    if channel not in (None, "visibility", "color", "coverage"):
+        raise InputError(
+            f"channel of an array candidate must be visibility, color or coverage, got {channel!r}"
+        )
     folder.mkdir(parents=True, exist_ok=True)
     frames = []
     for k, image in enumerate(images):
@@ -395,8 +399,13 @@ def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, q
     function and read its ``metrics.json`` back: the record is the command line's."""
     from . import metrics as M
     from .oracle.scoring.request import score_to_folder
+    from .scenes import CAMERA_PATHS
 
     loaded = load_scene(scene, **load)
+    if opts["frames"] and opts["frames"] > 1 and opts["camera_path"] not in (None, *CAMERA_PATHS):
+        raise InputError(
+            f"unknown camera path {opts['camera_path']!r}; choose one of {', '.join(CAMERA_PATHS)}"
+        )
     with contextlib.ExitStack() as stack:
         tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="raster-oracle-")))
         if frame_list is not None:

@@ -153,6 +153,10 @@ def test_errors_are_exceptions_not_exits(scene):
         ro.score_image(scene, np.full((H, W), np.nan), spp=SPP)
     with pytest.raises(ro.InputError, match="shape"):
         ro.score_image(scene, np.zeros((H, W, 2)), spp=SPP)
+    with pytest.raises(ro.InputError, match="visibility, color or coverage"):
+        ro.score_image(scene, np.ones((H, W)), channel="shadow", spp=SPP)
+    with pytest.raises(ro.InputError, match="unknown camera path"):
+        ro.score_image(scene, [np.ones((H, W))] * 2, camera_path="nope", spp=SPP)
     with pytest.raises(ro.InputError, match="frames=3"):
         ro.score_image(scene, [np.ones((H, W))] * 2, frames=3, spp=SPP)
     with pytest.raises(ro.InputError, match="load_scene"):
