@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +31,7 @@ import numpy as np
 from ..scenes.files import atomic_write_bytes
 from ._tradeoff import pareto_front
 from .sections.overview import overview_record
-from .sections.page import render_sweep_page
+from .sections.page import render_sweep_page, summary_viewer_cases
 
 __all__ = [
     "DEFAULT_COSTS",
@@ -435,6 +435,7 @@ def write_sweep_report(
     metrics: Sequence[str] | None = None,
     extra_sections: Sequence[Mapping] | None = None,
     images: Mapping[str, Mapping] | None = None,
+    viewers: Mapping[str, Mapping] | Callable[[list[str]], Mapping] | None = None,
 ) -> dict:
     """Write the page ``path`` (HTML) and its JSON twin ``path.with_suffix('.json')``.
 
@@ -449,6 +450,12 @@ def write_sweep_report(
         Thumbnails by row key (``reference``, ``candidate``, ``error`` data URIs), shown for
         the cases on each group's headline front. They are the page's only content that is
         not in the JSON (the store keeps them; the JSON names the cases by key).
+    viewers : dict or callable, optional
+        Pixel viewer records by row key (:func:`reports.viewer.viewer_record`), or a function
+        of a list of keys returning them (only the named cases are read): the cases the
+        summary names get a viewer, fitted to one page budget
+        (:func:`reports.sections.page.summary_viewer_cases`). The JSON lists them under
+        ``"inspect"`` (case id, key, reduction factor and size; the arrays stay in the page).
 
     Returns
     -------
@@ -458,7 +465,19 @@ def write_sweep_report(
     record = sweep_record(rows, title=title, provenance=provenance, costs=costs, metrics=metrics)
     record["sections"] = [dict(x) for x in extra_sections or []]
     record["overview"] = overview_record(record)
-    html = render_sweep_page(record, images=images)
+    inspect = summary_viewer_cases(record, viewers or {})
+    record["inspect"] = [
+        {
+            "id": c["id"],
+            "key": key_of[c["id"]],
+            "factor": c["viewer"]["factor"],
+            "width": c["viewer"]["width"],
+            "height": c["viewer"]["height"],
+        }
+        for key_of in [{c["id"]: c["key"] for c in record["cases"]}]
+        for c in inspect
+    ]
+    html = render_sweep_page(record, images=images, viewer_cases=inspect)
     text = json.dumps(record, indent=1, allow_nan=False, default=str)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -456,6 +456,16 @@ def test_report_of_a_sweep_database(tmp_path, capsys):
     rc = main(["report", "--sweep", str(out / "sweep.db"), "--out", str(report)])
     assert rc == 0
     assert report.is_file() and report.with_suffix(".json").is_file()
+    # the summary's cases have pixel viewers with the reference's stderr; same store, same bytes
+    inspect = json.loads(report.with_suffix(".json").read_text())["inspect"]
+    assert inspect
+    again = tmp_path / "again.html"
+    assert main(["report", "--sweep", str(out / "sweep.db"), "--out", str(again)]) == 0
+    assert again.read_bytes() == report.read_bytes()
+    with SweepStore(out / "sweep.db", readonly=True) as store:
+        viewers = store.viewers([c["key"] for c in inspect])
+    assert len(viewers) == len(inspect)
+    assert all(v["frames"][0]["stderr"] and v["channels"] == 1 for v in viewers.values())
     bad = ["report", "--sweep", str(out / "sweep.db"), "--out", str(tmp_path / "b.html")]
     assert main([*bad, "--cost", "shadow_map_byte"]) == 2
     err = capsys.readouterr().err

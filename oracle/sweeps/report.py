@@ -55,15 +55,17 @@ def sweep_report(
         store.check_integrity()
         rows = store.rows(sweep=sweep)
         images = store.images(r["key"] for r in rows if r["status"] == "done")
-    _check_keys(rows, costs, metrics)
-    write_sweep_report(
-        rows,
-        out,
-        title=title or f"raster-oracle sweep {sweep or Path(db).name}",
-        provenance={"database": str(Path(db).resolve()), "sweep": sweep or "all"},
-        costs=costs,
-        metrics=metrics,
-        extra_sections=extra_sections,
-        images=images,
-    )
+        _check_keys(rows, costs, metrics)
+        # the store stays open for the viewers: only the cases the summary names are read
+        write_sweep_report(
+            rows,
+            out,
+            title=title or f"raster-oracle sweep {sweep or Path(db).name}",
+            provenance={"database": str(Path(db).resolve()), "sweep": sweep or "all"},
+            costs=costs,
+            metrics=metrics,
+            extra_sections=extra_sections,
+            images=images,
+            viewers=store.viewers,
+        )
     return out
