@@ -488,3 +488,22 @@ def test_hand_edited_viewers_are_left_out(tmp_path, capsys, stored):
     assert rc == 0, err
     ids = [c["id"] for c in json.loads(out.with_suffix(".json").read_text())["inspect"]]
     assert ids == [f"case-{i:012x}" for i in (8, 4, 5)]  # row 1's bad viewer is left out
+
+
+def test_fronts_of_a_higher_is_better_metric_keep_the_highest_values():
+    """SSIM: 1 is perfect. Ranked as an error (metrics.catalog via the sweep report's
+    metric_error), the cheapest case with the highest SSIM is on the front and the summary's
+    best; ranked as a raw value (lower is better) the worst SSIM would be."""
+    from raster_oracle.oracle.sweeps.report import metric_error
+
+    rows = [dict(r) for r in ROWS[:3]]
+    for r, ssim in zip(rows, (0.80, 0.99, 0.95), strict=True):
+        r["metrics"] = {"ssim": ssim, "noise_floor": {"ssim": 0.999}}
+    rec = sweep_record(rows, title="t", metrics=["ssim"], rank=metric_error)
+    front = rec["groups"][0]["fronts"][0]
+    on = {front["points"][i]["error"] for i in front["front"]}
+    assert on == {0.80, 0.99}  # 0.95 is dearer and worse than 0.99
+    raw = sweep_record(rows, title="t", metrics=["ssim"])["groups"][0]["fronts"][0]
+    assert {raw["points"][i]["error"] for i in raw["front"]} == {0.80}
+    assert metric_error("psnr_db", 20.0) == pytest.approx(0.01)
+    assert metric_error("not_a_metric", 3.0) == 3.0

@@ -5,11 +5,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...metrics.catalog import error_of
 from ...reports.sweep import with_memory, write_sweep_report
 from .run import SweepError
 from .store import SweepStore
 
-__all__ = ["sweep_report"]
+__all__ = ["metric_error", "sweep_report"]
+
+
+def metric_error(metric: str, value: float) -> float:
+    """``value`` of ``metric`` as an error, 0 best, for the fronts to compare
+    (:func:`metrics.catalog.error_of`: ``1 - ssim``, a PSNR's MSE, ``|bias|``); a metric the
+    catalogue does not score (an ``info`` one, or a key it does not know) as it is."""
+    try:
+        return error_of(metric, value)
+    except (KeyError, ValueError):
+        return value
 
 
 def _check_keys(rows, costs, metrics) -> None:
@@ -67,5 +78,6 @@ def sweep_report(
             extra_sections=extra_sections,
             images=images,
             viewers=store.viewers,
+            rank=metric_error,
         )
     return out
