@@ -77,11 +77,12 @@ def test_msaa_8x_scores_colour_and_coverage(runs):
     cand = read_exr(runs["base"] / "msaa8" / "candidate.exr")
     for c in ("color.R", "color.G", "color.B"):
         assert np.array_equal(cand[c], runs["model"][c]), c
-    # coverage error by hand from the reference coverage (same scene, spp and seed)
+    # coverage error by hand from the reference's front-most primitive coverage (same scene,
+    # spp and seed): what a model's coverage metrics measure
     loaded = scenes.load(SCENE, width=W, height=H)
     settings = ReferenceSettings(spp=SPP, seed=0, channels=("coverage", "edge", "id"))
     ref = get_reference(loaded, settings, cache=ReferenceCache(), quiet=True).channels()
-    err = runs["model"]["coverage"].astype(np.float64) - ref["coverage"]
+    err = runs["model"]["front_coverage"].astype(np.float64) - ref["front_coverage"]
     assert m["coverage_mae"] == pytest.approx(np.abs(err).mean(), rel=TOL)
     assert m["coverage_bias"] == pytest.approx(err.mean(), abs=TOL)
     # 8x beats the one-sample floor and no AA on every aliasing and colour measure

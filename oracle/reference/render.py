@@ -35,6 +35,7 @@ from ...metrics.stats import binomial_stderr_floor
 from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
+from .coverage import centre_shapes, front_hits
 
 __all__ = [
     "ALL_CHANNELS",
@@ -51,7 +52,7 @@ __all__ = [
 #: Channel groups that can be asked for with ``--channels``; each expands to EXR channels.
 CHANNEL_GROUPS = {
     "visibility": ["visibility", "visibility_stderr"],
-    "coverage": ["coverage", "coverage_stderr"],
+    "coverage": ["coverage", "coverage_stderr", "front_coverage", "front_coverage_stderr"],
     "color": [
         "color.R",
         "color.G",
@@ -177,6 +178,9 @@ class _Accum:
     n: np.ndarray = field(init=False)
     vis: np.ndarray = field(init=False)
     cov: np.ndarray = field(init=False)
+    #: shape seen through each pixel centre (``front_coverage``; None: not asked for)
+    centre: np.ndarray | None = None
+    front: np.ndarray = field(init=False)
     rgb: np.ndarray | None = field(init=False)
     rgb2: np.ndarray | None = field(init=False)
     smin: np.ndarray = field(init=False)
@@ -186,6 +190,7 @@ class _Accum:
         self.n = np.zeros(self.npix)
         self.vis = np.zeros(self.npix)
         self.cov = np.zeros(self.npix)
+        self.front = np.zeros(self.npix)
         self.rgb = np.zeros((self.npix, 3)) if self.color else None
         self.rgb2 = np.zeros((self.npix, 3)) if self.color else None
         self.smin = np.full(self.npix, np.iinfo(np.int32).max, dtype=np.int64)
@@ -202,6 +207,11 @@ class _Accum:
 
     def cov_stderr(self):
         return np.maximum(self.stderr(self.cov, self.cov, self.n), binomial_stderr_floor(self.n))
+
+    def front_stderr(self):
+        return np.maximum(
+            self.stderr(self.front, self.front, self.n), binomial_stderr_floor(self.n)
+        )
 
     def rgb_stderr(self):
         n = self.n[:, None]
@@ -286,8 +296,10 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
     lit = dr.select(res["lit"], 1.0, 0.0)
     cov = dr.select(res["valid"], 1.0, 0.0)
     per_sample = [lit, cov, res["shape"]]
+    if acc.centre is not None:
+        per_sample.append(front_hits(res["shape"], acc.centre[chunk], block))
     if acc.color:
-        per_sample += [res["color"], res["color"] * res["color"]]
+        per_sample += [res["color"], res["color"] * res["color"]]  # the last two
     # one kernel traces every sample; reductions then read the evaluated arrays
     dr.eval(*per_sample, res["shadow_tested"])
     shadow_count = dr.count(res["shadow_tested"])
@@ -298,8 +310,10 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
         dr.block_reduce(dr.ReduceOp.Max, res["shape"], block, mode="evaluated"),
     ]
     if acc.color:
+        outs.append(dr.block_reduce(dr.ReduceOp.Add, per_sample[-2], block, mode="evaluated"))
+        outs.append(dr.block_reduce(dr.ReduceOp.Add, per_sample[-1], block, mode="evaluated"))
+    if acc.centre is not None:
         outs.append(dr.block_reduce(dr.ReduceOp.Add, per_sample[3], block, mode="evaluated"))
-        outs.append(dr.block_reduce(dr.ReduceOp.Add, per_sample[4], block, mode="evaluated"))
     dr.eval(*outs, shadow_count)
     acc.n[chunk] += block
     acc.vis[chunk] += np.array(outs[0], dtype=np.float64)
@@ -309,6 +323,8 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
     if acc.color:
         acc.rgb[chunk] += np.array(outs[4], dtype=np.float64).T
         acc.rgb2[chunk] += np.array(outs[5], dtype=np.float64).T
+    if acc.centre is not None:
+        acc.front[chunk] += np.array(outs[-1], dtype=np.float64)
     return int(shadow_count[0])
 
 
@@ -420,7 +436,7 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     sampled = groups & {"visibility", "coverage", "color", "edge"}
     npix = w * h
     color = "color" in groups
-    acc = _Accum(npix, color)
+    acc = _Accum(npix, color, centre_shapes(loaded) if "coverage" in groups else None)
     t0 = time.perf_counter()
     progress = None
     if not quiet:
@@ -480,6 +496,8 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     if "coverage" in groups:
         channels["coverage"] = img(acc.cov / acc.n)
         channels["coverage_stderr"] = img(acc.cov_stderr())
+        channels["front_coverage"] = img(acc.front / acc.n)
+        channels["front_coverage_stderr"] = img(acc.front_stderr())
     if color:
         mean = acc.rgb / acc.n[:, None]
         se = acc.rgb_stderr()

@@ -79,7 +79,12 @@ REFERENCE_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
     "coverage": ("coverage", "edge", "id"),
+    # the coverage of each pixel's front-most primitive (oracle.reference.coverage): what the
+    # anti-aliasing models are scored on, so that backdrop scenes have coverage edges too
+    "front_coverage": ("coverage", "edge", "id"),
 }
+#: Channels of sample counts (binary samples: binomial noise floor).
+COVERAGE_CHANNELS = ("coverage", "front_coverage")
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
 
 
@@ -163,10 +168,10 @@ def _metrics_for(
         if full:
             maps["visibility_error"] = sm["signed_error"]
             maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    elif channel == "coverage":
-        ref = ref_ch["coverage"]
+    elif channel in COVERAGE_CHANNELS:
+        ref = ref_ch[channel]
         rec = None
-        ref_se = ref_ch["coverage_stderr"]
+        ref_se = ref_ch[f"{channel}_stderr"]
         out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=aa_samples))
         # silhouettes against the sky are edges of coverage even where one shape is seen
         edge = edge | ((ref > 0) & (ref < 1))
@@ -198,7 +203,7 @@ def _metrics_for(
     out["edge_mae"], out["interior_mae"] = ei["edge_mae"], ei["interior_mae"]
     # radiance a missed sub-pixel feature could have: the reference's 99th percentile
     scale = 1.0 if ref.ndim == 2 else np.percentile(ref.reshape(-1, ref.shape[-1]), 99, axis=0)
-    binary = channel in ("visibility", "coverage")
+    binary = channel in ("visibility", *COVERAGE_CHANNELS)
     zt = M.z_test(ref, ref_se, cand, samples=samples, floor_scale=scale, binary=binary, full=full)
     out["significant_fraction"] = zt["significant_fraction"]
     if full:
@@ -321,7 +326,7 @@ def score(
 
     Parameters
     ----------
-    channel : ``"visibility"``, ``"color"`` or ``"coverage"``.
+    channel : ``"visibility"``, ``"color"``, ``"coverage"`` or ``"front_coverage"``.
     candidate_frames : callable ``(frame_scene, k) -> (image, info)`` giving the candidate of
         frame ``k`` (a model run, or an image file read and validated) and a plain record
         (cost, diagnostics, file name) for the report.
@@ -332,7 +337,7 @@ def score(
         the references and scoring options only, so it is computed once per reference.
     """
     if channel not in REFERENCE_GROUPS:
-        raise ScoreError(f"channel must be 'visibility', 'color' or 'coverage', got {channel!r}")
+        raise ScoreError(f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {channel!r}")
     flip_mode = flip_mode.upper()
     if flip_mode not in ("LDR", "HDR"):
         raise ScoreError(f"flip mode must be LDR or HDR, got {flip_mode!r}")

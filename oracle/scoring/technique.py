@@ -136,10 +136,14 @@ def score_model(
         **kw,
     )
     if "coverage" in produced:
+        # the coverage metrics of a model: its front-most primitive's coverage against the
+        # reference's (oracle.reference.coverage), an edge on every scene, backdrops included
         coverage = score(
             loaded,
-            channel="coverage",
-            candidate_frames=model_candidate(technique, params, channel="coverage", runs=runs),
+            channel="front_coverage",
+            candidate_frames=model_candidate(
+                technique, params, channel="front_coverage", runs=runs
+            ),
             **kw,
         )
         _merge_coverage(result, coverage)

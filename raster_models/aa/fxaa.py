@@ -118,6 +118,7 @@ def run(scene, params: FxaaParams | None = None, **kwargs):
         p,
         color=out,
         coverage=valid.astype(np.float32),
+        offsets=np.array([[0.5, 0.5]]),
         events=valid.astype(np.int64),
         extra_outputs={"fxaa_changed": changed},
         samples=1,

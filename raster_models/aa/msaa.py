@@ -144,6 +144,7 @@ def run(scene, params: MsaaParams | None = None, **kwargs):
         p,
         color=color,
         coverage=np.count_nonzero(valid, axis=1) / n,
+        offsets=offsets,
         events=events,
         extra_outputs={},
         samples=n,
