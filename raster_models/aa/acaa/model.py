@@ -54,7 +54,7 @@ from ..common import DEPTH_FORMATS, ShadowParams, check_shadows, package, shadow
 from . import trace as _acaa_trace
 from .blend import blend
 from .groups import group_scenes, tie_distance, tie_groups
-from .plane import stored_raster_depths
+from .plane import depth_tests
 
 __all__ = ["ACCUMULATIONS", "AcaaParams", "find_ties", "merge_fragments", "run"]
 
@@ -155,52 +155,29 @@ def merge_fragments(
 
 
 def find_ties(scene, candidates: list, window: float, fmt: str, offsets) -> dict:
-    """The depth tests of the samples where another group's surface can tie with the
-    nearest one (:func:`.trace.prepass`'s candidates whose hit lies within the tie
-    window), on the depths a rasterizer compares (:func:`.plane.stored_raster_depths`:
-    each primitive's float32 depth plane at the sample, stored in ``fmt``). The prepass
-    (LESS) stores the lowest of them; the shading pass (LEQUAL) passes every surface that
-    stores that value.
+    """The LEQUAL shading pass at the samples where another group's surface can tie with
+    the nearest one (:func:`.plane.depth_tests` on :func:`.trace.prepass`'s candidates):
+    the prepass (LESS) stores the lowest rasterized depth, and every surface storing it
+    passes.
 
     Returns a dict: ``ties``, a list of ``(pixel, sample, shape, prim)`` arrays of the other
     groups' surfaces passing; ``losses``, the same of the samples where the nearest surface
-    fails (another stores a lower depth); ``tie_keys``, ``pixel * N + sample`` of the
-    samples where two or more surfaces pass (sorted, unique).
+    fails (another stores a lower depth), None when there is no candidate; ``tie_keys``,
+    ``pixel * N + sample`` of the samples where two or more surfaces pass (sorted, unique).
     """
-    n = len(offsets)
-    offs = np.asarray(offsets, np.float32).reshape(-1, 2)
-    w = scene.width
-    rows = []
-    for pix, smp, depth, hit, hit_depth, h_shape, h_prim, n_shape, n_prim in candidates:
-        near = hit.copy()
-        if np.isfinite(window):  # equal stored depths lie within the tie distance
-            near &= hit_depth <= depth + np.float32(window)
-        ci = np.flatnonzero(near)
-        rows.append([a[ci] for a in (pix, smp, depth, hit_depth, h_shape, h_prim, n_shape, n_prim)])
-    none = {"ties": [], "losses": None, "tie_keys": np.zeros(0, np.int64)}
-    if not rows or sum(len(r[0]) for r in rows) == 0:
-        return none
-    pix, smp, depth, hit_depth, h_shape, h_prim, n_shape, n_prim = (
-        np.concatenate(parts) for parts in zip(*rows, strict=True)
-    )
-    sx = (pix % w).astype(np.float32) + offs[smp, 0]
-    sy = (pix // w).astype(np.float32) + offs[smp, 1]
-    q_hit = stored_raster_depths(scene, h_shape, h_prim, sx, sy, hit_depth, fmt)
-    key = pix * n + smp
-    ukey, first, inv = np.unique(key, return_index=True, return_inverse=True)
-    q_near = stored_raster_depths(
-        scene, n_shape[first], n_prim[first], sx[first], sy[first], depth[first], fmt
-    )
-    low = q_near.copy()
-    np.minimum.at(low, inv, q_hit)  # the prepass's stored value (LESS keeps the lowest)
-    passes = q_hit <= low[inv]
-    near_passes = q_near <= low
-    count = near_passes + np.bincount(inv, weights=passes, minlength=len(ukey))
-    lost = first[~near_passes]
+    t = depth_tests(scene, candidates, window, fmt, offsets)
+    if t is None:
+        return {"ties": [], "losses": None, "tie_keys": np.zeros(0, np.int64)}
+    pix, smp, h_shape, h_prim = t["rows"]
+    passes = t["q_hit"] <= t["low"][t["inv"]]
+    near_passes = t["q_near"] <= t["low"]
+    count = near_passes + np.bincount(t["inv"], weights=passes, minlength=len(t["low"]))
+    lost = t["first"][~near_passes]
+    n_shape, n_prim = t["near"]  # per sample
     return {
         "ties": [(pix[passes], smp[passes], h_shape[passes], h_prim[passes])],
-        "losses": (pix[lost], smp[lost], n_shape[lost], n_prim[lost]),
-        "tie_keys": ukey[count >= 2],
+        "losses": (pix[lost], smp[lost], n_shape[~near_passes], n_prim[~near_passes]),
+        "tie_keys": t["keys"][count >= 2],
     }
 
 

@@ -20,7 +20,7 @@ from ....scenes import backend
 from ... import depth as _depth
 from .groups import normalized_depth
 
-__all__ = ["mesh_table", "raster_depths", "stored_raster_depths"]
+__all__ = ["depth_tests", "mesh_table", "raster_depths", "stored_raster_depths"]
 
 
 def mesh_table(scene) -> list:
@@ -75,3 +75,51 @@ def stored_raster_depths(scene, shape, prim, sx, sy, view_depth, fmt: str) -> np
     if len(d) == 0:
         return d
     return _depth.quantize_dr(mi, mi.Float64(d), fmt).numpy()
+
+
+def depth_tests(scene, candidates: list, window: float, fmt: str, offsets) -> dict | None:
+    """The stored rasterized depths at the samples where another group's surface can tie
+    with the nearest one: the candidates of :func:`.trace.prepass` (per group ``(pixel,
+    sample, depth, hit, hit_depth, hit_shape, hit_prim, near_shape, near_prim)``) whose hit
+    lies within ``window`` (view depth) behind the nearest hit.
+
+    Returns None without such a candidate, else a dict: ``rows`` ``(pixel, sample, shape,
+    prim)`` of the candidates' surfaces and ``q_hit`` their stored depths; ``keys`` the
+    distinct samples (``pixel * N + sample``, sorted), ``inv`` each row's index into them,
+    ``first`` the first row of each; ``near`` ``(shape, prim)`` of each sample's nearest
+    surface, ``q_near`` its stored depth and ``low`` the lowest stored depth at the sample
+    (the value a LESS prepass keeps).
+    """
+    n = len(offsets)
+    offs = np.asarray(offsets, np.float32).reshape(-1, 2)
+    w = scene.width
+    rows = []
+    for pix, smp, depth, hit, hit_depth, h_shape, h_prim, n_shape, n_prim in candidates:
+        near = hit.copy()
+        if np.isfinite(window):  # equal stored depths lie within the tie distance
+            near &= hit_depth <= depth + np.float32(window)
+        ci = np.flatnonzero(near)
+        rows.append([a[ci] for a in (pix, smp, depth, hit_depth, h_shape, h_prim, n_shape, n_prim)])
+    if not rows or sum(len(r[0]) for r in rows) == 0:
+        return None
+    pix, smp, depth, hit_depth, h_shape, h_prim, n_shape, n_prim = (
+        np.concatenate(parts) for parts in zip(*rows, strict=True)
+    )
+    sx = (pix % w).astype(np.float32) + offs[smp, 0]
+    sy = (pix // w).astype(np.float32) + offs[smp, 1]
+    q_hit = stored_raster_depths(scene, h_shape, h_prim, sx, sy, hit_depth, fmt)
+    keys, first, inv = np.unique(pix * n + smp, return_index=True, return_inverse=True)
+    near = (n_shape[first], n_prim[first])
+    q_near = stored_raster_depths(scene, *near, sx[first], sy[first], depth[first], fmt)
+    low = q_near.copy()
+    np.minimum.at(low, inv, q_hit)
+    return {
+        "rows": (pix, smp, h_shape, h_prim),
+        "q_hit": q_hit,
+        "keys": keys,
+        "inv": inv,
+        "first": first,
+        "near": near,
+        "q_near": q_near,
+        "low": low,
+    }
