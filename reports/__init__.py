@@ -17,10 +17,12 @@ To combine score folders, read their cases back with :func:`read_cases` and pass
 
 Other pages follow the same rule (a JSON-safe record, rendered by a jinja2 template of
 ``templates/`` with autoescape on and formatting in the Python filters of
-:mod:`reports.formatting`, :mod:`reports.svg`):
+:mod:`reports.formatting`, :mod:`reports.svg`; plots drawn by matplotlib in
+:mod:`reports.plots`):
 
-- :mod:`reports.sweep`: the sweep report (Pareto fronts, sensitivity, best at equal cost,
-  every case), ``templates/sweep.html``, with study sections after the fronts;
+- :mod:`reports.sweep`: the sweep report (a summary at the top,
+  :mod:`reports.sections.overview`; Pareto fronts, sensitivity, best at equal cost, every
+  case), ``templates/sweep.html``, with study sections after the fronts;
 - :mod:`reports.sections`: the studies' section records (claims, extremes, converge,
   anti-aliasing memory: ``claims_section(data)``, ...), each shown by
   ``templates/section_<kind>.html``, on a study's own page (:func:`~reports.sections.study_page`,
@@ -53,7 +55,12 @@ Case record (``make_case``)
 ``failing``
     Names of the metrics outside their thresholds (NaN fails).
 ``within_noise``
-    Names of the metrics at or below their noise floor.
+    Names of the metrics no worse than their noise floor, in each metric's direction
+    (``make_case(directions=...)``: at or below it for lower-is-better metrics, the default;
+    at or above it for higher-is-better ones such as SSIM and PSNR).
+``directions``
+    ``name -> "lower" | "higher" | "zero" | "info"``: which way each metric is better, as
+    given to ``make_case`` (absent from reports written before it).
 ``status``
     ``"pass"``, ``"fail"``, or ``"unchecked"`` (no thresholds).
 ``images``
@@ -73,6 +80,10 @@ Case record (``make_case``)
 ``exr_links``
     List of ``{"label", "path" (as given, relative to the report's folder), "href"
     (URL-quoted path)}``.
+``viewer``
+    ``None``, or the linear float images (every frame) of the page's pixel viewer: a record
+    of :func:`reports.viewer.viewer_record` (keys in the :mod:`reports.viewer` docstring).
+    Records written before it existed lack the key; they read back as ``None``.
 
 Report record (``build_report``)
 --------------------------------
@@ -82,6 +93,9 @@ Report record (``build_report``)
     The page title and the provenance record (JSON values; nested dicts allowed).
 ``metric_names``, ``cost_names``
     Column order of the summary table: every metric and cost key, first seen first.
+``directions``
+    ``metric -> "lower" | "higher" | "zero" | "info"`` (the first case's that gives one;
+    default ``"lower"``): which way each column is better.
 ``summary``
     ``{"n_cases", "n_pass", "n_fail", "n_unchecked", "thresholds": name -> bounds or
     "varies", "noise_floor": name -> float or "varies"}``.
@@ -100,6 +114,7 @@ from ._case import CASE_SCHEMA, make_case
 from ._tradeoff import pareto_front
 from ._write import render_html, write_report
 from .images import colorize
+from .viewer import viewer_record
 
 __all__ = [
     "CASE_SCHEMA",
@@ -110,5 +125,6 @@ __all__ = [
     "pareto_front",
     "read_cases",
     "render_html",
+    "viewer_record",
     "write_report",
 ]

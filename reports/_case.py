@@ -13,6 +13,7 @@ from . import stats
 from ._validate import (
     KINDS,
     check_cost,
+    check_directions,
     check_error_maps,
     check_image,
     check_metrics,
@@ -21,8 +22,9 @@ from ._validate import (
     decode_float,
     to_jsonable,
 )
+from .viewer import check_viewer
 
-__all__ = ["CASE_SCHEMA", "MAX_THUMBNAIL_BYTES", "make_case"]
+__all__ = ["CASE_SCHEMA", "MAX_THUMBNAIL_BYTES", "MAX_THUMBNAIL_BYTES_WITH_VIEWER", "make_case"]
 
 #: Value of the ``"schema"`` key of every case record.
 CASE_SCHEMA = "raster-oracle.report-case/1"
@@ -31,6 +33,10 @@ CASE_SCHEMA = "raster-oracle.report-case/1"
 #: full-resolution tile crops (12 crops of 32 x 32 px, under 70 kB) and the page stay under
 #: 15 MB whatever the content.
 MAX_THUMBNAIL_BYTES = 1_300_000
+
+#: The same for a case with a pixel viewer, whose float data (page budget
+#: :data:`reports.viewer.MAX_VIEWER_PAGE_BYTES`) is then the way to inspect pixels.
+MAX_THUMBNAIL_BYTES_WITH_VIEWER = 400_000
 
 
 def _default_error_maps(reference: np.ndarray, candidate: np.ndarray, kind: str) -> dict:
@@ -49,6 +55,27 @@ def _failing(metrics: Mapping, thresholds: Mapping) -> list[str]:
         if too_low or too_high or math.isnan(value):
             failing.append(name)
     return failing
+
+
+def _within_noise(metrics: Mapping, noise_floor: Mapping, directions: Mapping) -> list[str]:
+    """Metrics no worse than their noise floor, in their direction: ``value <= floor``
+    (lower is better, the default), ``value >= floor`` (higher: SSIM, PSNR), ``|value| <=
+    |floor|`` (zero: a bias); never an ``info`` metric or a NaN (the same rule as
+    ``metrics.catalog.within_noise``, which this package cannot import)."""
+    out = []
+    for key, floor in noise_floor.items():
+        if key not in metrics:
+            continue
+        value, direction = decode_float(metrics[key]), directions.get(key, "lower")
+        if direction == "higher":
+            quiet = value >= floor
+        elif direction == "zero":
+            quiet = abs(value) <= abs(floor)
+        else:
+            quiet = direction == "lower" and value <= floor
+        if quiet:
+            out.append(key)
+    return out
 
 
 def _exr_links(value: object) -> list[dict]:
@@ -183,6 +210,7 @@ def make_case(
     error_maps: Mapping[str, Mapping] | None = None,
     noise_floor: Mapping[str, float] | None = None,
     thresholds: Mapping[str, float | Mapping[str, float]] | None = None,
+    directions: Mapping[str, str] | None = None,
     cost: Mapping[str, float] | None = None,
     technique: str | None = None,
     family: str | None = None,
@@ -191,7 +219,8 @@ def make_case(
     tile_size: int = 32,
     n_tiles: int = 4,
     max_size: int = 960,
-    max_bytes: int = MAX_THUMBNAIL_BYTES,
+    max_bytes: int | None = None,
+    viewer: Mapping | None = None,
 ) -> dict:
     """Compute everything the report shows about one case and return it as a JSON-safe dict.
 
@@ -216,6 +245,10 @@ def make_case(
         Value of each metric for the reference's own noise (two independent references).
     thresholds : dict str -> float or {"min": float, "max": float}, optional
         A number is the largest passing value. NaN metrics fail.
+    directions : dict str -> str, optional
+        Which way each metric is better: ``"lower"`` (the default), ``"higher"`` (SSIM,
+        PSNR), ``"zero"`` (a signed bias) or ``"info"`` (not a score). ``within_noise`` is
+        judged in that direction: a bad SSIM below its floor is not within the noise floor.
     cost : dict str -> number, optional
         The technique's GPU budget (``memory_bytes``, ``texels_rendered``, ...).
     technique, family : str, optional
@@ -232,9 +265,14 @@ def make_case(
         Longest side of the embedded thumbnails, in pixels; larger images are reduced by an
         integer factor (box filter in linear light for images, largest-magnitude value per
         block for error maps, so thin errors stay visible). Tile crops stay full resolution.
-    max_bytes : int
+    max_bytes : int, optional
         Budget of the encoded thumbnails (images and error maps, data-URI characters); the
-        reduction factor grows until they fit. Only noise-like content needs it.
+        reduction factor grows until they fit. Only noise-like content needs it. Default
+        :data:`MAX_THUMBNAIL_BYTES`, or :data:`MAX_THUMBNAIL_BYTES_WITH_VIEWER` with a viewer.
+    viewer : dict, optional
+        The linear float images for the page's pixel viewer (zoom, exposure, readout), from
+        :func:`reports.viewer.viewer_record`; its full size must be the case's. Without it the
+        page shows the thumbnails only.
 
     Returns
     -------
@@ -242,6 +280,8 @@ def make_case(
         The case record; its keys are documented in the :mod:`reports` module docstring.
     """
     _check_labels(name, scene, kind, technique, family)
+    if max_bytes is None:
+        max_bytes = MAX_THUMBNAIL_BYTES if viewer is None else MAX_THUMBNAIL_BYTES_WITH_VIEWER
     _check_sizes(tile_size=tile_size, n_tiles=n_tiles, max_size=max_size, max_bytes=max_bytes)
     reference = check_image("reference", reference, kind=kind)
     candidate = check_image("candidate", candidate, kind=kind)
@@ -261,6 +301,12 @@ def make_case(
     thresholds = check_thresholds(thresholds, metrics=metrics)
     if params is not None and not isinstance(params, Mapping):
         raise TypeError(f"params must be a dict or None, got {type(params).__name__}")
+    viewer = check_viewer("viewer", viewer)
+    if viewer is not None and (viewer["full_width"], viewer["full_height"]) != (width, height):
+        raise ValueError(
+            f"viewer images are {viewer['full_width']}x{viewer['full_height']}, "
+            f"the case's {width}x{height}"
+        )
 
     images, heatmaps, factor, size = _fit_thumbnails(
         reference,
@@ -271,11 +317,8 @@ def make_case(
         max_bytes=max_bytes,
     )
     failing = _failing(metrics, thresholds)
-    within_noise = [
-        key
-        for key, floor in noise_floor.items()
-        if key in metrics and decode_float(metrics[key]) <= floor
-    ]
+    directions = {k: d for k, d in check_directions(directions).items() if k in metrics}
+    within_noise = _within_noise(metrics, noise_floor, directions)
     return {
         "schema": CASE_SCHEMA,
         "name": name,
@@ -298,6 +341,7 @@ def make_case(
         "cost": check_cost(cost),
         "failing": failing,
         "within_noise": within_noise,
+        "directions": directions,
         "status": "unchecked" if not thresholds else ("fail" if failing else "pass"),
         "images": images,
         "error_maps": _map_records(maps, heatmaps),
@@ -305,4 +349,5 @@ def make_case(
             reference, candidate, maps, kind=kind, tile_size=tile_size, n_tiles=n_tiles
         ),
         "exr_links": _exr_links(exr_links),
+        "viewer": viewer,
     }

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -73,10 +74,15 @@ CHANNEL_GROUPS = {
 OPTIONAL_GROUPS = ("tangent32",)
 ALL_CHANNELS = tuple(g for g in CHANNEL_GROUPS if g not in OPTIONAL_GROUPS)
 _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
-#: Samples per Dr.Jit launch: bounds memory at about 1.5 GiB whatever the resolution and spp.
+#: Samples per Dr.Jit launch: bounds a launch's working set whatever the resolution and spp.
 SAMPLES_PER_CHUNK = 1 << 22
-_BYTES_PER_SAMPLE = 360
-_BYTES_PER_PIXEL = 8 * 24 + 4 * 30
+# Memory model of estimate_memory (peak RSS above the loaded scene, plate, LLVM backend,
+# measured 2026-11-24; see its docstring).
+_BASE_BYTES = 64 << 20
+_BYTES_PER_SAMPLE = 32
+_BYTES_PER_COLOR_SAMPLE = 64
+_BYTES_PER_PIXEL = 64 + 56
+_BYTES_PER_COLOR_PIXEL = 48
 
 
 class ReferenceSettingsError(InputError):
@@ -153,9 +159,46 @@ def grid_shape(spp: int) -> tuple[int, int]:
     return spp // n, n
 
 
-def estimate_memory(width: int, height: int) -> int:
-    """Peak bytes a reference of this size needs (chunk working set + per-pixel buffers)."""
-    return SAMPLES_PER_CHUNK * _BYTES_PER_SAMPLE + width * height * _BYTES_PER_PIXEL
+def estimate_memory(
+    width: int, height: int, *, spp: int = 64, channels=ALL_CHANNELS, max_spp: int | None = None
+) -> int:
+    """Peak bytes a reference of this size, spp and channel groups needs (an upper bound).
+
+    ``base + launch * per_sample + pixels * per_pixel`` with
+
+    - ``launch = min(pixels * spp, SAMPLES_PER_CHUNK)``: the samples of the largest Dr.Jit
+      launch (``max_spp`` instead of ``spp`` for adaptive sampling; a launch of the whole
+      chunk for ``tangent32``, and ``pixels`` for the pixel-centre groups alone),
+    - ``per_sample`` 32 B, 64 B when ``color`` is rendered (its shading doubles the live
+      arrays),
+    - ``per_pixel`` 120 B of float64/int64 running sums, 48 B more for colour, and 8 B per
+      output channel (the float32 image and its copy),
+    - ``base`` 64 MiB (kernel compilation, the allocator's slack).
+
+    Fitted with margin to the peak RSS measured above the loaded scene (``plate``, LLVM,
+    score's channel sets): visibility set at 80x45/16 spp 3 MB (estimate 70 MB),
+    160x90/64 21 MB (99), 320x180/64 99 MB (197), 320x180/256 85 MB (213), 640x360/64
+    107 MB (247); colour set at 160x90/64 66 MB (129), 320x180/64 206 MB (316), 320x180/256
+    208 MB (349), 640x360/64 247 MB (389); at 1280x720/64 visibility 208 MB (386), colour
+    395 MB (549), every default group 458 MB (653). The former fixed 1.41 GiB refused a
+    320x180 score on a machine with 1.4 GiB free.
+    """
+    groups = set(channels)
+    pixels = int(width) * int(height)
+    color = "color" in groups
+    sampled = groups & {"visibility", "coverage", "color", "edge"}
+    spp_max = int(max_spp if max_spp is not None else spp)
+    launch = min(pixels * spp_max, SAMPLES_PER_CHUNK) if sampled else min(pixels, SAMPLES_PER_CHUNK)
+    if "tangent32" in groups:
+        launch = max(launch, min(pixels * 32, SAMPLES_PER_CHUNK))
+    per_sample = _BYTES_PER_COLOR_SAMPLE if color else _BYTES_PER_SAMPLE
+    outputs = len(channel_names([g for g in CHANNEL_GROUPS if g in groups]))
+    per_pixel = _BYTES_PER_PIXEL + (_BYTES_PER_COLOR_PIXEL if color else 0) + 8 * outputs
+    return _BASE_BYTES + launch * per_sample + pixels * per_pixel
+
+
+def _amount(n: int) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
 
 
 def available_memory() -> int:
@@ -425,12 +468,18 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     """
     settings = settings.validate()
     w, h = loaded.width, loaded.height
-    need = estimate_memory(w, h)
+    need = estimate_memory(
+        w,
+        h,
+        spp=settings.spp,
+        channels=settings.channels,
+        max_spp=settings.max_spp if settings.adaptive else None,
+    )
     have = available_memory()
     if need > have:
         raise ReferenceSettingsError(
-            f"a {w}x{h} reference needs about {need / 2**30:.1f} GiB; only "
-            f"{have / 2**30:.1f} GiB is available"
+            f"a {w}x{h} reference at {settings.spp} spp needs about {_amount(need)}; "
+            f"only {_amount(have)} is available"
         )
     groups = set(settings.channels)
     sampled = groups & {"visibility", "coverage", "color", "edge"}
@@ -439,7 +488,8 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     acc = _Accum(npix, color, centre_shapes(loaded) if "coverage" in groups else None)
     t0 = time.perf_counter()
     progress = None
-    if not quiet:
+    # a bar only on a terminal: in a CI log its carriage-return redraws are noise
+    if not quiet and sys.stderr.isatty():
         from tqdm import tqdm
 
         total = npix * (settings.adaptive_spp if settings.adaptive else settings.spp)

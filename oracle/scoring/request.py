@@ -11,56 +11,64 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import numpy as np
-
 from ... import metrics as M
-from .candidates import load_candidate
+from .gates import (
+    Gate,
+    Verdict,
+    check_applicable,
+    check_baseline_scene,
+    compare_baseline,
+    evaluate_gates,
+)
+from .layout import CandidateLayout, candidate_layout, read_candidate
 from .output import write_score_folder
 from .score import ScoreError, score
-from .technique import score_model
+from .technique import score_model, technique_channels
 
-__all__ = ["FRAME_PATTERN", "file_candidate", "score_to_folder"]
+__all__ = ["FRAME_PATTERN", "candidate_name", "file_candidate", "frame_file", "score_to_folder"]
 
 #: A ``{frame}`` field (with an optional format) in a candidate file pattern.
 FRAME_PATTERN = re.compile(r"\{frame(?::[^}]*)?\}")
 
 
-def _check_coverage(image: np.ndarray, path) -> None:
-    if image.ndim != 2:
-        raise ScoreError(
-            f"candidate {Path(path).name} coverage must be one channel, got shape {image.shape}"
-        )
-    n_out = int(((image < 0) | (image > 1)).sum())
-    if n_out:
-        raise ScoreError(
-            f"candidate {Path(path).name} coverage must be in [0, 1], got {n_out} values outside"
-        )
+def frame_file(pattern: str, k: int) -> str:
+    """The candidate file of frame ``k``: ``pattern`` formatted with ``frame=k`` when it has a
+    ``{frame}`` field, else ``pattern`` itself."""
+    return pattern.format(frame=k) if FRAME_PATTERN.search(pattern) else pattern
 
 
-def file_candidate(pattern: str, *, channel: str, frames: int | None):
+def file_candidate(
+    pattern: str, *, channel: str | None, frames: int | None, layout: CandidateLayout | None = None
+):
     """Candidate callable ``(frame_scene, k) -> (image, info)`` reading (and validating) an
     engine's image of each frame: ``pattern`` formatted with ``frame=k`` when it has a
-    ``{frame}`` field (required for ``frames`` > 1)."""
+    ``{frame}`` field (required for ``frames`` > 1). Every frame is read as ``layout`` says
+    (None: :func:`oracle.scoring.layout.candidate_layout` of frame 0's file and ``channel``).
+    """
     has_frame = bool(FRAME_PATTERN.search(pattern))
     if frames and frames > 1 and not has_frame:
         raise ScoreError(
             "--frames needs a --candidate pattern with {frame}, e.g. frame_{frame:03d}.exr"
         )
+    if layout is None:
+        layout = candidate_layout(frame_file(pattern, 0), channel=channel)
 
     def run(frame_scene, k):
-        path = pattern.format(frame=k) if has_frame else pattern
-        # a PNG coverage mask is grey data, read as a PNG visibility mask is (not decoded)
-        png = Path(path).suffix.lower() == ".png"
-        image = load_candidate(
-            path,
-            channel="visibility" if channel == "coverage" and png else channel,
-            expected_shape=(frame_scene.height, frame_scene.width),
-        )
-        if channel == "coverage":
-            _check_coverage(image, path)
+        path = frame_file(pattern, k)
+        image = read_candidate(path, layout, expected_shape=(frame_scene.height, frame_scene.width))
         return image, {"frame": k, "file": str(path)}
 
     return run
+
+
+def candidate_name(pattern: str, *, frames: int | None, camera_path: str | None) -> str:
+    """How the record and the report name an engine's candidate: the file name (frame 0's
+    for a one-frame pattern), or for several frames the camera path and the frame list
+    (``dolly frames 0-7``), never the raw ``{frame}`` pattern."""
+    n = frames or 1
+    if n == 1 or not FRAME_PATTERN.search(pattern):
+        return Path(frame_file(pattern, 0)).name
+    return f"{camera_path or 'camera'} frames 0-{n - 1}"
 
 
 def _check_candidates(fn, loaded, frames, camera_path) -> None:
@@ -69,6 +77,14 @@ def _check_candidates(fn, loaded, frames, camera_path) -> None:
     for k in range(n):
         scene_k = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
         fn(scene_k, k)
+
+
+def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source) -> None:
+    """Gates that do not apply to ``kinds`` / ``frames`` and a baseline of another scene,
+    size, light, frame count or kind fail here, before any reference is rendered."""
+    check_applicable(gates, kinds=kinds, frames=frames)
+    if baseline is not None:
+        check_baseline_scene(baseline, loaded, frames=frames, kinds=kinds, source=source)
 
 
 def score_to_folder(
@@ -88,27 +104,51 @@ def score_to_folder(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     thresholds: dict[str, float] | None = None,
-) -> list[str]:
+    gates: list[Gate] | None = None,
+    baseline: dict | None = None,
+    baseline_source: str = "baseline",
+    layout: CandidateLayout | None = None,
+) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
-    ``loaded`` and write the score folder ``out``; returns the metrics above ``thresholds``.
+    ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
+    the :class:`oracle.scoring.gates.Verdict` (its checks, their lines, the exit code; as a
+    list, the names of the failed checks).
+
+    A gate that cannot be judged (a metric that does not apply to the candidate's kind or
+    frame count, a null value) or a baseline of another run is a
+    :class:`oracle.scoring.gates.GateError` raised before anything is written.
 
     Parameters
     ----------
     technique, params : a registered technique and its parsed parameters.
     candidate : an EXR or PNG file, or a pattern with ``{frame}`` (one of the two).
-    channel : what is scored (None: the technique's primary channel; ``color`` for files).
+    channel : what is scored (None: the technique's primary channel; for files, inferred
+        from the file when unambiguous); for files also an EXR channel or layer name.
+    layout : for files, what to read (:func:`oracle.scoring.layout.candidate_layout`; None:
+        resolved here from frame 0's file and ``channel``).
     frames : score that many frames of ``camera_path`` and add the temporal metrics (None or
         1: the scene's own frame).
-    thresholds : ``{metric: limit}`` from :func:`oracle.scoring.score.parse_thresholds`.
+    thresholds : ``{metric: limit}`` (``--fail-above`` gates, as
+        :func:`oracle.scoring.score.parse_thresholds` gives them).
+    gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``).
+    baseline, baseline_source : a previous run's ``metrics.json`` record (from
+        :func:`oracle.scoring.gates.load_baseline`) and its path, for messages.
     """
     if (technique is None) == (candidate is None):
         raise ScoreError("score: give a technique or a candidate file (one of them)")
     frames = frames if frames and frames > 1 else None
+    gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
+    # gates and the baseline are checked before rendering anything, against the kinds that
+    # will be scored, and again on the record (evaluate_gates, compare_baseline)
+    check = dict(gates=gates, baseline=baseline, loaded=loaded, frames=frames or 1)
+    check.update(source=baseline_source)
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
     if technique is not None:
         params = dict(params or {})
+        # a model is scored on every channel it produces
+        _check_before_rendering(kinds=technique_channels(technique), **check)
         result = score_model(loaded, technique, params, channel=channel, **opts)
         info = result.record["candidate_info"][0]
         cost, params = info["cost"], info["params"]
@@ -117,18 +157,31 @@ def score_to_folder(
         if params:
             raise ScoreError("--set applies to --technique, not to --candidate")
         params = None
-        channel = channel or "color"
-        read = file_candidate(candidate, channel=channel, frames=frames)
+        if layout is None:
+            layout = candidate_layout(frame_file(candidate, 0), channel=channel)
+        _check_before_rendering(kinds=(layout.kind,), **check)
+        read = file_candidate(candidate, channel=channel, frames=frames, layout=layout)
         _check_candidates(read, loaded, frames, camera_path)
-        result = score(loaded, channel=channel, candidate_frames=read, **opts)
-        name = Path(candidate).name
-    return write_score_folder(
+        result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
+        result.record["candidate_layout"] = {
+            "kind": layout.kind,
+            "channels": list(layout.names),
+            "source": layout.source,
+        }
+        name = candidate_name(candidate, frames=frames, camera_path=camera_path)
+    verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
+    if baseline is not None:
+        against = compare_baseline(result.record, baseline, source=baseline_source)
+        verdict.add(against.checks, against.notes)
+    write_score_folder(
         result,
         out,
         loaded=loaded,
         name=name,
-        thresholds=thresholds or {},
+        gates=gates,
+        verdict=verdict,
         technique=technique,
         params=params,
         cost=cost,
     )
+    return verdict

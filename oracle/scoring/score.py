@@ -13,7 +13,9 @@ rendered:
 
 Every metric is also computed for a second, independently seeded reference of the same spp
 against the first: its noise floor. With ``frames`` the camera path is scored frame by frame
-(per-frame metrics averaged) and the temporal metrics are added.
+(per-frame metrics averaged, each frame's kept in ``frames``) and the temporal metrics are
+added: ``flicker`` (:func:`added_flicker`, non-negative) and ``temporal_error``, with noise
+floors from every frame's second reference.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ __all__ = [
     "REFERENCE_GROUPS",
     "ScoreError",
     "ScoreResult",
+    "added_flicker",
     "coverage_metrics",
     "failures",
     "metric_limit",
@@ -56,21 +59,10 @@ COVERAGE_KEYS = (
     "coverage_floor_rms",
     "coverage_edge_rmse_over_floor",
 )
-#: Every metric key of ``metrics.json`` (None where it does not apply to the channel).
+#: Every metric key of ``metrics.json`` (None where it does not apply to the channel), in
+#: the order of the metric catalogue (:mod:`metrics.catalog`: direction, unit, applicability).
 _SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
-METRIC_KEYS = (
-    *_SHADOW_VALUES,
-    "edge_mae",
-    "interior_mae",
-    "flip_mean",
-    "ssim",
-    "psnr_db",
-    "delta_e2000_mean",
-    "significant_fraction",
-    "flicker",
-    "temporal_error",
-    *COVERAGE_KEYS,
-)
+METRIC_KEYS = tuple(M.CATALOG)
 #: RMS coverage error of a box-resolved N-sample standard pattern on one straight edge
 #: (TECHNIQUES.md table; ``metrics.straight_edge_error_floor`` reproduces it).
 COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
@@ -263,6 +255,41 @@ def _noise_floor(
     return floor
 
 
+def added_flicker(reference_frames: np.ndarray, candidate_frames: np.ndarray) -> float:
+    """Flicker the candidate adds, non-negative: ``mean(max(0, |c[t+1] - c[t]| -
+    |r[t+1] - r[t]|))`` over frame pairs, pixels and channels.
+
+    ``metrics.flicker`` (METRICS.md's temporal metric) subtracts the two means, so a candidate
+    that is steadier than the reference in one region cancels flicker elsewhere and the value
+    can be negative. Here the reference's own change is subtracted per pixel and only the
+    excess counts: 0 when the candidate never changes more than the reference, and a
+    smoothed-away change is not credited against a crawling edge. Its noise floor is what
+    an exact candidate scores (the seed + 1 reference, as for the other metrics).
+    """
+    ref = np.asarray(reference_frames, dtype=np.float64)
+    cand = np.asarray(candidate_frames, dtype=np.float64)
+    if ref.shape != cand.shape or ref.shape[0] < 2:
+        raise ScoreError(f"flicker needs two equal sequences of >= 2 frames, got {ref.shape}")
+    excess = np.abs(np.diff(cand, axis=0)) - np.abs(np.diff(ref, axis=0))
+    return float(np.maximum(excess, 0.0).mean())
+
+
+def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet) -> dict:
+    """Temporal metrics an exact candidate scores: every frame's independently seeded second
+    reference (``settings``) turned into the exact surrogate of its first."""
+    exact = []
+    for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
+        ch2 = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
+        second = ch2[channel] if channel != "color" else _rgb(ch2, "color")
+        exact.append(M.exact_surrogate(frame.reference, second))
+    refs = np.stack([f.reference for f in result.frames])
+    exact = np.stack(exact)
+    return {
+        "flicker": added_flicker(refs, exact),
+        "temporal_error": M.temporal_error(refs, exact),
+    }
+
+
 def _summary(result: ScoreResult, *, temporal: bool) -> dict:
     """Per-frame metrics averaged over the frames, and the temporal metrics of the path."""
     per_frame = [f.metrics for f in result.frames]
@@ -273,7 +300,7 @@ def _summary(result: ScoreResult, *, temporal: bool) -> dict:
     if temporal:
         refs = np.stack([f.reference for f in result.frames])
         cands = np.stack([f.candidate for f in result.frames])
-        summary["flicker"] = M.flicker(refs, cands)
+        summary["flicker"] = added_flicker(refs, cands)
         summary["temporal_error"] = M.temporal_error(refs, cands)
     return summary
 
@@ -349,8 +376,10 @@ def score(
     result = ScoreResult(record={})
     exposure = flip_range = None
     infos = []
+    scenes_k = []
     for k in range(n):
         frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
+        scenes_k.append(frame_scene)
         ref = get_reference(frame_scene, settings, cache=cache, quiet=quiet)
         ref_ch = ref.channels()
         cand, info = candidate_frames(frame_scene, k)
@@ -386,6 +415,12 @@ def score(
             )
         result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
         result.reference_folders.append(ref.folder)
+    if frames and n >= 2:
+        floor = dict(result.frames[0].noise_floor or {})
+        floor.update(
+            _temporal_floor(result, scenes_k, noise_settings, channel, cache=cache, quiet=quiet)
+        )
+        result.frames[0].noise_floor = floor
     tone = None
     if channel == "color":
         tone = {
