@@ -584,3 +584,19 @@ def test_cases_left_without_workers_stop_the_wait():
             fut = client.submit(sum, [1, 2], pure=False)
             with pytest.raises(SweepError, match=r"no workers for 1 s; 1 case\(s\) not run"):
                 list(completed_while_workers(client, {fut: None}, worker_timeout=1, where="w"))
+
+
+def test_progress_in_a_log_is_plain_lines(capsys):
+    """Not a terminal (CI logs): no bar redraws, a line per tenth of the cases and the end."""
+    from raster_oracle.oracle.sweeps.run import LogProgress, _progress
+
+    bar = _progress(25, quiet=False, desc="sweep x")
+    assert isinstance(bar, LogProgress)  # pytest's captured stderr is not a terminal
+    with bar:
+        for _ in range(25):
+            bar.update()
+    lines = capsys.readouterr().err.splitlines()
+    assert "\r" not in "".join(lines)
+    assert 2 <= len(lines) <= 11
+    assert lines[-1].startswith("sweep x: 25/25 cases (100%)")
+    assert _progress(25, quiet=True, desc="q").disable  # quiet: nothing at all
