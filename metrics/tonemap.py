@@ -28,6 +28,7 @@ __all__ = [
     "srgb_decode",
     "srgb_encode",
     "tonemap",
+    "tonemap_inverse",
 ]
 
 #: Rec. 709 / sRGB luminance weights of linear R, G, B (ITU-R BT.709).
@@ -237,3 +238,51 @@ def tonemap(image, *, exposure: float, method: str = "aces") -> np.ndarray:
         x = np.clip(img * (2.0 ** float(exposure)), 0.0, _MAX_EXPOSED)
     mapped = np.clip(_CURVES[method](x), 0.0, 1.0)
     return srgb_encode(mapped.astype(np.float32))
+
+
+def _aces_inverse(y: np.ndarray) -> np.ndarray:
+    # the positive root of (2.43 y - 2.51) x^2 + (0.59 y - 0.03) x + 0.14 y = 0, written as
+    # 2c / (-b + sqrt(b^2 - 4ac)) so that it stays exact near y = 0 (no cancellation)
+    a, b, c = 2.43 * y - 2.51, 0.59 * y - 0.03, 0.14 * y
+    return 2.0 * c / (-b + np.sqrt(b * b - 4.0 * a * c))
+
+
+def _reinhard_inverse(y: np.ndarray) -> np.ndarray:
+    # x / (1 + Y) has luminance Y / (1 + Y): Y = Y' / (1 - Y'), x = y (1 + Y)
+    lum = y if y.ndim == 2 else y @ np.asarray(LUMINANCE_WEIGHTS)
+    lum = np.minimum(lum, 1.0 - 1e-7)
+    scale = 1.0 + lum / (1.0 - lum)
+    return y * (scale if y.ndim == 2 else scale[..., None])
+
+
+_INVERSES = {"aces": _aces_inverse, "reinhard": _reinhard_inverse, "clip": lambda y: y}
+
+
+def tonemap_inverse(display, *, exposure: float, method: str = "aces") -> np.ndarray:
+    """Linear radiance that :func:`tonemap` maps to ``display`` (the pipeline run backwards).
+
+    Used where a technique works in display space (FXAA after tone mapping) and its result
+    must enter the scoring pipeline, which tone-maps every candidate itself:
+    ``tonemap(tonemap_inverse(d, exposure=e), exposure=e)`` returns ``d`` up to float32
+    rounding. A display value of 1 (where the curve was clipped) maps back to the smallest
+    radiance the curve takes to 1 (ACES: ``x = 7.24`` exposed), so clipped inputs come back
+    at the clip level, not at their original radiance.
+
+    Parameters
+    ----------
+    display : array_like
+        sRGB-encoded values in [0, 1] (values outside are clipped), ``(H, W)`` or
+        ``(H, W, 3)``, or any ``(..., 3)`` array for ``aces`` and ``clip``.
+    exposure, method : as in :func:`tonemap`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Linear radiance, float64, same shape.
+    """
+    if method not in _INVERSES:
+        raise MetricError(f"method must be one of {', '.join(TONE_MAPPERS)}, got {method!r}")
+    if not (np.isfinite(exposure) and abs(exposure) <= _MAX_ABS_EXPOSURE):
+        raise MetricError(f"exposure must be a finite number of stops, got {exposure!r}")
+    y = np.clip(srgb_decode(np.asarray(display, np.float64)), 0.0, 1.0)
+    return _INVERSES[method](y) / 2.0 ** float(exposure)

@@ -30,7 +30,9 @@ class GBuffer:
     ``receiver`` = valid, facing the light (N.L > 0) and, for a spot light, inside its cone:
     the pixels a shadow technique must answer for (the oracle's ``lit`` is False elsewhere).
     ``lit`` (the oracle's exact shadow ray at the pixel centre) is only filled with
-    ``with_lit=True``; models never read it.
+    ``with_lit=True``; models never read it. ``shape`` (index into the scene's shapes) and
+    ``prim`` (primitive within the shape: a mesh's face) of the visible surface, -1 where
+    nothing was hit, are filled by :func:`trace_gbuffer` (``None`` for arbitrary points).
     """
 
     width: int
@@ -44,6 +46,8 @@ class GBuffer:
     dpdx: np.ndarray
     dpdy: np.ndarray
     lit: np.ndarray | None = None
+    shape: np.ndarray | None = None
+    prim: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -146,6 +150,7 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             k: np.empty((n_pix, 3), dtype=np.float64) for k in ("p", "n", "dpdx", "dpdy")
         }
         out |= {k: np.empty(n_pix, dtype=bool) for k in ("valid", "receiver")}
+        out |= {k: np.empty(n_pix, dtype=np.int32) for k in ("shape", "prim")}
         if with_lit:
             out["lit"] = np.empty(n_pix, dtype=bool)
     for start in range(0, n_pix, CHUNK):
@@ -199,6 +204,8 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
             "cos_l": cols["cos_l"],
             "valid": valid,
             "receiver": receiver,
+            "shape": res["shape"],
+            "prim": res["prim"],
         }
         if with_lit:
             arrays["lit"] = res["lit"]
@@ -235,4 +242,6 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
         dpdx=out["dpdx"],
         dpdy=out["dpdy"],
         lit=out.get("lit"),
+        shape=out["shape"],
+        prim=out["prim"],
     )

@@ -17,10 +17,12 @@ To combine score folders, read their cases back with :func:`read_cases` and pass
 
 Other pages follow the same rule (a JSON-safe record, rendered by a jinja2 template of
 ``templates/`` with autoescape on and formatting in the Python filters of
-:mod:`reports.formatting`, :mod:`reports.svg`):
+:mod:`reports.formatting`, :mod:`reports.svg`; plots drawn by matplotlib in
+:mod:`reports.plots`):
 
-- :mod:`reports.sweep`: the sweep report (Pareto fronts, sensitivity, best at equal cost,
-  every case), ``templates/sweep.html``, with study sections after the fronts;
+- :mod:`reports.sweep`: the sweep report (a summary at the top,
+  :mod:`reports.sections.overview`; Pareto fronts, sensitivity, best at equal cost, every
+  case), ``templates/sweep.html``, with study sections after the fronts;
 - :mod:`reports.sections`: the studies' section records (claims, extremes, converge,
   anti-aliasing memory: ``claims_section(data)``, ...), each shown by
   ``templates/section_<kind>.html``, on a study's own page (:func:`~reports.sections.study_page`,
@@ -73,6 +75,10 @@ Case record (``make_case``)
 ``exr_links``
     List of ``{"label", "path" (as given, relative to the report's folder), "href"
     (URL-quoted path)}``.
+``viewer``
+    ``None``, or the linear float images (every frame) of the page's pixel viewer: a record
+    of :func:`reports.viewer.viewer_record` (keys in the :mod:`reports.viewer` docstring).
+    Records written before it existed lack the key; they read back as ``None``.
 
 Report record (``build_report``)
 --------------------------------
@@ -100,6 +106,7 @@ from ._case import CASE_SCHEMA, make_case
 from ._tradeoff import pareto_front
 from ._write import render_html, write_report
 from .images import colorize
+from .viewer import viewer_record
 
 __all__ = [
     "CASE_SCHEMA",
@@ -110,5 +117,6 @@ __all__ = [
     "pareto_front",
     "read_cases",
     "render_html",
+    "viewer_record",
     "write_report",
 ]

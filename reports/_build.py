@@ -14,6 +14,7 @@ from . import images as _images
 from ._case import CASE_SCHEMA
 from ._tradeoff import tradeoff_section
 from ._validate import check_case_record, check_name, to_jsonable
+from .viewer import MAX_VIEWER_PAGE_BYTES, check_viewer, fit_viewers
 
 __all__ = ["REPORT_SCHEMA", "build_report", "read_cases"]
 
@@ -55,7 +56,9 @@ def build_report(
     ----------
     cases : sequence of dict
         Records from :func:`make_case`, possibly read back from JSON (:func:`read_cases`).
-        They are copied; each gets an ``"id"`` (``"case-1"``, ...) by position.
+        They are copied; each gets an ``"id"`` (``"case-1"``, ...) by position. Their pixel
+        viewers share one page budget (:data:`reports.viewer.MAX_VIEWER_PAGE_BYTES`): over it,
+        every viewer is reduced by one further integer factor until they fit.
     title : str
         Page title.
     provenance : dict
@@ -83,6 +86,11 @@ def build_report(
     records = [_check_case(i, case) for i, case in enumerate(cases)]
     for i, case in enumerate(records):
         case["id"] = f"case-{i + 1}"
+    # the viewers' float data of all cases share one page budget
+    fitted = fit_viewers([case.get("viewer") for case in records], max_bytes=MAX_VIEWER_PAGE_BYTES)
+    for case, viewer in zip(records, fitted, strict=True):
+        if "viewer" in case or viewer is not None:
+            case["viewer"] = viewer
     metric_names = list(dict.fromkeys(k for case in records for k in case["metrics"]))
     cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
     styles = sorted({m["style"] for case in records for m in case["error_maps"]})
@@ -133,6 +141,7 @@ def read_cases(path: str | os.PathLike, *, relative_to: str | os.PathLike) -> li
         # Untrusted data: every key, every image URI and link (inside the folder) is checked.
         case = check_case_record(f"{path} cases[{i}]", case, schema=CASE_SCHEMA)
         case.pop("id", None)
+        case["viewer"] = check_viewer(f"{path} cases[{i}]['viewer']", case.get("viewer"))
         links = []
         for link in case["exr_links"]:
             link = dict(link)

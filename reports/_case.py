@@ -21,8 +21,9 @@ from ._validate import (
     decode_float,
     to_jsonable,
 )
+from .viewer import check_viewer
 
-__all__ = ["CASE_SCHEMA", "MAX_THUMBNAIL_BYTES", "make_case"]
+__all__ = ["CASE_SCHEMA", "MAX_THUMBNAIL_BYTES", "MAX_THUMBNAIL_BYTES_WITH_VIEWER", "make_case"]
 
 #: Value of the ``"schema"`` key of every case record.
 CASE_SCHEMA = "raster-oracle.report-case/1"
@@ -31,6 +32,10 @@ CASE_SCHEMA = "raster-oracle.report-case/1"
 #: full-resolution tile crops (12 crops of 32 x 32 px, under 70 kB) and the page stay under
 #: 15 MB whatever the content.
 MAX_THUMBNAIL_BYTES = 1_300_000
+
+#: The same for a case with a pixel viewer, whose float data (page budget
+#: :data:`reports.viewer.MAX_VIEWER_PAGE_BYTES`) is then the way to inspect pixels.
+MAX_THUMBNAIL_BYTES_WITH_VIEWER = 400_000
 
 
 def _default_error_maps(reference: np.ndarray, candidate: np.ndarray, kind: str) -> dict:
@@ -191,7 +196,8 @@ def make_case(
     tile_size: int = 32,
     n_tiles: int = 4,
     max_size: int = 960,
-    max_bytes: int = MAX_THUMBNAIL_BYTES,
+    max_bytes: int | None = None,
+    viewer: Mapping | None = None,
 ) -> dict:
     """Compute everything the report shows about one case and return it as a JSON-safe dict.
 
@@ -232,9 +238,14 @@ def make_case(
         Longest side of the embedded thumbnails, in pixels; larger images are reduced by an
         integer factor (box filter in linear light for images, largest-magnitude value per
         block for error maps, so thin errors stay visible). Tile crops stay full resolution.
-    max_bytes : int
+    max_bytes : int, optional
         Budget of the encoded thumbnails (images and error maps, data-URI characters); the
-        reduction factor grows until they fit. Only noise-like content needs it.
+        reduction factor grows until they fit. Only noise-like content needs it. Default
+        :data:`MAX_THUMBNAIL_BYTES`, or :data:`MAX_THUMBNAIL_BYTES_WITH_VIEWER` with a viewer.
+    viewer : dict, optional
+        The linear float images for the page's pixel viewer (zoom, exposure, readout), from
+        :func:`reports.viewer.viewer_record`; its full size must be the case's. Without it the
+        page shows the thumbnails only.
 
     Returns
     -------
@@ -242,6 +253,8 @@ def make_case(
         The case record; its keys are documented in the :mod:`reports` module docstring.
     """
     _check_labels(name, scene, kind, technique, family)
+    if max_bytes is None:
+        max_bytes = MAX_THUMBNAIL_BYTES if viewer is None else MAX_THUMBNAIL_BYTES_WITH_VIEWER
     _check_sizes(tile_size=tile_size, n_tiles=n_tiles, max_size=max_size, max_bytes=max_bytes)
     reference = check_image("reference", reference, kind=kind)
     candidate = check_image("candidate", candidate, kind=kind)
@@ -261,6 +274,12 @@ def make_case(
     thresholds = check_thresholds(thresholds, metrics=metrics)
     if params is not None and not isinstance(params, Mapping):
         raise TypeError(f"params must be a dict or None, got {type(params).__name__}")
+    viewer = check_viewer("viewer", viewer)
+    if viewer is not None and (viewer["full_width"], viewer["full_height"]) != (width, height):
+        raise ValueError(
+            f"viewer images are {viewer['full_width']}x{viewer['full_height']}, "
+            f"the case's {width}x{height}"
+        )
 
     images, heatmaps, factor, size = _fit_thumbnails(
         reference,
@@ -305,4 +324,5 @@ def make_case(
             reference, candidate, maps, kind=kind, tile_size=tile_size, n_tiles=n_tiles
         ),
         "exr_links": _exr_links(exr_links),
+        "viewer": viewer,
     }

@@ -8,7 +8,7 @@ import functools
 
 import jinja2
 
-from . import formatting, svg
+from . import formatting, plots, svg
 from .sections import aa_memory, claims, converge, extremes, sweep
 
 __all__ = ["environment"]
@@ -36,6 +36,7 @@ def _filters() -> dict:
             series, x_label=x_label, y_label=y_label, title=title
         ),
         "front_svg": sweep.front_svg,
+        "axis_label": plots.axis_label,
         "sensitivity_svg": sweep.sensitivity_svg,
         # one section each
         "params_text": sweep.fmt_params,
@@ -45,6 +46,8 @@ def _filters() -> dict:
         "cell_class": extremes.cell_class,
         "cell_text": extremes.fmt_cell,
         "cell_tip": extremes.fmt_cell_tip,
+        "cell_style": extremes.cell_style,
+        "cell_mark": extremes.cell_mark,
         "slope": converge.fmt_slope,
         "quoted_value": aa_memory.fmt_quoted,
         "computed_text": aa_memory.fmt_computed,

@@ -16,7 +16,7 @@ __all__ = ["render_html", "write_report"]
 
 
 def _page_data(report: Mapping) -> dict:
-    """The small record the page's script reads: geometry and worst tiles of each case."""
+    """The record the page's scripts read: geometry, worst tiles and viewer data of each case."""
     return {
         "cases": [
             {
@@ -28,6 +28,7 @@ def _page_data(report: Mapping) -> dict:
                     {k: tile[k] for k in ("rank", "x", "y", "w", "h", "mean_abs_error")}
                     for tile in case["worst_tiles"]["tiles"]
                 ],
+                "viewer": case.get("viewer"),
             }
             for case in report["cases"]
         ]

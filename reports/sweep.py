@@ -30,6 +30,7 @@ import numpy as np
 
 from ..scenes.files import atomic_write_bytes
 from ._tradeoff import pareto_front
+from .sections.overview import overview_record
 from .sections.page import render_sweep_page
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "SWEEP_REPORT_SCHEMA",
     "best_at_equal_cost",
     "sweep_record",
+    "undefined_metrics",
     "with_memory",
     "write_sweep_report",
 ]
@@ -97,8 +99,8 @@ def _short(v) -> str:
 
 
 def _case_id(row: Mapping) -> str:
-    """The HTML id of a row of the cases table."""
-    return f"row-{row['key'][:12]}"
+    """The HTML id of a row of the cases table (plots and tables link to it)."""
+    return f"case-{row['key'][:12]}"
 
 
 def _pick(requested: Sequence[str] | None, defaults: Sequence[str], present: Sequence[str]):
@@ -189,6 +191,7 @@ def _front(
                 "params": {k: r["params"][k] for k in vary if k in r["params"]},
                 "cost": c,
                 "error": e,
+                "floor": _number((r["metrics"].get("noise_floor") or {}).get(metric)),
             }
         )
     if not points:
@@ -233,13 +236,14 @@ def _sensitivity(
     items = []
     for tech, rs in by_tech.items():
         for name in varying[tech]:
-            xs, ys = [], []
+            xs, ys, ids = [], [], []
             for r in rs:
                 e = _number(r["metrics"].get(headline)) if headline else None
                 if e is None or name not in r["params"]:
                     continue
                 xs.append(r["params"][name])
                 ys.append(e)
+                ids.append(_case_id(r))
             if len(set(json.dumps(x) for x in xs)) < 2:
                 continue
             numeric = all(_number(x) is not None for x in xs)
@@ -250,7 +254,9 @@ def _sensitivity(
                     "param": name,
                     "metric": headline,
                     "numeric": numeric,
-                    "points": [{"x": x, "y": y} for x, y in zip(xs, ys, strict=True)],
+                    "points": [
+                        {"x": x, "y": y, "case_id": i} for x, y, i in zip(xs, ys, ids, strict=True)
+                    ],
                     "levels": _levels(xs, ys, numeric=numeric),
                 }
             )
@@ -276,11 +282,38 @@ def _gallery(fronts: Sequence[Mapping]) -> list[dict]:
     ]
 
 
+def undefined_metrics(done: Sequence[Mapping], names: Sequence[str]) -> list[dict]:
+    """Metrics of ``names`` that say nothing on these cases, with why: no finite value, or 0
+    for every case (a coverage metric on a scene covered everywhere, a shadow metric on a
+    scene without a shadow). Plotting them would draw an empty plot."""
+    out = []
+    for name in names:
+        values = [_number((r.get("metrics") or {}).get(name)) for r in done]
+        values = [v for v in values if v is not None]
+        if not values:
+            out.append({"metric": name, "why": "no case of this scene measures it"})
+        elif all(v == 0.0 for v in values):
+            out.append(
+                {
+                    "metric": name,
+                    "why": f"0 for all {len(values)} cases: undefined on this scene "
+                    "(nothing of what it measures is in the image)",
+                }
+            )
+    return out
+
+
 def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> dict:
-    """Fronts, sensitivity and gallery of the rows of one family on one scene."""
+    """Fronts, sensitivity and gallery of the rows of one family on one scene; metrics that
+    are undefined on the scene (:func:`undefined_metrics`) are left out and listed."""
     done = _done_rows(rows)
     metric_names = _numeric_keys([r["metrics"] for r in done])
     cost_names = _numeric_keys([r.get("cost") for r in done])
+    wanted = list(metrics) or list(DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS)
+    undefined = undefined_metrics(done, metric_names)
+    gone = {o["metric"] for o in undefined}
+    omitted = [o for o in undefined if o["metric"] in wanted]
+    metric_names = [m for m in metric_names if m not in gone]
     metric_list = _pick(metrics, DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS, metric_names)
     cost_list = _pick(costs, DEFAULT_COSTS.get(family, ()), cost_names)
     by_tech: dict[str, list[dict]] = {}
@@ -302,6 +335,7 @@ def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> 
         "n_cases": len(rows),
         "n_done": len(done),
         "metrics": metric_list,
+        "omitted": omitted,
         "costs": cost_list,
         "fronts": fronts,
         "sensitivity": _sensitivity(scene, by_tech, varying, headline),
@@ -335,10 +369,17 @@ def sweep_record(
     for r in rows:
         all_varying.setdefault((r["technique"], r["scene"]), []).append(r)
     vary = {k: _varying(v) for k, v in all_varying.items()}
+    # each case shows its group's headline metric and cost (a metric undefined on the scene
+    # is not the headline there), else the family's default
+    heads = {(g["family"], g["scene"]): g for g in group_records}
     cases = []
     for r in rows:
-        headline = (DEFAULT_METRICS.get(r.get("family") or "shadow") or FALLBACK_METRICS)[0]
-        cost_key = (DEFAULT_COSTS.get(r.get("family") or "shadow") or ("",))[0]
+        family = r.get("family") or "shadow"
+        g = heads.get((family, r["scene"])) or {}
+        headline = ((g.get("metrics") or []) + [None])[0] or (
+            DEFAULT_METRICS.get(family) or FALLBACK_METRICS
+        )[0]
+        cost_key = ((g.get("costs") or []) + [None])[0] or (DEFAULT_COSTS.get(family) or ("",))[0]
         cost = with_memory(r.get("cost"))
         cases.append(
             {
@@ -349,6 +390,11 @@ def sweep_record(
                 "technique": r["technique"],
                 "family": r.get("family"),
                 "params": r.get("params") or {},
+                "varied": {
+                    k: v
+                    for k, v in (r.get("params") or {}).items()
+                    if k in vary[(r["technique"], r["scene"])]
+                },
                 "frame": r.get("frame"),
                 "path": r.get("path"),
                 "resolution": f"{r.get('width')}x{r.get('height')}",
@@ -411,6 +457,7 @@ def write_sweep_report(
     """
     record = sweep_record(rows, title=title, provenance=provenance, costs=costs, metrics=metrics)
     record["sections"] = [dict(x) for x in extra_sections or []]
+    record["overview"] = overview_record(record)
     html = render_sweep_page(record, images=images)
     text = json.dumps(record, indent=1, allow_nan=False, default=str)
     path = Path(path)

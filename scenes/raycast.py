@@ -168,6 +168,7 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
 
     Returns a dict of Dr.Jit arrays: ``valid`` (hit geometry), ``lit`` (sees the light; True
     for sky), ``shape`` (Int32 shape index, -1 sky), ``depth`` (view depth, 0 sky),
+    ``prim`` (Int32 primitive index within its shape: a mesh's face, -1 sky),
     ``position``, ``normal`` (facing the viewer), ``albedo`` (unless ``albedo`` and
     ``color`` are both False: tracing the BSDF call costs Python time on every launch even
     when nothing reads it) and, with ``color``, ``color`` (shaded linear RGB, 0 for sky).
@@ -204,6 +205,7 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
         "valid": valid,
         "lit": lit,
         "shape": shape_index,
+        "prim": dr.select(valid, mi.Int32(si.prim_index), -1),
         "depth": depth,
         "position": si.p,
         "normal": n,

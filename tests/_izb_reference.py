@@ -166,7 +166,8 @@ def pair_tests(planes, recv: dict, epsilon: float, tri: np.ndarray, r: np.ndarra
     :class:`~raster_models.izb.kernel.PairTester` takes them."""
     pl = planes[tri]
     p = recv["p"][r]
-    floor = band_floor(p, epsilon)
+    scale = recv.get("floor_scale")
+    floor = band_floor(p, epsilon) if scale is None else band_floor(p, epsilon, scale[r])
     if "dpdx" in recv:
         return masks_32(pl, p, recv["dpdx"][r], recv["dpdy"][r], floor, recv["a"], recv["b"])
     return flags_single(pl, p, floor)

@@ -75,6 +75,40 @@ def test_agaa_rows_follow_the_model_formats(report):
         assert per["total"] == n * (D32 + nb) + k * agaa.AGGREGATE_BYTES + RGBA8
 
 
+def test_deferred_msaa_rows_are_n_times_the_gbuffer_plus_resolve(report):
+    """Deferred MSAA: W x H x N x 16 bytes (D32F depth 4, RGB10A2 normal 4, RGBA8
+    albedo/specular 4, RGBA8 emissive/material 4) plus the 1x RGBA8 target."""
+    rows = _rows(report)
+    for n in (4, 8, 16):
+        r = rows[f"Deferred MSAA {n}x"]
+        per = r["bytes_per_pixel"]
+        assert per["depth"] == n * 4 and per["normal"] == n * 4 and per["color"] == n * 8
+        assert r["framebuffer_bytes_per_pixel"] == n * 16 and per["resolve"] == RGBA8
+        assert r["at"]["1280x736"]["framebuffer_bytes"] == 1280 * 736 * n * 16
+        assert r["at"]["1920x1080"]["total_bytes"] == 1920 * 1080 * (n * 16 + 4)
+    # by hand: 8x at 1280x736 is 120,586,240 bytes = 115.0 MiB (the slides: 112 MB)
+    at = rows["Deferred MSAA 8x"]["at"]["1280x736"]
+    assert at["framebuffer_bytes"] == 120_586_240 and at["framebuffer_MiB"] == 115.0
+    # forward MSAA stays beside it
+    assert rows["MSAA 8x"]["framebuffer_bytes_per_pixel"] == 64
+
+
+def test_agaa_breakdown_names_the_normal_buffer(report):
+    by_k = {b["aggregates"]: b for b in report["agaa_vs_slides"]}
+    for k, quoted in ((1, 41.0), (2, 71.0)):
+        b = by_k[k]
+        assert b["quoted_MB"] == quoted
+        assert b["buffers_MB"]["depth"] == pytest.approx(32 * PX_736 / 1e6)
+        assert b["buffers_MB"]["normal"] == pytest.approx(32 * PX_736 / 1e6)
+        assert b["framebuffer_MB"] == pytest.approx((64 + 20 * k) * PX_736 / 1e6)
+        assert b["z_prepass_only_total_MB"] == pytest.approx((32 + 20 * k + 4) * PX_736 / 1e6)
+    # the model's 79.1 / 98.0 MB; without the normals K = 2 is 71.6 MB against 71
+    assert (
+        round(by_k[1]["framebuffer_MB"], 1) == 79.1 and round(by_k[2]["framebuffer_MB"], 1) == 98.0
+    )
+    assert round(by_k[2]["z_prepass_only_total_MB"], 1) == 71.6
+
+
 def test_accounting_does_not_depend_on_the_probe_size(report):
     small = scenes.load("star", width=5, height=3)
     configs = [c for c in aa_memory.DEFAULT_CONFIGS if c.technique in ("msaa", "acaa", "agaa")]
@@ -90,9 +124,11 @@ def test_quoted_figures_against_the_accounting(report):
     # ACAA: 36 / 68 = 0.529, "half" at the quote's one significant figure
     assert q["acaa_fraction"]["computed"] == pytest.approx(36 / 68)
     assert q["acaa_fraction"]["reproduced"]
-    # AGAA vs forward MSAA 8x: 108 / 68 B/px, 59 % more, not the quoted 37 % less
-    assert q["agaa_2a_saving_slides"]["computed"] == pytest.approx(1 - 108 / 68)
+    # AGAA vs deferred MSAA 8x (16-byte G-buffer): 108 / 132 B/px, 18 % less, not 37 %
+    assert q["agaa_2a_saving_slides"]["computed"] == pytest.approx(1 - 108 / 132)
     assert not q["agaa_2a_saving_slides"]["reproduced"]
+    assert q["agaa_2a_saving_16x"]["computed"] == pytest.approx(1 - 172 / 260)
+    assert q["deferred_8x_mb"]["computed"]["framebuffer_MB"] == pytest.approx(128 * PX_736 / 1e6)
     # ... but the slides' own figures agree with each other: 1 - 71 / 112 = 0.366 -> 37 %
     assert q["agaa_2a_saving_slides"]["from_quotes"] == pytest.approx(1 - 71 / 112)
     assert q["agaa_2a_saving_slides"]["consistent_with_quotes"]

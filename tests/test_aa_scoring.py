@@ -53,7 +53,7 @@ def _reference(scene, channels):
 
 def _fake_run(scene, p):
     color_ch = _reference(scene, ("color", "edge", "id"))
-    cov = _reference(scene, ("coverage", "edge", "id"))["coverage"]
+    cov = _reference(scene, ("coverage", "edge", "id"))["front_coverage"]
     color = np.stack([color_ch[f"color.{c}"] for c in "RGB"], -1).astype(np.float32)
     if p.mode == "binary":
         cov = (cov >= 0.5).astype(np.float32)
@@ -62,7 +62,8 @@ def _fake_run(scene, p):
         technique="fake-aa",
         outputs={
             "color": color,
-            "coverage": cov.astype(np.float32),
+            "coverage": np.ones_like(cov, dtype=np.float32),  # not what models are scored on
+            "front_coverage": cov.astype(np.float32),
             "shading_events": np.ones((scene.height, scene.width), np.float32),
             "ties": np.zeros((scene.height, scene.width), np.float32),
         },
@@ -179,7 +180,7 @@ def test_binary_coverage_errors_match_hand_computation(tmp_path, fake_aa):
     from raster_oracle import scenes
 
     ref = _reference(scenes.load(SCENE, width=W, height=H), ("coverage", "edge", "id"))
-    cov = ref["coverage"].astype(np.float64)
+    cov = ref["front_coverage"].astype(np.float64)
     err = (cov >= 0.5) - cov
     edge = (ref["edge"] > 0.5) | ((cov > 0) & (cov < 1))
     assert edge.sum() > 50
@@ -228,9 +229,7 @@ def test_engine_coverage_mask(tmp_path):
         tmp_path, "--candidate", str(tmp_path / "mask1.exr"), "--channel", "coverage", out="s1"
     )
     assert rc == 0
-    assert (
-        json.loads((out1 / "metrics.json").read_text())["coverage_edge_rmse"] > 0.05
-    )
+    assert json.loads((out1 / "metrics.json").read_text())["coverage_edge_rmse"] > 0.05
     # the same 0/1 mask as an 8-bit grey PNG (data, not sRGB-decoded) scores the same
     from PIL import Image
 

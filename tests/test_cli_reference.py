@@ -29,6 +29,8 @@ def test_reference_writes_every_channel(tmp_path):
         "visibility_stderr",
         "coverage",
         "coverage_stderr",
+        "front_coverage",
+        "front_coverage_stderr",
         "id",
         "depth",
         "edge",

@@ -192,3 +192,23 @@ def test_same_inputs_same_cells():
         assert {k: v for k, v in ca.items() if k != "seconds"} == {
             k: v for k, v in cb.items() if k != "seconds"
         }
+
+
+def test_cells_are_coloured_by_error_and_a_failed_expectation_is_marked():
+    from raster_oracle.reports.sections.extremes import cell_class, cell_mark, cell_style
+
+    def lum(style):
+        hexes = style.split("background:#")[1][:6]
+        r, g, b = (int(hexes[i : i + 2], 16) for i in (0, 2, 4))
+        return 0.2126 * r + 0.7152 * g + 0.0722 * b
+
+    cell = {"status": "ok", "outcome_met": True, "expected_short": "<= 0.05"}
+    small, large = {**cell, "error": 0.001}, {**cell, "error": 0.4}
+    assert lum(cell_style(small)) > lum(cell_style(large))  # darker is worse, expected or not
+    assert cell_class(large) == "met" and cell_mark(large) == "≤ 0.05"
+    failed = {**large, "outcome_met": False}
+    assert cell_class(failed) == "failed" and cell_mark(failed).startswith("✗")
+    assert cell_style(failed) == cell_style(large)  # the colour is the error, not the verdict
+    band = {**cell, "error": 0.3, "expected_short": "0.1..0.6"}
+    assert cell_mark(band) == "◆ 0.1–0.6"
+    assert cell_style({"status": "refused", "error": None}) == ""

@@ -327,8 +327,8 @@ def test_build_report_tradeoff_per_family():
     ]
     assert [families["vsm"]["points"][i]["name"] for i in families["vsm"]["front"]] == ["vsm 2"]
     plot = svg.scatter_svg(families["pcf"], cost_key="memory_bytes", metric="misclassified")
-    assert plot.count("<circle") == 4 and plot.count('class="point on-front"') == 3
-    assert 'class="front"' in plot and "MiB" in plot
+    assert plot.count('class="point') == 4 and plot.count('class="point on-front"') == 3
+    assert 'class="plot scatter"' in plot and "MiB" in plot
 
 
 def test_build_report_without_costs_has_no_tradeoff():

@@ -243,8 +243,8 @@ def test_zoom_crops_are_the_planted_tiles_and_highlight_them(page):
 def test_tradeoff_plot_and_exr_link(page):
     plot = page.locator("#tradeoff svg.scatter")
     assert plot.count() == 1
-    assert plot.locator("circle").count() == 3
-    assert plot.locator("circle.on-front").count() == 3  # cheaper is worse, dearer is better
+    assert plot.locator("a.point").count() == 3
+    assert plot.locator("a.point.on-front").count() == 3  # cheaper is worse, dearer is better
     link = page.locator("#case-1 .exr-links a")
     assert link.get_attribute("href") == "candidate.exr"
     assert page.problems == []

@@ -53,7 +53,7 @@ def test_fronts_hold_exactly_the_non_dominated_cases():
         if f["cost_key"] == "memory_bytes" and f["metric"] == "misclassified_fraction"
     )
     on = sorted(p["case_id"] for p in front["points"] if p["on_front"])
-    assert on == sorted(f"row-{i:012x}" for i in (1, 4, 5))
+    assert on == sorted(f"case-{i:012x}" for i in (1, 4, 5))
     # the front's indices run by increasing cost
     assert [front["points"][i]["cost"] for i in front["front"]] == [100, 400, 1600]
     # city is its own group: its single case is its front
@@ -118,20 +118,32 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
 
 
 def test_front_plot_colours_each_technique_and_fills_the_front():
+    import re
+
     from raster_oracle.reports.sections.sweep import PALETTE, front_svg
 
     rec = sweep_record(ROWS, title="t")
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
-    svg = str(front_svg(plate["fronts"][0]))
-    circles = svg.split('<circle class="point')[1:]
-    assert len(circles) == 6
+    front = plate["fronts"][0]
+    svg = str(front_svg(front))
+    # one linked marker per case, with its values in a <title>; the front's marked on-front
+    links = re.findall(r'<a href="#(case-[0-9a-f]+)" class="(point[^"]*)"><title>([^<]*)', svg)
+    assert sorted(i for i, _, _ in links) == sorted(p["case_id"] for p in front["points"])
+    on = {p["case_id"] for p in front["points"] if p["on_front"]}
+    assert {i for i, c, _ in links if c == "point on-front"} == on
+    assert all(front["metric"] in tip for _, _, tip in links)
     # shadow-map first (blue), csm second (orange); on-front points filled, others hollow
-    points = plate["fronts"][0]["points"]
-    for p, c in zip(points, circles, strict=True):
-        colour = PALETTE[0] if p["technique"] == "shadow-map" else PALETTE[1]
-        assert f'stroke="{colour}"' in c
-        assert (f'fill="{colour}"' in c) == p["on_front"]
-    assert '<div class="legend">' in svg and "csm" in svg
+    marks = re.findall(
+        r'<a href="#(case-[0-9a-f]+)"[^>]*><title>[^<]*</title>\s*(?:<g [^>]*>\s*)?<use [^>]*'
+        r'style="fill: (#[0-9a-f]+); stroke: (#[0-9a-f]+)',
+        svg,
+    )
+    assert len(marks) == len(front["points"])
+    tech = {p["case_id"]: p["technique"] for p in front["points"]}
+    for case_id, fill, stroke in marks:
+        colour = PALETTE[0] if tech[case_id] == "shadow-map" else PALETTE[1]
+        assert stroke == colour and (fill == colour) == (case_id in on)
+    assert ">csm</text>" in svg  # the legend
 
 
 def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
@@ -166,7 +178,7 @@ def test_front_cases_show_their_thumbnails_and_only_data_images(tmp_path):
     # the reference, row 1's image and error map; row 4's link is dropped, it has no error map
     assert gallery.count("<img") == 3
     assert "example.com" not in html
-    assert f"#row-{1:012x}" in gallery and f"#row-{2:012x}" not in gallery
+    assert f"#case-{1:012x}" in gallery and f"#case-{2:012x}" not in gallery
 
 
 # --- stores that are damaged or edited by hand (issue 20) --------------------------------
@@ -262,3 +274,105 @@ def test_hand_edited_thumbnails_are_left_out(tmp_path, capsys, stored):
     html = out.read_text()
     assert "<script>alert(1)" not in html and "example.com" not in html
     assert "iVBORw0KGgo=" not in html  # every stored thumbnail was replaced by the bad one
+
+
+def _aa_row(i, technique, samples, cost, flip, *, floor=0.01):
+    row = _row(i, technique, 0, cost, 0.0, scene="decal", family="aa")
+    row["params"] = {"samples": samples}
+    row["metrics"] = {
+        "flip_mean": flip,
+        "coverage_edge_rmse": 0.0,  # the backdrop covers every pixel: undefined here
+        "noise_floor": {"flip_mean": floor},
+    }
+    row["cost"] = {"framebuffer_bytes": cost, "shading_events_mean": 1.0 + samples}
+    return row
+
+
+AA_ROWS = [
+    _aa_row(20, "noaa", 1, 1000, 0.20),
+    _aa_row(21, "fxaa", 1, 1000, 0.15),  # same cost as noaa, better: the level's best
+    _aa_row(22, "msaa", 4, 4000, 0.05),
+    _aa_row(23, "ssaa", 4, 4000, 0.004),  # within the noise floor (0.01)
+    _aa_row(24, "msaa", 8, 8000, 0.06),  # dominated
+]
+
+
+def test_a_metric_undefined_on_a_scene_is_left_out_with_its_reason(tmp_path):
+    rec = sweep_record(AA_ROWS, title="t")
+    (group,) = rec["groups"]
+    assert [o["metric"] for o in group["omitted"]] == ["coverage_edge_rmse"]
+    assert "0 for all 5 cases" in group["omitted"][0]["why"]
+    assert {f["metric"] for f in group["fronts"]} == {"flip_mean"}
+    out = tmp_path / "r.html"
+    write_sweep_report(AA_ROWS, out, title="t")
+    html = out.read_text()
+    assert "coverage_edge_rmse is not plotted: 0 for all 5 cases" in html
+    assert 'aria-label="coverage_edge_rmse against' not in html
+    assert html.count('<svg class="plot front"') == 2  # flip_mean by each of the two costs
+
+
+def test_summary_is_the_best_per_cost_level_with_its_noise_floor():
+    from raster_oracle.reports.sections.overview import overview_record
+
+    record = sweep_record(AA_ROWS, title="t")
+    claims = {
+        "kind": "claims",
+        "id": "claims",
+        "failed": False,
+        "data": {"claims": [{"id": "c1", "verdict": "partly", "value_text": "x", "value": None}]},
+    }
+    record["sections"] = [claims]
+    (group,) = overview_record(record)["groups"]
+    assert group["anchor"] == "group-aa-decal" and group["metric"] == "flip_mean"
+    levels = [(lv["cost"], lv["technique"], lv["error"]) for lv in group["levels"]]
+    assert levels == [(1000, "fxaa", 0.15), (4000, "ssaa", 0.004)]
+    assert [lv["floors_from_truth"] for lv in group["levels"]] == pytest.approx([15.0, 0.4])
+    assert [lv["within_noise"] for lv in group["levels"]] == [False, True]
+    assert overview_record(record)["claims"][0]["verdict"] == "partly"
+
+
+def test_plots_refuse_to_be_empty():
+    from raster_oracle.reports import plots
+
+    front = {"family": "x", "cost_key": "memory_bytes", "metric": "m", "front": []}
+    with pytest.raises(plots.EmptyPlotError, match="no point"):
+        plots.front_plot({**front, "points": [{"cost": 1.0, "error": float("nan")}]})
+    item = {"technique": "t", "scene": "s", "param": "p", "metric": "m", "numeric": True}
+    with pytest.raises(plots.EmptyPlotError):
+        plots.sensitivity_plot({**item, "points": [], "levels": []})
+    with pytest.raises(plots.EmptyPlotError):
+        plots.loglog_plot([{"name": "a", "x": [1, 2], "y": [0, -1]}], x_label="x", y_label="y")
+
+
+def test_tick_labels_are_told_apart_and_plots_are_deterministic():
+    from raster_oracle.reports import plots
+
+    labels = plots.DistinctFormatter(is_bytes=True).format_ticks([100, 101, 102, 102.5, 2048])
+    assert labels == ["100 B", "101 B", "102 B", "102.5 B", "2 KiB"]
+    assert plots.DistinctFormatter(is_bytes=False).format_ticks([0.1, 0.10001]) == [
+        "0.1",
+        "0.10001",
+    ]
+    rec = sweep_record(ROWS, title="t")
+    front = rec["groups"][1]["fronts"][0]
+    a = str(plots.front_plot(front, salt="s"))
+    assert a == str(plots.front_plot(front, salt="s"))
+    assert "<dc:date>" not in a and "<metadata>" not in a
+    assert "svg.fonttype" not in a and "<text" in a  # text kept as text, not glyph paths
+
+
+def test_cases_show_a_metric_defined_on_their_scene():
+    rows = [dict(r) for r in AA_ROWS]
+    for r in rows:  # coverage_edge_rmse would be the headline if flip_mean were missing
+        r["metrics"] = {"coverage_edge_rmse": 0.0, "flip_mean": r["metrics"]["flip_mean"]}
+    rec = sweep_record(rows, title="t")
+    assert {c["metric"] for c in rec["cases"]} == {"flip_mean"}
+    star = [dict(r, scene="star") for r in ROWS[:3]]
+    for r in star:  # no shadow on the scene: misclassified is 0 everywhere
+        r["metrics"] = {
+            "misclassified_fraction": 0.0,
+            "visibility_mae": 0.01 * r["cost"]["texels_rendered"] / 100,
+        }
+    rec = sweep_record(star, title="t")
+    assert {c["metric"] for c in rec["cases"]} == {"visibility_mae"}
+    assert rec["groups"][0]["omitted"][0]["metric"] == "misclassified_fraction"

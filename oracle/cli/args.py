@@ -24,6 +24,8 @@ __all__ = [
     "check_distinct",
     "check_dir",
     "check_out",
+    "export_named",
+    "export_scene",
     "input_errors",
     "load_scene",
     "names",
@@ -113,8 +115,18 @@ def names(text: str) -> list[str]:
 
 def add_scene_args(p: argparse.ArgumentParser) -> None:
     """``SCENE --light --width --height --camera-path --light-path --frame --frames``."""
-    p.add_argument("scene", metavar="SCENE", help="built-in scene name or Mitsuba XML file")
-    p.add_argument("--light", type=nonneg_int, default=0, help="index of the light (default 0)")
+    p.add_argument(
+        "scene",
+        metavar="SCENE",
+        help="built-in scene name, Mitsuba XML file, or an `export` folder (its scene.xml, at "
+        "its exported size and light)",
+    )
+    p.add_argument(
+        "--light",
+        type=nonneg_int,
+        default=None,
+        help="index of the light (default 0; an export's own light)",
+    )
     p.add_argument("--width", type=positive_int, help="film width in pixels")
     p.add_argument("--height", type=positive_int, help="film height in pixels")
     p.add_argument(
@@ -195,26 +207,67 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
     add_cache_args(p)
 
 
+def export_scene(scene: str) -> tuple[str, int | None]:
+    """``SCENE`` as ``scenes.load`` takes it, and the light an export chose (None: not an
+    export). An ``export`` folder stands for its ``scene.xml``; the export's ``lights.json``
+    records the light it was exported with."""
+    path = Path(scene)
+    if path.is_dir():
+        if not (path / "scene.xml").is_file():
+            raise CliError(
+                f"scene folder {scene} has no scene.xml: give a built-in scene, a Mitsuba XML "
+                "file or a folder written by `export`"
+            )
+        path = path / "scene.xml"
+    elif path.name != "scene.xml" or not path.is_file():
+        return scene, None
+    lights = path.parent / "lights.json"
+    chosen = None
+    if lights.is_file():
+        import json
+
+        try:
+            chosen = int(json.loads(lights.read_text())["chosen"])
+        except (OSError, ValueError, KeyError, TypeError):
+            chosen = None
+    return str(path), chosen
+
+
 def load_scene(args):
-    """The scene of ``add_scene_args`` options (its frame of a camera or light path)."""
+    """The scene of ``add_scene_args`` options (its frame of a camera or light path). An
+    ``export`` folder (or its ``scene.xml``) is loaded at its exported size with its light."""
     from ... import scenes
 
+    scene, chosen = export_scene(args.scene)
+    light = args.light if args.light is not None else (chosen or 0)
     light_path = args.light_path
     if args.frame and args.camera_path is None and light_path is None and not args.frames:
         raise CliError(
             f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
             "scene's own camera and light)"
         )
-    return scenes.load(
-        args.scene,
+    loaded = scenes.load(
+        scene,
         width=args.width,
         height=args.height,
-        light=args.light,
+        light=light,
         camera_path=args.camera_path,
         frame=args.frame,
         n_frames=args.frames or 8,
         light_path=light_path,
     )
+    return export_named(loaded, scene)
+
+
+def export_named(loaded, scene: str):
+    """An export's ``scene.xml`` is named after its folder (``plate320``), not ``scene``: the
+    name records and report titles show."""
+    path = Path(scene)
+    if path.name != "scene.xml" or not (path.parent / "camera.json").is_file():
+        return loaded
+    from dataclasses import replace
+
+    return replace(loaded, name=path.resolve().parent.name)
 
 
 def reference_cache(args):

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from . import args as A
+from . import score_folder
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -27,10 +28,16 @@ def add_parsers(sub) -> None:
     A.add_set_arg(p)
     p.add_argument(
         "--channel",
+        default=None,
+        help="what to score: visibility, color or coverage, or for an engine's EXR a channel "
+        "(msaa.coverage) or layer (shadow); default: a technique's primary channel, or the "
+        "candidate file's only image (a grey one is visibility, RGB is color)",
+    )
+    p.add_argument(
+        "--kind",
         choices=["visibility", "color", "coverage"],
         default=None,
-        help="what the candidate holds (default: color; visibility for shadow models, "
-        "color and coverage for anti-aliasing models)",
+        help="what a --channel layer or channel holds (default: from its name and contents)",
     )
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
@@ -47,6 +54,8 @@ def add_parsers(sub) -> None:
     )
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
+
+    score_folder.add_parser(sub)
 
     p = sub.add_parser("report", help="combine score folders (or a sweep) into one HTML report")
     p.add_argument("folders", nargs="*", type=Path, metavar="DIR")
@@ -79,11 +88,13 @@ def cmd_score(args) -> int:
     from ... import raster_models
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError, parse_thresholds
+    from .score_inputs import candidate_inputs
 
     thresholds = parse_thresholds(args.fail_above)
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
     loaded = A.load_scene(args)
+    layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
     params = None
     if args.technique:
@@ -107,6 +118,7 @@ def cmd_score(args) -> int:
         flip_mode=args.flip_mode,
         ppd=args.ppd or M.DEFAULT_PPD,
         thresholds=thresholds,
+        layout=layout,
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     if failed:
@@ -157,4 +169,8 @@ def cmd_report(args) -> int:
     return 0
 
 
-COMMANDS = {"score": cmd_score, "report": cmd_report}
+COMMANDS = {
+    "score": cmd_score,
+    "score-folder": score_folder.cmd_score_folder,
+    "report": cmd_report,
+}

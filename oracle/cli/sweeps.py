@@ -145,7 +145,7 @@ def cmd_tune(args) -> int:
         fixed=args.params,
         width=args.width,
         height=args.height,
-        light=args.light,
+        light=args.light or 0,
         spp=args.spp,
         seed=args.seed,
         db=args.db,

@@ -46,7 +46,8 @@ __all__ = [
 
 #: Bump when the meaning of a reference channel changes: old cache entries become misses.
 #: 2: TEA-hashed sampling streams and binomial stderr floors.
-ORACLE_VERSION = "3"
+#: 4: the coverage group holds front_coverage (the front-most primitive's coverage) too.
+ORACLE_VERSION = "4"
 FILES = ("reference.exr", "reference.json")
 
 #: Environment variables naming the cache folder, first set wins (the first is documented).

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -41,6 +42,7 @@ from ...metrics.stats import binomial_stderr_floor
 from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
+from .coverage import centre_shapes, front_hits
 
 __all__ = [
     "ALL_CHANNELS",
@@ -57,7 +59,7 @@ __all__ = [
 #: Channel groups that can be asked for with ``--channels``; each expands to EXR channels.
 CHANNEL_GROUPS = {
     "visibility": ["visibility", "visibility_stderr"],
-    "coverage": ["coverage", "coverage_stderr"],
+    "coverage": ["coverage", "coverage_stderr", "front_coverage", "front_coverage_stderr"],
     "color": [
         "color.R",
         "color.G",
@@ -78,13 +80,18 @@ CHANNEL_GROUPS = {
 OPTIONAL_GROUPS = ("tangent32",)
 ALL_CHANNELS = tuple(g for g in CHANNEL_GROUPS if g not in OPTIONAL_GROUPS)
 _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
-#: Samples per Dr.Jit launch: bounds memory at about 6 GiB whatever the resolution and spp
-#: (a smaller frame uses less). Fewer, larger launches cost less tracing and launch time:
-#: the 1080p 32-spp colour reference took 1.20x the CPU time of Mitsuba's ``direct``
-#: integrator at 2^22 samples a launch, 1.09x at 2^24.
+#: Samples per Dr.Jit launch: bounds a launch's working set whatever the resolution and spp
+#: (about 1 GiB with colour, :func:`estimate_memory`). Fewer, larger launches cost less
+#: tracing and launch time: the 1080p 32-spp colour reference took 1.20x the CPU time of
+#: Mitsuba's ``direct`` integrator at 2^22 samples a launch, 1.09x at 2^24.
 SAMPLES_PER_CHUNK = 1 << 24
-_BYTES_PER_SAMPLE = 360
-_BYTES_PER_PIXEL = 8 * 24 + 4 * 30
+# Memory model of estimate_memory (peak RSS above the loaded scene, plate, LLVM backend,
+# measured 2026-11-24; see its docstring).
+_BASE_BYTES = 64 << 20
+_BYTES_PER_SAMPLE = 32
+_BYTES_PER_COLOR_SAMPLE = 64
+_BYTES_PER_PIXEL = 64 + 56
+_BYTES_PER_COLOR_PIXEL = 48
 
 
 class ReferenceSettingsError(InputError):
@@ -161,13 +168,46 @@ def grid_shape(spp: int) -> tuple[int, int]:
     return spp // n, n
 
 
-def estimate_memory(width: int, height: int, spp: int | None = None) -> int:
-    """Peak bytes a reference of this size needs (launch working set + per-pixel buffers);
-    with ``spp`` (the most samples a pixel gets) a launch holds no more than the frame's."""
-    launch = SAMPLES_PER_CHUNK
-    if spp is not None:
-        launch = min(launch, width * height * int(spp))
-    return launch * _BYTES_PER_SAMPLE + width * height * _BYTES_PER_PIXEL
+def estimate_memory(
+    width: int, height: int, *, spp: int = 64, channels=ALL_CHANNELS, max_spp: int | None = None
+) -> int:
+    """Peak bytes a reference of this size, spp and channel groups needs (an upper bound).
+
+    ``base + launch * per_sample + pixels * per_pixel`` with
+
+    - ``launch = min(pixels * spp, SAMPLES_PER_CHUNK)``: the samples of the largest Dr.Jit
+      launch (``max_spp`` instead of ``spp`` for adaptive sampling; a launch of the whole
+      chunk for ``tangent32``, and ``pixels`` for the pixel-centre groups alone),
+    - ``per_sample`` 32 B, 64 B when ``color`` is rendered (its shading doubles the live
+      arrays),
+    - ``per_pixel`` 120 B of float64/int64 running sums, 48 B more for colour, and 8 B per
+      output channel (the float32 image and its copy),
+    - ``base`` 64 MiB (kernel compilation, the allocator's slack).
+
+    Fitted with margin to the peak RSS measured above the loaded scene (``plate``, LLVM,
+    score's channel sets): visibility set at 80x45/16 spp 3 MB (estimate 70 MB),
+    160x90/64 21 MB (99), 320x180/64 99 MB (197), 320x180/256 85 MB (213), 640x360/64
+    107 MB (247); colour set at 160x90/64 66 MB (129), 320x180/64 206 MB (316), 320x180/256
+    208 MB (349), 640x360/64 247 MB (389); at 1280x720/64 visibility 208 MB (386), colour
+    395 MB (549), every default group 458 MB (653). The former fixed 1.41 GiB refused a
+    320x180 score on a machine with 1.4 GiB free.
+    """
+    groups = set(channels)
+    pixels = int(width) * int(height)
+    color = "color" in groups
+    sampled = groups & {"visibility", "coverage", "color", "edge"}
+    spp_max = int(max_spp if max_spp is not None else spp)
+    launch = min(pixels * spp_max, SAMPLES_PER_CHUNK) if sampled else min(pixels, SAMPLES_PER_CHUNK)
+    if "tangent32" in groups:
+        launch = max(launch, min(pixels * 32, SAMPLES_PER_CHUNK))
+    per_sample = _BYTES_PER_COLOR_SAMPLE if color else _BYTES_PER_SAMPLE
+    outputs = len(channel_names([g for g in CHANNEL_GROUPS if g in groups]))
+    per_pixel = _BYTES_PER_PIXEL + (_BYTES_PER_COLOR_PIXEL if color else 0) + 8 * outputs
+    return _BASE_BYTES + launch * per_sample + pixels * per_pixel
+
+
+def _amount(n: int) -> str:
+    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
 
 
 def available_memory() -> int:
@@ -187,13 +227,16 @@ class _Accum:
 
     npix: int
     color: bool
-    #: which per-sample quantities are summed: "vis", "cov", "shape" (colour: ``color``);
-    #: the others are empty (a colour-only reference skips their outputs, reductions and
-    #: buffers)
+    #: which per-sample quantities are summed: "vis", "cov", "shape", "front" (with
+    #: ``centre``; colour: ``color``); the others are empty (a colour-only reference skips
+    #: their outputs, reductions and buffers)
     track: frozenset = frozenset({"vis", "cov", "shape"})
     n: np.ndarray = field(init=False)
     vis: np.ndarray = field(init=False)
     cov: np.ndarray = field(init=False)
+    #: shape seen through each pixel centre (``front_coverage``; None: not asked for)
+    centre: np.ndarray | None = None
+    front: np.ndarray = field(init=False)
     rgb: np.ndarray | None = field(init=False)
     rgb2: np.ndarray | None = field(init=False)
     smin: np.ndarray = field(init=False)
@@ -206,6 +249,7 @@ class _Accum:
         self.n = np.zeros(self.npix)
         self.vis = np.zeros(size("vis"))
         self.cov = np.zeros(size("cov"))
+        self.front = np.zeros(size("front"))
         self.rgb = np.zeros((self.npix, 3)) if self.color else None
         self.rgb2 = np.zeros((self.npix, 3)) if self.color else None
         self.smin = np.full(size("shape"), np.iinfo(np.int32).max, dtype=np.int64)
@@ -231,6 +275,11 @@ class _Accum:
 
     def cov_stderr(self):
         return np.maximum(self.stderr(self.cov, self.cov, self.n), binomial_stderr_floor(self.n))
+
+    def front_stderr(self):
+        return np.maximum(
+            self.stderr(self.front, self.front, self.n), binomial_stderr_floor(self.n)
+        )
 
     def rgb_stderr(self):
         n = self.n[:, None]
@@ -403,6 +452,8 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
     if acc.color:
         sums["rgb"] = (res["color"], dr.ReduceOp.Add)
         sums["rgb2"] = (res["color"] * res["color"], dr.ReduceOp.Add)
+    if "front" in acc.track:
+        sums["front"] = (front_hits(res["shape"], acc.centre[chunk], block), dr.ReduceOp.Add)
     # one kernel traces every sample; reductions then read the evaluated arrays
     dr.eval(*[v for v, _ in sums.values()], res["shadow_tested"])
     shadow_count = dr.count(res["shadow_tested"])
@@ -411,7 +462,7 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
     if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
         chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
     acc.n[chunk] += block
-    for k in ("vis", "cov", "rgb", "rgb2"):
+    for k in ("vis", "cov", "front", "rgb", "rgb2"):
         if k in outs:
             arr = np.array(outs[k], dtype=np.float64)
             getattr(acc, k)[chunk] += arr.T if arr.ndim == 2 else arr
@@ -578,6 +629,8 @@ def _refine_mask(acc: _Accum, settings: ReferenceSettings, width: int, height: i
     also refines while the sample standard error of its colour exceeds the target.
     """
     se = np.maximum(binary_stderr(acc.vis, acc.n), binary_stderr(acc.cov, acc.n))
+    if "front" in acc.track:
+        se = np.maximum(se, binary_stderr(acc.front, acc.n))
     want = feature_mask(acc, width, height) & (se > settings.target_stderr)
     if acc.color:
         want |= acc.rgb_stderr().max(axis=1) > settings.target_stderr
@@ -617,12 +670,18 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     """
     settings = settings.validate()
     w, h = loaded.width, loaded.height
-    need = estimate_memory(w, h, settings.max_spp if settings.adaptive else settings.spp)
+    need = estimate_memory(
+        w,
+        h,
+        spp=settings.spp,
+        channels=settings.channels,
+        max_spp=settings.max_spp if settings.adaptive else None,
+    )
     have = available_memory()
     if need > have:
         raise ReferenceSettingsError(
-            f"a {w}x{h} reference needs about {need / 2**30:.1f} GiB; only "
-            f"{have / 2**30:.1f} GiB is available"
+            f"a {w}x{h} reference at {settings.spp} spp needs about {_amount(need)}; "
+            f"only {_amount(have)} is available"
         )
     groups = set(settings.channels)
     sampled = groups & {"visibility", "coverage", "color", "edge"}
@@ -639,10 +698,14 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
             )
             if groups & set(gs)
         }
-    acc = _Accum(npix, color, frozenset(track))
+    centre = centre_shapes(loaded) if "coverage" in groups else None
+    if centre is not None:
+        track.add("front")
+    acc = _Accum(npix, color, centre=centre, track=frozenset(track))
     t0 = time.perf_counter()
     progress = None
-    if not quiet:
+    # a bar only on a terminal: in a CI log its carriage-return redraws are noise
+    if not quiet and sys.stderr.isatty():
         from tqdm import tqdm
 
         total = npix * (settings.adaptive_spp if settings.adaptive else settings.spp)
@@ -693,6 +756,8 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     if "coverage" in groups:
         channels["coverage"] = img(acc.cov / acc.n)
         channels["coverage_stderr"] = img(acc.cov_stderr())
+        channels["front_coverage"] = img(acc.front / acc.n)
+        channels["front_coverage_stderr"] = img(acc.front_stderr())
     if color:
         mean = acc.rgb / acc.n[:, None]
         se = acc.rgb_stderr()

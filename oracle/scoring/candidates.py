@@ -30,7 +30,7 @@ import png
 from ..errors import InputError
 from ..reference.exr import ExrError, read_exr
 
-__all__ = ["CandidateError", "load_candidate"]
+__all__ = ["CandidateError", "check_candidate_values", "load_candidate", "png_is_grey"]
 
 _RGB = ("R", "G", "B")
 _ALPHA = ("A",)
@@ -100,6 +100,20 @@ def load_candidate(
     return image
 
 
+def check_candidate_values(path, image: np.ndarray, *, expected_shape, kind: str) -> None:
+    """A candidate image of ``kind`` has the reference's size, finite values, non-negative
+    colour and grey data (visibility, coverage) in [0, 1]; else :class:`CandidateError`."""
+    path = Path(path)
+    _check_shape(path, image, expected_shape)
+    _check_values(path, image, kind)
+
+
+def png_is_grey(path) -> bool:
+    """A PNG whose colour type (IHDR) is grey or grey + alpha (any bit depth)."""
+    _, colour_type = _png_header(Path(path))
+    return colour_type in (0, 4)
+
+
 def _check_shape(path: Path, image: np.ndarray, expected_shape) -> None:
     if expected_shape is None:
         return
@@ -123,11 +137,11 @@ def _check_values(path: Path, image: np.ndarray, channel: str) -> None:
             f"candidate {path.name} channel {channel!r} has {n_nan} NaN and {n_inf} inf "
             f"values (of {image.size})"
         )
-    if channel == "visibility":
+    if channel in ("visibility", "coverage"):
         n_out = int(((image < 0) | (image > 1)).sum())
         if n_out:
             raise CandidateError(
-                f"candidate {path.name} visibility must be in [0, 1], got {n_out} values "
+                f"candidate {path.name} {channel} must be in [0, 1], got {n_out} values "
                 f"outside (range {float(image.min()):.6g} to {float(image.max()):.6g})"
             )
     elif channel == "color":

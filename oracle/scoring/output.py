@@ -7,6 +7,7 @@ temporary name and renamed, so a failed request leaves nothing half-written.
 from __future__ import annotations
 
 import io
+import json
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +16,17 @@ from ... import metrics as M
 from ... import raster_models, reports
 from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ...scenes.records import jsonable, package_versions
-from ..reference.exr import write_exr
+from ..reference.exr import read_exr, write_exr
 from .score import METRIC_KEYS, ScoreResult, failures
 
-__all__ = ["MAP_STYLES", "MEMORY_RESOLUTIONS", "report_cost", "write_score_folder"]
+__all__ = [
+    "MAP_STYLES",
+    "MEMORY_RESOLUTIONS",
+    "SCORE_FILES",
+    "report_cost",
+    "stale_files",
+    "write_score_folder",
+]
 
 #: How each error map is drawn: palette and fixed range (the same in PNG and report).
 MAP_STYLES = {
@@ -43,6 +51,41 @@ def _display(result: ScoreResult, image: np.ndarray) -> np.ndarray:
         return np.clip(image, 0.0, 1.0)
     tm = result.record.get("tone_mapping") or {}
     return M.tonemap(image, exposure=tm.get("exposure_stops") or 0.0)
+
+
+def _viewer(result: ScoreResult, maps: dict) -> dict:
+    """The linear frames for the report's pixel viewer: reference, candidate, the reference's
+    stderr (read back from each frame's reference EXR), one error map, the metrics."""
+    color = result.record["channel"] == "color"
+    # colour: FLIP; visibility and coverage: the signed error, which reads best under a cursor
+    order = ("flip",) if color else ("visibility_error", "coverage_error", "flip")
+    shown = next(k for k in (*order, *maps) if k in maps)
+    style, rng = MAP_STYLES[shown]
+    stderr_key = f"{result.record['channel']}_stderr"
+    frames = []
+    for k, frame in enumerate(result.frames):
+        ch = read_exr(result.reference_folders[k] / "reference.exr")
+        se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1) if color else ch[stderr_key]
+        frames.append(
+            {
+                "label": f"frame {k + 1}",
+                "metrics": frame.metrics,
+                "reference": frame.reference,
+                "candidate": frame.candidate,
+                "stderr": se,
+                "error": frame.maps[shown],
+            }
+        )
+    tm = result.record.get("tone_mapping") or {}
+    return reports.viewer_record(
+        frames,
+        error_name=shown,
+        error_style=style,
+        error_range=rng,
+        exposure=tm.get("exposure_stops") or 0.0,
+        tone_mapper=tm.get("tone_mapper", "clip"),
+        srgb=color,
+    )
 
 
 def _case(
@@ -81,7 +124,82 @@ def _case(
             "candidate": "candidate.exr",
             "error maps": "error_maps.exr",
         },
+        viewer=_viewer(result, maps),
     )
+
+
+def _frame_cases(result: ScoreResult, *, name: str, scene: str, technique, params) -> list:
+    """One report case per frame of a multi-frame score (its own metrics, images and error
+    maps), after the case of the averaged metrics: the report shows every frame."""
+    if len(result.frames) < 2:
+        return []
+    cases = []
+    for k, frame in enumerate(result.frames):
+        primary = "visibility_error" if "visibility_error" in frame.maps else "flip"
+        maps = {
+            key: {
+                "data": np.nan_to_num(data).astype(np.float32),
+                "style": MAP_STYLES[key][0],
+                "range": list(MAP_STYLES[key][1]),
+                "primary": key == primary,
+            }
+            for key, data in frame.maps.items()
+        }
+        values = {k2: v for k2, v in frame.metrics.items() if k2 in METRIC_KEYS and v is not None}
+        cases.append(
+            reports.make_case(
+                name=f"{name} frame {k}",
+                scene=scene,
+                reference=_display(result, frame.reference),
+                candidate=_display(result, frame.candidate),
+                kind="color" if result.record["channel"] == "color" else "visibility",
+                metrics=values,
+                error_maps=maps,
+                technique=technique,
+                params=params,
+            )
+        )
+    return cases
+
+
+#: Files a score folder holds besides the error-map PNGs (``report.json`` is the report's twin).
+SCORE_FILES = (
+    "metrics.json",
+    "report.html",
+    "report.json",
+    "candidate.exr",
+    "error_maps.exr",
+    "reference.exr",
+)
+
+
+def stale_files(out_dir: Path, written: list[str]) -> list[Path]:
+    """Files an earlier score wrote to ``out_dir`` that this one does not rewrite.
+
+    An earlier run's files are those its ``metrics.json`` lists under ``files`` (or, for a
+    record written before that list existed, its fixed files and error-map PNGs). Only those
+    are ever removed: a file the oracle did not write (a note, the engine's own render) is
+    kept, so pointing ``--out`` at a folder that holds other files is safe.
+    """
+    try:
+        prev = json.loads((out_dir / "metrics.json").read_text())
+    except (OSError, ValueError):
+        return []
+    if not isinstance(prev, dict):
+        return []
+    listed = prev.get("files")
+    if not isinstance(listed, list):
+        maps = prev.get("maps") if isinstance(prev.get("maps"), dict) else {}
+        listed = [*SCORE_FILES, *(f"{k}.png" for k in maps)]
+    keep = set(written)
+    out = []
+    for entry in listed:
+        # only plain names of this folder: a record cannot point outside it
+        if isinstance(entry, str) and entry == Path(entry).name and entry not in keep:
+            path = out_dir / entry
+            if path.is_file() and not path.is_symlink():
+                out.append(path)
+    return out
 
 
 def _front(technique: str | None, scene: str) -> str | None:
@@ -197,8 +315,13 @@ def write_score_folder(
         params=params,
         cost=cost,
     )
+    frame_cases = _frame_cases(
+        result, name=name, scene=loaded.name, technique=technique, params=params
+    )
     report = reports.build_report(
-        [case], title=f"{name} on {loaded.name}", provenance=_provenance(result, loaded)
+        [case, *frame_cases],
+        title=f"{name} on {loaded.name}",
+        provenance=_provenance(result, loaded),
     )
     pngs = {}
     for key, data in frame.maps.items():
@@ -206,6 +329,8 @@ def write_score_folder(
         pngs[f"{key}.png"] = _png_bytes(
             reports.colorize(np.nan_to_num(data), style=style, value_range=rng)
         )
+    record["files"] = sorted([*SCORE_FILES, *pngs])
+    stale = stale_files(out_dir, record["files"])
     cand = frame.candidate
     cand_channels = (
         {"coverage" if record["channel"] == "coverage" else "visibility": cand}
@@ -220,4 +345,6 @@ def write_score_folder(
         atomic_write_bytes(out_dir / fname, data)
     atomic_write_json(out_dir / "metrics.json", record)
     reports.write_report(report, out_dir / "report.html")
+    for path in stale:  # after every new file is in place: a failed run removes nothing
+        path.unlink(missing_ok=True)
     return record["failed"]

@@ -11,56 +11,56 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import numpy as np
-
 from ... import metrics as M
-from .candidates import load_candidate
+from .layout import CandidateLayout, candidate_layout, read_candidate
 from .output import write_score_folder
 from .score import ScoreError, score
 from .technique import score_model
 
-__all__ = ["FRAME_PATTERN", "file_candidate", "score_to_folder"]
+__all__ = ["FRAME_PATTERN", "candidate_name", "file_candidate", "frame_file", "score_to_folder"]
 
 #: A ``{frame}`` field (with an optional format) in a candidate file pattern.
 FRAME_PATTERN = re.compile(r"\{frame(?::[^}]*)?\}")
 
 
-def _check_coverage(image: np.ndarray, path) -> None:
-    if image.ndim != 2:
-        raise ScoreError(
-            f"candidate {Path(path).name} coverage must be one channel, got shape {image.shape}"
-        )
-    n_out = int(((image < 0) | (image > 1)).sum())
-    if n_out:
-        raise ScoreError(
-            f"candidate {Path(path).name} coverage must be in [0, 1], got {n_out} values outside"
-        )
+def frame_file(pattern: str, k: int) -> str:
+    """The candidate file of frame ``k``: ``pattern`` formatted with ``frame=k`` when it has a
+    ``{frame}`` field, else ``pattern`` itself."""
+    return pattern.format(frame=k) if FRAME_PATTERN.search(pattern) else pattern
 
 
-def file_candidate(pattern: str, *, channel: str, frames: int | None):
+def file_candidate(
+    pattern: str, *, channel: str | None, frames: int | None, layout: CandidateLayout | None = None
+):
     """Candidate callable ``(frame_scene, k) -> (image, info)`` reading (and validating) an
     engine's image of each frame: ``pattern`` formatted with ``frame=k`` when it has a
-    ``{frame}`` field (required for ``frames`` > 1)."""
+    ``{frame}`` field (required for ``frames`` > 1). Every frame is read as ``layout`` says
+    (None: :func:`oracle.scoring.layout.candidate_layout` of frame 0's file and ``channel``).
+    """
     has_frame = bool(FRAME_PATTERN.search(pattern))
     if frames and frames > 1 and not has_frame:
         raise ScoreError(
             "--frames needs a --candidate pattern with {frame}, e.g. frame_{frame:03d}.exr"
         )
+    if layout is None:
+        layout = candidate_layout(frame_file(pattern, 0), channel=channel)
 
     def run(frame_scene, k):
-        path = pattern.format(frame=k) if has_frame else pattern
-        # a PNG coverage mask is grey data, read as a PNG visibility mask is (not decoded)
-        png = Path(path).suffix.lower() == ".png"
-        image = load_candidate(
-            path,
-            channel="visibility" if channel == "coverage" and png else channel,
-            expected_shape=(frame_scene.height, frame_scene.width),
-        )
-        if channel == "coverage":
-            _check_coverage(image, path)
+        path = frame_file(pattern, k)
+        image = read_candidate(path, layout, expected_shape=(frame_scene.height, frame_scene.width))
         return image, {"frame": k, "file": str(path)}
 
     return run
+
+
+def candidate_name(pattern: str, *, frames: int | None, camera_path: str | None) -> str:
+    """How the record and the report name an engine's candidate: the file name (frame 0's
+    for a one-frame pattern), or for several frames the camera path and the frame list
+    (``dolly frames 0-7``), never the raw ``{frame}`` pattern."""
+    n = frames or 1
+    if n == 1 or not FRAME_PATTERN.search(pattern):
+        return Path(frame_file(pattern, 0)).name
+    return f"{camera_path or 'camera'} frames 0-{n - 1}"
 
 
 def _check_candidates(fn, loaded, frames, camera_path) -> None:
@@ -88,6 +88,7 @@ def score_to_folder(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     thresholds: dict[str, float] | None = None,
+    layout: CandidateLayout | None = None,
 ) -> list[str]:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded`` and write the score folder ``out``; returns the metrics above ``thresholds``.
@@ -96,7 +97,10 @@ def score_to_folder(
     ----------
     technique, params : a registered technique and its parsed parameters.
     candidate : an EXR or PNG file, or a pattern with ``{frame}`` (one of the two).
-    channel : what is scored (None: the technique's primary channel; ``color`` for files).
+    channel : what is scored (None: the technique's primary channel; for files, inferred
+        from the file when unambiguous); for files also an EXR channel or layer name.
+    layout : for files, what to read (:func:`oracle.scoring.layout.candidate_layout`; None:
+        resolved here from frame 0's file and ``channel``).
     frames : score that many frames of ``camera_path`` and add the temporal metrics (None or
         1: the scene's own frame).
     thresholds : ``{metric: limit}`` from :func:`oracle.scoring.score.parse_thresholds`.
@@ -117,11 +121,17 @@ def score_to_folder(
         if params:
             raise ScoreError("--set applies to --technique, not to --candidate")
         params = None
-        channel = channel or "color"
-        read = file_candidate(candidate, channel=channel, frames=frames)
+        if layout is None:
+            layout = candidate_layout(frame_file(candidate, 0), channel=channel)
+        read = file_candidate(candidate, channel=channel, frames=frames, layout=layout)
         _check_candidates(read, loaded, frames, camera_path)
-        result = score(loaded, channel=channel, candidate_frames=read, **opts)
-        name = Path(candidate).name
+        result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
+        result.record["candidate_layout"] = {
+            "kind": layout.kind,
+            "channels": list(layout.names),
+            "source": layout.source,
+        }
+        name = candidate_name(candidate, frames=frames, camera_path=camera_path)
     return write_score_folder(
         result,
         out,

@@ -13,7 +13,9 @@ rendered:
 
 Every metric is also computed for a second, independently seeded reference of the same spp
 against the first: its noise floor. With ``frames`` the camera path is scored frame by frame
-(per-frame metrics averaged) and the temporal metrics are added.
+(per-frame metrics averaged, each frame's kept in ``frames``) and the temporal metrics are
+added: ``flicker`` (:func:`added_flicker`, non-negative) and ``temporal_error``, with noise
+floors from every frame's second reference.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ __all__ = [
     "REFERENCE_GROUPS",
     "ScoreError",
     "ScoreResult",
+    "added_flicker",
     "coverage_metrics",
     "failures",
     "metric_limit",
@@ -79,7 +82,12 @@ REFERENCE_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
     "coverage": ("coverage", "edge", "id"),
+    # the coverage of each pixel's front-most primitive (oracle.reference.coverage): what the
+    # anti-aliasing models are scored on, so that backdrop scenes have coverage edges too
+    "front_coverage": ("coverage", "edge", "id"),
 }
+#: Channels of sample counts (binary samples: binomial noise floor).
+COVERAGE_CHANNELS = ("coverage", "front_coverage")
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
 
 
@@ -163,10 +171,10 @@ def _metrics_for(
         if full:
             maps["visibility_error"] = sm["signed_error"]
             maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    elif channel == "coverage":
-        ref = ref_ch["coverage"]
+    elif channel in COVERAGE_CHANNELS:
+        ref = ref_ch[channel]
         rec = None
-        ref_se = ref_ch["coverage_stderr"]
+        ref_se = ref_ch[f"{channel}_stderr"]
         out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=aa_samples))
         # silhouettes against the sky are edges of coverage even where one shape is seen
         edge = edge | ((ref > 0) & (ref < 1))
@@ -198,7 +206,7 @@ def _metrics_for(
     out["edge_mae"], out["interior_mae"] = ei["edge_mae"], ei["interior_mae"]
     # radiance a missed sub-pixel feature could have: the reference's 99th percentile
     scale = 1.0 if ref.ndim == 2 else np.percentile(ref.reshape(-1, ref.shape[-1]), 99, axis=0)
-    binary = channel in ("visibility", "coverage")
+    binary = channel in ("visibility", *COVERAGE_CHANNELS)
     zt = M.z_test(ref, ref_se, cand, samples=samples, floor_scale=scale, binary=binary, full=full)
     out["significant_fraction"] = zt["significant_fraction"]
     if full:
@@ -258,6 +266,41 @@ def _noise_floor(
     return floor
 
 
+def added_flicker(reference_frames: np.ndarray, candidate_frames: np.ndarray) -> float:
+    """Flicker the candidate adds, non-negative: ``mean(max(0, |c[t+1] - c[t]| -
+    |r[t+1] - r[t]|))`` over frame pairs, pixels and channels.
+
+    ``metrics.flicker`` (METRICS.md's temporal metric) subtracts the two means, so a candidate
+    that is steadier than the reference in one region cancels flicker elsewhere and the value
+    can be negative. Here the reference's own change is subtracted per pixel and only the
+    excess counts: 0 when the candidate never changes more than the reference, and a
+    smoothed-away change is not credited against a crawling edge. Its noise floor is what
+    an exact candidate scores (the seed + 1 reference, as for the other metrics).
+    """
+    ref = np.asarray(reference_frames, dtype=np.float64)
+    cand = np.asarray(candidate_frames, dtype=np.float64)
+    if ref.shape != cand.shape or ref.shape[0] < 2:
+        raise ScoreError(f"flicker needs two equal sequences of >= 2 frames, got {ref.shape}")
+    excess = np.abs(np.diff(cand, axis=0)) - np.abs(np.diff(ref, axis=0))
+    return float(np.maximum(excess, 0.0).mean())
+
+
+def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet) -> dict:
+    """Temporal metrics an exact candidate scores: every frame's independently seeded second
+    reference (``settings``) turned into the exact surrogate of its first."""
+    exact = []
+    for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
+        ch2 = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
+        second = ch2[channel] if channel != "color" else _rgb(ch2, "color")
+        exact.append(M.exact_surrogate(frame.reference, second))
+    refs = np.stack([f.reference for f in result.frames])
+    exact = np.stack(exact)
+    return {
+        "flicker": added_flicker(refs, exact),
+        "temporal_error": M.temporal_error(refs, exact),
+    }
+
+
 def _summary(result: ScoreResult, *, temporal: bool) -> dict:
     """Per-frame metrics averaged over the frames, and the temporal metrics of the path."""
     per_frame = [f.metrics for f in result.frames]
@@ -268,7 +311,7 @@ def _summary(result: ScoreResult, *, temporal: bool) -> dict:
     if temporal:
         refs = np.stack([f.reference for f in result.frames])
         cands = np.stack([f.candidate for f in result.frames])
-        summary["flicker"] = M.flicker(refs, cands)
+        summary["flicker"] = added_flicker(refs, cands)
         summary["temporal_error"] = M.temporal_error(refs, cands)
     return summary
 
@@ -321,7 +364,7 @@ def score(
 
     Parameters
     ----------
-    channel : ``"visibility"``, ``"color"`` or ``"coverage"``.
+    channel : ``"visibility"``, ``"color"``, ``"coverage"`` or ``"front_coverage"``.
     candidate_frames : callable ``(frame_scene, k) -> (image, info)`` giving the candidate of
         frame ``k`` (a model run, or an image file read and validated) and a plain record
         (cost, diagnostics, file name) for the report.
@@ -332,7 +375,7 @@ def score(
         the references and scoring options only, so it is computed once per reference.
     """
     if channel not in REFERENCE_GROUPS:
-        raise ScoreError(f"channel must be 'visibility', 'color' or 'coverage', got {channel!r}")
+        raise ScoreError(f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {channel!r}")
     flip_mode = flip_mode.upper()
     if flip_mode not in ("LDR", "HDR"):
         raise ScoreError(f"flip mode must be LDR or HDR, got {flip_mode!r}")
@@ -344,8 +387,10 @@ def score(
     result = ScoreResult(record={})
     exposure = flip_range = None
     infos = []
+    scenes_k = []
     for k in range(n):
         frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
+        scenes_k.append(frame_scene)
         ref = get_reference(frame_scene, settings, cache=cache, quiet=quiet)
         ref_ch = ref.channels()
         cand, info = candidate_frames(frame_scene, k)
@@ -381,6 +426,12 @@ def score(
             )
         result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
         result.reference_folders.append(ref.folder)
+    if frames and n >= 2:
+        floor = dict(result.frames[0].noise_floor or {})
+        floor.update(
+            _temporal_floor(result, scenes_k, noise_settings, channel, cache=cache, quiet=quiet)
+        )
+        result.frames[0].noise_floor = floor
     tone = None
     if channel == "color":
         tone = {

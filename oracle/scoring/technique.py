@@ -3,6 +3,11 @@
 Shadow techniques are scored on visibility; anti-aliasing techniques on colour, with the
 coverage metrics (against the straight-edge floor of their sample count) merged in. The model
 runs once per frame whatever the number of channels scored.
+
+Every colour candidate is linear radiance that scoring tone-maps with the reference's
+exposure and the ACES curve (``tone_mapping`` in ``metrics.json``), the reference alike.
+FXAA works in display space (:mod:`raster_models.aa.fxaa`): its ``color`` is the radiance the
+same pipeline maps to its LDR sRGB output, so its blends are scored as displayed.
 """
 
 from __future__ import annotations
@@ -136,10 +141,14 @@ def score_model(
         **kw,
     )
     if "coverage" in produced:
+        # the coverage metrics of a model: its front-most primitive's coverage against the
+        # reference's (oracle.reference.coverage), an edge on every scene, backdrops included
         coverage = score(
             loaded,
-            channel="coverage",
-            candidate_frames=model_candidate(technique, params, channel="coverage", runs=runs),
+            channel="front_coverage",
+            candidate_frames=model_candidate(
+                technique, params, channel="front_coverage", runs=runs
+            ),
             **kw,
         )
         _merge_coverage(result, coverage)

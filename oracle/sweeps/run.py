@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import sys
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -286,7 +287,9 @@ def _default_workers() -> int:
 def _progress(total: int, *, quiet: bool, desc: str):
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=desc, unit="case", disable=quiet, leave=False)
+    # a bar only on a terminal: in a CI log its carriage-return redraws are noise
+    disable = quiet or not sys.stderr.isatty()
+    return tqdm(total=total, desc=desc, unit="case", disable=disable, leave=False)
 
 
 def run_sweep(

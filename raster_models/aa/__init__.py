@@ -15,7 +15,7 @@ from .noaa import NoAAParams
 from .ssaa import SsaaParams
 
 #: Output channels of the anti-aliasing models (``ties``: ACAA, ``aggregates``: AGAA).
-AA_OUTPUT_CHANNELS = ("color", "coverage", "shading_events")
+AA_OUTPUT_CHANNELS = ("color", "coverage", "front_coverage", "shading_events")
 
 __all__ = [
     "AA_OUTPUT_CHANNELS",

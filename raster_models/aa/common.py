@@ -31,7 +31,7 @@ from ..result import ModelResult, model_result
 from ..shadowmaps import SHADOW_TECHNIQUES, supported_lights, visibility_at
 from . import resolve as _resolve
 from .fragments import Fragments, sample_film_positions, shading_positions
-from .trace import fragment_attributes, shade_points
+from .trace import fragment_attributes, shade_points, trace_samples
 
 __all__ = [
     "COLOR_FORMATS",
@@ -123,6 +123,24 @@ def histogram(events: np.ndarray) -> list[int]:
     return [int(c) for c in np.bincount(np.asarray(events, np.int64).ravel())]
 
 
+def front_coverage(scene, offsets) -> np.ndarray:
+    """``(P,)`` fraction of each pixel's samples (``offsets``, as :func:`.trace.trace_samples`
+    takes them) whose nearest surface is the shape seen through the pixel centre, the sky
+    counting as one: the coverage of the pixel's front-most primitive.
+
+    ``coverage`` (samples on any geometry) is 1 everywhere on a scene with a backdrop; this one
+    measures every silhouette, against the sky or against another surface. The same rule as
+    the reference's ``front_coverage`` (:mod:`oracle.reference.coverage`): the nearest hit of
+    each sample is what a depth test keeps, so it is the sample-count coverage of that shape
+    after the depth test, for every sample pattern. On a silhouette against the sky it is the
+    geometry coverage where the centre sees geometry and one minus it where the centre sees
+    sky: the same absolute errors.
+    """
+    centre = trace_samples(scene, np.array([[0.5, 0.5]]), keep=("shape",))["shape"][:, 0]
+    shapes = trace_samples(scene, offsets, keep=("shape",))["shape"]
+    return np.count_nonzero(shapes == centre[:, None], axis=1) / shapes.shape[1]
+
+
 def package(
     name: str,
     scene,
@@ -130,6 +148,7 @@ def package(
     *,
     color: np.ndarray,
     coverage: np.ndarray,
+    offsets: np.ndarray,
     events: np.ndarray,
     extra_outputs: dict,
     samples: int,
@@ -142,13 +161,15 @@ def package(
     diagnostics: dict,
     t0: float,
 ) -> ModelResult:
-    """A :class:`ModelResult` with the AA output channels and cost record."""
+    """A :class:`ModelResult` with the AA output channels and cost record; ``offsets``: the
+    sample positions, for ``front_coverage`` (:func:`front_coverage`)."""
     h, w = scene.height, scene.width
     events = np.asarray(events).reshape(h, w)
     by_buffer = {k: int(buffers.get(k, 0)) for k in ("color", "depth", "normal", "aggregates")}
     outputs = {
         "color": np.asarray(color, np.float32).reshape(h, w, 3),
         "coverage": np.asarray(coverage, np.float32).reshape(h, w),
+        "front_coverage": front_coverage(scene, offsets).astype(np.float32).reshape(h, w),
         "shading_events": events.astype(np.float32),
     }
     for k, v in extra_outputs.items():

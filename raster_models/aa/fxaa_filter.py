@@ -17,7 +17,12 @@ uses 8-bit fractions, a difference below 1/256 of a texel). The colour target is
 an sRGB-format (or float) texture, so the fetch returns linear data and filtering is linear,
 and luma is stored "in a perceptual space" as FXAA 3.11 requires: the header's recipe for a
 linear target, ``luma = sqrt(dot(rgb, (0.299, 0.587, 0.114)))`` (gamma 2.0), with the dot
-product clipped to ``[0, 1]`` as an 8-bit luma channel would store it.
+product clipped to ``[0, 1]`` as an 8-bit luma channel would store it. With
+``encoding="gamma"`` the colour target is modelled as a UNORM (non-sRGB) texture holding
+gamma-encoded LDR values, FXAA 3.11's other documented set-up (and the one engines ship: the
+tone-mapping pass writes gamma-encoded colour with ``luma = dot(rgb, (0.299, 0.587,
+0.114))`` of those encoded values in alpha): fetches and filtering act on the encoded values
+and the luma is the dot product itself, clipped to ``[0, 1]``.
 
 Preset: 12 by default, FXAA 3.11's own default (``FXAA_QUALITY__PRESET 12``: 5 steps,
 1.0, 1.5, 2.0, 4.0, 12.0 texels, "slightly faster than FXAA 3.9 and higher edge quality"), the
@@ -38,7 +43,7 @@ import numpy as np
 
 from ..errors import ModelError
 
-__all__ = ["FXAA_PRESETS", "fxaa", "fxaa_luma"]
+__all__ = ["ENCODINGS", "FXAA_PRESETS", "fxaa", "fxaa_luma"]
 
 #: Edge-search step table of every FXAA 3.11 quality preset (``FXAA_QUALITY__P0..P11``).
 FXAA_PRESETS: dict[int, tuple[float, ...]] = {
@@ -76,22 +81,32 @@ def _check_unit(name: str, value: float, *, low_open: bool) -> float:
     return v
 
 
-def fxaa_luma(rgb_linear: np.ndarray) -> np.ndarray:
-    """FXAA's luma of a linear image: ``sqrt(clip(dot(rgb, (0.299, 0.587, 0.114)), 0, 1))``.
+#: Colour encodings :func:`fxaa` accepts (see the module docstring).
+ENCODINGS = ("linear", "gamma")
+
+
+def fxaa_luma(rgb_linear: np.ndarray, *, encoding: str = "linear") -> np.ndarray:
+    """FXAA's luma: ``sqrt(clip(dot(rgb, (0.299, 0.587, 0.114)), 0, 1))`` of a linear image
+    (``encoding="linear"``), ``clip(dot(rgb, ...), 0, 1)`` of a gamma-encoded one
+    (``encoding="gamma"``: FXAA 3.11's luma of gamma-space colour, already perceptual).
 
     Parameters
     ----------
     rgb_linear : (H, W, 3) array
-        Linear radiance, display-referred (tone-mapped) so that 1 is white.
+        Display-referred (tone-mapped) colour so that 1 is white: linear for ``"linear"``,
+        gamma-encoded for ``"gamma"``.
 
     Returns
     -------
-    (H, W) float32 array in ``[0, 1]``, gamma 2.0 encoded.
+    (H, W) float32 array in ``[0, 1]``, perceptually encoded.
     """
     rgb = np.asarray(rgb_linear, dtype=_F)
     w = np.asarray(LUMA_WEIGHTS, dtype=_F)
     y = rgb[..., 0] * w[0] + rgb[..., 1] * w[1] + rgb[..., 2] * w[2]
-    return np.sqrt(np.clip(y, _F(0.0), _F(1.0))).astype(_F)
+    y = np.clip(y, _F(0.0), _F(1.0))
+    if encoding == "gamma":
+        return y.astype(_F)
+    return np.sqrt(y).astype(_F)
 
 
 def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -248,8 +263,9 @@ def fxaa(
     edge_threshold: float = 0.166,
     edge_threshold_min: float = 0.0833,
     preset: int = 12,
+    encoding: str = "linear",
 ) -> np.ndarray:
-    """Apply FXAA 3.11 (quality path) to a linear image.
+    """Apply FXAA 3.11 (quality path) to a display-referred image.
 
     Parameters
     ----------
@@ -267,12 +283,17 @@ def fxaa(
         in ``[0, 1]``; 0.0833: FXAA 3.11 default.
     preset : int
         ``FXAA_QUALITY__PRESET``, one of :data:`FXAA_PRESETS`; 12: FXAA 3.11 default.
+    encoding : ``"linear"`` or ``"gamma"``
+        How the image is stored (:data:`ENCODINGS`, module docstring): ``"linear"``, an
+        sRGB-format target read as linear values, luma ``sqrt(dot)``; ``"gamma"``,
+        gamma-encoded LDR values filtered as stored, luma ``dot``. Values outside [0, 1]
+        only occur if the caller skipped tone mapping: FXAA's thresholds assume [0, 1].
 
     Returns
     -------
     (H, W, 3) float32 array
-        Linear radiance after FXAA. Pixels below the contrast threshold are returned
-        unchanged (bit for bit).
+        The image after FXAA, in the input's encoding. Pixels below the contrast threshold
+        are returned unchanged (bit for bit).
 
     Notes
     -----
@@ -287,10 +308,12 @@ def fxaa(
         raise ModelError("fxaa input image has NaN or inf values")
     if preset not in FXAA_PRESETS:
         raise ModelError(f"fxaa preset must be one of {sorted(FXAA_PRESETS)}, got {preset!r}")
+    if encoding not in ENCODINGS:
+        raise ModelError(f"fxaa encoding must be one of {', '.join(ENCODINGS)}, got {encoding!r}")
     q_subpix = _F(_check_unit("subpix", subpix, low_open=False))
     q_thr = _F(_check_unit("edge_threshold", edge_threshold, low_open=True))
     q_thr_min = _F(_check_unit("edge_threshold_min", edge_threshold_min, low_open=False))
-    luma = fxaa_luma(rgb)
+    luma = fxaa_luma(rgb, encoding=encoding)
     tap, luma_range, early_exit = _neighbourhood(luma, q_thr, q_thr_min)
     out = rgb.copy()
     iy, ix = np.nonzero(~early_exit)

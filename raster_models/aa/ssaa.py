@@ -79,6 +79,7 @@ def supersample(name: str, scene, p, offsets, *, t0: float):
         p,
         color=color,
         coverage=events / n,
+        offsets=offsets,
         events=events,
         extra_outputs={},
         samples=n,

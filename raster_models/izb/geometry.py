@@ -29,7 +29,9 @@ __all__ = [
     "RASTER_CHUNK",
     "chunks_by_total",
     "conservative_fragments",
+    "onto_own_planes",
     "scene_triangles",
+    "surface_triangles",
     "shadow_volumes",
 ]
 
@@ -42,6 +44,15 @@ RASTER_CHUNK = 1 << 22
 
 #: Key of the occluder triangles in ``LoadedScene.memo``.
 MEMO_KEY = "izb_triangles"
+
+#: Key of each shape's first triangle and plane rule in ``LoadedScene.memo``
+#: (:func:`surface_triangles`).
+RANGES_KEY = "izb_triangle_ranges"
+
+#: A shape's triangles: its own faces (a mesh: Mitsuba's primitive index is the face), all in
+#: one plane (a rectangle or disk: any of them holds the surface), or none in the surface (a
+#: sphere or cylinder: the tessellation only approximates it).
+FACES, PLANAR, CURVED = 0, 1, 2
 
 #: Triangles whose unit normal has ``|n . d|`` below this are edge-on to the light: zero
 #: projected area, no shadow (their neighbours' volumes cover the same rays).
@@ -59,13 +70,62 @@ def scene_triangles(scene) -> np.ndarray:
         from ...scenes.export import shape_mesh
 
         mi = backend.mitsuba()
-        parts = []
+        parts, first, rule = [], [], []
         for shape in scene.mi_scene.shapes():  # a loop over shapes, not triangles
             v, f = shape_mesh(mi, shape)
+            first.append(sum(len(q) for q in parts))
+            kind = shape.class_name()
+            rule.append(PLANAR if kind in ("Rectangle", "Disk") else CURVED)
+            if "vertex_positions" in mi.traverse(shape).keys():
+                rule[-1] = FACES
             parts.append(np.asarray(v, dtype=np.float64)[np.asarray(f, dtype=np.int64)])
         tris = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
         scene.memo[MEMO_KEY] = tris
+        scene.memo[RANGES_KEY] = (np.asarray(first, np.int64), np.asarray(rule, np.int64))
     return tris
+
+
+def surface_triangles(scene, shape: np.ndarray, prim: np.ndarray) -> np.ndarray:
+    """Index into :func:`scene_triangles` of a triangle lying in the surface of each visible
+    point (``shape``, ``prim``: a G-buffer's shape and primitive indices), -1 where there is
+    none: the mesh face ``prim``, a rectangle's or disk's first triangle (its plane), nothing
+    on a sphere or cylinder or where nothing was hit."""
+    scene_triangles(scene)
+    first, rule = scene.memo[RANGES_KEY]
+    out = np.full(len(shape), -1, dtype=np.int64)
+    hit = shape >= 0
+    s = shape[hit].astype(np.int64)
+    idx = first[s] + np.where(rule[s] == FACES, prim[hit], 0)
+    out[hit] = np.where(rule[s] == CURVED, -1, idx)
+    return out
+
+
+def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
+    """Points ``p (N, 3)`` moved along their own triangle's normal onto its plane, in float64
+    (``own``: index into ``tris`` of each point's triangle, -1: left as is), and whether each
+    was moved.
+
+    A G-buffer position is float32: it lies up to a few ulps of ``|p|`` off its surface, so its
+    distance to its own triangle's plane (zero in truth) is rounding of that size, 0.06 mm
+    1,000 units from the origin. On the plane it is float64 rounding (about 2^-50 of ``|p|``),
+    and a distance to another triangle's plane is known to that precision too: what lets the
+    epsilon band (:func:`raster_models.izb.kernel.band_floor`) flag gaps far below float32
+    rounding. The move is along the normal only, by that rounding: the sample stays where the
+    pixel's ray met the surface, up to float32 precision.
+    """
+    p = np.array(p, dtype=np.float64)
+    moved = own >= 0
+    t = tris[own[moved]]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    length = np.linalg.norm(n, axis=1)
+    ok = length > 0.0  # zero-area triangles have no plane
+    n = n[ok] / length[ok, None]
+    rows = np.flatnonzero(moved)[ok]
+    dist = np.sum((p[rows] - t[ok, 0]) * n, axis=1)
+    p[rows] -= dist[:, None] * n
+    moved[:] = False
+    moved[rows] = True
+    return p, moved
 
 
 def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None):

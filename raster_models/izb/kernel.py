@@ -44,6 +44,7 @@ from .geometry import chunks_by_total
 
 __all__ = [
     "BAND_FLOOR",
+    "BAND_FLOOR_ON_PLANE",
     "DRJIT_PAIR_CHUNK",
     "FULL_MASK",
     "DeadPairs",
@@ -54,8 +55,17 @@ __all__ = [
 
 #: Distances to a triangle's plane below ``BAND_FLOOR * (1 + max|p|)`` are float32 rounding
 #: (a receiver on its own triangle or a coplanar neighbour; the G-buffer position is float32,
-#: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps.
+#: 2^-24 relative): they do not count in the epsilon band. 2^-18: 64 ulps. The floor of a
+#: receiver whose position was not put on its own triangle's plane (a sphere, a cylinder).
 BAND_FLOOR = 2.0**-18
+
+#: The floor of a receiver put on its own triangle's plane in float64
+#: (:func:`raster_models.izb.geometry.onto_own_planes`): its distance to that plane, and the
+#: plane values of the kernels, are float64 rounding (about 2^-50 of ``1 + max|p|``); 2^-40
+#: leaves a thousand times that. Any gap above it, at any distance from the origin, is in
+#: the band: 1,000 units away, 3.8e-3 with :data:`BAND_FLOOR` (above a 1e-3 epsilon: no band
+#: at all) and 9.1e-10 with this one.
+BAND_FLOOR_ON_PLANE = 2.0**-40
 
 #: Pairs per Dr.Jit launch (bounded memory: about 40 bytes of inputs and outputs per pair).
 DRJIT_PAIR_CHUNK = 1 << 21
@@ -64,9 +74,10 @@ DRJIT_PAIR_CHUNK = 1 << 21
 FULL_MASK = np.uint32(0xFFFFFFFF)
 
 
-def band_floor(p, eps: float):
+def band_floor(p, eps: float, scale=BAND_FLOOR):
     """Lower end of the epsilon band below the pushed plane, per point ``p (P, 3)``:
-    ``BAND_FLOOR (1 + max|p|) - eps`` (the same operations on NumPy and Dr.Jit columns)."""
+    ``scale (1 + max|p|) - eps`` (the same operations on NumPy and Dr.Jit columns);
+    ``scale``: :data:`BAND_FLOOR` or :data:`BAND_FLOOR_ON_PLANE`, one or per point."""
     if isinstance(p, np.ndarray):
         p, maximum = (p[:, 0], p[:, 1], p[:, 2]), np.maximum
     else:
@@ -74,7 +85,7 @@ def band_floor(p, eps: float):
 
         maximum = dr.maximum
     big = maximum(maximum(abs(p[0]), abs(p[1])), abs(p[2]))
-    return BAND_FLOOR * (1.0 + big) - eps
+    return scale * (1.0 + big) - eps
 
 
 def vectorized() -> bool:
@@ -123,8 +134,9 @@ class PairTester:
     ----------
     planes : ``(K, 4, 4)`` float64 shadow-volume planes
         (:func:`raster_models.izb.geometry.shadow_volumes`).
-    recv : ``p`` ``(M, 3)`` and, for 32 samples, ``dpdx``, ``dpdy`` ``(M, 3)`` and the
-        tangent-plane offsets ``a``, ``b`` ``(32,)``.
+    recv : ``p`` ``(M, 3)``, optionally ``floor_scale`` ``(M,)`` (the ``scale`` of each
+        receiver's :func:`band_floor`; :data:`BAND_FLOOR` without it) and, for 32 samples,
+        ``dpdx``, ``dpdy`` ``(M, 3)`` and the tangent-plane offsets ``a``, ``b`` ``(32,)``.
     node_recv : ``(N,)`` receiver of each node of the lists as built; a join's lists are
         these nodes or a subset of them (``node_id``, see :meth:`join`).
     epsilon : the shadow volumes' epsilon (world units); each receiver's band floor is
@@ -200,6 +212,8 @@ class PairTester:
             d["sources"] = [
                 f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel()) for k in keys
             ]
+            scale = self.recv.get("floor_scale")
+            d["scale"] = None if scale is None else f64(np.asarray(scale, dtype=np.float64))
             # row arrays of power-of-two widths (packet loads, see _plane_terms): p, dP/dx,
             # dP/dy and the floor (10 values) as 8 + 2; p and the floor as 4
             d["widths"] = (8, 2) if self.thirty_two else (4,)
@@ -229,7 +243,8 @@ class PairTester:
         f64 = mi.Float64
         n = dr.width(recv)
         cols = [dr.gather(f64, src, recv * 3 + j) for src in d["sources"] for j in range(3)]
-        cols.append(band_floor(cols[:3], self.epsilon))
+        scale = BAND_FLOOR if d["scale"] is None else dr.gather(f64, d["scale"], recv)
+        cols.append(band_floor(cols[:3], self.epsilon, scale))
         out, lane = [], dr.arange(mi.UInt32, n)
         for w in d["widths"]:  # packet stores
             arr = dr.empty(f64, n * w)

@@ -73,9 +73,15 @@ from ..light_frame import make_frame
 from ..params import param
 from ..result import ModelResult, model_result
 from ..shadowmaps.fit import light_frame_for
-from .geometry import conservative_fragments, scene_triangles, shadow_volumes
+from .geometry import (
+    conservative_fragments,
+    onto_own_planes,
+    scene_triangles,
+    shadow_volumes,
+    surface_triangles,
+)
 from .grids import Grids, build_grids
-from .kernel import PairTester, vectorized
+from .kernel import BAND_FLOOR, BAND_FLOOR_ON_PLANE, PairTester, vectorized
 from .lists import FULL_MASK, Joins, JoinStats
 from .samples import Samples, frame_samples, partitions
 
@@ -156,7 +162,10 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         frame = make_frame(light.direction, [("world_y", (0.0, 1.0, 0.0))], light.position)
     else:
         frame = light_frame_for(light, scene.camera, p.light_up)
-    smp = frame_samples(gbuf, light, frame, samples=p.samples)
+    position, floor_scale = _receiver_positions(scene, gbuf)
+    smp = frame_samples(
+        gbuf, light, frame, samples=p.samples, position=position, floor_scale=floor_scale
+    )
     splits, part = partitions(np.take(gbuf.depth, smp.rec), p.cascades)
     grids = build_grids(smp, part, cascades=p.cascades, resolution=p.resolution)
     built = grids.lists.lengths()
@@ -189,6 +198,16 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         params=_params.as_dict(p),
         t0=t0,
     )
+
+
+def _receiver_positions(scene, gbuf):
+    """The pixels' positions put on their own triangles' planes in float64, and the epsilon
+    band's floor scale of each (exact on a plane, float32 rounding elsewhere): see
+    :func:`raster_models.izb.geometry.onto_own_planes`."""
+    tris = scene_triangles(scene)
+    own = surface_triangles(scene, gbuf.shape, gbuf.prim)
+    position, moved = onto_own_planes(tris, own, gbuf.position)
+    return position, np.where(moved, BAND_FLOOR_ON_PLANE, BAND_FLOOR)
 
 
 def _check_light(light) -> None:

@@ -101,9 +101,11 @@ def unlit_bits(light, gbuf, cand: np.ndarray, a: np.ndarray, b: np.ndarray) -> n
     return out
 
 
-def frame_samples(gbuf, light, frame, *, samples: int) -> Samples:
+def frame_samples(gbuf, light, frame, *, samples: int, position=None, floor_scale=None) -> Samples:
     """The receivers of G-buffer ``gbuf`` under ``light`` and their samples in light frame
-    ``frame`` (``samples``: 1 or 32)."""
+    ``frame`` (``samples``: 1 or 32). ``position`` ``(N, 3)``: the pixels' positions to use
+    instead of ``gbuf.position`` (on their own triangles' planes), with ``floor_scale``
+    ``(N,)`` the band floor's scale of each (see :class:`raster_models.izb.kernel.PairTester`)."""
     spot = light.kind == "spot"
     a, b = tangent_offsets()
     if spot and samples == 32:
@@ -115,10 +117,12 @@ def frame_samples(gbuf, light, frame, *, samples: int) -> Samples:
         init = np.zeros(len(rec), dtype=np.uint32)
     rot = frame.rotation()
     # np.take: the same rows as fancy indexing, about twice as fast on (N, 3)
-    pos = np.take(gbuf.position, rec, axis=0)
+    pos = np.take(gbuf.position if position is None else position, rec, axis=0)
     # a directional light's frame has its origin at 0: p - 0 is p, no temporary needed
     lc = frame.to_light(pos) if frame.origin.any() else pos @ rot.T
     recv = {"p": pos}
+    if floor_scale is not None:
+        recv["floor_scale"] = np.take(floor_scale, rec)
     ldx = ldy = None
     if samples == 32:
         recv.update(dpdx=np.take(gbuf.dpdx, rec, axis=0), dpdy=np.take(gbuf.dpdy, rec, axis=0))

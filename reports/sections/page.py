@@ -1,6 +1,6 @@
 """Pages made of section records: a study's own page (``claims.html``, ``extremes.html``,
 ``converge.html``, ``aa_memory.html``) and the sweep report's page, rendered with the
-package's jinja2 templates (autoescaped, self-contained: inline CSS and SVG, no script)."""
+package's jinja2 templates (autoescaped, self-contained: inline CSS, SVG and script, no network)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 
 from .. import _env
 from ._record import SECTION_SCHEMA
+from .overview import overview_record
 from .sweep import sweep_view
 
 __all__ = [
@@ -58,6 +59,9 @@ def render_sweep_page(record: Mapping, *, images: Mapping[str, Mapping] | None =
     ``"sections"``); ``images`` are thumbnails by row key (``data:`` URIs; others are
     dropped), shown for the cases on each group's headline front."""
     _check_sections(record.get("sections", []))
+    record = {"sections": [], **record}
+    if "overview" not in record:
+        record["overview"] = overview_record(record)
     view = sweep_view(record, images=images)
     template = _env.environment().get_template("sweep.html")
-    return template.render(record={"sections": [], **record}, view=view)
+    return template.render(record=record, view=view)

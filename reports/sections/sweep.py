@@ -6,14 +6,14 @@ escaped here; the template escapes the rest."""
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Mapping, Sequence
 
-from markupsafe import Markup, escape
+from markupsafe import Markup
 
-from ..formatting import fmt_cost, fmt_number, fmt_value
-from ..svg import axis, scatter_svg
+from .. import plots
+from ..formatting import fmt_cost, fmt_value
+from .overview import group_anchor
 
 __all__ = [
     "PALETTE",
@@ -25,100 +25,11 @@ __all__ = [
     "technique_colours",
 ]
 
-_FONT = 'font-family="system-ui, sans-serif" font-size="11"'
-#: Smallest max/min ratio of a positive numeric parameter drawn on a log axis.
-LOG_SPAN = 4.0
-#: Most parameter settings that get a tick each (more: round ticks).
-MAX_LEVEL_TICKS = 8
-
 
 def sensitivity_svg(item: Mapping) -> Markup:
-    """Metric against one parameter: every case (hollow) and the mean per value (line).
-
-    Numeric parameters use a value axis (base-2 logarithmic when positive and spanning at
-    least :data:`LOG_SPAN` times, as resolutions and sample counts do); other parameters are
-    evenly spaced categories.
-    """
-    width, height = 460.0, 260.0
-    left, right, top, bottom = 74.0, 16.0, 14.0, 42.0
-    plot_w, plot_h = width - left - right, height - top - bottom
-    levels = item["levels"]
-    numeric = item["numeric"]
-    ys = [p["y"] for p in item["points"]]
-    y_lo, y_hi, y_ticks = axis(ys, log_base=None)
-    if numeric:
-        xs = [float(level["x"]) for level in levels]
-        log_x = min(xs) > 0 and max(xs) / min(xs) >= LOG_SPAN
-        x_lo, x_hi, x_ticks = axis(xs, log_base=2.0 if log_x else None)
-
-        def sx(v) -> float:
-            v = float(v)
-            if log_x:
-                t = (math.log(v) - math.log(x_lo)) / (math.log(x_hi) - math.log(x_lo))
-            else:
-                t = (v - x_lo) / (x_hi - x_lo)
-            return left + plot_w * t
-
-        if len(xs) <= MAX_LEVEL_TICKS:  # a few settings: tick at each one
-            x_ticks = xs
-        tick_labels = [(sx(t), fmt_number(t)) for t in x_ticks]
-    else:
-        names = [fmt_value(level["x"]) for level in levels]
-        index = {n: i for i, n in enumerate(names)}
-
-        def sx(v) -> float:
-            return left + plot_w * (index[fmt_value(v)] + 0.5) / len(names)
-
-        tick_labels = [(sx(level["x"]), n) for level, n in zip(levels, names, strict=True)]
-
-    def sy(v: float) -> float:
-        return top + plot_h * (1.0 - (v - y_lo) / (y_hi - y_lo))
-
-    title = f"{item['metric']} vs {item['param']} ({item['technique']} on {item['scene']})"
-    parts = [
-        f'<svg class="scatter" viewBox="0 0 {width:g} {height:g}" role="img" '
-        f'aria-label="{escape(title)}" xmlns="http://www.w3.org/2000/svg">',
-        f'<rect x="{left:g}" y="{top:g}" width="{plot_w:g}" height="{plot_h:g}" '
-        'fill="#f8fafc" stroke="#cbd5e1"/>',
-    ]
-    for x, text in tick_labels:
-        parts.append(
-            f'<line x1="{x:.2f}" x2="{x:.2f}" y1="{top:g}" y2="{top + plot_h:g}" '
-            f'stroke="#e2e8f0"/><text x="{x:.2f}" y="{top + plot_h + 14:g}" '
-            f'text-anchor="middle" fill="#475569" {_FONT}>{escape(text)}</text>'
-        )
-    for t in y_ticks:
-        y = sy(t)
-        parts.append(
-            f'<line x1="{left:g}" x2="{left + plot_w:g}" y1="{y:.2f}" y2="{y:.2f}" '
-            f'stroke="#e2e8f0"/><text x="{left - 6:g}" y="{y + 3:.2f}" text-anchor="end" '
-            f'fill="#475569" {_FONT}>{escape(fmt_number(t))}</text>'
-        )
-    parts.append(
-        f'<text x="{left + plot_w / 2:g}" y="{height - 8:g}" text-anchor="middle" '
-        f'fill="#0f172a" {_FONT}>{escape(item["param"])}</text>'
-        f'<text transform="translate(12 {top + plot_h / 2:g}) rotate(-90)" '
-        f'text-anchor="middle" fill="#0f172a" {_FONT}>{escape(item["metric"])}</text>'
-    )
-    line = " ".join(
-        f"{'M' if i == 0 else 'L'}{sx(level['x']):.2f},{sy(level['mean']):.2f}"
-        for i, level in enumerate(levels)
-    )
-    parts.append(f'<path d="{line}" fill="none" stroke="#2563eb" stroke-width="1.6"/>')
-    for p in item["points"]:
-        parts.append(
-            f'<circle cx="{sx(p["x"]):.2f}" cy="{sy(p["y"]):.2f}" r="3.5" fill="#ffffff" '
-            f'stroke="#94a3b8" stroke-width="1.2"><title>{escape(item["param"])} = '
-            f"{escape(fmt_value(p['x']))}: {escape(fmt_number(p['y']))}</title></circle>"
-        )
-    for level in levels:
-        parts.append(
-            f'<circle cx="{sx(level["x"]):.2f}" cy="{sy(level["mean"]):.2f}" r="4" '
-            f'fill="#2563eb"><title>mean of {level["n"]}: {escape(fmt_number(level["mean"]))}'
-            "</title></circle>"
-        )
-    parts.append("</svg>")
-    return Markup("".join(parts))
+    """Metric against one parameter (:func:`reports.plots.sensitivity_plot`)."""
+    salt = f"sens-{item['technique']}-{item['scene']}-{item['param']}-{item['metric']}"
+    return plots.sensitivity_plot(item, salt=salt)
 
 
 #: Colours of the techniques of one plot, in order of appearance (Tableau 10).
@@ -142,31 +53,12 @@ def technique_colours(techniques: Sequence[str]) -> dict[str, str]:
 
 
 def front_svg(front: Mapping, colour: Mapping[str, str] | None = None) -> Markup:
-    """Cost against error of one family and scene: the front as a staircase (as
-    :func:`reports.svg.scatter_svg` draws it), each technique in its colour (``colour``,
-    default: by order of appearance) with a legend; points on the front are filled,
-    dominated ones hollow."""
-    base = str(scatter_svg(front, cost_key=front["cost_key"], metric=front["metric"]))
+    """Cost against error of one family and scene (:func:`reports.plots.front_plot`), each
+    technique in its colour (``colour``, default: by order of appearance)."""
     techs = list(dict.fromkeys(p["technique"] for p in front["points"]))
     colour = dict(colour or technique_colours(techs))
-    # recolour each point: scatter_svg draws them in order, one <circle class="point..."> each
-    parts = base.split('<circle class="point')
-    out = [parts[0]]
-    for p, rest in zip(front["points"], parts[1:], strict=True):
-        c = colour[p["technique"]]
-        fill = c if p["on_front"] else "#ffffff"
-        rest = rest.replace('fill="#2563eb"', f'fill="{fill}"', 1)
-        rest = rest.replace('fill="#ffffff"', f'fill="{fill}"', 1)
-        rest = rest.replace('stroke="#1e3a8a"', f'stroke="{c}"', 1)
-        rest = rest.replace('stroke="#94a3b8"', f'stroke="{c}"', 1)
-        out.append(rest)
-    svg = '<circle class="point'.join(out)
-    legend = "".join(
-        f'<span class="legend-item"><span class="swatch" style="background:{colour[t]}">'
-        f"</span>{escape(t)}</span>"
-        for t in techs
-    )
-    return Markup(f'{svg}<div class="legend">{legend}</div>')
+    salt = f"front-{front['family']}-{front['cost_key']}-{front['metric']}"
+    return plots.front_plot(front, colours=colour, salt=salt)
 
 
 def fmt_params(params: Mapping) -> str:
@@ -246,17 +138,38 @@ def _gallery(groups: Sequence[Mapping], images: Mapping[str, Mapping]) -> list[d
     return out
 
 
+def _cases_filters(cases: Sequence[Mapping]) -> dict:
+    """The choices of the cases table's filters: scenes, techniques, parameter names."""
+    return {
+        "scenes": sorted({c["scene"] for c in cases}),
+        "techniques": sorted({c["technique"] for c in cases}),
+        "params": sorted({k for c in cases for k in c.get("params") or {}}),
+    }
+
+
 def sweep_view(record: Mapping, *, images: Mapping[str, Mapping] | None = None) -> dict:
-    """What the page shows besides ``record``: ``colours`` (technique -> colour), ``best``
-    (the best-at-equal-cost tables) and ``gallery`` (thumbnails by row key from ``images``:
-    ``{"reference", "candidate", "error"}`` data URIs; anything else is dropped)."""
-    best = [
-        _best_table(f"{g['family']} on {g['scene']}: {f['metric']} by {f['cost_key']}", f)
-        for g in record["groups"]
-        for f in g["fronts"]
-    ]
+    """What the page shows besides ``record``: ``colours`` (technique -> colour), ``groups``
+    (per family and scene: its anchor and its best-at-equal-cost tables), ``best`` (all
+    those tables), ``filters`` (the cases table's choices) and ``gallery`` (thumbnails by
+    row key from ``images``: ``{"reference", "candidate", "error"}`` data URIs; anything else
+    is dropped)."""
+    groups = []
+    for g in record["groups"]:
+        tables = [
+            _best_table(f"{g['family']} on {g['scene']}: {f['metric']} by {f['cost_key']}", f)
+            for f in g["fronts"]
+        ]
+        groups.append(
+            {
+                "anchor": group_anchor(g["family"], g["scene"]),
+                "heading": f"{g['family']} on {g['scene']}",
+                "best": tables,
+            }
+        )
     return {
         "colours": _colours(record["cases"]),
-        "best": best,
+        "groups": groups,
+        "best": [t for g in groups for t in g["best"]],
+        "filters": _cases_filters(record["cases"]),
         "gallery": _gallery(record["groups"], images or {}),
     }

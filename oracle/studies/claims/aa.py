@@ -78,7 +78,10 @@ AGAA_SAVING = (0.30, 0.37)
 
 def _agaa(ctx: ClaimContext) -> dict:
     """AGAA (K = 2) against 8x MSAA: relative colour error against the oracle, framebuffer
-    bytes and shading events per pixel on thin, stripes, foliage and star."""
+    bytes and shading events per pixel on thin, stripes, foliage and star. The memory and
+    shading-event baseline is deferred 8x MSAA (``msaa`` ``shading=deferred``: per-sample
+    16-byte G-buffer, Simple/Complex shading), the slides' and paper's; forward 8x MSAA's
+    bytes are recorded beside it. Deferred and forward MSAA give the same image."""
     from .... import scenes
 
     cases = []
@@ -87,17 +90,22 @@ def _agaa(ctx: ClaimContext) -> dict:
         loaded = ctx.scene(name)
         ref = ctx.reference(loaded, channels=("color",))
         truth = np.stack([ref[f"color.{c}"] for c in "RGB"], -1).astype(np.float64)
+        d = _run("msaa", loaded, samples=8, shading="deferred")
         m = _run("msaa", loaded, samples=8)
         g = _run("agaa", loaded, samples=8, aggregates=2)
+        n_pix = loaded.width * loaded.height
         cases.append(
             {
                 "scene": name,
-                "msaa_error": _rel_diff(_color(m), truth),
+                "msaa_error": _rel_diff(_color(d), truth),
                 "agaa_error": _rel_diff(_color(g), truth),
-                "memory_saving": 1.0 - _fb(g) / _fb(m),
-                "agaa_bytes_per_pixel": _fb(g) / (loaded.width * loaded.height),
-                "msaa_bytes_per_pixel": _fb(m) / (loaded.width * loaded.height),
-                "msaa_shading_events": m.cost["shading_events_mean"],
+                "memory_saving": 1.0 - _fb(g) / _fb(d),
+                "memory_saving_vs_forward": 1.0 - _fb(g) / _fb(m),
+                "agaa_bytes_per_pixel": _fb(g) / n_pix,
+                "msaa_bytes_per_pixel": _fb(d) / n_pix,
+                "forward_msaa_bytes_per_pixel": _fb(m) / n_pix,
+                "msaa_shading_events": d.cost["shading_events_mean"],
+                "forward_msaa_shading_events": m.cost["shading_events_mean"],
                 "agaa_shading_events": g.cost["shading_events_mean"],
             }
         )
@@ -110,9 +118,8 @@ def _agaa(ctx: ClaimContext) -> dict:
     verdict = REPRODUCED if all(met) else (PARTLY if any(met) else NOT)
     return {
         "value": saving,
-        "value_text": "memory saving of AGAA (K=2) over 8x MSAA, 1 - AGAA/MSAA framebuffer "
-        "bytes (the slides' 8x baseline is a deferred G-buffer; the model's MSAA is forward: "
-        "colour + depth per sample)",
+        "value_text": "memory saving of AGAA (K=2) over deferred 8x MSAA (the slides' baseline: "
+        "per-sample 16-byte G-buffer), 1 - AGAA/MSAA framebuffer + resolve bytes",
         "extra": {
             "published_saving_slides": 1.0 - 71.0 / 112.0,
             "published_bytes_per_pixel": {
@@ -121,11 +128,17 @@ def _agaa(ctx: ClaimContext) -> dict:
             },
             "agaa_bytes_per_pixel": summary(c["agaa_bytes_per_pixel"] for c in cases),
             "msaa_bytes_per_pixel": summary(c["msaa_bytes_per_pixel"] for c in cases),
+            "forward_msaa_bytes_per_pixel": summary(
+                c["forward_msaa_bytes_per_pixel"] for c in cases
+            ),
+            "memory_saving_vs_forward": summary(c["memory_saving_vs_forward"] for c in cases),
             "error_ratio_agaa_over_msaa": ratio,
             "comparable": comparable,
+            "less_memory": less_memory,
             "fewer_shading_events": fewer_shades,
             "agaa_shading_events": summary(c["agaa_shading_events"] for c in cases),
             "msaa_shading_events": summary(c["msaa_shading_events"] for c in cases),
+            "forward_msaa_shading_events": summary(c["forward_msaa_shading_events"] for c in cases),
         },
         "cases": cases,
         "verdict": verdict,

@@ -226,6 +226,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         p,
         color=target.reshape(h, w, 3),
         coverage=np.bincount(pre["near"]["pixel"], pre["near"]["count"], n_pix) / n,
+        offsets=offsets,
         events=events,
         extra_outputs={"ties": ties},
         samples=n,

@@ -136,6 +136,7 @@ def run(scene, params: AgaaParams | None = None, **kwargs):
         p,
         color=color.reshape(h, w, 3),
         coverage=coverage,
+        offsets=offsets,
         events=n_agg,
         extra_outputs={"aggregates": n_agg, "surfaces": surfaces},
         samples=n,

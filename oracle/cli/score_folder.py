@@ -1,0 +1,123 @@
+"""``score-folder ROOT``: score a folder of engine images laid out by scene and frame.
+
+Every scene of ``ROOT`` (:func:`oracle.scoring.folder.discover`) is checked first (scene
+found, candidate layout unambiguous, size right), then scored into ``OUT/<scene>/`` as
+``score`` would; ``OUT/metrics.json`` combines the scenes' records and ``OUT/report.html``
+their cases. Exit 1 when a scene exceeds a ``--fail-above`` threshold.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from . import args as A
+
+__all__ = ["add_parser", "cmd_score_folder"]
+
+
+def add_parser(sub) -> None:
+    """Add ``score-folder`` to the subparsers ``sub``."""
+    p = sub.add_parser(
+        "score-folder",
+        help="score ROOT/<scene>.exr or ROOT/<scene>/frame_NNN.exr for every scene in ROOT",
+    )
+    p.add_argument("root", type=A.path, metavar="ROOT", help="folder of engine images")
+    p.add_argument(
+        "--exports",
+        type=A.path,
+        default=None,
+        help="folder of `export` folders: <scene> is EXPORTS/<scene> when it exists "
+        "(default: built-in scenes)",
+    )
+    p.add_argument("--channel", default=None, help="as for `score` (default: inferred)")
+    p.add_argument("--kind", choices=["visibility", "color", "coverage"], default=None)
+    p.add_argument(
+        "--camera-path", default="dolly", help="camera path of frame folders (default dolly)"
+    )
+    p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
+    p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
+    p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
+    p.add_argument(
+        "--fail-above",
+        action="append",
+        default=[],
+        metavar="METRIC=VALUE",
+        help="exit 1 when a scene's METRIC exceeds VALUE (repeatable)",
+    )
+    A.add_cache_args(p)
+    p.add_argument("--out", type=A.path, default=Path("out/score-folder"), help="output folder")
+
+
+def _scene_of(entry, exports: Path | None):
+    from ... import scenes
+
+    scene = entry.name
+    if exports is not None and (exports / entry.name / "scene.xml").is_file():
+        scene = str(exports / entry.name)
+    elif entry.name not in scenes.BUILTIN_SCENES:
+        where = f" nor an export in {exports}" if exports is not None else ""
+        raise A.CliError(
+            f"score-folder: {entry.name!r} is not a built-in scene{where}; name the files "
+            f"after a scene ({', '.join(scenes.BUILTIN_SCENES)}) or pass --exports"
+        )
+    path, chosen = A.export_scene(scene)
+    loaded = scenes.load(path, light=chosen or 0, n_frames=entry.frames or 8)
+    return A.export_named(loaded, path)
+
+
+def cmd_score_folder(args) -> int:
+    from ... import metrics as M
+    from ...scenes.files import atomic_write_json
+    from ..scoring.combine import combine_reports
+    from ..scoring.folder import discover
+    from ..scoring.request import score_to_folder
+    from ..scoring.score import parse_thresholds
+    from .score_inputs import resolve_layout
+
+    thresholds = parse_thresholds(args.fail_above)
+    A.check_out(args.out)
+    entries = discover(args.root)
+    names = {e.name for e in entries}
+    if names & {"metrics.json", "report.html", "report.json"}:
+        raise A.CliError("score-folder: a scene may not be named metrics or report")
+    plan = []
+    for entry in entries:  # everything checked before the first reference is rendered
+        loaded = _scene_of(entry, args.exports)
+        layout = resolve_layout(entry.pattern, channel=args.channel, kind=args.kind, loaded=loaded)
+        plan.append((entry, loaded, layout))
+    cache = A.reference_cache(args)
+    combined = {"schema": "raster-oracle/score-folder/1", "root": str(args.root), "scenes": {}}
+    failed = {}
+    for entry, loaded, layout in plan:
+        out = args.out / entry.name
+        bad = score_to_folder(
+            loaded,
+            out=out,
+            candidate=entry.pattern,
+            channel=args.channel,
+            spp=args.spp,
+            seed=args.seed,
+            frames=entry.frames,
+            camera_path=args.camera_path,
+            cache=cache,
+            quiet=args.quiet,
+            flip_mode=args.flip_mode,
+            ppd=M.DEFAULT_PPD,
+            thresholds=thresholds,
+            layout=layout,
+        )
+        record = json.loads((out / "metrics.json").read_text())
+        record["folder"] = entry.name
+        combined["scenes"][entry.name] = record
+        if bad:
+            failed[entry.name] = bad
+    combined["failed"] = failed
+    atomic_write_json(args.out / "metrics.json", combined)
+    folders = [args.out / e.name for e, _, _ in plan]
+    combine_reports(folders, args.out / "report.html", title=f"{args.root.name}: engine images")
+    print(f"score-folder: {len(plan)} scene(s): {args.out / 'metrics.json'}")
+    for name, bad in failed.items():
+        print(f"raster-oracle: {name}: above threshold: {', '.join(bad)}", file=sys.stderr)
+    return 1 if failed else 0

@@ -1,0 +1,281 @@
+"""The main job's report in headless Chromium (issue 19): the summary in the first screen,
+readable ticks and data in every plot, sortable and filterable cases, links into collapsed
+sections, one self-contained file.
+
+The report comes from a reduced main job (``run_main`` on two scenes at 80x45 px, 4 spp, no
+Dask) whose studies are replaced by fixed records (the claims and the extremes take minutes;
+their sections are what is rendered here). Needs Playwright and Chromium, as
+``test_reports_browser.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+VIEWPORT = {"width": 1400, "height": 900}
+
+CLAIMS = {
+    "resolution": [80, 45],
+    "reference_spp": 4,
+    "counts": {"reproduced": 1, "not reproduced": 1},
+    "claims": [
+        {
+            "id": "claim-one",
+            "claim": "it is better",
+            "source": "seed",
+            "rule": "lower",
+            "verdict": "reproduced",
+            "value": {"mean": 0.5, "stderr": 0.1, "min": 0.2, "max": 0.8, "n": 4},
+            "value_text": "difference",
+        },
+        {
+            "id": "claim-two",
+            "claim": "it is cheaper",
+            "source": "seed",
+            "rule": "cheaper",
+            "verdict": "not reproduced",
+            "value": None,
+            "note": "measured nothing",
+        },
+    ],
+}
+
+
+def _extremes() -> dict:
+    cell = {
+        "family": "shadow",
+        "metric": "misclassified_fraction",
+        "reason": "documented",
+        "params": {},
+        "finite": True,
+        "message": None,
+        "seconds": 0.1,
+        "detail": {},
+        "scene": "plate",
+    }
+    cells = [
+        {**cell, "technique": "pcf", "extreme": "far", "status": "ok", "error": 0.002,
+         "expected": "finite, misclassified_fraction <= 0.05", "expected_short": "<= 0.05",
+         "outcome_met": True},
+        {**cell, "technique": "pcf", "extreme": "tiny", "status": "ok", "error": 0.4,
+         "expected": "finite, misclassified_fraction <= 0.05", "expected_short": "<= 0.05",
+         "outcome_met": False},
+        {**cell, "technique": "vsm", "extreme": "far", "status": "ok", "error": 0.3,
+         "expected": "finite, 0.1 <= misclassified_fraction <= 0.6", "expected_short": "0.1..0.6",
+         "outcome_met": True},
+        {**cell, "technique": "vsm", "extreme": "tiny", "status": "n/a", "error": None,
+         "expected": None, "outcome_met": None},
+    ]  # fmt: skip
+    return {
+        "resolution": [80, 45],
+        "reference_spp": 4,
+        "cell_map": 256,
+        "huge_map": 4096,
+        "base_scenes": {"shadow": "plate"},
+        "extremes": {"far": {"description": "far"}, "tiny": {"description": "tiny"}},
+        "techniques": ["pcf", "vsm"],
+        "cells": cells,
+        "unexpected": ["pcf x tiny"],
+    }
+
+
+def _require_browser() -> None:
+    problem = None
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        problem = "Playwright for Python is not installed (pip install playwright)"
+    if problem is None and not (CHROMIUM.exists() or shutil.which("chromium")):
+        problem = f"Chromium is not installed at {CHROMIUM} (apt-get install chromium)"
+    if problem is None:
+        return
+    if os.environ.get("CI"):
+        pytest.fail(f"browser test cannot run under CI: {problem}", pytrace=False)
+    pytest.skip(problem)
+
+
+@pytest.fixture(scope="module")
+def report_path(tmp_path_factory) -> Path:
+    from raster_oracle.oracle.reference.cache import ReferenceCache
+    from raster_oracle.oracle.sweeps import mainjob
+    from raster_oracle.reports.sections import claims_section, extremes_section
+
+    out = tmp_path_factory.mktemp("main")
+    sections = (
+        ("claims", "claims", "Claims", lambda *a, **k: CLAIMS, claims_section),
+        ("extremes", "extremes", "Extremes", lambda *a, **k: _extremes(), extremes_section),
+    )
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(mainjob, "SECTIONS", sections)
+        report, failed = mainjob.run_main(
+            ["plate", "decal"],
+            out,
+            spp=4,
+            size=(80, 45),
+            workers=0,
+            cache=ReferenceCache(out / "cache"),
+            quiet=True,
+            echo=lambda *a: None,
+        )
+    assert failed == []
+    return report
+
+
+@pytest.fixture(scope="module")
+def browser():
+    _require_browser()
+    from playwright.sync_api import sync_playwright
+
+    executable = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
+    with sync_playwright() as p:
+        instance = p.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        try:
+            yield instance
+        finally:
+            instance.close()
+
+
+@pytest.fixture
+def page(browser, report_path):
+    context = browser.new_context(viewport=VIEWPORT)
+    page = context.new_page()
+    page.problems = []
+    page.on("console", lambda m: page.problems.append(m.text) if m.type == "error" else 0)
+    page.on("pageerror", lambda e: page.problems.append(str(e)))
+    page.goto(report_path.as_uri())
+    page.wait_for_load_state("load")
+    yield page
+    assert page.problems == []
+    context.close()
+
+
+def _open_all(page) -> None:
+    page.evaluate("document.querySelectorAll('details').forEach(d => { d.open = true; })")
+
+
+def test_summary_is_in_the_first_screen_and_links_down(page, report_path):
+    summary = page.locator("#summary")
+    box = summary.bounding_box()
+    assert box is not None and box["y"] < VIEWPORT["height"]
+    first_table = summary.locator("table.mini").first
+    assert first_table.bounding_box()["y"] < VIEWPORT["height"]
+    assert summary.locator("table.mini tbody tr").count() > 0
+    # one line per claim, with its verdict; the extremes' failed cell named
+    lines = summary.locator(".claims-line li")
+    assert lines.count() == 2
+    assert "reproduced" in lines.nth(0).inner_text() and "claim-two" in lines.nth(1).inner_text()
+    assert "pcf x tiny" in summary.inner_text()
+    # a group's link opens its collapsed detail
+    link = summary.locator(".summary-group h3 a").first
+    target = link.get_attribute("href")[1:]
+    assert not page.locator(f"#{target}").evaluate("d => d.open")
+    link.click()
+    page.wait_for_function(f"document.getElementById('{target}').open")
+    # the page is a few screens until a section is expanded
+    height = page.evaluate("document.documentElement.scrollHeight")
+    assert height < 8 * VIEWPORT["height"], height
+    assert page.evaluate("document.documentElement.scrollWidth") <= VIEWPORT["width"]
+    record = json.loads(report_path.with_suffix(".json").read_text())
+    assert [g["scene"] for g in record["overview"]["groups"]] == ["decal", "plate"]
+
+
+def test_every_plot_has_data_and_no_repeated_tick_labels(page):
+    _open_all(page)
+    plots = page.locator("svg.plot")
+    assert plots.count() >= 4
+    for i in range(plots.count()):
+        plot = plots.nth(i)
+        label = plot.get_attribute("aria-label")
+        assert plot.locator("a.point").count() > 0, label
+        for axis in ("xtick", "ytick"):
+            ticks = [t.strip() for t in plot.locator(f"g.{axis} text").all_text_contents()]
+            ticks = [t for t in ticks if t]
+            assert len(ticks) >= 2, (label, axis, ticks)
+            assert len(ticks) == len(set(ticks)), (label, axis, ticks)
+        # each marker says its values on hover and links to its case
+        first = plot.locator("a.point").first
+        assert first.locator("title").text_content()
+        href = first.get_attribute("href")
+        assert page.locator(href).count() == 1, href
+
+
+def test_clicking_a_point_opens_the_cases_and_shows_its_row(page):
+    page.locator("#fronts details").first.evaluate("d => { d.open = true; }")
+    point = page.locator("#fronts svg.plot a.point").first
+    row_id = point.get_attribute("href")[1:]
+    point.click()
+    page.wait_for_function("document.getElementById('cases-detail').open")
+    row = page.locator(f"tr#{row_id}")
+    assert row.is_visible()
+
+
+def test_cases_table_sorts_and_filters(page):
+    page.locator("#cases-detail > summary").click()
+    rows = page.locator("#cases-table tbody tr")
+    total = rows.count()
+    assert total > 4
+
+    def column(index):
+        cells = page.locator(f"#cases-table tbody tr:not([hidden]) td:nth-child({index})")
+        return [c.get_attribute("data-v") for c in cells.all()]
+
+    page.locator("#cases-table th:nth-child(10) button").click()  # seconds, ascending
+    secs = [float(v) for v in column(10)]
+    assert secs == sorted(secs)
+    page.locator("#cases-table th:nth-child(10) button").click()  # descending
+    secs = [float(v) for v in column(10)]
+    assert secs == sorted(secs, reverse=True)
+    # filters: by scene, then technique, then a parameter
+    page.select_option(".filters select[data-filter=scene]", "decal")
+    shown = page.locator("#cases-table tbody tr:not([hidden])")
+    assert 0 < shown.count() < total
+    assert {r.get_attribute("data-scene") for r in shown.all()} == {"decal"}
+    page.select_option(".filters select[data-filter=scene]", "")
+    page.select_option(".filters select[data-filter=technique]", "shadow-map")
+    assert {r.get_attribute("data-technique") for r in shown.all()} == {"shadow-map"}
+    page.fill(".filters input[data-filter=params]", "resolution=1024")
+    assert shown.count() == 1
+    assert "of" in page.locator(".filters [data-count]").inner_text()
+    # the parameter column is on screen, not behind a horizontal scrollbar
+    box = page.locator("#cases-table th:nth-child(4)").bounding_box()
+    assert box["x"] + box["width"] <= VIEWPORT["width"]
+
+
+def test_extremes_cells_coloured_by_error_and_the_failed_one_stands_out(page):
+    page.locator("#extremes details.group > summary").click()
+    cells = page.locator("#extremes td.cell:not(.na)")
+    shade = {}
+    for c in cells.all():
+        rgb = c.evaluate("e => getComputedStyle(e).backgroundColor")
+        r, g, b = (int(v) for v in re.findall(r"\d+", rgb)[:3])
+        shade[float(c.inner_text().split()[0])] = 0.2126 * r + 0.7152 * g + 0.0722 * b
+    assert sorted(shade) == [0.002, 0.3, 0.4]
+    # a larger error is a darker colour, whether it was expected or not
+    assert shade[0.002] > shade[0.3] > shade[0.4]
+    failed = page.locator("#extremes td.cell.failed")
+    assert failed.count() == 1 and "✗" in failed.inner_text()
+    assert failed.evaluate("e => getComputedStyle(e).outlineStyle") == "solid"
+    assert "0.4" in failed.get_attribute("title") and "NOT as documented" in failed.get_attribute(
+        "title"
+    )
+    assert page.locator("#extremes .error-legend .tick").count() >= 3
+
+
+def test_one_self_contained_file(report_path):
+    html = report_path.read_text()
+    assert report_path.stat().st_size < 15e6
+    refs = re.findall(
+        r"""<(?:script|link|img|style|iframe)\b[^>]*(?:src|href)=["']([^"']+)""", html
+    )
+    assert not [r for r in refs if re.match(r"(?i)https?:|//", r)]
+    assert "http://" not in html.replace("http://www.w3.org/2000/svg", "")
