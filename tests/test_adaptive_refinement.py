@@ -90,7 +90,7 @@ def test_sobol_passes_are_nets_for_every_doubling():
 
 @pytest.fixture(scope="module")
 def thin_case():
-    scene = scenes.load("thin", width=96, height=54)
+    scene = scenes.load("thin", width=160, height=90)
     truth, _ = render_reference(
         scene, ReferenceSettings(spp=4096, seed=1000, channels=CHANNELS), quiet=True
     )
@@ -102,12 +102,12 @@ def thin_case():
 
 
 def test_adaptive_worst_pixel_is_no_worse_than_uniform_at_equal_rays(thin_case):
-    """Uniform sampling given adaptive's rays (its mean spp, rounded up) leaves a larger
-    worst-pixel error than adaptive on `thin` (96x54, target 0.005: adaptive 0.0215 at 624
-    mean spp, uniform 0.0287; the first rule, at 320x180: 0.053 at 320 mean spp, where
-    uniform at 256 spp reached 0.051)."""
+    """Uniform sampling given 1.5x adaptive's rays (its mean spp) still leaves a larger
+    worst-pixel error than adaptive on `thin` (160x90, target 0.005: adaptive 0.0178 at 552
+    mean spp, uniform at 828 spp 0.0284). The per-pixel rule with separate jittered grids
+    per pass failed it: 0.0269 at 555 mean spp against uniform's 0.0249 at 1.5x."""
     scene, truth, _, ch, stats = thin_case
-    spp = int(math.ceil(stats["adaptive"]["mean_spp"]))
+    spp = int(math.ceil(1.5 * stats["adaptive"]["mean_spp"]))
     uni, _ = render_reference(scene, ReferenceSettings(spp=spp, channels=CHANNELS), quiet=True)
 
     def worst(img):
