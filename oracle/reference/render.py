@@ -50,10 +50,14 @@ __all__ = [
     "MAX_SEED",
     "ReferenceSettingsError",
     "ReferenceSettings",
+    "binary_stderr",
     "channel_names",
     "estimate_memory",
+    "feature_mask",
     "grid_shape",
     "render_reference",
+    "sample_jitter",
+    "sobol_sample",
 ]
 
 #: Channel groups that can be asked for with ``--channels``; each expands to EXR channels.
