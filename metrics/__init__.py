@@ -7,7 +7,8 @@ visibility and coverage are in [0, 1] with 1 = lit / covered. Invalid input rais
 Modules: :mod:`metrics.tonemap` (the shared tone-mapping pipeline), :mod:`metrics.perceptual`
 (FLIP, SSIM, PSNR, CIEDE2000), :mod:`metrics.shadow` (visibility on receivers),
 :mod:`metrics.aliasing` (edge/interior and coverage error, straight-edge floor),
-:mod:`metrics.temporal` (flicker), :mod:`metrics.stats` (Z-test, noise floor).
+:mod:`metrics.temporal` (flicker), :mod:`metrics.stats` (Z-test, noise floor),
+:mod:`metrics.catalog` (every scored metric's direction, unit and applicability).
 """
 
 from .aliasing import (
@@ -17,6 +18,7 @@ from .aliasing import (
     half_plane_square_area,
     straight_edge_error_floor,
 )
+from .catalog import CATALOG
 from .perceptual import (
     DEFAULT_PPD,
     delta_e2000,
@@ -39,6 +41,7 @@ from .tonemap import (
 from .validate import MetricError
 
 __all__ = [
+    "CATALOG",
     "DEFAULT_PPD",
     "SHADOW_KEYS",
     "MetricError",

@@ -18,6 +18,13 @@ then clamp), see :func:`raster_models.shadowmaps.depth_dr.stored_depth_dr`.
 
 Shader-side biases (constant, receiver-plane, normal offset) live in
 :mod:`raster_models.shadowmaps.shade`.
+
+Rasterized depth (:func:`window_vertices`, :func:`plane_setup`, :func:`plane_eval`): what a
+rasterizer's depth test compares is not the exact depth of the surface under a sample but
+the triangle's screen-space depth plane, set up from its float32 window-space vertices and
+evaluated at the sample position in float32 (Mesa llvmpipe's setup: ``a0 = z0 - (dzdx x0 +
+dzdy y0)``, then ``a0 + dzdx x + dzdy y``). Coplanar triangles with different vertices get
+planes that differ in their last bits, so they tie on some samples, not all.
 """
 
 from __future__ import annotations
@@ -30,7 +37,10 @@ __all__ = [
     "bytes_per_texel",
     "clip01_dr",
     "hardware_bias",
+    "plane_eval",
+    "plane_setup",
     "quantize_dr",
+    "window_vertices",
 ]
 
 #: Format name -> (kind, bits).
@@ -105,3 +115,45 @@ def hardware_bias(
 def bytes_per_texel(fmt: str) -> int:
     """Bytes of one depth texel (D24 is stored as D24S8, 4 bytes)."""
     return {"D16": 2, "D24": 4, "D32F": 4}[fmt]
+
+
+def window_vertices(camera, verts: np.ndarray):
+    """Window-space ``(x, y, z)`` float32 arrays and clip ``w`` of world vertices ``(..., 3)``
+    as a float32 vertex pipeline computes them: the D3D-style view-projection matrix
+    (depth in ``[0, 1]``, :meth:`scenes.camera.Camera.projection`) rounded to float32, the
+    product, the perspective divide and the viewport (film pixels, y down)."""
+    m = (camera.projection("direct3d") @ camera.world_to_view("direct3d")).astype(np.float32)
+    v = np.asarray(verts, np.float32)
+    clip = [
+        v[..., 0] * m[r, 0] + v[..., 1] * m[r, 1] + v[..., 2] * m[r, 2] + m[r, 3] for r in range(4)
+    ]
+    w = clip[3]
+    safe = np.where(w != 0, w, np.float32(1.0))
+    half_w, half_h = np.float32(camera.width / 2), np.float32(camera.height / 2)
+    x = (clip[0] / safe + np.float32(1.0)) * half_w
+    y = (np.float32(1.0) - clip[1] / safe) * half_h
+    return x, y, clip[2] / safe, w
+
+
+def plane_setup(x, y, z):
+    """Depth planes of triangles from their window vertices (``(T, 3)`` float32 each):
+    ``(a0, dzdx, dzdy, ok)``, float32, ``ok`` False where the triangle has no area on
+    screen. Every step one float32 operation, as a rasterizer's triangle setup."""
+    f = np.float32
+    x, y, z = (np.asarray(a, f) for a in (x, y, z))
+    dx10, dy10, dz10 = x[:, 1] - x[:, 0], y[:, 1] - y[:, 0], z[:, 1] - z[:, 0]
+    dx20, dy20, dz20 = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0], z[:, 2] - z[:, 0]
+    det = dx10 * dy20 - dx20 * dy10
+    ok = det != 0
+    inv = np.where(ok, det, f(1.0))
+    dzdx = (dz10 * dy20 - dz20 * dy10) / inv
+    dzdy = (dx10 * dz20 - dx20 * dz10) / inv
+    a0 = z[:, 0] - (dzdx * x[:, 0] + dzdy * y[:, 0])
+    return a0, dzdx, dzdy, ok
+
+
+def plane_eval(a0, dzdx, dzdy, sx, sy) -> np.ndarray:
+    """Depth planes evaluated at sample positions ``(sx, sy)`` (film pixels), float32:
+    ``(a0 + dzdx sx) + dzdy sy``."""
+    f = np.float32
+    return (f(a0) + f(dzdx) * f(sx)) + f(dzdy) * f(sy)

@@ -55,7 +55,12 @@ Case record (``make_case``)
 ``failing``
     Names of the metrics outside their thresholds (NaN fails).
 ``within_noise``
-    Names of the metrics at or below their noise floor.
+    Names of the metrics no worse than their noise floor, in each metric's direction
+    (``make_case(directions=...)``: at or below it for lower-is-better metrics, the default;
+    at or above it for higher-is-better ones such as SSIM and PSNR).
+``directions``
+    ``name -> "lower" | "higher" | "zero" | "info"``: which way each metric is better, as
+    given to ``make_case`` (absent from reports written before it).
 ``status``
     ``"pass"``, ``"fail"``, or ``"unchecked"`` (no thresholds).
 ``images``
@@ -88,6 +93,9 @@ Report record (``build_report``)
     The page title and the provenance record (JSON values; nested dicts allowed).
 ``metric_names``, ``cost_names``
     Column order of the summary table: every metric and cost key, first seen first.
+``directions``
+    ``metric -> "lower" | "higher" | "zero" | "info"`` (the first case's that gives one;
+    default ``"lower"``): which way each column is better.
 ``summary``
     ``{"n_cases", "n_pass", "n_fail", "n_unchecked", "thresholds": name -> bounds or
     "varies", "noise_floor": name -> float or "varies"}``.

@@ -100,6 +100,11 @@ def build_report(
         "title": title,
         "provenance": to_jsonable(dict(provenance), "provenance"),
         "metric_names": metric_names,
+        # which way each metric is better (the first case that says so; default lower)
+        "directions": {
+            m: next((c["directions"][m] for c in records if m in c.get("directions", {})), "lower")
+            for m in metric_names
+        },
         "cost_names": cost_names,
         "summary": {
             "n_cases": len(records),

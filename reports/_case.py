@@ -13,6 +13,7 @@ from . import stats
 from ._validate import (
     KINDS,
     check_cost,
+    check_directions,
     check_error_maps,
     check_image,
     check_metrics,
@@ -54,6 +55,27 @@ def _failing(metrics: Mapping, thresholds: Mapping) -> list[str]:
         if too_low or too_high or math.isnan(value):
             failing.append(name)
     return failing
+
+
+def _within_noise(metrics: Mapping, noise_floor: Mapping, directions: Mapping) -> list[str]:
+    """Metrics no worse than their noise floor, in their direction: ``value <= floor``
+    (lower is better, the default), ``value >= floor`` (higher: SSIM, PSNR), ``|value| <=
+    |floor|`` (zero: a bias); never an ``info`` metric or a NaN (the same rule as
+    ``metrics.catalog.within_noise``, which this package cannot import)."""
+    out = []
+    for key, floor in noise_floor.items():
+        if key not in metrics:
+            continue
+        value, direction = decode_float(metrics[key]), directions.get(key, "lower")
+        if direction == "higher":
+            quiet = value >= floor
+        elif direction == "zero":
+            quiet = abs(value) <= abs(floor)
+        else:
+            quiet = direction == "lower" and value <= floor
+        if quiet:
+            out.append(key)
+    return out
 
 
 def _exr_links(value: object) -> list[dict]:
@@ -188,6 +210,7 @@ def make_case(
     error_maps: Mapping[str, Mapping] | None = None,
     noise_floor: Mapping[str, float] | None = None,
     thresholds: Mapping[str, float | Mapping[str, float]] | None = None,
+    directions: Mapping[str, str] | None = None,
     cost: Mapping[str, float] | None = None,
     technique: str | None = None,
     family: str | None = None,
@@ -222,6 +245,10 @@ def make_case(
         Value of each metric for the reference's own noise (two independent references).
     thresholds : dict str -> float or {"min": float, "max": float}, optional
         A number is the largest passing value. NaN metrics fail.
+    directions : dict str -> str, optional
+        Which way each metric is better: ``"lower"`` (the default), ``"higher"`` (SSIM,
+        PSNR), ``"zero"`` (a signed bias) or ``"info"`` (not a score). ``within_noise`` is
+        judged in that direction: a bad SSIM below its floor is not within the noise floor.
     cost : dict str -> number, optional
         The technique's GPU budget (``memory_bytes``, ``texels_rendered``, ...).
     technique, family : str, optional
@@ -290,11 +317,8 @@ def make_case(
         max_bytes=max_bytes,
     )
     failing = _failing(metrics, thresholds)
-    within_noise = [
-        key
-        for key, floor in noise_floor.items()
-        if key in metrics and decode_float(metrics[key]) <= floor
-    ]
+    directions = {k: d for k, d in check_directions(directions).items() if k in metrics}
+    within_noise = _within_noise(metrics, noise_floor, directions)
     return {
         "schema": CASE_SCHEMA,
         "name": name,
@@ -317,6 +341,7 @@ def make_case(
         "cost": check_cost(cost),
         "failing": failing,
         "within_noise": within_noise,
+        "directions": directions,
         "status": "unchecked" if not thresholds else ("fail" if failing else "pass"),
         "images": images,
         "error_maps": _map_records(maps, heatmaps),

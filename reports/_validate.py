@@ -175,6 +175,23 @@ def check_metrics(name: str, value: object, *, allow_nonfinite: bool) -> dict[st
     return out
 
 
+#: ``make_case(directions=...)`` values: which way a metric is better.
+DIRECTIONS = ("lower", "higher", "zero", "info")
+
+
+def check_directions(value: object) -> dict[str, str]:
+    """Check ``directions``: ``name -> "lower" | "higher" | "zero" | "info"`` (None: ``{}``)."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"directions must be a dict name -> direction, got {value!r}")
+    for key, d in value.items():
+        check_name("directions key", key)
+        if d not in DIRECTIONS:
+            raise ValueError(f"directions[{key!r}] must be one of {list(DIRECTIONS)}, got {d!r}")
+    return dict(value)
+
+
 def check_thresholds(value: object, *, metrics: Mapping[str, object]) -> dict[str, dict]:
     """Check ``thresholds``: ``name -> max`` or ``name -> {"min": lo, "max": hi}``.
 
@@ -336,6 +353,8 @@ def check_case_record(name: str, case: object, *, schema: str) -> dict:
         _check_number_map(f"{name}['thresholds'][{key!r}]", bounds)
     if case["cost"] is not None:
         _check_number_map(f"{name}['cost']", case["cost"])
+    if "directions" in case:  # optional: reports written before it lack it
+        check_directions(case["directions"])
     for key in ("failing", "within_noise"):
         _expect(f"{name}[{key!r}]", case[key], (list,), "a list of names")
         for v in case[key]:

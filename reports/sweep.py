@@ -23,7 +23,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +31,7 @@ import numpy as np
 from ..scenes.files import atomic_write_bytes
 from ._tradeoff import pareto_front
 from .sections.overview import overview_record
-from .sections.page import render_sweep_page
+from .sections.page import render_sweep_page, summary_viewer_cases
 
 __all__ = [
     "DEFAULT_COSTS",
@@ -139,7 +139,7 @@ def best_at_equal_cost(points: Sequence[Mapping]) -> list[dict]:
         if not inside:
             continue
         best: dict[str, dict] = {}
-        for p in sorted(inside, key=lambda p: (p["error"], p["cost"], p["case_id"])):
+        for p in sorted(inside, key=lambda p: (p.get("rank", p["error"]), p["cost"], p["case_id"])):
             best.setdefault(p["technique"], p)
         out.append({"cost_lo": a, "cost_hi": b, "best": best})
     return out
@@ -172,9 +172,13 @@ def _numeric_keys(records: Sequence[Mapping | None]) -> list[str]:
 
 
 def _front(
-    label: str, done: Sequence[Mapping], varying: Mapping, cost_key: str, metric: str
+    label: str, done: Sequence[Mapping], varying: Mapping, cost_key: str, metric: str, rank=None
 ) -> dict | None:
-    """The Pareto front of ``metric`` against ``cost_key`` over ``done`` (None: no point)."""
+    """The Pareto front of ``metric`` against ``cost_key`` over ``done`` (None: no point).
+
+    ``rank(metric, value)``: the value as an error, 0 best (``metrics.catalog.error_of``: ``1 -
+    ssim``, a PSNR's MSE); points are compared on it (``"rank"``, the floor's ``"floor_rank"``)
+    and shown with their own values. None: lower values are better."""
     points = []
     for r in done:
         c = _number((r.get("cost") or {}).get(cost_key))
@@ -194,9 +198,13 @@ def _front(
                 "floor": _number((r["metrics"].get("noise_floor") or {}).get(metric)),
             }
         )
+    for p in points:
+        p["rank"] = rank(metric, p["error"]) if rank else p["error"]
+        floor = p["floor"]
+        p["floor_rank"] = rank(metric, floor) if rank and floor is not None else floor
     if not points:
         return None
-    mask = pareto_front([p["cost"] for p in points], [p["error"] for p in points])
+    mask = pareto_front([p["cost"] for p in points], [p["rank"] for p in points])
     for p, on in zip(points, mask, strict=True):
         p["on_front"] = bool(on)
     front = sorted(np.flatnonzero(mask).tolist(), key=lambda i: (points[i]["cost"], i))
@@ -303,7 +311,7 @@ def undefined_metrics(done: Sequence[Mapping], names: Sequence[str]) -> list[dic
     return out
 
 
-def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> dict:
+def _group_record(family: str, scene: str, rows: list[dict], costs, metrics, rank=None) -> dict:
     """Fronts, sensitivity and gallery of the rows of one family on one scene; metrics that
     are undefined on the scene (:func:`undefined_metrics`) are left out and listed."""
     done = _done_rows(rows)
@@ -325,7 +333,7 @@ def _group_record(family: str, scene: str, rows: list[dict], costs, metrics) -> 
         front
         for cost_key in cost_list
         for metric in metric_list
-        if (front := _front(label, done, varying, cost_key, metric)) is not None
+        if (front := _front(label, done, varying, cost_key, metric, rank)) is not None
     ]
     headline = metric_list[0] if metric_list else None
     return {
@@ -349,6 +357,7 @@ def sweep_record(
     provenance: Mapping | None = None,
     costs: Sequence[str] | None = None,
     metrics: Sequence[str] | None = None,
+    rank=None,
 ) -> dict:
     """The report record of sweep ``rows`` (see the module docstring).
 
@@ -357,12 +366,14 @@ def sweep_record(
     costs, metrics : cost keys and metrics of the fronts (default: per family,
         :data:`DEFAULT_COSTS` and :data:`DEFAULT_METRICS`); a requested key that a group does
         not have is left out of that group.
+    rank : ``rank(metric, value)``, the value as an error (0 best) that fronts compare
+        (``metrics.catalog.error_of``); None: lower values are better.
     """
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in rows:
         groups.setdefault((r.get("family") or "shadow", r["scene"]), []).append(dict(r))
     group_records = [
-        _group_record(fam, scene, rs, list(costs or []), list(metrics or []))
+        _group_record(fam, scene, rs, list(costs or []), list(metrics or []), rank)
         for (fam, scene), rs in sorted(groups.items())
     ]
     all_varying = {}
@@ -435,6 +446,8 @@ def write_sweep_report(
     metrics: Sequence[str] | None = None,
     extra_sections: Sequence[Mapping] | None = None,
     images: Mapping[str, Mapping] | None = None,
+    viewers: Mapping[str, Mapping] | Callable[[list[str]], Mapping] | None = None,
+    rank=None,
 ) -> dict:
     """Write the page ``path`` (HTML) and its JSON twin ``path.with_suffix('.json')``.
 
@@ -449,16 +462,36 @@ def write_sweep_report(
         Thumbnails by row key (``reference``, ``candidate``, ``error`` data URIs), shown for
         the cases on each group's headline front. They are the page's only content that is
         not in the JSON (the store keeps them; the JSON names the cases by key).
+    viewers : dict or callable, optional
+        Pixel viewer records by row key (:func:`reports.viewer.viewer_record`), or a function
+        of a list of keys returning them (only the named cases are read): the cases the
+        summary names get a viewer, fitted to one page budget
+        (:func:`reports.sections.page.summary_viewer_cases`). The JSON lists them under
+        ``"inspect"`` (case id, key, reduction factor and size; the arrays stay in the page).
 
     Returns
     -------
     dict
         The record written as JSON: :func:`sweep_record` plus ``"sections"``.
     """
-    record = sweep_record(rows, title=title, provenance=provenance, costs=costs, metrics=metrics)
+    record = sweep_record(
+        rows, title=title, provenance=provenance, costs=costs, metrics=metrics, rank=rank
+    )
     record["sections"] = [dict(x) for x in extra_sections or []]
     record["overview"] = overview_record(record)
-    html = render_sweep_page(record, images=images)
+    inspect = summary_viewer_cases(record, viewers or {})
+    record["inspect"] = [
+        {
+            "id": c["id"],
+            "key": key_of[c["id"]],
+            "factor": c["viewer"]["factor"],
+            "width": c["viewer"]["width"],
+            "height": c["viewer"]["height"],
+        }
+        for key_of in [{c["id"]: c["key"] for c in record["cases"]}]
+        for c in inspect
+    ]
+    html = render_sweep_page(record, images=images, viewer_cases=inspect)
     text = json.dumps(record, indent=1, allow_nan=False, default=str)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -22,6 +22,7 @@ from raster_oracle.raster_models.aa.fragments import (
     shading_positions,
 )
 from raster_oracle.raster_models.aa.trace import fragment_attributes, shade_points
+from raster_oracle.scenes.raycast import trace_film
 
 #: Pixels per grouping chunk (keeps the ``(P, N, N)`` comparison cache-sized).
 GROUP_CHUNK = 1 << 15
@@ -116,12 +117,27 @@ def cluster(valid, depth, normal, k: int, threshold: float, depth_weight: float,
     return np.where(v, agg, -1)
 
 
+def sample_points(scene, x, y) -> dict:
+    """The surface points the rays through film positions ``x``, ``y`` meet (the oracle's
+    :func:`scenes.raycast.trace_film`): ``valid``, ``position``, ``normal``, ``geo_normal``
+    (the shading normal: the test scenes are flat-shaded meshes), view ``depth``."""
+    g = trace_film(scene, x, y)
+    return {
+        "valid": g["valid"],
+        "position": g["position"],
+        "normal": g["normal"],
+        "geo_normal": g["normal"],
+        "depth": np.asarray(g["depth"], np.float64),
+    }
+
+
 def agaa_colors(scene, offsets, first, aggregate, *, visibility) -> np.ndarray:
     """AGAA's pixel colours ``(P, 3)`` (float64) from the samples' representative slots
     ``first`` and aggregates ``aggregate`` (``(P, N)``, ``first == N`` for sky): every
     aggregate's attributes averaged over its samples in float64 (each sample adds its
-    fragment's attributes at the pixel centre), shaded once with the filtered normal and the
-    given ``visibility`` function of the shading points, weighted by its coverage."""
+    fragment's attributes at the pixel centre), shaded once with the filtered normal and its
+    filtered visibility (the mean over its samples of the ``visibility`` function at each
+    sample's own surface point, :func:`sample_points`), weighted by its coverage."""
     n_pix, n = first.shape
     valid = first < n
     frags = group_fragments(valid, first=np.where(valid, first, 0))
@@ -148,7 +164,11 @@ def agaa_colors(scene, offsets, first, aggregate, *, visibility) -> np.ndarray:
     np.maximum.at(agg["offset"], inverse, np.asarray(attrs["offset"], np.float64)[of])
     agg["valid"] = np.ones(len(slots), bool)
     agg["depth"] = (agg["position"] - scene.camera.position) @ scene.camera.forward
-    vis = visibility(agg)
+    offs = np.asarray(offsets, np.float64)
+    w = scene.width
+    pts = sample_points(scene, pix % w + offs[slot, 0], pix // w + offs[slot, 1])
+    vis_s = np.where(pts["valid"], np.asarray(visibility(pts), np.float64), 0.0)
+    vis = np.bincount(inverse, weights=vis_s, minlength=len(slots)) / weight
     rgb, _ = shade_points(scene, agg, visibility=vis, filtered_normal=True)
     color = np.zeros((n_pix, 3))
     np.add.at(color, slots // 2, rgb.astype(np.float64) * (weight / n)[:, None])

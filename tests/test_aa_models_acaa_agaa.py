@@ -15,6 +15,7 @@ from raster_oracle.raster_models.aa import pixel_dr, samples, trace
 from raster_oracle.raster_models.aa.acaa.blend import rgba8_accumulate
 from raster_oracle.raster_models.aa.agaa.pixels import cluster_pixels
 from raster_oracle.scenes import backend
+from raster_oracle.scenes.raycast import trace_film
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes
@@ -96,13 +97,33 @@ def test_rgba8_mode_rounds_as_predicted(decal_runs):
     assert (err > 1e-6).any()
 
 
+def _uniformly_lit(scene, n):
+    """Pixels whose ``n`` standard samples all see the light alike (the oracle's ``lit`` at
+    each sample's own hit): there an aggregate's filtered visibility is MSAA's 0 or 1."""
+    offs = samples.positions(n)
+    pix = np.repeat(np.arange(W * H), n)
+    slot = np.tile(np.arange(n), W * H)
+    g = trace_film(scene, pix % W + offs[slot, 0], pix // W + offs[slot, 1])
+    lit = (g["lit"] & g["valid"]).reshape(W * H, n)
+    return (lit.all(axis=1) | ~lit.any(axis=1)).reshape(H, W)
+
+
 def test_agaa_equals_msaa_when_aggregates_suffice():
     """plate: every pixel holds at most two surfaces (plate, ground); star: coplanar spokes
-    on the sky (one surface). With K at least that, each aggregate is one surface."""
+    on the sky (one surface). With K at least that, each aggregate is one surface: AGAA
+    equals MSAA wherever its samples see the light alike; on the plate's shadow edges its
+    filtered visibility is closer to 16x supersampling than MSAA's one ray at the pixel
+    centre (measured: 44 pixels, mean error 0.026 against MSAA's 0.133)."""
     plate = scenes.load("plate", **SMALL)
     m = rm.run("msaa", plate).outputs["color"]
     g2 = rm.run("agaa", plate, aggregates=2)
-    assert np.allclose(g2.outputs["color"], m, rtol=FLOAT_TOL, atol=1e-7)
+    alike = _uniformly_lit(plate, 8)
+    c2 = g2.outputs["color"]
+    assert np.allclose(c2[alike], m[alike], rtol=FLOAT_TOL, atol=1e-7)
+    edge = ~alike
+    assert edge.sum() > 10
+    ss = rm.run("ssaa", plate, samples=16).outputs["color"]
+    assert np.abs(c2 - ss)[edge].mean() < 0.5 * np.abs(m - ss)[edge].mean()
     g1 = rm.run("agaa", plate, aggregates=1).outputs["color"]
     assert np.abs(g1 - m).max() > 0.05  # one aggregate blends plate and ground on edges
     star = scenes.load("star", **SMALL)
@@ -114,7 +135,10 @@ def test_agaa_equals_msaa_when_aggregates_suffice():
 
 def test_agaa_degrades_on_foliage():
     """Four blade layers before a backdrop: more surfaces than aggregates in many pixels;
-    the colour error against the oracle grows from MSAA to AGAA K=2 to K=1."""
+    the colour error against the oracle grows from K=2 to K=1, and on the many-surface
+    pixels K=1 is worse than MSAA. (K=2 is not worse than MSAA overall: its filtered
+    shadowing beats MSAA's one shadow ray a fragment; measured mean errors: MSAA 0.0134,
+    K=2 0.0125, K=1 0.0152.)"""
     s = scenes.load("foliage", **SMALL)
     ref = get_reference(
         s,
@@ -129,11 +153,9 @@ def test_agaa_degrades_on_foliage():
     many = g2.outputs["surfaces"] > 2
     assert many.sum() > 0.05 * W * H
     assert g2.outputs["aggregates"].max() <= 2
-    err = {
-        k: float(np.abs(r.outputs["color"] - color).mean())
-        for k, r in (("msaa", m), ("k2", g2), ("k1", g1))
-    }
-    assert err["msaa"] < err["k2"] < err["k1"]
+    err = {k: np.abs(r.outputs["color"] - color) for k, r in (("msaa", m), ("k2", g2), ("k1", g1))}
+    assert err["k2"].mean() < err["k1"].mean()
+    assert err["msaa"][many].mean() < err["k1"][many].mean()
     # many-surface pixels differ from MSAA by more than float rounding (1e-6) by far
     assert np.abs(g2.outputs["color"] - m.outputs["color"])[many].mean() > 1000 * FLOAT_TOL
 

@@ -351,7 +351,9 @@ def test_score_folder_by_scene_and_frame(tmp_path, capsys):
     assert (tmp_path / "o" / "spot" / "metrics.json").is_file()
     # a gate that a scene fails: exit 1, named
     assert main([*args, "--fail-above", "visibility_mae=0"]) == 1
-    assert "plate: above threshold: visibility_mae" in capsys.readouterr().err
+    captured = capsys.readouterr()
+    assert "plate: failed: visibility_mae <= 0" in captured.err
+    assert "plate: FAIL visibility_mae " in captured.out
     # a file named after no scene: exit 2 before anything is rendered
     (root / "nosuch.exr").write_bytes((root / "plate.exr").read_bytes())
     assert main([*args[:-1], str(tmp_path / "o2")]) == 2

@@ -456,6 +456,16 @@ def test_report_of_a_sweep_database(tmp_path, capsys):
     rc = main(["report", "--sweep", str(out / "sweep.db"), "--out", str(report)])
     assert rc == 0
     assert report.is_file() and report.with_suffix(".json").is_file()
+    # the summary's cases have pixel viewers with the reference's stderr; same store, same bytes
+    inspect = json.loads(report.with_suffix(".json").read_text())["inspect"]
+    assert inspect
+    again = tmp_path / "again.html"
+    assert main(["report", "--sweep", str(out / "sweep.db"), "--out", str(again)]) == 0
+    assert again.read_bytes() == report.read_bytes()
+    with SweepStore(out / "sweep.db", readonly=True) as store:
+        viewers = store.viewers([c["key"] for c in inspect])
+    assert len(viewers) == len(inspect)
+    assert all(v["frames"][0]["stderr"] and v["channels"] == 1 for v in viewers.values())
     bad = ["report", "--sweep", str(out / "sweep.db"), "--out", str(tmp_path / "b.html")]
     assert main([*bad, "--cost", "shadow_map_byte"]) == 2
     err = capsys.readouterr().err
@@ -574,3 +584,19 @@ def test_cases_left_without_workers_stop_the_wait():
             fut = client.submit(sum, [1, 2], pure=False)
             with pytest.raises(SweepError, match=r"no workers for 1 s; 1 case\(s\) not run"):
                 list(completed_while_workers(client, {fut: None}, worker_timeout=1, where="w"))
+
+
+def test_progress_in_a_log_is_plain_lines(capsys):
+    """Not a terminal (CI logs): no bar redraws, a line per tenth of the cases and the end."""
+    from raster_oracle.oracle.sweeps.run import LogProgress, _progress
+
+    bar = _progress(25, quiet=False, desc="sweep x")
+    assert isinstance(bar, LogProgress)  # pytest's captured stderr is not a terminal
+    with bar:
+        for _ in range(25):
+            bar.update()
+    lines = capsys.readouterr().err.splitlines()
+    assert "\r" not in "".join(lines)
+    assert 2 <= len(lines) <= 11
+    assert lines[-1].startswith("sweep x: 25/25 cases (100%)")
+    assert _progress(25, quiet=True, desc="q").disable  # quiet: nothing at all

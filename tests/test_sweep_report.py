@@ -376,3 +376,134 @@ def test_cases_show_a_metric_defined_on_their_scene():
     rec = sweep_record(star, title="t")
     assert {c["metric"] for c in rec["cases"]} == {"visibility_mae"}
     assert rec["groups"][0]["omitted"][0]["metric"] == "misclassified_fraction"
+
+
+# --- pixel viewers of the summary's cases (issue 19) --------------------------------------
+
+
+def _viewer(value: float, size=(27, 48)) -> dict:
+    import numpy as np
+    from raster_oracle.reports.viewer import viewer_record
+
+    image = np.full(size, value, dtype=np.float32)
+    image[:, size[1] // 2 :] = 1.0 - value  # an edge, so reductions change the data
+    return viewer_record(
+        [{"reference": image, "candidate": image, "stderr": image * 0.01, "error": image - 0.5}],
+        error_name="visibility_error",
+        error_style="signed",
+        error_range=(-1.0, 1.0),
+    )
+
+
+def _viewer_store(path, rows, viewers):
+    from raster_oracle.oracle.sweeps.store import SweepStore
+
+    png = "data:image/png;base64,iVBORw0KGgo="
+    with SweepStore(path) as store:
+        for row in rows:
+            images = {"error": png}
+            if row["key"] in viewers:
+                images["viewer"] = viewers[row["key"]]
+            store.put({**row, "sweep": "s", "seed": 0, "run_id": "r"}, images=images)
+    return path
+
+
+def test_summary_cases_get_viewers_in_summary_order_and_rows_link_to_them(tmp_path, capsys):
+    import sqlite3
+
+    viewers = {r["key"]: _viewer(0.1 * i) for i, r in enumerate(ROWS) if r["status"] == "done"}
+    db = _viewer_store(tmp_path / "s.db", ROWS, viewers)
+    conn = sqlite3.connect(db)
+    assert conn.execute("SELECT count(*) FROM sweep_viewers").fetchone()[0] == 7
+    # the thumbnails' table holds no viewer (it has a table of its own)
+    assert all(
+        "viewer" not in json.loads(t) for (t,) in conn.execute("SELECT images FROM sweep_images")
+    )
+    conn.close()
+    rc, err, out = _report(tmp_path, db, capsys)
+    assert rc == 0, err
+    record = json.loads(out.with_suffix(".json").read_text())
+    named = [lv["case_id"] for g in record["overview"]["groups"] for lv in g["levels"]]
+    # city's single case, then plate's front: rows 1, 4, 5 (not the dominated 2, 3, 6)
+    assert named == [f"case-{i:012x}" for i in (8, 1, 4, 5)]
+    assert [c["id"] for c in record["inspect"]] == named
+    assert all(
+        c["factor"] == 1 and (c["width"], c["height"]) == (48, 27) for c in record["inspect"]
+    )
+    html = out.read_text()
+    for case_id in named:
+        assert f'href="#{case_id}-inspect"' in html and f'id="{case_id}-inspect"' in html
+    assert html.count('class="group pv-case"') == 4 and f"case-{2:012x}-inspect" not in html
+
+
+def test_viewers_are_fitted_to_the_page_budget(tmp_path):
+    from raster_oracle.reports.sections.page import summary_viewer_cases
+    from raster_oracle.reports.sweep import sweep_record
+    from raster_oracle.reports.viewer import viewer_bytes
+
+    rec = sweep_record(ROWS, title="t")
+    viewers = {r["key"]: _viewer(0.1 * i) for i, r in enumerate(ROWS)}
+    asked = []
+
+    def lookup(keys):  # only the named cases are read from the store
+        asked.extend(keys)
+        return {k: viewers[k] for k in keys}
+
+    full = summary_viewer_cases(rec, lookup)
+    assert sorted(asked) == sorted(ROWS[i]["key"] for i in (7, 0, 3, 4))
+    total = sum(viewer_bytes(c["viewer"]) for c in full)
+    fitted = summary_viewer_cases(rec, viewers, max_bytes=total // 3)
+    assert sum(viewer_bytes(c["viewer"]) for c in fitted) <= total // 3
+    factors = {c["viewer"]["factor"] for c in fitted}
+    assert len(factors) == 1 and factors.pop() > 1  # one common further factor
+    assert fitted[0]["level"]["scene"] == "city" and fitted[0]["level"]["cost"] == 100
+
+
+def test_store_without_viewer_table_is_read_and_migrated(tmp_path, capsys):
+    """A store written before viewers were kept: read only it has none (the report is still
+    written); opened for writing it gains the table and keeps its rows."""
+    from raster_oracle.oracle.sweeps.store import SweepStore
+
+    db = _viewer_store(tmp_path / "s.db", ROWS, {ROWS[0]["key"]: _viewer(0.2)})
+    _sql(db, "DROP TABLE sweep_viewers")
+    rc, err, out = _report(tmp_path, db, capsys)
+    assert rc == 0, err
+    assert json.loads(out.with_suffix(".json").read_text())["inspect"] == []
+    assert 'id="inspect"' not in out.read_text()
+    with SweepStore(db) as store:
+        assert len(store.rows()) == len(ROWS) and store.viewers([ROWS[0]["key"]]) == {}
+        store.put(
+            {**ROWS[0], "sweep": "s", "seed": 0, "run_id": "r"}, images={"viewer": _viewer(0.3)}
+        )
+        assert set(store.viewers([r["key"] for r in ROWS])) == {ROWS[0]["key"]}
+
+
+@pytest.mark.parametrize(
+    "stored", ["X'00ff10'", "'[1, 2]'", '\'{"schema": "raster-oracle.viewer/1"}\'', "'{not json'"]
+)
+def test_hand_edited_viewers_are_left_out(tmp_path, capsys, stored):
+    db = _viewer_store(tmp_path / "s.db", ROWS, {r["key"]: _viewer(0.4) for r in ROWS})
+    _sql(db, f"UPDATE sweep_viewers SET viewer = {stored} WHERE key = '{ROWS[0]['key']}'")
+    rc, err, out = _report(tmp_path, db, capsys)
+    assert rc == 0, err
+    ids = [c["id"] for c in json.loads(out.with_suffix(".json").read_text())["inspect"]]
+    assert ids == [f"case-{i:012x}" for i in (8, 4, 5)]  # row 1's bad viewer is left out
+
+
+def test_fronts_of_a_higher_is_better_metric_keep_the_highest_values():
+    """SSIM: 1 is perfect. Ranked as an error (metrics.catalog via the sweep report's
+    metric_error), the cheapest case with the highest SSIM is on the front and the summary's
+    best; ranked as a raw value (lower is better) the worst SSIM would be."""
+    from raster_oracle.oracle.sweeps.report import metric_error
+
+    rows = [dict(r) for r in ROWS[:3]]
+    for r, ssim in zip(rows, (0.80, 0.99, 0.95), strict=True):
+        r["metrics"] = {"ssim": ssim, "noise_floor": {"ssim": 0.999}}
+    rec = sweep_record(rows, title="t", metrics=["ssim"], rank=metric_error)
+    front = rec["groups"][0]["fronts"][0]
+    on = {front["points"][i]["error"] for i in front["front"]}
+    assert on == {0.80, 0.99}  # 0.95 is dearer and worse than 0.99
+    raw = sweep_record(rows, title="t", metrics=["ssim"])["groups"][0]["fronts"][0]
+    assert {raw["points"][i]["error"] for i in raw["front"]} == {0.80}
+    assert metric_error("psnr_db", 20.0) == pytest.approx(0.01)
+    assert metric_error("not_a_metric", 3.0) == 3.0

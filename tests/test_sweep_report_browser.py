@@ -1,6 +1,7 @@
 """The main job's report in headless Chromium (issue 19): the summary in the first screen,
 readable ticks and data in every plot, sortable and filterable cases, links into collapsed
-sections, one self-contained file.
+sections, the pixel viewers of the summary's cases (linked from its rows, zoom without
+smoothing, exposure), one self-contained file.
 
 The report comes from a reduced main job (``run_main`` on two scenes at 80x45 px, 4 spp, no
 Dask) whose studies are replaced by fixed records (the claims and the extremes take minutes;
@@ -10,12 +11,14 @@ their sections are what is rendered here). Needs Playwright and Chromium, as
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytestmark = pytest.mark.browser
@@ -211,7 +214,19 @@ def test_every_plot_has_data_and_no_repeated_tick_labels(page):
 
 def test_clicking_a_point_opens_the_cases_and_shows_its_row(page):
     page.locator("#fronts details").first.evaluate("d => { d.open = true; }")
-    point = page.locator("#fronts svg.plot a.point").first
+    # a marker no other marker covers (markers of close cases overlap), clicked as a user would
+    index = page.evaluate(
+        """() => [...document.querySelectorAll('#fronts svg.plot a.point')].findIndex(a => {
+            const r = a.getBoundingClientRect();
+            if (!r.width || !r.height) return false;
+            a.scrollIntoView({block: 'center'});
+            const q = a.getBoundingClientRect();
+            const hit = document.elementFromPoint(q.x + q.width / 2, q.y + q.height / 2);
+            return hit !== null && a.contains(hit);
+        })"""
+    )
+    assert index >= 0
+    point = page.locator("#fronts svg.plot a.point").nth(index)
     row_id = point.get_attribute("href")[1:]
     point.click()
     page.wait_for_function("document.getElementById('cases-detail').open")
@@ -274,8 +289,136 @@ def test_extremes_cells_coloured_by_error_and_the_failed_one_stands_out(page):
 def test_one_self_contained_file(report_path):
     html = report_path.read_text()
     assert report_path.stat().st_size < 15e6
+    assert 'id="inspect"' in html and "DecompressionStream" in html  # the viewers are inline
     refs = re.findall(
         r"""<(?:script|link|img|style|iframe)\b[^>]*(?:src|href)=["']([^"']+)""", html
     )
     assert not [r for r in refs if re.match(r"(?i)https?:|//", r)]
     assert "http://" not in html.replace("http://www.w3.org/2000/svg", "")
+
+
+# ---- the pixel viewers of the summary's cases ------------------------------------------------
+
+
+def _viewer_data(report_path) -> dict:
+    """The page's viewer records by case id (its report-data block)."""
+    html = report_path.read_text()
+    pattern = r'<script type="application/json" id="report-data">(.*?)</script>'
+    block = re.search(pattern, html, re.S)
+    assert block, "the page has no viewer data"
+    return {c["id"]: c for c in json.loads(block.group(1))["cases"]}
+
+
+def _array(viewer: dict, key: str) -> np.ndarray:
+    from raster_oracle.reports.viewer import decode_array
+
+    h, w, c = viewer["height"], viewer["width"], viewer["channels"]
+    shape = (h, w) if c == 1 or key == "error" else (h, w, c)
+    return decode_array(viewer["frames"][0][key], shape)
+
+
+def _canvas(page, case_id: str, source: str):
+    return page.locator(
+        f'.pv[data-viewer="{case_id}"] .pv-pane[data-source="{source}"] .pv-canvas-box canvas'
+    )
+
+
+def _pixels(page, case_id: str, source: str) -> np.ndarray:
+    """The RGB pixels of one view's canvas, (h, w, 3) uint8."""
+    w, h, text = _canvas(page, case_id, source).evaluate(
+        "c => { const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;"
+        " let s = ''; for (let i = 0; i < d.length; i += 8192)"
+        " s += String.fromCharCode.apply(null, d.subarray(i, i + 8192));"
+        " return [c.width, c.height, btoa(s)]; }"
+    )
+    return np.frombuffer(base64.b64decode(text), dtype=np.uint8).reshape(h, w, 4)[..., :3]
+
+
+def _open_viewer(page, case_id: str) -> None:
+    """Follow the summary's "view" link of the case and wait for its viewer's data."""
+    page.locator(f'#summary a.inspect-link[href="#{case_id}-inspect"]').click()
+    page.wait_for_function(f"document.getElementById('{case_id}-inspect').open")
+    page.wait_for_selector(f'.pv[data-viewer="{case_id}"][data-ready="1"]')
+
+
+def test_every_summary_row_links_to_its_cases_viewer(page, report_path):
+    record = json.loads(report_path.with_suffix(".json").read_text())
+    named = [lv["case_id"] for g in record["overview"]["groups"] for lv in g["levels"]]
+    assert named and [c["id"] for c in record["inspect"]] == named
+    data = _viewer_data(report_path)
+    assert list(data) == named
+    rows = page.locator("#summary table.mini tbody tr")
+    assert rows.count() == len(named)
+    for i, case_id in enumerate(named):
+        assert rows.nth(i).locator("a.inspect-link").get_attribute("href") == f"#{case_id}-inspect"
+    # the viewers are collapsed until a link opens one (the page stays a few screens long)
+    assert not page.locator(f"#{named[-1]}-inspect").evaluate("d => d.open")
+    _open_viewer(page, named[-1])
+    assert page.locator(f"#{named[-1]}-inspect .pv-pane").first.is_visible()
+    key = {c["id"]: c["key"] for c in record["cases"]}[named[-1]]
+    assert record["inspect"][-1]["key"] == key
+    # the page states which cases have a viewer
+    assert "summary names" in page.locator("#inspect > p.note").inner_text()
+
+
+def test_main_viewer_zooms_without_smoothing_on_an_edge(page, report_path):
+    data = _viewer_data(report_path)
+    case_id, v = next((k, c["viewer"]) for k, c in data.items() if c["viewer"]["channels"] == 1)
+    _open_viewer(page, case_id)
+    reference = _array(v, "reference")
+    shown = np.round(np.clip(reference, 0.0, 1.0) * 255).astype(int)  # clip, no sRGB
+    # a known edge: the largest step between horizontal neighbours of the reference
+    steps = np.abs(np.diff(shown, axis=1))
+    y, x = np.unravel_index(np.argmax(steps), steps.shape)
+    assert steps[y, x] >= 64, "the test scene should hold a shadow edge"
+    canvas = _canvas(page, case_id, "reference")
+    canvas.scroll_into_view_if_needed()
+    box = canvas.bounding_box()
+    page.mouse.move(
+        box["x"] + (x + 1) * box["width"] / v["width"],
+        box["y"] + (y + 0.5) * box["height"] / v["height"],
+    )
+    for _ in range(10):
+        page.mouse.wheel(0, -100)
+    page.mouse.move(0, 0)  # no cursor outline in the views
+    zoom = float(page.locator(f'.pv[data-viewer="{case_id}"]').get_attribute("data-zoom"))
+    assert zoom > 4  # x9.3, or the deepest zoom (64 CSS px per data pixel) if that is less
+    pixels = _pixels(page, case_id, "reference")
+    block = pixels.shape[1] / v["width"] * zoom  # canvas pixels per data pixel
+    assert block >= 6
+    grey = pixels[..., 0].astype(int)
+    assert (pixels == pixels[..., :1]).all()  # grey data, grey pixels
+    # the edge is in view: both of its values are shown
+    assert grey.max() - grey.min() >= 64
+    # only the data's values, no intermediate grey of a smoothing filter
+    assert set(np.unique(grey)) <= set(np.unique(shown).tolist())
+    # in blocks: along a row the colour changes only at block boundaries, one block apart
+    changes = np.flatnonzero((np.diff(grey, axis=1) != 0).any(axis=0)) + 1
+    assert changes.size
+    phase = (changes - changes[0]) / block
+    assert np.abs(phase - np.round(phase)).max() * block <= 1.01, (changes, block)
+
+
+def test_main_viewer_exposure_slider_changes_the_pixels_shown(page, report_path):
+    from raster_oracle.metrics.tonemap import tonemap
+
+    data = _viewer_data(report_path)
+    case_id, v = next((k, c["viewer"]) for k, c in data.items() if c["viewer"]["channels"] == 3)
+    _open_viewer(page, case_id)
+    reference = _array(v, "reference")
+    h, w = reference.shape[:2]
+    y, x = h // 2, w // 2
+    before = _pixels(page, case_id, "reference")
+    scale = before.shape[1] / w  # fit view: canvas pixels per data pixel
+
+    def centre(pixels):
+        return pixels[int((y + 0.5) * scale), int((x + 0.5) * scale)].astype(int)
+
+    def expected(exposure):
+        return np.round(tonemap(reference[y : y + 1, x : x + 1], exposure=exposure)[0, 0] * 255)
+
+    assert np.abs(centre(before) - expected(v["exposure"])).max() <= 2
+    page.locator(f'.pv[data-viewer="{case_id}"] .pv-exposure').fill(str(v["exposure"] + 2))
+    after = _pixels(page, case_id, "reference")
+    assert after.mean() > before.mean() + 5
+    assert np.abs(centre(after) - expected(v["exposure"] + 2)).max() <= 2

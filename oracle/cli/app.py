@@ -1,8 +1,21 @@
 """``raster-oracle``: the command line, a thin layer over the library.
 
-Every command returns an exit code: 0 success, 1 a ``--fail-above`` threshold exceeded (or
-a failed case or section), 2 bad input (one line on stderr, nothing written to the output
-folder). Each command group lives in its own module (:mod:`.reference`, :mod:`.model`,
+Exit codes, for every command:
+
+- **0**: success; for ``score``, every ``--fail-above``/``--fail-below`` gate passed and no
+  metric regressed against ``--baseline``.
+- **1**: a gate failed (``FAIL`` lines give value, threshold and noise floor), a metric is
+  significantly worse than the ``--baseline`` run (``REGRESSION`` lines), or, for the
+  sweep and study commands, a case or section failed. The outputs are written.
+- **2**: usage or input error: one line on stderr naming what is wrong, nothing written to
+  the output folder. For ``score`` this includes a gate that cannot be judged (unknown
+  metric, a direction that makes it meaningless such as ``--fail-above ssim=...``, a metric
+  that does not apply to the candidate's kind or frame count, a null value) and a baseline
+  that is not a metrics.json or is of another scene, size, light, kind or frame count.
+- **130**: interrupted.
+
+``raster-oracle --version`` prints ``raster-oracle X.Y.Z``. Each command group lives in its
+own module (:mod:`.reference`, :mod:`.model`,
 :mod:`.score`, :mod:`.sweeps`, :mod:`.studies`) with its parsers and its ``COMMANDS``.
 """
 
@@ -41,10 +54,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="Mitsuba variant: auto, cuda_ad_rgb, llvm_ad_rgb or scalar_rgb "
         "(default: $RASTER_ORACLE_BACKEND or auto)",
     )
+    parser.add_argument("--version", action="version", version=f"raster-oracle {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for group in (reference, model, score, sweeps, studies):
         group.add_parsers(sub)
     return parser
+
+
+def _version() -> str:
+    from ... import __version__
+
+    return __version__
 
 
 def _terminate(signum, frame):  # SIGTERM: unwind so that `finally` blocks clean up

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from . import args as A
 from . import score_folder
+from .gate_args import add_gate_args, check_junit, print_verdict
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -45,12 +45,10 @@ def add_parsers(sub) -> None:
     p.add_argument(
         "--ppd", type=A.positive_float, default=None, help="FLIP pixels per degree (default 67.02)"
     )
-    p.add_argument(
-        "--fail-above",
-        action="append",
-        default=[],
-        metavar="METRIC=VALUE",
-        help="exit 1 when METRIC exceeds VALUE (repeatable)",
+    add_gate_args(
+        p,
+        baseline_help="a previous run's metrics.json (or its folder): exit 1 when a metric is "
+        "worse by more than both runs' noise floors",
     )
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
@@ -86,13 +84,16 @@ def _check_frame_pattern(pattern: str | None) -> None:
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
+    from ..scoring.gates import load_baseline, parse_gates, write_junit
     from ..scoring.request import score_to_folder
-    from ..scoring.score import ScoreError, parse_thresholds
+    from ..scoring.score import ScoreError
     from .score_inputs import candidate_inputs
 
-    thresholds = parse_thresholds(args.fail_above)
+    gates = parse_gates(args.fail_above, args.fail_below)
+    baseline = load_baseline(args.baseline) if args.baseline is not None else None
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
+    check_junit(args.junit)
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -101,7 +102,7 @@ def cmd_score(args) -> int:
         params = raster_models.parse_params(args.technique, args.params)
     elif args.params:
         raise ScoreError("--set applies to --technique, not to --candidate")
-    failed = score_to_folder(
+    verdict = score_to_folder(
         loaded,
         out=args.out,
         technique=args.technique,
@@ -117,14 +118,17 @@ def cmd_score(args) -> int:
         quiet=args.quiet,
         flip_mode=args.flip_mode,
         ppd=args.ppd or M.DEFAULT_PPD,
-        thresholds=thresholds,
+        gates=gates,
+        baseline=baseline,
+        baseline_source=str(args.baseline),
         layout=layout,
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
-    if failed:
-        print(f"raster-oracle: above threshold: {', '.join(failed)}", file=sys.stderr)
-        return 1
-    return 0
+    print_verdict(verdict, baseline=args.baseline)
+    if args.junit is not None:
+        write_junit(args.junit, [verdict])
+        print(f"junit: {args.junit}")
+    return verdict.exit_code
 
 
 def cmd_report(args) -> int:

@@ -3,16 +3,18 @@
 Every scene of ``ROOT`` (:func:`oracle.scoring.folder.discover`) is checked first (scene
 found, candidate layout unambiguous, size right), then scored into ``OUT/<scene>/`` as
 ``score`` would; ``OUT/metrics.json`` combines the scenes' records and ``OUT/report.html``
-their cases. Exit 1 when a scene exceeds a ``--fail-above`` threshold.
+their cases. The gates (``--fail-above``, ``--fail-below``) are judged on every scene, a
+``--baseline`` (a previous ``OUT/metrics.json``) scene by scene, and ``--junit`` holds one
+test case per scene x gate. Exit 1 when a scene fails a gate or regresses.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from . import args as A
+from .gate_args import add_gate_args, check_junit, print_verdict
 
 __all__ = ["add_parser", "cmd_score_folder"]
 
@@ -39,12 +41,10 @@ def add_parser(sub) -> None:
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
-    p.add_argument(
-        "--fail-above",
-        action="append",
-        default=[],
-        metavar="METRIC=VALUE",
-        help="exit 1 when a scene's METRIC exceeds VALUE (repeatable)",
+    add_gate_args(
+        p,
+        baseline_help="a previous score-folder's metrics.json (or its OUT folder): exit 1 "
+        "when a scene's metric is worse by more than both runs' noise floors",
     )
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/score-folder"), help="output folder")
@@ -72,12 +72,19 @@ def cmd_score_folder(args) -> int:
     from ...scenes.files import atomic_write_json
     from ..scoring.combine import combine_reports
     from ..scoring.folder import discover
+    from ..scoring.gates import (
+        check_baseline_scene,
+        load_folder_baseline,
+        parse_gates,
+        write_junit,
+    )
     from ..scoring.request import score_to_folder
-    from ..scoring.score import parse_thresholds
     from .score_inputs import resolve_layout
 
-    thresholds = parse_thresholds(args.fail_above)
+    gates = parse_gates(args.fail_above, args.fail_below)
+    baselines = load_folder_baseline(args.baseline) if args.baseline is not None else None
     A.check_out(args.out)
+    check_junit(args.junit)
     entries = discover(args.root)
     names = {e.name for e in entries}
     if names & {"metrics.json", "report.html", "report.json"}:
@@ -86,13 +93,22 @@ def cmd_score_folder(args) -> int:
     for entry in entries:  # everything checked before the first reference is rendered
         loaded = _scene_of(entry, args.exports)
         layout = resolve_layout(entry.pattern, channel=args.channel, kind=args.kind, loaded=loaded)
+        if baselines is not None and entry.name in baselines:
+            check_baseline_scene(
+                baselines[entry.name],
+                loaded,
+                frames=entry.frames or 1,
+                kinds=(layout.kind,),
+                source=f"{args.baseline} scene {entry.name}",
+            )
         plan.append((entry, loaded, layout))
     cache = A.reference_cache(args)
     combined = {"schema": "raster-oracle/score-folder/1", "root": str(args.root), "scenes": {}}
-    failed = {}
+    failed, verdicts = {}, []
     for entry, loaded, layout in plan:
         out = args.out / entry.name
-        bad = score_to_folder(
+        baseline = (baselines or {}).get(entry.name)
+        verdict = score_to_folder(
             loaded,
             out=out,
             candidate=entry.pattern,
@@ -105,19 +121,28 @@ def cmd_score_folder(args) -> int:
             quiet=args.quiet,
             flip_mode=args.flip_mode,
             ppd=M.DEFAULT_PPD,
-            thresholds=thresholds,
+            gates=gates,
+            baseline=baseline,
+            baseline_source=f"{args.baseline} scene {entry.name}",
             layout=layout,
         )
+        if baselines is not None and baseline is None:
+            verdict.add(notes=[f"baseline: no scene {entry.name} in {args.baseline}"])
+        verdicts.append(verdict)
         record = json.loads((out / "metrics.json").read_text())
         record["folder"] = entry.name
         combined["scenes"][entry.name] = record
-        if bad:
-            failed[entry.name] = bad
+        if verdict:
+            failed[entry.name] = list(verdict)
     combined["failed"] = failed
     atomic_write_json(args.out / "metrics.json", combined)
     folders = [args.out / e.name for e, _, _ in plan]
     combine_reports(folders, args.out / "report.html", title=f"{args.root.name}: engine images")
     print(f"score-folder: {len(plan)} scene(s): {args.out / 'metrics.json'}")
-    for name, bad in failed.items():
-        print(f"raster-oracle: {name}: above threshold: {', '.join(bad)}", file=sys.stderr)
+    for (entry, _, _), verdict in zip(plan, verdicts, strict=True):
+        compared = args.baseline if entry.name in (baselines or {}) else None
+        print_verdict(verdict, baseline=compared, prefix=f"{entry.name}: ")
+    if args.junit is not None:
+        write_junit(args.junit, verdicts)
+        print(f"junit: {args.junit}")
     return 1 if failed else 0

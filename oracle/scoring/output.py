@@ -17,7 +17,8 @@ from ... import raster_models, reports
 from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ...scenes.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
-from .score import METRIC_KEYS, ScoreResult, failures
+from .gates import Gate, Verdict
+from .score import METRIC_KEYS, ScoreResult
 
 __all__ = [
     "MAP_STYLES",
@@ -51,6 +52,15 @@ def _display(result: ScoreResult, image: np.ndarray) -> np.ndarray:
         return np.clip(image, 0.0, 1.0)
     tm = result.record.get("tone_mapping") or {}
     return M.tonemap(image, exposure=tm.get("exposure_stops") or 0.0)
+
+
+def _bounds(gates: list[Gate]) -> dict:
+    """The report's thresholds: ``metric -> {"max": V}`` (``--fail-above``) and/or
+    ``{"min": V}`` (``--fail-below``)."""
+    out: dict = {}
+    for g in gates:
+        out.setdefault(g.metric, {})["max" if g.op == "<=" else "min"] = g.limit
+    return out
 
 
 def _viewer(result: ScoreResult, maps: dict) -> dict:
@@ -115,6 +125,8 @@ def _case(
         error_maps=maps,
         noise_floor=record.get("noise_floor") or None,
         thresholds={k: v for k, v in thresholds.items() if k in values} or None,
+        # the noise floor is judged in each metric's direction (a low SSIM is not "within")
+        directions={k: M.CATALOG[k].direction for k in values},
         cost=report_cost(cost, technique),
         technique=technique,
         family=_front(technique, scene),
@@ -280,15 +292,30 @@ def write_score_folder(
     *,
     loaded,
     name: str,
-    thresholds: dict,
+    gates: list[Gate] = (),
+    verdict: Verdict | None = None,
     technique=None,
     params=None,
     cost=None,
 ) -> list[str]:
-    """Write the score folder; returns the metrics that exceed their thresholds."""
+    """Write the score folder; returns the metrics of the failed gates.
+
+    ``gates`` and ``verdict`` (their checks and the baseline's, judged by the caller) are
+    recorded in ``metrics.json``: ``thresholds`` (``--fail-above`` limits), ``fail_below``,
+    ``gates`` (each check's name, metric, pass and line), ``failed`` (metrics of the failed
+    gates) and ``regressions`` (metrics worse than the baseline).
+    """
     record = dict(result.record)
-    record["thresholds"] = thresholds
-    record["failed"] = failures(record, thresholds)
+    checks = verdict.checks if verdict is not None else []
+    record["thresholds"] = {g.metric: g.limit for g in gates if g.op == "<="}
+    record["fail_below"] = {g.metric: g.limit for g in gates if g.op == ">="}
+    record["gates"] = [
+        {"name": c.name, "metric": c.metric, "kind": c.kind, "passed": c.passed, "line": c.line}
+        for c in checks
+    ]
+    failed = [c.metric for c in checks if not c.passed and c.kind == "gate"]
+    record["failed"] = list(dict.fromkeys(failed))
+    record["regressions"] = [c.metric for c in checks if not c.passed and c.kind == "baseline"]
     record["technique"] = technique
     record["params"] = params
     record["cost"] = cost
@@ -310,7 +337,7 @@ def write_score_folder(
         result,
         name=name,
         scene=loaded.name,
-        thresholds=thresholds,
+        thresholds=_bounds(list(gates)),
         technique=technique,
         params=params,
         cost=cost,

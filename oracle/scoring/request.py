@@ -12,10 +12,18 @@ import re
 from pathlib import Path
 
 from ... import metrics as M
+from .gates import (
+    Gate,
+    Verdict,
+    check_applicable,
+    check_baseline_scene,
+    compare_baseline,
+    evaluate_gates,
+)
 from .layout import CandidateLayout, candidate_layout, read_candidate
 from .output import write_score_folder
 from .score import ScoreError, score
-from .technique import score_model
+from .technique import score_model, technique_channels
 
 __all__ = ["FRAME_PATTERN", "candidate_name", "file_candidate", "frame_file", "score_to_folder"]
 
@@ -71,6 +79,14 @@ def _check_candidates(fn, loaded, frames, camera_path) -> None:
         fn(scene_k, k)
 
 
+def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source) -> None:
+    """Gates that do not apply to ``kinds`` / ``frames`` and a baseline of another scene,
+    size, light, frame count or kind fail here, before any reference is rendered."""
+    check_applicable(gates, kinds=kinds, frames=frames)
+    if baseline is not None:
+        check_baseline_scene(baseline, loaded, frames=frames, kinds=kinds, source=source)
+
+
 def score_to_folder(
     loaded,
     *,
@@ -88,10 +104,19 @@ def score_to_folder(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     thresholds: dict[str, float] | None = None,
+    gates: list[Gate] | None = None,
+    baseline: dict | None = None,
+    baseline_source: str = "baseline",
     layout: CandidateLayout | None = None,
-) -> list[str]:
+) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
-    ``loaded`` and write the score folder ``out``; returns the metrics above ``thresholds``.
+    ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
+    the :class:`oracle.scoring.gates.Verdict` (its checks, their lines, the exit code; as a
+    list, the names of the failed checks).
+
+    A gate that cannot be judged (a metric that does not apply to the candidate's kind or
+    frame count, a null value) or a baseline of another run is a
+    :class:`oracle.scoring.gates.GateError` raised before anything is written.
 
     Parameters
     ----------
@@ -103,16 +128,27 @@ def score_to_folder(
         resolved here from frame 0's file and ``channel``).
     frames : score that many frames of ``camera_path`` and add the temporal metrics (None or
         1: the scene's own frame).
-    thresholds : ``{metric: limit}`` from :func:`oracle.scoring.score.parse_thresholds`.
+    thresholds : ``{metric: limit}`` (``--fail-above`` gates, as
+        :func:`oracle.scoring.score.parse_thresholds` gives them).
+    gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``).
+    baseline, baseline_source : a previous run's ``metrics.json`` record (from
+        :func:`oracle.scoring.gates.load_baseline`) and its path, for messages.
     """
     if (technique is None) == (candidate is None):
         raise ScoreError("score: give a technique or a candidate file (one of them)")
     frames = frames if frames and frames > 1 else None
+    gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
+    # gates and the baseline are checked before rendering anything, against the kinds that
+    # will be scored, and again on the record (evaluate_gates, compare_baseline)
+    check = dict(gates=gates, baseline=baseline, loaded=loaded, frames=frames or 1)
+    check.update(source=baseline_source)
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
     if technique is not None:
         params = dict(params or {})
+        # a model is scored on every channel it produces
+        _check_before_rendering(kinds=technique_channels(technique), **check)
         result = score_model(loaded, technique, params, channel=channel, **opts)
         info = result.record["candidate_info"][0]
         cost, params = info["cost"], info["params"]
@@ -123,6 +159,7 @@ def score_to_folder(
         params = None
         if layout is None:
             layout = candidate_layout(frame_file(candidate, 0), channel=channel)
+        _check_before_rendering(kinds=(layout.kind,), **check)
         read = file_candidate(candidate, channel=channel, frames=frames, layout=layout)
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
@@ -132,13 +169,19 @@ def score_to_folder(
             "source": layout.source,
         }
         name = candidate_name(candidate, frames=frames, camera_path=camera_path)
-    return write_score_folder(
+    verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
+    if baseline is not None:
+        against = compare_baseline(result.record, baseline, source=baseline_source)
+        verdict.add(against.checks, against.notes)
+    write_score_folder(
         result,
         out,
         loaded=loaded,
         name=name,
-        thresholds=thresholds or {},
+        gates=gates,
+        verdict=verdict,
         technique=technique,
         params=params,
         cost=cost,
     )
+    return verdict

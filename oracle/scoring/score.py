@@ -59,21 +59,10 @@ COVERAGE_KEYS = (
     "coverage_floor_rms",
     "coverage_edge_rmse_over_floor",
 )
-#: Every metric key of ``metrics.json`` (None where it does not apply to the channel).
+#: Every metric key of ``metrics.json`` (None where it does not apply to the channel), in
+#: the order of the metric catalogue (:mod:`metrics.catalog`: direction, unit, applicability).
 _SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
-METRIC_KEYS = (
-    *_SHADOW_VALUES,
-    "edge_mae",
-    "interior_mae",
-    "flip_mean",
-    "ssim",
-    "psnr_db",
-    "delta_e2000_mean",
-    "significant_fraction",
-    "flicker",
-    "temporal_error",
-    *COVERAGE_KEYS,
-)
+METRIC_KEYS = tuple(M.CATALOG)
 #: RMS coverage error of a box-resolved N-sample standard pattern on one straight edge
 #: (TECHNIQUES.md table; ``metrics.straight_edge_error_floor`` reproduces it).
 COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}

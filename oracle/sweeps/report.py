@@ -5,11 +5,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...metrics.catalog import error_of
 from ...reports.sweep import with_memory, write_sweep_report
 from .run import SweepError
 from .store import SweepStore
 
-__all__ = ["sweep_report"]
+__all__ = ["metric_error", "sweep_report"]
+
+
+def metric_error(metric: str, value: float) -> float:
+    """``value`` of ``metric`` as an error, 0 best, for the fronts to compare
+    (:func:`metrics.catalog.error_of`: ``1 - ssim``, a PSNR's MSE, ``|bias|``); a metric the
+    catalogue does not score (an ``info`` one, or a key it does not know) as it is."""
+    try:
+        return error_of(metric, value)
+    except (KeyError, ValueError):
+        return value
 
 
 def _check_keys(rows, costs, metrics) -> None:
@@ -55,15 +66,18 @@ def sweep_report(
         store.check_integrity()
         rows = store.rows(sweep=sweep)
         images = store.images(r["key"] for r in rows if r["status"] == "done")
-    _check_keys(rows, costs, metrics)
-    write_sweep_report(
-        rows,
-        out,
-        title=title or f"raster-oracle sweep {sweep or Path(db).name}",
-        provenance={"database": str(Path(db).resolve()), "sweep": sweep or "all"},
-        costs=costs,
-        metrics=metrics,
-        extra_sections=extra_sections,
-        images=images,
-    )
+        _check_keys(rows, costs, metrics)
+        # the store stays open for the viewers: only the cases the summary names are read
+        write_sweep_report(
+            rows,
+            out,
+            title=title or f"raster-oracle sweep {sweep or Path(db).name}",
+            provenance={"database": str(Path(db).resolve()), "sweep": sweep or "all"},
+            costs=costs,
+            metrics=metrics,
+            extra_sections=extra_sections,
+            images=images,
+            viewers=store.viewers,
+            rank=metric_error,
+        )
     return out

@@ -285,11 +285,46 @@ def _default_workers() -> int:
 
 
 def _progress(total: int, *, quiet: bool, desc: str):
+    """A bar on a terminal; in a CI log (its carriage-return redraws are noise there) plain
+    lines instead (:class:`LogProgress`)."""
     from tqdm import tqdm
 
-    # a bar only on a terminal: in a CI log its carriage-return redraws are noise
-    disable = quiet or not sys.stderr.isatty()
-    return tqdm(total=total, desc=desc, unit="case", disable=disable, leave=False)
+    if not quiet and not sys.stderr.isatty():
+        return LogProgress(total, desc=desc)
+    return tqdm(total=total, desc=desc, unit="case", disable=quiet, leave=False)
+
+
+class LogProgress:
+    """Progress as plain lines on stderr, for logs: ``desc: done/total cases (pct%), s``
+    at every tenth of the work and at the end (at most 11 lines, whatever the total)."""
+
+    STEPS = 10
+
+    def __init__(self, total: int, *, desc: str):
+        self.total, self.desc, self.done = int(total), desc, 0
+        self.t0 = time.perf_counter()
+        self.next_step = 1
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        if self.total <= 0:
+            return
+        step = self.done * self.STEPS // self.total
+        if step >= self.next_step or self.done == self.total:
+            self.next_step = step + 1
+            pct = 100 * self.done // self.total
+            wall = time.perf_counter() - self.t0
+            print(
+                f"{self.desc}: {self.done}/{self.total} cases ({pct}%), {wall:.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def run_sweep(

@@ -13,7 +13,11 @@ Table ``sweep_cases``: ``key`` (primary key, :func:`case_key`), ``sweep`` (spec 
 ``wall_seconds`` (the case's own time on its worker), ``status`` (``done`` or ``failed``),
 ``error`` (one line, or NULL), ``finished`` (Unix time the row was written) and ``run_id``
 (the run that wrote it). Table ``sweep_images``: ``key`` and ``images`` (JSON: thumbnails of
-the reference, the candidate and its primary error map as ``data:`` URIs).
+the reference, the candidate and its primary error map as ``data:`` URIs). Table
+``sweep_viewers``: ``key`` and ``viewer`` (JSON: the pixel viewer's record of the case,
+:func:`reports.viewer.viewer_record`, at the thumbnails' resolution; about 0.1 to 1 MB a case).
+A store written before viewers were kept lacks that table: opened for writing it gains it
+(``CREATE TABLE IF NOT EXISTS``, its old rows keep no viewer); read only, it has no viewers.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import sqlite3
 import time
 from pathlib import Path
 
+from ...reports.viewer import check_viewer
 from ...scenes.records import jsonable
 from ..errors import InputError
 
@@ -88,6 +93,7 @@ CREATE TABLE IF NOT EXISTS sweep_cases (
 );
 CREATE INDEX IF NOT EXISTS sweep_cases_by_sweep ON sweep_cases (sweep);
 CREATE TABLE IF NOT EXISTS sweep_images (key TEXT PRIMARY KEY, images TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS sweep_viewers (key TEXT PRIMARY KEY, viewer TEXT NOT NULL);
 """
 
 
@@ -191,7 +197,11 @@ class SweepStore:
         return {r[0] for r in self.conn.execute(sql)}
 
     def put(self, row: dict, *, images: dict | None = None) -> None:
-        """Write (or replace) one case row, and its thumbnails when given, and commit."""
+        """Write (or replace) one case row, and its thumbnails when given, and commit.
+        ``images["viewer"]`` (a pixel viewer record, :func:`oracle.sweeps.thumbnails.case_images`)
+        goes to the ``sweep_viewers`` table, the rest to ``sweep_images``."""
+        images = dict(images or {})
+        viewer = images.pop("viewer", None)
         values = dict(row)
         for name in ("params", "metrics", "cost"):
             if values.get(name) is not None:
@@ -211,6 +221,11 @@ class SweepStore:
                 self.conn.execute(
                     "INSERT OR REPLACE INTO sweep_images VALUES (?, ?)",
                     (values["key"], dumps(images)),
+                )
+            if viewer is not None:
+                self.conn.execute(
+                    "INSERT OR REPLACE INTO sweep_viewers VALUES (?, ?)",
+                    (values["key"], dumps(viewer)),
                 )
 
     def get(self, key: str) -> dict | None:
@@ -264,6 +279,30 @@ class SweepStore:
                 if hit is not None and (images := _thumbnails(hit[0])):
                     out[key] = images
         except sqlite3.OperationalError:  # a store written before thumbnails were kept
+            return {}
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        return out
+
+    def viewers(self, keys) -> dict[str, dict]:
+        """Pixel viewer records of ``keys`` (those that have one). Each is checked
+        (:func:`reports.viewer.check_viewer`): a damaged or hand-edited one is left out, as a
+        bad thumbnail is, since the viewer is an aid to the report, never its content."""
+        out = {}
+        try:
+            for key in keys:
+                hit = self.conn.execute(
+                    "SELECT viewer FROM sweep_viewers WHERE key = ?", (key,)
+                ).fetchone()
+                if hit is None:
+                    continue
+                try:
+                    viewer = check_viewer("viewer", json.loads(hit[0]))
+                except (TypeError, ValueError):
+                    continue
+                if viewer is not None:
+                    out[key] = viewer
+        except sqlite3.OperationalError:  # a store written before viewers were kept
             return {}
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"sweep database {self.path}: {exc}") from None

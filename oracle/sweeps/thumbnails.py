@@ -1,4 +1,5 @@
-"""Thumbnails of a scored case, kept in the sweep store for the report's case table."""
+"""Thumbnails and the pixel viewer's data of a scored case, kept in the sweep store for the
+report (the case table's thumbnails, the summary cases' pixel viewers)."""
 
 from __future__ import annotations
 
@@ -6,11 +7,13 @@ import numpy as np
 
 from ... import metrics as M
 from ...reports import images
+from ...reports.viewer import viewer_record
+from ..reference.exr import ExrError, read_exr
 
-__all__ = ["THUMBNAIL_SIZE", "case_images"]
+__all__ = ["THUMBNAIL_SIZE", "case_images", "case_viewer"]
 
 #: Longer side of the thumbnails kept per case, in pixels (the image is reduced by the
-#: smallest integer factor that fits).
+#: smallest integer factor that fits). The pixel viewer's arrays have the same resolution.
 THUMBNAIL_SIZE = 320
 #: Primary error map of each scored channel: map name, palette, fixed range.
 _ERROR_MAPS = {
@@ -20,10 +23,64 @@ _ERROR_MAPS = {
 }
 
 
+def _stderr(result, channel: str, shape: tuple[int, ...]) -> np.ndarray | None:
+    """The first frame's reference stderr (read back from its EXR), or None when the EXR or
+    the channel is missing (the viewer then shows no stderr; nothing else depends on it)."""
+    if not result.reference_folders:
+        return None
+    try:
+        ch = read_exr(result.reference_folders[0] / "reference.exr")
+    except ExrError:
+        return None
+    if len(shape) == 3:
+        names = [f"{channel}_stderr.{c}" for c in "RGB"]
+        se = np.stack([ch[n] for n in names], -1) if all(n in ch for n in names) else None
+    else:
+        se = ch.get(f"{channel}_stderr")
+    return se if se is not None and se.shape == shape else None
+
+
+def case_viewer(result, *, max_size: int = THUMBNAIL_SIZE) -> dict | None:
+    """The pixel viewer record (:func:`reports.viewer.viewer_record`) of a score result's
+    first frame at the thumbnails' resolution: linear reference, candidate, the reference's
+    stderr and the primary error map, reduced by the thumbnails' factor (box mean, stderr of
+    the mean, largest-magnitude error). None when the channel has no primary error map."""
+    frame = result.frames[0]
+    channel = result.record["channel"]
+    key, style, value_range = _ERROR_MAPS[channel]
+    if key not in frame.maps:
+        return None
+    shape = frame.reference.shape
+    factor = images.downscale_factor(shape, max_size=max_size)
+    budget = -(-shape[0] // factor) * -(-shape[1] // factor)
+    tm = result.record.get("tone_mapping") or {}
+    return viewer_record(
+        [
+            {
+                "label": "frame 1",
+                "metrics": frame.metrics,
+                "reference": frame.reference,
+                "candidate": frame.candidate,
+                "stderr": _stderr(result, channel, shape),
+                "error": frame.maps[key],
+            }
+        ],
+        error_name=key,
+        error_style=style,
+        error_range=value_range,
+        exposure=tm.get("exposure_stops") or 0.0,
+        tone_mapper=(tm.get("tone_mapper") or "aces") if frame.reference.ndim == 3 else "clip",
+        srgb=frame.reference.ndim == 3,
+        max_pixels=budget,
+    )
+
+
 def case_images(result) -> dict:
     """Thumbnails of a score result as data URIs: ``reference``, ``candidate``, ``error``
     (visibility as grey PNG, colour through the shared tone mapper as WebP/JPEG, the primary
-    error map with its fixed-range palette, reduced keeping the largest error per block)."""
+    error map with its fixed-range palette, reduced keeping the largest error per block),
+    and under ``"viewer"`` the pixel viewer's record (:func:`case_viewer`; the store keeps
+    it in a table of its own)."""
     frame = result.frames[0]
     channel = result.record["channel"]
     factor = images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
@@ -42,4 +99,7 @@ def case_images(result) -> dict:
         data = images.reduce_error(np.nan_to_num(frame.maps[key]), factor)
         out["error"] = images.encode_heatmap(data, style=style, value_range=value_range)
         out["error_map"] = key
+    viewer = case_viewer(result)
+    if viewer is not None:
+        out["viewer"] = viewer
     return out

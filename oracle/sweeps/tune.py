@@ -26,6 +26,7 @@ from pathlib import Path
 import optuna
 
 from ... import raster_models, scenes
+from ...metrics.catalog import CATALOG
 from ...raster_models import params
 from ...scenes import backend
 from ..errors import InputError
@@ -49,8 +50,17 @@ class TuneError(InputError):
 
 
 def parse_target(text: str) -> tuple[str, float]:
-    """``"flip_mean<=0.05"`` -> ``("flip_mean", 0.05)``; the metric must be a metric key."""
-    return metric_limit(text, separator="<=", option="--target", error=TuneError)
+    """``"flip_mean<=0.05"`` -> ``("flip_mean", 0.05)``; the metric must be a metric key whose
+    lower values are better (:mod:`metrics.catalog`): ``ssim<=0.9`` would search for bad
+    configurations."""
+    key, limit = metric_limit(text, separator="<=", option="--target", error=TuneError)
+    m = CATALOG[key]
+    if m.direction != "lower":
+        raise TuneError(
+            f"--target {key}: {key} is {m.better}; --target METRIC<=V takes a lower-is-better "
+            "metric (e.g. flip_mean, visibility_mae)"
+        )
+    return key, limit
 
 
 def parse_space(technique: str, vary: list[str]) -> dict[str, tuple]:

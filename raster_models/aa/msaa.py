@@ -59,6 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import params as _params
+from . import owners as _owners
 from . import resolve as _resolve
 from . import samples as _samples
 from .common import (
@@ -68,7 +69,6 @@ from .common import (
     ShadowParams,
     check_shadows,
     package,
-    shade_fragments,
 )
 from .fragments import fragments_from_prepass
 from .trace import trace_samples
@@ -136,15 +136,35 @@ class MsaaParams(ShadowParams, ResolveParams):
         _samples.check_standard_count(technique, self.samples)
 
 
-def multisample(scene, offsets, *, centroid: bool, shadows: str) -> dict:
+def multisample(
+    scene, offsets, *, centroid: bool, shadows: str, depth_format: str = "D32F"
+) -> dict:
     """Depth prepass, fragments and their shading at ``offsets`` (shared with ACAA/AGAA).
 
+    Samples where surfaces of several shapes store the same depth in ``depth_format`` go to
+    the first drawn, as a LESS depth test keeps them (:mod:`.owners`).
     Returns a dict: ``buffer`` (:func:`trace_samples`), ``frags``, ``attrs``, ``rgb``
     (per fragment), ``shadow_rays``.
     """
-    buf = trace_samples(scene, offsets, group=True, keep=("valid",))
+    buf = trace_samples(scene, offsets, group=True, keep=("valid", "shape", "prim"))
     frags = fragments_from_prepass(buf, len(offsets))
-    attrs, rgb, rays = shade_fragments(scene, frags, offsets, centroid=centroid, shadows=shadows)
+    drawn = _owners.draw_order_owners(scene, offsets, depth_format)
+    regroup, groups, subs = None, (), ()
+    if drawn is not None:
+        owners, groups, subs = drawn
+        frags, regroup = _owners.reassign_samples(
+            frags, buf["valid"], buf["shape"], buf["prim"], owners
+        )
+    attrs, rgb, rays = _owners.shade_owned(
+        scene,
+        frags,
+        offsets,
+        centroid=centroid,
+        shadows=shadows,
+        regroup=regroup,
+        groups=groups,
+        subs=subs,
+    )
     return {"buffer": buf, "frags": frags, "attrs": attrs, "rgb": rgb, "shadow_rays": rays}
 
 
@@ -224,7 +244,9 @@ def run(scene, params: MsaaParams | None = None, **kwargs):
     p = params or _params.make(NAME, MsaaParams, kwargs)
     check_shadows(scene, p.shadows)
     offsets = _samples.positions(p.samples)
-    ms = multisample(scene, offsets, centroid=p.centroid, shadows=p.shadows)
+    ms = multisample(
+        scene, offsets, centroid=p.centroid, shadows=p.shadows, depth_format=p.depth_format
+    )
     w, h = scene.width, scene.height
     n = p.samples
     color = resolve_fragments(ms["frags"], ms["rgb"], offsets, w, h, p.resolve, p.inverse_luminance)

@@ -47,6 +47,8 @@ __all__ = [
     "fragment_attributes",
     "prepass_dr",
     "sample_colors",
+    "sample_points_dr",
+    "sample_visibility_dr",
     "shade_dr",
     "shade_points",
     "to_numpy",
@@ -452,6 +454,42 @@ def shade_dr(
         rgb = rgb + mi.Color3f(*light.color) * (lobe * irr * dr.maximum(cos_l, 0) * vis)
     rgb = dr.select(valid, rgb, 0.0)
     return rgb, candidate
+
+
+def sample_visibility_dr(scene, x, y):
+    """The oracle's light visibility at the surface each sample ray meets (film positions
+    ``x``, ``y``: Dr.Jit Float pixels): :func:`scenes.raycast.trace_film_dr`'s ``lit`` on
+    the hit itself (its own point, shading normal and mesh shadow offset), 0 on sky.
+    Returns ``(visibility, tested)``: Float in {0, 1} and the Bool lanes given a shadow
+    ray (unevaluated)."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    from ...scenes.raycast import trace_film_dr
+
+    res = trace_film_dr(scene, x, y, color=False, albedo=False)
+    vis = dr.select(res["valid"] & res["lit"], mi.Float(1.0), mi.Float(0.0))
+    return vis, res["shadow_tested"]
+
+
+def sample_points_dr(scene, x, y) -> dict:
+    """The surface point each sample ray meets (film positions ``x``, ``y``), as a shadow
+    technique reads it: ``valid``, ``position`` (the hit), ``normal`` (shading) and
+    ``geo_normal`` facing the viewer, view ``depth``; Dr.Jit values, unevaluated."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    ray = camera_rays_dr(scene.camera, x, y)
+    si = scene.mi_scene.ray_intersect(ray, mi.RayFlags.All, coherent=True)
+    valid = si.is_valid()
+    to_eye = -ray.d
+    return {
+        "valid": valid,
+        "position": si.p,
+        "normal": dr.select(valid, facing(si.sh_frame.n, to_eye), mi.Vector3f(0.0, 0.0, 1.0)),
+        "geo_normal": dr.select(valid, facing(si.n, to_eye), mi.Vector3f(0.0, 0.0, 1.0)),
+        "depth": dr.select(valid, view_depth(scene.camera, si.p), 0.0),
+    }
 
 
 def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:

@@ -33,17 +33,22 @@ def _spread(items: Sequence, n: int) -> list:
     return [items[i] for i in picks]
 
 
+def _rank(point: Mapping) -> float:
+    """A point's value as an error, 0 best (its ``rank``, see ``reports.sweep.sweep_record``)."""
+    return point.get("rank", point["error"])
+
+
 def _levels(front: Mapping) -> list[dict]:
     """The front's points by increasing cost: each the best of its cost level."""
     points: dict[float, Mapping] = {}
     for i in front["front"]:  # one per cost: ties on the front keep the first (lowest error)
         p = front["points"][i]
-        if p["cost"] not in points or p["error"] < points[p["cost"]]["error"]:
+        if p["cost"] not in points or _rank(p) < _rank(points[p["cost"]]):
             points[p["cost"]] = p
     out = []
     for p in _spread(sorted(points.values(), key=lambda p: p["cost"]), MAX_LEVELS):
-        floor = p.get("floor")
-        ratio = p["error"] / floor if floor else None
+        floor, floor_rank = p.get("floor"), p.get("floor_rank", p.get("floor"))
+        ratio = _rank(p) / floor_rank if floor_rank else None
         out.append(
             {
                 "cost": p["cost"],
@@ -52,7 +57,7 @@ def _levels(front: Mapping) -> list[dict]:
                 "error": p["error"],
                 "floor": floor,
                 "floors_from_truth": ratio,
-                "within_noise": bool(floor is not None and p["error"] <= floor),
+                "within_noise": bool(floor_rank is not None and _rank(p) <= floor_rank),
                 "case_id": p["case_id"],
             }
         )

@@ -4,9 +4,11 @@ package's jinja2 templates (autoescaped, self-contained: inline CSS, SVG and scr
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 from .. import _env
+from ..viewer import MAX_VIEWER_PAGE_BYTES
+from ..viewer import viewer_cases as fit_viewer_cases
 from ._record import SECTION_SCHEMA
 from .overview import overview_record
 from .sweep import sweep_view
@@ -17,6 +19,7 @@ __all__ = [
     "render_study_page",
     "render_sweep_page",
     "study_page",
+    "summary_viewer_cases",
 ]
 
 #: Value of the ``"schema"`` key of a study page record.
@@ -54,14 +57,73 @@ def render_study_page(page: Mapping) -> str:
     return _env.environment().get_template("study.html").render(page=page)
 
 
-def render_sweep_page(record: Mapping, *, images: Mapping[str, Mapping] | None = None) -> str:
+def summary_viewer_cases(
+    record: Mapping,
+    viewers: Mapping[str, Mapping] | Callable[[list[str]], Mapping[str, Mapping]],
+    *,
+    max_bytes: int = MAX_VIEWER_PAGE_BYTES,
+) -> list[dict]:
+    """The sweep page's pixel viewers: one per case the summary names (per family and scene,
+    the best technique at each cost level it lists), in the summary's order, all reduced by
+    one further factor until together they hold at most ``max_bytes`` packed characters
+    (:func:`reports.viewer.viewer_cases`).
+
+    ``viewers`` maps row keys to pixel viewer records, or is a function of a list of keys
+    returning that mapping for those that have one (e.g.
+    :meth:`oracle.sweeps.store.SweepStore.viewers`: only the named cases are read). Each
+    result is ``{"id", "name", "viewer", "level"}``: ``id`` is the case's row id (the
+    viewer's element is ``id + "-inspect"``), ``level`` the summary row (``family``,
+    ``scene``, ``metric``, ``cost_key`` and the level's ``cost``, ``error``, ``floor``)."""
+    overview = record.get("overview") or overview_record(record)
+    cases = {c["id"]: c for c in record["cases"]}
+    named: dict[str, tuple] = {}
+    for g in overview["groups"]:
+        for level in g["levels"]:
+            case = cases.get(level["case_id"])
+            if case is not None and case["id"] not in named:
+                named[case["id"]] = (case, g, level)
+    keys = [case["key"] for case, _, _ in named.values()]
+    found = viewers(keys) if callable(viewers) else {k: viewers[k] for k in keys if k in viewers}
+    picks, levels = [], {}
+    for case, g, level in named.values():
+        if case["key"] not in found:
+            continue
+        name = f"{g['family']} on {g['scene']}: {case['name']}"
+        picks.append((case["id"], name, found[case["key"]]))
+        levels[case["id"]] = {
+            "family": g["family"],
+            "scene": g["scene"],
+            "metric": g["metric"],
+            "cost_key": g["cost_key"],
+            "cost": level["cost"],
+            "error": level["error"],
+            "floor": level["floor"],
+        }
+    out = fit_viewer_cases(picks, max_bytes=max_bytes)
+    return [{**case, "level": levels[case["id"]]} for case in out]
+
+
+def render_sweep_page(
+    record: Mapping,
+    *,
+    images: Mapping[str, Mapping] | None = None,
+    viewer_cases: Sequence[Mapping] | None = None,
+) -> str:
     """The sweep report's page of ``record`` (:func:`reports.sweep.sweep_record` with its
     ``"sections"``); ``images`` are thumbnails by row key (``data:`` URIs; others are
-    dropped), shown for the cases on each group's headline front."""
+    dropped), shown for the cases on each group's headline front; ``viewer_cases`` are the
+    pixel viewers (:func:`summary_viewer_cases`), linked from the summary's rows."""
     _check_sections(record.get("sections", []))
     record = {"sections": [], **record}
     if "overview" not in record:
         record["overview"] = overview_record(record)
     view = sweep_view(record, images=images)
     template = _env.environment().get_template("sweep.html")
-    return template.render(record=record, view=view)
+    cases = list(viewer_cases or [])
+    return template.render(
+        record=record,
+        view=view,
+        viewer_cases=cases,
+        inspect_ids={c["id"] for c in cases},
+        viewer_budget=MAX_VIEWER_PAGE_BYTES,
+    )

@@ -7,18 +7,29 @@ that blends each fragment, weighted by its post-depth coverage, into a 1x colour
 2. Shading pass, depth test LEQUAL, depth writes off: every fragment (primitive, pixel) is
    shaded once (pixel centre on its plane, or centroid, as :mod:`..msaa`) and added to the
    colour target with weight ``popcount(post-depth coverage) / N``, in submission order
-   (shape, then primitive index). A fragment passes at a sample when its stored-format depth
-   equals the prepass value there: the nearest surface, and any surface of another shape
-   lying at the same quantized depth (coplanar decals, duplicated geometry), which is
-   therefore counted twice, too bright, as on GPUs. The surfaces at each sample are found
-   per shape: one ray per sample into a scene holding a group of shapes whose bounding
-   boxes are too far apart to tie (:func:`tie_groups`; the hit there is the hit of a scene
-   holding that shape alone wherever a tie is possible), traced only from samples whose
-   nearest hit lies within a tie distance of a member's bounding box
-   (:mod:`.ties`; the others cannot tie with the group); two coplanar triangles of
-   one mesh are not told apart.
+   (shape, then primitive index). Both passes compare the depth a rasterizer computes
+   (:mod:`.plane`): the primitive's screen-space depth plane, set up in float32 from its
+   window-space vertices and evaluated at the sample, stored in ``depth_format``. The
+   prepass keeps the lowest stored value; a fragment passes at a sample when its stored
+   depth equals it. Surfaces of other shapes lying at the same stored depth (coplanar
+   decals, duplicated geometry) pass too and are counted twice, too bright, as on GPUs;
+   where another surface's plane stores a lower value than the ray-nearest surface's, only
+   that one passes (z-fighting: coplanar triangles with their own vertices tie on some
+   samples, not all). The surfaces at each sample are found per shape: one ray per sample
+   into a scene holding a group of shapes whose bounding boxes are too far apart to tie
+   (:func:`tie_groups`; the hit there is the hit of a scene holding that shape alone
+   wherever a tie is possible), traced only from samples whose nearest hit lies within a
+   tie distance of a member's bounding box (:mod:`.ties`; the others cannot tie with the
+   group); two coplanar triangles of one mesh are not told apart. Shading events are the
+   fragments passing (draw order and LEQUAL), not the ray tracer's nearest hits.
 3. ``accumulation="rgba8"`` rounds the target to 8-bit UNORM (``round(255 x) / 255`` of the
-   saturated sum) at every addition; ``float32`` adds in float32.
+   saturated sum) at every addition; ``float32`` adds in float32. NVIDIA's BlendedAA sample
+   (GameWorks OpenGL samples, gl4-maxwell/BlendedAA.cpp) renders exactly so: a
+   ``GL_DEPTH_COMPONENT24`` multisampled depth buffer, a z prepass with ``GL_LESS``, then
+   ``GL_LEQUAL`` with depth writes off, ``glBlendFunc(GL_ONE, GL_ONE)`` additive blending
+   with coverage modulation (the fragment scaled by its passing-sample fraction) into a
+   single-sample ``GL_RGBA`` (linear 8-bit UNORM) target cleared to 0: the
+   ``depth_format="D24", accumulation="rgba8"`` configuration.
 
 Where no depths tie the result equals :mod:`..msaa`'s box resolve up to float32 summation
 order. Memory = N x depth + one colour per pixel.
@@ -37,14 +48,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ....scenes import backend
-from ... import depth as _depth
 from ... import params as _params
 from .. import samples as _samples
 from ..common import DEPTH_FORMATS, ShadowParams, check_shadows, package, shadow_visibility
 from . import trace as _acaa_trace
 from .blend import blend
-from .groups import group_scenes, normalized_depth, tie_distance, tie_groups
+from .groups import group_scenes, tie_distance, tie_groups
+from .plane import depth_tests
 
 __all__ = ["ACCUMULATIONS", "AcaaParams", "find_ties", "merge_fragments", "run"]
 
@@ -86,25 +96,22 @@ class AcaaParams(ShadowParams):
         _samples.check_standard_count(technique, self.samples)
 
 
-def _stored_depths(camera, view_depth: np.ndarray, fmt: str) -> np.ndarray:
-    """Depths as stored in ``fmt`` (float64) of view depths, by the one format rule
-    (:func:`raster_models.depth.quantize_dr`, one launch)."""
-    mi = backend.mitsuba()
-    z = normalized_depth(camera, view_depth)
-    return _depth.quantize_dr(mi, mi.Float64(z), fmt).numpy()
-
-
-def merge_fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool) -> dict:
+def merge_fragments(
+    near: dict, ties: list, offsets, n_pix: int, centroid: bool, losses=None
+) -> dict:
     """Fragments passing LEQUAL: the nearest surface's (``near``, one row per fragment in
     pixel order, from :func:`.trace.prepass`) merged with the tie samples ``(pixel,
-    sample, shape, prim)`` of other shapes.
+    sample, shape, prim)`` of other shapes, less the ``losses`` (samples ``(pixel,
+    sample, shape, prim)`` where the nearest surface's rasterized depth lost to another's).
 
     Fragments are in pixel order and, within a pixel, in submission order (shape, then
-    primitive); each with its first passing sample, its passing-sample count and, with
-    ``centroid``, the sums of their positions. Only the pixels holding ties or several
-    fragments are sorted and merged; their fragments are then inserted among the others.
-    (The order matters beyond the blend: a ray's hit can depend on the rays traced beside
-    it in a packet, so the fragments keep the order in which they have always been shaded.)
+    primitive); each with its first sample (a lost one may stay its representative: the
+    ray through it still meets the fragment's surface), its passing-sample count and, with
+    ``centroid``, the sums of their positions; a fragment left with no passing sample is
+    dropped. Only the pixels holding ties, losses or several fragments are sorted and
+    merged; their fragments are then inserted among the others. (The order matters beyond
+    the blend: a ray's hit can depend on the rays traced beside it in a packet, so the
+    fragments keep the order in which they have always been shaded.)
     """
     offs = np.asarray(offsets, np.float64)
     sums = ("sum_x", "sum_y") if centroid else ()
@@ -112,20 +119,23 @@ def merge_fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool)
     pix = near["pixel"]
     busy = np.zeros(n_pix, bool)  # pixels with more than one entry
     busy[pix[1:][pix[1:] == pix[:-1]]] = True
-    for t in ties:
+    extra = [(t, 1) for t in ties]
+    if losses is not None and len(losses[0]):
+        extra.append((losses, -1))
+    for t, _ in extra:
         busy[t[0]] = True
     if not busy.any():
         return {key: near[key] for key in keys if key != "prim"}
     moved = busy[pix]
     keep = ~moved
-    parts = {key: [near[key][moved]] for key in keys}
-    for tpix, smp, shape, prim in ties:
+    parts = {key: [near[key][moved].astype(np.int64 if key == "count" else None)] for key in keys}
+    for (tpix, smp, shape, prim), sign in extra:
         cols = (tpix, smp, shape, prim)
         for key, val in zip(("pixel", "sample", "shape", "prim"), cols, strict=True):
             parts[key].append(np.asarray(val, np.int64))
-        parts["count"].append(np.ones(len(tpix), np.int64))
+        parts["count"].append(np.full(len(tpix), sign, np.int64))
         for axis, key in enumerate(sums):
-            parts[key].append(offs[smp, axis])
+            parts[key].append(sign * offs[smp, axis])
     e = {key: np.concatenate(val) for key, val in parts.items()}
     order = np.lexsort((e["sample"], e["prim"], e["shape"], e["pixel"]))
     e = {key: val[order] for key, val in e.items()}
@@ -136,38 +146,39 @@ def merge_fragments(near: dict, ties: list, offsets, n_pix: int, centroid: bool)
     merged = {key: e[key][first] for key in ("pixel", "sample", "shape")}
     for key in ("count", *sums):
         merged[key] = np.add.reduceat(e[key], first)
+    alive = merged["count"] > 0
+    merged = {key: val[alive] for key, val in merged.items()}
+    merged["count"] = merged["count"].astype(near["count"].dtype)
     # the pixels of the two parts are disjoint: insert the merged ones in pixel order
     at = np.searchsorted(pix[keep], merged["pixel"])
     return {key: np.insert(near[key][keep], at, merged[key]) for key in merged}
 
 
-def find_ties(cam, candidates: list, window: float, fmt: str) -> list:
-    """Tie samples ``(pixel, sample, shape, prim)`` of each group from its candidates' hits
-    (:func:`.trace.prepass`): a hit within the tie window whose stored depth passes
-    LEQUAL against the prepass's. The stored depths of every group are quantized together
-    (one launch)."""
-    picked = []
-    for _, _, depth, hit, hit_depth, _, _ in candidates:
-        near = hit.copy()
-        if np.isfinite(window):  # equal stored depths lie within the tie distance
-            near &= hit_depth <= depth + np.float32(window)
-        picked.append(np.flatnonzero(near))
-    total = sum(len(ci) for ci in picked)
-    if total == 0:
-        return []
-    pairs = list(zip(candidates, picked, strict=True))
-    view = np.concatenate([c[4][ci] for c, ci in pairs] + [c[2][ci] for c, ci in pairs])
-    stored = _stored_depths(cam, view, fmt)
-    passes = stored[:total] <= stored[total:]  # the hit's stored depth <= the prepass's
-    found = []
-    start = 0
-    for (pix, smp, _, _, _, hit_shape, hit_prim), ci in pairs:
-        stop = start + len(ci)
-        ci = ci[passes[start:stop]]
-        start = stop
-        if len(ci):
-            found.append((pix[ci], smp[ci], hit_shape[ci], hit_prim[ci]))
-    return found
+def find_ties(scene, candidates: list, window: float, fmt: str, offsets) -> dict:
+    """The LEQUAL shading pass at the samples where another group's surface can tie with
+    the nearest one (:func:`.plane.depth_tests` on :func:`.trace.prepass`'s candidates):
+    the prepass (LESS) stores the lowest rasterized depth, and every surface storing it
+    passes.
+
+    Returns a dict: ``ties``, a list of ``(pixel, sample, shape, prim)`` arrays of the other
+    groups' surfaces passing; ``losses``, the same of the samples where the nearest surface
+    fails (another stores a lower depth), None when there is no candidate; ``tie_keys``,
+    ``pixel * N + sample`` of the samples where two or more surfaces pass (sorted, unique).
+    """
+    t = depth_tests(scene, candidates, window, fmt, offsets)
+    if t is None:
+        return {"ties": [], "losses": None, "tie_keys": np.zeros(0, np.int64)}
+    pix, smp, h_shape, h_prim = t["rows"]
+    passes = t["q_hit"] <= t["low"][t["inv"]]
+    near_passes = t["q_near"] <= t["low"]
+    count = near_passes + np.bincount(t["inv"], weights=passes, minlength=len(t["low"]))
+    lost = t["first"][~near_passes]
+    n_shape, n_prim = t["near"]  # per sample
+    return {
+        "ties": [(pix[passes], smp[passes], h_shape[passes], h_prim[passes])],
+        "losses": (pix[lost], smp[lost], n_shape[~near_passes], n_prim[~near_passes]),
+        "tie_keys": t["keys"][count >= 2],
+    }
 
 
 def run(scene, params: AcaaParams | None = None, **kwargs):
@@ -185,8 +196,10 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
     pre = _acaa_trace.prepass(scene, offsets, groups, subs, p.depth_format, centroid=p.centroid)
     # the largest tie distance (at the far plane): a view-depth bound on every tie
     window = float(tie_distance(cam, cam.far, p.depth_format))
-    ties_found = find_ties(cam, pre["candidates"], window, p.depth_format)
-    frag = merge_fragments(pre["near"], ties_found, offsets, n_pix, p.centroid)
+    found = find_ties(scene, pre["candidates"], window, p.depth_format, offsets)
+    frag = merge_fragments(
+        pre["near"], found["ties"], offsets, n_pix, p.centroid, losses=found["losses"]
+    )
     f_pix, count = frag["pixel"], frag["count"]
     n_frag = len(f_pix)
     # shading positions (centre, or centroid of the fragment's passing samples)
@@ -214,10 +227,10 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
         rgba8 = p.accumulation == "rgba8"
         target = blend(weighted, f_pix, n_pix, rgba8=rgba8, grouped=True)
     events = np.bincount(f_pix, minlength=n_pix)
-    # samples with at least one tie (a sample may tie with several groups)
-    keys = [pix * n + smp for pix, smp, _, _ in ties_found]
-    tie_keys = np.unique(np.concatenate(keys)) if keys else np.zeros(0, np.int64)
+    # samples where two or more surfaces pass LEQUAL
+    tie_keys = found["tie_keys"]
     ties = np.bincount(tie_keys // n, minlength=n_pix)
+    lost = 0 if found["losses"] is None else len(found["losses"][0])
     db = DEPTH_FORMATS[p.depth_format]
     cb = ACCUMULATIONS[p.accumulation]
     return package(
@@ -241,6 +254,7 @@ def run(scene, params: AcaaParams | None = None, **kwargs):
             "fragments": int(n_frag),
             "tie_samples": len(tie_keys),
             "pixels_with_ties": int((ties > 0).sum()),
+            "lost_samples": int(lost),
             "per_shape_rays": int(pre["traced"]),
             "tie_groups": len(groups),
             "color_target_bytes_per_pixel": cb,

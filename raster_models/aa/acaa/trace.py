@@ -156,9 +156,10 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
     dict: ``near``, the nearest fragments in pixel order (``pixel``, ``sample``: first
     sample, uint32; ``shape`` int32; ``prim``, ``count`` uint32; with ``centroid``
     ``sum_x``, ``sum_y`` float64); ``candidates``, per group ``(pixel, sample, depth,
-    hit_valid, hit_depth, hit_shape, hit_prim)``: the candidate samples in pixel-sample
-    order with their prepass view depth and the group's nearest hit (float32 depths, as
-    :func:`..trace.trace_samples` computes them); ``traced``, the number of candidate rays.
+    hit_valid, hit_depth, hit_shape, hit_prim, near_shape, near_prim)``: the candidate
+    samples in pixel-sample order with their prepass view depth, the group's nearest hit
+    (float32 depths, as :func:`..trace.trace_samples` computes them) and the nearest
+    surface's shape and primitive; ``traced``, the number of candidate rays.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -177,7 +178,7 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
         tests.append((mi.Bool(lut), filt))
     keys = ("pixel", "sample", "shape", "prim", "count") + (("sum_x", "sum_y") if centroid else ())
     near = {k: [] for k in keys}
-    cands = [[[] for _ in range(7)] for _ in groups]
+    cands = [[[] for _ in range(9)] for _ in groups]
     traced = 0
     per_launch = max(1, _trace.CHUNK // n)
     for p0 in range(0, n_pix, per_launch):  # one launch of CHUNK rays at most
@@ -217,6 +218,8 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
                 hit_depth,
                 _shape_of(mi, dr, table, pi),
                 pi.prim_index,
+                dr.gather(mi.Int32, shape, cand),
+                dr.gather(mi.UInt32, prim, cand),
             )
             dr.eval(*vals)
             c = to_numpy(cand).astype(np.int64)
@@ -226,7 +229,8 @@ def prepass(scene, offsets, groups: list, group_scenes: list, fmt: str, *, centr
             for k, v in enumerate(vals[1:]):
                 out[k + 2].append(to_numpy(v).copy())
             traced += len(c)
-    dtypes = (np.int64, np.int64, np.float32, bool, np.float32, np.int64, np.int64)
+    dtypes = (np.int64, np.int64, np.float32, bool, np.float32, np.int64, np.int64, np.int64)
+    dtypes += (np.int64,)
     dtypes_near = {"pixel": np.uint32, "sample": np.uint32, "shape": np.int32}
     dtypes_near.update(prim=np.uint32, count=np.uint32, sum_x=np.float64, sum_y=np.float64)
     return {

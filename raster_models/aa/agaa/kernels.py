@@ -9,10 +9,20 @@ Per launch of at most :data:`LAUNCH_CHUNKS` x :data:`..trace.CHUNK` samples (who
    (:func:`..trace.attributes_dr`, zero where the ray misses);
 3. one lane a pixel: every aggregate's weighted material sums over its (fragment,
    aggregate) pairs, in sample-slot order, and its float32 averages; each existing
-   aggregate shaded once (:func:`..trace.shade_dr`, filtered normal) with an exact shadow
-   ray from its average position, or with the visibility a shadow technique gives there
-   (``visibility``: the launch's aggregates copied to NumPy once); the pixel's
-   coverage-weighted colour, summed in float64 and rounded to float32 once.
+   aggregate shaded once (:func:`..trace.shade_dr`, filtered normal) with its *filtered
+   visibility* (:func:`filtered_visibility`): the mean over the aggregate's samples of the
+   light visibility at each sample's own surface point (the oracle's exact shadow ray from
+   the hit, with its mesh offset, :func:`..trace.sample_visibility_dr`; or a shadow
+   technique's ``visibility`` there, the launch's sample points copied to NumPy once); the
+   pixel's coverage-weighted colour, summed in float64 and rounded to float32 once.
+
+Why filtered visibility: AGAA pre-filters every shading input of an aggregate over its
+samples and shades the aggregate once, and its authors filter the shadowing too ("Shadowing
+must be filtered; account for aggregate depth extent; avoids temporal issues when a sample's
+cluster changes": Crassin et al., AGAA, I3D 2015, and the NVIDIA HQ rasterization slides,
+Wyman 2015). One shadow ray from the aggregate's mean position tests a point that lies on no
+surface when the aggregate spans a crease or a depth step (``stripes``: behind the strips, so
+every K = 1 pixel was black); the samples' own points lie on their surfaces.
 """
 
 from __future__ import annotations
@@ -23,10 +33,11 @@ import numpy as np
 
 from ....scenes import backend
 from ....scenes.raycast import shape_table
+from .. import pixel_dr as _pixel_dr
 from .. import trace as _trace
 from . import pixels as _agaa_pixels
 
-__all__ = ["CHANNELS", "LAUNCH_CHUNKS", "render"]
+__all__ = ["CHANNELS", "LAUNCH_CHUNKS", "filtered_visibility", "render"]
 
 #: Attribute channels summed per aggregate (the averages are stored per aggregate in this
 #: order, then its shadow-ray offset and its sample count).
@@ -55,17 +66,19 @@ def render(
     ----------
     offsets : ``(N, 2)`` standard sample positions in the pixel (y down).
     k, threshold, depth_weight, fmt : the clustering (:class:`.model.AgaaParams`).
-    visibility : None for an exact shadow ray from every aggregate's average position, or a
-        function of the aggregates' shading points (a dict of ``(A, 3)`` float32
-        ``position``, ``normal``, ``geo_normal``, ``albedo``, ``to_eye`` and ``(A,)``
-        ``offset``, ``valid``, float64 view ``depth``) returning their light visibility in
-        [0, 1] (a shadow technique, :func:`..common.shadow_visibility`).
+    visibility : None for the oracle's exact shadow ray from every sample's own surface
+        point, or a function of the samples' surface points (a dict of ``(S, 3)`` float32
+        ``position``, ``normal``, ``geo_normal`` and ``(S,)`` ``valid``, float64 view
+        ``depth``) returning their light visibility in [0, 1] (a shadow technique,
+        :func:`..common.shadow_visibility`). Either way each aggregate is shaded with the
+        mean over its samples (:func:`filtered_visibility`).
 
     Returns
     -------
     dict of per-pixel NumPy arrays (row-major, ``(P,)``): ``color`` ``(P, 3)`` float32
     linear radiance, ``covered`` (samples hitting a surface), ``aggregates`` and
-    ``surfaces`` (fragments), and ``shadow_rays`` (int, 0 with ``visibility``).
+    ``surfaces`` (fragments), and ``shadow_rays`` (int: one per sample given a shadow test,
+    0 with ``visibility``).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -100,8 +113,10 @@ def render(
             mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k
         )
         n_agg = sum(dr.select(e, 1, 0) for e in exists)
-        rgb32, shadow = _shade_resolve(mi, dr, scene, store, exists, n, visibility)
+        vis_s, shadow = _sample_visibility(mi, dr, scene, local + start, ox, oy, n, visibility)
         rays += shadow
+        f_vis = filtered_visibility(mi, dr, vis_s, agg, k)
+        rgb32 = _shade_resolve(mi, dr, scene, store, exists, n, f_vis)
         sl = slice(p0, p1)
         color[sl] = _trace.to_numpy(rgb32).T
         counts["aggregates"][sl] = _trace.to_numpy(n_agg)
@@ -232,7 +247,7 @@ def _aggregate_store(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f,
     return store, exists
 
 
-#: Record fields of an aggregate (:func:`_averages`) a shadow technique reads, as slices.
+#: Record fields of an aggregate (:func:`_averages`) the shading reads, as slices.
 _RECORD = {
     "albedo": slice(0, 3),
     "normal": slice(3, 6),
@@ -242,52 +257,62 @@ _RECORD = {
 }
 
 
-def _technique_visibility(mi, dr, scene, records: list, visibility) -> list:
-    """Visibility of every existing aggregate of a launch from a shadow technique: the
-    records of all aggregate indices copied to NumPy together, one call of ``visibility``,
-    split back (a Float per index, None where an index has no aggregate)."""
-    live = [c for c in records if c is not None]
-    if not live:
-        return [None] * len(records)
-    dr.eval(live)
-    cols = [np.concatenate([_trace.to_numpy(c[i]) for c in live]) for i in range(16)]
-    attrs = {key: np.stack(cols[sl], axis=1) for key, sl in _RECORD.items()}
-    attrs["offset"] = cols[15]
-    attrs["valid"] = np.ones(len(cols[0]), bool)
-    cam = scene.camera
-    attrs["depth"] = (attrs["position"].astype(np.float64) - cam.position) @ cam.forward
-    vis = np.asarray(visibility(attrs), np.float32)
-    out, at = [], 0
-    for c in records:
-        if c is None:
-            out.append(None)
-            continue
-        m = dr.width(c[0])
-        out.append(mi.Float(vis[at : at + m]))
-        at += m
+def _sample_visibility(mi, dr, scene, pix, ox, oy, n, visibility):
+    """Light visibility (Float, one lane a sample, 0 on sky) at the surface point of every
+    sample of the pixels ``pix`` (UInt32), evaluated, and the shadow rays cast: the
+    oracle's exact ray from each hit (:func:`..trace.sample_visibility_dr`), or
+    ``visibility`` (see :func:`render`) of the points copied to NumPy once."""
+    w = scene.camera.width
+    idx = dr.arange(mi.UInt32, dr.width(pix) * n)
+    local = idx // n
+    s = idx - local * n
+    p = dr.gather(mi.UInt32, pix, local)
+    x = mi.Float(p % w) + dr.gather(mi.Float, ox, s)
+    y = mi.Float(p // w) + dr.gather(mi.Float, oy, s)
+    if visibility is None:
+        vis, tested = _trace.sample_visibility_dr(scene, x, y)
+        count = dr.count(tested)
+        dr.eval(vis, count)
+        return vis, int(count[0])
+    pts = _trace.sample_points_dr(scene, x, y)
+    dr.eval(*pts.values())
+    attrs = {key: _trace.to_numpy(v).T for key, v in pts.items() if key != "depth"}
+    attrs["valid"] = _trace.to_numpy(pts["valid"]).astype(bool)
+    attrs["depth"] = _trace.to_numpy(pts["depth"]).astype(np.float64)
+    vis = np.where(attrs["valid"], np.asarray(visibility(attrs), np.float32), 0.0)
+    return mi.Float(vis.astype(np.float32)), 0
+
+
+def filtered_visibility(mi, dr, vis, agg, k: int) -> list:
+    """Each aggregate's filtered visibility (a Float per aggregate index, one lane a pixel):
+    the mean of the sample visibilities ``vis`` (one lane a sample) over the samples it
+    holds (``agg``: the per-slot aggregates of :func:`.pixels.pixel_prepass`), summed in
+    slot order in float32; 0 where the aggregate holds no sample."""
+    n = len(agg)
+    slots = _pixel_dr.slots(mi, dr, mi.Float, vis, n)
+    out = []
+    for a in range(k):
+        total, held = mi.Float(0.0), mi.Float(0.0)
+        for j in range(n):  # sample slots (at most 16 rounds)
+            on = agg[j] == a
+            total = total + dr.select(on, slots[j], 0.0)
+            held = held + dr.select(on, 1.0, 0.0)
+        out.append(total / dr.maximum(held, 1.0))
     return out
 
 
-def _shade_resolve(mi, dr, scene, store, exists, n, visibility):
-    """Shading, once per aggregate (exact shadow ray from its average position, or the
-    ``visibility`` of :func:`render`), then the resolve: the coverage-weighted colours summed
-    in float64 in aggregate order. Returns the pixels' Color3f (evaluated) and the shadow
-    rays cast."""
+def _shade_resolve(mi, dr, scene, store, exists, n, f_vis):
+    """Shading, once per aggregate with its filtered visibility ``f_vis`` (a Float per
+    aggregate index, one lane a pixel), then the resolve: the coverage-weighted colours
+    summed in float64 in aggregate order. Returns the pixels' Color3f (evaluated)."""
     n_lanes = dr.width(exists[0])
     idx = [dr.compress(e) for e in exists]
-    records = [
-        [dr.gather(mi.Float, s, i) for s in st] if dr.width(i) else None
-        for st, i in zip(store, idx, strict=True)
-    ]
-    vis = [None] * len(store)
-    if visibility is not None:
-        vis = _technique_visibility(mi, dr, scene, records, visibility)
     acc = mi.Vector3d(0.0)
-    rays = 0
-    for a, c in enumerate(records):
-        if c is None:
+    for a, st in enumerate(store):
+        if not dr.width(idx[a]):
             continue
-        rgb, cand = _trace.shade_dr(
+        c = [dr.gather(mi.Float, v, idx[a]) for v in st]
+        rgb, _ = _trace.shade_dr(
             scene,
             dr.full(mi.Bool, True, dr.width(idx[a])),
             mi.Point3f(*c[_RECORD["position"]]),
@@ -295,20 +320,14 @@ def _shade_resolve(mi, dr, scene, store, exists, n, visibility):
             mi.Vector3f(*c[_RECORD["geo_normal"]]),
             mi.Color3f(*c[_RECORD["albedo"]]),
             mi.Vector3f(*c[_RECORD["to_eye"]]),
-            offset=c[15] if visibility is None else None,
-            visibility=vis[a],
+            visibility=dr.gather(mi.Float, f_vis[a], idx[a]),
             filtered_normal=True,
         )
-        if visibility is None:
-            count = dr.count(cand)
-            dr.eval(rgb, count)
-            rays += int(count[0])
-        else:
-            dr.eval(rgb)
+        dr.eval(rgb)
         rgb_pix = dr.zeros(mi.Color3f, n_lanes)
         dr.scatter(rgb_pix, rgb, idx[a])
         share = mi.Float64(store[a][-1]) / n
         acc = dr.select(exists[a], acc + mi.Vector3d(rgb_pix) * share, acc)
     rgb32 = mi.Color3f(acc)
     dr.eval(rgb32)
-    return rgb32, rays
+    return rgb32

@@ -15,17 +15,23 @@
    position. Each aggregate's average albedo and position, and its *unnormalized* average
    normal, are shaded once (:func:`..trace.shade_dr` with ``filtered_normal``: diffuse
    with the normal's length as the Lambert average, Toksvig's factor on the specular
-   exponent); the exact shadow ray starts at the aggregate's average position.
+   exponent) and the aggregate's *filtered visibility*: the mean over its samples of the
+   light visibility at each sample's own surface point (the oracle's exact shadow ray from
+   the sample's hit with the mesh offset, or the shadow technique's lookup there). AGAA
+   pre-filters its shading inputs and, by its authors, the shadowing ("Shadowing must be
+   filtered; account for aggregate depth extent", Crassin et al. 2015 and Wyman's 2015
+   NVIDIA slides); a single ray from the aggregate's mean position would start on no
+   surface (behind ``stripes``' zigzag: every K = 1 pixel black).
 4. The pixel is the coverage-weighted sum of its aggregates (sky samples add 0).
 
 With ``K`` at least the number of distinct surfaces in every pixel each aggregate holds one
 surface and the result equals :mod:`..msaa`; with more surfaces (foliage) albedo/normal
-correlation is lost and shadows are tested at a blended position.
+correlation is lost (the visibility stays each sample's own, averaged).
 
 The whole frame runs on the Dr.Jit side (:func:`.kernels.render`, per launch, per-pixel
-results copied back); with a shadow technique the aggregates' shading points of a launch are
-copied to NumPy once for its visibility (:func:`..common.shadow_visibility`) and shaded with
-it.
+results copied back); with a shadow technique the samples' surface points of a launch are
+copied to NumPy once for its visibility (:func:`..common.shadow_visibility`), which is then
+filtered per aggregate.
 
 Memory per pixel: N x (depth + normal) + K x aggregate (albedo RGBA8, normal RGBA16F,
 depth R32F, sample mask R32UI: 20 bytes) + the 1x colour target.
