@@ -155,6 +155,14 @@ def shadow_occluded_dr(scene, light, si, wl, active):
     return occluded_from_dr(scene, light, si.p, si.n, wl, si.shape, active)
 
 
+def primary_flags(mi):
+    """Surface data the primary hits of :func:`trace_film_dr` compute: UV (textured albedo)
+    and the shading frame, not the position derivatives (``RayFlags.All`` less dPdUV), which
+    nothing here reads; every output is the same bytes as with ``All`` (checked on city, thin,
+    curved, plate, decal and foliage) and the colour reference is about 1 % faster."""
+    return mi.RayFlags.UV | mi.RayFlags.ShadingFrame
+
+
 def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool = True):
     """Trace primary and shadow rays through film positions (Dr.Jit ``Float`` pixels).
 
@@ -172,7 +180,7 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     scene = loaded.mi_scene
     light = loaded.light
     ray = camera_rays_dr(camera, x, y)
-    si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True)
+    si = scene.ray_intersect(ray, ray_flags=primary_flags(mi), coherent=True)
     valid = si.is_valid()
     to_eye = -ray.d
     n = facing(si.sh_frame.n, to_eye)

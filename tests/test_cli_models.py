@@ -101,7 +101,8 @@ def test_score_technique_records_cost(tmp_path):
 def test_bench_commands_print_ratios(capsys):
     assert main(["bench", "oracle", "--width", "48", "--height", "27", "--spp", "4"]) == 0
     fig = json.loads(capsys.readouterr().out)
-    assert fig["oracle_over_bare_ratio"] > 0 and fig["adaptive"]["rays_ratio_vs_uniform"] > 0
+    assert fig["oracle_over_bare_ratio"] > 0 and fig["color_over_mitsuba_direct_ratio"] > 0
+    assert all(fig["adaptive"][s]["rays_ratio_vs_uniform"] > 0 for s in ("thin", "city", "plate"))
     assert main(["bench", "models", "--width", "48", "--height", "27", "--spp", "4"]) == 0
     fig = json.loads(capsys.readouterr().out)
     assert fig["sdsm_over_oracle_ratio"] > 0

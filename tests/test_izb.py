@@ -17,6 +17,7 @@ from raster_oracle.raster_models.izb import model as izb
 from raster_oracle.raster_models.izb.kernel import DeadPairs, PairTester
 from raster_oracle.raster_models.izb.lists import Joins, build_lists, late_pairs
 from raster_oracle.scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
+from scipy import ndimage
 from test_models_xml import box, ground, quad, write_scene
 
 from raster_oracle import raster_models as rm
@@ -203,10 +204,13 @@ def test_32_samples_equal_the_tangent_plane_reference(name):
     diff = np.abs(vis - ref)[~band]
     assert (diff == 0).mean() >= TANGENT_IDENTICAL
     assert diff.max() <= ONE_POINT
-    # against the supersampled reference: differences beyond noise only at edges
+    # against the supersampled reference: differences beyond noise only at or beside edges
+    # (a sub-pixel shadow all 64 samples of a pixel missed leaves it unflagged, its
+    # neighbour that caught the shadow is an edge: 2 such pixels on thin, issue 18)
     ss, se = ch["visibility"].ravel(), ch["visibility_stderr"].ravel()
     big = np.abs(vis - ss) > 3 * se + ONE_POINT
-    assert big.sum() > 0 and (ch["edge"].ravel()[big] > 0).all()
+    near_edge = ndimage.binary_dilation(ch["edge"] > 0, np.ones((3, 3), bool)).ravel()
+    assert big.sum() > 0 and near_edge[big].all()
 
 
 def test_answer_does_not_depend_on_grid_or_cascades():

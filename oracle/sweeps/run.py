@@ -311,6 +311,9 @@ class LogProgress:
     def __exit__(self, *exc):
         return False
 
+    def close(self) -> None:
+        """Nothing to clear (tqdm's interface)."""
+
     def update(self, n: int = 1) -> None:
         self.done += n
         if self.total <= 0:
