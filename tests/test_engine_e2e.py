@@ -226,12 +226,6 @@ def test_python_api_gives_the_cli_record(engine, capsys):
         ro.check(rec, fail_above={"delta_e2000_mean": 1.0})
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="oracle/scoring/score.py _record takes the record's scene from the cached "
-    "reference's provenance (ref_meta['scene']): the name of whichever export of the same "
-    "content rendered it first, so --baseline compares another folder's name and exits 2",
-)
 def test_baseline_of_an_export_scored_after_a_copy(engine, tmp_path, capsys):
     """CI exports into its own folder; the shared reference cache already holds the same
     scene rendered from another folder (``export``). Scoring the copy twice, the second run

@@ -320,7 +320,9 @@ def _record(
         "tone_mapping": tone,
         "ppd": ppd,
         "reference": {
-            "scene": ref_meta["scene"],
+            # the cached reference may have been rendered from another file of the same content
+            # (an export copied into CI's folder): the scene is named as this run loaded it
+            "scene": {**ref_meta["scene"], "name": loaded.name, "source": loaded.source},
             "spp": spp,
             "seed": seed,
             "noise_floor_seed": seed + 1,
