@@ -1,10 +1,24 @@
-"""Shared fixtures: one backend for the whole run, a private reference cache."""
+"""Shared fixtures: one backend for the whole run, a private reference cache, and the
+headless Chromium of the browser tests."""
 
 from __future__ import annotations
 
 import os
+import shutil
+from pathlib import Path
 
 import pytest
+
+#: Debian's Chromium (``bin/setup.sh --test`` installs it); else the first on PATH.
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -21,3 +35,35 @@ def mi(_backend):
     from raster_oracle.scenes import backend
 
     return backend.mitsuba()
+
+
+def _require_browser() -> None:
+    """Skip without Playwright or Chromium; under CI (``CI`` set) fail instead: a report test
+    that silently does not run is a green gate on a page nobody opened."""
+    problem = None
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        problem = "Playwright for Python is not installed (pip install playwright)"
+    if problem is None and not (CHROMIUM.exists() or shutil.which("chromium")):
+        problem = f"Chromium is not installed at {CHROMIUM} (apt-get install chromium)"
+    if problem is None:
+        return
+    if os.environ.get("CI"):
+        pytest.fail(f"browser test cannot run under CI: {problem}", pytrace=False)
+    pytest.skip(problem)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    """A headless Chromium for the module's browser tests."""
+    _require_browser()
+    from playwright.sync_api import sync_playwright
+
+    executable = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
+    with sync_playwright() as p:
+        instance = p.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        try:
+            yield instance
+        finally:
+            instance.close()

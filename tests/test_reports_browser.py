@@ -6,8 +6,6 @@ tests skip, except under CI (the ``CI`` environment variable set), where they fa
 
 from __future__ import annotations
 
-import os
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -17,15 +15,6 @@ from raster_oracle import reports
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
 REPO_ROOT = Path(__file__).resolve().parents[1]
 ARTIFACTS = REPO_ROOT / "test-artifacts"
 XSS = "<script>alert(1)</script>"
@@ -34,21 +23,6 @@ H, W = 270, 480
 PLANTED = (320, 160, 384, 192)
 #: Tolerance of on-screen positions, in CSS pixels (sub-pixel layout rounding).
 POSITION_TOLERANCE_PX = 1.5
-
-
-def _require_browser() -> None:
-    problem = None
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        problem = "Playwright for Python is not installed (pip install playwright)"
-    if problem is None and not (CHROMIUM.exists() or shutil.which("chromium")):
-        problem = f"Chromium is not installed at {CHROMIUM} (apt-get install chromium)"
-    if problem is None:
-        return
-    if os.environ.get("CI"):
-        pytest.fail(f"browser test cannot run under CI: {problem}", pytrace=False)
-    pytest.skip(problem)
 
 
 def _cases() -> list[dict]:
@@ -102,20 +76,6 @@ def page_url(tmp_path_factory) -> str:
     )
     reports.write_report(report, out)
     return out.as_uri()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    _require_browser()
-    from playwright.sync_api import sync_playwright
-
-    executable = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
-    with sync_playwright() as p:
-        instance = p.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        try:
-            yield instance
-        finally:
-            instance.close()
 
 
 @pytest.fixture

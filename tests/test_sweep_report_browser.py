@@ -13,9 +13,7 @@ from __future__ import annotations
 
 import base64
 import json
-import os
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +21,6 @@ import pytest
 
 pytestmark = pytest.mark.browser
 
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 VIEWPORT = {"width": 1400, "height": 900}
 
 CLAIMS = {
@@ -92,21 +88,6 @@ def _extremes() -> dict:
     }
 
 
-def _require_browser() -> None:
-    problem = None
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        problem = "Playwright for Python is not installed (pip install playwright)"
-    if problem is None and not (CHROMIUM.exists() or shutil.which("chromium")):
-        problem = f"Chromium is not installed at {CHROMIUM} (apt-get install chromium)"
-    if problem is None:
-        return
-    if os.environ.get("CI"):
-        pytest.fail(f"browser test cannot run under CI: {problem}", pytrace=False)
-    pytest.skip(problem)
-
-
 @pytest.fixture(scope="module")
 def report_path(tmp_path_factory) -> Path:
     from raster_oracle.oracle.reference.cache import ReferenceCache
@@ -132,20 +113,6 @@ def report_path(tmp_path_factory) -> Path:
         )
     assert failed == []
     return report
-
-
-@pytest.fixture(scope="module")
-def browser():
-    _require_browser()
-    from playwright.sync_api import sync_playwright
-
-    executable = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
-    with sync_playwright() as p:
-        instance = p.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
-        try:
-            yield instance
-        finally:
-            instance.close()
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ import pytest
 from raster_oracle.metrics import tonemap
 
 from raster_oracle import reports
-from tests.test_reports_browser import ARTIFACTS, CHROMIUM, CHROMIUM_ARGS, _require_browser
+from tests.test_reports_browser import ARTIFACTS
 
 pytestmark = pytest.mark.browser
 
@@ -92,19 +92,6 @@ def page_url(tmp_path_factory) -> str:
     report = reports.build_report([_checker_case(), _hdr_case()], title="Viewer", provenance={})
     reports.write_report(report, out)
     return out.as_uri()
-
-
-@pytest.fixture(scope="module")
-def browser():
-    _require_browser()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        instance = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        try:
-            yield instance
-        finally:
-            instance.close()
 
 
 @pytest.fixture
