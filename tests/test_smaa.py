@@ -1,0 +1,163 @@
+"""SMAA (issue 27): published texture bytes, closed-form areas of step edges, identities,
+energy, presets and modes, and the ranking on ``star`` against no AA."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+from raster_oracle.oracle.cli.app import main
+from raster_oracle.raster_models import ModelError, parse_params
+from raster_oracle.raster_models.aa.smaa import PRESETS, textures
+from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
+from raster_oracle.raster_models.aa.smaa.edges import detect_edges
+from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
+from raster_oracle.raster_models.aa.smaa.weights import blending_weights
+
+# bilinear weights of the area texture lookups: 8 fractional bits (the model's hardware rule)
+SUBTEXEL = 256.0
+# a finite line's two cut ends: at most 3% of its energy (measured 1.3-2.6% for k = 2, 4, 8;
+# corner rounding, which SMAA applies to one side of each corner, is off here)
+LINE_END_LOSS = 0.03
+# float32 blends of float32 inputs: a few ulps of values in [0, 1]
+FLOAT32_ATOL = 1e-6
+
+
+def _smaa(img, **kw):
+    """Edges, weights and blend of a display image with SMAA's default settings."""
+    e = detect_edges(img, threshold=kw.pop("threshold", 0.1))
+    w = blending_weights(e, **kw)
+    return e, w, neighborhood_blend(img, w, srgb=False)
+
+
+def test_textures_equal_the_published_bytes():
+    area, search = textures.area_texture(), textures.search_texture()
+    assert area.shape == (560, 160, 2) and area.dtype == np.uint8
+    assert search.shape == (16, 64) and search.dtype == np.uint8
+    assert hashlib.sha256(area.tobytes()).hexdigest() == textures.AREA_SHA256
+    assert hashlib.sha256(search.tobytes()).hexdigest() == textures.SEARCH_SHA256
+    assert textures.AREA_SHA256.startswith("35065cef2a02")
+    assert textures.SEARCH_SHA256.startswith("3694eae5e9d4")
+
+
+def _z_area_by_hand(left: float, right: float) -> tuple[float, float]:
+    """Areas (R, G) of pixel ``left`` of a Z step of ``d = left + right + 1`` pixels: the
+    revectorised line runs from +0.5 above the edge at its left end to -0.5 at its right
+    end; a pixel wholly on one side gets its trapezoid, the middle pixel of an odd ``d``
+    two triangles of 1 / (8 d) each."""
+    d = left + right + 1.0
+    y1, y2 = 0.5 - left / d, 0.5 - (left + 1.0) / d
+    if y1 * y2 >= 0.0:
+        a = (y1 + y2) / 2.0
+        return (-a, 0.0) if a < 0.0 else (0.0, a)
+    return (1.0 / (8.0 * d), 1.0 / (8.0 * d))
+
+
+def _lookup_by_hand(left: int, right: int) -> np.ndarray:
+    """The weight SMAA reads for distances (``left``, ``right``): the texture stores the hand
+    areas at squared distances as ``int(255 a)``, looked up bilinearly at the square roots."""
+    sl, sr = np.sqrt(left), np.sqrt(right)
+    out = np.zeros(2)
+    for i in (np.floor(sl), np.floor(sl) + 1.0):
+        for j in (np.floor(sr), np.floor(sr) + 1.0):
+            wx = np.round((1.0 - abs(sl - i)) * SUBTEXEL) / SUBTEXEL
+            wy = np.round((1.0 - abs(sr - j)) * SUBTEXEL) / SUBTEXEL
+            out += wx * wy * np.trunc(255.0 * np.array(_z_area_by_hand(i * i, j * j))) / 255.0
+    return np.round(out * 255.0) / 255.0
+
+
+@pytest.mark.parametrize("k", [1, 2, 4, 8])
+def test_step_edge_of_slope_1_over_k_gets_the_hand_areas(k):
+    h, w = 24, 8 * k + 16
+    y, x = np.mgrid[0:h, 0:w]
+    img = np.repeat(np.where(y < x // k + 4, 1.0, 0.0).astype(np.float32)[..., None], 3, -1)
+    _, wts, _ = _smaa(img, max_search_steps=16, max_search_steps_diag=None, corner_rounding=None)
+    seg = 3  # the fourth step: row 7, columns 3k .. 4k - 1, its top edge horizontal
+    got = wts[seg + 4, seg * k : seg * k + k, :2]
+    want = np.array([_lookup_by_hand(i, k - 1 - i) for i in range(k)])
+    np.testing.assert_array_equal(got, want.astype(np.float32))
+    # the texels hit exactly: k = 1 two triangles of 1/8, k = 2 trapezoids of 1/4
+    bytes_ = (got * 255).round().tolist()
+    if k == 1:
+        assert bytes_ == [[31, 31]]  # int(255 / 8)
+    if k == 2:
+        assert bytes_ == [[0, 63], [63, 0]]  # int(255 / 4)
+
+
+def test_constant_and_low_contrast_images_pass_unchanged():
+    rng = np.random.default_rng(7)
+    const = np.full((20, 30, 3), 0.37, np.float32)
+    _, w, out = _smaa(const)
+    assert not w.any() and out["color"].tobytes() == const.tobytes()
+    # every neighbour difference below the 0.1 luma threshold: no edge anywhere
+    soft = (0.5 + 0.04 * rng.random((20, 30, 3))).astype(np.float32)
+    e, w, out = _smaa(soft)
+    assert not e.any() and out["color"].tobytes() == soft.tobytes()
+
+
+@pytest.mark.parametrize("k", [2, 4, 8])
+@pytest.mark.parametrize("diag", [None, 8])
+def test_one_pixel_line_keeps_its_energy(k, diag):
+    # every step of the line's two edges is a Z pattern whose two halves move the same area
+    # in and out; only the line's two ends (where the last step is cut) change the sum
+    y, x = np.mgrid[0:40, 0:64]
+    img = np.zeros((40, 64, 3), np.float32)
+    img[(y == x // k + 8) & (x > 4) & (x < 60)] = 1.0
+    _, w, out = _smaa(img, max_search_steps=16, max_search_steps_diag=diag, corner_rounding=None)
+    assert w.any() and not np.array_equal(out["color"], img)
+    assert out["color"].sum() == pytest.approx(img.sum(), rel=LINE_END_LOSS)
+
+
+def test_presets_and_overrides():
+    assert PRESETS["low"]["corner_rounding"] == 100 and PRESETS["low"]["max_search_steps"] == 4
+    assert resolved(SmaaParams(preset="ultra"))["threshold"] == 0.05
+    cfg = resolved(SmaaParams(preset="high", threshold=0.2, max_search_steps_diag=0))
+    assert cfg["threshold"] == 0.2 and cfg["max_search_steps_diag"] == 0
+    assert cfg["depth_threshold"] == pytest.approx(0.02)
+    assert parse_params("smaa", ["preset=medium", "mode=4x"]) == {"preset": "medium", "mode": "4x"}
+    with pytest.raises(ModelError, match="preset"):
+        parse_params("smaa", ["preset=extreme"])
+
+
+def test_static_resolve_is_the_average():
+    rng = np.random.default_rng(1)
+    a, b = rng.random((2, 6, 5, 3)).astype(np.float32)
+    zero = np.zeros((6, 5), np.float32)
+    out = resolve(a, b, alpha_current=zero, alpha_previous=zero)
+    np.testing.assert_allclose(out, (a + b) / 2, atol=FLOAT32_ATOL)
+    # different velocities weight the previous frame down (scale 30): 0.5 * (1 - 30 x)
+    ap = np.full((6, 5), 0.1, np.float32)
+    out = resolve(a, b, alpha_current=zero, alpha_previous=ap)
+    weight = 0.5 * max(0.0, 1.0 - np.sqrt(0.01 / 5.0) * 30.0)
+    np.testing.assert_allclose(out, a + (b - a) * weight, atol=FLOAT32_ATOL)
+
+
+def _score(tmp_path, name, args):
+    size = ["--width", "160", "--height", "90", "--spp", "16", "--quiet"]
+    out = tmp_path / name
+    assert main(["score", "star", *size, "--technique", *args, "--out", str(out)]) == 0
+    return json.loads((out / "metrics.json").read_text())
+
+
+@pytest.mark.slow
+def test_every_preset_beats_no_aa_on_star(tmp_path):
+    base = _score(tmp_path, "noaa", ["noaa"])
+    for preset in ("low", "medium", "high", "ultra"):
+        m = _score(tmp_path, preset, ["smaa", "--set", f"preset={preset}"])
+        assert m["flip_mean"] < base["flip_mean"], preset
+        assert m["coverage_edge_rmse"] < base["coverage_edge_rmse"], preset
+
+
+def test_modes_run_and_report_costs(tmp_path):
+    out = tmp_path / "m"
+    assert main(["model", "smaa", "star", "--width", "48", "--height", "27", "--set", "mode=4x",
+                 "--out", str(out)]) == 0  # fmt: skip
+    rec = json.loads((out / "model.json").read_text())
+    cost = rec["cost"]
+    assert cost["samples"] == 2 and cost["smaa_passes"] == 8
+    assert cost["framebuffer_bytes_by_buffer"]["smaa_edges"] == 48 * 27 * 2
+    assert cost["framebuffer_bytes_by_buffer"]["smaa_weights"] == 48 * 27 * 4
+    assert cost["texture_fetches_per_pixel"] > 0
+    assert "static camera" in rec["diagnostics"]["velocity"]
