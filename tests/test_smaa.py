@@ -86,6 +86,58 @@ def test_step_edge_of_slope_1_over_k_gets_the_hand_areas(k):
         assert bytes_ == [[0, 63], [63, 0]]  # int(255 / 4)
 
 
+@pytest.mark.parametrize("sub", range(7))
+def test_subsample_index_reads_its_band_of_the_construction(sub):
+    # a slope-1/2 step: distances (0, 1) and (1, 0), texels hit exactly; the step is the Z
+    # pattern 6 (crossing edges up at its left end, down at its right), built for the
+    # sub-sample offset of band `sub` (T2x: 1, 2; 4x: 3..6)
+    y, x = np.mgrid[0:24, 0:32]
+    img = np.repeat(np.where(y < x // 2 + 4, 1.0, 0.0).astype(np.float32)[..., None], 3, -1)
+    e = detect_edges(img, threshold=0.1)
+    w = blending_weights(
+        e, max_search_steps_diag=None, corner_rounding=None, subsample_indices=(0, sub, 0, 0)
+    )
+    offset = textures.SUBSAMPLE_OFFSETS_ORTHO[sub]
+    want = [np.trunc(255.0 * np.ravel(textures.area_ortho(6, s, 1 - s, offset))) for s in (0, 1)]
+    np.testing.assert_array_equal((w[7, 6:8, :2] * 255.0).round(), want)
+
+
+def test_local_contrast_adaptation_drops_an_edge_beside_a_stronger_one():
+    # columns 0.0 | 0.12 | x: the 0.12 step passes the 0.1 threshold; it is dropped when the
+    # next step is more than twice as strong (|0.12 - 1| > 2 x 0.12), kept when it is not
+    for right, kept in ((1.0, False), (0.24, True)):
+        img = np.zeros((4, 6, 3), np.float32)
+        img[:, 2] = 0.12
+        img[:, 3:] = right
+        e = detect_edges(img, threshold=0.1)
+        assert bool(e[1, 2, 0]) is kept
+        assert e[1, 3, 0] == 1.0  # the second step is an edge either way (0.88 or 0.12)
+
+
+def test_colour_edges_see_chroma_that_luma_does_not():
+    # red 0.7152 and green 0.2126 have one Rec. 709 luma (0.7152 x 0.2126)
+    img = np.zeros((4, 6, 3), np.float32)
+    img[:, :3, 0] = 0.7152
+    img[:, 3:, 1] = 0.2126
+    assert not detect_edges(img, method="luma").any()
+    assert detect_edges(img, method="color")[:, 3, 0].all()
+
+
+def test_depth_edges_and_predication():
+    depth = np.full((4, 6), 0.5, np.float32)
+    depth[:, 3:] = 0.52  # a 0.02 step: above the depth threshold 0.1 x 0.1
+    assert detect_edges(None, method="depth", depth=depth)[:, 3, 0].all()
+    # a 0.15 luma step: predication doubles the threshold (0.2: no edge) and lowers it by 40 %
+    # where the depth buffer has an edge (0.12: edge)
+    img = np.zeros((4, 6, 3), np.float32)
+    img[:, 3:] = 0.15
+    pred = {"threshold": 0.01, "scale": 2.0, "strength": 0.4}
+    flat = np.full((4, 6), 0.5, np.float32)
+    assert detect_edges(img, threshold=0.1)[:, 3, 0].all()
+    assert not detect_edges(img, threshold=0.1, depth=flat, predication=pred).any()
+    assert detect_edges(img, threshold=0.1, depth=depth, predication=pred)[:, 3, 0].all()
+
+
 def test_constant_and_low_contrast_images_pass_unchanged():
     rng = np.random.default_rng(7)
     const = np.full((20, 30, 3), 0.37, np.float32)
