@@ -32,7 +32,9 @@ Outputs: ``color`` (linear: the radiance the pipeline maps to the displayed imag
 exact one-sample radiance where SMAA changed nothing and the samples agree), ``color_display``
 (SMAA's output), ``coverage`` (the one-sample coverage masks through the same blending
 weights and fetches as the colour, combined like the colour: SMAA's effective coverage),
-``smaa_edges`` (edge pixels of the first sample image).
+``front_coverage`` (the weight the same fetches give to samples of the shape seen through the
+pixel centre), ``smaa_edges`` (edge pixels of the first sample image). Shading events: the
+displayed frame's (one per covered pixel; S2x/4x: MSAA fragments).
 
 References
 ----------
@@ -126,11 +128,13 @@ def _hardware_depth(camera, view_depth: np.ndarray, valid: np.ndarray) -> np.nda
 
 
 def _frame_samples(scene, offsets: np.ndarray):
-    """(N, H, W, 3) linear sample images, (N, H, W) coverage masks, shadow rays."""
+    """(N, H, W, 3) linear sample images, (N, H, W) coverage masks, and a dict: shadow
+    ``rays``, shading ``events`` per pixel ((H, W): one per covered pixel; MSAA: fragments)."""
     h, w = scene.height, scene.width
     if len(offsets) == 1:
         res, rays = sample_colors(scene, offsets)
         col, valid = res["color"], res["valid"]
+        events = valid[:, 0].astype(np.int64)
     else:
         ms = _msaa.multisample(scene, offsets, centroid=False, shadows="exact")
         col, valid, rays = (
@@ -138,10 +142,11 @@ def _frame_samples(scene, offsets: np.ndarray):
             ms["buffer"]["valid"],
             ms["shadow_rays"],
         )
+        events = ms["frags"].per_pixel(h * w)
     n = len(offsets)
     col = np.moveaxis(np.asarray(col, np.float32).reshape(h, w, n, 3), 2, 0)
     valid = np.moveaxis(np.asarray(valid).reshape(h, w, n), 2, 0)
-    return np.ascontiguousarray(col), valid, rays
+    return np.ascontiguousarray(col), valid, {"rays": rays, "events": events.reshape(h, w)}
 
 
 def _run_frames(scene, p, cfg, fetches):
@@ -201,7 +206,8 @@ def _run_frames(scene, p, cfg, fetches):
         "linear0": first,
         "edges": first_edges,
         "exposure": exposure,
-        "rays": sum(r for _, _, r in rendered),
+        "rays": sum(r["rays"] for _, _, r in rendered),
+        "events": rendered[-1][2]["events"],  # the frame rendered for this display
         "valid": np.mean([v.mean(axis=0) for _, v, _ in rendered], axis=0),
     }
 
@@ -266,7 +272,7 @@ def run(scene, params: SmaaParams | None = None, **kwargs):
         color=linear,
         coverage=fr["coverage"],
         offsets=np.array([s[0] for s in MODES[p.mode][-1]]),
-        events=np.full((h, w), n_s),
+        events=fr["events"],
         extra_outputs={"smaa_edges": fr["edges"].any(axis=-1)},
         samples=n_s,
         buffers={"color": n_pix * 4 * n_s, "depth": n_pix * 4 * n_s},
