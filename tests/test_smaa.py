@@ -9,7 +9,12 @@ import json
 import numpy as np
 import pytest
 from raster_oracle.oracle.cli.app import main
+from raster_oracle import scenes
 from raster_oracle.raster_models import ModelError, parse_params
+from raster_oracle.raster_models import run as run_model
+from raster_oracle.raster_models.aa.smaa.model import smaa_1x
+from raster_oracle.raster_models.aa.trace import sample_colors
+from raster_oracle.scenes.display import exposure_from_reference, tonemap
 from raster_oracle.raster_models.aa.smaa import PRESETS, textures
 from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
@@ -184,6 +189,37 @@ def test_static_resolve_is_the_average():
     out = resolve(a, b, alpha_current=zero, alpha_previous=ap)
     weight = 0.5 * max(0.0, 1.0 - np.sqrt(0.01 / 5.0) * 30.0)
     np.testing.assert_allclose(out, a + (b - a) * weight, atol=FLOAT32_ATOL)
+
+
+def test_resolve_reprojects_with_the_velocity():
+    # a velocity of one pixel to the right (texture units): the previous frame is fetched
+    # one pixel to the left; equal packed velocities keep the weight at 0.5
+    rng = np.random.default_rng(2)
+    a, b = rng.random((2, 4, 6, 3)).astype(np.float32)
+    alpha = np.zeros((4, 6), np.float32)
+    vel = np.zeros((4, 6, 2))
+    vel[..., 0] = 1.0 / 6
+    out = resolve(a, b, alpha_current=alpha, alpha_previous=alpha, velocity=vel)
+    shifted = b[:, np.maximum(np.arange(6) - 1, 0)]
+    np.testing.assert_allclose(out, a + (shifted - a) * 0.5, atol=FLOAT32_ATOL)
+
+
+def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames():
+    scene = scenes.load("star", width=48, height=27)
+    res = run_model("smaa", scene, mode="t2x")
+    frames = []
+    for offset in ((0.75, 0.75), (0.25, 0.25)):
+        col, _ = sample_colors(scene, np.array([offset]))
+        frames.append(col["color"].reshape(27, 48, 3))
+    exposure = exposure_from_reference((frames[0] + frames[1]) / 2)
+    cfg = resolved(SmaaParams())
+    out = [
+        smaa_1x(tonemap(f, exposure=exposure), cfg, idx)["color"]
+        for f, idx in zip(frames, ((1, 1, 1, 0), (2, 2, 2, 0)), strict=True)
+    ]
+    want = out[1] + (out[0] - out[1]) * np.float32(0.5)
+    np.testing.assert_allclose(res.outputs["color_display"], want, atol=FLOAT32_ATOL)
+    assert not np.array_equal(out[0], out[1])  # the jittered frames differ
 
 
 def _score(tmp_path, name, args):
