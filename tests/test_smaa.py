@@ -9,17 +9,18 @@ import json
 import numpy as np
 import pytest
 from raster_oracle.oracle.cli.app import main
-from raster_oracle import scenes
 from raster_oracle.raster_models import ModelError, parse_params
 from raster_oracle.raster_models import run as run_model
-from raster_oracle.raster_models.aa.smaa.model import smaa_1x
-from raster_oracle.raster_models.aa.trace import sample_colors
-from raster_oracle.scenes.display import exposure_from_reference, tonemap
 from raster_oracle.raster_models.aa.smaa import PRESETS, textures
 from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
+from raster_oracle.raster_models.aa.smaa.model import smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
+from raster_oracle.raster_models.aa.trace import sample_colors
+from raster_oracle.scenes.display import exposure_from_reference, tonemap
+
+from raster_oracle import scenes
 
 # bilinear weights of the area texture lookups: 8 fractional bits (the model's hardware rule)
 SUBTEXEL = 256.0
