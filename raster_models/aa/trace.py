@@ -69,13 +69,13 @@ def to_numpy(a) -> np.ndarray:
 
 def view_depth(camera, p):
     """View depth (distance along the camera's forward axis, camera units) of Dr.Jit
-    points ``p``, in float32."""
-    fwd, pos = camera.forward, camera.position
-    return (
-        (p.x - float(pos[0])) * float(fwd[0])
-        + (p.y - float(pos[1])) * float(fwd[1])
-        + (p.z - float(pos[2])) * float(fwd[2])
-    )
+    points ``p``, in float32. The camera's pose is opaque: every frame reuses the kernel."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    fwd = [dr.opaque(mi.Float, float(c)) for c in camera.forward]
+    pos = [dr.opaque(mi.Float, float(c)) for c in camera.position]
+    return (p.x - pos[0]) * fwd[0] + (p.y - pos[1]) * fwd[1] + (p.z - pos[2]) * fwd[2]
 
 
 def trace_samples(
