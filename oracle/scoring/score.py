@@ -140,8 +140,13 @@ def _metrics_for(
     full: bool,
     samples,
     aa_samples=None,
+    coverage_only: bool = False,
 ):
-    """Metric values (and, with ``full``, error maps) of one candidate frame."""
+    """Metric values (and, with ``full``, error maps) of one candidate frame.
+
+    ``coverage_only`` (a coverage channel scored beside colour, which keeps only its
+    :data:`COVERAGE_KEYS`): FLIP, SSIM and PSNR of the coverage image are not computed
+    (None), FLIP being the most expensive metric of a case."""
     out = dict.fromkeys(METRIC_KEYS)
     maps = {}
     edge = ref_ch["edge"] > 0.5
@@ -168,9 +173,10 @@ def _metrics_for(
         # silhouettes against the sky are edges of coverage even where one shape is seen
         edge = edge | ((ref > 0) & (ref < 1))
         lin = dict(tone_mapper="clip", exposure=0.0)
-        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
-        out["ssim"] = M.ssim(ref, cand, **lin)
-        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
+        fl = None if coverage_only else M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
+        if not coverage_only:
+            out["ssim"] = M.ssim(ref, cand, **lin)
+            out["psnr_db"] = M.psnr_db(ref, cand, **lin)
         if full:
             maps["coverage_error"] = (cand - ref).astype(np.float32)
     else:
@@ -187,7 +193,9 @@ def _metrics_for(
         out["delta_e2000_mean"] = de[0] if full else de
         if full:
             maps["delta_e2000"] = de[1]
-    if full:
+    if fl is None:
+        out["flip_mean"] = None
+    elif full:
         out["flip_mean"], maps["flip"] = fl[0], fl[1]
     else:
         out["flip_mean"] = fl
@@ -239,7 +247,7 @@ def _noise_floor(
     reference (``settings``) stands for it. Cached in ``floor_cache`` by reference and options.
     """
     floor_key = (ref.meta.get("cache_key"), channel, kw["flip_mode"], kw["ppd"], kw["samples"])
-    floor_key += (kw["aa_samples"],)
+    floor_key += (kw["aa_samples"], kw["coverage_only"])
     cached = floor_cache.get(floor_key) if floor_cache is not None else None
     if cached is not None and floor_key[0] is not None:
         return dict(cached)
@@ -350,6 +358,7 @@ def score(
     ppd: float = M.DEFAULT_PPD,
     aa_samples: int | None = None,
     floor_cache: dict | None = None,
+    coverage_only: bool = False,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
@@ -364,6 +373,8 @@ def score(
         coverage floor ``coverage_floor_rms`` (None: no floor).
     floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
         the references and scoring options only, so it is computed once per reference.
+    coverage_only : a coverage channel whose coverage metrics alone are kept (an AA model's
+        ``front_coverage`` beside its colour): no FLIP, SSIM or PSNR of it.
     """
     if channel not in REFERENCE_GROUPS:
         raise ScoreError(f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {channel!r}")
@@ -398,6 +409,7 @@ def score(
             ppd=ppd,
             samples=spp,
             aa_samples=aa_samples,
+            coverage_only=coverage_only and channel in COVERAGE_CHANNELS,
         )
         values, maps, ref_img, rec = _metrics_for(channel, ref_ch, cand, full=True, **kw)
         floor = None

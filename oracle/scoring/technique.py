@@ -149,6 +149,7 @@ def score_model(
             candidate_frames=model_candidate(
                 technique, params, channel="front_coverage", runs=runs
             ),
+            coverage_only=True,  # only its COVERAGE_KEYS are kept (_merge_coverage)
             **kw,
         )
         _merge_coverage(result, coverage)
