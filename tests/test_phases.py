@@ -150,3 +150,42 @@ def test_device_description_names_the_machine(_backend):
     assert dev["variant"] == _backend.variant
     assert dev["kind"] == ("gpu" if "cuda" in _backend.variant else "cpu")
     assert dev["name"] and dev["cores"] >= 1 and dev["drjit_threads"] >= 1
+
+
+def test_numpy_view_of_a_vector_launches_no_kernel(mi):
+    """Dr.Jit's own conversion of a vector packs it with a kernel whose literal is the
+    length (a new compile per length); component by component nothing is launched."""
+    import drjit as dr
+    from raster_oracle.raster_models.drjit import numpy_view
+
+    for n in (1000, 1001):
+        i = dr.arange(mi.Float, n)
+        v = mi.Vector3f(i, i * 2.0, i * 3.0)
+        dr.eval(v)
+        arr, rec = kernel_profile(numpy_view, v)
+        assert rec["launches"] == 0
+        assert arr.shape == (3, n)
+        np.testing.assert_array_equal(arr, np.arange(n, dtype=np.float32) * [[1], [2], [3]])
+
+
+def test_aligned_copies_start_on_the_boundary_and_reuse_the_kernel(mi):
+    import drjit as dr
+    from raster_oracle.raster_models.drjit import DRJIT_ALIGN, aligned
+
+    def launch(a):
+        y = mi.Float(a) * 2.0 + 1.0
+        dr.eval(y)
+        return y
+
+    src = np.arange(100, dtype=np.float64)
+    recs = []
+    for start in (0, 1, 3):  # three source addresses; NumPy's own copies are 16-aligned
+        a = aligned(src[start : start + 64])
+        assert a.ctypes.data % DRJIT_ALIGN == 0 and a.dtype == np.float32
+        np.testing.assert_array_equal(a, src[start : start + 64])
+        y, rec = kernel_profile(launch, a)
+        np.testing.assert_array_equal(np.asarray(y), 2 * a + 1)
+        recs.append(rec)
+    assert [r["compiled"] for r in recs[1:]] == [0, 0]
+    flags = aligned(np.array([True, False, True]), bool)
+    assert flags.ctypes.data % DRJIT_ALIGN == 0 and flags.tolist() == [True, False, True]

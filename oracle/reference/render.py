@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ...metrics.stats import binomial_stderr_floor
+from ...raster_models.drjit import numpy_view
 from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
@@ -506,8 +507,10 @@ def _reduce_and_add(acc: _Accum, res: dict, sums: dict, chunk, block: int) -> in
         outs = {k: dr.block_reduce(op, v, block, mode="evaluated") for k, (v, op) in sums.items()}
         dr.eval(*outs.values(), shadow_count)
     with maybe_phase(ph, "transfer"):
+        # numpy_view: a colour vector component by component (Dr.Jit's own conversion
+        # compiles a packing kernel for every array length: the last, shorter chunk)
         host = {
-            k: np.array(v) if k in ("smin", "smax") else np.array(v, dtype=np.float64)
+            k: numpy_view(v) if k in ("smin", "smax") else numpy_view(v).astype(np.float64)
             for k, v in outs.items()
         }
         shadow_tested = int(shadow_count[0])

@@ -9,7 +9,6 @@ maximum error on ``thin``, ``city`` and ``plate`` (:func:`bench_adaptive`).
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -190,18 +189,29 @@ def kernel_line(kernels: dict) -> str:
     )
 
 
-def print_profile(device: dict, tables: dict, kernels: dict | None = None, *, file=None) -> None:
-    """Print the device line, then each ``{title: {phase: seconds}}`` table and the kernel
-    line, on ``file`` (stderr: stdout carries the JSON)."""
-    file = sys.stderr if file is None else file
-    print(device_line(device), file=file)
-    for title, seconds in tables.items():
-        phases = Phases()
-        phases.merge(seconds)
-        for line in phases.lines(title=f"{title} by phase"):
-            print(line, file=file)
-    if kernels is not None:
-        print(kernel_line(kernels), file=file)
+def oracle_profile_lines(figures: dict) -> list[str]:
+    """Printable lines of :func:`bench_oracle`'s figures: the device, the colour reference
+    by phase, its kernel line."""
+    profile = figures["color_profile"]
+    phases = Phases()
+    phases.merge(profile["phases"])
+    lines = [device_line(figures["device"])]
+    lines += phases.lines(title="colour reference by phase")
+    return [*lines, kernel_line(profile["kernels"])]
+
+
+def models_profile_lines(figures: dict) -> list[str]:
+    """Printable lines of :func:`bench_models`' figures: the device, then per family a table
+    of the reference and each model (profiled runs)."""
+    lines = [device_line(figures["device"])]
+    for title, ref, family in (
+        ("shadow models", "oracle_visibility", "models"),
+        ("AA models", "oracle_color", "aa_models"),
+    ):
+        if family in figures:
+            profiles = {name: row["profile"] for name, row in figures[family].items()}
+            lines += _model_profile_lines(title, figures[ref]["profile"], profiles)
+    return lines
 
 
 def color_profile(loaded, spp: int, *, tracing_seconds: float | None = None) -> dict:
@@ -288,7 +298,6 @@ def bench_oracle(
     profile = color_profile(loaded, spp, tracing_seconds=float(np.median(bare_s_rounds)))
     adaptive = {name: bench_adaptive(scene=name, quiet=quiet) for name in adaptive_scenes}
     device = device_description(backend.active().variant)
-    print_profile(device, {"colour reference": profile["phases"]}, profile["kernels"])
     return {
         "scene": "city",
         "resolution": [width, height],
@@ -401,20 +410,19 @@ def _profile_models(loaded, cases: dict) -> dict:
     return out
 
 
-def _print_model_profiles(title: str, reference: dict, profiles: dict) -> None:
+def _model_profile_lines(title: str, reference: dict, profiles: dict) -> list[str]:
     """One line per model (and its reference): wall, device split, host, kernel reuse."""
-    print(f"{title} (profiled runs; seconds)", file=sys.stderr)
     head = "  {:<22}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}  {}"
-    print(
+    lines = [
+        f"{title} (profiled runs; seconds)",
         head.format("", "wall", "trace", "kernels", "reduce", "compile", "host", "hits/launches"),
-        file=sys.stderr,
-    )
+    ]
     for name, rec in {"reference": reference, **profiles}.items():
         reuse = f"{rec['cache_hits']}/{rec['launches']}"
         if "on_new_frame" in rec:
             new = rec["on_new_frame"]
             reuse += f", new frame {new['cache_hits']}/{new['launches']}"
-        print(
+        lines.append(
             head.format(
                 name,
                 f"{rec['wall_seconds']:.3f}",
@@ -424,21 +432,20 @@ def _print_model_profiles(title: str, reference: dict, profiles: dict) -> None:
                 f"{rec['compile_seconds']:.3f}",
                 f"{rec['host_seconds']:.3f}",
                 reuse,
-            ),
-            file=sys.stderr,
+            )
         )
+    return lines
 
 
-def _profiled_family(loaded, settings, cases: dict, title: str) -> tuple[dict, dict]:
-    """The reference of a family and its models profiled, printed; ``(reference, models)``
-    records (the reference's also holds its ``phases``)."""
+def _profiled_family(loaded, settings, cases: dict) -> tuple[dict, dict]:
+    """The reference of a family and its models profiled; ``(reference, models)`` records
+    (the reference's also holds its ``phases``)."""
     from ..reference.render import render_reference
 
     phases = Phases()
     _, reference = kernel_profile(render_reference, loaded, settings, quiet=True, phases=phases)
     reference["phases"] = phases.record()
     profiles = _profile_models(loaded, cases)
-    _print_model_profiles(title, reference, profiles)
     return reference, profiles
 
 
@@ -537,10 +544,9 @@ def bench_models(
     device = device_description(backend.active().variant)
     figures: dict = {"scene": "city", "resolution": [width, height], "rounds": repeats}
     figures["device"] = device
-    print(device_line(device), file=sys.stderr)
     if shadow_cases:
         oracle_s = float(np.median(oracle_times))
-        ref_profile, profiles = _profiled_family(loaded, settings, shadow_cases, "shadow models")
+        ref_profile, profiles = _profiled_family(loaded, settings, shadow_cases)
         models = _model_rows(
             shadow_cases,
             model_times,
@@ -560,7 +566,7 @@ def bench_models(
         figures["target"] = f"<= {MODEL_RATIO_TARGET} (model seconds / 32-spp reference seconds)"
     if aa_cases:
         color_s = float(np.median(color_times))
-        ref_profile, profiles = _profiled_family(loaded, color_settings, aa_cases, "AA models")
+        ref_profile, profiles = _profiled_family(loaded, color_settings, aa_cases)
         aa_models = _model_rows(
             aa_cases,
             aa_times,

@@ -39,6 +39,7 @@ from ...scenes.raycast import (
     shape_table,
 )
 from ...scenes.shading import facing, receiver_mask, shade
+from ..drjit import aligned, numpy_view
 from . import pixel_dr as _pixel_dr
 
 __all__ = [
@@ -63,8 +64,7 @@ CHUNK = 1 << 21
 def to_numpy(a) -> np.ndarray:
     """NumPy view of an evaluated Dr.Jit array (a vector gives ``(3, N)``); every caller
     copies it into its own output at once."""
-    method = getattr(a, "numpy", None)
-    return np.asarray(method() if method is not None else a)
+    return numpy_view(a)  # a vector component by component: no packing kernel per length
 
 
 def view_depth(camera, p):
@@ -361,11 +361,11 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
 
     def vec(key, sl):
         a = np.asarray(attrs[key][sl], np.float32)
-        return mi.Vector3f(*(mi.Float(np.ascontiguousarray(a[:, i])) for i in range(3)))
+        return mi.Vector3f(*(mi.Float(aligned(a[:, i])) for i in range(3)))
 
     for start in range(0, total, CHUNK):
         sl = slice(start, min(total, start + CHUNK))
-        valid = mi.Bool(valid_all[sl])
+        valid = mi.Bool(aligned(valid_all[sl], bool))  # aligned: one kernel, any address
         p = mi.Point3f(vec("position", sl))
         n = vec("normal", sl)
         ng = vec("geo_normal", sl)
@@ -373,9 +373,9 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
         to_eye = vec("to_eye", sl)
         offset = vis = None
         if visibility is None:
-            offset = mi.Float(np.asarray(attrs["offset"][sl], np.float32))
+            offset = mi.Float(aligned(attrs["offset"][sl]))
         else:
-            vis = mi.Float(np.asarray(visibility[sl], np.float32))
+            vis = mi.Float(aligned(visibility[sl]))
         rgb, candidate = shade_dr(
             scene,
             valid,
