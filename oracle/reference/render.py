@@ -273,8 +273,9 @@ class _Accum:
         self.vis = np.zeros(size("vis"))
         self.cov = np.zeros(size("cov"))
         self.front = np.zeros(size("front"))
-        self.rgb = np.zeros((self.npix, 3)) if self.color else None
-        self.rgb2 = np.zeros((self.npix, 3)) if self.color else None
+        # planar (3, npix), the layout Dr.Jit hands over: the sums add rows, not a transpose
+        self.rgb = np.zeros((3, self.npix)) if self.color else None
+        self.rgb2 = np.zeros((3, self.npix)) if self.color else None
         self.smin = np.full(size("shape"), np.iinfo(np.int32).max, dtype=np.int64)
         self.smax = np.full(size("shape"), np.iinfo(np.int32).min, dtype=np.int64)
 
@@ -305,15 +306,15 @@ class _Accum:
         )
 
     def rgb_stderr(self):
-        n = self.n[:, None]
-        return self.stderr(self.rgb, self.rgb2, n)
+        """``(3, npix)``."""
+        return self.stderr(self.rgb, self.rgb2, self.n)
 
     def sample_variance(self):
         """Largest per-pixel sample variance over the tracked quantities."""
         n = np.maximum(self.n, 2)
         parts = [(self.vis - self.vis**2 / n) / (n - 1), (self.cov - self.cov**2 / n) / (n - 1)]
         if self.color:
-            parts.append(np.max((self.rgb2 - self.rgb**2 / n[:, None]) / (n[:, None] - 1), 1))
+            parts.append(np.max((self.rgb2 - self.rgb**2 / n) / (n - 1), 0))
         return np.maximum(np.max(parts, axis=0), 0.0)
 
 
@@ -518,10 +519,12 @@ def _reduce_and_add(acc: _Accum, res: dict, sums: dict, chunk, block: int) -> in
         if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
             chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
         acc.n[chunk] += block
-        for k in ("vis", "cov", "front", "rgb", "rgb2"):
+        for k in ("vis", "cov", "front"):
             if k in host:
-                arr = host[k]
-                getattr(acc, k)[chunk] += arr.T if arr.ndim == 2 else arr
+                getattr(acc, k)[chunk] += host[k]
+        for k in ("rgb", "rgb2"):
+            if k in host:
+                getattr(acc, k)[:, chunk] += host[k]  # (3, pixels) onto planar sums
         if "smin" in host:
             acc.smin[chunk] = np.minimum(acc.smin[chunk], host["smin"])
             acc.smax[chunk] = np.maximum(acc.smax[chunk], host["smax"])
@@ -689,7 +692,7 @@ def _refine_mask(acc: _Accum, settings: ReferenceSettings, width: int, height: i
         se = np.maximum(se, binary_stderr(acc.front, acc.n))
     want = feature_mask(acc, width, height) & (se > settings.target_stderr)
     if acc.color:
-        want |= acc.rgb_stderr().max(axis=1) > settings.target_stderr
+        want |= acc.rgb_stderr().max(axis=0) > settings.target_stderr
     return want & (acc.n < settings.max_spp)
 
 
@@ -829,12 +832,12 @@ def _finish(acc: _Accum, groups: set, centre: dict, w: int, h: int) -> dict[str,
         channels["front_coverage"] = img(acc.front / acc.n)
         channels["front_coverage_stderr"] = img(acc.front_stderr())
     if color:
-        mean = acc.rgb / acc.n[:, None]
+        mean = acc.rgb / acc.n
         se = acc.rgb_stderr()
         for i, c in enumerate("RGB"):
-            channels[f"color.{c}"] = img(mean[:, i])
+            channels[f"color.{c}"] = img(mean[i])
         for i, c in enumerate("RGB"):
-            channels[f"color_stderr.{c}"] = img(se[:, i])
+            channels[f"color_stderr.{c}"] = img(se[i])
     if "edge" in groups:
         mixed = (acc.vis > 0) & (acc.vis < acc.n)
         channels["edge"] = img((acc.smin != acc.smax) | mixed)
@@ -883,7 +886,7 @@ def _adaptive_stats(settings: ReferenceSettings, acc: _Accum, width: int, height
     npix = width * height
     se = np.maximum(acc.vis_stderr(), acc.cov_stderr())
     if acc.color:
-        se = np.maximum(se, acc.rgb_stderr().max(axis=1))
+        se = np.maximum(se, acc.rgb_stderr().max(axis=0))
     near = feature_mask(acc, width, height)
     near_se = float(se[near].max()) if near.any() else 0.0
     var = acc.sample_variance()
