@@ -64,6 +64,8 @@ INVALID_AREA = 1e-12
 #: Tessellation of curved shapes: segments around (spheres: and half as many from pole to
 #: pole). Their chord error is a stated bound (``slack``), turned into invalid pixels.
 CURVED_SEGMENTS = 96
+#: Film margin (pixels) kept around the film when clipping projected triangles.
+FILM_MARGIN = 1.0
 #: Key of the triangle set in ``LoadedScene.memo`` (geometry only, shared by every camera).
 MEMO_KEY = "exact_coverage_triangles"
 
@@ -172,7 +174,11 @@ def _project(camera, tris):
     coords = film[ok][sel]
     rings = shapely.linearrings(coords, indices=np.searchsorted(idx, ring_idx))
     polys = shapely.polygons(rings)
-    polys = shapely.clip_by_rect(polys, 0.0, 0.0, float(camera.width), float(camera.height))
+    # the film and a pixel around it (a grid offset by under a pixel reads that margin)
+    w, h = float(camera.width), float(camera.height)
+    polys = shapely.clip_by_rect(
+        polys, -FILM_MARGIN, -FILM_MARGIN, w + FILM_MARGIN, h + FILM_MARGIN
+    )
     area = shapely.area(polys)
     keep = area > AREA_MIN
     return polys[keep], idx[keep]
@@ -293,15 +299,26 @@ def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
     return exact_coverage_of(loaded.camera, scene_triangle_set(loaded), centre)
 
 
-def exact_coverage_of(camera, tset: TriangleSet, centre: np.ndarray) -> ExactCoverage:
+def exact_coverage_of(
+    camera, tset: TriangleSet, centre: np.ndarray, *, grid_offset=(0.0, 0.0)
+) -> ExactCoverage:
     """:func:`exact_coverage` of the triangles ``tset`` seen by ``camera`` (a
-    :class:`scenes.camera.Camera`; its film size is the output's)."""
+    :class:`scenes.camera.Camera`; its film size is the output's).
+
+    ``grid_offset`` ``(ox, oy)`` in ``[-1, 1]`` pixels moves the pixel grid: pixel ``(x, y)``
+    then covers ``[x + ox, x + ox + 1) x [y + oy, y + oy + 1)`` (the expected coverage of a
+    sample under random sub-pixel translations of the scene is the coverage of such a box).
+    """
     t0 = time.perf_counter()
     cam = camera
     w, h = cam.width, cam.height
     polys, tri_idx = _project(cam, tset.tris)
     front, back, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
     vis = _visible(polys, front, back)
+    off = np.asarray(grid_offset, dtype=np.float64)
+    if np.any(off != 0.0):
+        vis = shapely.transform(vis, lambda xy: xy - off)
+        bad_over = shapely.transform(bad_over, lambda xy: xy - off)
     shape_of = tset.shape[tri_idx]
     pieces = edge_pieces(vis, w, h, tags=shape_of)
     cov = pixel_area(None, w, h, pieces=pieces)
