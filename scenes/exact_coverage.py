@@ -207,7 +207,8 @@ def _nearness(camera, x, y, n, c):
 def _classify_pairs(camera, polys, tri_idx, tset):
     """Overlapping projected pairs: ``(front, back)`` index pairs (into ``polys``) where one
     is in front over the whole overlap, and ``(a, b, overlap)`` where they interpenetrate,
-    tie (coplanar) or come within a curved shape's tessellation bound of each other."""
+    tie (coplanar, of two shapes) or come within a curved shape's tessellation bound of each
+    other."""
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="intersects")
     keep = a < b
@@ -234,6 +235,10 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     np.minimum.at(lo, owner, diff + tol)  # < 0: b clearly nearer at some vertex
     a_front = (hi > 0) & (lo >= 0)
     b_front = (lo < 0) & (hi <= 0)
+    # a tie between coplanar triangles of one shape: either in front gives the same
+    # coverage and front coverage (a consistent order, as there is one depth at each point)
+    shape = tset.shape[tri_idx]
+    a_front |= (hi <= 0) & (lo >= 0) & (shape[a] == shape[b])
     bad = ~(a_front | b_front)
     front = np.concatenate([a[a_front], b[b_front]])
     back = np.concatenate([b[a_front], a[b_front]])

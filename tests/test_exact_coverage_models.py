@@ -77,3 +77,48 @@ def test_expected_model_coverage_is_exact_coverage(technique):
     assert np.mean(z <= Z_LIMIT) >= AGREE_FRACTION, float(z.max())
     # the average is not trivially right: many pixels are fractional
     assert np.count_nonzero((expected > 0.05) & (expected < 0.95)) > 20
+
+
+#: Float32 vertices (Mitsuba's, the exact channel's) against the float64 corners of the hand
+#: computation: about 1e-7 of the 320-pixel film.
+HAND_ABS = 1e-5
+
+
+@pytest.mark.slow
+def test_straight_edge_error_against_the_exact_channel():
+    """The squares of the straight-edge test (tests/test_aa_models.py): the exact channel
+    equals the hand-computed polygon area wherever one square touches a pixel, and MSAA's
+    straight-edge RMS against it reproduces the floor table (docs/models.md) with no
+    reference noise (the exact truth's noise floor is 0)."""
+    import math
+
+    from raster_oracle.oracle.reference.coverage import centre_shapes
+    from raster_oracle.oracle.scoring.score import COVERAGE_FLOOR_RMS
+    from raster_oracle.scenes.builtin import BuiltinScene
+    from raster_oracle.scenes.exact_coverage import exact_coverage
+
+    from raster_oracle import scenes
+    from tests._geometry import polygon_coverage
+    from tests.test_aa_models import FLOOR_RTOL, _squares, _squares_scene
+
+    w, h = 320, 180
+    scene = scenes.load(BuiltinScene("aa-squares", _squares_scene, "squares"), width=w, height=h)
+    ex = exact_coverage(scene, centre_shapes(scene))
+    assert ex.valid.all()
+    hand = np.zeros((h, w))
+    touched = np.zeros((h, w), int)
+    near_corner = np.zeros((h, w), bool)
+    for q in _squares():
+        film = scene.camera.project(q)
+        cov = polygon_coverage(film, w, h)
+        hand += cov
+        touched += cov > 0
+        for fx, fy in film:
+            x0, y0 = int(math.floor(fx)), int(math.floor(fy))
+            near_corner[max(y0 - 1, 0) : y0 + 2, max(x0 - 1, 0) : x0 + 2] = True
+    one = touched <= 1
+    np.testing.assert_allclose(ex.coverage[one], hand[one], atol=HAND_ABS)
+    single = (ex.coverage > 0) & (ex.coverage < 1) & ~near_corner & (touched == 1)
+    cov = registry.run("msaa", scene, samples=4).outputs["coverage"]
+    rms = float(np.sqrt(np.mean((cov - ex.coverage)[single] ** 2)))
+    assert rms == pytest.approx(COVERAGE_FLOOR_RMS[4], rel=FLOOR_RTOL)
