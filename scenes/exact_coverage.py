@@ -42,7 +42,7 @@ import shapely
 
 from . import backend
 from . import meshes as _meshes
-from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area
+from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area, touched_pixels
 
 __all__ = [
     "ExactCoverage",
@@ -62,11 +62,16 @@ DEPTH_REL_TOL = 1e-9
 #: A pixel is invalid where a not-exact region covers more than this area of it (px^2).
 INVALID_AREA = 1e-12
 #: Tessellation of curved shapes: segments around (spheres: and half as many from pole to
-#: pole). Their chord error is a stated bound (``slack``), turned into invalid pixels.
-CURVED_SEGMENTS = 96
+#: pole), chosen per shape so that the chord error is about :data:`CURVED_ERROR_PX` pixels
+#: where the shape is nearest the camera, within these bounds. The chord error is a stated
+#: bound (``slack``), turned into invalid pixels.
+CURVED_SEGMENTS = (12, 192)
+#: Chord error (pixels) the tessellation of a curved shape aims at.
+CURVED_ERROR_PX = 0.25
 #: Film margin (pixels) kept around the film when clipping projected triangles.
 FILM_MARGIN = 1.0
-#: Key of the triangle set in ``LoadedScene.memo`` (geometry only, shared by every camera).
+#: Key of the triangle sets in ``LoadedScene.memo`` (one per camera and film: the
+#: tessellation of curved shapes follows their size on the film).
 MEMO_KEY = "exact_coverage_triangles"
 
 
@@ -111,9 +116,42 @@ def _curved_mesh(mi, shape, n: int):
     raise ValueError(f"shape {shape.id()!r} of type {kind} has no exact-coverage geometry")
 
 
+def _pixels_per_unit(camera, lo, hi) -> float:
+    """Film pixels per world unit at the nearest point of the box ``[lo, hi]`` (at least the
+    near plane): a bound on how large a world distance there appears on the film."""
+    if camera.kind != "perspective":
+        return camera.width / (2.0 * camera.half_extent()[0])
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    inside = np.all((camera.position >= lo) & (camera.position <= hi))
+    depth = (
+        camera.near
+        if inside
+        else max(camera.near, float(((corners - camera.position) @ camera.forward).min()))
+    )
+    return camera.width / (2.0 * camera.tan_half_x) / depth
+
+
+def _segments(mi, shape, camera) -> int:
+    """Tessellation segments of a curved shape: chord error about :data:`CURVED_ERROR_PX`."""
+    bb = shape.bbox()
+    lo = np.array(bb.min, dtype=np.float64).ravel()[:3]
+    hi = np.array(bb.max, dtype=np.float64).ravel()[:3]
+    m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    r_px = float(np.linalg.norm(m[:3, 0])) * _pixels_per_unit(camera, lo, hi)
+    # chord error r (1 - cos a) ~ r a^2 / 2 for a half-angle a = sqrt(2) pi / n (spheres)
+    n = math.sqrt(2.0) * math.pi / math.sqrt(2.0 * CURVED_ERROR_PX / max(r_px, 1e-9))
+    lo_n, hi_n = CURVED_SEGMENTS
+    return int(min(max(2 * math.ceil(n / 2), lo_n), hi_n))
+
+
 def scene_triangle_set(loaded) -> TriangleSet:
-    """The :class:`TriangleSet` of ``loaded`` (memoised in ``loaded.memo``)."""
-    cached = loaded.memo.get(MEMO_KEY)
+    """The :class:`TriangleSet` of ``loaded`` for its camera (memoised in ``loaded.memo``)."""
+    cam = loaded.camera
+    key = (np.asarray(cam.to_world, np.float64).tobytes(), cam.width, cam.height, cam.fov_x)
+    memo = loaded.memo.setdefault(MEMO_KEY, {})
+    cached = memo.get(key)
     if cached is not None:
         return cached
     from .export import shape_mesh
@@ -125,7 +163,7 @@ def scene_triangle_set(loaded) -> TriangleSet:
             v, f = shape_mesh(mi, sh)
             err = 0.0
         else:
-            v, f, err = _curved_mesh(mi, sh, CURVED_SEGMENTS)
+            v, f, err = _curved_mesh(mi, sh, _segments(mi, sh, cam))
         tris = np.asarray(v, dtype=np.float64)[np.asarray(f, dtype=np.int64)]
         parts.append(tris)
         shape_of.append(np.full(len(tris), i, dtype=np.int64))
@@ -135,7 +173,7 @@ def scene_triangle_set(loaded) -> TriangleSet:
         np.concatenate(shape_of) if parts else np.zeros(0, np.int64),
         np.concatenate(slack) if parts else np.zeros(0),
     )
-    loaded.memo[MEMO_KEY] = out
+    memo[key] = out
     return out
 
 
@@ -273,19 +311,27 @@ class ExactCoverage:
 
 
 def _curved_invalid(vis, curved, tset, tri_idx, camera, w, h):
-    """Pixels within the tessellation bound of a curved shape's visible silhouette: where its
-    visible area is partial, dilated by the chord error in pixels plus one."""
+    """Pixels within the tessellation bound of a curved shape's visible silhouette: the
+    pixels the boundary of each curved shape's visible region (the union of its triangles'
+    visible parts: against the sky, another shape or itself) meets, dilated by the chord
+    error in pixels plus one."""
     if not curved.any():
         return np.zeros((h, w), bool)
-    area = pixel_area(vis[curved], w, h)
-    partial = (area > INVALID_AREA) & (area < 1.0 - INVALID_AREA)
+    shape = tset.shape[tri_idx[curved]]
+    order = np.argsort(shape, kind="stable")
+    ids, first = np.unique(shape[order], return_index=True)
+    groups = shapely.geometrycollections(
+        vis[curved][order], indices=np.searchsorted(ids, shape[order])
+    )
+    regions = shapely.union_all(groups[:, None], axis=1)
+    partial = touched_pixels(regions, w, h)
     tris = tset.tris[tri_idx[curved]]
-    depth = np.maximum((tris - camera.position) @ camera.forward, camera.near).min()
-    slack = tset.slack[tri_idx[curved]].max()
+    slack = tset.slack[tri_idx[curved]]
     if camera.kind == "perspective":
-        px = slack * (camera.width / (2.0 * camera.tan_half_x)) / depth
+        depth = np.maximum((tris - camera.position) @ camera.forward, camera.near).min(axis=1)
+        px = float((slack * (camera.width / (2.0 * camera.tan_half_x)) / depth).max())
     else:
-        px = slack * camera.width / (2.0 * camera.half_extent()[0])
+        px = float(slack.max()) * camera.width / (2.0 * camera.half_extent()[0])
     radius = int(math.ceil(px)) + 1
     from scipy.ndimage import binary_dilation
 

@@ -24,7 +24,13 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["EdgePieces", "edge_pieces", "pixel_area", "tagged_pixel_area"]
+__all__ = [
+    "EdgePieces",
+    "edge_pieces",
+    "pixel_area",
+    "tagged_pixel_area",
+    "touched_pixels",
+]
 
 
 class EdgePieces:
@@ -70,13 +76,9 @@ def _crossings(lo, hi, start, limit):
     return edge, k
 
 
-def edge_pieces(geoms, width: int, height: int, *, tags=None) -> EdgePieces:
-    """Cut the boundaries of ``geoms`` (shapely polygons in film pixels) at the pixel grid.
-
-    ``tags``: an integer per geometry (default: its index) carried to each piece.
-    """
-    geoms = np.asarray(geoms, dtype=object).ravel()
-    tags = np.arange(len(geoms)) if tags is None else np.asarray(tags, dtype=np.int64)
+def _split(geoms, tags, width, height):
+    """Boundary edges of ``geoms`` cut at every grid line ``x = 0..width``, ``y = 0..height``
+    they cross: ``(xa, ya, xb, yb, tag)`` of each piece, oriented as its polygon's ring."""
     x0, y0, x1, y1, tag = _edges(geoms, tags)
     dx, dy = x1 - x0, y1 - y0
     # parameters t along each edge where it meets a vertical (x = k) or horizontal line
@@ -99,7 +101,30 @@ def edge_pieces(geoms, width: int, height: int, *, tags=None) -> EdgePieces:
     edge, px, py = edge[order], px[order], py[order]
     keep = edge[1:] == edge[:-1]
     xa, ya, xb, yb = px[:-1][keep], py[:-1][keep], px[1:][keep], py[1:][keep]
-    piece_tag = tag[edge[:-1][keep]]
+    return xa, ya, xb, yb, tag[edge[:-1][keep]]
+
+
+def touched_pixels(geoms, width: int, height: int) -> np.ndarray:
+    """``(height, width)`` bool: pixels whose closed square the boundary of ``geoms`` meets
+    (a piece on a grid line marks the cell whose side it lies on)."""
+    geoms = np.asarray(geoms, dtype=object).ravel()
+    xa, ya, xb, yb, _ = _split(geoms, np.zeros(len(geoms), np.int64), width, height)
+    col = np.floor(0.5 * (xa + xb))
+    row = np.floor(0.5 * (ya + yb))
+    ok = (col >= 0) & (col < width) & (row >= 0) & (row < height)
+    out = np.zeros((height, width), bool)
+    out[row[ok].astype(np.int64), col[ok].astype(np.int64)] = True
+    return out
+
+
+def edge_pieces(geoms, width: int, height: int, *, tags=None) -> EdgePieces:
+    """Cut the boundaries of ``geoms`` (shapely polygons in film pixels) at the pixel grid.
+
+    ``tags``: an integer per geometry (default: its index) carried to each piece.
+    """
+    geoms = np.asarray(geoms, dtype=object).ravel()
+    tags = np.arange(len(geoms)) if tags is None else np.asarray(tags, dtype=np.int64)
+    xa, ya, xb, yb, piece_tag = _split(geoms, tags, width, height)
     xm, ym = 0.5 * (xa + xb), 0.5 * (ya + yb)
     row = np.floor(ym)
     col = np.floor(xm)
