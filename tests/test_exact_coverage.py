@@ -149,17 +149,40 @@ def test_pixel_area_of_holes_and_tags():
     assert np.all(tagged_pixel_area(pieces, np.full((4, 4), 5)) == 0.0)
 
 
-def test_interpenetrating_triangles_are_marked_invalid():
-    """Two quads crossing each other (one tilted through the other): the pixels where the
-    crossing is visible are not exact, the rest of the film is."""
+def test_interpenetrating_quads_are_split_along_their_intersection():
+    """A quad tilted through a flat one (z = 5 + 0.2 (x - 0.3): nearer for x < 0.3): each is
+    visible on its side of the intersection line, film x = 7.7, exactly."""
     w = h = 16
     cam = _ortho(w, h)
-    flat = _quad(-4, 4, -4, 4, 5.0)
-    tilted = _quad(-3, 3, -3, 3, 5.0)
-    tilted[..., 2] += 0.2 * tilted[..., 0]  # z = 5 + 0.2 x: crosses the flat quad at x = 0
-    ex = exact_coverage_of(cam, _tset(flat, tilted), np.zeros((h, w), int))
-    assert not ex.valid.all()
-    assert ex.valid[0].all() and ex.valid[:, 0].all()  # far from both quads
+    flat = _quad(-4, 4, -4, 4, 5.0)  # film [4, 12] x [4, 12]
+    tilted = _quad(-3, 3, -3, 3, 5.0)  # film [5, 11] x [5, 11]
+    tilted[..., 2] += 0.2 * (tilted[..., 0] - 0.3)
+    a_flat = _rect_in_pixels(4, 12, 4, 12, w, h)
+    a_tilted_seen = _rect_in_pixels(7.7, 11, 5, 11, w, h)  # world x in [-3, 0.3]
+    centre = np.full((h, w), -1)
+    cy, cx = np.indices((h, w)) + 0.5
+    centre[(cx > 4) & (cx < 12) & (cy > 4) & (cy < 12)] = 0
+    centre[(cx > 7.7) & (cx < 11) & (cy > 5) & (cy < 11)] = 1
+    ex = exact_coverage_of(cam, _tset(flat, tilted), centre)
+    assert ex.valid.all()
+    np.testing.assert_allclose(ex.coverage, a_flat, atol=PIXEL_ABS)
+    hand = np.where(centre == 1, a_tilted_seen, a_flat - a_tilted_seen)
+    hand = np.where(centre < 0, 1.0 - a_flat, hand)
+    np.testing.assert_allclose(ex.front_coverage, hand, atol=PIXEL_ABS)
+    assert 0.0 < ex.front_coverage[8, 7] < 1.0  # the line crosses pixel column 7
+
+
+def test_coplanar_quads_of_two_shapes_are_not_exact_where_they_overlap():
+    """Two shapes in one plane (a decal): which one a ray tracer keeps is rounding, so their
+    overlap is marked not exact; the rest of the film is exact."""
+    w = h = 16
+    cam = _ortho(w, h)
+    ex = exact_coverage_of(
+        cam, _tset(_quad(-4, 4, -4, 4, 5.0), _quad(-2, 2, -2, 2, 5.0)), np.zeros((h, w), int)
+    )
+    overlap = _rect_in_pixels(6, 10, 6, 10, w, h) > 0
+    assert not ex.valid[overlap].any()
+    assert ex.valid[~overlap].all()
 
 
 def _triangle_scenes():
