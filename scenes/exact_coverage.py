@@ -120,6 +120,12 @@ def _curved_mesh(mi, shape, n: int):
     raise ValueError(f"shape {shape.id()!r} of type {kind} has no exact-coverage geometry")
 
 
+def _is_curved(mi, shape) -> bool:
+    """Whether ``shape`` is tessellated here (sphere, cylinder, disk), not exact (a mesh or
+    a rectangle)."""
+    return not (shape.is_mesh() or shape.class_name() == "Rectangle")
+
+
 def _pixels_per_unit(camera, lo, hi) -> float:
     """Film pixels per world unit at the nearest point of the box ``[lo, hi]`` (at least the
     near plane): a bound on how large a world distance there appears on the film."""
@@ -153,17 +159,19 @@ def _segments(mi, shape, camera) -> int:
 def scene_triangle_set(loaded) -> TriangleSet:
     """The :class:`TriangleSet` of ``loaded`` for its camera (memoised in ``loaded.memo``)."""
     cam = loaded.camera
-    key = (np.asarray(cam.to_world, np.float64).tobytes(), cam.width, cam.height, cam.fov_x)
+    mi = backend.mitsuba()
+    curved = any(_is_curved(mi, sh) for sh in loaded.mi_scene.shapes())
+    # only a curved shape's tessellation depends on the camera
+    key = (cam.to_world.tobytes(), cam.width, cam.height, cam.fov_x) if curved else "planar"
     memo = loaded.memo.setdefault(MEMO_KEY, {})
     cached = memo.get(key)
     if cached is not None:
         return cached
     from .export import shape_mesh
 
-    mi = backend.mitsuba()
     parts, shape_of, slack = [], [], []
     for i, sh in enumerate(loaded.mi_scene.shapes()):  # a loop over shapes, not triangles
-        if "vertex_positions" in mi.traverse(sh).keys() or sh.class_name() == "Rectangle":
+        if not _is_curved(mi, sh):
             v, f = shape_mesh(mi, sh)
             err = 0.0
         else:

@@ -242,3 +242,20 @@ def test_curved_shapes_are_exact_only_away_from_their_silhouettes(name):
         if name == "curved":
             mixed = (ch[mc] > 0) & (ch[mc] < 1)
             assert mixed.any() and not np.any(mixed & valid), mc
+
+
+def test_failed_polygon_operation_claims_nothing_exact(monkeypatch):
+    """A polygon operation failing on degenerate input leaves every pixel not exact and the
+    reason in the provenance, never a partial channel passed off as exact."""
+    from raster_oracle.oracle.reference import coverage as ref_coverage
+    from raster_oracle.scenes import exact_coverage as ec
+    from raster_oracle.scenes.loader import load
+
+    def fail(loaded, centre):
+        raise shapely.errors.GEOSException("TopologyException: side location conflict")
+
+    monkeypatch.setattr(ec, "exact_coverage", fail)
+    loaded = load("plate", width=16, height=9)
+    channels, record = ref_coverage.exact_channels(loaded, np.zeros(16 * 9, int), {})
+    assert not channels["coverage_exact_valid"].any()
+    assert record["valid_fraction"] == 0.0 and "side location conflict" in record["error"]

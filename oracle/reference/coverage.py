@@ -68,11 +68,21 @@ def exact_channels(loaded, centre: np.ndarray | None, sampled: dict) -> tuple[di
     ``front_coverage`` with their standard errors), the record holds the z-scores of their
     difference from the exact channels on the valid pixels (mean, RMS, largest, fraction
     beyond :data:`CROSS_CHECK_Z`): a sampling bug shows up in every reference."""
+    import shapely
+
     from ...scenes.exact_coverage import exact_coverage
 
     if centre is None:
         centre = centre_shapes(loaded)
-    ex = exact_coverage(loaded, centre)
+    try:
+        ex = exact_coverage(loaded, centre)
+    except shapely.errors.GEOSException as exc:
+        # a polygon operation that failed on degenerate input: nothing is claimed exact
+        shape = (loaded.height, loaded.width)
+        zero = np.zeros(shape, np.float32)
+        channels = {"coverage_exact": zero, "front_coverage_exact": zero}
+        channels["coverage_exact_valid"] = zero
+        return channels, {"valid_fraction": 0.0, "error": f"polygon operation failed: {exc}"}
     f32 = np.float32
     channels = {
         "coverage_exact": ex.coverage.astype(f32),
