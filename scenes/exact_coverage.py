@@ -73,7 +73,9 @@ FILM_MARGIN = 1.0
 #: Tiles across the film: each projected triangle is cut into the tiles it covers before the
 #: depth resolution, so every union and difference is local (the union of 3,600 crossing
 #: blades over a backdrop cost seconds per tile instead of minutes for the whole film).
-TILES_ACROSS = 32
+TILES_ACROSS = 16
+#: Polygons covering more than this many tiles' area are cut into tiles (see ``_tile``).
+BIG_TILES = 4.0
 #: Key of the triangle sets in ``LoadedScene.memo`` (one per camera and film: the
 #: tessellation of curved shapes follows their size on the film).
 MEMO_KEY = "exact_coverage_triangles"
@@ -242,7 +244,11 @@ def _tile(polys, tri_idx, width: int, height: int):
     b = shapely.bounds(polys)
     t0 = np.floor((b[:, :2] + FILM_MARGIN) / size).astype(np.int64)
     t1 = np.floor((b[:, 2:] + FILM_MARGIN) / size).astype(np.int64)
-    nx, ny = t1[:, 0] - t0[:, 0] + 1, t1[:, 1] - t0[:, 1] + 1
+    # only polygons larger than BIG_TILES tiles are cut (a backdrop behind thousands of
+    # blades); cutting every small one multiplies the overlapping pairs for nothing
+    big = shapely.area(polys) > BIG_TILES * size * size
+    nx = np.where(big, t1[:, 0] - t0[:, 0] + 1, 1)
+    ny = np.where(big, t1[:, 1] - t0[:, 1] + 1, 1)
     count = nx * ny
     owner = np.repeat(np.arange(len(polys)), count)
     k = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
@@ -320,7 +326,9 @@ def _classify_pairs(camera, polys, tri_idx, tset):
         camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
     )
     back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
-    occluder = np.concatenate([polys[a[a_front]], polys[b[b_front]], a_near, b_near])
+    # what hides the back one: the overlap (inside the back polygon: unions stay local), or
+    # the front one's side of the intersection line
+    occluder = np.concatenate([over[a_front], over[b_front], a_near, b_near])
     return back, occluder, (a[bad], b[bad], over[bad])
 
 
