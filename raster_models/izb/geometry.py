@@ -2,14 +2,15 @@
 rasterization of triangles over a light-space grid (all vectorized, chunked by rows).
 
 Shadow volume of a triangle under a directional light travelling along ``d`` (unit): the
-three edge planes through each edge and ``d`` (normals ``(v_j - v_i) x d`` turned to face
-the third vertex) and the triangle's own plane (unit normal turned along ``d``, pushed away
-from the light by ``epsilon`` world units). Under a spot light at ``L`` the edge planes pass
-through ``L`` (normals ``(v_i - L) x (v_j - L)``): the three half-spaces meet in the cone
-from ``L`` through the triangle (one nappe: the cone spanned by ``v_i - L``). A point ``q``
-is in shadow of the triangle when every edge plane has ``q`` on its inner side (``>= 0``:
-closed) and ``n . (q - v0) > eps``. Triangles whose plane contains ``d`` (or ``L``) have
-zero projected area, cast no shadow and are culled.
+three edge planes through each edge and ``d`` (unit normals along ``(v_j - v_i) x d`` turned
+to face the third vertex: a plane value is a distance) and the triangle's own plane (unit
+normal turned along ``d``, pushed away from the light by ``epsilon`` world units). Under a
+spot light at ``L`` the edge planes pass through ``L`` (unit normals along ``(v_i - L) x
+(v_j - L)``): the three half-spaces meet in the cone from ``L`` through the triangle (one
+nappe: the cone spanned by ``v_i - L``). A point ``q`` is in shadow of the triangle when
+every edge plane has ``q`` on its inner side (``>= 0``: closed) and ``n . (q - v0) > eps``.
+Triangles whose plane contains ``d`` (or ``L``) have zero projected area, cast no shadow and
+are culled.
 
 Conservative rasterization: a texel square ``[i, i+1] x [j, j+1]`` (texel units) overlaps a
 2D triangle exactly when it overlaps its bounding box and, for each edge, the square's corner
@@ -25,6 +26,7 @@ import numpy as np
 
 __all__ = [
     "CONSERVATIVE_MARGIN",
+    "HIT_REACH",
     "MEMO_KEY",
     "RASTER_CHUNK",
     "chunks_by_total",
@@ -38,6 +40,12 @@ __all__ = [
 #: Texels of slack in the conservative overlap test (float64 rounding of edge functions is
 #: ~1e-12 texels at 16384^2; a million times that keeps every touched texel).
 CONSERVATIVE_MARGIN = 1e-6
+
+#: How far from its G-buffer position (relative to ``1 + max|p|``) a pixel ray's hit on the
+#: point's own plane is taken as its exact hit (:func:`onto_own_planes`): float32 rounding
+#: puts the position about 2^-22 of that from it; 2^-12 keeps a margin and drops a ray nearly
+#: parallel to the plane (no stable hit).
+HIT_REACH = 2.0**-12
 
 #: Candidate (texel) tests per rasterization chunk: bounds memory (~100 MiB a chunk).
 RASTER_CHUNK = 1 << 22
@@ -100,10 +108,10 @@ def surface_triangles(scene, shape: np.ndarray, prim: np.ndarray) -> np.ndarray:
     return out
 
 
-def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
+def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray, *, rays=None):
     """Points ``p (N, 3)`` moved along their own triangle's normal onto its plane, in float64
-    (``own``: index into ``tris`` of each point's triangle, -1: left as is), and whether each
-    was moved.
+    (``own``: index into ``tris`` of each point's triangle, -1: left as is), whether each was
+    moved, and each pixel's exact hit on that plane (``(N, 3)``).
 
     A G-buffer position is float32: it lies up to a few ulps of ``|p|`` off its surface, so its
     distance to its own triangle's plane (zero in truth) is rounding of that size, 0.06 mm
@@ -111,7 +119,17 @@ def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
     and a distance to another triangle's plane is known to that precision too: what lets the
     epsilon band (:func:`raster_models.izb.kernel.band_floor`) flag gaps far below float32
     rounding. The move is along the normal only, by that rounding: the sample stays where the
-    pixel's ray met the surface, up to float32 precision.
+    pixel's ray met the surface, up to float32 precision, as the oracle's own rays start.
+
+    Within the plane the G-buffer position lies beside the pixel's true hit by float32
+    rounding too (3.6e-6 units at the origin for a 15-unit rectangle 1 unit from the camera,
+    1.3e-4 units 1,000 units out): enough to put a pixel outside an occluder's edge plane
+    that an exact ray from its true hit is inside. The third value is that hit, where the
+    pixel's ray (``rays``: ``(origins, directions)``, ``(N, 3)`` float64, the pixels' camera
+    rays, :meth:`scenes.camera.Camera.rays`) meets the plane in float64, put back on the
+    plane along its normal; the band is judged there. It is the moved point where there is no
+    ray, where the ray is parallel to the plane, or where it meets it farther than
+    :data:`HIT_REACH` from the moved point; ``p`` for the points not moved.
     """
     p = np.array(p, dtype=np.float64)
     moved = own >= 0
@@ -120,12 +138,24 @@ def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
     length = np.linalg.norm(n, axis=1)
     ok = length > 0.0  # zero-area triangles have no plane
     n = n[ok] / length[ok, None]
+    v0 = t[ok, 0]
     rows = np.flatnonzero(moved)[ok]
-    dist = np.sum((p[rows] - t[ok, 0]) * n, axis=1)
+    dist = np.sum((p[rows] - v0) * n, axis=1)
     p[rows] -= dist[:, None] * n
     moved[:] = False
     moved[rows] = True
-    return p, moved
+    hit = p.copy()
+    if rays is not None:
+        q = p[rows]
+        o, d = rays[0][rows], rays[1][rows]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            s = np.sum((v0 - o) * n, axis=1) / np.sum(d * n, axis=1)
+            h = o + s[:, None] * d
+            h -= np.sum((h - v0) * n, axis=1)[:, None] * n  # the hit's rounding off the plane
+            reach = HIT_REACH * (1.0 + np.abs(q).max(axis=1))
+            use = np.isfinite(h).all(axis=1) & (np.abs(h - q).max(axis=1) <= reach)
+        hit[rows[use]] = h[use]
+    return p, moved, hit
 
 
 def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None):
@@ -168,6 +198,10 @@ def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None
         else:
             ne = np.cross(a - light, b - light)
         s = np.sign(np.einsum("ij,ij->i", ne, c - a))
+        length = np.linalg.norm(ne, axis=1)
+        # unit length (a plane value is a distance: the band's edge slack is one); an edge
+        # along the light direction has no plane and stays 0 (always inside)
+        s = np.divide(s, length, out=np.zeros_like(s), where=length > 0)
         ne = ne * s[:, None]
         planes[:, row, :3] = ne
         planes[:, row, 3] = -np.einsum("ij,ij->i", ne, a)
@@ -204,7 +238,7 @@ def chunks_by_total(sizes: np.ndarray, limit: int):
         cut = stop
 
 
-def conservative_fragments(uv: np.ndarray, resolution: int):
+def conservative_fragments(uv: np.ndarray, resolution: int, *, margin: float = 0.0):
     """Texels every 2D triangle touches (conservative rasterization), chunk by chunk.
 
     Parameters
@@ -212,6 +246,8 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
     uv : ``(T, 3, 2)`` triangle vertices in texel units (``u`` right, ``v`` down: texel
         ``(i, j)`` covers ``[i, i+1) x [j, j+1)``).
     resolution : texels per side ``R``; texels outside ``[0, R)^2`` are clipped.
+    margin : texels every triangle is grown by (besides :data:`CONSERVATIVE_MARGIN`): every
+        texel within that distance (max-norm) of a triangle is a fragment.
 
     Yields
     ------
@@ -222,8 +258,8 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
     r = int(resolution)
     if len(uv) == 0:
         return
-    lo = np.floor(uv.min(axis=1)).astype(np.int64)
-    hi = np.floor(uv.max(axis=1)).astype(np.int64)
+    lo = np.floor(uv.min(axis=1) - margin).astype(np.int64)
+    hi = np.floor(uv.max(axis=1) + margin).astype(np.int64)
     lo = np.maximum(lo, 0)
     hi = np.minimum(hi, r - 1)
     ok = np.all(hi >= lo, axis=1)
@@ -248,5 +284,5 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
         for e in range(3):  # the three edges
             a, b, c = coef[t, e, 0], coef[t, e, 1], coef[t, e, 2]
             best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
-            inside &= best >= -CONSERVATIVE_MARGIN * (np.abs(a) + np.abs(b))
+            inside &= best >= -(CONSERVATIVE_MARGIN + margin) * (np.abs(a) + np.abs(b))
         yield idx[t[inside]], j[inside] * r + i[inside]
