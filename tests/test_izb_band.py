@@ -221,3 +221,20 @@ def test_band_width_scales_with_the_magnitude_of_the_coordinates(magnitude):
     shadowed, band = _pair_flags(p, hit, m)
     assert not shadowed.any()
     assert band.tolist() == [True, True, False, True]
+
+
+@pytest.mark.parametrize("samples", [1, 32])
+def test_grown_triangles_change_no_count_and_no_visibility(tmp_path, monkeypatch, samples):
+    """The triangles rasterized grown for the band (by the hits' distance from the tested
+    points: 1e-4 units 1,000 units out) add fragments that set band bits only: visibility,
+    cost record and list counters are those without growth, and the band only gains."""
+    from raster_oracle.raster_models.izb import model as izb
+
+    s, _, _ = _held_out(tmp_path, 1000.0, 5e-4, 0.4, 0.3, 0.0, 0.0)
+    grown = rm.run("izb", s, samples=samples)
+    monkeypatch.setattr(izb, "_hit_reach", lambda smp, *a: [(0.0, 0.0)] * len(a[2].boxes))
+    tight = rm.run("izb", s, samples=samples)
+    assert grown.outputs["visibility"].tobytes() == tight.outputs["visibility"].tobytes()
+    assert grown.cost == tight.cost
+    more = grown.outputs["epsilon_band"] > 0
+    assert (more >= (tight.outputs["epsilon_band"] > 0)).all()

@@ -31,6 +31,8 @@ __all__ = [
     "RASTER_CHUNK",
     "chunks_by_total",
     "conservative_fragments",
+    "grown_fragments",
+    "ray_hits",
     "onto_own_planes",
     "scene_triangles",
     "surface_triangles",
@@ -108,10 +110,10 @@ def surface_triangles(scene, shape: np.ndarray, prim: np.ndarray) -> np.ndarray:
     return out
 
 
-def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray, *, rays=None):
+def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
     """Points ``p (N, 3)`` moved along their own triangle's normal onto its plane, in float64
-    (``own``: index into ``tris`` of each point's triangle, -1: left as is), whether each was
-    moved, and each pixel's exact hit on that plane (``(N, 3)``).
+    (``own``: index into ``tris`` of each point's triangle, -1: left as is), and whether each
+    was moved.
 
     A G-buffer position is float32: it lies up to a few ulps of ``|p|`` off its surface, so its
     distance to its own triangle's plane (zero in truth) is rounding of that size, 0.06 mm
@@ -119,17 +121,8 @@ def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray, *, rays=No
     and a distance to another triangle's plane is known to that precision too: what lets the
     epsilon band (:func:`raster_models.izb.kernel.band_floor`) flag gaps far below float32
     rounding. The move is along the normal only, by that rounding: the sample stays where the
-    pixel's ray met the surface, up to float32 precision, as the oracle's own rays start.
-
-    Within the plane the G-buffer position lies beside the pixel's true hit by float32
-    rounding too (3.6e-6 units at the origin for a 15-unit rectangle 1 unit from the camera,
-    1.3e-4 units 1,000 units out): enough to put a pixel outside an occluder's edge plane
-    that an exact ray from its true hit is inside. The third value is that hit, where the
-    pixel's ray (``rays``: ``(origins, directions)``, ``(N, 3)`` float64, the pixels' camera
-    rays, :meth:`scenes.camera.Camera.rays`) meets the plane in float64, put back on the
-    plane along its normal; the band is judged there. It is the moved point where there is no
-    ray, where the ray is parallel to the plane, or where it meets it farther than
-    :data:`HIT_REACH` from the moved point; ``p`` for the points not moved.
+    pixel's ray met the surface, up to float32 precision, as the oracle's own rays start
+    (:func:`ray_hits` gives the exact hit).
     """
     p = np.array(p, dtype=np.float64)
     moved = own >= 0
@@ -138,24 +131,39 @@ def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray, *, rays=No
     length = np.linalg.norm(n, axis=1)
     ok = length > 0.0  # zero-area triangles have no plane
     n = n[ok] / length[ok, None]
-    v0 = t[ok, 0]
     rows = np.flatnonzero(moved)[ok]
-    dist = np.sum((p[rows] - v0) * n, axis=1)
+    dist = np.sum((p[rows] - t[ok, 0]) * n, axis=1)
     p[rows] -= dist[:, None] * n
     moved[:] = False
     moved[rows] = True
-    hit = p.copy()
-    if rays is not None:
-        q = p[rows]
-        o, d = rays[0][rows], rays[1][rows]
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            s = np.sum((v0 - o) * n, axis=1) / np.sum(d * n, axis=1)
-            h = o + s[:, None] * d
-            h -= np.sum((h - v0) * n, axis=1)[:, None] * n  # the hit's rounding off the plane
-            reach = HIT_REACH * (1.0 + np.abs(q).max(axis=1))
-            use = np.isfinite(h).all(axis=1) & (np.abs(h - q).max(axis=1) <= reach)
-        hit[rows[use]] = h[use]
-    return p, moved, hit
+    return p, moved
+
+
+def ray_hits(tris: np.ndarray, own: np.ndarray, p: np.ndarray, origins, directions):
+    """Where rays meet the planes of triangles ``own`` (index into ``tris``), in float64: the
+    pixels' exact hits of points ``p (N, 3)`` on their own planes (:func:`onto_own_planes`)
+    from the pixels' camera rays ``origins``, ``directions`` ``(N, 3)``
+    (:meth:`scenes.camera.Camera.rays`), put back on the plane along its normal.
+
+    Within its plane the G-buffer position lies beside the pixel's true hit by float32
+    rounding (3.6e-6 units at the origin for a 15-unit rectangle 1 unit from the camera,
+    1.3e-4 units 1,000 units out): enough to put a pixel outside an occluder's edge plane that
+    an exact ray from its true hit is inside, which the epsilon band must flag
+    (:class:`raster_models.izb.kernel.PairTester`). A point keeps ``p`` where its ray is
+    parallel to the plane or meets it farther than :data:`HIT_REACH` from it.
+    """
+    t = tris[own]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    v0 = t[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        s = np.einsum("ij,ij->i", v0 - origins, n) / np.einsum("ij,ij->i", directions, n)
+        h = directions * s[:, None]
+        h += origins
+        h -= np.einsum("ij,ij->i", h - v0, n)[:, None] * n  # the hit's rounding off the plane
+        reach = HIT_REACH * (1.0 + np.abs(p).max(axis=1))
+        use = np.abs(h - p).max(axis=1) <= reach  # False where h is not finite
+    return np.where(use[:, None], h, p)
 
 
 def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None):
@@ -238,7 +246,7 @@ def chunks_by_total(sizes: np.ndarray, limit: int):
         cut = stop
 
 
-def conservative_fragments(uv: np.ndarray, resolution: int, *, margin: float = 0.0):
+def conservative_fragments(uv: np.ndarray, resolution: int):
     """Texels every 2D triangle touches (conservative rasterization), chunk by chunk.
 
     Parameters
@@ -246,8 +254,6 @@ def conservative_fragments(uv: np.ndarray, resolution: int, *, margin: float = 0
     uv : ``(T, 3, 2)`` triangle vertices in texel units (``u`` right, ``v`` down: texel
         ``(i, j)`` covers ``[i, i+1) x [j, j+1)``).
     resolution : texels per side ``R``; texels outside ``[0, R)^2`` are clipped.
-    margin : texels every triangle is grown by (besides :data:`CONSERVATIVE_MARGIN`): every
-        texel within that distance (max-norm) of a triangle is a fragment.
 
     Yields
     ------
@@ -255,9 +261,19 @@ def conservative_fragments(uv: np.ndarray, resolution: int, *, margin: float = 0
     chunks of at most about :data:`RASTER_CHUNK` candidate texels (one triangle's bounding
     box is split by rows, so memory is bounded for any triangle size).
     """
+    for tri, texel, _ in grown_fragments(uv, resolution, margin=0.0):  # chunks
+        yield tri, texel
+
+
+def grown_fragments(uv: np.ndarray, resolution: int, *, margin: float):
+    """:func:`conservative_fragments` of the triangles grown by ``margin`` texels: every
+    texel within that distance (max-norm) of a triangle, with ``exact`` (bool), whether the
+    triangle itself touches it (a fragment of :func:`conservative_fragments`); with
+    ``margin=0`` every fragment is exact. Yields ``(tri, texel, exact)`` chunks."""
     r = int(resolution)
     if len(uv) == 0:
         return
+    tight = np.floor(uv.min(axis=1)).astype(np.int64), np.floor(uv.max(axis=1)).astype(np.int64)
     lo = np.floor(uv.min(axis=1) - margin).astype(np.int64)
     hi = np.floor(uv.max(axis=1) + margin).astype(np.int64)
     lo = np.maximum(lo, 0)
@@ -267,6 +283,7 @@ def conservative_fragments(uv: np.ndarray, resolution: int, *, margin: float = 0
     if len(idx) == 0:
         return
     lo, hi = lo[idx], hi[idx]
+    tight = tight[0][idx], tight[1][idx]
     coef = _edge_functions(uv[idx])
     width = hi[:, 0] - lo[:, 0] + 1
     height = hi[:, 1] - lo[:, 1] + 1
@@ -280,9 +297,23 @@ def conservative_fragments(uv: np.ndarray, resolution: int, *, margin: float = 0
         j = np.repeat(row_j[sl], row_w[sl])
         first = np.cumsum(row_w[sl]) - row_w[sl]
         i = lo[t, 0] + (np.arange(len(t)) - np.repeat(first, row_w[sl]))
-        inside = np.ones(len(t), dtype=bool)
-        for e in range(3):  # the three edges
-            a, b, c = coef[t, e, 0], coef[t, e, 1], coef[t, e, 2]
-            best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
-            inside &= best >= -(CONSERVATIVE_MARGIN + margin) * (np.abs(a) + np.abs(b))
-        yield idx[t[inside]], j[inside] * r + i[inside]
+        inside = _touched(coef, t, i, j, CONSERVATIVE_MARGIN + margin)
+        t, i, j = t[inside], i[inside], j[inside]
+        if margin > 0:  # the fragments (few) again, without the margin
+            exact = (i >= tight[0][t, 0]) & (i <= tight[1][t, 0])
+            exact &= (j >= tight[0][t, 1]) & (j <= tight[1][t, 1])
+            exact &= _touched(coef, t, i, j, CONSERVATIVE_MARGIN)
+        else:
+            exact = np.ones(len(t), dtype=bool)
+        yield idx[t], j * r + i, exact
+
+
+def _touched(coef, t, i, j, margin: float) -> np.ndarray:
+    """Whether texels ``(i, j)`` lie within ``margin`` texels of triangles ``t`` (edge
+    functions ``coef``): for each edge, the texel's corner farthest inside is inside."""
+    inside = np.ones(len(t), dtype=bool)
+    for e in range(3):  # the three edges
+        a, b, c = coef[t, e, 0], coef[t, e, 1], coef[t, e, 2]
+        best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
+        inside &= best >= -margin * (np.abs(a) + np.abs(b))
+    return inside

@@ -77,8 +77,9 @@ from ..params import param
 from ..result import ModelResult, model_result
 from ..shadowmaps.fit import light_frame_for
 from .geometry import (
-    conservative_fragments,
+    grown_fragments,
     onto_own_planes,
+    ray_hits,
     scene_triangles,
     shadow_volumes,
     surface_triangles,
@@ -217,9 +218,11 @@ def _receiver_positions(scene, gbuf):
     :func:`raster_models.izb.geometry.onto_own_planes`."""
     tris = scene_triangles(scene)
     own = surface_triangles(scene, gbuf.shape, gbuf.prim)
-    pix = np.arange(gbuf.size)
+    position, moved = onto_own_planes(tris, own, gbuf.position)
+    hit = position.copy()
+    pix = np.flatnonzero(moved & gbuf.receiver)  # the pixels the band is judged for
     o, d, _ = scene.camera.rays(pix % gbuf.width + 0.5, pix // gbuf.width + 0.5)
-    position, moved, hit = onto_own_planes(tris, own, gbuf.position, rays=(o, d))
+    hit[pix] = ray_hits(tris, own[pix], position[pix], o, d)
     return position, np.where(moved, BAND_FLOOR_ON_PLANE, BAND_FLOOR), hit
 
 
@@ -305,26 +308,29 @@ def _traverse(
             if box is None:
                 continue
             grow, deeper = reach[c]
-            idx, uv, crossing = _grid_triangles(t_lc, box, grids.zmax[c] + deeper, r, spot=spot)
-            crossing_count += crossing
-            for ft, fx in conservative_fragments(uv, r, margin=grow):  # chunks
-                joins.add(start + idx[ft], c * r * r + fx)
+            idx, uv, tight = _grid_triangles(t_lc, box, (grids.zmax[c], deeper), r, spot=spot)
+            crossing_count += tight[1]
+            for ft, fx, exact in grown_fragments(uv, r, margin=grow):  # chunks
+                joins.add(start + idx[ft], c * r * r + fx, exact & tight[0][ft])
         joins.end_round()
     joins.flush()
     stats = joins.stats
     return _Traversal(state, stats, rounds, crossing_count, int(len(keep)), int((~keep).sum()))
 
 
-def _grid_triangles(t_lc: np.ndarray, box, zmax: float, r: int, *, spot: bool):
+def _grid_triangles(t_lc: np.ndarray, box, depth: tuple, r: int, *, spot: bool):
     """Light-frame triangles ``t_lc`` ``(T, 3, 3)`` of a round in one grid: the indices of
-    those that can shadow a sample, their vertices in texel units ``(n, 3, 2)``, and how many
-    cross a spot light's plane (rasterized over the whole grid)."""
+    those that can shadow a sample or, ``depth[1]`` deeper than the samples' ``depth[0]``,
+    put an exact hit in the band, their vertices in texel units ``(n, 3, 2)``, and
+    ``(tight, crossing)``: whether each is of the first kind (its fragments count), and how
+    many of those cross a spot light's plane (rasterized over the whole grid)."""
     x0, x1, y0, y1 = box
+    zmax, deeper = depth
     # A triangle wholly farther from the light than every sample shadows none.
-    near = t_lc[:, :, 2].min(axis=1) <= zmax
-    idx = np.flatnonzero(near)
+    zmin = t_lc[:, :, 2].min(axis=1)
+    idx = np.flatnonzero(zmin <= zmax + deeper)
     if len(idx) == 0:
-        return idx, np.empty((0, 3, 2)), 0
+        return idx, np.empty((0, 3, 2)), (np.zeros(0, dtype=bool), 0)
     gx, gy = t_lc[idx, :, 0], t_lc[idx, :, 1]
     crossing = np.zeros(len(idx), dtype=bool)
     if spot:
@@ -340,7 +346,8 @@ def _grid_triangles(t_lc: np.ndarray, box, zmax: float, r: int, *, spot: bool):
     uv[..., 0] = (gx - x0) / ((x1 - x0) / r)
     uv[..., 1] = (y1 - gy) / ((y1 - y0) / r)
     uv[crossing] = WHOLE_GRID * r
-    return idx, uv, int(crossing.sum())
+    tight = zmin[idx] <= zmax
+    return idx, uv, (tight, int((crossing & tight).sum()))
 
 
 def _outputs(gbuf, smp: Samples, part: np.ndarray, state: dict, centre_len: np.ndarray):
