@@ -44,7 +44,7 @@ __all__ = [
 CONSERVATIVE_MARGIN = 1e-6
 
 #: How far from its G-buffer position (relative to ``1 + max|p|``) a pixel ray's hit on the
-#: point's own plane is taken as its exact hit (:func:`onto_own_planes`): float32 rounding
+#: point's own plane is taken as its exact hit (:func:`ray_hits`): float32 rounding
 #: puts the position about 2^-22 of that from it; 2^-12 keeps a margin and drops a ray nearly
 #: parallel to the plane (no stable hit).
 HIT_REACH = 2.0**-12

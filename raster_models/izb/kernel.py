@@ -137,7 +137,7 @@ class PairTester:
         (:func:`raster_models.izb.geometry.shadow_volumes`).
     recv : ``p`` ``(M, 3)``, optionally ``floor_scale`` ``(M,)`` (the ``scale`` of each
         receiver's :func:`band_floor`; :data:`BAND_FLOOR` without it), ``hit`` ``(M, 3)``
-        (the pixel's exact hit, :func:`raster_models.izb.geometry.onto_own_planes`; ``p``
+        (the pixel's exact hit, :func:`raster_models.izb.geometry.ray_hits`; ``p``
         without it) and, for 32 samples, ``dpdx``, ``dpdy`` ``(M, 3)`` and the tangent-plane
         offsets ``a``, ``b`` ``(32,)``.
     node_recv : ``(N,)`` receiver of each node of the lists as built; a join's lists are

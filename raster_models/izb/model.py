@@ -214,8 +214,9 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
 def _receiver_positions(scene, gbuf):
     """The pixels' positions put on their own triangles' planes in float64, the epsilon
     band's floor scale of each (exact on a plane, float32 rounding elsewhere) and the exact
-    hit of each pixel-centre ray on that plane, where the band is judged: see
-    :func:`raster_models.izb.geometry.onto_own_planes`."""
+    hit of each receiver's pixel-centre ray on that plane (the position elsewhere), where the
+    band is judged: see :func:`raster_models.izb.geometry.onto_own_planes` and
+    :func:`raster_models.izb.geometry.ray_hits`."""
     tris = scene_triangles(scene)
     own = surface_triangles(scene, gbuf.shape, gbuf.prim)
     position, moved = onto_own_planes(tris, own, gbuf.position)
