@@ -152,11 +152,10 @@ def ray_hits(tris: np.ndarray, own: np.ndarray, p: np.ndarray, origins, directio
     (:class:`raster_models.izb.kernel.PairTester`). A point keeps ``p`` where its ray is
     parallel to the plane or meets it farther than :data:`HIT_REACH` from it.
     """
-    t = tris[own]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    v0 = t[:, 0]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        n /= np.linalg.norm(n, axis=1)[:, None]
+        normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        normal /= np.linalg.norm(normal, axis=1)[:, None]  # per triangle, then per point
+        n, v0 = normal[own], tris[own, 0]
         s = np.einsum("ij,ij->i", v0 - origins, n) / np.einsum("ij,ij->i", directions, n)
         h = directions * s[:, None]
         h += origins
