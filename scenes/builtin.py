@@ -26,6 +26,9 @@ class BuiltinScene:
     description: str
     width: int = 160
     height: int = 90
+    #: ``"mitsuba"``: the factory returns a Mitsuba dictionary; ``"gltf"``: GLB bytes
+    #: (read by :mod:`scenes.gltf`, shaded with the glTF BRDF).
+    kind: str = "mitsuba"
 
 
 BUILTIN_SCENES: dict[str, BuiltinScene] = {
