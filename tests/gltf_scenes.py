@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from raster_oracle.scenes import meshes
 from raster_oracle.scenes.gltf_write import (
     GltfCamera,

@@ -12,11 +12,11 @@ import math
 import numpy as np
 import pytest
 from gltf_scenes import flat_plane, pbr_material, plate_twin, spec_brdf
-
-from raster_oracle import scenes
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.scenes.gltf_write import GltfLight, light_matrix
 from raster_oracle.scenes.raycast import trace_film
+
+from raster_oracle import scenes
 
 W, H = 96, 54
 #: The oracle shades in float32 (Dr.Jit), the hand evaluation in float64: directions and
