@@ -34,6 +34,7 @@ import hashlib
 import io
 import math
 import re
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -421,12 +422,17 @@ def _read(scene, label: str) -> tuple[_Doc, bytes, str]:
             raise GltfError(f"scene file not found: {path}")
         data, base = path.read_bytes(), path.resolve().parent
     try:
-        if data[:4] == b"glTF":
-            doc = pygltflib.GLTF2.load_from_bytes(data)
-            blob = doc.binary_blob()
-        else:
-            doc = pygltflib.GLTF2.gltf_from_json(data.decode("utf-8"))
-            blob = None
+        with warnings.catch_warnings():
+            # dataclasses_json warns on optional fields glTF leaves out (an image's uri)
+            warnings.filterwarnings(
+                "ignore", message=".*non-optional type", category=RuntimeWarning
+            )
+            if data[:4] == b"glTF":
+                doc = pygltflib.GLTF2.load_from_bytes(data)
+                blob = doc.binary_blob()
+            else:
+                doc = pygltflib.GLTF2.gltf_from_json(data.decode("utf-8"))
+                blob = None
     except Exception as exc:  # pygltflib raises many types on malformed input
         raise GltfError(f"{label}: not a readable glTF 2.0 file ({exc})") from None
     if not str(getattr(doc.asset, "version", "2.0")).startswith("2."):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -215,6 +216,9 @@ def glb_bytes(
     doc["buffers"] = [{"byteLength": len(blob.data)}]
     doc["bufferViews"] = blob.views
     doc["accessors"] = blob.accessors
-    gltf = pygltflib.GLTF2.from_dict(doc)
-    gltf.set_binary_blob(bytes(blob.data))
-    return b"".join(gltf.save_to_bytes())
+    with warnings.catch_warnings():
+        # dataclasses_json warns on optional fields glTF leaves out (an image's uri)
+        warnings.filterwarnings("ignore", message=".*non-optional type", category=RuntimeWarning)
+        gltf = pygltflib.GLTF2.from_dict(doc)
+        gltf.set_binary_blob(bytes(blob.data))
+        return b"".join(gltf.save_to_bytes())
