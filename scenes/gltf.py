@@ -270,7 +270,7 @@ class _Textures:
             img = srgb_to_linear(rgb) if srgb else rgb
             name = f"texture {info.index} ({'sRGB' if srgb else 'linear'})"
             self.index[key] = len(self.items)
-            self.items.append(Texture(img.astype(np.float32), wrap, nearest, name))
+            self.items.append(Texture(img.astype(np.float32), wrap, nearest, name, srgb))
         return self.index[key]
 
 

@@ -35,12 +35,14 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class Texture:
     """One texture as sampled: ``image`` (H, W, C) float32 linear values (row 0 = ``v`` 0),
-    ``wrap`` ``"repeat"``, ``"clamp"`` or ``"mirror"`` (both axes), ``nearest`` filtering."""
+    ``wrap`` ``"repeat"``, ``"clamp"`` or ``"mirror"`` (both axes), ``nearest`` filtering,
+    ``srgb``: decoded from sRGB (a colour texture)."""
 
     image: np.ndarray
     wrap: str = "repeat"
     nearest: bool = False
     name: str = ""
+    srgb: bool = False
 
 
 @dataclass(frozen=True)
