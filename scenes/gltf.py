@@ -13,7 +13,9 @@ light. What is read:
 - the camera (the first camera node in depth-first order, or the node of glTF camera ``N``):
   perspective (``yfov``; the horizontal field of view follows the film's aspect ratio, not
   ``aspectRatio``) or orthographic (``ymag``; the half width is ``ymag`` times the film's
-  aspect); a missing ``zfar`` becomes just beyond the farthest vertex. glTF cameras look down
+  aspect); a missing ``zfar`` becomes just beyond the farthest vertex. The film is 160
+  pixels wide and as high as ``aspectRatio`` gives (else 90), or the ``film_size`` of the
+  camera's ``extras`` (written by ``export``). glTF cameras look down
   -Z with +Y up; Mitsuba's look down +Z with +X left: ``to_world = node @ diag(-1, 1, -1, 1)``;
 - KHR_lights_punctual lights (a light travels along its node's -Z);
 - pbrMetallicRoughness factors and textures, emissive (and KHR_materials_emissive_strength),
@@ -514,7 +516,11 @@ def gltf_input(
         d.fail("the scene has no camera node; add one (perspective or orthographic)")
     cam_node, cam_world = cams[0]
     cam_index = doc.nodes[cam_node].camera
-    aspect = getattr(doc.cameras[cam_index].perspective, "aspectRatio", None)
+    gl_cam = doc.cameras[cam_index]
+    aspect = getattr(gl_cam.perspective, "aspectRatio", None)
+    film = (gl_cam.extras or {}).get("film_size") if isinstance(gl_cam.extras, dict) else None
+    if film and not (width or height):  # an export's size (scenes.gltf_write's extras)
+        width, height = int(film[0]), int(film[1])
     w = int(width or DEFAULT_WIDTH)
     h = int(height or (round(w / aspect) if aspect and not width else DEFAULT_HEIGHT))
     verts = np.concatenate([e["vertices"] for k, e in raw.items() if k in shape_materials])

@@ -72,12 +72,26 @@ def _camera(cam) -> GltfCamera:
     m = np.asarray(cam.to_world, dtype=np.float64)
     if cam.kind == "perspective":
         yfov = math.radians(cam.fov_y)
-        return GltfCamera(m @ _GL_TO_MI, cam.near, cam.far, yfov=yfov, aspect=cam.aspect)
+        return GltfCamera(
+            m @ _GL_TO_MI,
+            cam.near,
+            cam.far,
+            yfov=yfov,
+            aspect=cam.aspect,
+            film=(cam.width, cam.height),
+        )
     hw, hh = cam.half_extent()
     frame = m.copy()
     frame[:3, 0] /= np.linalg.norm(frame[:3, 0])
     frame[:3, 1] /= np.linalg.norm(frame[:3, 1])
-    return GltfCamera(frame @ _GL_TO_MI, cam.near, cam.far, ymag=hh, aspect=hw / hh)
+    return GltfCamera(
+        frame @ _GL_TO_MI,
+        cam.near,
+        cam.far,
+        ymag=hh,
+        aspect=hw / hh,
+        film=(cam.width, cam.height),
+    )
 
 
 def _texture_dicts(pbr):

@@ -37,6 +37,9 @@ class GltfCamera:
     yfov: float | None = None
     ymag: float | None = None
     aspect: float | None = None
+    #: film (width, height) in pixels, kept in the camera's ``extras`` (``film_size``): the
+    #: loader's default size (an export's size)
+    film: tuple[int, int] | None = None
 
 
 @dataclass
@@ -163,6 +166,8 @@ def glb_bytes(
         ortho = {"xmag": mag * (camera.aspect or 1.0), "ymag": mag}
         cam = {"type": "orthographic", "orthographic": ortho}
         cam["orthographic"].update({"znear": float(camera.znear), "zfar": float(camera.zfar)})
+    if camera.film is not None:
+        cam["extras"] = {"film_size": [int(camera.film[0]), int(camera.film[1])]}
     nodes.append({"name": "camera", "camera": 0, "matrix": _matrix_list(camera.matrix)})
     khr = []
     for lt in lights:

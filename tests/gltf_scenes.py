@@ -1,8 +1,8 @@
 """glTF files the glTF tests write: a twin of the built-in ``plate`` and flat test planes.
 
-Also an independent NumPy evaluation of the glTF 2.0 Appendix B BRDF (written from the
-specification's text, none of the oracle's code), which the closed-form tests and the test
-engine use.
+The hand evaluation of the glTF 2.0 Appendix B BRDF the closed-form tests use is the test
+engine's (``engine_raster.gltf_brdf``, written from the specification, none of the oracle's
+code), re-exported here as ``spec_brdf``.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from engine_raster import gltf_brdf as spec_brdf  # noqa: F401 (the tests' BRDF, re-exported)
 from raster_oracle.scenes import meshes
 from raster_oracle.scenes.gltf_write import (
     GltfCamera,
@@ -23,30 +24,6 @@ from raster_oracle.scenes.gltf_write import (
 GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
 
 
-def spec_brdf(base, metallic, roughness, n, l, v, *, alpha_of=lambda r: r * r):
-    """The specification's BRDF (B.3), float64; ``alpha_of`` maps roughness to alpha (a
-    wrong engine passes ``lambda r: r``). Vectors ``(N, 3)``, ``base`` ``(N, 3)`` or (3,)."""
-    base = np.broadcast_to(np.asarray(base, dtype=np.float64), np.shape(n))
-    h = l + v
-    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    nl = np.abs(np.sum(n * l, -1))
-    nv = np.abs(np.sum(n * v, -1))
-    nh = np.sum(n * h, -1)
-    vh = np.abs(np.sum(v * h, -1))
-    a = alpha_of(roughness)
-    a2 = a * a
-    d = np.where(nh > 0, a2 / (math.pi * (nh * nh * (a2 - 1) + 1) ** 2), 0.0)
-    vis = 1.0 / ((nl + np.sqrt(a2 + (1 - a2) * nl**2)) * (nv + np.sqrt(a2 + (1 - a2) * nv**2)))
-    spec = (vis * d)[:, None]
-    fw = ((1.0 - vh) ** 5)[:, None]
-    f_d = 0.04 + 0.96 * fw
-    dielectric = (1 - f_d) * base / math.pi + f_d * spec
-    metal = spec * (base + (1 - base) * fw)
-    m = np.asarray(metallic, dtype=np.float64)
-    m = m[:, None] if m.ndim else m
-    return (1 - m) * dielectric + m * metal
-
-
 def pbr_material(base, metallic, roughness) -> dict:
     return {
         "pbrMetallicRoughness": {
@@ -58,9 +35,11 @@ def pbr_material(base, metallic, roughness) -> dict:
     }
 
 
-def plate_twin(loaded_plate) -> bytes:
+def plate_twin(loaded_plate, materials: list[dict] | None = None) -> bytes:
     """The built-in ``plate`` as a GLB: the same float32 vertices, the camera of the loaded
-    scene (glTF axes), the same sun direction (unnormalized, as the built-in gives it)."""
+    scene (glTF axes), the same sun direction (unnormalized, as the built-in gives it);
+    ``materials``: the ground's and the plate's (default: rough dielectrics of the built-in's
+    albedos)."""
     from raster_oracle.scenes import shadow_scenes
 
     cam = loaded_plate.camera
@@ -75,7 +54,7 @@ def plate_twin(loaded_plate) -> bytes:
             GltfMesh(k, raw[k]["vertices"], raw[k]["faces"], material=i)
             for i, (k, _) in enumerate(parts)
         ],
-        materials=[pbr_material(c, 0.0, 1.0) for _, c in parts],
+        materials=materials or [pbr_material(c, 0.0, 1.0) for _, c in parts],
     )
 
 
