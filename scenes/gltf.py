@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .factories import diffuse, look_at
 from .gltf_materials import PbrMaterial, PbrMaterials, Texture, srgb_to_linear
 
 __all__ = ["GLTF_SUFFIXES", "GltfError", "GltfInput", "gltf_input", "is_gltf"]
@@ -137,11 +138,16 @@ class _Doc:
                 self._buffers[i] = self.uri_bytes(buf.uri)
         return self._buffers[i]
 
-    def view_bytes(self, i: int) -> tuple[bytes, int, int | None]:
+    def view_bytes(self, i: int) -> tuple[bytes, int | None]:
+        """Buffer view ``i``'s bytes and its stride (None: tightly packed)."""
+        if not 0 <= i < len(self.doc.bufferViews or []):
+            self.fail(f"buffer view {i} does not exist")
         view = self.doc.bufferViews[i]
         data = self.buffer(view.buffer)
         start = view.byteOffset or 0
-        return data[start : start + view.byteLength], 0, view.byteStride
+        if start + view.byteLength > len(data):
+            self.fail(f"buffer view {i} reads past the end of buffer {view.buffer}")
+        return data[start : start + view.byteLength], view.byteStride
 
     def accessor(self, i: int) -> np.ndarray:
         """Accessor ``i`` as a float64 or integer array ``(count, width)``."""
@@ -154,7 +160,7 @@ class _Doc:
             self.fail(f"accessor {i} has an unsupported type {acc.type}/{acc.componentType}")
         if acc.bufferView is None:
             return np.zeros((acc.count, width), dtype=dtype)
-        data, _, stride = self.view_bytes(acc.bufferView)
+        data, stride = self.view_bytes(acc.bufferView)
         item = dtype.itemsize * width
         stride = stride or item
         offset = acc.byteOffset or 0
@@ -377,8 +383,6 @@ def _camera_entry(d, cam_index, world, width, height, verts) -> dict:
 
 
 def _light_entry(d: _Doc, index: int, world: np.ndarray) -> tuple[dict, dict]:
-    from .factories import look_at
-
     lights = (d.doc.extensions or {}).get("KHR_lights_punctual", {}).get("lights", [])
     if not 0 <= index < len(lights):
         d.fail(f"KHR_lights_punctual light {index} does not exist")
@@ -412,7 +416,7 @@ def _light_entry(d: _Doc, index: int, world: np.ndarray) -> tuple[dict, dict]:
     d.fail(f"KHR_lights_punctual light {index} has unknown type {kind!r}")
 
 
-def _read(scene, label: str) -> tuple[_Doc, bytes, str]:
+def _read(scene, label: str) -> tuple[_Doc, bytes]:
     """The document of a path or of GLB/glTF bytes, and the bytes hashed for it."""
     import pygltflib
 
@@ -439,7 +443,7 @@ def _read(scene, label: str) -> tuple[_Doc, bytes, str]:
         raise GltfError(f"{label}: not a readable glTF 2.0 file ({exc})") from None
     if not str(getattr(doc.asset, "version", "2.0")).startswith("2."):
         raise GltfError(f"{label}: glTF version {doc.asset.version} (only 2.x is read)")
-    return _Doc(doc, base, blob, label), data, label
+    return _Doc(doc, base, blob, label), data
 
 
 def gltf_input(
@@ -460,7 +464,18 @@ def gltf_input(
         Malformed file or an unsupported feature (named).
     """
     label = name or (Path(scene).name if not isinstance(scene, bytes) else "glTF")
-    d, data, _ = _read(scene, label)
+    d, data = _read(scene, label)
+    try:
+        return _scene_input(d, data, scene, width=width, height=height, camera=camera, name=name)
+    except (IndexError, KeyError, TypeError, AttributeError, ValueError) as exc:
+        if isinstance(exc, GltfError):
+            raise
+        # an index or field the document names does not exist or has the wrong type
+        raise GltfError(f"{label}: malformed glTF ({type(exc).__name__}: {exc})") from None
+
+
+def _scene_input(d: _Doc, data: bytes, scene, *, width, height, camera, name) -> GltfInput:
+    label = d.label
     _check_extensions(d)
     doc = d.doc
     nodes = _walk(d)
@@ -499,9 +514,7 @@ def gltf_input(
                 mat_index[prim.material] = len(materials)
                 materials.append(_material(d, prim.material, textures))
             mat = materials[mat_index[prim.material]]
-            from .factories import diffuse
-
-            entry["bsdf"] = diffuse(mat.base_color)
+            entry["bsdf"] = diffuse(mat.base_color)  # Mitsuba's view (the G-buffer's is ours)
             key = key_for(base if len(prims) == 1 else f"{base}_{p}")
             raw[key], shape_materials[key] = entry, mat_index[prim.material]
     if not shape_materials:

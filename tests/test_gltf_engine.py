@@ -89,3 +89,19 @@ def test_wrong_roughness_remapping_fails_the_colour_gate(engine, capsys):
     assert code == 1
     assert rec["flip_mean"] > 10 * rec["noise_floor"]["flip_mean"]
     assert "flip_mean" in capsys.readouterr().out
+
+
+def test_a_gltf_export_is_a_scene_of_score_folder(engine, capsys):
+    """``score-folder`` finds the glTF export by name (``--exports``) and scores its frame."""
+    import shutil
+
+    root = engine["root"] / "folder"
+    root.mkdir()
+    shutil.copy(engine["root"] / "good.exr", root / "export.exr")
+    out = engine["root"] / "folder-out"
+    argv = ["score-folder", str(root), "--exports", str(engine["root"]), "--channel", "msaa"]
+    code = main([*argv, "--spp", SPP, "--out", str(out), "--quiet", *GATES])
+    assert code == 0, capsys.readouterr().err
+    rec = json.loads((out / "export" / "metrics.json").read_text())
+    assert rec["reference"]["scene"]["shading_model"].startswith("gltf-metallic-roughness")
+    assert rec["flip_mean"] <= FLOOR_FACTOR * rec["noise_floor"]["flip_mean"]

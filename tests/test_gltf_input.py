@@ -184,3 +184,8 @@ def test_malformed_and_missing_files(tmp_path, capsys):
         scenes.load(tmp_path / "missing.gltf")
     assert main(["reference", str(tmp_path / "missing.glb"), "--no-cache", "--quiet"]) == 2
     assert "not found" in capsys.readouterr().err
+    doc = _plane(tmp_path)
+    doc.nodes[-1].mesh = 99  # a mesh that does not exist
+    path = _save(doc, tmp_path / "dangling.glb")
+    with pytest.raises(scenes.SceneError, match="dangling.glb: malformed glTF"):
+        scenes.load(path)
