@@ -204,6 +204,10 @@ def export(loaded, out_dir: str | Path) -> dict:
             }
         (tmp / "camera.json").write_text(json.dumps(loaded.camera.to_json(), indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
+        if loaded.pbr is not None:  # with each light's glTF node matrix
+            from .gltf_export import light_records
+
+            lights["lights"] = light_records(loaded)
         (tmp / "lights.json").write_text(json.dumps(lights, indent=2))
         materials = {
             "model": "two-sided diffuse (see scenes.shading)",

@@ -18,7 +18,7 @@ import numpy as np
 from . import backend
 from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
 
-__all__ = ["materials_record", "scene_glb"]
+__all__ = ["light_records", "materials_record", "scene_glb"]
 
 _GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
 
@@ -66,6 +66,18 @@ def _light(lt) -> GltfLight:
         inner=math.radians(min(lt.beam_width, lt.cutoff_angle)),
         outer=math.radians(lt.cutoff_angle),
     )
+
+
+def light_records(loaded) -> list[dict]:
+    """``lights.json``'s records of a glTF scene: each light's record with ``to_world_gltf``,
+    the world matrix of its node in ``scene.glb`` (column vectors; the light travels along
+    its -Z column, a point or spot light sits at its translation)."""
+    out = []
+    for lt in loaded.lights:
+        rec = lt.to_json()
+        rec["to_world_gltf"] = np.asarray(_light(lt).matrix, dtype=np.float64).tolist()
+        out.append(rec)
+    return out
 
 
 def _camera(cam) -> GltfCamera:

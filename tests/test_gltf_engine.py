@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 from engine_raster import render, write_engine_exr
 from gltf_scenes import pbr_material, plate_twin
@@ -69,6 +70,9 @@ def test_export_writes_the_gltf_scene_and_its_materials(engine):
     assert (cam["width"], cam["height"]) == (96, 54)
     light = json.loads((folder / "lights.json").read_text())["lights"][0]
     assert light["model"] == "KHR_lights_punctual" and light["units"] == "illuminance lux"
+    m = np.asarray(light["to_world_gltf"])
+    d = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+    np.testing.assert_allclose(d, light["direction"], atol=1e-12)  # travels along -Z
     loaded = scenes.load(folder / "scene.glb")  # the export's own size, from the file
     assert (loaded.width, loaded.height) == (96, 54)
 
