@@ -58,11 +58,22 @@ def plate_twin(loaded_plate, materials: list[dict] | None = None) -> bytes:
     )
 
 
-def flat_plane(*, lights: list[GltfLight], material: dict, ortho: float | None = None) -> bytes:
+def flat_plane(
+    *,
+    lights: list[GltfLight],
+    material: dict,
+    ortho: float | None = None,
+    images: list[bytes] = (),
+    tangents=None,
+) -> bytes:
     """A 40 x 40 plane at y = 0 (normal +Y), seen from above at an angle (perspective) or
-    straight down (orthographic, ``ortho`` = half height), under ``lights``."""
+    straight down (orthographic, ``ortho`` = half height), under ``lights``. Texture ``k``
+    is image ``k`` (``images``: PNG bytes); ``TEXCOORD_0`` runs along +X (u) and +Z (v);
+    ``tangents``: a ``TANGENT`` (4,) for every vertex (None: none)."""
     quad = meshes.quad([[-20, 0, -20], [-20, 0, 20], [20, 0, 20], [20, 0, -20]])
     normals = np.tile([0.0, 1.0, 0.0], (4, 1))
+    uv = np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]])
+    tan = None if tangents is None else np.tile(np.asarray(tangents, float), (4, 1))
     if ortho is None:
         eye, target = np.array([0.0, 4.0, 6.0]), np.array([0.0, 0.0, 0.0])
         cam = GltfCamera(_gl_look(eye, target), 0.1, 100.0, yfov=math.radians(40.0))
@@ -74,8 +85,10 @@ def flat_plane(*, lights: list[GltfLight], material: dict, ortho: float | None =
     return glb_bytes(
         camera=cam,
         lights=lights,
-        meshes=[GltfMesh("plane", quad[0], quad[1], material=0, normals=normals)],
+        meshes=[GltfMesh("plane", quad[0], quad[1], 0, normals, uv, tan)],
         materials=[material],
+        images=list(images),
+        textures=[{"source": k} for k in range(len(images))],
     )
 
 

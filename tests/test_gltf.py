@@ -159,3 +159,61 @@ def test_spot_cone_attenuation_along_a_row(tmp_path):
     x = np.abs(res["position"][row, 0])
     assert (res["color"][row][x > 3.01] == 0).all()
     assert (res["color"][row][x < 2.9] > 0).all()
+
+
+def _srgb_decode(c):
+    c = np.asarray(c, dtype=np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+@pytest.mark.parametrize("tangent", [None, (0.0, 0.0, 1.0, -1.0)])
+def test_textures_and_normal_texture_match_the_spec_by_hand(tmp_path, tangent):
+    """Constant textures: base colour sRGB-decoded, metallic from B and roughness from G
+    (times the factors), emissive sRGB; the normal texture bends the normal in the tangent
+    frame: ``T = dp/du`` (+X here) and ``B = n x T`` without ``TANGENT``, ``T`` and
+    ``B = w (n x T)`` with one (+Z and w = -1: B = -X)."""
+    from raster_oracle.scenes.gltf_write import png_bytes
+
+    texel = {  # 8-bit values as the PNGs store them
+        "base": np.array([200, 100, 50]) / 255,
+        "mr": np.array([0, 140, 200]) / 255,
+        "emissive": np.array([30, 60, 90]) / 255,
+        "normal": np.array([170, 100, 230]) / 255,
+    }
+    images = [png_bytes(np.broadcast_to(texel[k], (2, 2, 3))) for k in texel]
+    material = {
+        "pbrMetallicRoughness": {
+            "baseColorFactor": [0.9, 1.0, 0.8, 1.0],
+            "metallicFactor": 0.7,
+            "roughnessFactor": 0.9,
+            "baseColorTexture": {"index": 0},
+            "metallicRoughnessTexture": {"index": 1},
+        },
+        "emissiveFactor": [0.5, 0.25, 1.0],
+        "emissiveTexture": {"index": 2},
+        "normalTexture": {"index": 3, "scale": 0.8},
+    }
+    sun = GltfLight("sun", "directional", light_matrix((0.3, -1.0, -0.5)), intensity=2.5)
+    path = tmp_path / "textured.glb"
+    glb = flat_plane(lights=[sun], material=material, images=images, tangents=tangent)
+    path.write_bytes(glb)
+    loaded = scenes.load(path, width=48, height=27)
+    res = _centres(loaded)
+    base = _srgb_decode(texel["base"]) * [0.9, 1.0, 0.8]
+    metallic, roughness = 0.7 * texel["mr"][2], 0.9 * texel["mr"][1]
+    emissive = _srgb_decode(texel["emissive"]) * [0.5, 0.25, 1.0]
+    t, b = (np.array([1.0, 0, 0]), np.array([0, 0, -1.0]))
+    if tangent is not None:
+        t, b = np.array([0, 0, 1.0]), -np.cross([0.0, 1.0, 0.0], [0, 0, 1.0])
+    x, y, z = 2 * texel["normal"] - 1
+    n = 0.8 * x * t + 0.8 * y * b + z * np.array([0.0, 1.0, 0.0])
+    n /= np.linalg.norm(n)
+    y, x_ = np.mgrid[0 : loaded.height, 0 : loaded.width] + 0.5
+    v = -loaded.camera.rays(x_.ravel(), y.ravel())[1]
+    ld = -np.asarray(loaded.light.direction)
+    l_vec = np.tile(ld / np.linalg.norm(ld), (len(v), 1))
+    nn = np.tile(n, (len(v), 1))
+    f = spec_brdf(base, metallic, roughness, nn, l_vec, v)
+    want = f * np.asarray(loaded.light.color) * np.maximum(l_vec @ n, 0)[:, None] + emissive
+    np.testing.assert_allclose(res["color"], want, rtol=REL, atol=0)
+    np.testing.assert_allclose(res["albedo"], np.tile(base, (len(v), 1)), rtol=1e-6)
