@@ -104,6 +104,19 @@ def test_camera_choice_and_orthographic(tmp_path):
         scenes.load("plate", camera=0)
 
 
+def test_camera_option_on_the_command_line(tmp_path, capsys):
+    path = _save(_plane(tmp_path), tmp_path / "plane.glb")
+    out = tmp_path / "ref"
+    argv = ["reference", str(path), "--camera", "0", "--width", "16", "--height", "8"]
+    assert main([*argv, "--spp", "1", "--no-cache", "--quiet", "--out", str(out)]) == 0
+    meta = json.loads((out / "reference.json").read_text())
+    assert meta["scene"]["shading_model"].startswith("gltf-metallic-roughness")
+    capsys.readouterr()
+    assert main(["reference", str(path), "--camera", "3", "--no-cache", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "camera 3 out of range" in err[0]
+
+
 def test_gltf_json_with_an_external_buffer(tmp_path):
     """The ``.gltf`` form: JSON with its buffer in a ``.bin`` file beside it (hashed too)."""
     doc = _plane(tmp_path)
@@ -189,3 +202,13 @@ def test_malformed_and_missing_files(tmp_path, capsys):
     path = _save(doc, tmp_path / "dangling.glb")
     with pytest.raises(scenes.SceneError, match="dangling.glb: malformed glTF"):
         scenes.load(path)
+
+
+def test_a_sweep_spec_takes_a_gltf_file(tmp_path):
+    from raster_oracle.oracle.sweeps.spec import expand_spec
+
+    _save(_plane(tmp_path), tmp_path / "plane.glb")
+    spec = {"defaults": {"width": 32, "height": 16, "spp": 4}}
+    spec["case"] = [{"scenes": ["plane.glb", "pbr-foliage"], "technique": "noaa"}]
+    cases = expand_spec(spec, base_dir=tmp_path).cases
+    assert [c.scene for c in cases] == [str((tmp_path / "plane.glb").resolve()), "pbr-foliage"]
