@@ -45,7 +45,7 @@ import numpy as np
 from .factories import diffuse, look_at
 from .gltf_materials import PbrMaterial, PbrMaterials, Texture, srgb_to_linear
 
-__all__ = ["GLTF_SUFFIXES", "GltfError", "GltfInput", "gltf_input", "is_gltf"]
+__all__ = ["GLTF_SUFFIXES", "GltfError", "GltfInput", "gltf_input", "gltf_scene", "is_gltf"]
 
 GLTF_SUFFIXES = (".gltf", ".glb")
 #: Extensions read here; any other one named in ``extensionsUsed`` is refused.
@@ -556,3 +556,30 @@ def _scene_input(d: _Doc, data: bytes, scene, *, width, height, camera, name) ->
         materials=materials,
         textures=textures.items,
     )
+
+
+def gltf_scene(scene, builtin: dict, *, width=None, height=None, camera=None):
+    """The :class:`GltfInput` of ``scene`` when it is a glTF file or a built-in glTF scene
+    (``builtin``: the catalogue, whose glTF entries have ``kind == "gltf"`` and a factory
+    returning GLB bytes), else None (another kind of scene: ``camera`` must then be None).
+
+    Raises
+    ------
+    GltfError
+        A glTF scene that cannot be read, or ``camera`` given for another kind of scene.
+    """
+    name = getattr(scene, "name", None) if not isinstance(scene, str | Path) else None
+    spec = scene if name is not None else builtin.get(str(scene))
+    if spec is not None and getattr(spec, "kind", "mitsuba") == "gltf":
+        w, h = int(width or spec.width), int(height or spec.height)
+        gl = gltf_input(spec.factory(w, h), width=w, height=h, camera=camera, name=spec.name)
+        gl.description = spec.description
+        return gl
+    if is_gltf(scene):
+        return gltf_input(scene, width=width, height=height, camera=camera)
+    if camera is not None:
+        label = spec.name if spec is not None else scene
+        raise GltfError(
+            f"camera {camera}: choosing a camera applies to glTF scenes only, not {label}"
+        )
+    return None

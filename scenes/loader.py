@@ -20,6 +20,7 @@ import numpy as np
 from . import backend
 from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
+from .gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
 from .lights import Light
 from .paths import CAMERA_PATHS, path_camera
@@ -344,29 +345,6 @@ def _check_size(width, height) -> None:
         raise SceneError(f"resolution {width}x{height} is larger than {MAX_PIXELS} pixels")
 
 
-def _gltf_scene(scene, *, width, height, camera):
-    """The :class:`scenes.gltf.GltfInput` of a glTF file or built-in glTF scene, else None."""
-    from .gltf import GltfError, gltf_input, is_gltf
-
-    spec = scene if isinstance(scene, BuiltinScene) else BUILTIN_SCENES.get(str(scene))
-    try:
-        if spec is not None and spec.kind == "gltf":
-            w, h = int(width or spec.width), int(height or spec.height)
-            gl = gltf_input(spec.factory(w, h), width=w, height=h, camera=camera, name=spec.name)
-            gl.description = spec.description
-            return gl
-        if is_gltf(scene):
-            return gltf_input(scene, width=width, height=height, camera=camera)
-    except GltfError as exc:
-        raise SceneError(str(exc)) from None
-    if camera is not None:
-        raise SceneError(
-            f"camera {camera}: choosing a camera applies to glTF scenes only, not "
-            f"{getattr(spec, 'name', scene)}"
-        )
-    return None
-
-
 def load(
     scene: str | Path,
     *,
@@ -415,8 +393,11 @@ def load(
     mi = backend.mitsuba()
     name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
-    gl = _gltf_scene(scene, width=width, height=height, camera=camera)
-    if gl is not None:  # a glTF file or built-in glTF scene: scenes.gltf
+    try:  # a glTF file or built-in glTF scene (scenes.gltf), else None
+        gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
+    except GltfError as exc:
+        raise SceneError(str(exc)) from None
+    if gl is not None:
         digest, source, description, name = gl.digest, gl.source, gl.description, gl.name
         specular = Specular()
         try:
