@@ -94,6 +94,9 @@ def test_directional_light_matches_the_spec_brdf_at_every_pixel_centre(
     path = tmp_path / "plane.glb"
     path.write_bytes(flat_plane(lights=[sun], material=pbr_material(base, metallic, roughness)))
     loaded = scenes.load(path, width=48, height=27)
+    d = np.array([0.3, -1.0, -0.5])
+    np.testing.assert_allclose(loaded.light.direction, d / np.linalg.norm(d), rtol=1e-6)
+    assert loaded.light.color == (2.5, 2.5, 2.5)  # lux as the linear irradiance
     res = _centres(loaded)
     want = _expected(loaded, res, base, metallic, roughness)
     got = res["color"].astype(np.float64)
@@ -108,6 +111,8 @@ def test_point_light_inverse_square_along_a_row(tmp_path):
     mat = pbr_material(base, 0.0, 0.5)
     path.write_bytes(flat_plane(lights=[point], material=mat, ortho=4.0))
     loaded = scenes.load(path, width=64, height=16)
+    np.testing.assert_allclose(loaded.light.position, [0.0, 2.0, 0.0])
+    assert loaded.light.color == (40.0, 40.0, 40.0)  # candela as the linear intensity
     res = _centres(loaded)
     row = slice(7 * 64, 8 * 64)  # a row of pixels through the light's foot
     want = _expected(loaded, res, base, 0.0, 0.5)[row]
@@ -150,6 +155,8 @@ def test_spot_cone_attenuation_along_a_row(tmp_path):
     )
     loaded = scenes.load(path, width=64, height=16)
     assert loaded.light.model == "gltf" and loaded.light.cutoff_angle == pytest.approx(45.0)
+    assert loaded.light.beam_width == pytest.approx(20.0)
+    np.testing.assert_allclose(loaded.light.position, [0.0, 3.0, 0.0])
     res = _centres(loaded)
     row = slice(7 * 64, 8 * 64)
     want = _expected(loaded, res, (0.7,) * 3, 0.0, 0.8)[row]
