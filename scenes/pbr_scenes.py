@@ -62,19 +62,24 @@ def _ground(size: float, repeats: float):
     return v, f, nrm, uv, tan
 
 
+def _srgb_encode(lin: np.ndarray) -> np.ndarray:
+    """Linear values in [0, 1] encoded with the sRGB OETF (colour textures store sRGB)."""
+    return np.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+
+
 def _ground_textures(n: int = 64):
     """Checker base colour (sRGB), metallic-roughness (G rough, B metal) and a bump normal."""
     y, x = np.mgrid[0:n, 0:n] + 0.5
     check = ((x // (n / 4) + y // (n / 4)) % 2)[..., None]
     base_lin = np.where(check > 0, [0.55, 0.5, 0.42], [0.25, 0.27, 0.3])
-    base = np.where(base_lin <= 0.0031308, base_lin * 12.92, 1.055 * base_lin ** (1 / 2.4) - 0.055)
+    base = _srgb_encode(base_lin)
     mr = np.zeros((n, n, 3))
     mr[..., 1] = np.where(check[..., 0] > 0, 0.35, 0.85)
     mr[..., 2] = np.where(check[..., 0] > 0, 0.0, 0.2)
-    u = 2 * math.pi * x / n * 4
-    gx, gy = 0.35 * np.cos(u) * np.sin(2 * math.pi * y / n * 4), 0.0 * x
-    nz = 1.0 / np.sqrt(1 + gx * gx + gy * gy)
-    normal = np.stack([gx * nz, gy * nz, nz], -1) * 0.5 + 0.5
+    # bumps: a height field's slope along u, four periods a tile
+    gx = 0.35 * np.cos(8 * math.pi * x / n) * np.sin(8 * math.pi * y / n)
+    nz = 1.0 / np.sqrt(1 + gx * gx)
+    normal = np.stack([gx * nz, 0.0 * gx, nz], -1) * 0.5 + 0.5
     return [png_bytes(base), png_bytes(mr), png_bytes(normal)]
 
 
@@ -83,7 +88,7 @@ def pbr_spheres(width: int, height: int) -> bytes:
     meshes, materials = [], []
     for row, metallic in enumerate((0.0, 0.5, 1.0)):
         for col, rough in enumerate((0.1, 0.4, 0.7, 1.0)):
-            v, f, nrm, uv = uv_sphere((-2.7 + 1.8 * col, 0.7 + 0.0 * row, -1.8 * row), 0.7)
+            v, f, nrm, uv = uv_sphere((-2.7 + 1.8 * col, 0.7, -1.8 * row), 0.7)
             base = (0.9, 0.45, 0.2) if metallic < 1 else (0.95, 0.8, 0.45)
             mat = {
                 "name": f"m{metallic:g}_r{rough:g}",
@@ -166,7 +171,7 @@ def _leaf_textures(n: int = 32):
     y, x = np.mgrid[0:n, 0:n] + 0.5
     vein = np.exp(-(((y - n / 2) / 1.5) ** 2))
     lin = np.stack([0.08 + 0.25 * vein, 0.28 + 0.3 * vein, 0.05 + 0.05 * vein], -1)
-    srgb = np.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+    srgb = _srgb_encode(lin)
     gy = 0.4 * np.sin(2 * math.pi * 3 * x / n) * (1 - vein)
     nz = 1 / np.sqrt(1 + gy * gy)
     normal = np.stack([0 * gy, gy * nz, nz], -1) * 0.5 + 0.5
