@@ -259,6 +259,8 @@ class _Textures:
         d = self.d
         if (getattr(info, "texCoord", 0) or 0) != 0:
             d.fail(f"{what} uses TEXCOORD_{info.texCoord}; only TEXCOORD_0 is supported")
+        if getattr(info, "extensions", None):  # e.g. KHR_texture_transform, undeclared
+            d.fail(f"{what} uses extension {', '.join(sorted(info.extensions))} (not supported)")
         key = (info.index, srgb)
         if key not in self.index:
             tex = d.doc.textures[info.index]
@@ -325,6 +327,8 @@ def _primitive_mesh(d: _Doc, prim, world: np.ndarray, label: str) -> dict:
             d.fail(f"{label} has {bad} ({why}), which is not supported")
     if prim.targets:
         d.fail(f"{label} has morph targets, which are not supported")
+    if prim.extensions:  # e.g. KHR_draco_mesh_compression, even when not declared
+        d.fail(f"{label} uses extension {', '.join(sorted(prim.extensions))} (not supported)")
     if "POSITION" not in attrs:
         d.fail(f"{label} has no POSITION attribute")
     pos = d.accessor(attrs["POSITION"]).astype(np.float64)

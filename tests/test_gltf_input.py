@@ -163,6 +163,8 @@ def _break(doc, what: str):
         prim.attributes.COLOR_0 = prim.attributes.POSITION
     elif what == "targets":
         prim.targets = [{"POSITION": prim.attributes.POSITION}]
+    elif what == "draco":  # an extension used without being declared
+        prim.extensions = {"KHR_draco_mesh_compression": {"bufferView": 0}}
     return doc
 
 
@@ -177,6 +179,7 @@ def _break(doc, what: str):
         ("camera", "no camera node"),
         ("colors", "COLOR_0"),
         ("targets", "morph targets"),
+        ("draco", "extension KHR_draco_mesh_compression"),
     ],
 )
 def test_unsupported_features_are_refused_by_name(tmp_path, capsys, what, message):
