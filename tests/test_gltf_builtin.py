@@ -67,13 +67,20 @@ def test_export_of_a_gltf_scene_loads_back_to_the_same_bytes(tmp_path, light):
         assert a[key].tobytes() == b[key].tobytes(), key
 
 
-def test_msaa_shades_a_flat_textured_surface_as_the_oracle_does():
+@pytest.mark.parametrize(
+    "technique, params",
+    [("msaa", {"samples": 4}), ("acaa", {"samples": 4}), ("agaa", {"aggregates": 2})],
+)
+def test_aa_models_shade_a_flat_textured_surface_as_the_oracle_does(technique, params):
+    """One surface in the pixel: the model's fragment (ACAA: its accumulated fragment, AGAA:
+    its one aggregate) is shaded at the pixel centre with the glTF material there."""
     loaded = scenes.load("pbr-spheres", width=W, height=H)
     ground = loaded.shape_names.index("ground")
-    msaa = run("msaa", loaded, samples=4).outputs["color"]
+    msaa = run(technique, loaded, **params).outputs["color"]
     noaa = run("noaa", loaded).outputs["color"]
-    # pixels whose whole square (a 5x5 grid of points) hits the ground, all lit or all not
-    g = (np.arange(5) + 0.5) / 5
+    # pixels whose whole square (an 8x8 grid of points) hits the ground, all lit or all not,
+    # as their 8 neighbours do (AGAA filters the visibility of its N samples)
+    g = (np.arange(8) + 0.5) / 8
     oy, ox = np.meshgrid(g, g, indexing="ij")
     py, px = np.mgrid[0:H, 0:W]
     x = (px[..., None] + ox.ravel()).ravel()
@@ -82,6 +89,11 @@ def test_msaa_shades_a_flat_textured_surface_as_the_oracle_does():
     shape = res["shape"].reshape(H, W, -1)
     lit = res["lit"].reshape(H, W, -1)
     inside = (shape == ground).all(-1) & (lit.all(-1) | ~lit.any(-1))
+    state = np.where(inside, lit[..., 0], 2).astype(np.int8)  # 2: not a clean pixel
+    pad = np.pad(state, 1, constant_values=2)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            inside &= pad[1 + dy : 1 + dy + H, 1 + dx : 1 + dx + W] == state
     assert inside.sum() > 0.3 * W * H
     np.testing.assert_allclose(msaa[inside], noaa[inside], rtol=CENTRE_RTOL, atol=1e-6)
     assert np.abs(msaa - noaa).max() > 0.01  # and the edges do differ
