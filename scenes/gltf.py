@@ -13,7 +13,8 @@ light. What is read:
 - the camera (the first camera node in depth-first order, or the node of glTF camera ``N``):
   perspective (``yfov``; the horizontal field of view follows the film's aspect ratio, not
   ``aspectRatio``) or orthographic (``ymag``; the half width is ``ymag`` times the film's
-  aspect); a missing ``zfar`` becomes just beyond the farthest vertex. The film is 160
+  aspect; the camera node's scale is removed); a missing ``zfar`` becomes just beyond the
+  farthest vertex. The film is 160
   pixels wide and as high as ``aspectRatio`` gives (else 90), or the ``film_size`` of the
   camera's ``extras`` (written by ``export``). glTF cameras look down
   -Z with +Y up; Mitsuba's look down +Z with +X left: ``to_world = node @ diag(-1, 1, -1, 1)``;
@@ -361,6 +362,11 @@ def _primitive_mesh(d: _Doc, prim, world: np.ndarray, label: str) -> dict:
 
 def _camera_entry(d, cam_index, world, width, height, verts) -> dict:
     cam = d.doc.cameras[cam_index]
+    world = world.copy()
+    norms = np.linalg.norm(world[:3, :3], axis=0)
+    if not (norms > 1e-12).all():
+        d.fail(f"camera {cam_index}'s node has a degenerate transform (zero scale)")
+    world[:3, :3] /= norms  # a camera node's scale is not a zoom: the frame alone counts
     to_world = world @ _GL_TO_MI
     film = {"type": "hdrfilm", "width": int(width), "height": int(height)}
     film.update({"rfilter": {"type": "box"}, "component_format": "float32"})
