@@ -65,17 +65,19 @@ def flat_plane(
     ortho: float | None = None,
     images: list[bytes] = (),
     tangents=None,
+    below: bool = False,
 ) -> bytes:
     """A 40 x 40 plane at y = 0 (normal +Y), seen from above at an angle (perspective) or
     straight down (orthographic, ``ortho`` = half height), under ``lights``. Texture ``k``
     is image ``k`` (``images``: PNG bytes); ``TEXCOORD_0`` runs along +X (u) and +Z (v);
-    ``tangents``: a ``TANGENT`` (4,) for every vertex (None: none)."""
+    ``tangents``: a ``TANGENT`` (4,) for every vertex (None: none); ``below``: the
+    perspective camera looks at the plane's back (from y < 0)."""
     quad = meshes.quad([[-20, 0, -20], [-20, 0, 20], [20, 0, 20], [20, 0, -20]])
     normals = np.tile([0.0, 1.0, 0.0], (4, 1))
     uv = np.array([[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]])
     tan = None if tangents is None else np.tile(np.asarray(tangents, float), (4, 1))
     if ortho is None:
-        eye, target = np.array([0.0, 4.0, 6.0]), np.array([0.0, 0.0, 0.0])
+        eye, target = np.array([0.0, -4.0 if below else 4.0, 6.0]), np.zeros(3)
         cam = GltfCamera(_gl_look(eye, target), 0.1, 100.0, yfov=math.radians(40.0))
     else:
         m = np.eye(4)

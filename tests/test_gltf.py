@@ -173,12 +173,17 @@ def _srgb_decode(c):
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
-@pytest.mark.parametrize("tangent", [None, (0.0, 0.0, 1.0, -1.0)])
-def test_textures_and_normal_texture_match_the_spec_by_hand(tmp_path, tangent):
+@pytest.mark.parametrize(
+    "tangent, below",
+    [(None, False), ((0.0, 0.0, 1.0, -1.0), False), (None, True), ((0.0, 0.0, 1.0, -1.0), True)],
+)
+def test_textures_and_normal_texture_match_the_spec_by_hand(tmp_path, tangent, below):
     """Constant textures: base colour sRGB-decoded, metallic from B and roughness from G
     (times the factors), emissive sRGB; the normal texture bends the normal in the tangent
     frame: ``T = dp/du`` (+X here) and ``B = n x T`` without ``TANGENT``, ``T`` and
-    ``B = w (n x T)`` with one (+Z and w = -1: B = -X)."""
+    ``B = w (n x T)`` with one (+Z and w = -1: B = -X). Seen from below (a back face, lit
+    from below) the normal, tangent and bitangent all flip, as in the sample renderer: the
+    bent normal is the front one negated."""
     from raster_oracle.scenes.gltf_write import png_bytes
 
     texel = {  # 8-bit values as the PNGs store them
@@ -200,9 +205,10 @@ def test_textures_and_normal_texture_match_the_spec_by_hand(tmp_path, tangent):
         "emissiveTexture": {"index": 2},
         "normalTexture": {"index": 3, "scale": 0.8},
     }
-    sun = GltfLight("sun", "directional", light_matrix((0.3, -1.0, -0.5)), intensity=2.5)
+    sun_dir = (0.3, 1.0 if below else -1.0, -0.5)
+    sun = GltfLight("sun", "directional", light_matrix(sun_dir), intensity=2.5)
     path = tmp_path / "textured.glb"
-    glb = flat_plane(lights=[sun], material=material, images=images, tangents=tangent)
+    glb = flat_plane(lights=[sun], material=material, images=images, tangents=tangent, below=below)
     path.write_bytes(glb)
     loaded = scenes.load(path, width=48, height=27)
     res = _centres(loaded)
@@ -214,7 +220,7 @@ def test_textures_and_normal_texture_match_the_spec_by_hand(tmp_path, tangent):
         t, b = np.array([0, 0, 1.0]), -np.cross([0.0, 1.0, 0.0], [0, 0, 1.0])
     x, y, z = 2 * texel["normal"] - 1
     n = 0.8 * x * t + 0.8 * y * b + z * np.array([0.0, 1.0, 0.0])
-    n /= np.linalg.norm(n)
+    n /= np.linalg.norm(n) * (-1.0 if below else 1.0)
     y, x_ = np.mgrid[0 : loaded.height, 0 : loaded.width] + 0.5
     v = -loaded.camera.rays(x_.ravel(), y.ravel())[1]
     ld = -np.asarray(loaded.light.direction)
