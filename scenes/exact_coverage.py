@@ -470,6 +470,8 @@ def exact_coverage_of(
     back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
     vis = _visible(polys, back, occluder)
     off = np.asarray(grid_offset, dtype=np.float64)
+    if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
+        raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
     if np.any(off != 0.0):
         vis = shapely.transform(vis, lambda xy: xy - off)
         bad_over = shapely.transform(bad_over, lambda xy: xy - off)

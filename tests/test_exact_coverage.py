@@ -264,3 +264,10 @@ def test_failed_polygon_operation_claims_nothing_exact(monkeypatch):
     channels, record = ref_coverage.exact_channels(loaded, np.zeros(16 * 9, int), {})
     assert not channels["coverage_exact_valid"].any()
     assert record["valid_fraction"] == 0.0 and "side location conflict" in record["error"]
+
+
+def test_grid_offset_out_of_range_is_refused():
+    with pytest.raises(ValueError, match="grid_offset must be two values in"):
+        exact_coverage_of(
+            _ortho(), _tset(_quad(-1, 1, -1, 1, 3.0)), np.zeros((16, 16), int), grid_offset=(1.5, 0)
+        )
