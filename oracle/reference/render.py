@@ -461,7 +461,7 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
     # one kernel traces every sample; reductions then read the evaluated arrays
     dr.eval(*[v for v, _ in sums.values()], res["shadow_tested"])
     shadow_count = dr.count(res["shadow_tested"])
-    outs = {k: dr.block_reduce(op, v, block, mode="evaluated") for k, (v, op) in sums.items()}
+    outs = {k: block_sum(dr, op, v, block) for k, (v, op) in sums.items()}
     dr.eval(*outs.values(), shadow_count)
     if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
         chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
@@ -474,6 +474,18 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
         acc.smin[chunk] = np.minimum(acc.smin[chunk], np.array(outs["smin"]))
         acc.smax[chunk] = np.maximum(acc.smax[chunk], np.array(outs["smax"]))
     return int(shadow_count[0])
+
+
+def block_sum(dr, op, values, block: int):
+    """``dr.block_reduce`` of per-sample ``values``; float sums in float64. A float32 block
+    sum rounds in an order set by the block size and the backend (CUDA reduces in a tree):
+    a pixel's samples split over launches gave other bytes on an H200, and the standard
+    error of a constant pixel, ``sqrt(s2 - s^2 / n)``, came out as that rounding (4e-6 or
+    1.4e-6 instead of 0). In float64 the sums of float32 samples are exact up to 2^29 of
+    them and rounded at 2^-53 beyond, whatever the order."""
+    if op == dr.ReduceOp.Add and dr.type_v(values) == dr.VarType.Float32:
+        return dr.block_reduce(op, dr.float64_array_t(type(values))(values), block, mode="symbolic")
+    return dr.block_reduce(op, values, block, mode="evaluated")
 
 
 def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray]:
