@@ -84,10 +84,11 @@ def quantize_dr(mi, d, fmt: str):
     if kind == "unorm":
         scale = dr.opaque(mi.Float64, float((1 << bits) - 1))
         return dr.round(clip01_dr(mi, d) * scale) / scale
-    raw = dr.reinterpret_array(mi.UInt32, mi.Float32(d))
+    single = mi.Float32(d)
+    raw = dr.reinterpret_array(mi.UInt32, single)
     magnitude = raw & 0x7FFFFFFF
     flushed = dr.select((magnitude != 0) & (magnitude < 0x00800000), raw & 0x80000000, raw)
-    return mi.Float64(dr.reinterpret_array(mi.Float32, flushed))
+    return mi.Float64(dr.reinterpret_array(type(single), flushed))
 
 
 def hardware_bias(
