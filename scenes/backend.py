@@ -35,6 +35,7 @@ __all__ = [
     "active",
     "auto_variants",
     "device_info",
+    "exact_arithmetic",
     "find_libllvm",
     "keep_freed_memory",
     "llvm_version_of",
@@ -215,10 +216,35 @@ def select(
         raise BackendError(f"could not activate Mitsuba variant {variant}: {exc}") from exc
     _limit_blas_threads()
     keep_freed_memory()
+    exact_arithmetic(variant)
     _ACTIVE = BackendInfo(
         variant=variant, libllvm=libllvm if variant == "llvm_ad_rgb" else None, reason=reason
     )
     return _ACTIVE
+
+
+def exact_arithmetic(variant: str) -> bool:
+    """Dr.Jit's ``FastMath`` flag for ``variant``; returns its new value.
+
+    On CUDA, ``FastMath`` (Dr.Jit's default) compiles float32 division, square root,
+    reciprocal and reciprocal square root to PTX's approximate instructions
+    (``div.approx.ftz``: up to 2 ulp); on LLVM, division and square root are IEEE either way.
+    The models follow NumPy's float32 rules and decide ties on them, so CUDA runs with
+    ``FastMath`` off (IEEE-rounded ``div.rn``, ``sqrt.rn``, ``rcp.rn``): AGAA's rgba16f
+    clustering disagreed with NumPy on an H200 with it on, and agreed with it off. The
+    LLVM backend keeps the default: turning it off there would change only its ``rsqrt``,
+    and with it the bytes of every normalized vector.
+
+    What no flag turns off: ``ptxas`` contracts a float multiply followed by an add into one
+    fused multiply-add (a different rounding than NumPy's); code whose result must equal a
+    NumPy rule bit for bit rounds the product explicitly (``dr.fma(a, b, -0.0)`` with an
+    opaque zero).
+    """
+    import drjit as dr
+
+    fast = not variant.startswith("cuda")
+    dr.set_flag(dr.JitFlag.FastMath, fast)
+    return fast
 
 
 def _limit_blas_threads() -> None:

@@ -31,3 +31,21 @@ def test_d32f_flushes_subnormals_whatever_the_conversion_does(mi):
     got = depth.quantize_dr(KeepsSubnormals(), mi.Float64(z), "D32F").numpy()
     want = np.array([0.0, -0.0, 0.0, 2.0**-126, 0.5, -0.0, 0.0, 1.0])
     assert got.tobytes() == want.tobytes()
+
+
+def test_cuda_runs_with_ieee_division_and_llvm_keeps_its_default():
+    """AGAA's rgba16f lanes: CUDA's FastMath compiles float32 division to div.approx (2 ulp)
+    and flipped clustering decisions NumPy's IEEE rule makes; the backend turns it off for
+    CUDA (an H200 run agreed with NumPy with it off). LLVM's division is IEEE either way and
+    keeps Dr.Jit's default, so its bytes do not change."""
+    import drjit as dr
+    from raster_oracle.scenes import backend
+
+    before = dr.flag(dr.JitFlag.FastMath)
+    try:
+        assert backend.exact_arithmetic("cuda_ad_rgb") is False
+        assert dr.flag(dr.JitFlag.FastMath) is False
+        assert backend.exact_arithmetic("llvm_ad_rgb") is True
+        assert dr.flag(dr.JitFlag.FastMath) is True
+    finally:
+        dr.set_flag(dr.JitFlag.FastMath, before)
