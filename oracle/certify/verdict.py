@@ -42,7 +42,7 @@ __all__ = [
 ]
 
 #: Version of the battery (its checks and bounds): part of every verdict's key.
-BATTERY_VERSION = 1
+BATTERY_VERSION = 2
 
 
 class BackendRefused(InputError):
