@@ -237,8 +237,8 @@ def exact_arithmetic(variant: str) -> bool:
 
     What no flag turns off: ``ptxas`` contracts a float multiply followed by an add into one
     fused multiply-add (a different rounding than NumPy's); code whose result must equal a
-    NumPy rule bit for bit rounds the product explicitly (``dr.fma(a, b, -0.0)`` with an
-    opaque zero).
+    NumPy rule bit for bit rounds the product explicitly
+    (:func:`.kernels.product_rounder`).
     """
     import drjit as dr
 

@@ -1,4 +1,6 @@
-"""One Mitsuba scene per Dr.Jit kernel: the rule, the helper that keeps it, and its audit.
+"""Rules of the Dr.Jit kernels that must give the same answer on every backend: one Mitsuba
+scene per kernel (the rule, the helper that keeps it, and its audit), and products rounded
+before they are added where a result must equal a NumPy rule (:func:`product_rounder`).
 
 On the ``cuda_ad_rgb`` backend Mitsuba traces rays with OptiX, and one OptiX launch may use
 only one scene's shader binding table. When a Dr.Jit kernel holds traces of two different
@@ -27,7 +29,7 @@ import contextlib
 import re
 from dataclasses import dataclass, field
 
-__all__ = ["KernelAudit", "audit", "evaluate_trace", "scenes_in_ir"]
+__all__ = ["KernelAudit", "audit", "evaluate_trace", "product_rounder", "scenes_in_ir"]
 
 #: An Embree trace call in Dr.Jit's LLVM IR: ``call void %rdF(ptr %mask, ptr %rdS, ...)``
 #: (``%rdF`` the function, ``%rdS`` the scene).
@@ -96,3 +98,25 @@ def audit():
         count = scenes_in_ir(text)
         if count:
             result.scenes.append(count)
+
+
+def product_rounder(array_type):
+    """``mul(a, b)``: the product rounded to ``array_type`` before anything adds to it, on
+    every backend.
+
+    ``ptxas`` (CUDA) contracts a multiply followed by an add into one fused multiply-add,
+    which rounds once where NumPy rounds twice; Dr.Jit's PTX has no rounding mode on its
+    multiplies and adds, and no flag turns this off (the LLVM backend does not contract). A
+    fused multiply-add with an opaque ``-0.0`` is the product rounded (``x + -0.0 = x``
+    exactly, signs included), an instruction with an explicit rounding mode that ``ptxas``
+    leaves alone, and on LLVM the same bits as a multiply. Use ``mul`` wherever a Dr.Jit sum
+    of products must equal a NumPy rule bit for bit.
+    """
+    import drjit as dr
+
+    zero = dr.opaque(array_type, -0.0)  # a kernel parameter: never folded away
+
+    def mul(a, b):
+        return dr.fma(a, b, zero)
+
+    return mul

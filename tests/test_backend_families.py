@@ -7,6 +7,7 @@ guard in ``test_cli_reference.py``."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from raster_oracle.raster_models import depth
 
 
@@ -49,3 +50,36 @@ def test_cuda_runs_with_ieee_division_and_llvm_keeps_its_default():
         assert dr.flag(dr.JitFlag.FastMath) is True
     finally:
         dr.set_flag(dr.JitFlag.FastMath, before)
+
+
+def test_izb_plane_tests_round_every_product():
+    """IZB on a spot light disagreed with the oracle on an H200: its plane values
+    ``n . p + c`` and ``base + da a + db b`` must round as NumPy does, and ``ptxas``
+    contracts a multiply followed by an add into one fused multiply-add. Every product of
+    the pair-test kernels is an explicit ``fma(a, b, -0.0)`` (the product, rounded), never a
+    bare multiply: read from the LLVM IR of the kernels that test pairs."""
+    import re
+
+    import drjit as dr
+    from raster_oracle.scenes import backend
+
+    from raster_oracle import raster_models as rm
+    from raster_oracle import scenes
+
+    if not backend.active().variant.startswith("llvm"):
+        pytest.skip("reads the LLVM backend's IR")
+    s = scenes.load("spot", width=48, height=27)
+    rm.run("izb", s, samples=32)  # compiled once
+    dr.eval()
+    dr.kernel_history()
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        rm.run("izb", s, samples=32)
+    finally:
+        history = dr.kernel_history()
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    irs = [k["ir"].getvalue() for k in history if k["type"] == dr.KernelType.JIT]
+    pair_kernels = [ir for ir in irs if len(re.findall(r"call <\d+ x double> @llvm\.fma", ir)) >= 8]
+    assert len(pair_kernels) >= 2  # the bounds kernel and the 32-point kernel
+    for ir in pair_kernels:
+        assert not re.search(r"= fmul <\d+ x double>", ir)

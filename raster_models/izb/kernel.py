@@ -8,7 +8,10 @@ by more than float32 rounding but by at most ``epsilon``; see :data:`BAND_FLOOR`
 into the receivers' state (an OR is order-free: the same bits however the pairs are split).
 
 Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
-``(base + da a) + db b``, in float64 without fused multiply-adds.
+``(base + da a) + db b``, in float64 without fused multiply-adds: every product is rounded
+explicitly (:func:`scenes.kernels.product_rounder`), since ``ptxas`` contracts a
+multiply and an add on CUDA (IZB on a spot light disagreed with the oracle's centre ray and
+tangent-plane reference on an H200, within the float rounding of these planes).
 ``tests/_izb_reference.py`` holds a NumPy version of the same tests, the reference
 ``tests/test_izb.py`` compares the kernels with (exactly: masks and flags).
 
@@ -40,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...scenes.kernels import product_rounder
 from .geometry import chunks_by_total
 
 __all__ = [
@@ -279,7 +283,7 @@ class PairTester:
         ``tri``, receivers at ``row`` of ``rows`` (:meth:`_rows`)."""
         import drjit as dr
 
-        _, d = self._inputs()
+        mi, d = self._inputs()
         # Packet gathers (JitFlag.PacketOps): a triangle's 16 plane values and a receiver's
         # row are contiguous, loaded as packets instead of one gather per value.
         pl = dr.gather(d["array"], d["planes"], tri, shape=(16, dr.width(tri)))
@@ -288,9 +292,10 @@ class PairTester:
             rv += list(dr.gather(d["array"], arr, row, shape=(w, dr.width(row))))
         rows = [[pl[4 * k + j] for j in range(4)] for k in range(4)]
         p = [rv[0], rv[1], rv[2]]
+        mul = product_rounder(mi.Float64)
 
         def dot(n, v):
-            return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+            return mul(n[0], v[0]) + mul(n[1], v[1]) + mul(n[2], v[2])
 
         base = [dot(row, p) + row[3] for row in rows]
         floor = rv[-1]
@@ -306,9 +311,11 @@ class PairTester:
         point inside) from bounds of the planes over the pixel's points."""
         import drjit as dr
 
+        mi, _ = self._inputs()
+        mul = product_rounder(mi.Float64)
         a, b = self.recv["a"], self.recv["b"]
         amax, bmax = float(np.abs(a).max()), float(np.abs(b).max())
-        spread = [dr.abs(da[k]) * amax + dr.abs(db[k]) * bmax for k in range(4)]
+        spread = [mul(dr.abs(da[k]), amax) + mul(dr.abs(db[k]), bmax) for k in range(4)]
         hi = [base[k] + spread[k] for k in range(4)]
         lo = [base[k] - spread[k] for k in range(4)]
         none = (hi[0] < 0) | (hi[1] < 0) | (hi[2] < 0) | (hi[3] <= floor)
@@ -321,12 +328,13 @@ class PairTester:
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
+        mul = product_rounder(mi.Float64)
         a, b = self.recv["a"], self.recv["b"]
         m = u32(0)
         bm = u32(0)
         for q in range(32):  # the 32 fixed points (unrolled into the kernel)
             aq, bq = float(a[q]), float(b[q])
-            v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
+            v = [(base[k] + mul(da[k], aq)) + mul(db[k], bq) for k in range(4)]
             edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
             bit = u32(1 << q)
             m = m | dr.select(edges & (v[3] > 0), bit, u32(0))
