@@ -73,6 +73,16 @@ def test_acaa_shades_its_tie_groups_apart_from_the_shadow_rays():
     assert seen.worst == 1
 
 
+@pytest.mark.parametrize("technique", ["msaa", "acaa", "agaa"])
+def test_aa_models_with_a_shadow_technique_trace_one_scene_per_kernel(technique):
+    """With a shadow map for the visibility, the fragments' attributes come from the
+    sub-scenes and the map's rays from the whole scene: still apart."""
+    loaded = scenes.load("decal", width=48, height=27)
+    with kernels.audit() as seen:
+        rm.run(technique, loaded, shadows="shadow-map")
+    assert seen.scenes and seen.worst == 1
+
+
 def test_the_oracle_traces_one_scene_per_kernel():
     loaded = scenes.load("curved", width=32, height=18)
     with kernels.audit() as seen:
