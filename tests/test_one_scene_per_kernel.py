@@ -17,10 +17,12 @@ from raster_oracle.scenes import backend, kernels
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes
 
-pytestmark = pytest.mark.skipif(
-    not backend.active().variant.startswith("llvm"),
-    reason="the audit reads the LLVM backend's IR",
-)
+
+@pytest.fixture(autouse=True)
+def _llvm_only(_backend):
+    if not backend.active().variant.startswith("llvm"):
+        pytest.skip("the audit reads the LLVM backend's IR")
+
 
 #: Scenes that exercise every light kind, ACAA's tie groups (decal), the AA models'
 #: sub-scenes (stripes) and analytic shapes (curved).
