@@ -152,3 +152,24 @@ def test_provenance_names_the_machine_and_the_verdict():
     if device["kind"] == "cpu":
         assert device["cores"] >= 1
     assert record["self_check"]["status"] == "passed"  # seeded by conftest for the suite
+
+
+def test_acaa_shadow_rays_disabled_as_on_optix_fail_the_decal_check(monkeypatch, mi):
+    """The H200's ACAA failure, emulated: the shadow rays of ACAA's shading kernel return no
+    hits (OptiX disabled them: a second scene in the kernel). The decal check fails by the
+    figure the H200 showed for ACAA against MSAA on the wall (0.4448)."""
+    import raster_oracle.raster_models.aa.acaa.trace as acaa_trace
+    from raster_oracle.oracle.certify import run_battery
+
+    from tests._faults import no_hits
+
+    shade_dr = acaa_trace.shade_dr
+
+    def disabled(*args, **kwargs):
+        with no_hits(mi):
+            return shade_dr(*args, **kwargs)
+
+    monkeypatch.setattr(acaa_trace, "shade_dr", disabled)
+    (check,) = run_battery(names=["acaa-decal-ties"])
+    assert not check.passed
+    assert check.figure == pytest.approx(0.4448, abs=1e-3)
