@@ -79,7 +79,7 @@ def test_auto_does_not_use_a_faulty_backend(unchecked, tmp_path, capsys, monkeyp
     assert "sun-shadow" in err.splitlines()[-1]
 
 
-def test_a_failed_backend_is_refused_unless_trusted(unchecked, tmp_path, capsys, mi):
+def test_a_failed_backend_is_refused_unless_trusted(unchecked, tmp_path, capsys, monkeypatch, mi):
     with FAULTS["no-hits"](mi):
         assert main(["doctor", "--check"]) == 1  # the verdict is cached: failed
     capsys.readouterr()
@@ -95,6 +95,10 @@ def test_a_failed_backend_is_refused_unless_trusted(unchecked, tmp_path, capsys,
     assert main(["--backend", variant, "--trust-backend", *args, "--out", str(trusted)]) == 0
     meta = json.loads((trusted / "reference.json").read_text())
     assert meta["self_check"]["status"] == "trusted"
+    by_env = tmp_path / "by_env"
+    monkeypatch.setenv("RASTER_ORACLE_TRUST_BACKEND", "1")
+    backend.set_self_check(None)
+    assert main(["--backend", variant, *args, "--out", str(by_env)]) == 0
     assert "sun-shadow" in meta["self_check"]["failed"]
     assert meta["device"] == backend.device_info(variant)
 

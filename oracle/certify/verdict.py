@@ -10,7 +10,8 @@ command line calls before every command:
   that fails its battery is left for the next with one warning line naming the failed
   checks (a failing ``cuda_ad_rgb`` falls back to ``llvm_ad_rgb``);
 - an explicitly requested variant that fails is refused (:class:`BackendRefused`, exit 2,
-  the checks named) unless ``trust`` (``--trust-backend``);
+  the checks named) unless ``trust`` (``--trust-backend``, or the environment variable
+  ``RASTER_ORACLE_TRUST_BACKEND=1`` for scripts that cannot change their command lines);
 - the verdict in force is recorded by :func:`scenes.backend.set_self_check` for every
   result's provenance.
 """
@@ -173,6 +174,7 @@ def certified_select(
     """
     env = os.environ if env is None else env
     requested = requested or env.get("RASTER_ORACLE_BACKEND") or "auto"
+    trust = trust or env.get("RASTER_ORACLE_TRUST_BACKEND") == "1"
     if requested != "auto":
         info = backend.select(requested, env=env)
         if trust:
