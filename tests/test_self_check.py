@@ -177,3 +177,19 @@ def test_acaa_shadow_rays_disabled_as_on_optix_fail_the_decal_check(monkeypatch,
     (check,) = run_battery(names=["acaa-decal-ties"])
     assert not check.passed
     assert check.figure == pytest.approx(0.4448, abs=1e-3)
+
+
+def test_model_and_metrics_records_name_the_machine(tmp_path):
+    size = ["--width", "32", "--height", "18"]
+    assert main(["model", "shadow-map", "plate", *size, "--out", str(tmp_path / "m")]) == 0
+    assert main(["score", "plate", "--technique", "shadow-map", *size, "--spp", "4", "--quiet",
+                 "--out", str(tmp_path / "s")]) == 0  # fmt: skip
+    model = json.loads((tmp_path / "m" / "model.json").read_text())
+    metrics = json.loads((tmp_path / "s" / "metrics.json").read_text())
+    variant = backend.active().variant
+    for record in (model["diagnostics"]["provenance"], metrics["provenance"]):
+        assert record["backend"] == variant
+        assert record["device"] == backend.device_info(variant)
+        assert record["self_check"]["status"] == "passed"
+    assert metrics["reference"]["device"] == backend.device_info(variant)
+    assert metrics["reference"]["self_check"]["status"] == "passed"
