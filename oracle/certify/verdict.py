@@ -43,7 +43,7 @@ __all__ = [
 ]
 
 #: Version of the battery (its checks and bounds): part of every verdict's key.
-BATTERY_VERSION = 2
+BATTERY_VERSION = 3
 
 
 class BackendRefused(InputError):
