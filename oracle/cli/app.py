@@ -8,10 +8,12 @@ Exit codes, for every command:
   significantly worse than the ``--baseline`` run (``REGRESSION`` lines), or, for the
   sweep and study commands, a case or section failed. The outputs are written.
 - **2**: usage or input error: one line on stderr naming what is wrong, nothing written to
-  the output folder. For ``score`` this includes a gate that cannot be judged (unknown
-  metric, a direction that makes it meaningless such as ``--fail-above ssim=...``, a metric
-  that does not apply to the candidate's kind or frame count, a null value) and a baseline
-  that is not a metrics.json or is of another scene, size, light, kind or frame count.
+  the output folder; also a backend that failed its self-check on this machine (the
+  failed checks named) unless ``--trust-backend``. For ``score`` this includes a gate
+  that cannot be judged (unknown metric, a direction that makes it meaningless such as
+  ``--fail-above ssim=...``, a metric that does not apply to the candidate's kind or
+  frame count, a null value) and a baseline that is not a metrics.json or is of another
+  scene, size, light, kind or frame count.
 - **130**: interrupted.
 
 ``raster-oracle --version`` prints ``raster-oracle X.Y.Z``. Each command group lives in its
@@ -54,6 +56,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="Mitsuba variant: auto, cuda_ad_rgb, llvm_ad_rgb or scalar_rgb "
         "(default: $RASTER_ORACLE_BACKEND or auto)",
     )
+    parser.add_argument(
+        "--trust-backend",
+        action="store_true",
+        help="use the backend even if its self-check (doctor --check) failed on this machine",
+    )
     parser.add_argument("--version", action="version", version=f"raster-oracle {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for group in (reference, model, score, sweeps, studies):
@@ -78,9 +85,10 @@ def _run(args) -> int:
         # results are checked for NaN/inf where they are made.
         warnings.simplefilter("ignore", RuntimeWarning)
         if args.command != "doctor":
-            from ...scenes import backend
+            from ..certify import certified_select
 
-            backend.select(args.backend)
+            # a backend is used only after its self-check passed on this machine
+            certified_select(args.backend, trust=args.trust_backend)
         return COMMANDS[args.command](args)
 
 

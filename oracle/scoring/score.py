@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ... import metrics as M
+from ...scenes.records import provenance
 from ...scenes.shading import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
@@ -312,6 +313,9 @@ def _record(
     return {
         "schema": "raster-oracle/metrics/1",
         "channel": channel,
+        # this run's backend, device and self-check (a model ran here; the reference's
+        # own are under "reference")
+        "provenance": provenance(),
         **summary,
         "noise_floor": result.frames[0].noise_floor,
         "frames": [f.metrics for f in result.frames] if frames else None,
@@ -328,6 +332,10 @@ def _record(
             "noise_floor_seed": seed + 1,
             "channels": list(REFERENCE_GROUPS[channel]),
             "variant": ref_meta["variant"],
+            # the machine that rendered the reference and its self-check (older cache
+            # entries have neither)
+            "device": ref_meta.get("device"),
+            "self_check": ref_meta.get("self_check"),
             "versions": ref_meta["versions"],
             "cache_key": ref_meta["cache_key"],
             "filter": ref_meta["filter"],

@@ -93,6 +93,12 @@ class WorkerCache:
 
         backend.select(variant)
         self.variant = variant
+        if backend.self_check() is None:  # a worker process: this machine's cached verdict
+            from ..certify.verdict import cached_verdict, summary
+
+            verdict = cached_verdict(variant)
+            if verdict is not None:
+                backend.set_self_check(summary(verdict))
         if self.threads is not None:
             import drjit as dr
 
