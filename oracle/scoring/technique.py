@@ -18,16 +18,14 @@ from ... import metrics as M
 from ... import raster_models
 from .score import COVERAGE_KEYS, ScoreError, ScoreResult, score
 
-__all__ = ["FAMILY_CHANNELS", "model_candidate", "score_model", "technique_channels"]
-
-#: Candidate channels each technique family produces (the first is scored first).
-FAMILY_CHANNELS = {"shadow": ("visibility",), "aa": ("color", "coverage")}
+__all__ = ["model_candidate", "score_model", "technique_channels"]
 
 
 def technique_channels(technique: str) -> tuple[str, ...]:
     """The channels a registered technique's model produces and is scored on (first: the
-    primary one). Raises ``raster_models.ModelError`` for an unknown technique."""
-    return FAMILY_CHANNELS[raster_models.family_of(technique)]
+    primary one; its family record's ``channels``). Raises ``raster_models.ModelError`` for
+    an unknown technique."""
+    return raster_models.family(technique).channels
 
 
 def model_candidate(technique: str, params: dict, *, channel: str = "visibility", runs=None):
@@ -110,6 +108,7 @@ def score_model(
     floor_cache : see :func:`oracle.scoring.score.score` (a sweep worker's noise floors).
     """
     produced = technique_channels(technique)
+    cov_channel = raster_models.family(technique).coverage_channel
     if channel is not None and channel not in produced:
         raise ScoreError(
             f"technique {technique} produces {' and '.join(produced)}; "
@@ -117,7 +116,7 @@ def score_model(
         )
     runs: dict = {}
     aa_samples = None
-    if "coverage" in produced:
+    if cov_channel is not None:
         # run frame 0 first: its full parameter record gives the sample count
         scene0 = loaded.with_frame(0, path=camera_path, n_frames=frames) if frames else loaded
         model_candidate(technique, params, channel=produced[0], runs=runs)(scene0, 0)
@@ -140,15 +139,13 @@ def score_model(
         candidate_frames=model_candidate(technique, params, channel=produced[0], runs=runs),
         **kw,
     )
-    if "coverage" in produced:
+    if cov_channel is not None:
         # the coverage metrics of a model: its front-most primitive's coverage against the
         # reference's (oracle.reference.coverage), an edge on every scene, backdrops included
         coverage = score(
             loaded,
-            channel="front_coverage",
-            candidate_frames=model_candidate(
-                technique, params, channel="front_coverage", runs=runs
-            ),
+            channel=cov_channel,
+            candidate_frames=model_candidate(technique, params, channel=cov_channel, runs=runs),
             **kw,
         )
         _merge_coverage(result, coverage)
