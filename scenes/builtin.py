@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from . import aa_scenes, shadow_scenes
+from . import aa_scenes, moving_scenes, shadow_scenes
 
 __all__ = ["BUILTIN_SCENES", "BuiltinScene", "DEFAULT_SCENES"]
 
@@ -65,6 +65,11 @@ BUILTIN_SCENES: dict[str, BuiltinScene] = {
 # The anti-aliasing scenes (decal, stripes, glossy, foliage, hdr-edge): see scenes.aa_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in aa_scenes.AA_SCENES.items()}
+)
+
+# Scenes with moving objects (slide, spin): see scenes.moving_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in moving_scenes.MOVING_SCENES.items()}
 )
 
 #: The scenes the main job runs by default.

@@ -132,7 +132,15 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--camera-path",
         default=None,
-        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly",
+        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly, "
+        "static (default of scenes whose objects move)",
+    )
+    p.add_argument(
+        "--camera-file",
+        default=None,
+        metavar="JSON",
+        help="camera sequence file: per-frame camera matrices and field of view "
+        "(docs/cli.md); frames follow it",
     )
     p.add_argument(
         "--light-path",
@@ -241,7 +249,14 @@ def load_scene(args):
     scene, chosen = export_scene(args.scene)
     light = args.light if args.light is not None else (chosen or 0)
     light_path = args.light_path
-    if args.frame and args.camera_path is None and light_path is None and not args.frames:
+    camera_file = getattr(args, "camera_file", None)
+    if (
+        args.frame
+        and args.camera_path is None
+        and light_path is None
+        and camera_file is None
+        and not args.frames
+    ):
         raise CliError(
             f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
             "scene's own camera and light)"
@@ -255,6 +270,7 @@ def load_scene(args):
         frame=args.frame,
         n_frames=args.frames or 8,
         light_path=light_path,
+        camera_file=camera_file,
     )
     return export_named(loaded, scene)
 

@@ -112,8 +112,10 @@ def cmd_score(args) -> int:
         spp=args.spp,
         seed=args.seed,
         frames=args.frames,
-        # a light path alone keeps the scene's camera still (frames move the light only)
-        camera_path=args.camera_path or (None if args.light_path else "dolly"),
+        # a light path alone keeps the scene's camera still (frames move the light only); a
+        # camera file, or objects that move, have their own default path
+        camera_path=args.camera_path
+        or (None if args.light_path else (loaded.camera_path or loaded.default_camera_path)),
         cache=cache,
         quiet=args.quiet,
         flip_mode=args.flip_mode,
