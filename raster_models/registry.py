@@ -9,6 +9,7 @@ from .aa import fxaa as fxaa_model  # noqa: I001
 from .aa import msaa, noaa, ssaa
 from .aa.acaa import model as acaa
 from .aa.agaa import model as agaa
+from .aa.taa import model as taa
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
@@ -273,6 +274,23 @@ TECHNIQUES: dict[str, Technique] = {
             fxaa_model.run,
             _ALL_LIGHTS,
             "aa",
+        ),
+        Technique(
+            "taa",
+            "temporal AA: one jittered sample a pixel a frame; history reprojected with the "
+            "model's own motion vectors, rectified (clamp / AABB clip / variance clip) and "
+            "blended; presets ue4, inside, hdrp, filament",
+            (
+                "B. Karis, High Quality Temporal Supersampling, SIGGRAPH 2014",
+                "L. J. F. Pedersen, Temporal Reprojection Anti-Aliasing in INSIDE, GDC 2016",
+                "M. Salvi, An Excursion in Temporal Supersampling, GDC 2016",
+                "L. Yang, S. Liu, M. Salvi, A Survey of Temporal Antialiasing Techniques, "
+                "CGF 39(2) 2020, doi:10.1111/cgf.14018",
+            ),
+            taa.TaaParams,
+            taa.run,
+            _ALL_LIGHTS,
+            "taa",
         ),
     )
 }

@@ -44,7 +44,9 @@ def previous_points(scene, previous, points: np.ndarray, shapes: np.ndarray) -> 
     return out
 
 
-def film_motion(scene, x: np.ndarray, y: np.ndarray, *, previous=None) -> dict:
+def film_motion(
+    scene, x: np.ndarray, y: np.ndarray, *, previous=None, disocclusion: bool = True
+) -> dict:
     """Motion vectors and disocclusion at film positions ``x``, ``y`` of ``scene``'s frame.
 
     Parameters
@@ -52,12 +54,15 @@ def film_motion(scene, x: np.ndarray, y: np.ndarray, *, previous=None) -> dict:
     scene : scenes.LoadedScene of frame ``k``.
     x, y : film positions (pixels), any shape (flattened).
     previous : the scene of frame ``k - 1`` (default ``scene.previous()``).
+    disocclusion : also trace the previous frame's rays for ``disoccluded`` (else it holds the
+        off-screen test alone).
 
     Returns
     -------
     dict of ``(N,)`` arrays: ``motion_x``, ``motion_y`` (float64 pixels), ``disoccluded``
     (bool), ``valid`` (bool: a surface is seen), ``shape`` (int32), ``position`` ((N, 3)
-    float32, world, frame k), ``depth`` (float32 view depth, 0 sky).
+    float32, world, frame k), ``depth`` (float32 view depth, 0 sky), ``depth_previous``
+    (float64 view depth of the point in frame k - 1, inf sky).
     """
     previous = scene.previous() if previous is None else previous
     x = np.asarray(x, dtype=np.float64).ravel()
@@ -86,7 +91,7 @@ def film_motion(scene, x: np.ndarray, y: np.ndarray, *, previous=None) -> dict:
     outside = behind | ~((u >= 0) & (u < pcam.width) & (v >= 0) & (v < pcam.height))
     hidden = np.zeros_like(valid)
     inside = np.flatnonzero(~outside)
-    if inside.size:
+    if inside.size and disocclusion:
         po, pd, ptmax = pcam.rays(u[inside], v[inside])
         back = intersect(previous, po, pd, tmax=ptmax)
         want = np.einsum("ij,ij->i", prev[inside] - po, pd)
@@ -100,4 +105,5 @@ def film_motion(scene, x: np.ndarray, y: np.ndarray, *, previous=None) -> dict:
         "shape": shapes,
         "position": hit["position"],
         "depth": hit["depth"],
+        "depth_previous": np.where(valid, depth_prev, np.inf),
     }

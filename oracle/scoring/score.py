@@ -32,6 +32,7 @@ from ...scenes.shading import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
+from .temporal import add_temporal_aa
 
 __all__ = [
     "COVERAGE_FLOOR_RMS",
@@ -290,9 +291,10 @@ def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet) -> dic
     }
 
 
-def _summary(result: ScoreResult, *, temporal: bool) -> dict:
-    """Per-frame metrics averaged over the frames, and the temporal metrics of the path."""
-    per_frame = [f.metrics for f in result.frames]
+def _summary(result: ScoreResult, *, temporal: bool, gate_frames: int | None = None) -> dict:
+    """Per-frame metrics averaged over the frames (the last ``gate_frames`` only, when
+    given: warm-up does not pass or fail a gate), and the temporal metrics of the path."""
+    per_frame = [f.metrics for f in result.frames][-(gate_frames or len(result.frames)) :]
     summary = {}
     for key in METRIC_KEYS:
         vals = [m[key] for m in per_frame if m.get(key) is not None]
@@ -350,6 +352,7 @@ def score(
     ppd: float = M.DEFAULT_PPD,
     aa_samples: int | None = None,
     floor_cache: dict | None = None,
+    gate_frames: int | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
@@ -364,7 +367,17 @@ def score(
         coverage floor ``coverage_floor_rms`` (None: no floor).
     floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
         the references and scoring options only, so it is computed once per reference.
+    gate_frames : average the per-frame metrics over the last ``gate_frames`` frames only
+        (None: all), and judge convergence against their level.
+
+    A colour sequence (``frames`` >= 2) also gets the temporal AA metrics
+    (:mod:`oracle.scoring.temporal`); a candidate whose ``info`` carries ``"motion"`` (its
+    motion vectors, ``(H, W, 2)`` in the oracle's convention) and optionally
+    ``"disocclusion"`` gets their end-point error (the arrays leave ``info`` before it is
+    recorded).
     """
+    if gate_frames is not None and not 1 <= int(gate_frames) <= (frames or 1):
+        raise ScoreError(f"--gate-frames must be in [1, {frames or 1}], got {gate_frames}")
     if channel not in REFERENCE_GROUPS:
         raise ScoreError(f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {channel!r}")
     flip_mode = flip_mode.upper()
@@ -378,6 +391,7 @@ def score(
     result = ScoreResult(record={})
     exposure = flip_range = None
     infos = []
+    engine = []
     scenes_k = []
     for k in range(n):
         frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
@@ -385,6 +399,7 @@ def score(
         ref = get_reference(frame_scene, settings, cache=cache, quiet=quiet)
         ref_ch = ref.channels()
         cand, info = candidate_frames(frame_scene, k)
+        engine.append((info.pop("motion", None), info.pop("disocclusion", None)))
         infos.append(info)
         if k == 0 and channel == "color":
             ref_rgb = _rgb(ref_ch, "color")
@@ -431,12 +446,25 @@ def score(
             "flip_mode": flip_mode,
             "flip_exposure_range": list(flip_range) if flip_range else None,
         }
+    summary = _summary(result, temporal=bool(frames) and n >= 2, gate_frames=gate_frames)
+    taa_detail = None
+    if frames and n >= 2 and channel == "color":
+        taa, taa_detail = add_temporal_aa(
+            result,
+            scenes_k,
+            seed=seed,
+            cache=cache,
+            quiet=quiet,
+            gate_frames=gate_frames,
+            engine_motion=engine,
+        )
+        summary.update(taa)
     result.record = _record(
         result,
         loaded,
         ref_meta,
         channel=channel,
-        summary=_summary(result, temporal=bool(frames) and n >= 2),
+        summary=summary,
         frames=frames,
         camera_path=camera_path,
         tone=tone,
@@ -445,6 +473,8 @@ def score(
         seed=seed,
     )
     result.record["candidate_info"] = infos
+    result.record["gate_frames"] = gate_frames
+    result.record["temporal_aa"] = taa_detail
     result.record["wall_seconds"] = time.perf_counter() - t0
     return result
 
