@@ -50,6 +50,7 @@ class Family:
     extremes_scene : base scene of the extreme-input study (None: the study skips the family).
     extremes_metric : the error the extreme-input study judges.
     temporal : its models keep state from frame to frame (scored over frame sequences).
+    group : the family whose report fronts its techniques join (None: its own).
     """
 
     name: str
@@ -63,6 +64,7 @@ class Family:
     extremes_scene: str | None = None
     extremes_metric: str | None = None
     temporal: bool = False
+    group: str | None = None
 
 
 #: The technique families by name.
@@ -100,6 +102,7 @@ FAMILIES: dict[str, Family] = {
             "framebuffer_bytes",
             per_pixel_memory=True,
             temporal=True,
+            group="aa",
         ),
     )
 }

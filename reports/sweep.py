@@ -302,9 +302,21 @@ def undefined_metrics(done: Sequence[Mapping], names: Sequence[str]) -> list[dic
     return out
 
 
+def _group_of(families: Mapping | None, family: str) -> str:
+    """The report group of a family's rows: its record's ``group`` (TAA joins the
+    anti-aliasing techniques' fronts), else the family itself."""
+    return ((families or {}).get(family) or {}).get("group") or family
+
+
 def _defaults(families: Mapping | None, family: str, what: str) -> tuple:
-    """The family's default ``metrics`` or ``costs`` (``families``), else none."""
-    return tuple(((families or {}).get(family) or {}).get(what) or ())
+    """The default ``metrics`` or ``costs`` of a report group (``families``): its own
+    family's first, then those of the families that join it, each key once."""
+    fams = families or {}
+    members = [family] + [f for f in fams if f != family and _group_of(fams, f) == family]
+    out: list = []
+    for f in members:
+        out += [k for k in ((fams.get(f) or {}).get(what) or ()) if k not in out]
+    return tuple(out)
 
 
 def _group_record(
@@ -372,7 +384,8 @@ def sweep_record(
     """
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in rows:
-        groups.setdefault((r.get("family") or "shadow", r["scene"]), []).append(dict(r))
+        fam = _group_of(families, r.get("family") or "shadow")
+        groups.setdefault((fam, r["scene"]), []).append(dict(r))
     group_records = [
         _group_record(fam, scene, rs, list(costs or []), list(metrics or []), rank, families)
         for (fam, scene), rs in sorted(groups.items())
@@ -386,7 +399,7 @@ def sweep_record(
     heads = {(g["family"], g["scene"]): g for g in group_records}
     cases = []
     for r in rows:
-        family = r.get("family") or "shadow"
+        family = _group_of(families, r.get("family") or "shadow")
         g = heads.get((family, r["scene"])) or {}
         headline = ((g.get("metrics") or []) + [None])[0] or (
             _defaults(families, family, "metrics") or FALLBACK_METRICS

@@ -37,6 +37,9 @@ MAP_STYLES = {
     "flip": ("magma", (0.0, 1.0)),
     "delta_e2000": ("magma", (0.0, 20.0)),
     "neg_log10_p": ("magma", (0.0, 10.0)),
+    # temporal AA (oracle.scoring.temporal): added change per frame, motion-vector error in px
+    "flicker": ("magma", (0.0, 0.1)),
+    "motion_epe": ("magma", (0.0, 2.0)),
 }
 
 

@@ -95,6 +95,7 @@ def score_model(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     floor_cache: dict | None = None,
+    gate_frames: int | None = None,
 ) -> ScoreResult:
     """Score one technique configuration on ``loaded`` (``raster-oracle score --technique``).
 
@@ -132,6 +133,7 @@ def score_model(
         ppd=ppd,
         aa_samples=aa_samples,
         floor_cache=floor_cache,
+        gate_frames=gate_frames,
     )
     result = score(
         loaded,

@@ -15,10 +15,11 @@ __all__ = ["family_defaults", "metric_error", "sweep_report"]
 
 
 def family_defaults() -> dict:
-    """``{family: {"metrics": [...], "costs": [...]}}`` from the registry's family records:
-    what the report plots for a family when no metric or cost is requested."""
+    """``{family: {"metrics": [...], "costs": [...], "group": ...}}`` from the registry's
+    family records: what the report plots for a family when no metric or cost is requested,
+    and whose fronts its techniques join."""
     return {
-        f.name: {"metrics": list(f.metrics), "costs": list(f.costs)}
+        f.name: {"metrics": list(f.metrics), "costs": list(f.costs), "group": f.group}
         for f in raster_models.FAMILIES.values()
     }
 
