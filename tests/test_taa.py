@@ -247,4 +247,8 @@ def test_reprojection_off_ghosts_more_and_the_ghosting_metric_ranks_it_so():
     # the failure the ghosting metric exists for: added flicker ranks them backwards (a
     # history that never moves flickers less)
     assert rec["off"]["flicker"] < rec["on"]["flicker"]
-    assert rec["on"]["temporal_aa"]["disoccluded_fraction"] > 0
+    taa = rec["on"]["temporal_aa"]
+    assert taa["disoccluded_fraction"] > 0
+    # the steady level beside 8x SSAA's over the same judged frames and references
+    assert taa["ssaa8_error"] > 0
+    assert taa["steady_over_ssaa8"] == pytest.approx(rec["on"]["steady_error"] / taa["ssaa8_error"])

@@ -128,6 +128,68 @@ def _finite(value):
     return value
 
 
+def _linear_display(ref, cand, *, ppd, full, out):
+    """FLIP, SSIM and PSNR of data in [0, 1] shown as it is (no tone mapping)."""
+    lin = dict(tone_mapper="clip", exposure=0.0)
+    out["ssim"] = M.ssim(ref, cand, **lin)
+    out["psnr_db"] = M.psnr_db(ref, cand, **lin)
+    return M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
+
+
+def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A shadow mask: shadow metrics on the receivers."""
+    ref = ref_ch["visibility"]
+    rec = reference_receivers(ref_ch, kw["light"])
+    sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
+    for k in _SHADOW_VALUES:
+        out[k] = sm[k]
+    out["receiver_count"] = sm["receiver_count"]
+    if full:
+        maps["visibility_error"] = sm["signed_error"]
+        maps["misclassified"] = sm["misclassified"].astype(np.float32)
+    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    return ref, ref_ch["visibility_stderr"], rec, edge, fl
+
+
+def _coverage_channel_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A coverage mask: coverage error against the N-sample straight-edge floor."""
+    ref = ref_ch[channel]
+    out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=kw["aa_samples"]))
+    if full:
+        maps["coverage_error"] = (cand - ref).astype(np.float32)
+    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    # silhouettes against the sky are edges of coverage even where one shape is seen
+    return ref, ref_ch[f"{channel}_stderr"], None, edge | ((ref > 0) & (ref < 1)), fl
+
+
+def _color_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """Linear radiance: tone-mapped FLIP (or HDR-FLIP), SSIM, PSNR and CIEDE2000."""
+    ref = _rgb(ref_ch, "color")
+    exposure = kw["exposure"]
+    if kw["flip_mode"] == "HDR":
+        fl = M.flip(
+            ref, cand, mode="HDR", ppd=kw["ppd"], exposure_range=kw["flip_range"], full=full
+        )
+    else:
+        fl = M.flip(ref, cand, mode="LDR", ppd=kw["ppd"], exposure=exposure, full=full)
+    out["ssim"] = M.ssim(ref, cand, exposure=exposure)
+    out["psnr_db"] = M.psnr_db(ref, cand, exposure=exposure)
+    de = M.delta_e2000(ref, cand, exposure=exposure, full=full)
+    out["delta_e2000_mean"] = de[0] if full else de
+    if full:
+        maps["delta_e2000"] = de[1]
+    return ref, _rgb(ref_ch, "color_stderr"), None, edge, fl
+
+
+#: Scored channel -> (its catalogue kind, the function computing its own metrics).
+CHANNEL_METRICS = {
+    "visibility": ("visibility", _visibility_metrics),
+    "coverage": ("coverage", _coverage_channel_metrics),
+    "front_coverage": ("coverage", _coverage_channel_metrics),
+    "color": ("color", _color_metrics),
+}
+
+
 def _metrics_for(
     channel,
     ref_ch,
@@ -142,52 +204,24 @@ def _metrics_for(
     samples,
     aa_samples=None,
 ):
-    """Metric values (and, with ``full``, error maps) of one candidate frame."""
+    """Metric values (and, with ``full``, error maps) of one candidate frame: the channel's
+    own metrics (:data:`CHANNEL_METRICS`), then those every kind shares; a metric the
+    catalogue does not declare for the channel's kind stays None."""
     out = dict.fromkeys(METRIC_KEYS)
     maps = {}
+    kind, own = CHANNEL_METRICS[channel]
+    kw = dict(
+        light=light,
+        exposure=exposure,
+        flip_mode=flip_mode,
+        flip_range=flip_range,
+        ppd=ppd,
+        aa_samples=aa_samples,
+    )
     edge = ref_ch["edge"] > 0.5
-    if channel == "visibility":
-        ref = ref_ch["visibility"]
-        rec = reference_receivers(ref_ch, light)
-        sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
-        for k in _SHADOW_VALUES:
-            out[k] = sm[k]
-        out["receiver_count"] = sm["receiver_count"]
-        ref_se = ref_ch["visibility_stderr"]
-        lin = dict(tone_mapper="clip", exposure=0.0)
-        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
-        out["ssim"] = M.ssim(ref, cand, **lin)
-        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
-        if full:
-            maps["visibility_error"] = sm["signed_error"]
-            maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    elif channel in COVERAGE_CHANNELS:
-        ref = ref_ch[channel]
-        rec = None
-        ref_se = ref_ch[f"{channel}_stderr"]
-        out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=aa_samples))
-        # silhouettes against the sky are edges of coverage even where one shape is seen
-        edge = edge | ((ref > 0) & (ref < 1))
-        lin = dict(tone_mapper="clip", exposure=0.0)
-        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
-        out["ssim"] = M.ssim(ref, cand, **lin)
-        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
-        if full:
-            maps["coverage_error"] = (cand - ref).astype(np.float32)
-    else:
-        ref = _rgb(ref_ch, "color")
-        rec = None
-        ref_se = _rgb(ref_ch, "color_stderr")
-        if flip_mode == "HDR":
-            fl = M.flip(ref, cand, mode="HDR", ppd=ppd, exposure_range=flip_range, full=full)
-        else:
-            fl = M.flip(ref, cand, mode="LDR", ppd=ppd, exposure=exposure, full=full)
-        out["ssim"] = M.ssim(ref, cand, exposure=exposure)
-        out["psnr_db"] = M.psnr_db(ref, cand, exposure=exposure)
-        de = M.delta_e2000(ref, cand, exposure=exposure, full=full)
-        out["delta_e2000_mean"] = de[0] if full else de
-        if full:
-            maps["delta_e2000"] = de[1]
+    ref, ref_se, rec, edge, fl = own(
+        ref_ch, cand, channel=channel, edge=edge, full=full, kw=kw, out=out, maps=maps
+    )
     if full:
         out["flip_mean"], maps["flip"] = fl[0], fl[1]
     else:
@@ -204,6 +238,9 @@ def _metrics_for(
         p = p if p.ndim == 2 else p.min(axis=-1)
         # -log10 p: 0 where the difference is pure noise, large where it is significant
         maps["neg_log10_p"] = -np.log10(np.maximum(p, 1e-300))
+    for key in METRIC_KEYS:
+        if kind not in M.CATALOG[key].kinds:
+            out[key] = None
     return {k: _finite(v) if k in METRIC_KEYS else v for k, v in out.items()}, maps, ref, rec
 
 

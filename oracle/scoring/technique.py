@@ -151,4 +151,29 @@ def score_model(
             **kw,
         )
         _merge_coverage(result, coverage)
+    if raster_models.family(technique).temporal and frames and frames >= 2:
+        _against_ssaa8(result, loaded, frames=frames, camera_path=camera_path, judged=gate_frames)
     return result
+
+
+#: The steady level of a temporal technique is compared with this supersampling rate.
+STEADY_SSAA_SAMPLES = 8
+
+
+def _against_ssaa8(result: ScoreResult, loaded, *, frames: int, camera_path, judged) -> None:
+    """Record, next to a temporal technique's steady error, 8x SSAA's mean absolute error
+    over the same judged frames against the same references (``temporal_aa``:
+    ``ssaa8_error`` and ``steady_over_ssaa8``)."""
+    detail = result.record.get("temporal_aa")
+    if detail is None:
+        return
+    n = int(judged or frames)
+    errors = []
+    for k in range(frames - n, frames):
+        frame_scene = loaded.with_frame(k, path=camera_path, n_frames=frames)
+        ssaa = raster_models.run("ssaa", frame_scene, samples=STEADY_SSAA_SAMPLES)
+        ref = result.frames[k].reference
+        errors.append(float(np.abs(np.asarray(ssaa.outputs["color"]) - ref).mean()))
+    detail["ssaa8_error"] = float(np.mean(errors))
+    steady = result.record.get("steady_error")
+    detail["steady_over_ssaa8"] = steady / detail["ssaa8_error"] if detail["ssaa8_error"] else None

@@ -282,15 +282,12 @@ def run_extremes(
     width, height, spp = (64, 36, 16) if quick else (160, 90, 64)
     huge = int(huge or (QUICK_HUGE if quick else 16384))
     techs = [raster_models.TECHNIQUES[t] for t in (techniques or raster_models.TECHNIQUES)]
+    # families without an extremes scene (the temporal ones) are not in this study
+    techs = [t for t in techs if raster_models.family(t.name).extremes_scene is not None]
     names = extremes or list(EXTREMES)
     t0 = time.perf_counter()
     cells, scenes_info = [], {}
-    # families without an extremes scene (the temporal ones) are not in this study
-    families = sorted(
-        f
-        for f in {raster_models.TECHNIQUES[t.name].family for t in techs}
-        if raster_models.FAMILIES[f].extremes_scene is not None
-    )
+    families = sorted({raster_models.TECHNIQUES[t.name].family for t in techs})
     for name in names:
         ext = EXTREMES[name]
         row = []
