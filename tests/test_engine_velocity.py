@@ -128,3 +128,18 @@ def test_motion_layer_errors_are_one_line(engine_frames, tmp_path, capsys):
     assert main([*argv, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "has no motion layer 'motion'" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--gate-frames", "5"], "--gate-frames must be in [1, 1]"),
+        (["--candidate-motion", "velocity"], "--candidate-motion applies to --candidate"),
+    ],
+)
+def test_temporal_options_misused_are_one_line(tmp_path, capsys, extra, message):
+    argv = ["score", "plate", "--width", "32", "--height", "18", "--technique", "noaa"]
+    argv += ["--spp", "1", "--no-cache", "--quiet", "--out", str(tmp_path / "o"), *extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err

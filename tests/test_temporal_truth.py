@@ -133,3 +133,15 @@ def test_bad_camera_file_is_one_line(tmp_path):
         scenes.load("plate", width=W, height=H, camera_file=path)
     with pytest.raises(scenes.SceneError, match="camera file not found"):
         scenes.load("plate", width=W, height=H, camera_file=tmp_path / "none.json")
+
+
+def test_export_records_the_frame_of_its_sequence(tmp_path):
+    from raster_oracle.scenes.export import export
+
+    loaded = scenes.load("slide", width=64, height=36, frame=3, n_frames=8)
+    export(loaded, tmp_path / "e")
+    seq = json.loads((tmp_path / "e" / "camera.json").read_text())["sequence"]
+    assert seq["frame"] == 3 and seq["n_frames"] == 8 and seq["camera_path"] == "static"
+    assert seq["object_paths"]["panel"]["path"] == "slide"
+    moved = np.asarray(seq["object_transforms"]["panel"])
+    np.testing.assert_allclose(moved, object_transform(loaded.object_motion["panel"], 3))

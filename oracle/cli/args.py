@@ -250,17 +250,6 @@ def load_scene(args):
     light = args.light if args.light is not None else (chosen or 0)
     light_path = args.light_path
     camera_file = getattr(args, "camera_file", None)
-    if (
-        args.frame
-        and args.camera_path is None
-        and light_path is None
-        and camera_file is None
-        and not args.frames
-    ):
-        raise CliError(
-            f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
-            "scene's own camera and light)"
-        )
     loaded = scenes.load(
         scene,
         width=args.width,
@@ -272,6 +261,12 @@ def load_scene(args):
         light_path=light_path,
         camera_file=camera_file,
     )
+    # a frame needs a sequence: a camera or light path, a camera file or objects that move
+    if args.frame and loaded.camera_path is None and light_path is None and not args.frames:
+        raise CliError(
+            f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
+            "scene's own camera and light)"
+        )
     return export_named(loaded, scene)
 
 

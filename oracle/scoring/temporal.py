@@ -18,7 +18,8 @@ from ..reference.store import get_reference
 __all__ = ["CONVERGENCE_WINDOW", "GHOSTING_WINDOW", "add_temporal_aa", "truth_motion"]
 
 #: Frames each frame's error is averaged over before the convergence test: one jitter
-#: sequence of the shortest common length (UE4, HDRP: 8), whose phase the error follows.
+#: sequence of the shortest common length (UE4, HDRP: 8), whose phase the error follows;
+#: only for sequences of at least four such windows (a shorter one is judged frame by frame).
 CONVERGENCE_WINDOW = 8
 
 #: Frames after a disocclusion that count as "recently disoccluded" for ``ghosting_error``
@@ -72,7 +73,8 @@ def add_temporal_aa(
     cands = np.stack([f.candidate for f in result.frames]).astype(np.float64)
     motion, dis = truth_motion(scenes_k, seed=seed, cache=cache, quiet=quiet)
     errors = M.frame_errors(refs, cands)
-    conv = M.convergence(errors, judged=gate_frames, window=CONVERGENCE_WINDOW)
+    window = CONVERGENCE_WINDOW if len(errors) >= 4 * CONVERGENCE_WINDOW else 1
+    conv = M.convergence(errors, judged=gate_frames, window=window)
     age = M.disocclusion_age(motion, dis)
     ghost = M.ghosting(refs, cands, age, window=GHOSTING_WINDOW)
     out = {
@@ -89,6 +91,7 @@ def add_temporal_aa(
     detail = {
         "frame_errors": [float(e) for e in errors],
         "judged_frames": int(gate_frames or len(errors)),
+        "convergence_window": window,
         "ghosting_window": GHOSTING_WINDOW,
         "error_by_age": ghost["error_by_age"],
         "settled_error": ghost["settled_error"],
