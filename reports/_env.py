@@ -9,7 +9,7 @@ import functools
 import jinja2
 
 from . import formatting, plots, svg
-from .sections import aa_memory, claims, converge, extremes, sweep
+from .sections import aa_memory, aa_ranking, claims, converge, extremes, sweep
 
 __all__ = ["environment"]
 
@@ -52,6 +52,7 @@ def _filters() -> dict:
         "quoted_value": aa_memory.fmt_quoted,
         "computed_text": aa_memory.fmt_computed,
         "quote_note": aa_memory.fmt_note,
+        "with_floor": aa_ranking.fmt_with_floor,
     }
 
 
