@@ -252,3 +252,28 @@ def test_reprojection_off_ghosts_more_and_the_ghosting_metric_ranks_it_so():
     # the steady level beside 8x SSAA's over the same judged frames and references
     assert taa["ssaa8_error"] > 0
     assert taa["steady_over_ssaa8"] == pytest.approx(rec["on"]["steady_error"] / taa["ssaa8_error"])
+
+
+def test_the_models_own_velocity_and_rejection_are_scored_against_the_truth():
+    s = scenes.load("slide", width=64, height=36)
+    rec = {}
+    for reject in ("offscreen", "depth"):
+        r = score_model(
+            s,
+            "taa",
+            {"preset": "hdrp", "dilation": "none", "reject": reject},
+            spp=4,
+            seed=0,
+            cache=None,
+            quiet=True,
+            frames=4,
+            camera_path=None,
+        )
+        rec[reject] = r.record
+    # undilated, the velocity of each jittered sample is the truth's within a pixel except
+    # where the sample and the centre see different surfaces (the panel's edges)
+    assert rec["depth"]["motion_epe_over_half"] < 0.05
+    # depth rejection finds disoccluded pixels; off-screen rejection finds none after frame 0
+    assert rec["depth"]["disocclusion_recall"] > rec["offscreen"]["disocclusion_recall"]
+    assert rec["depth"]["frames"][2]["disocclusion_recall"] > 0.5
+    assert rec["offscreen"]["frames"][2]["disocclusion_recall"] in (0.0, None)

@@ -145,3 +145,21 @@ def test_export_records_the_frame_of_its_sequence(tmp_path):
     assert seq["object_paths"]["panel"]["path"] == "slide"
     moved = np.asarray(seq["object_transforms"]["panel"])
     np.testing.assert_allclose(moved, object_transform(loaded.object_motion["panel"], 3))
+
+
+def test_score_follows_a_camera_file(tmp_path):
+    from raster_oracle.oracle.cli import main
+
+    cams = [
+        scenes.load("plate", width=32, height=18, camera_path="rotate", frame=k) for k in (0, 1, 2)
+    ]
+    frames = [{"to_world": c.camera.to_world.tolist(), "fov_x_deg": c.camera.fov_x} for c in cams]
+    path = tmp_path / "cameras.json"
+    path.write_text(json.dumps({"frames": frames}))
+    out = tmp_path / "score"
+    argv = ["score", "plate", "--width", "32", "--height", "18", "--camera-file", str(path)]
+    argv += ["--frames", "3", "--technique", "noaa", "--spp", "2", "--no-cache", "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 0
+    rec = json.loads((out / "metrics.json").read_text())
+    assert rec["camera_path"] == "file" and len(rec["frames"]) == 3
+    assert rec["reference"]["scene"]["name"] == "plate"

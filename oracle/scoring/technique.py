@@ -49,6 +49,13 @@ def model_candidate(technique: str, params: dict, *, channel: str = "visibility"
             "diagnostics": res.diagnostics,
             "model_seconds": res.wall_seconds,
         }
+        if channel == "color" and "velocity_x" in res.outputs:
+            # a temporal model's own velocity buffer and history rejection, scored as an
+            # engine's motion vectors and disocclusion mask (oracle.scoring.temporal)
+            info["motion"] = np.stack(
+                [res.outputs["velocity_x"], res.outputs["velocity_y"]], -1
+            ).astype(np.float64)
+            info["disocclusion"] = np.asarray(res.outputs["rejected"]) > 0.5
         return np.asarray(res.outputs[channel], dtype=np.float32), info
 
     return run
