@@ -113,6 +113,12 @@ def _choices(names) -> tuple[str, ...]:
     return ("preset", *names)
 
 
+def _by_preset(key: str) -> str:
+    """A part's ``source``: each published preset's value (their sources: PRESET_SOURCES)."""
+    values = ", ".join(f"{name} {PRESETS[name][key]}" for name in PRESETS if name != "custom")
+    return f"the preset's: {values} (raster_models/aa/taa/params.py PRESET_SOURCES)"
+
+
 @dataclass(frozen=True)
 class TaaParams:
     """Parameters of :func:`raster_models.aa.taa.run` (see the package docstring)."""
@@ -126,79 +132,83 @@ class TaaParams:
     )
     jitter: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("jitter"),
         help="sub-pixel jitter: halton (2,3), ue4-gaussian (UE4's windowed Gaussian), none",
         choices=_choices(JITTERS),
     )
     samples: int = _params.param(
-        0, source="preset", help="jitter sequence length (0: the preset's; 8 or 16)", lo=0, hi=64
+        0,
+        source=_by_preset("samples"),
+        help="jitter sequence length (0: the preset's; 8 or 16)",
+        lo=0,
+        hi=64,
     )
     input_filter: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("input_filter"),
         help="current-frame filter: ue4 (3x3 exp(-2.29 d^2)) or box (own sample)",
         choices=_choices(INPUT_FILTERS),
     )
     history_filter: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("history_filter"),
         help="history sampling: bilinear or catmull-rom",
         choices=_choices(HISTORY_FILTERS),
     )
     dilation: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("dilation"),
         help="velocity of the pixel (none) or of its nearest-depth 3x3 neighbour",
         choices=_choices(DILATIONS),
     )
     reprojection: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("reprojection"),
         help="history read where the model's own motion vectors point (motion) or at the same "
         "pixel (off)",
         choices=_choices(REPROJECTIONS),
     )
     rectify: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("rectify"),
         help="history rectification: none, clamp (min/max), clip (AABB clip), variance",
         choices=_choices(RECTIFIERS),
     )
     color_space: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("color_space"),
         help="rectification space: rgb, ycocg",
         choices=_choices(COLOR_SPACES),
     )
     neighbourhood: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("neighbourhood"),
         help="rectification neighbourhood: 3x3, plus (5 taps), rounded (their average)",
         choices=_choices(NEIGHBOURHOODS),
     )
     gamma: float = _params.param(
         0.0,
-        source="preset (Salvi 2016: 1)",
+        source=_by_preset("gamma"),
         help="variance clip gamma (0: the preset's)",
         lo=0.0,
         hi=4.0,
     )
     blend: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("blend"),
         help="history blend: constant alpha, ue4 (luma-contrast feedback), inside (0.88-0.97)",
         choices=_choices(BLENDS),
     )
     alpha: float = _params.param(
         0.0,
-        source="preset",
+        source=_by_preset("alpha"),
         help="current-frame weight of constant and ue4 blends (0: the preset's)",
         lo=0.0,
         hi=1.0,
     )
     reject: str = _params.param(
         "preset",
-        source="preset",
+        source=_by_preset("reject"),
         help="history rejected where its position is off screen (offscreen), also where the "
         "previous depth there disagrees with the reprojected point's by > 1% (depth), or never",
         choices=_choices(REJECTIONS),
