@@ -249,6 +249,10 @@ def test_reprojection_off_ghosts_more_and_the_ghosting_metric_ranks_it_so():
     assert rec["off"]["flicker"] < rec["on"]["flicker"]
     taa = rec["on"]["temporal_aa"]
     assert taa["disoccluded_fraction"] > 0
+    # error bars: what an exact candidate scores against these references, far below both
+    floor = rec["on"]["noise_floor"]
+    assert 0 < floor["ghosting_error"] < 0.5 * rec["on"]["ghosting_error"]
+    assert 0 < floor["steady_error"] < 0.5 * rec["on"]["steady_error"]
     # the steady level beside 8x SSAA's over the same judged frames and references
     assert taa["ssaa8_error"] > 0
     assert taa["steady_over_ssaa8"] == pytest.approx(rec["on"]["steady_error"] / taa["ssaa8_error"])

@@ -312,9 +312,10 @@ def added_flicker(reference_frames: np.ndarray, candidate_frames: np.ndarray) ->
     return float(np.maximum(excess, 0.0).mean())
 
 
-def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet) -> dict:
+def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet):
     """Temporal metrics an exact candidate scores: every frame's independently seeded second
-    reference (``settings``) turned into the exact surrogate of its first."""
+    reference (``settings``) turned into the exact surrogate of its first; and those exact
+    frames (``(T, H, W[, 3])``, for the temporal AA metrics' floors)."""
     exact = []
     for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
         ch2 = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
@@ -325,7 +326,7 @@ def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet) -> dic
     return {
         "flicker": added_flicker(refs, exact),
         "temporal_error": M.temporal_error(refs, exact),
-    }
+    }, exact
 
 
 def _summary(result: ScoreResult, *, temporal: bool, gate_frames: int | None = None) -> dict:
@@ -469,11 +470,13 @@ def score(
             )
         result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
         result.reference_folders.append(ref.folder)
+    exact_frames = None
     if frames and n >= 2:
         floor = dict(result.frames[0].noise_floor or {})
-        floor.update(
-            _temporal_floor(result, scenes_k, noise_settings, channel, cache=cache, quiet=quiet)
+        tf, exact_frames = _temporal_floor(
+            result, scenes_k, noise_settings, channel, cache=cache, quiet=quiet
         )
+        floor.update(tf)
         result.frames[0].noise_floor = floor
     tone = None
     if channel == "color":
@@ -494,6 +497,7 @@ def score(
             quiet=quiet,
             gate_frames=gate_frames,
             engine_motion=engine,
+            exact_frames=exact_frames,
         )
         summary.update(taa)
     result.record = _record(

@@ -62,22 +62,13 @@ def _velocity(result, motion, dis, engine: list) -> dict:
     return out
 
 
-def add_temporal_aa(
-    result, scenes_k, *, seed: int, cache, quiet: bool, gate_frames=None, engine_motion=None
-) -> dict:
-    """Temporal AA metrics of a colour sequence (``result.frames``' references and
-    candidates), added to the record's summary; the per-pixel flicker map joins frame 0's
-    maps. ``engine_motion``: per frame ``(motion (H, W, 2) in the oracle's convention,
-    disocclusion (H, W) or None)``, or None."""
-    refs = np.stack([f.reference for f in result.frames]).astype(np.float64)
-    cands = np.stack([f.candidate for f in result.frames]).astype(np.float64)
-    motion, dis = truth_motion(scenes_k, seed=seed, cache=cache, quiet=quiet)
+def _taa_values(refs, cands, motion, dis, age, gate_frames) -> tuple[dict, dict, np.ndarray]:
+    """The temporal AA metrics of candidate frames ``cands`` against ``refs``."""
     errors = M.frame_errors(refs, cands)
     window = CONVERGENCE_WINDOW if len(errors) >= 4 * CONVERGENCE_WINDOW else 1
     conv = M.convergence(errors, judged=gate_frames, window=window)
-    age = M.disocclusion_age(motion, dis)
     ghost = M.ghosting(refs, cands, age, window=GHOSTING_WINDOW)
-    out = {
+    values = {
         "steady_error": conv["steady_error"],
         "convergence_frames": conv["convergence_frames"],
         "ghosting_error": ghost["ghosting_error"],
@@ -85,9 +76,6 @@ def add_temporal_aa(
         "lag_frames": ghost["lag_frames"],
         "flicker_ratio": M.flicker_ratio(refs, cands),
     }
-    result.frames[0].maps["flicker"] = M.flicker_map(refs, cands)
-    if engine_motion is not None and any(m is not None for m, _ in engine_motion):
-        out.update(_velocity(result, motion, dis, engine_motion))
     detail = {
         "frame_errors": [float(e) for e in errors],
         "judged_frames": int(gate_frames or len(errors)),
@@ -97,4 +85,37 @@ def add_temporal_aa(
         "settled_error": ghost["settled_error"],
         "disoccluded_fraction": float(dis[1:].mean()) if len(dis) > 1 else 0.0,
     }
+    return values, detail, errors
+
+
+def add_temporal_aa(
+    result,
+    scenes_k,
+    *,
+    seed: int,
+    cache,
+    quiet: bool,
+    gate_frames=None,
+    engine_motion=None,
+    exact_frames=None,
+) -> tuple[dict, dict]:
+    """Temporal AA metrics of a colour sequence (``result.frames``' references and
+    candidates), to add to the record's summary, and a detail record; the per-pixel flicker
+    map joins frame 0's maps. ``engine_motion``: per frame ``(motion (H, W, 2) in the
+    oracle's convention, disocclusion (H, W) or None)``, or None. ``exact_frames``: the
+    exact surrogate of every frame (the noise-floor reference): the same metrics for it join
+    frame 0's noise floor (``convergence_frames`` and ``lag_frames`` excepted: counts, not
+    errors)."""
+    refs = np.stack([f.reference for f in result.frames]).astype(np.float64)
+    cands = np.stack([f.candidate for f in result.frames]).astype(np.float64)
+    motion, dis = truth_motion(scenes_k, seed=seed, cache=cache, quiet=quiet)
+    age = M.disocclusion_age(motion, dis)
+    out, detail, _ = _taa_values(refs, cands, motion, dis, age, gate_frames)
+    result.frames[0].maps["flicker"] = M.flicker_map(refs, cands)
+    if engine_motion is not None and any(m is not None for m, _ in engine_motion):
+        out.update(_velocity(result, motion, dis, engine_motion))
+    if exact_frames is not None and result.frames[0].noise_floor is not None:
+        exact, _, _ = _taa_values(refs, exact_frames, motion, dis, age, gate_frames)
+        floor = {k: v for k, v in exact.items() if k not in ("convergence_frames", "lag_frames")}
+        result.frames[0].noise_floor.update({k: v for k, v in floor.items() if v is not None})
     return out, detail
