@@ -345,6 +345,18 @@ def _summary(result: ScoreResult, *, temporal: bool, gate_frames: int | None = N
     return summary
 
 
+def _tone(channel, exposure, flip_mode, flip_range) -> dict | None:
+    """The record's ``tone_mapping`` (colour only)."""
+    if channel != "color":
+        return None
+    return {
+        "exposure_stops": exposure,
+        "tone_mapper": "aces",
+        "flip_mode": flip_mode,
+        "flip_exposure_range": list(flip_range) if flip_range else None,
+    }
+
+
 def _record(
     result, loaded, ref_meta, *, channel, summary, frames, camera_path, tone, ppd, spp, seed
 ) -> dict:
@@ -478,14 +490,7 @@ def score(
         )
         floor.update(tf)
         result.frames[0].noise_floor = floor
-    tone = None
-    if channel == "color":
-        tone = {
-            "exposure_stops": exposure,
-            "tone_mapper": "aces",
-            "flip_mode": flip_mode,
-            "flip_exposure_range": list(flip_range) if flip_range else None,
-        }
+    tone = _tone(channel, exposure, flip_mode, flip_range)
     summary = _summary(result, temporal=bool(frames) and n >= 2, gate_frames=gate_frames)
     taa_detail = None
     if frames and n >= 2 and channel == "color":
