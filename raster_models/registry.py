@@ -354,7 +354,8 @@ def family_of(technique: str) -> str:
 
 
 def list_techniques() -> list[dict]:
-    """Every technique with its description, references and parameter records.
+    """Every technique with its description, references, family (``family``, the channels
+    it is ``scored_on``, whether it is ``temporal``) and parameter records.
 
     Each parameter record: ``name``, ``default``, ``type`` (bool, int, float, str, floats),
     ``choices`` (or None), ``range`` (``[lo, hi]`` or None), ``source`` and ``help``.
@@ -365,6 +366,9 @@ def list_techniques() -> list[dict]:
             "description": t.description,
             "references": list(t.references),
             "lights": list(t.lights),
+            "family": t.family,
+            "scored_on": list(FAMILIES[t.family].channels),
+            "temporal": FAMILIES[t.family].temporal,
             "params": params.describe(t.params),
         }
         for t in TECHNIQUES.values()
