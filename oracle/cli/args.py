@@ -114,12 +114,19 @@ def names(text: str) -> list[str]:
 
 
 def add_scene_args(p: argparse.ArgumentParser) -> None:
-    """``SCENE --light --width --height --camera-path --light-path --frame --frames``."""
+    """``SCENE --camera --light --width --height --camera-path --light-path --frame --frames``."""
     p.add_argument(
         "scene",
         metavar="SCENE",
-        help="built-in scene name, Mitsuba XML file, or an `export` folder (its scene.xml, at "
-        "its exported size and light)",
+        help="built-in scene name, Mitsuba XML file, glTF 2.0 file (.gltf, .glb), or an "
+        "`export` folder (its scene.xml or scene.glb, at its exported size and light)",
+    )
+    p.add_argument(
+        "--camera",
+        type=nonneg_int,
+        default=None,
+        help="glTF scenes: index of the file's camera to view through (default: the scene's "
+        "first camera node)",
     )
     p.add_argument(
         "--light",
@@ -219,15 +226,18 @@ def export_scene(scene: str) -> tuple[str, int | None]:
     """``SCENE`` as ``scenes.load`` takes it, and the light an export chose (None: not an
     export). An ``export`` folder stands for its ``scene.xml``; the export's ``lights.json``
     records the light it was exported with."""
+    from ...scenes.export import EXPORT_SCENE_FILES, export_scene_file
+
     path = Path(scene)
     if path.is_dir():
-        if not (path / "scene.xml").is_file():
+        found = export_scene_file(path)
+        if found is None:
             raise CliError(
-                f"scene folder {scene} has no scene.xml: give a built-in scene, a Mitsuba XML "
-                "file or a folder written by `export`"
+                f"scene folder {scene} has no scene.xml or scene.glb: give a built-in scene, "
+                "a Mitsuba XML or glTF file or a folder written by `export`"
             )
-        path = path / "scene.xml"
-    elif path.name != "scene.xml" or not path.is_file():
+        path = found
+    elif path.name not in EXPORT_SCENE_FILES or not path.is_file():
         return scene, None
     lights = path.parent / "lights.json"
     chosen = None
@@ -260,6 +270,7 @@ def load_scene(args):
         n_frames=args.frames or 8,
         light_path=light_path,
         camera_file=camera_file,
+        camera=getattr(args, "camera", None),
     )
     # a frame needs a sequence: a camera or light path, a camera file or objects that move
     if args.frame and loaded.camera_path is None and light_path is None and not args.frames:
@@ -274,7 +285,7 @@ def export_named(loaded, scene: str):
     """An export's ``scene.xml`` is named after its folder (``plate320``), not ``scene``: the
     name records and report titles show."""
     path = Path(scene)
-    if path.name != "scene.xml" or not (path.parent / "camera.json").is_file():
+    if path.name not in ("scene.xml", "scene.glb") or not (path.parent / "camera.json").is_file():
         return loaded
     from dataclasses import replace
 

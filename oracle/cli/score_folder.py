@@ -54,7 +54,9 @@ def _scene_of(entry, exports: Path | None):
     from ... import scenes
 
     scene = entry.name
-    if exports is not None and (exports / entry.name / "scene.xml").is_file():
+    from ...scenes.export import export_scene_file
+
+    if exports is not None and export_scene_file(exports / entry.name) is not None:
         scene = str(exports / entry.name)
     elif entry.name not in scenes.BUILTIN_SCENES:
         where = f" nor an export in {exports}" if exports is not None else ""

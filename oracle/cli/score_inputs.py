@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ...scenes.export import export_scene_file
 from . import args as A
 
 __all__ = ["candidate_inputs", "candidate_size", "find_export", "resolve_layout"]
@@ -33,12 +34,13 @@ def candidate_size(path: str | Path) -> tuple[int, int] | None:
 
 
 def find_export(start: Path, size: tuple[int, int]) -> Path | None:
-    """The nearest export folder (``scene.xml`` + ``camera.json``) of ``size`` in ``start``'s
-    folder or one of its three nearest parents: where an engine usually renders."""
+    """The nearest export folder (``scene.xml`` or ``scene.glb``, and ``camera.json``) of
+    ``size`` in ``start``'s folder or one of its three nearest parents: where an engine
+    usually renders."""
     folder = start.resolve().parent
     for _ in range(4):
         cam = folder / "camera.json"
-        if cam.is_file() and (folder / "scene.xml").is_file():
+        if cam.is_file() and export_scene_file(folder) is not None:
             try:
                 rec = json.loads(cam.read_text())
                 if (int(rec["width"]), int(rec["height"])) == tuple(size):
