@@ -5,7 +5,8 @@
 - ``meshes/<shape>.ply``: world-space triangles (binary little-endian PLY; analytic spheres
   and cylinders are tessellated finely: 512 x 256 and 512 segments),
 - ``camera.json``: world-to-view and projection matrices in the OpenGL and Direct3D
-  conventions, fov, resolution, near/far and the pixel-centre convention,
+  conventions, fov, resolution, near/far and the pixel-centre convention, and ``sequence``:
+  the path, frame and object transforms this export was made for,
 - ``lights.json``: every usable light with its radiometric quantity,
 - ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
@@ -202,7 +203,21 @@ def export(loaded, out_dir: str | Path) -> dict:
                 "id": idx,
                 "source_type": sh.class_name(),
             }
-        (tmp / "camera.json").write_text(json.dumps(loaded.camera.to_json(), indent=2))
+        camera = loaded.camera.to_json()
+        # the frame of the sequence this export was made for (engines render the same frame)
+        camera["sequence"] = {
+            "camera_path": loaded.camera_path,
+            "light_path": loaded.light_path,
+            "camera_file": loaded.camera_file,
+            "frame": loaded.frame,
+            "n_frames": loaded.n_frames,
+            "object_paths": {k: dict(v) for k, v in loaded.object_motion.items()} or None,
+            "object_transforms": {
+                k: loaded.shape_transform(k).tolist() for k in loaded.object_motion
+            }
+            or None,
+        }
+        (tmp / "camera.json").write_text(json.dumps(camera, indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
         if loaded.pbr is not None:  # with each light's glTF node matrix
             from .gltf_export import light_records

@@ -139,7 +139,15 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--camera-path",
         default=None,
-        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly",
+        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly, "
+        "static (default of scenes whose objects move)",
+    )
+    p.add_argument(
+        "--camera-file",
+        default=None,
+        metavar="JSON",
+        help="camera sequence file: per-frame camera matrices and field of view "
+        "(docs/cli.md); frames follow it",
     )
     p.add_argument(
         "--light-path",
@@ -251,11 +259,7 @@ def load_scene(args):
     scene, chosen = export_scene(args.scene)
     light = args.light if args.light is not None else (chosen or 0)
     light_path = args.light_path
-    if args.frame and args.camera_path is None and light_path is None and not args.frames:
-        raise CliError(
-            f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
-            "scene's own camera and light)"
-        )
+    camera_file = getattr(args, "camera_file", None)
     loaded = scenes.load(
         scene,
         width=args.width,
@@ -265,8 +269,15 @@ def load_scene(args):
         frame=args.frame,
         n_frames=args.frames or 8,
         light_path=light_path,
+        camera_file=camera_file,
         camera=getattr(args, "camera", None),
     )
+    # a frame needs a sequence: a camera or light path, a camera file or objects that move
+    if args.frame and loaded.camera_path is None and light_path is None and not args.frames:
+        raise CliError(
+            f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
+            "scene's own camera and light)"
+        )
     return export_named(loaded, scene)
 
 

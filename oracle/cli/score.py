@@ -45,6 +45,34 @@ def add_parsers(sub) -> None:
     p.add_argument(
         "--ppd", type=A.positive_float, default=None, help="FLIP pixels per degree (default 67.02)"
     )
+    p.add_argument(
+        "--gate-frames",
+        type=A.positive_int,
+        default=None,
+        metavar="N",
+        help="with --frames: average the per-frame metrics over the last N frames (warm-up "
+        "neither passes nor fails a gate); convergence is judged against their level",
+    )
+    p.add_argument(
+        "--candidate-motion",
+        default=None,
+        metavar="LAYER",
+        help="the candidate EXR's motion-vector layer (LAYER.X/Y, .R/G or .U/V): adds "
+        "motion_epe_* against the reference motion",
+    )
+    p.add_argument(
+        "--motion-convention",
+        choices=["pixels", "unreal", "unity", "uv"],
+        default="pixels",
+        help="convention of --candidate-motion (docs/conventions.md; default pixels: previous "
+        "minus current, y down)",
+    )
+    p.add_argument(
+        "--candidate-disocclusion",
+        default=None,
+        metavar="CHANNEL",
+        help="the candidate EXR's disocclusion mask channel (disocclusion recall/precision)",
+    )
     add_gate_args(
         p,
         baseline_help="a previous run's metrics.json (or its folder): exit 1 when a metric is "
@@ -112,8 +140,10 @@ def cmd_score(args) -> int:
         spp=args.spp,
         seed=args.seed,
         frames=args.frames,
-        # a light path alone keeps the scene's camera still (frames move the light only)
-        camera_path=args.camera_path or (None if args.light_path else "dolly"),
+        # a light path alone keeps the scene's camera still (frames move the light only); a
+        # camera file, or objects that move, have their own default path
+        camera_path=args.camera_path
+        or (None if args.light_path else (loaded.camera_path or loaded.default_camera_path)),
         cache=cache,
         quiet=args.quiet,
         flip_mode=args.flip_mode,
@@ -122,6 +152,14 @@ def cmd_score(args) -> int:
         baseline=baseline,
         baseline_source=str(args.baseline),
         layout=layout,
+        gate_frames=args.gate_frames,
+        motion=None
+        if args.candidate_motion is None
+        else {
+            "layer": args.candidate_motion,
+            "convention": args.motion_convention,
+            "disocclusion": args.candidate_disocclusion,
+        },
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)

@@ -43,6 +43,7 @@ from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
 from .coverage import centre_shapes, front_hits
+from .motion import motion_channels
 
 __all__ = [
     "ALL_CHANNELS",
@@ -79,9 +80,12 @@ CHANNEL_GROUPS = {
     "normal": ["normal.X", "normal.Y", "normal.Z"],
     "albedo": ["albedo.R", "albedo.G", "albedo.B"],
     "tangent32": ["visibility_tangent32"],
+    # temporal truth (oracle.reference.motion): pixels to the previous frame, and 1 where the
+    # point was hidden from the previous frame's camera or outside its image
+    "motion": ["motion.X", "motion.Y", "disocclusion"],
 }
 #: Groups rendered only when asked for (``--channels ...,tangent32``), never by default.
-OPTIONAL_GROUPS = ("tangent32",)
+OPTIONAL_GROUPS = ("tangent32", "motion")
 ALL_CHANNELS = tuple(g for g in CHANNEL_GROUPS if g not in OPTIONAL_GROUPS)
 _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
 #: Samples per Dr.Jit launch: bounds a launch's working set whatever the resolution and spp
@@ -776,6 +780,8 @@ def render_reference(
         centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}
         if "tangent32" in groups:
             centre["visibility_tangent32"] = _tangent32_channel(loaded)
+        if "motion" in groups:
+            centre.update(motion_channels(loaded))
     finally:
         if progress is not None:
             progress.close()

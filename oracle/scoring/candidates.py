@@ -30,7 +30,13 @@ import png
 from ..errors import InputError
 from ..reference.exr import ExrError, read_exr
 
-__all__ = ["CandidateError", "check_candidate_values", "load_candidate", "png_is_grey"]
+__all__ = [
+    "CandidateError",
+    "check_candidate_values",
+    "load_candidate",
+    "load_motion",
+    "png_is_grey",
+]
 
 _RGB = ("R", "G", "B")
 _ALPHA = ("A",)
@@ -176,6 +182,63 @@ def _load_exr(path: Path, channel: str) -> np.ndarray:
             f"candidate {path.name} has no channel {channel!r}; available: {available}"
         )
     return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def load_motion(
+    path: str | os.PathLike,
+    *,
+    layer: str,
+    convention: str,
+    expected_shape: tuple[int, int],
+    disocclusion: str | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """An engine's motion vectors from EXR layer ``layer`` (channels ``layer.X/Y``,
+    ``layer.R/G`` or ``layer.U/V``), converted from ``convention``
+    (:data:`metrics.motion.CONVENTIONS`) to the oracle's pixels, ``(H, W, 2)`` float64; and
+    with ``disocclusion``, that channel as the engine's disocclusion mask (``> 0.5``).
+
+    Raises
+    ------
+    CandidateError
+        Not an EXR, no such layer or channel (listing the channels), wrong size, NaN or inf.
+    """
+    from ... import metrics as M
+
+    path = Path(path)
+    if path.suffix.lower() != ".exr":
+        raise CandidateError(f"motion vectors are read from an EXR layer, got {path.name}")
+    try:
+        raw = read_exr(path)
+    except ExrError as exc:
+        raise CandidateError(f"candidate {path.name} is not a readable EXR ({exc})") from exc
+    pair = next(
+        (
+            (raw[f"{layer}.{a}"], raw[f"{layer}.{b}"])
+            for a, b in ("XY", "RG", "UV")
+            if f"{layer}.{a}" in raw and f"{layer}.{b}" in raw
+        ),
+        None,
+    )
+    if pair is None:
+        raise CandidateError(
+            f"candidate {path.name} has no motion layer {layer!r} ({layer}.X/Y, .R/G or .U/V); "
+            f"available: {', '.join(sorted(raw))}"
+        )
+    mv = np.stack([np.asarray(c, dtype=np.float64) for c in pair], -1)
+    _check_shape(path, mv[..., 0], expected_shape)
+    if not np.all(np.isfinite(mv)):
+        raise CandidateError(f"candidate {path.name}: motion layer {layer!r} holds NaN or inf")
+    h, w = expected_shape
+    mv = M.to_oracle_motion(mv, convention=convention, width=w, height=h)
+    mask = None
+    if disocclusion is not None:
+        if disocclusion not in raw:
+            raise CandidateError(
+                f"candidate {path.name} has no channel {disocclusion!r}; "
+                f"available: {', '.join(sorted(raw))}"
+            )
+        mask = np.asarray(raw[disocclusion]) > 0.5
+    return mv, mask
 
 
 def _group(chans: dict, prefix: str) -> np.ndarray | None:

@@ -37,6 +37,9 @@ MAP_STYLES = {
     "flip": ("magma", (0.0, 1.0)),
     "delta_e2000": ("magma", (0.0, 20.0)),
     "neg_log10_p": ("magma", (0.0, 10.0)),
+    # temporal AA (oracle.scoring.temporal): added change per frame, motion-vector error in px
+    "flicker": ("magma", (0.0, 0.1)),
+    "motion_epe": ("magma", (0.0, 2.0)),
 }
 
 
@@ -219,10 +222,7 @@ def _front(technique: str | None, scene: str) -> str | None:
     scene (the shadow maps together, the anti-aliasing techniques together, others alone)."""
     if technique is None:
         return None
-    group = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
-    if raster_models.family_of(technique) == "aa":
-        group = "anti-aliasing"
-    return f"{group} on {scene}"
+    return f"{raster_models.front_group(technique)} on {scene}"
 
 
 #: Resolutions at which the report restates an anti-aliasing model's framebuffer memory: the
@@ -254,7 +254,7 @@ def report_cost(cost: dict | None, technique: str | None) -> dict | None:
             for sub, v in value.items():
                 if isinstance(v, int | float | np.integer | np.floating) and np.isfinite(v):
                     out[f"{sub} {stem}"] = v
-    if technique is not None and raster_models.family_of(technique) == "aa":
+    if technique is not None and raster_models.family(technique).per_pixel_memory:
         total, w, h = cost.get("framebuffer_bytes"), cost.get("width"), cost.get("height")
         if all(isinstance(v, int | np.integer) and v > 0 for v in (total, w, h)):
             per_pixel, rest = divmod(int(total), int(w) * int(h))

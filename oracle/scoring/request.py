@@ -12,6 +12,7 @@ import re
 from pathlib import Path
 
 from ... import metrics as M
+from .candidates import load_motion
 from .gates import (
     Gate,
     Verdict,
@@ -38,12 +39,20 @@ def frame_file(pattern: str, k: int) -> str:
 
 
 def file_candidate(
-    pattern: str, *, channel: str | None, frames: int | None, layout: CandidateLayout | None = None
+    pattern: str,
+    *,
+    channel: str | None,
+    frames: int | None,
+    layout: CandidateLayout | None = None,
+    motion: dict | None = None,
 ):
     """Candidate callable ``(frame_scene, k) -> (image, info)`` reading (and validating) an
     engine's image of each frame: ``pattern`` formatted with ``frame=k`` when it has a
     ``{frame}`` field (required for ``frames`` > 1). Every frame is read as ``layout`` says
     (None: :func:`oracle.scoring.layout.candidate_layout` of frame 0's file and ``channel``).
+    ``motion`` (``layer``, ``convention``, optional ``disocclusion``): also read each frame's
+    motion vectors (:func:`oracle.scoring.candidates.load_motion`) into the info's
+    ``motion`` / ``disocclusion``, which ``score`` turns into the end-point error metrics.
     """
     has_frame = bool(FRAME_PATTERN.search(pattern))
     if frames and frames > 1 and not has_frame:
@@ -55,8 +64,12 @@ def file_candidate(
 
     def run(frame_scene, k):
         path = frame_file(pattern, k)
-        image = read_candidate(path, layout, expected_shape=(frame_scene.height, frame_scene.width))
-        return image, {"frame": k, "file": str(path)}
+        shape = (frame_scene.height, frame_scene.width)
+        image = read_candidate(path, layout, expected_shape=shape)
+        info = {"frame": k, "file": str(path)}
+        if motion is not None:
+            info["motion"], info["disocclusion"] = load_motion(path, expected_shape=shape, **motion)
+        return image, info
 
     return run
 
@@ -108,6 +121,8 @@ def score_to_folder(
     baseline: dict | None = None,
     baseline_source: str = "baseline",
     layout: CandidateLayout | None = None,
+    gate_frames: int | None = None,
+    motion: dict | None = None,
 ) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
@@ -133,6 +148,8 @@ def score_to_folder(
     gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``).
     baseline, baseline_source : a previous run's ``metrics.json`` record (from
         :func:`oracle.scoring.gates.load_baseline`) and its path, for messages.
+    gate_frames : average the per-frame metrics (that the gates judge) over the last N frames.
+    motion : an engine's motion-vector layer (:func:`file_candidate`).
     """
     if (technique is None) == (candidate is None):
         raise ScoreError("score: give a technique or a candidate file (one of them)")
@@ -143,7 +160,9 @@ def score_to_folder(
     check = dict(gates=gates, baseline=baseline, loaded=loaded, frames=frames or 1)
     check.update(source=baseline_source)
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
-    opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
+    opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd, gate_frames=gate_frames)
+    if motion is not None and technique is not None:
+        raise ScoreError("--candidate-motion applies to --candidate, not to --technique")
     cost = None
     if technique is not None:
         params = dict(params or {})
@@ -160,7 +179,9 @@ def score_to_folder(
         if layout is None:
             layout = candidate_layout(frame_file(candidate, 0), channel=channel)
         _check_before_rendering(kinds=(layout.kind,), **check)
-        read = file_candidate(candidate, channel=channel, frames=frames, layout=layout)
+        read = file_candidate(
+            candidate, channel=channel, frames=frames, layout=layout, motion=motion
+        )
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
         result.record["candidate_layout"] = {
