@@ -113,6 +113,14 @@ def build_report(
             "n_unchecked": statuses.count("unchecked"),
             "thresholds": _common(records, "thresholds", metric_names),
             "noise_floor": _common(records, "noise_floor", metric_names),
+            # every failed gate and regression of every case: the page's first screen
+            "failed_checks": [
+                {"case_id": case["id"], "case": case["name"], "scene": case["scene"], **c}
+                for case in records
+                for c in case.get("checks", [])
+                if not c["passed"]
+            ],
+            "n_checks": sum(len(case.get("checks", [])) for case in records),
         },
         "tradeoff": tradeoff_section(records, cost_key=tradeoff_cost, metric=tradeoff_metric),
         "colorbars": {style: _images.colorbar_uri(style) for style in styles},

@@ -98,6 +98,29 @@ class Check:
     passed: bool
     line: str
     kind: str = "gate"
+    #: this run's value, the gate's limit (gates), this run's noise floor, and for a baseline
+    #: comparison the previous run's value and noise floor
+    value: float | None = None
+    limit: float | None = None
+    floor: float | None = None
+    previous: float | None = None
+    previous_floor: float | None = None
+
+    def as_record(self) -> dict:
+        """The JSON record of the check: what ``metrics.json``, the report, the JUnit
+        properties and the Markdown summary show (one naming everywhere)."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "metric": self.metric,
+            "passed": self.passed,
+            "line": self.line,
+            "value": self.value,
+            "limit": self.limit,
+            "noise_floor": self.floor,
+            "previous": self.previous,
+            "previous_noise_floor": self.previous_floor,
+        }
 
 
 class Verdict(list):
@@ -130,6 +153,21 @@ class Verdict(list):
     def exit_code(self) -> int:
         """0 when every check passed, 1 otherwise."""
         return 1 if self.failed else 0
+
+    @property
+    def failed_checks(self) -> list[Check]:
+        """The failed gates and regressions, in check order."""
+        return [c for c in self.checks if not c.passed]
+
+    def as_record(self) -> dict:
+        """``{"exit_code", "failed": [names], "checks": [records]}``: the verdict as
+        ``metrics.json`` and the report hold it."""
+        return {
+            "exit_code": self.exit_code,
+            "failed": self.failed,
+            "checks": [c.as_record() for c in self.checks],
+            "notes": list(self.notes),
+        }
 
     @property
     def lines(self) -> list[str]:
@@ -239,7 +277,9 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
             f"{'PASS' if passed else 'FAIL'} {g.metric} {_num(value, g.limit)} {shown} "
             f"{_limit(g.limit)} (noise floor {_num(floor)})"
         )
-        checks.append(Check(g.name, g.metric, passed, line))
+        checks.append(
+            Check(g.name, g.metric, passed, line, value=value, limit=g.limit, floor=floor)
+        )
     return checks
 
 
@@ -371,7 +411,8 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
             f"{'REGRESSION' if bad else 'PASS baseline'} {key} {_num(b, a)} "
             f"(noise floor {_num(fb)}) vs baseline {_num(a, b)} (noise floor {_num(fa)})"
         )
-        verdict.add([Check(f"baseline {key}", key, not bad, line, kind="baseline")])
+        check = Check(f"baseline {key}", key, not bad, line, "baseline", b, None, fb, a, fa)
+        verdict.add([check])
     if skipped:
         why = "a value or noise floor missing or not finite"
         verdict.add(notes=[f"baseline: not compared ({why}): {', '.join(skipped)}"])

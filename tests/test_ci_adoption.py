@@ -1,0 +1,90 @@
+"""An engine team gates its builds on the oracle (issue 25): one test per friction.
+
+1. one verdict: exit code, ``metrics.json``'s ``failed``, JUnit and the report name the same
+   failed gates and regressions;
+2. output paths checked before any work;
+3. values just outside their range clamped with one warning, beyond it refused with the
+   values;
+4. baselines that survive a re-render, ``--platform`` and ``baseline accept``.
+"""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import pytest
+from raster_oracle.oracle.cli import main
+from raster_oracle.oracle.reference.exr import read_exr, write_exr
+
+SIZE = ["--width", "48", "--height", "27"]
+SPP = ["--spp", "16"]
+
+
+@pytest.fixture(scope="module")
+def cands(tmp_path_factory):
+    """The plate at 48x27: its 16-spp seed-0 reference as an exact visibility candidate, a
+    4-spp render (noisy: it regresses against the exact one) and the exact colour."""
+    root = tmp_path_factory.mktemp("ci")
+    for name, spp, seed in (("exact", 16, 0), ("noisy", 4, 7)):
+        args = ["reference", "plate", *SIZE, "--spp", str(spp), "--seed", str(seed)]
+        assert main([*args, "--out", str(root / name), "--quiet"]) == 0
+    files = {"root": root}
+    for name in ("exact", "noisy"):
+        ref = read_exr(root / name / "reference.exr")
+        files[f"{name}_vis"] = root / f"{name}_vis.exr"
+        write_exr(files[f"{name}_vis"], {"visibility": ref["visibility"]})
+        files[f"{name}_rgb"] = root / f"{name}_rgb.exr"
+        write_exr(files[f"{name}_rgb"], {c: ref[f"color.{c}"] for c in "RGB"})
+    files["exact_ref"] = read_exr(root / "exact" / "reference.exr")
+    return files
+
+
+def _score(tmp_path, capsys, candidate, *extra, out="s"):
+    out_dir = tmp_path / out
+    argv = ["score", "plate", *SIZE, *SPP, "--candidate", str(candidate), "--quiet"]
+    rc = main([*argv, "--out", str(out_dir), *extra])
+    said = capsys.readouterr()
+    return rc, out_dir, said.out, said.err
+
+
+def _failed_junit(path) -> list[str]:
+    cases = ET.parse(path).getroot().iter("testcase")
+    return [c.get("name") for c in cases if c.find("failure") is not None]
+
+
+# 1 ------------------------------------------------------------------------------------------
+
+
+def test_one_verdict_for_gates_and_regressions(tmp_path, capsys, cands):
+    """A run that exits 1 on regressions alone used to show PASS and 0 fail in the report and
+    ``failed: []`` in ``metrics.json``: every output now names the same failed checks."""
+    vis = ["--channel", "visibility"]
+    rc, first, _, _ = _score(tmp_path, capsys, cands["exact_vis"], *vis, out="first")
+    assert rc == 0
+    junit = tmp_path / "j.xml"
+    extra = ["--baseline", str(first), "--junit", str(junit), "--fail-below", "ssim=0.1"]
+    rc, out, text, err = _score(tmp_path, capsys, cands["noisy_vis"], *vis, *extra, out="worse")
+    m = json.loads((out / "metrics.json").read_text())
+    assert rc == 1 and m["exit_code"] == 1
+    names = m["failed"]
+    assert names and all(n.startswith("baseline ") for n in names)  # regressions only
+    assert "baseline visibility_mae" in names
+    assert _failed_junit(junit) == names
+    assert f"failed: {', '.join(names)}" in err
+    # every failed check carries the metric, both values and both floors
+    for g in m["gates"]:
+        if not g["passed"]:
+            assert g["value"] is not None and g["previous"] is not None
+            assert g["noise_floor"] is not None and g["previous_noise_floor"] is not None
+            assert g["line"] in text
+    report = json.loads((out / "report.json").read_text())
+    assert report["summary"]["n_fail"] == 1 and report["summary"]["n_pass"] == 0
+    assert [c["name"] for c in report["summary"]["failed_checks"]] == names
+    assert report["cases"][0]["status"] == "fail"
+    page = (out / "report.html").read_text()
+    verdict = page[page.index('id="verdict"') : page.index('id="summary"')]
+    assert "FAIL" in verdict and all(n in verdict for n in names)
+    assert "regression" in verdict
+    # provenance is at the bottom, after every case
+    assert page.index('id="provenance"') > page.rindex('class="card case')
