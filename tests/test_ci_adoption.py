@@ -37,6 +37,9 @@ def cands(tmp_path_factory):
         files[f"{name}_rgb"] = root / f"{name}_rgb.exr"
         write_exr(files[f"{name}_rgb"], {c: ref[f"color.{c}"] for c in "RGB"})
     files["exact_ref"] = read_exr(root / "exact" / "reference.exr")
+    files["exports"] = root / "exports"
+    export = ["export", "plate", *SIZE, "--out", str(root / "exports" / "plate")]
+    assert main(export) == 0
     return files
 
 
@@ -88,3 +91,41 @@ def test_one_verdict_for_gates_and_regressions(tmp_path, capsys, cands):
     assert "regression" in verdict
     # provenance is at the bottom, after every case
     assert page.index('id="provenance"') > page.rindex('class="card case')
+
+
+# 2 ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("command", ["score", "score-folder"])
+def test_output_paths_checked_before_any_work(tmp_path, capsys, cands, command):
+    """``--junit`` (and ``--summary-md``) that cannot be written used to end in a traceback
+    with exit 1 after all the scoring: now exit 2, one line, nothing written."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    folder = tmp_path / "shots"
+    folder.mkdir()
+    write_exr(folder / "plate.exr", {"visibility": cands["exact_ref"]["visibility"]})
+    out = tmp_path / "out"
+    if command == "score":
+        head = ["score", "plate", *SIZE, "--candidate", str(cands["exact_vis"])]
+    else:
+        head = ["score-folder", str(folder), "--exports", str(cands["exports"])]
+    bad = [
+        ["--junit", str(blocker / "j.xml")],  # its folder is a file
+        ["--junit", str(folder)],  # a folder
+        ["--summary-md", str(blocker / "s.md")],
+        ["--junit", str(tmp_path / "x.xml"), "--summary-md", str(tmp_path / "x.xml")],
+        ["--junit", str(out / "metrics.json")],  # one of --out's own files
+    ]
+    for extra in bad:
+        capsys.readouterr()
+        rc = main([*head, *SPP, "--quiet", "--out", str(out), *extra])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2, extra
+        assert len(err) == 1 and "Traceback" not in err[0], err
+        assert not out.exists()
+    # a missing folder of the JUnit and summary files is created when they are written
+    junit, summary = tmp_path / "ci" / "deep" / "j.xml", tmp_path / "ci" / "s.md"
+    extra = ["--junit", str(junit), "--summary-md", str(summary)]
+    rc = main([*head, *SPP, "--quiet", "--out", str(out), *extra])
+    assert rc == 0 and junit.is_file() and summary.read_text().startswith("## raster-oracle: PASS")

@@ -9,10 +9,11 @@ gate or baseline that cannot be judged.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from . import args as A
 
-__all__ = ["add_gate_args", "check_junit", "print_verdict"]
+__all__ = ["add_gate_args", "check_junit", "check_output_file", "print_verdict", "write_outputs"]
 
 
 def add_gate_args(p, *, baseline_help: str) -> None:
@@ -42,15 +43,59 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         metavar="FILE",
         help="write the gates and baseline comparisons as JUnit XML (one test case each)",
     )
+    p.add_argument(
+        "--summary-md",
+        type=A.path,
+        default=None,
+        metavar="FILE",
+        help="write a Markdown summary (the verdict, failed checks first) for a pull-request "
+        "comment",
+    )
 
 
-def check_junit(path) -> None:
-    """A ``--junit`` file can be written: not a folder, in an existing folder."""
+def check_output_file(path, *, option: str, out=None) -> None:
+    """An output file (``--junit``, ``--summary-md``) can be written: not a folder, its folder
+    writable or creatable (created when the file is written), and not one of the files of
+    the ``--out`` folder ``out``. Checked before any work: a bad path is exit 2 and nothing
+    is written."""
     if path is None:
         return
     if path.is_dir():
-        raise A.CliError(f"--junit {path} is a folder; give the XML file to write")
-    A.check_dir(path.parent, label=f"--junit {path}: folder")
+        raise A.CliError(f"{option} {path} is a folder; give the file to write")
+    if path.exists() and not path.is_file():
+        raise A.CliError(f"{option} {path} exists and is not a file")
+    A.check_dir(path.parent if str(path.parent) else Path("."), label=f"{option} {path}: folder")
+    if out is not None:
+        from ..scoring.output import SCORE_FILES
+
+        A.check_distinct(
+            writes={option: path},
+            reads={f"--out's own file {f}:": Path(out) / f for f in SCORE_FILES},
+        )
+
+
+def check_junit(path, *, out=None, summary=None) -> None:
+    """``--junit`` and ``--summary-md`` can be written (:func:`check_output_file`) and are
+    two files."""
+    check_output_file(path, option="--junit", out=out)
+    check_output_file(summary, option="--summary-md", out=out)
+    if path is not None and summary is not None:
+        A.check_distinct(writes={"--summary-md": summary}, reads={"--junit": path})
+
+
+def write_outputs(args, verdicts, *, records=None, report=None) -> None:
+    """Write ``--junit`` and ``--summary-md`` of ``verdicts`` (their folders created)."""
+    from ..scoring.gates import write_junit
+    from ..scoring.summary import write_summary_md
+
+    if args.junit is not None:
+        args.junit.parent.mkdir(parents=True, exist_ok=True)
+        write_junit(args.junit, verdicts)
+        print(f"junit: {args.junit}")
+    if getattr(args, "summary_md", None) is not None:
+        args.summary_md.parent.mkdir(parents=True, exist_ok=True)
+        write_summary_md(args.summary_md, verdicts, records=records, report=report)
+        print(f"summary: {args.summary_md}")
 
 
 def print_verdict(verdict, *, baseline=None, prefix: str = "") -> None:

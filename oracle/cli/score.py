@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from . import args as A
 from . import score_folder
-from .gate_args import add_gate_args, check_junit, print_verdict
+from .gate_args import add_gate_args, check_junit, print_verdict, write_outputs
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -84,7 +85,7 @@ def _check_frame_pattern(pattern: str | None) -> None:
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
-    from ..scoring.gates import load_baseline, parse_gates, write_junit
+    from ..scoring.gates import load_baseline, parse_gates
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError
     from .score_inputs import candidate_inputs
@@ -93,7 +94,7 @@ def cmd_score(args) -> int:
     baseline = load_baseline(args.baseline) if args.baseline is not None else None
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
-    check_junit(args.junit)
+    check_junit(args.junit, out=args.out, summary=args.summary_md)
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -125,9 +126,8 @@ def cmd_score(args) -> int:
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
-    if args.junit is not None:
-        write_junit(args.junit, [verdict])
-        print(f"junit: {args.junit}")
+    record = json.loads((args.out / "metrics.json").read_text())
+    write_outputs(args, [verdict], records=[record], report=args.out / "report.html")
     return verdict.exit_code
 
 

@@ -14,7 +14,7 @@ import json
 from pathlib import Path
 
 from . import args as A
-from .gate_args import add_gate_args, check_junit, print_verdict
+from .gate_args import add_gate_args, check_junit, print_verdict, write_outputs
 
 __all__ = ["add_parser", "cmd_score_folder"]
 
@@ -76,7 +76,6 @@ def cmd_score_folder(args) -> int:
         check_baseline_scene,
         load_folder_baseline,
         parse_gates,
-        write_junit,
     )
     from ..scoring.request import score_to_folder
     from .score_inputs import resolve_layout
@@ -84,7 +83,7 @@ def cmd_score_folder(args) -> int:
     gates = parse_gates(args.fail_above, args.fail_below)
     baselines = load_folder_baseline(args.baseline) if args.baseline is not None else None
     A.check_out(args.out)
-    check_junit(args.junit)
+    check_junit(args.junit, out=args.out, summary=args.summary_md)
     entries = discover(args.root)
     names = {e.name for e in entries}
     if names & {"metrics.json", "report.html", "report.json"}:
@@ -142,7 +141,6 @@ def cmd_score_folder(args) -> int:
     for (entry, _, _), verdict in zip(plan, verdicts, strict=True):
         compared = args.baseline if entry.name in (baselines or {}) else None
         print_verdict(verdict, baseline=compared, prefix=f"{entry.name}: ")
-    if args.junit is not None:
-        write_junit(args.junit, verdicts)
-        print(f"junit: {args.junit}")
+    records = [combined["scenes"][e.name] for e, _, _ in plan]
+    write_outputs(args, verdicts, records=records, report=args.out / "report.html")
     return 1 if failed else 0

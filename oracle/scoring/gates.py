@@ -136,6 +136,9 @@ class Verdict(list):
         self.scene = scene
         self.checks: list[Check] = []
         self.notes: list[str] = []
+        #: ``(name, message)`` of each part of the scene that could not be scored (a
+        #: manifest's layer missing from the file): a JUnit ``<error>`` case each
+        self.errors: list[tuple[str, str]] = []
         self.add(checks, notes)
 
     def add(self, checks=(), notes=()) -> Verdict:
@@ -149,9 +152,16 @@ class Verdict(list):
     def failed(self) -> list[str]:
         return list(self)
 
+    def add_error(self, name: str, message: str) -> Verdict:
+        """Record a part of the scene that could not be scored (exit code 2)."""
+        self.errors.append((name, message))
+        return self
+
     @property
     def exit_code(self) -> int:
-        """0 when every check passed, 1 otherwise."""
+        """0 when every check passed, 1 when one failed, 2 when a part could not be scored."""
+        if self.errors:
+            return 2
         return 1 if self.failed else 0
 
     @property
@@ -165,6 +175,7 @@ class Verdict(list):
         return {
             "exit_code": self.exit_code,
             "failed": self.failed,
+            "errors": [{"name": n, "message": m} for n, m in self.errors],
             "checks": [c.as_record() for c in self.checks],
             "notes": list(self.notes),
         }
@@ -455,20 +466,52 @@ def judge(record: dict, *, fail_above=None, fail_below=None, baseline=None) -> V
     return verdict
 
 
+def _properties(case, check: Check) -> None:
+    """The check's numbers as JUnit ``<property>`` entries (passing cases carry them too, so
+    a CI dashboard can chart a metric's history)."""
+    values = {
+        "metric": check.metric,
+        "kind": "regression" if check.kind == "baseline" else check.kind,
+        "value": check.value,
+        "limit": check.limit,
+        "noise_floor": check.floor,
+        "previous": check.previous,
+        "previous_noise_floor": check.previous_floor,
+    }
+    props = ET.SubElement(case, "properties")
+    for key, value in values.items():
+        if value is not None:
+            text = value if isinstance(value, str) else repr(float(value))
+            ET.SubElement(props, "property", {"name": key, "value": text})
+
+
 def junit_xml(verdicts) -> bytes:
     """JUnit XML of the checks of ``verdicts``: one ``<testsuite>`` with one ``<testcase>`` per
-    scene x gate (classname = the scene), a ``<failure>`` holding the line of a failed one."""
+    scene x check (classname = the scene, name = the check's name, its numbers as
+    properties), a ``<failure>`` holding the line of a failed one, and an ``<error>`` case
+    per scene that could not be scored (``Verdict.errors``)."""
     checks = [(v.scene, c) for v in verdicts for c in v.checks]
+    errors = [(v.scene, e) for v in verdicts for e in getattr(v, "errors", [])]
     n_fail = sum(not c.passed for _, c in checks)
-    counts = {"tests": str(len(checks)), "failures": str(n_fail), "errors": "0", "skipped": "0"}
+    counts = {
+        "tests": str(len(checks) + len(errors)),
+        "failures": str(n_fail),
+        "errors": str(len(errors)),
+        "skipped": "0",
+    }
     root = ET.Element("testsuites", {"name": "raster-oracle", **counts})
     suite = ET.SubElement(root, "testsuite", {"name": "raster-oracle score", **counts})
     for scene, c in checks:
         case = ET.SubElement(suite, "testcase", {"classname": scene, "name": c.name})
+        _properties(case, c)
         if not c.passed:
             kind = "regression" if c.kind == "baseline" else "threshold"
             failure = ET.SubElement(case, "failure", {"message": c.line, "type": kind})
             failure.text = c.line
+    for scene, (name, message) in errors:
+        case = ET.SubElement(suite, "testcase", {"classname": scene, "name": name})
+        error = ET.SubElement(case, "error", {"message": message, "type": "input"})
+        error.text = message
     ET.indent(root)
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
 
