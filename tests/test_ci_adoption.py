@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import xml.etree.ElementTree as ET
 
+import numpy as np
 import pytest
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.reference.exr import read_exr, write_exr
@@ -129,3 +130,57 @@ def test_output_paths_checked_before_any_work(tmp_path, capsys, cands, command):
     extra = ["--junit", str(junit), "--summary-md", str(summary)]
     rc = main([*head, *SPP, "--quiet", "--out", str(out), *extra])
     assert rc == 0 and junit.is_file() and summary.read_text().startswith("## raster-oracle: PASS")
+
+
+# 3 ------------------------------------------------------------------------------------------
+
+
+def _warnings(err: str) -> list[str]:
+    return [t for t in err.splitlines() if t.startswith("raster-oracle: warning:")]
+
+
+@pytest.mark.parametrize(("value", "shown"), [(1.0000002, "max 1.0000002"), (-1e-7, "min -1e-07")])
+def test_mask_just_outside_its_range_is_clamped_with_one_warning(
+    tmp_path, capsys, cands, value, shown
+):
+    """Half-float conversion and resolves give 1.0000002 or -1e-7: clamped, one warning
+    with the count and the value to float32's own digits; the score equals the clean one."""
+    vis = cands["exact_ref"]["visibility"].copy()
+    lit = np.flatnonzero(vis.ravel() == (1.0 if value > 1 else 0.0))[:3]
+    vis.ravel()[lit] = value
+    path = tmp_path / "mask.exr"
+    write_exr(path, {"visibility": vis})
+    rc, out, _, err = _score(tmp_path, capsys, path, "--channel", "visibility")
+    assert rc == 0, err
+    (line,) = _warnings(err)
+    assert "clamped 3 visibility values" in line and shown in line
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["visibility_mae"] == 0.0  # the clamped mask is the reference itself
+
+
+def test_beyond_the_tolerance_is_refused_with_the_values(tmp_path, capsys, cands):
+    vis = cands["exact_ref"]["visibility"].copy()
+    vis[0, 0], vis[0, 1] = 1.0002, -0.00011
+    path = tmp_path / "mask.exr"
+    write_exr(path, {"visibility": vis})
+    rc, out, _, err = _score(tmp_path, capsys, path, "--channel", "visibility")
+    (line,) = err.strip().splitlines()
+    assert rc == 2 and not out.exists()
+    assert "2 values outside" in line and "min -0.00011" in line and "max 1.0002" in line
+
+
+def test_slightly_negative_radiance_is_clamped_relative_to_the_maximum(tmp_path, capsys, cands):
+    ref = cands["exact_ref"]
+    rgb = {c: ref[f"color.{c}"].copy() for c in "RGB"}
+    peak = max(float(v.max()) for v in rgb.values())
+    rgb["R"][5, 5] = -1e-6  # a filter's ringing: 1e-6 is far below 1e-4 x the maximum
+    path = tmp_path / "beauty.exr"
+    write_exr(path, rgb)
+    rc, _, _, err = _score(tmp_path, capsys, path, "--channel", "color")
+    assert rc == 0 and peak > 0.01
+    (line,) = _warnings(err)
+    assert "clamped 1 color values" in line and "min -1e-06" in line
+    rgb["R"][5, 5] = -2e-4 * peak  # beyond the tolerance: refused, the value named
+    write_exr(path, rgb)
+    rc, _, _, err = _score(tmp_path, capsys, path, "--channel", "color")
+    assert rc == 2 and f"min {str(np.float32(-2e-4 * peak))}" in err

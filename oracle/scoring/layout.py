@@ -270,7 +270,7 @@ def read_candidate(
             )
         planes = [np.asarray(chans[n], dtype=np.float32) for n in layout.names]
         image = _shape_planes(path, planes, layout)
-        check_candidate_values(path, image, expected_shape=expected_shape, kind=layout.kind)
+        image = check_candidate_values(path, image, expected_shape=expected_shape, kind=layout.kind)
     return np.ascontiguousarray(image, dtype=np.float32)
 
 
