@@ -44,6 +44,14 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         help="write the gates and baseline comparisons as JUnit XML (one test case each)",
     )
     p.add_argument(
+        "--platform",
+        default=None,
+        metavar="NAME",
+        help="the platform this run stands for (GPU, driver, OS: e.g. linux-llvmpipe), "
+        "recorded; --baseline BASELINE_DIR then reads BASELINE_DIR/NAME (see `baseline "
+        "accept`), and a baseline of another platform is refused",
+    )
+    p.add_argument(
         "--summary-md",
         type=A.path,
         default=None,

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from . import args as A
-from . import score_folder
+from . import baseline_cmd, score_folder
 from .gate_args import add_gate_args, check_junit, print_verdict, write_outputs
 
 __all__ = ["COMMANDS", "add_parsers"]
@@ -55,6 +55,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
 
     score_folder.add_parser(sub)
+    baseline_cmd.add_parser(sub)
 
     p = sub.add_parser("report", help="combine score folders (or a sweep) into one HTML report")
     p.add_argument("folders", nargs="*", type=Path, metavar="DIR")
@@ -85,13 +86,17 @@ def _check_frame_pattern(pattern: str | None) -> None:
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
+    from ..scoring.baseline import check_platform, resolve_baseline
     from ..scoring.gates import load_baseline, parse_gates
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError
     from .score_inputs import candidate_inputs
 
     gates = parse_gates(args.fail_above, args.fail_below)
-    baseline = load_baseline(args.baseline) if args.baseline is not None else None
+    platform = check_platform(args.platform)
+    baseline = None
+    if args.baseline is not None:
+        baseline = load_baseline(resolve_baseline(args.baseline, platform=platform))
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
     check_junit(args.junit, out=args.out, summary=args.summary_md)
@@ -123,6 +128,7 @@ def cmd_score(args) -> int:
         baseline=baseline,
         baseline_source=str(args.baseline),
         layout=layout,
+        platform=platform,
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
@@ -176,5 +182,6 @@ def cmd_report(args) -> int:
 COMMANDS = {
     "score": cmd_score,
     "score-folder": score_folder.cmd_score_folder,
+    "baseline": baseline_cmd.cmd_baseline,
     "report": cmd_report,
 }

@@ -70,6 +70,7 @@ def _scene_of(entry, exports: Path | None):
 def cmd_score_folder(args) -> int:
     from ... import metrics as M
     from ...scenes.files import atomic_write_json
+    from ..scoring.baseline import check_platform, resolve_baseline
     from ..scoring.combine import combine_reports
     from ..scoring.folder import discover
     from ..scoring.gates import (
@@ -81,7 +82,10 @@ def cmd_score_folder(args) -> int:
     from .score_inputs import resolve_layout
 
     gates = parse_gates(args.fail_above, args.fail_below)
-    baselines = load_folder_baseline(args.baseline) if args.baseline is not None else None
+    platform = check_platform(args.platform)
+    baselines = None
+    if args.baseline is not None:
+        baselines = load_folder_baseline(resolve_baseline(args.baseline, platform=platform))
     A.check_out(args.out)
     check_junit(args.junit, out=args.out, summary=args.summary_md)
     entries = discover(args.root)
@@ -99,6 +103,7 @@ def cmd_score_folder(args) -> int:
                 frames=entry.frames or 1,
                 kinds=(layout.kind,),
                 source=f"{args.baseline} scene {entry.name}",
+                platform=platform,
             )
         plan.append((entry, loaded, layout))
     cache = A.reference_cache(args)
@@ -124,6 +129,7 @@ def cmd_score_folder(args) -> int:
             baseline=baseline,
             baseline_source=f"{args.baseline} scene {entry.name}",
             layout=layout,
+            platform=platform,
         )
         if baselines is not None and baseline is None:
             verdict.add(notes=[f"baseline: no scene {entry.name} in {args.baseline}"])
@@ -134,6 +140,8 @@ def cmd_score_folder(args) -> int:
         if verdict:
             failed[entry.name] = list(verdict)
     combined["failed"] = failed
+    combined["platform"] = platform
+    combined["exit_code"] = 1 if failed else 0
     atomic_write_json(args.out / "metrics.json", combined)
     folders = [args.out / e.name for e, _, _ in plan]
     combine_reports(folders, args.out / "report.html", title=f"{args.root.name}: engine images")

@@ -155,8 +155,14 @@ def _check_shape(path: Path, image: np.ndarray, expected_shape) -> None:
 
 def _exact(value) -> str:
     """A float32 value with the digits that tell it from its neighbours (``1.0000001``,
-    ``-1e-07``): a rounded ``1`` would hide why it is out of range."""
-    return str(np.float32(value))
+    ``-1e-07``): a rounded ``1`` would hide why it is out of range. The shortest text that
+    reads back as the same float32 (9 significant digits always do)."""
+    exact = np.float32(value)
+    for digits in range(1, 10):
+        text = f"{float(exact):.{digits}g}"
+        if np.float32(float(text)) == exact:
+            return text
+    return repr(float(exact))
 
 
 def _check_values(path: Path, image: np.ndarray, channel: str) -> np.ndarray:
@@ -191,7 +197,8 @@ def _check_values(path: Path, image: np.ndarray, channel: str) -> np.ndarray:
     )
     if lo < low - eps_low or hi > high + eps_high:
         raise CandidateError(
-            f"candidate {path.name}: {what}, got {n_out} values outside ({extremes}); "
+            f"candidate {path.name}: {what}, got {n_out} "
+            f"{'values outside' if high == 1.0 else 'negative values'} ({extremes}); "
             f"beyond the {tolerance} that is clamped"
         )
     warnings.warn(

@@ -367,6 +367,7 @@ def _identity(record: dict) -> dict:
         "light": scene.get("light_index"),
         "candidate kind": " and ".join(scored_kinds(record)),
         "frames": len(record.get("frames") or []) or 1,
+        "platform": record.get("platform") or "default",
     }
 
 
@@ -376,12 +377,18 @@ def _check_same_run(mine: dict, theirs: dict, source: str) -> None:
     if diffs:
         raise GateError(
             f"--baseline {source} is another run: {'; '.join(diffs)} (baseline vs this run); "
-            "compare runs of one scene, size, light, candidate kind and frame count"
+            "compare runs of one scene, size, light, candidate kind, frame count and platform"
         )
 
 
 def check_baseline_scene(
-    baseline: dict, loaded, *, frames: int, kinds=None, source: str = "baseline"
+    baseline: dict,
+    loaded,
+    *,
+    frames: int,
+    kinds=None,
+    source: str = "baseline",
+    platform: str | None = None,
 ) -> None:
     """Before rendering: :class:`GateError` when ``baseline`` scored another scene, size, light
     or frame count than ``loaded`` with ``frames`` frames, or (``kinds`` given: the candidate
@@ -392,6 +399,7 @@ def check_baseline_scene(
         "resolution": f"{loaded.width}x{loaded.height}",
         "light": loaded.light_index,
         "frames": frames,
+        "platform": platform or "default",
     }
     if kinds is not None:
         mine["candidate kind"] = " and ".join(kinds)

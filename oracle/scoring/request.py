@@ -79,12 +79,14 @@ def _check_candidates(fn, loaded, frames, camera_path) -> None:
         fn(scene_k, k)
 
 
-def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source) -> None:
+def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source, platform) -> None:
     """Gates that do not apply to ``kinds`` / ``frames`` and a baseline of another scene,
     size, light, frame count or kind fail here, before any reference is rendered."""
     check_applicable(gates, kinds=kinds, frames=frames)
     if baseline is not None:
-        check_baseline_scene(baseline, loaded, frames=frames, kinds=kinds, source=source)
+        check_baseline_scene(
+            baseline, loaded, frames=frames, kinds=kinds, source=source, platform=platform
+        )
 
 
 def score_to_folder(
@@ -108,6 +110,7 @@ def score_to_folder(
     baseline: dict | None = None,
     baseline_source: str = "baseline",
     layout: CandidateLayout | None = None,
+    platform: str | None = None,
 ) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
@@ -133,6 +136,8 @@ def score_to_folder(
     gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``).
     baseline, baseline_source : a previous run's ``metrics.json`` record (from
         :func:`oracle.scoring.gates.load_baseline`) and its path, for messages.
+    platform : the platform the run stands for (``--platform``: GPU, driver, OS), recorded;
+        a baseline of another platform is a :class:`oracle.scoring.gates.GateError`.
     """
     if (technique is None) == (candidate is None):
         raise ScoreError("score: give a technique or a candidate file (one of them)")
@@ -141,7 +146,7 @@ def score_to_folder(
     # gates and the baseline are checked before rendering anything, against the kinds that
     # will be scored, and again on the record (evaluate_gates, compare_baseline)
     check = dict(gates=gates, baseline=baseline, loaded=loaded, frames=frames or 1)
-    check.update(source=baseline_source)
+    check.update(source=baseline_source, platform=platform)
     opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
     opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
     cost = None
@@ -169,6 +174,8 @@ def score_to_folder(
             "source": layout.source,
         }
         name = candidate_name(candidate, frames=frames, camera_path=camera_path)
+    # the machine and driver the run stands for: baselines are kept per platform
+    result.record["platform"] = platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
     if baseline is not None:
         against = compare_baseline(result.record, baseline, source=baseline_source)
