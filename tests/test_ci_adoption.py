@@ -257,3 +257,86 @@ def test_unchanged_candidate_against_a_rerendered_reference_is_no_regression(
     assert rc == 2 and "platform linux-llvm vs win-d3d12" in err
     # an approval needs a note
     assert main(["baseline", "accept", str(second), "--into", str(base), "--note", " "]) == 2
+
+
+# 5 and 6 ------------------------------------------------------------------------------------
+
+
+def test_mask_off_receivers_only_scores_like_the_exact_one(tmp_path, capsys):
+    """Engines write 1 (lit) outside a spot light's cone, where the oracle's visibility is 0:
+    a mask exact on the receivers and flipped everywhere else scores exactly as the exact
+    mask (FLIP, SSIM, PSNR and the Z-test used to see those pixels); they are counted."""
+    from raster_oracle.oracle.scoring.score import reference_receivers
+    from raster_oracle.scenes.inputs import load_input
+
+    args = ["reference", "spot", *SIZE, *SPP, "--quiet", "--out", str(tmp_path / "ref")]
+    assert main(args) == 0
+    ref = read_exr(tmp_path / "ref" / "reference.exr")
+    rec = reference_receivers(ref, load_input("spot", width=48, height=27).light)
+    vis = ref["visibility"]
+    n = int((~rec).sum())
+    assert n > 100  # outside the cone
+    exact, engine = tmp_path / "exact.exr", tmp_path / "engine.exr"
+    write_exr(exact, {"visibility": vis})
+    write_exr(engine, {"visibility": np.where(rec, vis, 1.0 - vis).astype(np.float32)})
+    got = {}
+    for path in (exact, engine):
+        out = tmp_path / path.stem
+        argv = ["score", "spot", *SIZE, *SPP, "--candidate", str(path), "--quiet"]
+        assert main([*argv, "--channel", "visibility", "--out", str(out)]) == 0
+        got[path.stem] = json.loads((out / "metrics.json").read_text())
+    text = capsys.readouterr().out
+    for key in ("visibility_mae", "flip_mean", "ssim", "psnr_db", "significant_fraction"):
+        assert got["engine"][key] == got["exact"][key], key
+    differ = int(((1.0 - vis != vis) & ~rec).sum())  # a 0.5 pixel flips to itself
+    assert got["engine"]["outside_receivers"] == {"pixels": n, "differing": differ}
+    assert differ > 100 and f"{differ} of the {n} pixels off the oracle's receivers" in text
+    assert got["exact"]["outside_receivers"]["differing"] == 0
+
+
+def test_visibility_convention_is_stated(tmp_path, capsys, cands):
+    vis = cands["exact_ref"]["visibility"]
+    path = tmp_path / "shadow_factor.exr"
+    write_exr(path, {"visibility": (1.0 - vis).astype(np.float32)})
+    args = ["--channel", "visibility", "--visibility", "1-is-shadowed"]
+    rc, out, _, _ = _score(tmp_path, capsys, path, *args)
+    m = json.loads((out / "metrics.json").read_text())
+    assert rc == 0 and m["visibility_mae"] == 0.0
+    assert m["candidate_layout"]["visibility"] == "1-is-shadowed"
+    rc, _, _, _ = _score(tmp_path, capsys, path, "--channel", "visibility", out="as-lit")
+    assert rc == 0
+    rc, _, _, err = _score(
+        tmp_path,
+        capsys,
+        cands["exact_rgb"],
+        "--channel",
+        "color",
+        "--visibility",
+        "1-is-shadowed",
+        out="colour",
+    )
+    assert rc == 2 and "applies to shadow masks" in err
+
+
+def test_exports_record_their_path_and_frames_need_one(tmp_path, capsys, cands):
+    """``--frames`` without a camera path silently scored ``dolly``: now exit 2, unless the
+    export records the path it was made for (it does, with every frame's camera)."""
+    export = tmp_path / "pan"
+    args = ["export", "plate", *SIZE, "--camera-path", "subpixel-pan", "--frames", "2"]
+    assert main([*args, "--out", str(export)]) == 0
+    rec = json.loads((export / "export.json").read_text())
+    assert rec["camera_path"] == "subpixel-pan" and rec["frame"] == 0 and rec["n_frames"] == 2
+    assert (rec["width"], rec["height"]) == (48, 27)
+    cams = [json.loads((export / "cameras" / f"frame_{k:03d}.json").read_text()) for k in (0, 1)]
+    assert cams[0] == json.loads((export / "camera.json").read_text()) and cams[0] != cams[1]
+    for k in (0, 1):
+        write_exr(tmp_path / f"f_{k}.exr", {"visibility": cands["exact_ref"]["visibility"]})
+    pattern = str(tmp_path / "f_{frame}.exr")
+    base = ["--candidate", pattern, "--channel", "visibility", "--frames", "2", *SPP, "--quiet"]
+    capsys.readouterr()
+    rc = main(["score", "plate", *SIZE, *base, "--out", str(tmp_path / "no-path")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "--camera-path" in err and not (tmp_path / "no-path").exists()
+    rc = main(["score", str(export), *base, "--out", str(tmp_path / "export")])
+    m = json.loads((tmp_path / "export" / "metrics.json").read_text())
+    assert rc == 0 and m["camera_path"] == "subpixel-pan" and len(m["frames"]) == 2

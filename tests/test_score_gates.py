@@ -380,7 +380,7 @@ def test_temporal_gates_on_two_frames_and_a_baseline_of_one_frame(tmp_path, caps
     for k in (0, 1):
         shutil.copy(cands["exact_vis"], tmp_path / f"f_{k}.exr")
     pattern = str(tmp_path / "f_{frame}.exr")
-    vis = ["--channel", "visibility", "--frames", "2"]
+    vis = ["--channel", "visibility", "--frames", "2", "--camera-path", "dolly"]
     gates = ["--fail-above", "flicker=10", "--fail-above", "temporal_error=10"]
     rc, two, text, _ = _score(tmp_path, capsys, pattern, *vis, *gates, out="two")
     m = _metrics(two)

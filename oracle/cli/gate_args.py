@@ -13,7 +13,14 @@ from pathlib import Path
 
 from . import args as A
 
-__all__ = ["add_gate_args", "check_junit", "check_output_file", "print_verdict", "write_outputs"]
+__all__ = [
+    "add_gate_args",
+    "add_visibility_arg",
+    "check_junit",
+    "check_output_file",
+    "print_verdict",
+    "write_outputs",
+]
 
 
 def add_gate_args(p, *, baseline_help: str) -> None:
@@ -58,6 +65,17 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         metavar="FILE",
         help="write a Markdown summary (the verdict, failed checks first) for a pull-request "
         "comment",
+    )
+
+
+def add_visibility_arg(p) -> None:
+    """``--visibility 1-is-lit|1-is-shadowed``: what a candidate mask's 1 means."""
+    p.add_argument(
+        "--visibility",
+        choices=["1-is-lit", "1-is-shadowed"],
+        default="1-is-lit",
+        help="what a shadow mask's 1 means (default 1-is-lit, the oracle's convention; "
+        "1-is-shadowed: a shadow-factor buffer, read as 1 - value)",
     )
 
 

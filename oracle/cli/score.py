@@ -7,7 +7,13 @@ from pathlib import Path
 
 from . import args as A
 from . import baseline_cmd, score_folder
-from .gate_args import add_gate_args, check_junit, print_verdict, write_outputs
+from .gate_args import (
+    add_gate_args,
+    add_visibility_arg,
+    check_junit,
+    print_verdict,
+    write_outputs,
+)
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -40,6 +46,7 @@ def add_parsers(sub) -> None:
         default=None,
         help="what a --channel layer or channel holds (default: from its name and contents)",
     )
+    add_visibility_arg(p)
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
@@ -83,11 +90,40 @@ def _check_frame_pattern(pattern: str | None) -> None:
         ) from None
 
 
+def _camera_path(args, loaded) -> str | None:
+    """The camera path of ``--frames``: ``--camera-path``, or the one an export was made for
+    (a light path alone keeps the camera still); ``--frames`` without any path is exit 2,
+    never a silent default."""
+    path = args.camera_path or loaded.camera_path
+    if args.frames is None or path is not None or args.light_path is not None:
+        return path
+    from ...scenes.inputs import resolve_input
+
+    rec = resolve_input(args.scene).export or {}
+    made = ""
+    if rec.get("camera_path"):
+        made = (
+            f"; {args.scene} was exported at frame {rec.get('frame')} of "
+            f"{rec['camera_path']}: export its frame 0 to score the path"
+        )
+    raise A.CliError(
+        f"--frames {args.frames} needs the camera path the frames were rendered along: "
+        f"--camera-path ({', '.join(_paths())}) or --light-path{made}"
+    )
+
+
+def _paths() -> tuple[str, ...]:
+    from ...scenes import CAMERA_PATHS
+
+    return tuple(CAMERA_PATHS)
+
+
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
     from ..scoring.baseline import check_platform, resolve_baseline
     from ..scoring.gates import load_baseline, parse_gates
+    from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError
     from .score_inputs import candidate_inputs
@@ -108,6 +144,17 @@ def cmd_score(args) -> int:
         params = raster_models.parse_params(args.technique, args.params)
     elif args.params:
         raise ScoreError("--set applies to --technique, not to --candidate")
+    options = ScoreOptions(
+        spp=args.spp,
+        seed=args.seed,
+        frames=args.frames,
+        camera_path=_camera_path(args, loaded),
+        quiet=args.quiet,
+        flip_mode=args.flip_mode,
+        ppd=args.ppd or M.DEFAULT_PPD,
+        platform=platform,
+        visibility=args.visibility,
+    )
     verdict = score_to_folder(
         loaded,
         out=args.out,
@@ -115,20 +162,12 @@ def cmd_score(args) -> int:
         params=params,
         candidate=args.candidate,
         channel=args.channel,
-        spp=args.spp,
-        seed=args.seed,
-        frames=args.frames,
-        # a light path alone keeps the scene's camera still (frames move the light only)
-        camera_path=args.camera_path or (None if args.light_path else "dolly"),
+        options=options,
         cache=cache,
-        quiet=args.quiet,
-        flip_mode=args.flip_mode,
-        ppd=args.ppd or M.DEFAULT_PPD,
         gates=gates,
         baseline=baseline,
         baseline_source=str(args.baseline),
         layout=layout,
-        platform=platform,
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)

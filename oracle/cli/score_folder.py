@@ -14,7 +14,13 @@ import json
 from pathlib import Path
 
 from . import args as A
-from .gate_args import add_gate_args, check_junit, print_verdict, write_outputs
+from .gate_args import (
+    add_gate_args,
+    add_visibility_arg,
+    check_junit,
+    print_verdict,
+    write_outputs,
+)
 
 __all__ = ["add_parser", "cmd_score_folder"]
 
@@ -38,6 +44,7 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--camera-path", default="dolly", help="camera path of frame folders (default dolly)"
     )
+    add_visibility_arg(p)
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
@@ -52,6 +59,7 @@ def add_parser(sub) -> None:
 
 def _scene_of(entry, exports: Path | None):
     from ... import scenes
+    from ...scenes.inputs import load_input
 
     scene = entry.name
     if exports is not None and (exports / entry.name / "scene.xml").is_file():
@@ -62,9 +70,7 @@ def _scene_of(entry, exports: Path | None):
             f"score-folder: {entry.name!r} is not a built-in scene{where}; name the files "
             f"after a scene ({', '.join(scenes.BUILTIN_SCENES)}) or pass --exports"
         )
-    path, chosen = A.export_scene(scene)
-    loaded = scenes.load(path, light=chosen or 0, n_frames=entry.frames or 8)
-    return A.export_named(loaded, path)
+    return load_input(scene, n_frames=entry.frames or 8)
 
 
 def cmd_score_folder(args) -> int:
@@ -78,6 +84,7 @@ def cmd_score_folder(args) -> int:
         load_folder_baseline,
         parse_gates,
     )
+    from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
     from .score_inputs import resolve_layout
 
@@ -112,24 +119,28 @@ def cmd_score_folder(args) -> int:
     for entry, loaded, layout in plan:
         out = args.out / entry.name
         baseline = (baselines or {}).get(entry.name)
+        options = ScoreOptions(
+            spp=args.spp,
+            seed=args.seed,
+            frames=entry.frames,
+            camera_path=args.camera_path,
+            quiet=args.quiet,
+            flip_mode=args.flip_mode,
+            ppd=M.DEFAULT_PPD,
+            platform=platform,
+            visibility=args.visibility,
+        )
         verdict = score_to_folder(
             loaded,
             out=out,
             candidate=entry.pattern,
             channel=args.channel,
-            spp=args.spp,
-            seed=args.seed,
-            frames=entry.frames,
-            camera_path=args.camera_path,
+            options=options,
             cache=cache,
-            quiet=args.quiet,
-            flip_mode=args.flip_mode,
-            ppd=M.DEFAULT_PPD,
             gates=gates,
             baseline=baseline,
             baseline_source=f"{args.baseline} scene {entry.name}",
             layout=layout,
-            platform=platform,
         )
         if baselines is not None and baseline is None:
             verdict.add(notes=[f"baseline: no scene {entry.name} in {args.baseline}"])

@@ -148,6 +148,11 @@ def _metrics_for(
     if channel == "visibility":
         ref = ref_ch["visibility"]
         rec = reference_receivers(ref_ch, light)
+        # engine conventions differ off the receivers (sky, back faces, outside a spot cone:
+        # 1 in most engines, 0 in the oracle): only receivers are scored, the rest counted
+        out["outside_receivers"] = int((~rec).sum())
+        out["outside_receivers_differing"] = int(((cand != ref) & ~rec).sum())
+        cand = np.where(rec, cand, ref).astype(np.float32)
         sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
         for k in _SHADOW_VALUES:
             out[k] = sm[k]
@@ -445,6 +450,14 @@ def score(
         seed=seed,
     )
     _significant_floor(result)
+    if channel == "visibility":
+        result.record["outside_receivers"] = {
+            key: sum(int(f.metrics[k]) for f in result.frames)
+            for key, k in (
+                ("pixels", "outside_receivers"),
+                ("differing", "outside_receivers_differing"),
+            )
+        }
     result.record["candidate_info"] = infos
     result.record["wall_seconds"] = time.perf_counter() - t0
     return result
