@@ -19,6 +19,7 @@ from .aliasing import (
     straight_edge_error_floor,
 )
 from .catalog import CATALOG
+from .diagnose import diagnose
 from .perceptual import (
     DEFAULT_PPD,
     delta_e2000,
@@ -66,6 +67,7 @@ __all__ = [
     "noise_floor",
     "FRACTION_FLOOR_Z",
     "binomial_stderr_floor",
+    "diagnose",
     "fraction_floor",
     "exact_surrogate",
     "psnr_db",

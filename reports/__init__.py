@@ -68,6 +68,8 @@ Case record (``make_case``)
     The run's judged gates and baseline comparisons (``make_case(checks=...)``): ``{"name",
     "kind", "metric", "passed", "line", "value", "limit", "noise_floor", "previous",
     "previous_noise_floor"}``; empty when none was given.
+``diagnoses``
+    Likely causes of a large error (strings), shown on the first screen; may be empty.
 ``images``
     ``{"reference": uri, "candidate": uri}``: ``data:`` URIs (PNG for visibility, WebP or
     JPEG for colour).

@@ -121,6 +121,11 @@ def build_report(
                 if not c["passed"]
             ],
             "n_checks": sum(len(case.get("checks", [])) for case in records),
+            "diagnoses": [
+                {"case_id": case["id"], "case": case["name"], "message": d}
+                for case in records
+                for d in case.get("diagnoses", [])
+            ],
         },
         "tradeoff": tradeoff_section(records, cost_key=tradeoff_cost, metric=tradeoff_metric),
         "colorbars": {style: _images.colorbar_uri(style) for style in styles},

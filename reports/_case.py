@@ -19,6 +19,7 @@ from ._validate import (
     check_image,
     check_metrics,
     check_name,
+    check_texts,
     check_thresholds,
     decode_float,
     to_jsonable,
@@ -223,6 +224,7 @@ def make_case(
     max_bytes: int | None = None,
     viewer: Mapping | None = None,
     checks: Sequence[Mapping] | None = None,
+    diagnoses: Sequence[str] | None = None,
 ) -> dict:
     """Compute everything the report shows about one case and return it as a JSON-safe dict.
 
@@ -356,6 +358,7 @@ def make_case(
         if not thresholds and not checks
         else ("fail" if failing or failed_checks else "pass"),
         "checks": checks,
+        "diagnoses": check_texts("diagnoses", diagnoses),
         "images": images,
         "error_maps": _map_records(maps, heatmaps),
         "worst_tiles": _worst_tiles(

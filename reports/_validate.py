@@ -33,6 +33,7 @@ __all__ = [
     "STYLES",
     "check_case_record",
     "check_checks",
+    "check_texts",
     "check_cost",
     "check_error_maps",
     "check_image",
@@ -361,6 +362,7 @@ def check_case_record(name: str, case: object, *, schema: str) -> dict:
         for v in case[key]:
             check_name(f"{name}[{key!r}] item", v)
     case = {**case, "checks": check_checks(case.get("checks"), where=f"{name}['checks']")}
+    case["diagnoses"] = check_texts(f"{name}['diagnoses']", case.get("diagnoses"))
     if case["status"] not in ("pass", "fail", "unchecked"):
         raise ValueError(
             f"{name}['status'] must be pass, fail or unchecked, got {case['status']!r}"
@@ -398,6 +400,18 @@ def check_case_record(name: str, case: object, *, schema: str) -> dict:
 
 _CHECK_TEXT = ("name", "kind", "metric", "line")
 _CHECK_NUMBERS = ("value", "limit", "noise_floor", "previous", "previous_noise_floor")
+
+
+def check_texts(where: str, texts: object) -> list[str]:
+    """A list of strings (None: empty); ``TypeError`` naming the first that is not one."""
+    if texts is None:
+        return []
+    if isinstance(texts, str) or not isinstance(texts, Sequence):
+        raise TypeError(f"{where} must be a list of strings, got {type(texts).__name__}")
+    for i, t in enumerate(texts):
+        if not isinstance(t, str):
+            raise TypeError(f"{where}[{i}] must be a string, got {t!r:.80}")
+    return list(texts)
 
 
 def check_checks(checks: object, *, where: str = "checks") -> list[dict]:

@@ -340,3 +340,66 @@ def test_exports_record_their_path_and_frames_need_one(tmp_path, capsys, cands):
     rc = main(["score", str(export), *base, "--out", str(tmp_path / "export")])
     m = json.loads((tmp_path / "export" / "metrics.json").read_text())
     assert rc == 0 and m["camera_path"] == "subpixel-pan" and len(m["frames"]) == 2
+
+
+# 7 ------------------------------------------------------------------------------------------
+
+
+def _png(path, rgb8):
+    from PIL import Image
+
+    Image.fromarray(rgb8).save(path)
+
+
+@pytest.mark.parametrize(
+    ("case", "expected"),
+    [
+        ("flipped", "flipped vertically"),
+        ("inverted", "inverted"),
+        ("shifted", "shifted by one pixel"),
+        ("srgb-exr", "sRGB-encoded values in a linear file"),
+        ("linear-png", "linear values in an sRGB file"),
+        ("rgb-mask-png", "R, G and B are equal"),
+    ],
+)
+def test_large_errors_get_a_likely_cause(tmp_path, capsys, cands, case, expected):
+    """Each usual way an engine's image goes wrong on its way out is named as the likely
+    cause, in the output, ``metrics.json`` and the report's first screen."""
+    from raster_oracle.metrics import srgb_encode
+
+    ref = cands["exact_ref"]
+    vis = ref["visibility"]
+    rgb = np.stack([ref[f"color.{c}"] for c in "RGB"], -1)
+    path, channel = tmp_path / "c.exr", "visibility"
+    if case == "flipped":
+        write_exr(path, {"visibility": vis[::-1].copy()})
+    elif case == "inverted":
+        write_exr(path, {"visibility": 1.0 - vis})
+    elif case == "shifted":
+        write_exr(path, {"visibility": np.roll(vis, 1, axis=1)})
+    elif case == "srgb-exr":
+        enc = srgb_encode(np.clip(rgb, 0, 1)).astype(np.float32)
+        write_exr(path, {c: enc[..., i] for i, c in enumerate("RGB")})
+        channel = "color"
+    elif case == "linear-png":
+        path = tmp_path / "c.png"
+        _png(path, np.round(np.clip(rgb, 0, 1) * 255).astype(np.uint8))
+        channel = "color"
+    else:
+        path, channel = tmp_path / "c.png", "color"
+        _png(path, np.repeat(np.round(vis * 255).astype(np.uint8)[..., None], 3, axis=-1))
+    rc, out, text, _ = _score(tmp_path, capsys, path, "--channel", channel)
+    m = json.loads((out / "metrics.json").read_text())
+    assert rc == 0
+    (found,) = [d for d in m["diagnoses"] if expected in d["message"]]
+    assert found["message"] in text
+    page = (out / "report.html").read_text()
+    verdict = page[page.index('id="verdict"') : page.index('id="summary"')]
+    assert expected in verdict
+
+
+def test_an_exact_candidate_needs_no_diagnosis(tmp_path, capsys, cands):
+    rc, out, text, _ = _score(tmp_path, capsys, cands["exact_vis"], "--channel", "visibility")
+    m = json.loads((out / "metrics.json").read_text())
+    assert rc == 0 and m["diagnoses"] == [] and m["diagnosis"]["tried"] == {}
+    assert "likely cause" not in text

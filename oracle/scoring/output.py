@@ -146,6 +146,7 @@ def _case(
         },
         viewer=_viewer(result, maps),
         checks=[c.as_record() for c in checks],
+        diagnoses=[d["message"] for d in result.record.get("diagnoses") or []],
     )
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .diagnosis import diagnose_result
 from .gates import (
     Gate,
     Verdict,
@@ -189,6 +190,11 @@ def score_to_folder(
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
+    found = diagnose_result(result)
+    result.record["diagnosis"] = {k: found[k] for k in ("error", "noise_floor", "tried")}
+    result.record["diagnoses"] = [found["likely"]] if found["likely"] else []
+    result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
+    verdict.add(notes=[d["message"] for d in result.record["diagnoses"]])
     outside = result.record.get("outside_receivers") or {}
     if outside.get("differing"):
         verdict.add(
