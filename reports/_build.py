@@ -42,6 +42,18 @@ def _common(cases: Sequence[dict], field: str, names: Sequence[str]) -> dict:
     return out
 
 
+def _errors(errors) -> list[dict]:
+    out = []
+    for i, e in enumerate(errors or []):
+        if not isinstance(e, Mapping):
+            raise TypeError(f"errors[{i}] must be a dict, got {type(e).__name__}")
+        for key in ("case", "name", "message"):
+            if not isinstance(e.get(key), str):
+                raise TypeError(f"errors[{i}][{key!r}] must be a string, got {e.get(key)!r}")
+        out.append({key: e[key] for key in ("case", "name", "message")})
+    return out
+
+
 def build_report(
     cases: Sequence[Mapping],
     *,
@@ -49,6 +61,7 @@ def build_report(
     provenance: Mapping[str, object],
     tradeoff_cost: str | None = None,
     tradeoff_metric: str | None = None,
+    errors: Sequence[Mapping] | None = None,
 ) -> dict:
     """Combine case records from :func:`make_case` into one JSON-safe report record.
 
@@ -72,6 +85,9 @@ def build_report(
     tradeoff_metric : str, optional
         Metric on the y axis (lower is better). Default: the first metric seen in a case
         that carries a cost.
+    errors : list of dict, optional
+        ``{"case", "name", "message"}`` of each case that could not be scored (a manifest's
+        layer missing from its file): listed first, with the failed checks.
 
     Returns
     -------
@@ -121,6 +137,7 @@ def build_report(
                 if not c["passed"]
             ],
             "n_checks": sum(len(case.get("checks", [])) for case in records),
+            "errors": _errors(errors),
             "diagnoses": [
                 {"case_id": case["id"], "case": case["name"], "message": d}
                 for case in records

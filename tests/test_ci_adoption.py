@@ -403,3 +403,70 @@ def test_an_exact_candidate_needs_no_diagnosis(tmp_path, capsys, cands):
     m = json.loads((out / "metrics.json").read_text())
     assert rc == 0 and m["diagnoses"] == [] and m["diagnosis"]["tried"] == {}
     assert "likely cause" not in text
+
+
+# 8 ------------------------------------------------------------------------------------------
+
+
+def test_manifest_scores_layers_frames_and_a_missing_layer_as_its_own_error(
+    tmp_path, capsys, cands
+):
+    """One run: two layers of one EXR with their own gates, a two-frame scene beside a
+    one-frame one, and a layer the file lacks: that case is a JUnit error, the others are
+    scored (``score-folder`` took one ``--channel`` and aborted on a missing layer)."""
+    ref = cands["exact_ref"]
+    root = tmp_path / "shots"
+    (root / "pan").mkdir(parents=True)
+    layers = {"shadow.Y": ref["visibility"]} | {f"msaa.{c}": ref[f"color.{c}"] for c in "RGB"}
+    write_exr(root / "plate.exr", layers)
+    for k in (0, 1):
+        write_exr(root / "pan" / f"f_{k}.exr", {"shadow.Y": ref["visibility"]})
+    export = cands["exports"] / "plate"
+    manifest = tmp_path / "ci.toml"
+    manifest.write_text(
+        f"""
+[defaults]
+spp = 16
+
+[scenes.plate]
+scene = "{export}"
+file = "plate.exr"
+[scenes.plate.channels.shadow]
+fail_above = {{ misclassified_fraction = 0.01 }}
+[scenes.plate.channels.msaa]
+fail_below = {{ ssim = 0.9 }}
+[scenes.plate.channels.beauty]
+
+[scenes.pan]
+scene = "{export}"
+file = "pan/f_{{frame}}.exr"
+frames = 2
+camera_path = "subpixel-pan"
+channels = {{ shadow = {{ fail_above = {{ flicker = 1.0 }} }} }}
+"""
+    )
+    out, junit = tmp_path / "out", tmp_path / "j.xml"
+    argv = ["score-folder", str(root), "--manifest", str(manifest), "--quiet"]
+    rc = main([*argv, "--out", str(out), "--junit", str(junit)])
+    said = capsys.readouterr()
+    assert rc == 1, said.err
+    m = json.loads((out / "metrics.json").read_text())
+    assert sorted(m["scenes"]) == ["pan/shadow", "plate/msaa", "plate/shadow"]
+    assert list(m["errors"]) == ["plate/beauty"] and "beauty" in m["errors"]["plate/beauty"]
+    assert m["failed"] == {}  # every scored case passed its gates
+    assert m["scenes"]["plate/shadow"]["channel"] == "visibility"
+    assert m["scenes"]["plate/msaa"]["channel"] == "color"
+    assert len(m["scenes"]["pan/shadow"]["frames"]) == 2
+    assert m["scenes"]["pan/shadow"]["camera_path"] == "subpixel-pan"
+    cases = list(ET.parse(junit).getroot().iter("testcase"))
+    errors = [c for c in cases if c.find("error") is not None]
+    assert [e.get("classname") for e in errors] == ["plate/beauty"]
+    names = {(c.get("classname"), c.get("name")) for c in cases}
+    assert ("plate/shadow", "misclassified_fraction <= 0.01") in names
+    assert ("plate/msaa", "ssim >= 0.9") in names and ("pan/shadow", "flicker <= 1") in names
+    assert "plate/beauty: error:" in said.err
+    # a manifest with an unknown key is exit 2 before anything is scored
+    manifest.write_text('[scenes.plate]\nfiel = "plate.exr"\n')
+    rc = main([*argv, "--out", str(tmp_path / "bad")])
+    assert rc == 2 and "unknown key 'fiel'" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()

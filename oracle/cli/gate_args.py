@@ -136,5 +136,7 @@ def print_verdict(verdict, *, baseline=None, prefix: str = "") -> None:
         print(f"{prefix}baseline {baseline}: {n} metrics compared, {bad} regressed")
     for note in verdict.notes:
         print(f"{prefix}{note}")
+    for _name, message in verdict.errors:
+        print(f"raster-oracle: {prefix}error: {message}", file=sys.stderr)
     if verdict.failed:
         print(f"raster-oracle: {prefix}failed: {', '.join(verdict.failed)}", file=sys.stderr)

@@ -153,16 +153,15 @@ class Verdict(list):
         return list(self)
 
     def add_error(self, name: str, message: str) -> Verdict:
-        """Record a part of the scene that could not be scored (exit code 2)."""
+        """Record a part of the scene that could not be scored (it fails the run: exit 1,
+        the others scored and written all the same)."""
         self.errors.append((name, message))
         return self
 
     @property
     def exit_code(self) -> int:
-        """0 when every check passed, 1 when one failed, 2 when a part could not be scored."""
-        if self.errors:
-            return 2
-        return 1 if self.failed else 0
+        """0 when every check passed, 1 when one failed or a part could not be scored."""
+        return 1 if self.failed or self.errors else 0
 
     @property
     def failed_checks(self) -> list[Check]:
