@@ -166,6 +166,7 @@ def score_folder(
             baseline=baseline,
             baseline_source=f"{baseline_source} scene {case.name}",
             layout=case.layout,
+            name=case.name,
         )
         verdict.scene = case.name
         if baselines is not None and baseline is None:

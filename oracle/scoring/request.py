@@ -116,6 +116,7 @@ def score_to_folder(
     baseline: dict | None = None,
     baseline_source: str = "baseline",
     layout: CandidateLayout | None = None,
+    name: str | None = None,
 ) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
@@ -143,6 +144,8 @@ def score_to_folder(
         :func:`oracle.scoring.gates.load_baseline`) and its path, for messages; a baseline
         of another platform (``options.platform``) is a
         :class:`oracle.scoring.gates.GateError`.
+    name : how the report names the case (default: the technique, or the candidate's file
+        name; ``score-folder`` gives its case name, ``scene/channel``).
     """
     o = (options or ScoreOptions()).validate()
     frames, camera_path, platform = o.frames, o.camera_path, o.platform
@@ -162,7 +165,7 @@ def score_to_folder(
         result = score_model(loaded, technique, params, channel=channel, **opts)
         info = result.record["candidate_info"][0]
         cost, params = info["cost"], info["params"]
-        name = technique
+        label = technique
     else:
         if params:
             raise ScoreError("--set applies to --technique, not to --candidate")
@@ -186,7 +189,7 @@ def score_to_folder(
             "source": layout.source,
             "visibility": o.visibility if layout.kind == "visibility" else None,
         }
-        name = candidate_name(candidate, frames=frames, camera_path=camera_path)
+        label = candidate_name(candidate, frames=frames, camera_path=camera_path)
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
@@ -211,7 +214,7 @@ def score_to_folder(
         result,
         out,
         loaded=loaded,
-        name=name,
+        name=name or label,
         gates=gates,
         verdict=verdict,
         technique=technique,
