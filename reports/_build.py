@@ -108,6 +108,12 @@ def build_report(
         if "viewer" in case or viewer is not None:
             case["viewer"] = viewer
     metric_names = list(dict.fromkeys(k for case in records for k in case["metrics"]))
+    # gated and failed metrics first: the columns a CI reader looks for never scroll off
+    gated = {k for case in records for k in case["thresholds"]}
+    gated |= {c["metric"] for case in records for c in case.get("checks", []) if not c["passed"]}
+    metric_names = [m for m in metric_names if m in gated] + [
+        m for m in metric_names if m not in gated
+    ]
     cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
     styles = sorted({m["style"] for case in records for m in case["error_maps"]})
     statuses = [case["status"] for case in records]

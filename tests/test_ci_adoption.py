@@ -92,6 +92,16 @@ def test_one_verdict_for_gates_and_regressions(tmp_path, capsys, cands):
     assert "regression" in verdict
     # provenance is at the bottom, after every case
     assert page.index('id="provenance"') > page.rindex('class="card case')
+    # where: the failing case's worst tiles are in the verdict card
+    assert verdict.count('class="crop"') >= 3
+    # the gated and regressed metrics are the summary table's first columns
+    gated = {"ssim"} | {g["metric"] for g in m["gates"] if not g["passed"]}
+    assert set(report["metric_names"][: len(gated)]) == gated
+    # JUnit passing cases carry their numbers as properties
+    ok = [c for c in ET.parse(junit).getroot().iter("testcase") if c.get("name") == "ssim >= 0.1"]
+    props = {p.get("name"): p.get("value") for p in ok[0].iter("property")}
+    assert float(props["value"]) == m["ssim"] and float(props["limit"]) == 0.1
+    assert float(props["noise_floor"]) == m["noise_floor"]["ssim"]
 
 
 # 2 ------------------------------------------------------------------------------------------

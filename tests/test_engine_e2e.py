@@ -338,6 +338,11 @@ def test_ci_manifest_run_names_one_failure_everywhere_and_accept_makes_it_pass(
         assert shown == failed
         first = rows.nth(0).bounding_box()
         assert first is not None and first["y"] + first["height"] <= 800
+        # where: the failing case's worst tiles (reference, candidate, error) on that screen
+        where = verdict.locator(".verdict-where[data-case] img.crop")
+        assert where.count() >= 3
+        crop = where.nth(2).bounding_box()
+        assert crop is not None and crop["y"] + crop["height"] <= 800
     finally:
         page.close()
     # the change is approved: the next run against the new baseline passes
