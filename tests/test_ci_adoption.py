@@ -480,3 +480,39 @@ channels = {{ shadow = {{ fail_above = {{ flicker = 1.0 }} }} }}
     rc = main([*argv, "--out", str(tmp_path / "bad")])
     assert rc == 2 and "unknown key 'fiel'" in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+# 10 -----------------------------------------------------------------------------------------
+
+
+def test_which_gate_catches_a_one_pixel_shift(tmp_path, capsys):
+    """The README's gate ``misclassified_fraction=0.01`` passed a shadow moved by one pixel;
+    the edge band, the edge-aware profile and Unreal's local error fail it, and an exact
+    mask passes them all (docs/metrics.md's table)."""
+    ref_args = ["reference", "plate", *BIG, "--quiet", "--out", str(tmp_path / "ref")]
+    assert main(ref_args) == 0
+    vis = read_exr(tmp_path / "ref" / "reference.exr")["visibility"]
+    write_exr(tmp_path / "exact.exr", {"visibility": vis})
+    write_exr(tmp_path / "shift.exr", {"visibility": np.roll(vis, 1, axis=1)})
+    gates = ["--fail-above", "misclassified_fraction=0.01"]
+    gates += ["--fail-above", "edge_band_misclassified_fraction=0.03"]
+    for name in ("unreal-low", "unreal-high", "unity", "edge-aware"):
+        gates += ["--gate-profile", name]
+    got = {}
+    for name in ("exact", "shift"):
+        argv = ["score", "plate", *BIG, "--candidate", str(tmp_path / f"{name}.exr")]
+        rc = main(
+            [*argv, "--channel", "visibility", "--quiet", *gates, "--out", str(tmp_path / name)]
+        )
+        got[name] = (rc, json.loads((tmp_path / name / "metrics.json").read_text()))
+    capsys.readouterr()
+    assert got["exact"][0] == 0 and got["exact"][1]["failed"] == []
+    rc, m = got["shift"]
+    assert rc == 1
+    assert set(m["failed"]) == {
+        "edge_band_misclassified_fraction <= 0.03",
+        "edge_aware_error_fraction <= 0.005",
+        "unreal_low_local_error <= 0.1",
+        "unreal_high_local_error <= 0.1",
+    }
+    assert 0.003 < m["misclassified_fraction"] < 0.01  # the old README gate passes it

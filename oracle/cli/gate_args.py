@@ -18,6 +18,7 @@ __all__ = [
     "add_visibility_arg",
     "check_junit",
     "check_output_file",
+    "parse_all_gates",
     "print_verdict",
     "write_outputs",
 ]
@@ -39,6 +40,16 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         metavar="METRIC=VALUE",
         help="exit 1 when METRIC is below VALUE (higher-is-better metrics such as ssim, "
         "psnr_db; repeatable)",
+    )
+    p.add_argument(
+        "--gate-profile",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="the gates of a tool engine teams use, at its published defaults (repeatable): "
+        "unreal-low, unreal-medium, unreal-high (screenshot comparison: per-channel tolerance, "
+        "10%% local and 2%% global error), unity (average JzAzBz delta E 0.005 above 0.001 a "
+        "pixel), edge-aware (0.5%% of pixels beyond 3 standard errors + 0.25 px at edges)",
     )
     p.add_argument(
         "--baseline", type=A.path, default=None, metavar="METRICS_JSON", help=baseline_help
@@ -66,6 +77,17 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         help="write a Markdown summary (the verdict, failed checks first) for a pull-request "
         "comment",
     )
+
+
+def parse_all_gates(args) -> list:
+    """``--fail-above``, ``--fail-below`` and ``--gate-profile`` as gates (a later limit of
+    the same metric and direction replaces an earlier one)."""
+    from ..scoring.engine_gates import profile_gates
+    from ..scoring.gates import GateError, parse_gates
+
+    gates = profile_gates(args.gate_profile, error=GateError)
+    gates += parse_gates(args.fail_above, args.fail_below)
+    return list({(g.metric, g.op): g for g in gates}.values())
 
 
 def add_visibility_arg(p) -> None:

@@ -11,6 +11,7 @@ from .gate_args import (
     add_gate_args,
     add_visibility_arg,
     check_junit,
+    parse_all_gates,
     print_verdict,
     write_outputs,
 )
@@ -122,13 +123,13 @@ def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
     from ..scoring.baseline import check_platform, resolve_baseline
-    from ..scoring.gates import load_baseline, parse_gates
+    from ..scoring.gates import load_baseline
     from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError
     from .score_inputs import candidate_inputs
 
-    gates = parse_gates(args.fail_above, args.fail_below)
+    gates = parse_all_gates(args)
     platform = check_platform(args.platform)
     baseline = None
     if args.baseline is not None:

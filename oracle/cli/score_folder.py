@@ -21,6 +21,7 @@ from .gate_args import (
     add_gate_args,
     add_visibility_arg,
     check_junit,
+    parse_all_gates,
     print_verdict,
     write_outputs,
 )
@@ -188,9 +189,9 @@ def _manifest_cases(args, gates) -> list:
 def cmd_score_folder(args) -> int:
     from ..scoring.baseline import check_platform, resolve_baseline
     from ..scoring.folder import score_folder
-    from ..scoring.gates import check_baseline_scene, load_folder_baseline, parse_gates
+    from ..scoring.gates import check_baseline_scene, load_folder_baseline
 
-    gates = parse_gates(args.fail_above, args.fail_below)
+    gates = parse_all_gates(args)
     check_platform(args.platform)
     baselines = None
     if args.baseline is not None:

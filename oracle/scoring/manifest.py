@@ -5,6 +5,7 @@ gates, frames and camera path.
 
     [defaults]                      # optional; every key may be given per scene too
     spp = 16
+    profiles = ["unreal-low"]       # gate profiles (--gate-profile)
     exports = "exports"             # folder of `export` folders, relative to the manifest
     fail_above = { flip_mean = 0.1 }
 
@@ -39,10 +40,19 @@ from .options import VISIBILITY_CONVENTIONS
 
 __all__ = ["Manifest", "ManifestCase", "ManifestError", "read_manifest"]
 
-_COMMON = {"fail_above", "fail_below", "visibility", "camera_path", "spp", "seed", "flip_mode"}
+_COMMON = {
+    "fail_above",
+    "fail_below",
+    "profiles",
+    "visibility",
+    "camera_path",
+    "spp",
+    "seed",
+    "flip_mode",
+}
 _DEFAULT_KEYS = _COMMON | {"exports"}
 _SCENE_KEYS = _COMMON | {"scene", "file", "frames", "channels"}
-_CHANNEL_KEYS = {"kind", "fail_above", "fail_below", "visibility"}
+_CHANNEL_KEYS = {"kind", "fail_above", "fail_below", "profiles", "visibility"}
 _KINDS = ("visibility", "color", "coverage")
 
 
@@ -114,8 +124,14 @@ def _gates(table: dict, where: str) -> list[Gate]:
             if isinstance(limit, bool) or not isinstance(limit, int | float):
                 raise ManifestError(f"{where}.{key}.{metric} must be a number, got {limit!r}")
         texts[option] = [f"{m}={float(v)!r}" for m, v in limits.items()]
+    profiles = table.get("profiles", [])
+    if not isinstance(profiles, list) or not all(isinstance(p, str) for p in profiles):
+        raise ManifestError(f"{where}.profiles must be a list of names, got {profiles!r}")
+    from .engine_gates import profile_gates
+
     try:
-        return parse_gates(texts["--fail-above"], texts["--fail-below"])
+        gates = profile_gates(profiles, error=ManifestError)
+        return gates + parse_gates(texts["--fail-above"], texts["--fail-below"])
     except GateError as exc:
         raise ManifestError(f"{where}: {exc}") from None
 

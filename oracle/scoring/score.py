@@ -32,6 +32,7 @@ from ...scenes.shading import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
+from .engine_metrics import add_engine_gate_metrics, exact_floors
 
 __all__ = [
     "COVERAGE_FLOOR_RMS",
@@ -157,6 +158,7 @@ def _metrics_for(
         for k in _SHADOW_VALUES:
             out[k] = sm[k]
         out["receiver_count"] = sm["receiver_count"]
+        out["edge_band_count"] = sm["edge_band_count"]
         ref_se = ref_ch["visibility_stderr"]
         lin = dict(tone_mapper="clip", exposure=0.0)
         fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
@@ -253,8 +255,12 @@ def _noise_floor(
     # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by noise of
     # A's variance (B itself would overstate the floor by about sqrt(2))
     exact = M.exact_surrogate(ref_img, second)
-    floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
+    floor, _, _, rec = _metrics_for(channel, ref_ch, exact, full=False, **kw)
     floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+    # the engine teams' gates (Unreal, Unity, edge-aware) on the same exact surrogate
+    floor.update(
+        exact_floors(ref_img, exact, ref_ch, channel=channel, exposure=kw["exposure"], mask=rec)
+    )
     if floor_cache is not None and floor_key[0] is not None:
         floor_cache[floor_key] = dict(floor)
     return floor
@@ -449,7 +455,8 @@ def score(
         spp=spp,
         seed=seed,
     )
-    _significant_floor(result)
+    _fraction_floors(result)
+    add_engine_gate_metrics(result, channel=channel, exposure=exposure)
     if channel == "visibility":
         result.record["outside_receivers"] = {
             key: sum(int(f.metrics[k]) for f in result.frames)
@@ -463,19 +470,36 @@ def score(
     return result
 
 
-def _significant_floor(result: ScoreResult) -> None:
-    """``significant_fraction``'s noise floor: an exact candidate flags ~0 pixels (the Sidak
-    correction), yet a re-rendered reference flips the pixels near the threshold; the floor
-    is that flip's bound (:func:`metrics.fraction_floor` of the run's fraction and tested
-    values), so an unchanged candidate against another seed's reference is no regression."""
-    value = result.record.get("significant_fraction")
+#: Fractions of pixels and the frame metric holding how many pixels each is a fraction of
+#: (None: every tested value of the image).
+_FRACTION_OF = {
+    "significant_fraction": None,
+    "misclassified_fraction": "receiver_count",
+    "false_lit_fraction": "receiver_count",
+    "false_shadow_fraction": "receiver_count",
+    "edge_band_misclassified_fraction": "edge_band_count",
+}
+
+
+def _fraction_floors(result: ScoreResult) -> None:
+    """The noise floors of the fractions of pixels: an exact candidate flags ~0 pixels
+    (``significant_fraction``'s Sidak correction; a 0.5 threshold), yet a re-rendered
+    reference flips the pixels near the threshold; each floor is at least that flip's bound
+    (:func:`metrics.fraction_floor` of the run's fraction over the pixels it counts), so an
+    unchanged candidate against another seed's reference is no regression."""
     floors = result.record.get("noise_floor")
-    if value is None or floors is None:
+    if floors is None:
         return
-    n = sum(int(f.candidate.size) for f in result.frames)
-    floors["significant_fraction"] = max(
-        floors.get("significant_fraction") or 0.0, M.fraction_floor(value, n)
-    )
+    for key, count_key in _FRACTION_OF.items():
+        value = result.record.get(key)
+        if value is None:
+            continue
+        if count_key is None:
+            n = sum(int(f.candidate.size) for f in result.frames)
+        else:
+            n = sum(int(f.metrics.get(count_key) or 0) for f in result.frames)
+        if n > 0:
+            floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(value, n))
 
 
 def metric_limit(
