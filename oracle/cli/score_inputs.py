@@ -16,17 +16,11 @@ __all__ = ["candidate_inputs", "candidate_size", "resolve_layout"]
 def candidate_size(path: str | Path) -> tuple[int, int] | None:
     """``(width, height)`` of a candidate EXR or PNG (None when it cannot be read: the read
     itself then reports the problem)."""
+    from ..scoring.layout import candidate_format
+
     path = Path(path)
     try:
-        if path.suffix.lower() == ".png":
-            from PIL import Image
-
-            with Image.open(path) as im:
-                return im.size
-        from ..reference.exr import read_exr
-
-        h, w = next(iter(read_exr(path).values())).shape[:2]
-        return w, h
+        return candidate_format(path).size(path)
     except Exception:  # unreadable: the candidate reader says why, in one line
         return None
 
