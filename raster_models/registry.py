@@ -9,6 +9,7 @@ from .aa import fxaa as fxaa_model  # noqa: I001
 from .aa import msaa, noaa, ssaa
 from .aa.acaa import model as acaa
 from .aa.agaa import model as agaa
+from .aa.smaa import model as smaa_model
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
@@ -179,6 +180,20 @@ TECHNIQUES: dict[str, Technique] = {
             ("T. Lottes, FXAA 3.11 (Fxaa3_11.h), NVIDIA, 2011",),
             fxaa_model.FxaaParams,
             fxaa_model.run,
+            _ALL_LIGHTS,
+            "aa",
+        ),
+        Technique(
+            "smaa",
+            "SMAA 1x/T2x/S2x/4x (SMAA.hlsl): luma/colour/depth edges, orthogonal and diagonal "
+            "pattern searches, area-texture weights, neighbourhood blending, in display space",
+            (
+                "J. Jimenez, J. I. Echevarria, T. Sousa, D. Gutierrez, SMAA: Enhanced Subpixel "
+                "Morphological Antialiasing, CGF 31(2) 2012, doi:10.1111/j.1467-8659.2012.03014.x",
+                "J. Jimenez et al., SMAA.hlsl, AreaTex.py, SearchTex.py (iryoku/smaa), 2013",
+            ),
+            smaa_model.SmaaParams,
+            smaa_model.run,
             _ALL_LIGHTS,
             "aa",
         ),

@@ -330,7 +330,7 @@ def test_model_writes_aa_channels(tmp_path):
 
 
 def test_every_aa_technique_is_registered_with_its_outputs(star):
-    for name in ("noaa", "ssaa", "msaa", "acaa", "agaa", "fxaa"):
+    for name in ("noaa", "ssaa", "msaa", "acaa", "agaa", "fxaa", "smaa"):
         tech = rm.TECHNIQUES[name]
         assert tech.family == "aa" and set(tech.lights) == {"directional", "spot", "point"}
         for prm in rm.list_techniques()[list(rm.TECHNIQUES).index(name)]["params"]:

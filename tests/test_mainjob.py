@@ -96,6 +96,14 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     html = (out / "report.html").read_text()
     assert "Claims of the seed documents" in html and "Numerical extremes" in html
     assert "Anti-aliasing framebuffer memory" in html
+    # SMAA's presets and modes ranked on the AA scene beside no AA, FXAA, MSAA and SSAA
+    (ranking,) = [s for s in report["sections"] if s["kind"] == "aa_ranking"]
+    (table,) = ranking["data"]["scenes"]
+    labels = [r["label"] for r in table["rows"]]
+    assert table["scene"] == "decal" and "smaa (preset=ultra, mode=1x)" in labels
+    assert {"noaa", "fxaa", "msaa (samples=8)"} <= set(labels)
+    assert [r["rank"] for r in table["rows"]] == list(range(1, len(labels) + 1))
+    assert "Anti-aliasing ranking" in html
     assert html.index('id="fronts"') < html.index('id="claims"') < html.index('id="cases"')
     # a second run finds every case in the store
     assert main(["main", "--scenes", "plate,spot,decal", "--out", str(out), *SMALL]) == 0
@@ -107,7 +115,12 @@ def test_report_json_holds_every_section_record(tmp_path, sections):
     assert main(["main", "--scenes", "spot", "--out", str(out), *SMALL]) == 0
     report = json.loads((out / "report.json").read_text())
     found = {s["kind"]: s for s in report["sections"]}
-    assert [s["id"] for s in report["sections"]] == ["claims", "extremes", "aa-memory"]
+    assert [s["id"] for s in report["sections"]] == [
+        "claims",
+        "extremes",
+        "aa-memory",
+        "aa-ranking",
+    ]
     assert not any(s["failed"] for s in report["sections"])
     # each holds its study's record, as the study wrote it beside the report
     claims = found["claims"]["data"]
@@ -140,7 +153,12 @@ def test_a_failing_section_is_in_the_report_and_the_exit_code(tmp_path, capsys, 
     (failed,) = [s for s in report["sections"] if s["failed"]]
     assert failed["id"] == "extremes" and failed["error"] == "RuntimeError: extremes <broke>"
     # the other sections are still there
-    assert [s["id"] for s in report["sections"]] == ["claims", "extremes", "aa-memory"]
+    assert [s["id"] for s in report["sections"]] == [
+        "claims",
+        "extremes",
+        "aa-memory",
+        "aa-ranking",
+    ]
 
 
 @pytest.mark.parametrize(

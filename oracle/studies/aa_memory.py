@@ -94,6 +94,7 @@ DEFAULT_CONFIGS: tuple[Config, ...] = (
     Config("AGAA 8x, 2 aggregates", "agaa", {"samples": 8, "aggregates": 2}),
     Config("AGAA 16x, 2 aggregates", "agaa", {"samples": 16, "aggregates": 2}),
     Config("FXAA", "fxaa"),
+    *(Config(f"SMAA {m}", "smaa", {"mode": m}) for m in ("1x", "t2x", "s2x", "4x")),
 )
 
 

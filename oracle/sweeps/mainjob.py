@@ -6,8 +6,9 @@ extremes and the claims, and one report.
    ``OUT/sweep.db`` (resumable: a second run skips finished cases).
 2. The claims and the extremes matrix (:mod:`oracle.studies.claims.run`,
    :mod:`oracle.studies.extremes.run`, in their quick form), writing ``OUT/claims.json``
-   and ``OUT/extremes.json`` (+ their pages), and the anti-aliasing memory table
-   (:mod:`oracle.studies.aa_memory`): :func:`run_sections`.
+   and ``OUT/extremes.json`` (+ their pages), the anti-aliasing memory table
+   (:mod:`oracle.studies.aa_memory`) and the SMAA ranking from the sweep's rows
+   (:mod:`oracle.studies.aa_ranking`): :func:`run_sections`.
 3. ``OUT/report.html`` (+ ``report.json``, which holds every section record of the page):
    Pareto fronts, parameter sensitivity, best at equal cost, the claims, the extremes, the
    memory table and every case.
@@ -22,12 +23,14 @@ from pathlib import Path
 
 from ...reports.sections import (
     aa_memory_section,
+    aa_ranking_section,
     claims_section,
     extremes_section,
     failed_section,
 )
 from ..errors import one_line
 from ..studies.aa_memory import memory_report
+from ..studies.aa_ranking import aa_ranking
 from ..studies.claims.run import run_claims
 from ..studies.extremes.run import run_extremes
 
@@ -49,6 +52,10 @@ def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
     return memory_report()
 
 
+def _aa_ranking(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+    return aa_ranking(out / "sweep.db")
+
+
 #: The report's sections after the sweep, in page order: ``(kind, id, title, study,
 #: section)``: ``study(out, *, cache, quiet, echo, quick)`` measures and returns the study's
 #: record, ``section(data, section_id=, title=)`` makes its section record.
@@ -56,6 +63,7 @@ SECTIONS: tuple[tuple[str, str, str, Callable[..., dict], Callable[..., dict]], 
     ("claims", "claims", "Claims", _claims, claims_section),
     ("extremes", "extremes", "Numerical stability at the extremes", _extremes, extremes_section),
     ("aa_memory", "aa-memory", "Anti-aliasing memory", _aa_memory, aa_memory_section),
+    ("aa_ranking", "aa-ranking", "Anti-aliasing ranking", _aa_ranking, aa_ranking_section),
 )
 
 

@@ -1,4 +1,4 @@
-"""Anti-aliasing models: no AA, SSAA, MSAA, ACAA, AGAA and FXAA (issue 9).
+"""Anti-aliasing models: no AA, SSAA, MSAA, ACAA, AGAA, FXAA (issue 9) and SMAA (issue 27).
 
 Every model samples where the technique samples (sub-sample positions, pixel centres) with
 the intersection engine the oracle uses, shades with the oracle's shading model and exact
@@ -12,6 +12,7 @@ from .agaa import AgaaParams
 from .fxaa import FxaaParams
 from .msaa import MsaaParams
 from .noaa import NoAAParams
+from .smaa import SmaaParams
 from .ssaa import SsaaParams
 
 #: Output channels of the anti-aliasing models (``ties``: ACAA, ``aggregates``: AGAA).
@@ -24,5 +25,6 @@ __all__ = [
     "FxaaParams",
     "MsaaParams",
     "NoAAParams",
+    "SmaaParams",
     "SsaaParams",
 ]

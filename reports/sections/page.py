@@ -10,7 +10,7 @@ from collections.abc import Callable, Mapping, Sequence
 from .. import _env
 from ..viewer import MAX_VIEWER_PAGE_BYTES
 from ..viewer import viewer_cases as fit_viewer_cases
-from . import aa_memory, claims, converge, extremes, sweep
+from . import aa_memory, aa_ranking, claims, converge, extremes, sweep
 from ._record import SECTION_SCHEMA
 from .overview import overview_record
 from .sweep import sweep_view
@@ -48,6 +48,7 @@ def _environment():
             "quoted_value": aa_memory.fmt_quoted,
             "computed_text": aa_memory.fmt_computed,
             "quote_note": aa_memory.fmt_note,
+            "with_floor": aa_ranking.fmt_with_floor,
         }
     )
 
