@@ -54,7 +54,10 @@ def add_parser(sub) -> None:
         "and camera path (docs/cli.md)",
     )
     p.add_argument(
-        "--camera-path", default="dolly", help="camera path of frame folders (default dolly)"
+        "--camera-path",
+        default=None,
+        help="camera path the frame folders were rendered along (required with frame "
+        "folders, unless their export records one)",
     )
     add_visibility_arg(p)
     p.add_argument("--spp", type=A.spp, default=None, help="reference spp (default 64)")
@@ -121,10 +124,16 @@ def _discovered_cases(args, gates) -> list:
     for entry in entries:
         loaded = _scene_of(entry, args.exports)
         layout = resolve_layout(entry.pattern, channel=args.channel, kind=args.kind, loaded=loaded)
+        camera_path = args.camera_path or loaded.camera_path
+        if entry.frames and camera_path is None:
+            raise A.CliError(
+                f"score-folder: {entry.name} holds {entry.frames} frames: give the camera path "
+                "they were rendered along (--camera-path, or a manifest's camera_path)"
+            )
         options = _options(
             args,
             frames=entry.frames,
-            camera_path=args.camera_path,
+            camera_path=camera_path,
             visibility=args.visibility,
         )
         cases.append(
