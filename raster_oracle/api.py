@@ -308,6 +308,7 @@ def score_image(
     out=None,
     cache=True,
     quiet: bool = True,
+    visibility: str = "1-is-lit",
 ) -> dict:
     """Score an engine's image against the reference of ``scene`` (``raster-oracle score
     --candidate``); returns the ``metrics.json`` record as a dict.
@@ -326,6 +327,8 @@ def score_image(
     out : a folder for the score folder (metrics.json, report.html, error maps); default: a
         temporary one, deleted.
     cache : True (the default cache folder), False (no cache) or a cache folder.
+    visibility : what a shadow mask's 1 means, ``"1-is-lit"`` (the default) or
+        ``"1-is-shadowed"`` (``--visibility``).
 
     Gate the record with :func:`check`.
     """
@@ -348,7 +351,9 @@ def score_image(
         dict(candidate=candidate, channel=channel),
         frame_list=frame_list,
         load=dict(width=width, height=height),
-        opts=dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path),
+        opts=dict(
+            spp=spp, seed=seed, frames=frames, camera_path=camera_path, visibility=visibility
+        ),
         flip_mode=flip_mode,
         ppd=ppd,
         out=out,

@@ -326,6 +326,11 @@ def test_visibility_convention_is_stated(tmp_path, capsys, cands):
         out="colour",
     )
     assert rc == 2 and "applies to shadow masks" in err
+    # the Python API states it the same way
+    import raster_oracle as ro
+
+    rec = ro.score_image(cands["exports"] / "plate", 1.0 - vis, spp=16, visibility="1-is-shadowed")
+    assert rec["visibility_mae"] == 0.0
 
 
 def test_exports_record_their_path_and_frames_need_one(tmp_path, capsys, cands):
