@@ -51,6 +51,7 @@ __all__ = [
     "to_8bit",
     "unity_delta_e",
     "unreal_comparison",
+    "unreal_comparisons",
 ]
 
 
@@ -107,31 +108,74 @@ def _hue(rgb: np.ndarray) -> np.ndarray:
     return np.where(mx > mn, hue / 6.0, 0.0)
 
 
-def _neighbour(image: np.ndarray, dy: int, dx: int):
-    """``image`` moved so that each pixel sees its ``(dy, dx)`` neighbour, and where that
-    neighbour exists."""
-    h, w = image.shape[:2]
-    moved = np.roll(image, (-dy, -dx), axis=(0, 1))
-    y, x = np.mgrid[0:h, 0:w]
-    inside = (y + dy >= 0) & (y + dy < h) & (x + dx >= 0) & (x + dx < w)
-    return moved, inside
+def _shifted(padded: np.ndarray, dy: int, dx: int, h: int, w: int) -> np.ndarray:
+    """The ``(dy, dx)`` neighbour of every pixel, from an image padded by one pixel."""
+    return padded[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
 
 
-def _anti_aliased(rgb: np.ndarray, tol: UnrealTolerance) -> np.ndarray:
-    """``FPixelOperations::IsAntialiased`` of every pixel: more than one high-contrast or
-    other-hue neighbour, or fewer than two identical ones."""
+def _aa_features(rgb: np.ndarray) -> dict:
+    """What ``IsAntialiased`` counts over the eight neighbours, for any tolerance: identical
+    neighbours, neighbours of another hue (> 0.3), and each neighbour's luminance difference
+    (NaN outside the image: never a high-contrast neighbour)."""
+    h, w = rgb.shape[:2]
     lum = rgb @ _LUMA
     hue = _hue(rgb)
-    contrast = np.zeros(lum.shape, np.int32)
-    other_hue = np.zeros(lum.shape, np.int32)
-    same = np.zeros(lum.shape, np.int32)
-    for dy, dx in _NEIGHBOURS:  # eight passes over the image, not a loop over pixels
-        n_rgb, inside = _neighbour(rgb, dy, dx)
-        n_lum, n_hue = n_rgb @ _LUMA, _hue(n_rgb)
-        contrast += inside & (np.abs(lum - n_lum) > tol.max_brightness)
-        same += inside & np.all(rgb == n_rgb, axis=-1)
-        other_hue += inside & (np.abs(hue - n_hue) > 0.3)
-    return (other_hue > 1) | (contrast > 1) | (same < 2)
+    p_rgb = np.pad(rgb, ((1, 1), (1, 1), (0, 0)), constant_values=-1)
+    p_lum = np.pad(lum, 1, constant_values=np.nan)
+    p_hue = np.pad(hue, 1, constant_values=np.nan)
+    same = np.zeros((h, w), np.int32)
+    other_hue = np.zeros((h, w), np.int32)
+    diffs = np.empty((len(_NEIGHBOURS), h, w))
+    for i, (dy, dx) in enumerate(_NEIGHBOURS):  # eight passes, not a loop over pixels
+        same += np.all(rgb == _shifted(p_rgb, dy, dx, h, w), axis=-1)
+        with np.errstate(invalid="ignore"):
+            other_hue += np.abs(hue - _shifted(p_hue, dy, dx, h, w)) > 0.3
+        diffs[i] = np.abs(lum - _shifted(p_lum, dy, dx, h, w))
+    return {"same": same, "other_hue": other_hue, "lum_diffs": diffs}
+
+
+def _anti_aliased(features: dict, tol: UnrealTolerance) -> np.ndarray:
+    """``FPixelOperations::IsAntialiased`` of every pixel: more than one high-contrast or
+    other-hue neighbour, or fewer than two identical ones."""
+    with np.errstate(invalid="ignore"):
+        contrast = (features["lum_diffs"] > tol.max_brightness).sum(axis=0)
+    return (features["other_hue"] > 1) | (contrast > 1) | (features["same"] < 2)
+
+
+def unreal_comparisons(reference, candidate, *, tolerances: dict) -> dict:
+    """:func:`unreal_comparison` at each of ``tolerances`` (name -> tolerance), sharing the
+    work that does not depend on the tolerance."""
+    a, b = to_8bit(reference), to_8bit(candidate)
+    if a.shape != b.shape:
+        raise ValueError(f"reference and candidate shapes differ: {a.shape} and {b.shape}")
+    fa, fb = _aa_features(a), _aa_features(b)
+    channel_diff = np.abs(a - b)
+    lum_diff = np.abs(a @ _LUMA - b @ _LUMA)
+    h, w = a.shape[:2]
+    # 100 blocks: FMath::RoundFromZero(size / 10.0), i.e. ceil for positive sizes
+    by, bx = int(np.ceil(h / 10.0)), int(np.ceil(w / 10.0))
+    y, x = np.mgrid[0:h, 0:w]
+    block = (y // by) * 10 + x // bx
+    out = {}
+    for name, tol in tolerances.items():
+        limits = np.array([tol.red, tol.green, tol.blue])
+        similar = np.all(channel_diff <= limits, axis=-1)  # alpha: both opaque
+        relaxed = np.zeros(similar.shape, bool)
+        if tol.ignore_anti_aliasing:
+            aa = _anti_aliased(fa, tol) | _anti_aliased(fb, tol)
+            relaxed = aa & (lum_diff <= tol.min_brightness)
+        mismatch = ~similar & ~relaxed
+        counts = np.bincount(block[mismatch], minlength=100)
+        local = float(counts.max()) / (bx * by)
+        global_ = float(mismatch.mean())
+        passed = local <= tol.maximum_local_error and global_ <= tol.maximum_global_error
+        out[name] = {
+            "global_error": global_,
+            "local_error": local,
+            "passed": passed,
+            "mismatch": mismatch,
+        }
+    return out
 
 
 def unreal_comparison(reference, candidate, *, tolerance: UnrealTolerance) -> dict:
@@ -141,26 +185,7 @@ def unreal_comparison(reference, candidate, *, tolerance: UnrealTolerance) -> di
     fraction of the image and of its worst block of the 10 x 10 grid, whether both are
     within the tolerance's limits, and the ``(H, W)`` bool mismatch map.
     """
-    a, b = to_8bit(reference), to_8bit(candidate)
-    if a.shape != b.shape:
-        raise ValueError(f"reference and candidate shapes differ: {a.shape} and {b.shape}")
-    limits = np.array([tolerance.red, tolerance.green, tolerance.blue])
-    similar = np.all(np.abs(a - b) <= limits, axis=-1)  # alpha: both opaque
-    bright = np.abs(a @ _LUMA - b @ _LUMA) <= tolerance.min_brightness
-    if tolerance.ignore_anti_aliasing:
-        relaxed = (_anti_aliased(a, tolerance) | _anti_aliased(b, tolerance)) & bright
-    else:
-        relaxed = np.zeros(similar.shape, bool)
-    mismatch = ~similar & ~relaxed
-    h, w = mismatch.shape
-    # 100 blocks: FMath::RoundFromZero(size / 10.0), i.e. ceil for positive sizes
-    by, bx = int(np.ceil(h / 10.0)), int(np.ceil(w / 10.0))
-    y, x = np.mgrid[0:h, 0:w]
-    counts = np.bincount(((y // by) * 10 + x // bx)[mismatch], minlength=100)
-    local = float(counts.max()) / (bx * by)
-    global_ = float(mismatch.mean())
-    passed = local <= tolerance.maximum_local_error and global_ <= tolerance.maximum_global_error
-    return {"global_error": global_, "local_error": local, "passed": passed, "mismatch": mismatch}
+    return unreal_comparisons(reference, candidate, tolerances={"t": tolerance})["t"]
 
 
 def jzazbz(rgb8: np.ndarray) -> np.ndarray:

@@ -54,8 +54,7 @@ def _values(ref, cand, se, *, channel, exposure, mask) -> dict:
     out, counts = {}, {}
     h, w = ref.shape[:2]
     block = int(np.ceil(h / 10.0)) * int(np.ceil(w / 10.0))
-    for level, tol in G.UNREAL_TOLERANCES.items():
-        found = G.unreal_comparison(r, c, tolerance=tol)
+    for level, found in G.unreal_comparisons(r, c, tolerances=G.UNREAL_TOLERANCES).items():
         out[f"unreal_{level}_global_error"] = found["global_error"]
         out[f"unreal_{level}_local_error"] = found["local_error"]
         counts[f"unreal_{level}_global_error"] = h * w
