@@ -355,6 +355,7 @@ def test_exports_record_their_path_and_frames_need_one(tmp_path, capsys, cands):
     rc = main(["score", str(export), *base, "--out", str(tmp_path / "export")])
     m = json.loads((tmp_path / "export" / "metrics.json").read_text())
     assert rc == 0 and m["camera_path"] == "subpixel-pan" and len(m["frames"]) == 2
+    assert m["export"]["camera_path"] == "subpixel-pan" and m["export"]["frame"] == 0
 
 
 # 7 ------------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...scenes.inputs import read_export_record
 from .diagnosis import diagnose_result
 from .gates import (
     Gate,
@@ -190,6 +191,10 @@ def score_to_folder(
             "visibility": o.visibility if layout.kind == "visibility" else None,
         }
         label = candidate_name(candidate, frames=frames, camera_path=camera_path)
+    # what an export was made for (size, light, camera path and frame): recorded with it
+    source = Path(str(loaded.source))
+    if source.name == "scene.xml" and source.is_file():
+        result.record["export"] = read_export_record(source.parent)
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
