@@ -21,6 +21,7 @@ __all__ = [
     "SCENE_FILE_SUFFIXES",
     "SceneInput",
     "load_input",
+    "named_input",
     "nearest_export",
     "read_export_record",
     "resolve_input",
@@ -134,6 +135,23 @@ def load_input(
             loaded, camera_path=rec["camera_path"], n_frames=int(rec.get("n_frames") or 8)
         )
     return loaded
+
+
+def named_input(name: str, *, exports=None) -> str:
+    """The scene a name stands for in a folder of engine images: the export folder
+    ``exports/name`` when it is one, else the built-in scene ``name``; :class:`SceneError`
+    naming the built-in scenes otherwise."""
+    from .builtin import BUILTIN_SCENES
+
+    if exports is not None and (Path(exports) / name / "scene.xml").is_file():
+        return str(Path(exports) / name)
+    if name in BUILTIN_SCENES:
+        return name
+    where = f" nor an export in {exports}" if exports is not None else ""
+    raise SceneError(
+        f"{name!r} is not a built-in scene{where}; name the files after a scene "
+        f"({', '.join(BUILTIN_SCENES)}) or pass --exports"
+    )
 
 
 def nearest_export(start, size: tuple[int, int]) -> Path | None:

@@ -73,19 +73,9 @@ def add_parser(sub) -> None:
 
 
 def _scene_of(entry, exports: Path | None):
-    from ... import scenes
-    from ...scenes.inputs import load_input
+    from ...scenes.inputs import load_input, named_input
 
-    scene = entry.name
-    if exports is not None and (exports / entry.name / "scene.xml").is_file():
-        scene = str(exports / entry.name)
-    elif entry.name not in scenes.BUILTIN_SCENES:
-        where = f" nor an export in {exports}" if exports is not None else ""
-        raise A.CliError(
-            f"score-folder: {entry.name!r} is not a built-in scene{where}; name the files "
-            f"after a scene ({', '.join(scenes.BUILTIN_SCENES)}) or pass --exports"
-        )
-    return load_input(scene, n_frames=entry.frames or 8)
+    return load_input(named_input(entry.name, exports=exports), n_frames=entry.frames or 8)
 
 
 def _options(args, manifest=None, **case):

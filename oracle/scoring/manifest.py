@@ -35,6 +35,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...scenes import SceneError
+from ...scenes.inputs import named_input
 from .gates import Gate, GateError, parse_gates
 from .options import VISIBILITY_CONVENTIONS
 
@@ -149,9 +151,10 @@ def _scene_ref(table: dict, key: str, where: str, *, base: Path, exports: Path |
         text = _text(table["scene"], f"{where}.scene")
         local = base / text
         return str(local) if local.exists() else text
-    if exports is not None and (exports / key / "scene.xml").is_file():
-        return str(exports / key)
-    return key
+    try:
+        return named_input(key, exports=exports)
+    except SceneError as exc:
+        raise ManifestError(f"{where}: {exc} (or give scene = \"...\")") from None
 
 
 def _opt(table: dict, key: str, check, *args, **kw):
