@@ -93,13 +93,16 @@ def load_scene(
     frame: int = 0,
     n_frames: int = 8,
     light_path: str | None = None,
+    camera: int | None = None,
 ):
-    """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, or an ``export``
-    folder (or its ``scene.xml``: the exported size and light, named after the folder), as
-    the command line's ``SCENE`` is. A loaded scene is returned as it is.
+    """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, a glTF 2.0 file
+    (``.gltf``, ``.glb``), or an ``export`` folder (or its ``scene.xml``/``scene.glb``: the
+    exported size and light, named after the folder), as the command line's ``SCENE`` is. A
+    loaded scene is returned as it is.
 
     ``light`` picks a light (default 0, an export's own light); ``camera_path``, ``frame``,
-    ``n_frames`` and ``light_path`` pick a frame of a camera or light path.
+    ``n_frames`` and ``light_path`` pick a frame of a camera or light path; ``camera`` a glTF
+    file's camera.
 
     Returns a ``raster_oracle.scenes.LoadedScene`` (``.width``, ``.height``, ``.light``,
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
@@ -108,11 +111,11 @@ def load_scene(
     from .scenes.inputs import load_input
 
     if isinstance(scene, scenes.LoadedScene):
-        given = (width, height, light, camera_path, light_path)
+        given = (width, height, light, camera_path, light_path, camera)
         if any(v is not None for v in given) or frame:
             raise InputError(
-                "width, height, light, camera_path, light_path and frame apply to a scene "
-                "name or file; pass them to load_scene instead of a loaded scene"
+                "width, height, light, camera_path, light_path, camera and frame apply to a "
+                "scene name or file; pass them to load_scene instead of a loaded scene"
             )
         return scene
     if not isinstance(scene, str | os.PathLike):
@@ -127,6 +130,7 @@ def load_scene(
             frame=frame,
             n_frames=n_frames,
             light_path=light_path,
+            camera=camera,
         )
 
 

@@ -14,6 +14,10 @@
   frame count, light path (``scenes.inputs`` reads it back: scoring an export uses them),
 - ``cameras/frame_NNN.json``: with a camera path, every frame's ``camera.json`` (what an
   engine renders the path's frames from).
+
+A glTF scene (``loaded.pbr``) writes ``scene.glb`` instead of ``scene.xml`` (its meshes,
+camera, KHR lights and metallic-roughness materials: :mod:`scenes.gltf_export`), and its
+``materials.json`` records the glTF material of every shape.
 """
 
 from __future__ import annotations
@@ -30,7 +34,18 @@ import numpy as np
 from . import backend
 from . import meshes as _meshes
 
-__all__ = ["export", "shape_mesh"]
+__all__ = ["EXPORT_SCENE_FILES", "export", "export_scene_file", "shape_mesh"]
+
+#: The scene file of an export folder: Mitsuba XML, or GLB for a glTF scene.
+EXPORT_SCENE_FILES = ("scene.xml", "scene.glb")
+
+
+def export_scene_file(folder) -> Path | None:
+    """The scene file (``scene.xml`` or ``scene.glb``) of an export folder, or None."""
+    for name in EXPORT_SCENE_FILES:
+        if (Path(folder) / name).is_file():
+            return Path(folder) / name
+    return None
 
 
 def _tessellate_sphere(center, radius, n_phi=512, n_theta=256):
@@ -217,19 +232,25 @@ def export(loaded, out_dir: str | Path) -> dict:
             }
         (tmp / "camera.json").write_text(json.dumps(loaded.camera.to_json(), indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
+        if loaded.pbr is not None:  # with each light's glTF node matrix
+            from .gltf_export import light_records
+
+            lights["lights"] = light_records(loaded)
         (tmp / "lights.json").write_text(json.dumps(lights, indent=2))
-        (tmp / "materials.json").write_text(
-            json.dumps(
-                {
-                    "model": "two-sided diffuse (see scenes.shading)",
-                    # the scene-wide Blinn-Phong lobe (ks 0: none; the glossy scene has one)
-                    "specular": loaded.specular.to_json(),
-                    "shapes": summary["shapes"],
-                },
-                indent=2,
-            )
-        )
-        (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes))
+        materials = {
+            "model": "two-sided diffuse (see scenes.shading)",
+            # the scene-wide Blinn-Phong lobe (ks 0: none; the glossy scene has one)
+            "specular": loaded.specular.to_json(),
+            "shapes": summary["shapes"],
+        }
+        if loaded.pbr is not None:  # a glTF scene: its materials and a GLB (scenes.gltf_export)
+            from .gltf_export import materials_record, scene_glb
+
+            materials = materials_record(loaded, summary["shapes"])
+            (tmp / "scene.glb").write_bytes(scene_glb(loaded))
+        else:
+            (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes))
+        (tmp / "materials.json").write_text(json.dumps(materials, indent=2))
         _write_export_record(tmp, loaded)
         summary["scene"] = loaded.provenance()
         out_dir.mkdir(exist_ok=True)

@@ -1,10 +1,11 @@
 """Scene inputs, resolved once: a built-in name, a scene file or an ``export`` folder.
 
 Every command and the Python API take a scene as text (``SCENE``); this module says what it
-stands for. A folder is an ``export`` folder (its ``scene.xml``, its ``lights.json``'s chosen
-light, its name for records and its ``export.json``: the size, camera path and frame it was
-exported for). A file is loaded by its suffix (:data:`SCENE_FILE_SUFFIXES`: the one place a
-new scene format registers). Anything else is a built-in scene name.
+stands for. A folder is an ``export`` folder (its ``scene.xml`` or ``scene.glb``, its
+``lights.json``'s chosen light, its name for records and its ``export.json``: the size,
+camera path and frame it was exported for). A file is loaded by its suffix
+(:data:`SCENE_FILE_SUFFIXES`: the one place a new scene format registers). Anything else is
+a built-in scene name.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from .export import EXPORT_SCENE_FILES, export_scene_file
 from .loader import LoadedScene, SceneError, load
 
 __all__ = [
@@ -27,9 +29,9 @@ __all__ = [
     "resolve_input",
 ]
 
-#: Scene files by suffix -> the format's name. :func:`scenes.load` reads them; a new format
-#: (glTF: ``.gltf``, ``.glb``) adds its suffix here and its loader beside the XML one.
-SCENE_FILE_SUFFIXES = {".xml": "Mitsuba XML"}
+#: Scene files by suffix -> the format's name. :func:`scenes.load` reads them (a new format
+#: adds its suffix here and its loader beside the others).
+SCENE_FILE_SUFFIXES = {".xml": "Mitsuba XML", ".gltf": "glTF 2.0", ".glb": "glTF 2.0 binary"}
 #: The file of an export folder that records what it was exported for.
 EXPORT_RECORD = "export.json"
 #: ``schema`` of :data:`EXPORT_RECORD`.
@@ -80,13 +82,15 @@ def resolve_input(scene) -> SceneInput:
     of a known suffix, or a built-in name (checked when loaded)."""
     path = Path(scene)
     if path.is_dir():
-        if not (path / "scene.xml").is_file():
+        found = export_scene_file(path)
+        if found is None:
             raise SceneError(
-                f"scene folder {scene} has no scene.xml: give a built-in scene, a scene file "
-                f"({', '.join(SCENE_FILE_SUFFIXES)}) or a folder written by `export`"
+                f"scene folder {scene} has no {' or '.join(EXPORT_SCENE_FILES)}: give a "
+                f"built-in scene, a scene file ({', '.join(SCENE_FILE_SUFFIXES)}) or a folder "
+                "written by `export`"
             )
-        path = path / "scene.xml"
-    elif path.name != "scene.xml" or not path.is_file():
+        path = found
+    elif path.name not in EXPORT_SCENE_FILES or not path.is_file():
         return SceneInput(scene=str(scene))
     folder = path.parent
     is_export = (folder / "camera.json").is_file()
@@ -109,6 +113,7 @@ def load_input(
     frame: int = 0,
     n_frames: int = 8,
     light_path: str | None = None,
+    camera: int | None = None,
 ) -> LoadedScene:
     """Load what ``scene`` stands for (:func:`resolve_input`) with :func:`scenes.load`'s
     options; an export loads at its exported size with its light, named after its folder.
@@ -127,6 +132,7 @@ def load_input(
         frame=frame,
         n_frames=n_frames,
         light_path=light_path,
+        camera=camera,
     )
     if found.name is not None:
         loaded = replace(loaded, name=found.name)
@@ -143,7 +149,7 @@ def named_input(name: str, *, exports=None) -> str:
     naming the built-in scenes otherwise."""
     from .builtin import BUILTIN_SCENES
 
-    if exports is not None and (Path(exports) / name / "scene.xml").is_file():
+    if exports is not None and export_scene_file(Path(exports) / name) is not None:
         return str(Path(exports) / name)
     if name in BUILTIN_SCENES:
         return name
@@ -161,7 +167,7 @@ def nearest_export(start, size: tuple[int, int]) -> Path | None:
     folder = Path(start).resolve().parent
     for _ in range(4):
         cam = folder / "camera.json"
-        if cam.is_file() and (folder / "scene.xml").is_file():
+        if cam.is_file() and export_scene_file(folder) is not None:
             try:
                 rec = json.loads(cam.read_text())
                 if (int(rec["width"]), int(rec["height"])) == tuple(size):

@@ -20,6 +20,7 @@ import numpy as np
 from . import backend
 from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
+from .gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
 from .lights import Light
 from .paths import CAMERA_PATHS, path_camera
@@ -65,6 +66,9 @@ class LoadedScene:
     light_path: str | None = None
     base_lights: list[Light] = field(default_factory=list)
     mesh_data: dict = field(default_factory=dict, repr=False)
+    #: glTF materials (:class:`scenes.gltf_materials.PbrMaterials`): the scene is shaded with
+    #: the glTF BRDF of :mod:`scenes.pbr`; None: the Lambert/Blinn-Phong of scenes.shading.
+    pbr: object = field(default=None, repr=False, compare=False)
     #: Per-scene memo caches of derived data (shape tables, occluder triangles, tie groups),
     #: keyed by their owner's name. A declared field, so ``dataclasses.replace`` carries it:
     #: only data that depends on the scene's geometry (not its camera or light) belongs here.
@@ -126,9 +130,21 @@ class LoadedScene:
             self, lights=lights, base_lights=base, light_path=path, frame=frame, n_frames=n
         )
 
+    @property
+    def shading_model(self) -> str:
+        """The shading model of the colour truth (recorded in provenance)."""
+        if self.pbr is not None:
+            from .pbr import SHADING_MODEL
+
+            return SHADING_MODEL
+        if self.specular.ks > 0.0:
+            return "lambert + normalized Blinn-Phong (scenes.shading)"
+        return "lambert (scenes.shading)"
+
     def provenance(self) -> dict:
         return {
             "name": self.name,
+            "shading_model": self.shading_model,
             "source": self.source,
             "content_hash": self.content_hash,
             "light_index": self.light_index,
@@ -167,10 +183,26 @@ def _to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
         if isinstance(value, dict) and value.get("type") == "ro_mesh":
             v = np.asarray(value["vertices"], dtype=np.float32)
             f = np.asarray(value["faces"], dtype=np.uint32)
-            mesh = mi.Mesh(key, vertex_count=len(v), face_count=len(f), has_vertex_normals=False)
+            # optional per-vertex data (glTF meshes, scenes.gltf): normals, uv, tangents
+            nrm, uv, tan = (value.get(k) for k in ("normals", "texcoords", "tangents"))
+            mesh = mi.Mesh(
+                key,
+                vertex_count=len(v),
+                face_count=len(f),
+                has_vertex_normals=nrm is not None,
+                has_vertex_texcoords=uv is not None,
+            )
             params = mi.traverse(mesh)
             params["vertex_positions"] = mi.Float(v.ravel())
             params["faces"] = mi.UInt32(f.ravel())
+            if nrm is not None:
+                params["vertex_normals"] = mi.Float(np.asarray(nrm, np.float32).ravel())
+            if uv is not None:
+                params["vertex_texcoords"] = mi.Float(np.asarray(uv, np.float32).ravel())
+            if tan is not None:
+                tan = np.asarray(tan, np.float32)
+                mesh.add_attribute("vertex_tangent", 3, mi.Float(tan[:, :3].ravel()))
+                mesh.add_attribute("vertex_tangent_w", 1, mi.Float(tan[:, 3].ravel()))
             params.update()
             bsdf = mi.load_dict(value["bsdf"])
             mesh.set_bsdf(bsdf)
@@ -323,8 +355,9 @@ def load(
     frame: int = 0,
     n_frames: int = 8,
     light_path: str | None = None,
+    camera: int | None = None,
 ) -> LoadedScene:
-    """Load a built-in scene by name or a Mitsuba XML file.
+    """Load a built-in scene by name, a Mitsuba XML file or a glTF 2.0 file.
 
     Parameters
     ----------
@@ -337,6 +370,8 @@ def load(
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
         that of ``frame`` (frame 0 is the scene's own light).
+    camera : glTF scenes: index of the document's camera to view through (default: the
+        scene's first camera node); see :mod:`scenes.gltf`.
 
     Raises
     ------
@@ -358,7 +393,18 @@ def load(
     mi = backend.mitsuba()
     name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
-    if isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
+    try:  # a glTF file or built-in glTF scene (scenes.gltf), else None
+        gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
+    except GltfError as exc:
+        raise SceneError(str(exc)) from None
+    if gl is not None:
+        digest, source, description, name = gl.digest, gl.source, gl.description, gl.name
+        specular = Specular()
+        try:
+            mi_scene = mi.load_dict(_to_mitsuba_dict(mi, gl.raw, meshes), optimize=False)
+        except Exception as exc:
+            raise SceneError(f"glTF scene {name!r} failed to load: {exc}") from exc
+    elif isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
         spec = scene if isinstance(scene, BuiltinScene) else BUILTIN_SCENES[name]
         w, h = int(width or spec.width), int(height or spec.height)
         raw = spec.factory(w, h)
@@ -375,8 +421,8 @@ def load(
         path = Path(name)
         if path.suffix.lower() != ".xml" and not path.exists():
             raise SceneError(
-                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}) "
-                "and not a Mitsuba XML file"
+                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}), "
+                "a Mitsuba XML file nor a glTF file (.gltf, .glb)"
             )
         if not path.is_file():
             raise SceneError(f"scene file not found: {path}")
@@ -404,6 +450,8 @@ def load(
         lt = _light_from_emitter(mi, e, e.id() or f"emitter_{i}")
         if lt is not None:
             lights.append(lt)
+    if gl is not None:
+        lights = gl.lights(lights)
     if not lights:
         kinds = ", ".join(e.class_name() for e in emitters) or "none"
         raise SceneError(
@@ -427,6 +475,7 @@ def load(
         content_hash=digest.hexdigest(),
         specular=specular,
         mesh_data=meshes,
+        pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
     )
     if camera_path is not None:
         loaded = loaded.with_frame(int(frame), path=camera_path, n_frames=int(n_frames))

@@ -32,6 +32,7 @@ PACKAGES = (
     "scikit-image",
     "colour-science",
     "flip-evaluator",
+    "pygltflib",
 )
 
 

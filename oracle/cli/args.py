@@ -112,12 +112,19 @@ def names(text: str) -> list[str]:
 
 
 def add_scene_args(p: argparse.ArgumentParser) -> None:
-    """``SCENE --light --width --height --camera-path --light-path --frame --frames``."""
+    """``SCENE --camera --light --width --height --camera-path --light-path --frame --frames``."""
     p.add_argument(
         "scene",
         metavar="SCENE",
-        help="built-in scene name, Mitsuba XML file, or an `export` folder (its scene.xml, at "
-        "its exported size and light)",
+        help="built-in scene name, Mitsuba XML file, glTF 2.0 file (.gltf, .glb), or an "
+        "`export` folder (its scene.xml or scene.glb, at its exported size and light)",
+    )
+    p.add_argument(
+        "--camera",
+        type=nonneg_int,
+        default=None,
+        help="glTF scenes: index of the file's camera to view through (default: the scene's "
+        "first camera node)",
     )
     p.add_argument(
         "--light",
@@ -225,6 +232,7 @@ def load_scene(args):
         frame=args.frame,
         n_frames=args.frames or 8,
         light_path=args.light_path,
+        camera=getattr(args, "camera", None),
     )
 
 

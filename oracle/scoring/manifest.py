@@ -154,7 +154,7 @@ def _scene_ref(table: dict, key: str, where: str, *, base: Path, exports: Path |
     try:
         return named_input(key, exports=exports)
     except SceneError as exc:
-        raise ManifestError(f"{where}: {exc} (or give scene = \"...\")") from None
+        raise ManifestError(f'{where}: {exc} (or give scene = "...")') from None
 
 
 def _opt(table: dict, key: str, check, *args, **kw):

@@ -193,7 +193,7 @@ def score_to_folder(
         label = candidate_name(candidate, frames=frames, camera_path=camera_path)
     # what an export was made for (size, light, camera path and frame): recorded with it
     source = Path(str(loaded.source))
-    if source.name == "scene.xml" and source.is_file():
+    if source.name in ("scene.xml", "scene.glb") and source.is_file():
         result.record["export"] = read_export_record(source.parent)
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = platform

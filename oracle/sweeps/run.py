@@ -246,7 +246,9 @@ def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
         tech = raster_models.TECHNIQUES[case.technique]
         full = params.as_dict(params.make(case.technique, tech.params, case.params))
         identity = {
-            "scene": Path(case.scene).name if case.scene.endswith(".xml") else case.scene,
+            "scene": Path(case.scene).name
+            if case.scene.endswith((".xml", ".gltf", ".glb"))
+            else case.scene,
             "scene_hash": base.content_hash,
             "technique": case.technique,
             "params": full,

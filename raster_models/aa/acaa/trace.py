@@ -299,6 +299,8 @@ def shade(
                 a["to_eye"],
                 offset=a["offset"],
                 visibility=None,
+                material=a.get("material"),
+                emissive=a.get("emissive"),
             )
             count = dr.count(tested)
             for c in range(3):
