@@ -198,11 +198,16 @@ def score_to_folder(
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
-    found = diagnose_result(result)
-    result.record["diagnosis"] = {k: found[k] for k in ("error", "noise_floor", "tried")}
-    result.record["diagnoses"] = [found["likely"]] if found["likely"] else []
-    result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
-    verdict.add(notes=[d["message"] for d in result.record["diagnoses"]])
+    # an engine's image that went wrong on its way out (flipped, encoded twice, shifted):
+    # diagnosed; a model's output is what the technique computes, not a file to diagnose
+    result.record["diagnoses"] = []
+    if candidate is not None:
+        found = diagnose_result(result)
+        result.record["diagnosis"] = {k: found[k] for k in ("error", "noise_floor", "tried")}
+        if found["likely"]:
+            result.record["diagnoses"].append(found["likely"])
+        result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
+        verdict.add(notes=[d["message"] for d in result.record["diagnoses"]])
     outside = result.record.get("outside_receivers") or {}
     if outside.get("differing"):
         verdict.add(
