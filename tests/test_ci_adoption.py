@@ -481,6 +481,22 @@ channels = {{ shadow = {{ fail_above = {{ flicker = 1.0 }} }} }}
     assert ("plate/shadow", "misclassified_fraction <= 0.01") in names
     assert ("plate/msaa", "ssim >= 0.9") in names and ("pan/shadow", "flicker <= 1") in names
     assert "plate/beauty: error:" in said.err
+    # without a manifest, --channel that one scene's file lacks: that scene's own error
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    write_exr(plain / "plate.exr", {"shadow.Y": ref["visibility"]})
+    write_exr(plain / "spot.exr", {"Y": ref["visibility"][:, ::-1].copy()})
+    exports = tmp_path / "exports"
+    exports.mkdir()
+    (exports / "plate").symlink_to(export, target_is_directory=True)
+    argv2 = ["score-folder", str(plain), "--exports", str(exports), "--channel", "shadow"]
+    junit2 = tmp_path / "j2.xml"
+    rc = main([*argv2, *SPP, "--quiet", "--out", str(tmp_path / "o2"), "--junit", str(junit2)])
+    capsys.readouterr()
+    m2 = json.loads((tmp_path / "o2" / "metrics.json").read_text())
+    assert rc == 1 and list(m2["scenes"]) == ["plate"] and list(m2["errors"]) == ["spot"]
+    errors = [c for c in ET.parse(junit2).getroot().iter("testcase") if c.find("error") is not None]
+    assert [c.get("classname") for c in errors] == ["spot"]
     # a manifest with an unknown key is exit 2 before anything is scored
     manifest.write_text('[scenes.plate]\nfiel = "plate.exr"\n')
     rc = main([*argv, "--out", str(tmp_path / "bad")])

@@ -102,7 +102,9 @@ def _options(args, manifest=None, **case):
 
 
 def _discovered_cases(args, gates) -> list:
-    """The cases of ``ROOT``'s layout (every one checked: a problem is exit 2)."""
+    """The cases of ``ROOT``'s layout (every one checked: a problem is exit 2, except a
+    file that lacks the ``--channel`` asked for: that scene's own error, the others scored)."""
+    from ..scoring.candidates import MissingChannelError
     from ..scoring.folder import FolderCase, discover
     from .score_inputs import resolve_layout
 
@@ -113,7 +115,16 @@ def _discovered_cases(args, gates) -> list:
     cases = []
     for entry in entries:
         loaded = _scene_of(entry, args.exports)
-        layout = resolve_layout(entry.pattern, channel=args.channel, kind=args.kind, loaded=loaded)
+        error = layout = None
+        try:
+            layout = resolve_layout(
+                entry.pattern, channel=args.channel, kind=args.kind, loaded=loaded
+            )
+        except MissingChannelError as exc:
+            if args.channel is None:
+                raise
+            print(f"{entry.name}: error: {exc}")
+            error = str(exc)
         camera_path = args.camera_path or loaded.camera_path
         if entry.frames and camera_path is None:
             raise A.CliError(
@@ -136,6 +147,7 @@ def _discovered_cases(args, gates) -> list:
                 layout,
                 options,
                 tuple(gates),
+                error,
             )
         )
     return cases

@@ -36,6 +36,7 @@ __all__ = [
     "RADIANCE_EPSILON",
     "CandidateError",
     "CandidateWarning",
+    "MissingChannelError",
     "check_candidate_values",
     "load_candidate",
     "png_is_grey",
@@ -58,6 +59,11 @@ _PNG_COLOUR_TYPES = (2, 6)
 
 class CandidateError(InputError):
     """A candidate image that cannot be used: unreadable, wrong size, missing channel, NaN."""
+
+
+class MissingChannelError(CandidateError):
+    """The candidate file lacks the channel or layer asked for (its own are listed): in a
+    folder run, an error of that scene alone."""
 
 
 class CandidateWarning(InputWarning):
@@ -230,7 +236,7 @@ def _load_exr(path: Path, channel: str) -> np.ndarray:
         image = _exr_named(chans, channel)
     if image is None:
         available = ", ".join(sorted(chans))
-        raise CandidateError(
+        raise MissingChannelError(
             f"candidate {path.name} has no channel {channel!r}; available: {available}"
         )
     return np.ascontiguousarray(image, dtype=np.float32)

@@ -33,7 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from ..reference.exr import ExrError, read_exr
-from .candidates import CandidateError, check_candidate_values, load_candidate, png_is_grey
+from .candidates import (
+    CandidateError,
+    MissingChannelError,
+    check_candidate_values,
+    load_candidate,
+    png_is_grey,
+)
 
 __all__ = [
     "FORMATS",
@@ -151,7 +157,9 @@ def _exr_kind(file_name: str, names, kind: str) -> CandidateLayout:
             )
         if "Y" in names:
             return _grey_layout("Y", kind)
-        raise CandidateError(f"candidate {file_name} has no channel 'color'; {_listing(names)}")
+        raise MissingChannelError(
+            f"candidate {file_name} has no channel 'color'; {_listing(names)}"
+        )
     if kind in names:
         return _grey_layout(kind, kind)
     for found in ([n for n in greys if _leaf(n) == kind], ["Y"] if "Y" in greys else []):
@@ -169,7 +177,7 @@ def _exr_kind(file_name: str, names, kind: str) -> CandidateLayout:
         )
     if "" in groups:  # grey stored as equal R, G, B: checked when read
         return _rgb_layout("", kind)
-    raise CandidateError(f"candidate {file_name} has no channel {kind!r}; {_listing(names)}")
+    raise MissingChannelError(f"candidate {file_name} has no channel {kind!r}; {_listing(names)}")
 
 
 def _exr_named(file_name: str, names, channel: str, kind: str | None) -> CandidateLayout:
@@ -186,7 +194,7 @@ def _exr_named(file_name: str, names, channel: str, kind: str | None) -> Candida
             f"candidate {file_name} layer {channel!r} holds {', '.join(sorted(members))}; "
             f"pick one with --channel {' or '.join(sorted(members))}"
         )
-    raise CandidateError(
+    raise MissingChannelError(
         f"candidate {file_name} has no channel or layer {channel!r}; {_listing(names)}"
     )
 
@@ -194,7 +202,7 @@ def _exr_named(file_name: str, names, channel: str, kind: str | None) -> Candida
 def _png_layout(path: Path, channel: str | None, kind: str | None) -> CandidateLayout:
     want = kind or channel
     if want is not None and want not in KINDS:
-        raise CandidateError(
+        raise MissingChannelError(
             f"candidate {path.name} is a PNG, which has no named channels: --channel must be "
             f"one of {', '.join(KINDS)}, got {channel!r}"
         )
@@ -281,7 +289,7 @@ def _exr_read(path: Path, layout: CandidateLayout, expected_shape) -> np.ndarray
         ) from exc
     missing = [n for n in layout.names if n not in chans]
     if missing:
-        raise CandidateError(
+        raise MissingChannelError(
             f"candidate {path.name} has no channel {missing[0]!r} (as the first frame "
             f"had); {_listing(chans)}"
         )
