@@ -21,6 +21,7 @@ from .aliasing import (
     straight_edge_error_floor,
 )
 from .catalog import CATALOG
+from .diagnose import diagnose
 from .ghosting import (
     convergence,
     disocclusion_age,
@@ -41,7 +42,14 @@ from .perceptual import (
     ssim,
 )
 from .shadow import SHADOW_KEYS, shadow_edges, shadow_metrics
-from .stats import binomial_stderr_floor, exact_surrogate, noise_floor, z_test
+from .stats import (
+    FRACTION_FLOOR_Z,
+    binomial_stderr_floor,
+    exact_surrogate,
+    fraction_floor,
+    noise_floor,
+    z_test,
+)
 from .temporal import flicker, temporal_error
 from .tonemap import (
     exposure_from_reference,
@@ -79,7 +87,10 @@ __all__ = [
     "hdr_exposure_range",
     "luminance",
     "noise_floor",
+    "FRACTION_FLOOR_Z",
     "binomial_stderr_floor",
+    "diagnose",
+    "fraction_floor",
     "exact_surrogate",
     "psnr_db",
     "shadow_edges",

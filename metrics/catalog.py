@@ -210,6 +210,33 @@ _ENTRIES = (
         ("color",),
         "candidate-disoccluded pixels the reference marks disoccluded",
     ),
+    *(
+        _m(
+            f"unreal_{level}_{which}_error",
+            "lower",
+            "fraction of pixels" if which == "global" else "fraction of a 10x10-grid block",
+            _ALL,
+            f"Unreal screenshot comparison, {level} tolerance: mismatched pixels "
+            + ("of the image" if which == "global" else "of the worst block"),
+        )
+        for level in ("low", "medium", "high")
+        for which in ("global", "local")
+    ),
+    _m(
+        "unity_average_delta_e",
+        "lower",
+        "JzAzBz dE",
+        _ALL,
+        "Unity ImageAssert: mean JzAzBz delta E above the per-pixel 0.001",
+    ),
+    _m(
+        "edge_aware_error_fraction",
+        "lower",
+        "fraction of pixels",
+        ("visibility", "coverage"),
+        "pixels beyond 3 standard errors (+ 0.25 px of edge position where the truth is "
+        "fractional)",
+    ),
     _m("coverage_mae", "lower", "coverage (0..1)", _COV, "mean |coverage error|"),
     _m("coverage_rmse", "lower", "coverage (0..1)", _COV, "RMS coverage error"),
     _m("coverage_bias", "zero", "coverage (-1..1)", _COV, "mean signed coverage error"),

@@ -28,7 +28,7 @@ import signal
 import sys
 import warnings
 
-from ..errors import one_line
+from ..errors import InputWarning, one_line
 from . import model, reference, score, studies, sweeps
 from .args import CliError, Parser, input_errors
 
@@ -84,6 +84,19 @@ def _run(args) -> int:
         # NumPy's RuntimeWarnings (0/0 on empty masks, ...) are not the user's business;
         # results are checked for NaN/inf where they are made.
         warnings.simplefilter("ignore", RuntimeWarning)
+        # a correction the library made to the input (values clamped): one line, once
+        warnings.simplefilter("always", InputWarning)
+        shown: set[str] = set()
+
+        def show(message, category, *_args, **_kwargs):
+            text = one_line(message) if isinstance(message, Warning) else str(message)
+            if issubclass(category, InputWarning) and text not in shown:
+                shown.add(text)
+                print(f"raster-oracle: warning: {text}", file=sys.stderr)
+            elif not issubclass(category, InputWarning):
+                sys.stderr.write(warnings.formatwarning(message, category, *_args[:2]))
+
+        warnings.showwarning = show
         if args.command != "doctor":
             from ..certify import certified_select
 

@@ -33,6 +33,7 @@ from ...scenes.shading import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
+from .engine_metrics import add_engine_gate_metrics, exact_floors
 from .temporal import add_temporal_aa
 
 __all__ = [
@@ -137,6 +138,17 @@ def _linear_display(ref, cand, *, ppd, full, out):
     return M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
 
 
+def _receivers_only(ref_ch, cand, *, light, out):
+    """A shadow mask with the reference's values off the oracle's receivers. Engine
+    conventions differ there (sky, back faces, outside a spot cone: 1 in most engines, 0 in
+    the oracle): only receivers are scored, the rest are counted in ``out``."""
+    ref = ref_ch["visibility"]
+    rec = reference_receivers(ref_ch, light)
+    out["outside_receivers"] = int((~rec).sum())
+    out["outside_receivers_differing"] = int(((cand != ref) & ~rec).sum())
+    return np.where(rec, cand, ref).astype(np.float32)
+
+
 def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
     """A shadow mask: shadow metrics on the receivers."""
     ref = ref_ch["visibility"]
@@ -145,6 +157,7 @@ def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
     for k in _SHADOW_VALUES:
         out[k] = sm[k]
     out["receiver_count"] = sm["receiver_count"]
+    out["edge_band_count"] = sm["edge_band_count"]
     if full:
         maps["visibility_error"] = sm["signed_error"]
         maps["misclassified"] = sm["misclassified"].astype(np.float32)
@@ -220,6 +233,8 @@ def _metrics_for(
         aa_samples=aa_samples,
     )
     edge = ref_ch["edge"] > 0.5
+    if channel == "visibility":
+        cand = _receivers_only(ref_ch, cand, light=light, out=out)
     ref, ref_se, rec, edge, fl = own(
         ref_ch, cand, channel=channel, edge=edge, full=full, kw=kw, out=out, maps=maps
     )
@@ -287,8 +302,12 @@ def _noise_floor(
     # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by noise of
     # A's variance (B itself would overstate the floor by about sqrt(2))
     exact = M.exact_surrogate(ref_img, second)
-    floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
+    floor, _, _, rec = _metrics_for(channel, ref_ch, exact, full=False, **kw)
     floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+    # the engine teams' gates (Unreal, Unity, edge-aware) on the same exact surrogate
+    floor.update(
+        exact_floors(ref_img, exact, ref_ch, channel=channel, exposure=kw["exposure"], mask=rec)
+    )
     if floor_cache is not None and floor_key[0] is not None:
         floor_cache[floor_key] = dict(floor)
     return floor
@@ -526,11 +545,53 @@ def score(
         spp=spp,
         seed=seed,
     )
+    _fraction_floors(result)
+    add_engine_gate_metrics(result, channel=channel, exposure=exposure)
+    if channel == "visibility":
+        result.record["outside_receivers"] = {
+            key: sum(int(f.metrics[k]) for f in result.frames)
+            for key, k in (
+                ("pixels", "outside_receivers"),
+                ("differing", "outside_receivers_differing"),
+            )
+        }
     result.record["candidate_info"] = infos
     result.record["gate_frames"] = gate_frames
     result.record["temporal_aa"] = taa_detail
     result.record["wall_seconds"] = time.perf_counter() - t0
     return result
+
+
+#: Fractions of pixels and the frame metric holding how many pixels each is a fraction of
+#: (None: every tested value of the image).
+_FRACTION_OF = {
+    "significant_fraction": None,
+    "misclassified_fraction": "receiver_count",
+    "false_lit_fraction": "receiver_count",
+    "false_shadow_fraction": "receiver_count",
+    "edge_band_misclassified_fraction": "edge_band_count",
+}
+
+
+def _fraction_floors(result: ScoreResult) -> None:
+    """The noise floors of the fractions of pixels: an exact candidate flags ~0 pixels
+    (``significant_fraction``'s Sidak correction; a 0.5 threshold), yet a re-rendered
+    reference flips the pixels near the threshold; each floor is at least that flip's bound
+    (:func:`metrics.fraction_floor` of the run's fraction over the pixels it counts), so an
+    unchanged candidate against another seed's reference is no regression."""
+    floors = result.record.get("noise_floor")
+    if floors is None:
+        return
+    for key, count_key in _FRACTION_OF.items():
+        value = result.record.get(key)
+        if value is None:
+            continue
+        if count_key is None:
+            n = sum(int(f.candidate.size) for f in result.frames)
+        else:
+            n = sum(int(f.metrics.get(count_key) or 0) for f in result.frames)
+        if n > 0:
+            floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(value, n))
 
 
 def metric_limit(
