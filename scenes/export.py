@@ -200,8 +200,24 @@ def _write_export_record(tmp: Path, loaded) -> None:
         return
     (tmp / "cameras").mkdir()
     for k in range(loaded.n_frames):
-        cam = loaded.with_frame(k, path=loaded.camera_path, n_frames=loaded.n_frames).camera
-        (tmp / "cameras" / f"frame_{k:03d}.json").write_text(json.dumps(cam.to_json(), indent=2))
+        at = loaded.with_frame(k, path=loaded.camera_path, n_frames=loaded.n_frames)
+        cam = {**at.camera.to_json(), "sequence": _sequence(at)}
+        (tmp / "cameras" / f"frame_{k:03d}.json").write_text(json.dumps(cam, indent=2))
+
+
+def _sequence(loaded) -> dict:
+    """The frame of the sequence a camera record was made for (engines render the same
+    frame): its camera and light paths or camera file, and the moving objects' transforms."""
+    return {
+        "camera_path": loaded.camera_path,
+        "light_path": loaded.light_path,
+        "camera_file": loaded.camera_file,
+        "frame": loaded.frame,
+        "n_frames": loaded.n_frames,
+        "object_paths": {k: dict(v) for k, v in loaded.object_motion.items()} or None,
+        "object_transforms": {k: loaded.shape_transform(k).tolist() for k in loaded.object_motion}
+        or None,
+    }
 
 
 def export(loaded, out_dir: str | Path) -> dict:
@@ -233,18 +249,7 @@ def export(loaded, out_dir: str | Path) -> dict:
             }
         camera = loaded.camera.to_json()
         # the frame of the sequence this export was made for (engines render the same frame)
-        camera["sequence"] = {
-            "camera_path": loaded.camera_path,
-            "light_path": loaded.light_path,
-            "camera_file": loaded.camera_file,
-            "frame": loaded.frame,
-            "n_frames": loaded.n_frames,
-            "object_paths": {k: dict(v) for k, v in loaded.object_motion.items()} or None,
-            "object_transforms": {
-                k: loaded.shape_transform(k).tolist() for k in loaded.object_motion
-            }
-            or None,
-        }
+        camera["sequence"] = _sequence(loaded)
         (tmp / "camera.json").write_text(json.dumps(camera, indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
         if loaded.pbr is not None:  # with each light's glTF node matrix

@@ -545,16 +545,7 @@ def score(
         spp=spp,
         seed=seed,
     )
-    _fraction_floors(result)
-    add_engine_gate_metrics(result, channel=channel, exposure=exposure)
-    if channel == "visibility":
-        result.record["outside_receivers"] = {
-            key: sum(int(f.metrics[k]) for f in result.frames)
-            for key, k in (
-                ("pixels", "outside_receivers"),
-                ("differing", "outside_receivers_differing"),
-            )
-        }
+    _engine_records(result, channel=channel, exposure=exposure)
     result.record["candidate_info"] = infos
     result.record["gate_frames"] = gate_frames
     result.record["temporal_aa"] = taa_detail
@@ -571,6 +562,21 @@ _FRACTION_OF = {
     "false_shadow_fraction": "receiver_count",
     "edge_band_misclassified_fraction": "edge_band_count",
 }
+
+
+def _engine_records(result: ScoreResult, *, channel: str, exposure) -> None:
+    """The pixel-fraction noise floors, the engine teams' gate metrics and, for a shadow
+    mask, the pixels off the oracle's receivers (ignored and counted) of a scored result."""
+    _fraction_floors(result)
+    add_engine_gate_metrics(result, channel=channel, exposure=exposure)
+    if channel == "visibility":
+        result.record["outside_receivers"] = {
+            key: sum(int(f.metrics[k]) for f in result.frames)
+            for key, k in (
+                ("pixels", "outside_receivers"),
+                ("differing", "outside_receivers_differing"),
+            )
+        }
 
 
 def _fraction_floors(result: ScoreResult) -> None:
