@@ -10,6 +10,13 @@ Two levels:
 - :func:`trace_film`, :func:`intersect` and :func:`occluded` take and return NumPy arrays,
   chunked so memory stays bounded; models use these to sample where a technique samples
   (MSAA sample positions, shadow-map texel centres from the light, ...).
+
+**One Mitsuba scene per Dr.Jit kernel.** Every helper here traces ``loaded.mi_scene`` only
+(primary, shadow and self-hit rays of one scene may share a kernel). Code that also traces
+another ``mi.Scene`` (a sub-scene of some of the shapes, as ACAA's tie groups) must evaluate
+one scene's results before tracing the other (:func:`.kernels.evaluate_trace`): on CUDA,
+OptiX disables the second trace in a kernel and it returns no hits, silently.
+:func:`.kernels.audit` checks the rule on the CPU.
 """
 
 from __future__ import annotations

@@ -230,7 +230,8 @@ def render(
 
 def write_engine_exr(path, images: dict) -> None:
     """Engine-style layered EXR with OpenEXR (as an engine's exporter writes it): layers
-    ``shadow.Y``, ``msaa.R/G/B`` and ``msaa.coverage``."""
+    ``shadow.Y``, ``msaa.R/G/B`` and ``msaa.coverage``, and with ``images["velocity"]``
+    (``(H, W, 2)``) its velocity buffer ``velocity.X/Y``."""
     import OpenEXR
 
     channels = {
@@ -240,6 +241,9 @@ def write_engine_exr(path, images: dict) -> None:
         "msaa.B": images["color"][..., 2],
         "msaa.coverage": images["coverage"],
     }
+    if "velocity" in images:
+        channels["velocity.X"] = images["velocity"][..., 0]
+        channels["velocity.Y"] = images["velocity"][..., 1]
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     chans = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
     with OpenEXR.File(header, chans) as f:
@@ -251,3 +255,30 @@ def write_grey_png(path, image: np.ndarray) -> None:
     from PIL import Image
 
     Image.fromarray(np.round(np.clip(image, 0, 1) * 255).astype(np.uint8), mode="L").save(path)
+
+
+def velocity(folder, previous_camera: dict) -> np.ndarray:
+    """The engine's velocity buffer: ``(H, W, 2)`` float64, at each pixel centre the film
+    position (pixels, y down) in the previous frame of the surface the centre sees, minus the
+    centre, as an engine computes it from its depth buffer: the point reconstructed from the
+    rasterized triangle (a sky pixel: the pixel's ray at the far plane) and projected with
+    ``previous_camera`` (an export's ``camera.json`` record) by its OpenGL matrices."""
+    scene = load_export(folder)
+    cam, tris = scene["camera"], scene["triangles"]
+    width, height = cam["width"], cam["height"]
+    view_proj = np.asarray(cam["opengl"]["projection"]) @ np.asarray(cam["opengl"]["world_to_view"])
+    hom = np.concatenate([tris, np.ones(tris.shape[:2] + (1,))], -1)
+    clip = hom @ view_proj.T
+    y, x = np.mgrid[0:height, 0:width].reshape(2, -1) + 0.5
+    ndc = np.stack([2.0 * x / width - 1.0, 1.0 - 2.0 * y / height], -1)
+    idx, lam, _ = rasterize(clip[..., [0, 1, 3]], ndc, near_w=cam["near"])
+    pos = np.einsum("si,sij->sj", lam, tris[np.maximum(idx, 0)])
+    far = np.concatenate([ndc, np.ones((len(ndc), 2))], -1) @ np.linalg.inv(view_proj).T
+    pos = np.where((idx >= 0)[:, None], pos, far[:, :3] / far[:, 3:4])
+    prev_vp = np.asarray(previous_camera["opengl"]["projection"]) @ np.asarray(
+        previous_camera["opengl"]["world_to_view"]
+    )
+    p = np.concatenate([pos, np.ones((len(pos), 1))], -1) @ prev_vp.T
+    px = (p[:, 0] / p[:, 3] + 1.0) / 2.0 * width
+    py = (1.0 - p[:, 1] / p[:, 3]) / 2.0 * height
+    return np.stack([px - x, py - y], -1).reshape(height, width, 2)

@@ -103,6 +103,9 @@ def reference_key(loaded, settings, variant: str) -> str:
         "variant": variant,
         "oracle_version": ORACLE_VERSION,
     }
+    if getattr(loaded, "camera_file", None):
+        # a camera file sets the field of view per frame (the matrix alone does not say it)
+        record["fov_x"] = round(float(loaded.camera.fov_x), 12)
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
 

@@ -21,7 +21,9 @@ intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engin
 Values are float32 (Mitsuba's ``Float``), as a GPU computes them. The Dr.Jit side of each
 (:func:`prepass_dr`, :func:`attributes_dr`, :func:`shade_dr`) is also callable on Dr.Jit
 arrays, for models that chain them without NumPy round trips (:mod:`.agaa.kernels`,
-:mod:`.acaa.trace`).
+:mod:`.acaa.trace`). ``target`` (a sub-scene) and ``scene.mi_scene`` are different Mitsuba
+scenes: evaluate what one traced (``scenes.kernels.evaluate_trace``) before the other
+traces (one scene per kernel; OptiX silently disables the second trace).
 """
 
 from __future__ import annotations

@@ -9,7 +9,10 @@ by the epsilon or by the rounding of the G-buffer position), OR-ed into the rece
 (an OR is order-free: the same bits however the pairs are split).
 
 Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
-``(base + da a) + db b``, in float64 without fused multiply-adds.
+``(base + da a) + db b``, in float64 without fused multiply-adds: every product is rounded
+explicitly (:func:`scenes.kernels.product_rounder`), since ``ptxas`` contracts a
+multiply and an add on CUDA (IZB on a spot light disagreed with the oracle's centre ray and
+tangent-plane reference on an H200, within the float rounding of these planes).
 ``tests/_izb_reference.py`` holds a NumPy version of the same tests, the reference
 ``tests/test_izb.py`` compares the kernels with (exactly: masks and flags).
 
@@ -41,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...scenes.kernels import product_rounder
 from .geometry import chunks_by_total
 
 __all__ = [
@@ -299,7 +303,7 @@ class PairTester:
         ``row`` of ``rows`` (:meth:`_rows`)."""
         import drjit as dr
 
-        _, d = self._inputs()
+        mi, d = self._inputs()
         # Packet gathers (JitFlag.PacketOps): a triangle's 16 plane values and a receiver's
         # row are contiguous, loaded as packets instead of one gather per value.
         pl = dr.gather(d["array"], d["planes"], tri, shape=(16, dr.width(tri)))
@@ -308,9 +312,10 @@ class PairTester:
             rv += list(dr.gather(d["array"], arr, row, shape=(w, dr.width(row))))
         rows = [[pl[4 * k + j] for j in range(4)] for k in range(4)]
         p = [rv[0], rv[1], rv[2]]
+        mul = product_rounder(mi.Float64)
 
         def dot(n, v):
-            return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+            return mul(n[0], v[0]) + mul(n[1], v[1]) + mul(n[2], v[2])
 
         base = [dot(row, p) + row[3] for row in rows]
         floor, hit = rv[-5], rv[-4:-1]
@@ -327,9 +332,11 @@ class PairTester:
         point inside) from bounds of the planes over the pixel's points."""
         import drjit as dr
 
+        mi, _ = self._inputs()
+        mul = product_rounder(mi.Float64)
         a, b = self.recv["a"], self.recv["b"]
         amax, bmax = float(np.abs(a).max()), float(np.abs(b).max())
-        spread = [dr.abs(da[k]) * amax + dr.abs(db[k]) * bmax for k in range(4)]
+        spread = [mul(dr.abs(da[k]), amax) + mul(dr.abs(db[k]), bmax) for k in range(4)]
         hi = [base[k] + spread[k] for k in range(4)]
         lo = [base[k] - spread[k] for k in range(4)]
         top = [exact[k] + spread[k] for k in range(4)]
@@ -346,14 +353,15 @@ class PairTester:
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
+        mul = product_rounder(mi.Float64)
         a, b = self.recv["a"], self.recv["b"]
         slack = -(floor + self.epsilon)
         m = u32(0)
         bm = u32(0)
         for q in range(32):  # the 32 fixed points (unrolled into the kernel)
             aq, bq = float(a[q]), float(b[q])
-            v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
-            w = [(exact[k] + da[k] * aq) + db[k] * bq for k in range(4)]
+            v = [(base[k] + mul(da[k], aq)) + mul(db[k], bq) for k in range(4)]
+            w = [(exact[k] + mul(da[k], aq)) + mul(db[k], bq) for k in range(4)]
             edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
             near = (w[0] >= slack) & (w[1] >= slack) & (w[2] >= slack)
             bit = u32(1 << q)
