@@ -315,13 +315,16 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     np.minimum.at(lo, owner, diff + tol)  # < 0: b clearly nearer at some vertex
     a_front = (hi > 0) & (lo >= 0)
     b_front = (lo < 0) & (hi <= 0)
-    # a tie between coplanar triangles of one shape: either in front gives the same
-    # coverage and front coverage (a consistent order, as there is one depth at each point)
+    # a tie between coplanar triangles: either in front gives the same coverage (a consistent
+    # order, as there is one depth at each point), and the same front coverage within one
+    # shape; between two shapes which one a ray tracer keeps is rounding: not exact
     shape = tset.shape[tri_idx]
-    a_front |= (hi <= 0) & (lo >= 0) & (shape[a] == shape[b])
+    tie = (hi <= 0) & (lo >= 0)
+    bad = ~(a_front | b_front | tie) | (tie & (shape[a] != shape[b]))
+    a_front |= tie
     # planar triangles crossing each other: split the overlap along their intersection
     cross = (hi > 0) & (lo < 0) & (slack[a] == 0) & (slack[b] == 0)
-    bad = ~(a_front | b_front | cross)
+    bad &= ~cross
     a_near, b_near = _split_overlap(
         camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
     )
