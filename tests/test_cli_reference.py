@@ -31,6 +31,9 @@ def test_reference_writes_every_channel(tmp_path):
         "coverage_stderr",
         "front_coverage",
         "front_coverage_stderr",
+        "coverage_exact",
+        "front_coverage_exact",
+        "coverage_exact_valid",
         "id",
         "depth",
         "edge",
@@ -58,8 +61,11 @@ def test_reference_writes_every_channel(tmp_path):
         "visibility_stderr_mean",
         "visibility_stderr_max",
         "color_stderr_max",
+        "coverage_exact",
     ):
         assert key in meta
+    # the Monte Carlo coverage cross-checked against the exact one (issue 28)
+    assert set(meta["coverage_exact"]["monte_carlo_vs_exact"]) == {"coverage", "front_coverage"}
     assert meta["resolution"] == [48, 27] and meta["spp"] == 4
     assert meta["rays_cast"] >= 4 * 48 * 27
     # the ground and the plate are both in view, with a shadow edge between them

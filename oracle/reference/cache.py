@@ -54,7 +54,8 @@ __all__ = [
 #: 4: the coverage group holds front_coverage (the front-most primitive's coverage) too.
 #: 5: jitter from a 6-round 32-bit TEA hash; adaptive sampling refines near features only
 #: and samples a scrambled Sobol sequence (issue 18).
-ORACLE_VERSION = "5"
+#: 6: the coverage_exact group (analytic coverage of triangle scenes, issue 28).
+ORACLE_VERSION = "6"
 FILES = ("reference.exr", "reference.json")
 
 #: Environment variables naming the cache folder, first set wins (the first is documented).

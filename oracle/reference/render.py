@@ -42,7 +42,7 @@ from ...metrics.stats import binomial_stderr_floor
 from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
-from .coverage import centre_shapes, front_hits
+from .coverage import centre_shapes, exact_channels, front_hits
 from .motion import motion_channels
 
 __all__ = [
@@ -65,6 +65,8 @@ __all__ = [
 CHANNEL_GROUPS = {
     "visibility": ["visibility", "visibility_stderr"],
     "coverage": ["coverage", "coverage_stderr", "front_coverage", "front_coverage_stderr"],
+    # analytic, noise-free coverage of triangle scenes (scenes.exact_coverage)
+    "coverage_exact": ["coverage_exact", "front_coverage_exact", "coverage_exact_valid"],
     "color": [
         "color.R",
         "color.G",
@@ -811,6 +813,9 @@ def render_reference(
         channels["edge"] = img((acc.smin != acc.smax) | mixed)
     channels.update(centre)
     stats = _stats(settings, acc, channels, primary, shadow, wall, passes, (w, h), sampled)
+    if "coverage_exact" in groups:
+        exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
+        channels.update(exact)
     return channels, stats
 
 

@@ -287,6 +287,8 @@ def _provenance(result: ScoreResult, loaded) -> dict:
         "reference spp": ref["spp"],
         "seed": ref["seed"],
         "filter": ref["filter"],
+        # coverage scores: exact (analytic) truth, Monte Carlo, or exact where valid
+        "coverage truth": ref.get("coverage_truth"),
         "ppd": result.record["ppd"],
         "exposure (stops)": tm.get("exposure_stops"),
         "tone mapper": tm.get("tone_mapper", "none (visibility is data)"),

@@ -45,6 +45,7 @@ __all__ = [
     "ScoreResult",
     "added_flicker",
     "coverage_metrics",
+    "coverage_truth",
     "failures",
     "metric_limit",
     "parse_thresholds",
@@ -73,14 +74,31 @@ COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
 REFERENCE_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
-    "coverage": ("coverage", "edge", "id"),
+    "coverage": ("coverage", "coverage_exact", "edge", "id"),
     # the coverage of each pixel's front-most primitive (oracle.reference.coverage): what the
     # anti-aliasing models are scored on, so that backdrop scenes have coverage edges too
-    "front_coverage": ("coverage", "edge", "id"),
+    "front_coverage": ("coverage", "coverage_exact", "edge", "id"),
 }
 #: Channels of sample counts (binary samples: binomial noise floor).
 COVERAGE_CHANNELS = ("coverage", "front_coverage")
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
+
+
+def coverage_truth(ref_ch: dict, channel: str):
+    """The truth a coverage channel is scored against: the exact channel
+    (``coverage_exact``/``front_coverage_exact``, standard error 0) where
+    ``coverage_exact_valid``, the Monte Carlo estimate elsewhere. Returns ``(truth, stderr,
+    record)``; the record names the truth used and the fraction of exact pixels."""
+    ref = np.asarray(ref_ch[channel], np.float64)
+    se = np.asarray(ref_ch[f"{channel}_stderr"], np.float64)
+    exact = ref_ch.get(f"{channel}_exact")
+    if exact is None:
+        return ref, se, {"truth": "monte carlo", "exact_fraction": 0.0}
+    valid = ref_ch["coverage_exact_valid"] > 0.5
+    fraction = float(valid.mean())
+    truth = "exact" if fraction == 1.0 else "exact where valid, monte carlo elsewhere"
+    record = {"truth": truth if fraction > 0 else "monte carlo", "exact_fraction": fraction}
+    return np.where(valid, exact, ref), np.where(valid, 0.0, se), record
 
 
 class ScoreError(InputError):
@@ -166,14 +184,15 @@ def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
 
 
 def _coverage_channel_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
-    """A coverage mask: coverage error against the N-sample straight-edge floor."""
-    ref = ref_ch[channel]
+    """A coverage mask: coverage error against the N-sample straight-edge floor, against
+    the exact coverage where it is valid (:func:`coverage_truth`)."""
+    ref, ref_se, _ = coverage_truth(ref_ch, channel)
     out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=kw["aa_samples"]))
     if full:
         maps["coverage_error"] = (cand - ref).astype(np.float32)
     fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
     # silhouettes against the sky are edges of coverage even where one shape is seen
-    return ref, ref_ch[f"{channel}_stderr"], None, edge | ((ref > 0) & (ref < 1)), fl
+    return ref, ref_se, None, edge | ((ref > 0) & (ref < 1)), fl
 
 
 def _color_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
@@ -298,7 +317,7 @@ def _noise_floor(
     if cached is not None and floor_key[0] is not None:
         return dict(cached)
     ref2_ch = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
-    second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
+    second = _second(ref2_ch, channel)
     # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by noise of
     # A's variance (B itself would overstate the floor by about sqrt(2))
     exact = M.exact_surrogate(ref_img, second)
@@ -311,6 +330,16 @@ def _noise_floor(
     if floor_cache is not None and floor_key[0] is not None:
         floor_cache[floor_key] = dict(floor)
     return floor
+
+
+def _second(ref2_ch: dict, channel: str) -> np.ndarray:
+    """The independently seeded reference of the noise floor (exact where its coverage is:
+    an exact truth has no noise floor)."""
+    if channel == "color":
+        return _rgb(ref2_ch, "color")
+    if channel in COVERAGE_CHANNELS:
+        return coverage_truth(ref2_ch, channel)[0]
+    return ref2_ch[channel]
 
 
 def added_flicker(reference_frames: np.ndarray, candidate_frames: np.ndarray) -> float:
@@ -339,7 +368,7 @@ def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet):
     exact = []
     for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
         ch2 = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
-        second = ch2[channel] if channel != "color" else _rgb(ch2, "color")
+        second = _second(ch2, channel)
         exact.append(M.exact_surrogate(frame.reference, second))
     refs = np.stack([f.reference for f in result.frames])
     exact = np.stack(exact)
@@ -495,6 +524,7 @@ def score(
         floor = None
         if k == 0:
             ref_meta = ref.meta
+            truth = coverage_truth(ref_ch, channel)[2] if channel in COVERAGE_CHANNELS else None
             floor = _noise_floor(
                 frame_scene,
                 ref,
@@ -546,6 +576,9 @@ def score(
         seed=seed,
     )
     _engine_records(result, channel=channel, exposure=exposure)
+    if truth is not None:
+        # which truth the coverage metrics used: exact (noise floor 0 there) or Monte Carlo
+        result.record["reference"]["coverage_truth"] = truth
     result.record["candidate_info"] = infos
     result.record["gate_frames"] = gate_frames
     result.record["temporal_aa"] = taa_detail
