@@ -7,7 +7,9 @@ visibility and coverage are in [0, 1] with 1 = lit / covered. Invalid input rais
 Modules: :mod:`metrics.tonemap` (the shared tone-mapping pipeline), :mod:`metrics.perceptual`
 (FLIP, SSIM, PSNR, CIEDE2000), :mod:`metrics.shadow` (visibility on receivers),
 :mod:`metrics.aliasing` (edge/interior and coverage error, straight-edge floor),
-:mod:`metrics.temporal` (flicker), :mod:`metrics.stats` (Z-test, noise floor),
+:mod:`metrics.temporal` (flicker), :mod:`metrics.ghosting` (convergence, ghosting, lag,
+flicker ratio and map of a temporal AA), :mod:`metrics.motion` (motion-vector conventions
+and end-point error), :mod:`metrics.stats` (Z-test, noise floor),
 :mod:`metrics.catalog` (every scored metric's direction, unit and applicability).
 """
 
@@ -19,6 +21,17 @@ from .aliasing import (
     straight_edge_error_floor,
 )
 from .catalog import CATALOG
+from .diagnose import diagnose
+from .ghosting import (
+    convergence,
+    disocclusion_age,
+    flicker_map,
+    flicker_ratio,
+    frame_errors,
+    ghosting,
+    history_error,
+)
+from .motion import from_oracle_motion, motion_errors, to_oracle_motion
 from .perceptual import (
     DEFAULT_PPD,
     delta_e2000,
@@ -29,7 +42,14 @@ from .perceptual import (
     ssim,
 )
 from .shadow import SHADOW_KEYS, shadow_edges, shadow_metrics
-from .stats import binomial_stderr_floor, exact_surrogate, noise_floor, z_test
+from .stats import (
+    FRACTION_FLOOR_Z,
+    binomial_stderr_floor,
+    exact_surrogate,
+    fraction_floor,
+    noise_floor,
+    z_test,
+)
 from .temporal import flicker, temporal_error
 from .tonemap import (
     exposure_from_reference,
@@ -45,7 +65,17 @@ __all__ = [
     "DEFAULT_PPD",
     "SHADOW_KEYS",
     "MetricError",
+    "convergence",
     "coverage_error",
+    "disocclusion_age",
+    "flicker_map",
+    "flicker_ratio",
+    "frame_errors",
+    "from_oracle_motion",
+    "ghosting",
+    "history_error",
+    "motion_errors",
+    "to_oracle_motion",
     "delta_e2000",
     "delta_e2000_lab",
     "edge_interior_error",
@@ -57,7 +87,10 @@ __all__ = [
     "hdr_exposure_range",
     "luminance",
     "noise_floor",
+    "FRACTION_FLOOR_Z",
     "binomial_stderr_floor",
+    "diagnose",
+    "fraction_floor",
     "exact_surrogate",
     "psnr_db",
     "shadow_edges",

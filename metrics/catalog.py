@@ -130,6 +130,113 @@ _ENTRIES = (
         "mean change of the error between consecutive frames",
         min_frames=2,
     ),
+    # temporal anti-aliasing over a sequence (metrics.ghosting): each frame against that
+    # frame's truth; "steady" is the mean over the judged (last) frames
+    _m(
+        "steady_error",
+        "lower",
+        "channel units",
+        ("color",),
+        "mean |error| over the judged frames (the last --gate-frames, else all)",
+        min_frames=2,
+    ),
+    _m(
+        "convergence_frames",
+        "lower",
+        "frames",
+        ("color",),
+        "frames until the per-frame mean |error| reaches and stays within 10% of its steady level",
+        min_frames=2,
+    ),
+    _m(
+        "ghosting_error",
+        "lower",
+        "channel units",
+        ("color",),
+        "mean |error| on pixels disoccluded within the last N frames (reference disocclusion)",
+        min_frames=2,
+    ),
+    _m(
+        "history_error",
+        "lower",
+        "channel units",
+        ("color",),
+        "mean |error| where the truth changed along its motion since the previous frame",
+        min_frames=2,
+    ),
+    _m(
+        "lag_frames",
+        "lower",
+        "frames",
+        ("color",),
+        "frames after a disocclusion until the error there is within 10% of the settled error",
+        min_frames=2,
+    ),
+    _m(
+        "flicker_ratio",
+        "lower",
+        "ratio",
+        ("color",),
+        "mean frame-to-frame change of the candidate over the truth's (1: as steady as the truth)",
+        min_frames=2,
+    ),
+    # an engine's velocity buffer against the reference motion (metrics.motion)
+    _m(
+        "motion_epe_mean",
+        "lower",
+        "pixels",
+        ("color",),
+        "mean end-point error of the motion vectors on pixels not disoccluded",
+    ),
+    _m("motion_epe_p99", "lower", "pixels", ("color",), "99th percentile end-point error"),
+    _m(
+        "motion_epe_over_half",
+        "lower",
+        "fraction of pixels",
+        ("color",),
+        "pixels (not disoccluded) whose motion vector is off by more than 0.5 px",
+    ),
+    _m(
+        "disocclusion_recall",
+        "higher",
+        "fraction (0..1)",
+        ("color",),
+        "reference-disoccluded pixels the candidate marks disoccluded",
+    ),
+    _m(
+        "disocclusion_precision",
+        "higher",
+        "fraction (0..1)",
+        ("color",),
+        "candidate-disoccluded pixels the reference marks disoccluded",
+    ),
+    *(
+        _m(
+            f"unreal_{level}_{which}_error",
+            "lower",
+            "fraction of pixels" if which == "global" else "fraction of a 10x10-grid block",
+            _ALL,
+            f"Unreal screenshot comparison, {level} tolerance: mismatched pixels "
+            + ("of the image" if which == "global" else "of the worst block"),
+        )
+        for level in ("low", "medium", "high")
+        for which in ("global", "local")
+    ),
+    _m(
+        "unity_average_delta_e",
+        "lower",
+        "JzAzBz dE",
+        _ALL,
+        "Unity ImageAssert: mean JzAzBz delta E above the per-pixel 0.001",
+    ),
+    _m(
+        "edge_aware_error_fraction",
+        "lower",
+        "fraction of pixels",
+        ("visibility", "coverage"),
+        "pixels beyond 3 standard errors (+ 0.25 px of edge position where the truth is "
+        "fractional)",
+    ),
     _m("coverage_mae", "lower", "coverage (0..1)", _COV, "mean |coverage error|"),
     _m("coverage_rmse", "lower", "coverage (0..1)", _COV, "RMS coverage error"),
     _m("coverage_bias", "zero", "coverage (-1..1)", _COV, "mean signed coverage error"),

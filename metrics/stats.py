@@ -16,7 +16,20 @@ from scipy import special
 
 from .validate import MetricError, check_images
 
-__all__ = ["CORRECTIONS", "binomial_stderr_floor", "exact_surrogate", "noise_floor", "z_test"]
+__all__ = [
+    "CORRECTIONS",
+    "FRACTION_FLOOR_Z",
+    "binomial_stderr_floor",
+    "exact_surrogate",
+    "fraction_floor",
+    "noise_floor",
+    "z_test",
+]
+
+#: Standard errors in a fraction's noise floor (:func:`fraction_floor`): two runs' floors
+#: add up to 4 standard errors of each, 2.8 of their difference (a false regression in about
+#: 1 comparison of 200).
+FRACTION_FLOOR_Z = 2.0
 
 #: Multiple-comparison corrections accepted by :func:`z_test`.
 CORRECTIONS = ("sidak", "none")
@@ -41,6 +54,28 @@ def binomial_stderr_floor(samples, scale=1.0):
     n = np.maximum(np.asarray(samples, dtype=np.float64), 1.0)
     p = 0.5 / (n + 1.0)
     return np.sqrt(p * (1.0 - p) / n) * np.asarray(scale, dtype=np.float64)
+
+
+def fraction_floor(fraction: float, n: int, *, z: float = FRACTION_FLOOR_Z) -> float:
+    """Noise floor of a fraction of ``n`` pixels flagged by a test against a Monte Carlo
+    reference (``significant_fraction``): ``z * sqrt(f (1 - f) / n)``, at least ``z / n``.
+
+    Re-rendering the reference with another seed (or on another backend) flips the pixels
+    whose test statistic is near the threshold. The flagged count is a sum of ``n``
+    independent Bernoulli indicators with mean ``n f``, whose variance is at most the
+    binomial ``n f (1 - f)`` (equality when every pixel has the same chance); so this is an
+    upper bound of the fraction's seed-to-seed standard error, times ``z``. The ``z / n``
+    lower bound lets a run with no flagged pixel gain one without a regression.
+
+    References
+    ----------
+    .. [1] W. Hoeffding, "On the distribution of the number of successes in independent
+       trials", Annals of Mathematical Statistics 27(3), 1956. doi:10.1214/aoms/1177728178
+    """
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    f = min(max(float(fraction), 0.0), 1.0)
+    return float(z * max(np.sqrt(f * (1.0 - f) / n), 1.0 / n))
 
 
 def exact_surrogate(reference_a, reference_b):

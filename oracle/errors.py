@@ -6,7 +6,7 @@ code (``InputError`` and the other packages' input errors: one line on stderr, e
 
 from __future__ import annotations
 
-__all__ = ["InputError", "one_line"]
+__all__ = ["InputError", "InputWarning", "one_line"]
 
 
 class InputError(ValueError):
@@ -14,6 +14,11 @@ class InputError(ValueError):
 
     Every input error of the oracle derives from it (``ScoreError``, ``SpecError``, ...).
     """
+
+
+class InputWarning(UserWarning):
+    """Input the library accepted after a stated correction (values just outside their
+    range, clamped): the command line prints each once as ``raster-oracle: warning: ...``."""
 
 
 def one_line(exc: BaseException, *, with_type: bool = False) -> str:

@@ -27,7 +27,18 @@ from .aa import (
 from .coherent import CoherentParams
 from .errors import ModelError
 from .izb import IzbParams
-from .registry import TECHNIQUES, Technique, family_of, list_techniques, parse_params, run
+from .registry import (
+    FAMILIES,
+    TECHNIQUES,
+    Family,
+    Technique,
+    family,
+    family_of,
+    front_group,
+    list_techniques,
+    parse_params,
+    run,
+)
 from .result import ModelResult
 from .shadowmaps import CsmParams, SdsmParams, ShadowMapParams
 
@@ -36,12 +47,14 @@ OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_erro
 
 __all__ = [
     "AA_OUTPUT_CHANNELS",
+    "FAMILIES",
     "OUTPUT_CHANNELS",
     "TECHNIQUES",
     "AcaaParams",
     "AgaaParams",
     "CoherentParams",
     "CsmParams",
+    "Family",
     "FxaaParams",
     "IzbParams",
     "ModelError",
@@ -52,7 +65,9 @@ __all__ = [
     "ShadowMapParams",
     "SsaaParams",
     "Technique",
+    "family",
     "family_of",
+    "front_group",
     "list_techniques",
     "parse_params",
     "run",

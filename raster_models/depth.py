@@ -72,8 +72,11 @@ def quantize_dr(mi, d, fmt: str):
 
     UNORM: ``round(clip(d, 0, 1) * (2^n - 1)) / (2^n - 1)`` (round half to even; every step
     one IEEE float64 operation, nothing an FMA could contract). D32F: ``float32(d)`` (no
-    clamp), returned as float64. On the LLVM backend a D32F value in ``(0, 2^-126)`` is
-    stored as ``+-0`` (subnormals flushed), where NumPy keeps the float32 subnormal.
+    clamp), returned as float64, with a float32 subnormal (magnitude in ``(0, 2^-126)``)
+    stored as ``+-0``: D3D's floating-point rules flush denormals on output. The flush is
+    done on the bits, so every backend stores the same: the LLVM backend's conversion
+    flushes by itself, CUDA's (``cvt.rn.f32.f64``) keeps the subnormal, as NumPy does
+    (three D32F cases differed on an H200 before).
     """
     import drjit as dr
 
@@ -81,7 +84,11 @@ def quantize_dr(mi, d, fmt: str):
     if kind == "unorm":
         scale = dr.opaque(mi.Float64, float((1 << bits) - 1))
         return dr.round(clip01_dr(mi, d) * scale) / scale
-    return mi.Float64(mi.Float32(d))
+    single = mi.Float32(d)
+    raw = dr.reinterpret_array(mi.UInt32, single)
+    magnitude = raw & 0x7FFFFFFF
+    flushed = dr.select((magnitude != 0) & (magnitude < 0x00800000), raw & 0x80000000, raw)
+    return mi.Float64(dr.reinterpret_array(type(single), flushed))
 
 
 def hardware_bias(

@@ -10,12 +10,103 @@ from .aa import msaa, noaa, ssaa
 from .aa.acaa import model as acaa
 from .aa.agaa import model as agaa
 from .aa.smaa import model as smaa_model
+from .aa.taa import model as taa
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
 from .shadowmaps import csm, sdsm, shadow_map
 
-__all__ = ["TECHNIQUES", "Technique", "family_of", "list_techniques", "parse_params", "run"]
+__all__ = [
+    "FAMILIES",
+    "TECHNIQUES",
+    "Family",
+    "Technique",
+    "family",
+    "family_of",
+    "front_group",
+    "list_techniques",
+    "parse_params",
+    "run",
+]
+
+
+@dataclass(frozen=True)
+class Family:
+    """A technique family: everything the CLI, sweeps, scoring and reports need to know about
+    its techniques, in one record (a new family is its technique folder plus one of these).
+
+    Attributes
+    ----------
+    name : the family's key (``Technique.family``).
+    title : the report's name of the group whose Pareto fronts compare its techniques (None:
+        each technique is a group of its own, unless ``Technique.front`` names one).
+    channels : candidate channels its models produce and are scored on (first: the primary).
+    coverage_channel : the channel its ``coverage`` output is scored as (None: no coverage).
+    metrics : metrics plotted on its fronts, headline first: keys of the metric catalogue
+        (``metrics.catalog.CATALOG``; a test checks that every key is there).
+    costs : cost keys plotted on its fronts, memory first.
+    memory_cost : the cost ``tune`` minimises when none is given.
+    per_pixel_memory : its ``framebuffer_bytes`` are per pixel: the report restates them at
+        other resolutions.
+    extremes_scene : base scene of the extreme-input study (None: the study skips the family).
+    extremes_metric : the error the extreme-input study judges.
+    temporal : its models keep state from frame to frame (scored over frame sequences).
+    group : the family whose report fronts its techniques join (None: its own).
+    """
+
+    name: str
+    title: str | None
+    channels: tuple[str, ...]
+    metrics: tuple[str, ...]
+    costs: tuple[str, ...]
+    memory_cost: str
+    coverage_channel: str | None = None
+    per_pixel_memory: bool = False
+    extremes_scene: str | None = None
+    extremes_metric: str | None = None
+    temporal: bool = False
+    group: str | None = None
+
+
+#: The technique families by name.
+FAMILIES: dict[str, Family] = {
+    f.name: f
+    for f in (
+        Family(
+            "shadow",
+            None,
+            ("visibility",),
+            ("misclassified_fraction", "visibility_mae"),
+            ("memory_bytes", "texels_rendered"),
+            "shadow_map_bytes",
+            extremes_scene="plate",
+            extremes_metric="misclassified_fraction",
+        ),
+        Family(
+            "aa",
+            "anti-aliasing",
+            ("color", "coverage"),
+            ("flip_mean", "coverage_edge_rmse"),
+            ("framebuffer_bytes", "shading_events_mean"),
+            "framebuffer_bytes",
+            coverage_channel="front_coverage",
+            per_pixel_memory=True,
+            extremes_scene="star",
+            extremes_metric="coverage_rmse",
+        ),
+        Family(
+            "taa",
+            "temporal anti-aliasing",
+            ("color",),
+            ("flip_mean", "ghosting_error", "steady_error"),
+            ("framebuffer_bytes", "bandwidth_bytes"),
+            "framebuffer_bytes",
+            per_pixel_memory=True,
+            temporal=True,
+            group="aa",
+        ),
+    )
+}
 
 
 @dataclass(frozen=True)
@@ -32,6 +123,8 @@ class Technique:
     runner: object
     lights: tuple[str, ...]
     family: str = "shadow"
+    #: the report group of its fronts when the family has no shared one (None: itself)
+    front: str | None = None
 
 
 #: Light kinds the anti-aliasing models accept (they shade with any light).
@@ -53,6 +146,7 @@ TECHNIQUES: dict[str, Technique] = {
             shadow_map.ShadowMapParams,
             shadow_map.run,
             shadow_map.LIGHTS,
+            front="shadow maps",
         ),
         Technique(
             "csm",
@@ -68,6 +162,7 @@ TECHNIQUES: dict[str, Technique] = {
             csm.CsmParams,
             csm.run,
             csm.LIGHTS,
+            front="shadow maps",
         ),
         Technique(
             "sdsm",
@@ -82,6 +177,7 @@ TECHNIQUES: dict[str, Technique] = {
             sdsm.SdsmParams,
             sdsm.run,
             sdsm.LIGHTS,
+            front="shadow maps",
         ),
         Technique(
             "izb",
@@ -197,6 +293,23 @@ TECHNIQUES: dict[str, Technique] = {
             _ALL_LIGHTS,
             "aa",
         ),
+        Technique(
+            "taa",
+            "temporal AA: one jittered sample a pixel a frame; history reprojected with the "
+            "model's own motion vectors, rectified (clamp / AABB clip / variance clip) and "
+            "blended; presets ue4, inside, hdrp, filament",
+            (
+                "B. Karis, High Quality Temporal Supersampling, SIGGRAPH 2014",
+                "L. J. F. Pedersen, Temporal Reprojection Anti-Aliasing in INSIDE, GDC 2016",
+                "M. Salvi, An Excursion in Temporal Supersampling, GDC 2016",
+                "L. Yang, S. Liu, M. Salvi, A Survey of Temporal Antialiasing Techniques, "
+                "CGF 39(2) 2020, doi:10.1111/cgf.14018",
+            ),
+            taa.TaaParams,
+            taa.run,
+            _ALL_LIGHTS,
+            "taa",
+        ),
     )
 }
 
@@ -205,6 +318,28 @@ def _technique(name: str) -> Technique:
     if name not in TECHNIQUES:
         raise ModelError(f"unknown technique {name!r}; choose one of {', '.join(TECHNIQUES)}")
     return TECHNIQUES[name]
+
+
+def family(name: str) -> Family:
+    """The :class:`Family` record of a family name or of a registered technique's name.
+
+    Raises
+    ------
+    ModelError
+        Neither a family nor a technique (lists the families).
+    """
+    if name in FAMILIES:
+        return FAMILIES[name]
+    if name in TECHNIQUES:
+        return FAMILIES[TECHNIQUES[name].family]
+    raise ModelError(f"unknown technique family {name!r}; choose one of {', '.join(FAMILIES)}")
+
+
+def front_group(technique: str) -> str:
+    """The report group whose fronts compare ``technique``: its family's shared group, else
+    the technique's ``front`` (the three shadow maps), else the technique itself."""
+    t = _technique(technique)
+    return FAMILIES[t.family].title or t.front or t.name
 
 
 def family_of(technique: str) -> str:
@@ -219,7 +354,8 @@ def family_of(technique: str) -> str:
 
 
 def list_techniques() -> list[dict]:
-    """Every technique with its description, references and parameter records.
+    """Every technique with its description, references, family (``family``, the channels
+    it is ``scored_on``, whether it is ``temporal``) and parameter records.
 
     Each parameter record: ``name``, ``default``, ``type`` (bool, int, float, str, floats),
     ``choices`` (or None), ``range`` (``[lo, hi]`` or None), ``source`` and ``help``.
@@ -230,6 +366,9 @@ def list_techniques() -> list[dict]:
             "description": t.description,
             "references": list(t.references),
             "lights": list(t.lights),
+            "family": t.family,
+            "scored_on": list(FAMILIES[t.family].channels),
+            "temporal": FAMILIES[t.family].temporal,
             "params": params.describe(t.params),
         }
         for t in TECHNIQUES.values()

@@ -93,43 +93,45 @@ def load_scene(
     frame: int = 0,
     n_frames: int = 8,
     light_path: str | None = None,
+    camera: int | None = None,
 ):
-    """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, or an ``export``
-    folder (or its ``scene.xml``: the exported size and light, named after the folder), as
-    the command line's ``SCENE`` is. A loaded scene is returned as it is.
+    """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, a glTF 2.0 file
+    (``.gltf``, ``.glb``), or an ``export`` folder (or its ``scene.xml``/``scene.glb``: the
+    exported size and light, named after the folder), as the command line's ``SCENE`` is. A
+    loaded scene is returned as it is.
 
     ``light`` picks a light (default 0, an export's own light); ``camera_path``, ``frame``,
-    ``n_frames`` and ``light_path`` pick a frame of a camera or light path.
+    ``n_frames`` and ``light_path`` pick a frame of a camera or light path; ``camera`` a glTF
+    file's camera.
 
     Returns a ``raster_oracle.scenes.LoadedScene`` (``.width``, ``.height``, ``.light``,
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
     """
     from . import scenes
-    from .oracle.cli.args import export_named, export_scene
+    from .scenes.inputs import load_input
 
     if isinstance(scene, scenes.LoadedScene):
-        given = (width, height, light, camera_path, light_path)
+        given = (width, height, light, camera_path, light_path, camera)
         if any(v is not None for v in given) or frame:
             raise InputError(
-                "width, height, light, camera_path, light_path and frame apply to a scene "
-                "name or file; pass them to load_scene instead of a loaded scene"
+                "width, height, light, camera_path, light_path, camera and frame apply to a "
+                "scene name or file; pass them to load_scene instead of a loaded scene"
             )
         return scene
     if not isinstance(scene, str | os.PathLike):
         raise InputError(f"scene must be a name, a file, a folder or a loaded scene: {scene!r}")
     with _library():
-        path, chosen = export_scene(os.fspath(scene))
-        loaded = scenes.load(
-            path,
+        return load_input(
+            os.fspath(scene),
             width=width,
             height=height,
-            light=light if light is not None else (chosen or 0),
+            light=light,
             camera_path=camera_path,
             frame=frame,
             n_frames=n_frames,
             light_path=light_path,
+            camera=camera,
         )
-        return export_named(loaded, path)
 
 
 @dataclass
@@ -310,6 +312,7 @@ def score_image(
     out=None,
     cache=True,
     quiet: bool = True,
+    visibility: str = "1-is-lit",
 ) -> dict:
     """Score an engine's image against the reference of ``scene`` (``raster-oracle score
     --candidate``); returns the ``metrics.json`` record as a dict.
@@ -328,6 +331,8 @@ def score_image(
     out : a folder for the score folder (metrics.json, report.html, error maps); default: a
         temporary one, deleted.
     cache : True (the default cache folder), False (no cache) or a cache folder.
+    visibility : what a shadow mask's 1 means, ``"1-is-lit"`` (the default) or
+        ``"1-is-shadowed"`` (``--visibility``).
 
     Gate the record with :func:`check`.
     """
@@ -350,7 +355,9 @@ def score_image(
         dict(candidate=candidate, channel=channel),
         frame_list=frame_list,
         load=dict(width=width, height=height),
-        opts=dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path),
+        opts=dict(
+            spp=spp, seed=seed, frames=frames, camera_path=camera_path, visibility=visibility
+        ),
         flip_mode=flip_mode,
         ppd=ppd,
         out=out,
@@ -398,6 +405,7 @@ def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, q
     """Score into ``out`` (or a temporary folder) with the command line's own request
     function and read its ``metrics.json`` back: the record is the command line's."""
     from . import metrics as M
+    from .oracle.scoring.options import ScoreOptions
     from .oracle.scoring.request import score_to_folder
     from .scenes import CAMERA_PATHS
 
@@ -414,16 +422,11 @@ def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, q
             )
         folder = Path(out) if out is not None else tmp / "score"
         with _library():
+            options = ScoreOptions(
+                **opts, quiet=quiet, flip_mode=flip_mode, ppd=ppd or M.DEFAULT_PPD
+            )
             score_to_folder(
-                loaded,
-                out=folder,
-                **what,
-                **opts,
-                cache=_cache(cache),
-                quiet=quiet,
-                flip_mode=flip_mode,
-                ppd=ppd or M.DEFAULT_PPD,
-                thresholds={},
+                loaded, out=folder, **what, options=options, cache=_cache(cache), thresholds={}
             )
         return json.loads((folder / "metrics.json").read_text())
 

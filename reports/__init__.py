@@ -62,7 +62,14 @@ Case record (``make_case``)
     ``name -> "lower" | "higher" | "zero" | "info"``: which way each metric is better, as
     given to ``make_case`` (absent from reports written before it).
 ``status``
-    ``"pass"``, ``"fail"``, or ``"unchecked"`` (no thresholds).
+    ``"pass"``, ``"fail"``, or ``"unchecked"`` (no thresholds and no checks). A failed
+    check fails the case.
+``checks``
+    The run's judged gates and baseline comparisons (``make_case(checks=...)``): ``{"name",
+    "kind", "metric", "passed", "line", "value", "limit", "noise_floor", "previous",
+    "previous_noise_floor"}``; empty when none was given.
+``diagnoses``
+    Likely causes of a large error (strings), shown on the first screen; may be empty.
 ``images``
     ``{"reference": uri, "candidate": uri}``: ``data:`` URIs (PNG for visibility, WebP or
     JPEG for colour).
@@ -98,7 +105,8 @@ Report record (``build_report``)
     default ``"lower"``): which way each column is better.
 ``summary``
     ``{"n_cases", "n_pass", "n_fail", "n_unchecked", "thresholds": name -> bounds or
-    "varies", "noise_floor": name -> float or "varies"}``.
+    "varies", "noise_floor": name -> float or "varies", "failed_checks": [every failed
+    check of every case, with "case_id", "case" and "scene"], "n_checks"}``.
 ``tradeoff``
     ``None`` when no case has a cost, else ``{"cost_key", "metric", "families": [{"family",
     "points": [{"case_id", "name", "technique", "params", "cost", "error", "on_front"}],

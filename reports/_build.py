@@ -42,6 +42,18 @@ def _common(cases: Sequence[dict], field: str, names: Sequence[str]) -> dict:
     return out
 
 
+def _errors(errors) -> list[dict]:
+    out = []
+    for i, e in enumerate(errors or []):
+        if not isinstance(e, Mapping):
+            raise TypeError(f"errors[{i}] must be a dict, got {type(e).__name__}")
+        for key in ("case", "name", "message"):
+            if not isinstance(e.get(key), str):
+                raise TypeError(f"errors[{i}][{key!r}] must be a string, got {e.get(key)!r}")
+        out.append({key: e[key] for key in ("case", "name", "message")})
+    return out
+
+
 def build_report(
     cases: Sequence[Mapping],
     *,
@@ -49,6 +61,7 @@ def build_report(
     provenance: Mapping[str, object],
     tradeoff_cost: str | None = None,
     tradeoff_metric: str | None = None,
+    errors: Sequence[Mapping] | None = None,
 ) -> dict:
     """Combine case records from :func:`make_case` into one JSON-safe report record.
 
@@ -72,6 +85,9 @@ def build_report(
     tradeoff_metric : str, optional
         Metric on the y axis (lower is better). Default: the first metric seen in a case
         that carries a cost.
+    errors : list of dict, optional
+        ``{"case", "name", "message"}`` of each case that could not be scored (a manifest's
+        layer missing from its file): listed first, with the failed checks.
 
     Returns
     -------
@@ -92,6 +108,12 @@ def build_report(
         if "viewer" in case or viewer is not None:
             case["viewer"] = viewer
     metric_names = list(dict.fromkeys(k for case in records for k in case["metrics"]))
+    # gated and failed metrics first: the columns a CI reader looks for never scroll off
+    gated = {k for case in records for k in case["thresholds"]}
+    gated |= {c["metric"] for case in records for c in case.get("checks", []) if not c["passed"]}
+    metric_names = [m for m in metric_names if m in gated] + [
+        m for m in metric_names if m not in gated
+    ]
     cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
     styles = sorted({m["style"] for case in records for m in case["error_maps"]})
     statuses = [case["status"] for case in records]
@@ -113,6 +135,20 @@ def build_report(
             "n_unchecked": statuses.count("unchecked"),
             "thresholds": _common(records, "thresholds", metric_names),
             "noise_floor": _common(records, "noise_floor", metric_names),
+            # every failed gate and regression of every case: the page's first screen
+            "failed_checks": [
+                {"case_id": case["id"], "case": case["name"], "scene": case["scene"], **c}
+                for case in records
+                for c in case.get("checks", [])
+                if not c["passed"]
+            ],
+            "n_checks": sum(len(case.get("checks", [])) for case in records),
+            "errors": _errors(errors),
+            "diagnoses": [
+                {"case_id": case["id"], "case": case["name"], "message": d}
+                for case in records
+                for d in case.get("diagnoses", [])
+            ],
         },
         "tradeoff": tradeoff_section(records, cost_key=tradeoff_cost, metric=tradeoff_metric),
         "colorbars": {style: _images.colorbar_uri(style) for style in styles},

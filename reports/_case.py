@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import urllib.parse
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -12,12 +12,14 @@ from . import images as _images
 from . import stats
 from ._validate import (
     KINDS,
+    check_checks,
     check_cost,
     check_directions,
     check_error_maps,
     check_image,
     check_metrics,
     check_name,
+    check_texts,
     check_thresholds,
     decode_float,
     to_jsonable,
@@ -221,6 +223,8 @@ def make_case(
     max_size: int = 960,
     max_bytes: int | None = None,
     viewer: Mapping | None = None,
+    checks: Sequence[Mapping] | None = None,
+    diagnoses: Sequence[str] | None = None,
 ) -> dict:
     """Compute everything the report shows about one case and return it as a JSON-safe dict.
 
@@ -273,6 +277,11 @@ def make_case(
         The linear float images for the page's pixel viewer (zoom, exposure, readout), from
         :func:`reports.viewer.viewer_record`; its full size must be the case's. Without it the
         page shows the thumbnails only.
+    checks : list of dict, optional
+        The judged checks of the run (gates and baseline comparisons), each ``{"name",
+        "kind" ("gate" | "baseline"), "metric", "passed", "line", ...}``: a failed one fails
+        the case and is listed first on the page, with the same name and line as the exit
+        code's verdict, JUnit and ``metrics.json``.
 
     Returns
     -------
@@ -316,7 +325,10 @@ def make_case(
         factor=_images.downscale_factor((height, width), max_size=max_size),
         max_bytes=max_bytes,
     )
+    checks = check_checks(checks)
     failing = _failing(metrics, thresholds)
+    failed_checks = [c for c in checks if not c["passed"]]
+    failing += [c["metric"] for c in failed_checks if c["metric"] not in failing]
     directions = {k: d for k, d in check_directions(directions).items() if k in metrics}
     within_noise = _within_noise(metrics, noise_floor, directions)
     return {
@@ -342,7 +354,11 @@ def make_case(
         "failing": failing,
         "within_noise": within_noise,
         "directions": directions,
-        "status": "unchecked" if not thresholds else ("fail" if failing else "pass"),
+        "status": "unchecked"
+        if not thresholds and not checks
+        else ("fail" if failing or failed_checks else "pass"),
+        "checks": checks,
+        "diagnoses": check_texts("diagnoses", diagnoses),
         "images": images,
         "error_maps": _map_records(maps, heatmaps),
         "worst_tiles": _worst_tiles(

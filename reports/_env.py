@@ -1,6 +1,8 @@
-"""The one jinja2 environment of every page: templates are package data
+"""The jinja2 environment of every page: templates are package data
 (``reports/templates/``), autoescape is on, undefined names fail, and every number or record
-is formatted by a Python filter registered here, never in a template."""
+is formatted by a Python filter registered here, never in a template. The section pages add
+their own filters (:mod:`reports.sections.page`) to an environment built here: this module
+imports nothing of :mod:`reports.sections`, so the two never import each other."""
 
 from __future__ import annotations
 
@@ -9,9 +11,8 @@ import functools
 import jinja2
 
 from . import formatting, plots, svg
-from .sections import aa_memory, aa_ranking, claims, converge, extremes, sweep
 
-__all__ = ["environment"]
+__all__ = ["build_environment", "environment"]
 
 
 def _filters() -> dict:
@@ -35,30 +36,12 @@ def _filters() -> dict:
         "loglog_svg": lambda series, x_label, y_label, title: svg.loglog_svg(
             series, x_label=x_label, y_label=y_label, title=title
         ),
-        "front_svg": sweep.front_svg,
         "axis_label": plots.axis_label,
-        "sensitivity_svg": sweep.sensitivity_svg,
-        # one section each
-        "params_text": sweep.fmt_params,
-        "cost_level": sweep.fmt_cost_level,
-        "verdict_class": claims.verdict_class,
-        "extra_value": claims.fmt_extra,
-        "cell_class": extremes.cell_class,
-        "cell_text": extremes.fmt_cell,
-        "cell_tip": extremes.fmt_cell_tip,
-        "cell_style": extremes.cell_style,
-        "cell_mark": extremes.cell_mark,
-        "slope": converge.fmt_slope,
-        "quoted_value": aa_memory.fmt_quoted,
-        "computed_text": aa_memory.fmt_computed,
-        "quote_note": aa_memory.fmt_note,
-        "with_floor": aa_ranking.fmt_with_floor,
     }
 
 
-@functools.cache
-def environment() -> jinja2.Environment:
-    """The shared environment (built once per process; it holds no data of a page)."""
+def build_environment(extra_filters: dict | None = None) -> jinja2.Environment:
+    """A new environment with the shared filters and ``extra_filters`` (name -> function)."""
     env = jinja2.Environment(
         loader=jinja2.PackageLoader(__package__),
         autoescape=True,
@@ -67,4 +50,11 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
     )
     env.filters.update(_filters())
+    env.filters.update(extra_filters or {})
     return env
+
+
+@functools.cache
+def environment() -> jinja2.Environment:
+    """The shared environment (built once per process; it holds no data of a page)."""
+    return build_environment()

@@ -20,7 +20,7 @@ import math
 import posixpath
 import re
 import urllib.parse
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from numbers import Real
 
 import numpy as np
@@ -32,6 +32,8 @@ __all__ = [
     "RANGE_TOLERANCE",
     "STYLES",
     "check_case_record",
+    "check_checks",
+    "check_texts",
     "check_cost",
     "check_error_maps",
     "check_image",
@@ -359,6 +361,8 @@ def check_case_record(name: str, case: object, *, schema: str) -> dict:
         _expect(f"{name}[{key!r}]", case[key], (list,), "a list of names")
         for v in case[key]:
             check_name(f"{name}[{key!r}] item", v)
+    case = {**case, "checks": check_checks(case.get("checks"), where=f"{name}['checks']")}
+    case["diagnoses"] = check_texts(f"{name}['diagnoses']", case.get("diagnoses"))
     if case["status"] not in ("pass", "fail", "unchecked"):
         raise ValueError(
             f"{name}['status'] must be pass, fail or unchecked, got {case['status']!r}"
@@ -392,6 +396,48 @@ def check_case_record(name: str, case: object, *, schema: str) -> dict:
     _expect(f"{name}['exr_links']", case["exr_links"], (list,), "a list")
     _check_case_urls(name, case, inside=True)
     return dict(case)
+
+
+_CHECK_TEXT = ("name", "kind", "metric", "line")
+_CHECK_NUMBERS = ("value", "limit", "noise_floor", "previous", "previous_noise_floor")
+
+
+def check_texts(where: str, texts: object) -> list[str]:
+    """A list of strings (None: empty); ``TypeError`` naming the first that is not one."""
+    if texts is None:
+        return []
+    if isinstance(texts, str) or not isinstance(texts, Sequence):
+        raise TypeError(f"{where} must be a list of strings, got {type(texts).__name__}")
+    for i, t in enumerate(texts):
+        if not isinstance(t, str):
+            raise TypeError(f"{where}[{i}] must be a string, got {t!r:.80}")
+    return list(texts)
+
+
+def check_checks(checks: object, *, where: str = "checks") -> list[dict]:
+    """A case's judged checks: a list of ``{"name", "kind", "metric", "line": str,
+    "passed": bool, "value", "limit", "noise_floor", "previous", "previous_noise_floor":
+    number or None}`` (None or absent: no check). Returns plain copies; raises
+    ``ValueError`` / ``TypeError`` naming the first bad entry."""
+    if checks is None:
+        return []
+    if isinstance(checks, Mapping | str) or not isinstance(checks, Sequence):
+        raise TypeError(f"{where} must be a list of check records, got {type(checks).__name__}")
+    out = []
+    for i, c in enumerate(checks):
+        _expect(f"{where}[{i}]", c, (Mapping,), "a dict")
+        for key in _CHECK_TEXT:
+            _expect(f"{where}[{i}][{key!r}]", c.get(key), (str,), "a string")
+        _expect(f"{where}[{i}]['passed']", c.get("passed"), (bool,), "true or false")
+        rec = {key: c[key] for key in _CHECK_TEXT}
+        rec["passed"] = c["passed"]
+        for key in _CHECK_NUMBERS:
+            v = c.get(key)
+            if v is not None:
+                _expect(f"{where}[{i}][{key!r}]", v, (int, float), "a number or null")
+            rec[key] = None if v is None else float(v)
+        out.append(rec)
+    return out
 
 
 #: Keys of a case record (see the :mod:`reports` module docstring).

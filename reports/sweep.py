@@ -34,8 +34,6 @@ from .sections.overview import overview_record
 from .sections.page import render_sweep_page, summary_viewer_cases
 
 __all__ = [
-    "DEFAULT_COSTS",
-    "DEFAULT_METRICS",
     "MEMORY_ALIASES",
     "SWEEP_REPORT_SCHEMA",
     "best_at_equal_cost",
@@ -46,16 +44,9 @@ __all__ = [
 ]
 
 SWEEP_REPORT_SCHEMA = "raster-oracle.sweeps.run-report/1"
-#: Metrics plotted per family when none is requested (the first is the headline).
-DEFAULT_METRICS = {
-    "shadow": ("misclassified_fraction", "visibility_mae"),
-    "aa": ("flip_mean", "coverage_edge_rmse"),
-}
-#: Cost keys plotted per family when none is requested (memory first, then work).
-DEFAULT_COSTS = {
-    "shadow": ("memory_bytes", "texels_rendered"),
-    "aa": ("framebuffer_bytes", "shading_events_mean"),
-}
+# Metrics and cost keys plotted per family when none is requested come from the caller's
+# ``families`` (``{family: {"metrics": [...], "costs": [...]}}``: the technique registry's
+# family records, which the oracle passes); reports never import the models.
 #: Cost keys that stand for ``memory_bytes`` where a technique does not report it: shadow
 #: maps report their maps' bytes, IZB its lists' ``memory_bytes``, so that every shadow
 #: technique lands on one memory axis.
@@ -311,19 +302,39 @@ def undefined_metrics(done: Sequence[Mapping], names: Sequence[str]) -> list[dic
     return out
 
 
-def _group_record(family: str, scene: str, rows: list[dict], costs, metrics, rank=None) -> dict:
+def _group_of(families: Mapping | None, family: str) -> str:
+    """The report group of a family's rows: its record's ``group`` (TAA joins the
+    anti-aliasing techniques' fronts), else the family itself."""
+    return ((families or {}).get(family) or {}).get("group") or family
+
+
+def _defaults(families: Mapping | None, family: str, what: str) -> tuple:
+    """The default ``metrics`` or ``costs`` of a report group (``families``): its own
+    family's first, then those of the families that join it, each key once."""
+    fams = families or {}
+    members = [family] + [f for f in fams if f != family and _group_of(fams, f) == family]
+    out: list = []
+    for f in members:
+        out += [k for k in ((fams.get(f) or {}).get(what) or ()) if k not in out]
+    return tuple(out)
+
+
+def _group_record(
+    family: str, scene: str, rows: list[dict], costs, metrics, rank=None, families=None
+) -> dict:
     """Fronts, sensitivity and gallery of the rows of one family on one scene; metrics that
     are undefined on the scene (:func:`undefined_metrics`) are left out and listed."""
     done = _done_rows(rows)
     metric_names = _numeric_keys([r["metrics"] for r in done])
     cost_names = _numeric_keys([r.get("cost") for r in done])
-    wanted = list(metrics) or list(DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS)
+    default_metrics = _defaults(families, family, "metrics") or FALLBACK_METRICS
+    wanted = list(metrics) or list(default_metrics)
     undefined = undefined_metrics(done, metric_names)
     gone = {o["metric"] for o in undefined}
     omitted = [o for o in undefined if o["metric"] in wanted]
     metric_names = [m for m in metric_names if m not in gone]
-    metric_list = _pick(metrics, DEFAULT_METRICS.get(family, ()) or FALLBACK_METRICS, metric_names)
-    cost_list = _pick(costs, DEFAULT_COSTS.get(family, ()), cost_names)
+    metric_list = _pick(metrics, default_metrics, metric_names)
+    cost_list = _pick(costs, _defaults(families, family, "costs"), cost_names)
     by_tech: dict[str, list[dict]] = {}
     for r in done:
         by_tech.setdefault(r["technique"], []).append(r)
@@ -358,22 +369,25 @@ def sweep_record(
     costs: Sequence[str] | None = None,
     metrics: Sequence[str] | None = None,
     rank=None,
+    families: Mapping[str, Mapping] | None = None,
 ) -> dict:
     """The report record of sweep ``rows`` (see the module docstring).
 
     Parameters
     ----------
-    costs, metrics : cost keys and metrics of the fronts (default: per family,
-        :data:`DEFAULT_COSTS` and :data:`DEFAULT_METRICS`); a requested key that a group does
-        not have is left out of that group.
+    costs, metrics : cost keys and metrics of the fronts (default: per family, from
+        ``families``); a requested key that a group does not have is left out of that group.
+    families : ``{family: {"metrics": [...], "costs": [...]}}``, the defaults per family
+        (headline first; the oracle passes the registry's family records).
     rank : ``rank(metric, value)``, the value as an error (0 best) that fronts compare
         (``metrics.catalog.error_of``); None: lower values are better.
     """
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in rows:
-        groups.setdefault((r.get("family") or "shadow", r["scene"]), []).append(dict(r))
+        fam = _group_of(families, r.get("family") or "shadow")
+        groups.setdefault((fam, r["scene"]), []).append(dict(r))
     group_records = [
-        _group_record(fam, scene, rs, list(costs or []), list(metrics or []), rank)
+        _group_record(fam, scene, rs, list(costs or []), list(metrics or []), rank, families)
         for (fam, scene), rs in sorted(groups.items())
     ]
     all_varying = {}
@@ -385,12 +399,14 @@ def sweep_record(
     heads = {(g["family"], g["scene"]): g for g in group_records}
     cases = []
     for r in rows:
-        family = r.get("family") or "shadow"
+        family = _group_of(families, r.get("family") or "shadow")
         g = heads.get((family, r["scene"])) or {}
         headline = ((g.get("metrics") or []) + [None])[0] or (
-            DEFAULT_METRICS.get(family) or FALLBACK_METRICS
+            _defaults(families, family, "metrics") or FALLBACK_METRICS
         )[0]
-        cost_key = ((g.get("costs") or []) + [None])[0] or (DEFAULT_COSTS.get(family) or ("",))[0]
+        cost_key = ((g.get("costs") or []) + [None])[0] or (
+            _defaults(families, family, "costs") or ("",)
+        )[0]
         cost = with_memory(r.get("cost"))
         cases.append(
             {
@@ -448,12 +464,13 @@ def write_sweep_report(
     images: Mapping[str, Mapping] | None = None,
     viewers: Mapping[str, Mapping] | Callable[[list[str]], Mapping] | None = None,
     rank=None,
+    families: Mapping[str, Mapping] | None = None,
 ) -> dict:
     """Write the page ``path`` (HTML) and its JSON twin ``path.with_suffix('.json')``.
 
     Parameters
     ----------
-    rows, title, provenance, costs, metrics
+    rows, title, provenance, costs, metrics, families
         As :func:`sweep_record`.
     extra_sections : sequence of dict, optional
         Section records (:mod:`reports.sections`: claims, extremes, anti-aliasing memory,
@@ -475,7 +492,13 @@ def write_sweep_report(
         The record written as JSON: :func:`sweep_record` plus ``"sections"``.
     """
     record = sweep_record(
-        rows, title=title, provenance=provenance, costs=costs, metrics=metrics, rank=rank
+        rows,
+        title=title,
+        provenance=provenance,
+        costs=costs,
+        metrics=metrics,
+        rank=rank,
+        families=families,
     )
     record["sections"] = [dict(x) for x in extra_sections or []]
     record["overview"] = overview_record(record)

@@ -10,6 +10,11 @@ Dr.Jit's LLVM backend needs libLLVM >= 16: Debian's default LLVM 15 aborts the p
 
 ``--backend`` on the command line and the ``RASTER_ORACLE_BACKEND`` environment variable
 override the choice. Nothing here imports Mitsuba or Dr.Jit at module import time.
+
+The command line trusts a backend only after its self-check passed on this machine
+(``oracle.certify``: ``auto`` falls back from a failing ``cuda_ad_rgb`` to ``llvm_ad_rgb``);
+this module keeps the verdict in force (:func:`self_check`) and names the machine
+(:func:`device_info`) for every result's provenance.
 """
 
 from __future__ import annotations
@@ -28,11 +33,16 @@ __all__ = [
     "MIN_LLVM_VERSION",
     "VARIANTS",
     "active",
+    "auto_variants",
+    "device_info",
+    "exact_arithmetic",
     "find_libllvm",
     "keep_freed_memory",
     "llvm_version_of",
     "mitsuba",
     "select",
+    "self_check",
+    "set_self_check",
 ]
 
 MIN_LLVM_VERSION = 16
@@ -123,9 +133,28 @@ def cuda_works() -> bool:
 
 
 _ACTIVE: BackendInfo | None = None
+#: The self-check verdict of the active backend (None: not checked in this process).
+_SELF_CHECK: dict | None = None
 
 
-def select(requested: str | None = None, *, env: dict | None = None) -> BackendInfo:
+def auto_variants(*, env: dict | None = None) -> list[tuple[str, str]]:
+    """The variants ``auto`` may use here, best first, with the reason for each:
+    ``cuda_ad_rgb`` when a CUDA device works, ``llvm_ad_rgb`` with a libLLVM >= 16, and
+    ``scalar_rgb`` only when neither is available."""
+    libllvm = find_libllvm(env=env)
+    out = []
+    if cuda_works():
+        out.append(("cuda_ad_rgb", "a CUDA device is present"))
+    if libllvm:
+        out.append(("llvm_ad_rgb", f"libLLVM found at {libllvm}"))
+    if not out:
+        out.append(("scalar_rgb", "no CUDA device and no libLLVM >= 16"))
+    return out
+
+
+def select(
+    requested: str | None = None, *, env: dict | None = None, replace: bool = False
+) -> BackendInfo:
     """Choose the Mitsuba variant and configure Dr.Jit; idempotent.
 
     Parameters
@@ -133,19 +162,24 @@ def select(requested: str | None = None, *, env: dict | None = None) -> BackendI
     requested : str, optional
         ``cuda_ad_rgb``, ``llvm_ad_rgb``, ``scalar_rgb`` or ``auto``; default: the
         ``RASTER_ORACLE_BACKEND`` environment variable, else ``auto``.
+    replace : bool
+        Switch from the active variant to another (the self-check's fallback, before any
+        scene is loaded); the self-check verdict in force is dropped.
 
     Raises
     ------
     BackendError
         When the requested variant cannot run, with the command to install what is missing.
     """
-    global _ACTIVE
+    global _ACTIVE, _SELF_CHECK
     env = os.environ if env is None else env
     requested = requested or env.get("RASTER_ORACLE_BACKEND") or "auto"
     if requested not in (*VARIANTS, "auto"):
         raise BackendError(
             f"unknown backend {requested!r}; expected one of auto, {', '.join(VARIANTS)}"
         )
+    if _ACTIVE is not None and replace and requested != _ACTIVE.variant:
+        _ACTIVE, _SELF_CHECK = None, None
     if _ACTIVE is not None:
         if requested in ("auto", _ACTIVE.variant):
             return _ACTIVE
@@ -155,12 +189,8 @@ def select(requested: str | None = None, *, env: dict | None = None) -> BackendI
         )
     libllvm = find_libllvm(env=env)
     if requested == "auto":
-        if cuda_works():
-            variant, reason = "cuda_ad_rgb", "a CUDA device is present"
-        elif libllvm:
-            variant, reason = "llvm_ad_rgb", f"libLLVM found at {libllvm}"
-        else:
-            variant, reason = "scalar_rgb", "no CUDA device and no libLLVM >= 16"
+        variant, reason = auto_variants(env=env)[0]
+        if variant == "scalar_rgb":
             warnings.warn(
                 "raster-oracle: no vectorized backend (no CUDA device, no libLLVM >= 16); "
                 f"falling back to the slow scalar_rgb variant. Install one: {INSTALL_HINT}",
@@ -176,7 +206,7 @@ def select(requested: str | None = None, *, env: dict | None = None) -> BackendI
             )
         if variant == "cuda_ad_rgb" and not cuda_works():
             raise BackendError("backend cuda_ad_rgb needs a working CUDA device; none found")
-    if libllvm and variant != "cuda_ad_rgb":
+    if libllvm:  # before Dr.Jit starts its LLVM backend (a CUDA run may fall back to it)
         os.environ["DRJIT_LIBLLVM_PATH"] = libllvm
     import mitsuba as mi
 
@@ -186,10 +216,35 @@ def select(requested: str | None = None, *, env: dict | None = None) -> BackendI
         raise BackendError(f"could not activate Mitsuba variant {variant}: {exc}") from exc
     _limit_blas_threads()
     keep_freed_memory()
+    exact_arithmetic(variant)
     _ACTIVE = BackendInfo(
         variant=variant, libllvm=libllvm if variant == "llvm_ad_rgb" else None, reason=reason
     )
     return _ACTIVE
+
+
+def exact_arithmetic(variant: str) -> bool:
+    """Dr.Jit's ``FastMath`` flag for ``variant``; returns its new value.
+
+    On CUDA, ``FastMath`` (Dr.Jit's default) compiles float32 division, square root,
+    reciprocal and reciprocal square root to PTX's approximate instructions
+    (``div.approx.ftz``: up to 2 ulp); on LLVM, division and square root are IEEE either way.
+    The models follow NumPy's float32 rules and decide ties on them, so CUDA runs with
+    ``FastMath`` off (IEEE-rounded ``div.rn``, ``sqrt.rn``, ``rcp.rn``): AGAA's rgba16f
+    clustering disagreed with NumPy on an H200 with it on, and agreed with it off. The
+    LLVM backend keeps the default: turning it off there would change only its ``rsqrt``,
+    and with it the bytes of every normalized vector.
+
+    What no flag turns off: ``ptxas`` contracts a float multiply followed by an add into one
+    fused multiply-add (a different rounding than NumPy's); code whose result must equal a
+    NumPy rule bit for bit rounds the product explicitly
+    (:func:`.kernels.product_rounder`).
+    """
+    import drjit as dr
+
+    fast = not variant.startswith("cuda")
+    dr.set_flag(dr.JitFlag.FastMath, fast)
+    return fast
 
 
 def _limit_blas_threads() -> None:
@@ -249,3 +304,67 @@ def mitsuba():
     import mitsuba as mi
 
     return mi
+
+
+def set_self_check(verdict: dict | None) -> None:
+    """Record the self-check verdict of the active backend (a JSON-ready dict: ``status``
+    and the failed checks; see ``oracle.certify``), or forget it (None)."""
+    global _SELF_CHECK
+    _SELF_CHECK = None if verdict is None else dict(verdict)
+
+
+def self_check() -> dict | None:
+    """The self-check verdict in force for the active backend, or None when not checked."""
+    return None if _SELF_CHECK is None else dict(_SELF_CHECK)
+
+
+def _cuda_device() -> dict:
+    """Name of CUDA device 0 and the driver's CUDA version, through the driver API."""
+    import ctypes
+
+    out: dict = {"kind": "gpu"}
+    for name in ("libcuda.so.1", "libcuda.so"):
+        try:
+            lib = ctypes.CDLL(name)
+        except OSError:
+            continue
+        if lib.cuInit(0) != 0:
+            break
+        dev, version = ctypes.c_int(0), ctypes.c_int(0)
+        buf = ctypes.create_string_buffer(256)
+        if lib.cuDeviceGet(ctypes.byref(dev), 0) == 0:
+            if lib.cuDeviceGetName(buf, 256, dev) == 0:
+                out["name"] = buf.value.decode(errors="replace")
+        if lib.cuDriverGetVersion(ctypes.byref(version)) == 0:
+            out["cuda_driver"] = f"{version.value // 1000}.{version.value % 1000 // 10}"
+        break
+    try:
+        text = Path("/proc/driver/nvidia/version").read_text()
+        m = re.search(r"Kernel Module\s+([\d.]+)", text)
+        if m:
+            out["driver"] = m.group(1)
+    except OSError:
+        pass
+    return out
+
+
+def _cpu_name() -> str:
+    import platform
+
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def device_info(variant: str | None = None) -> dict:
+    """The machine a variant runs on: for ``cuda_ad_rgb`` the GPU (``name``, NVIDIA
+    ``driver`` and ``cuda_driver`` versions), else the CPU (``name``, ``cores``); default:
+    the active variant."""
+    variant = variant or active().variant
+    if variant.startswith("cuda"):
+        return _cuda_device()
+    return {"kind": "cpu", "name": _cpu_name(), "cores": os.cpu_count()}

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from . import aa_scenes, shadow_scenes
+from . import aa_scenes, moving_scenes, pbr_scenes, shadow_scenes
 
 __all__ = ["BUILTIN_SCENES", "BuiltinScene", "DEFAULT_SCENES"]
 
@@ -26,6 +26,9 @@ class BuiltinScene:
     description: str
     width: int = 160
     height: int = 90
+    #: ``"mitsuba"``: the factory returns a Mitsuba dictionary; ``"gltf"``: GLB bytes
+    #: (read by :mod:`scenes.gltf`, shaded with the glTF BRDF).
+    kind: str = "mitsuba"
 
 
 BUILTIN_SCENES: dict[str, BuiltinScene] = {
@@ -67,5 +70,18 @@ BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in aa_scenes.AA_SCENES.items()}
 )
 
+# The glTF scenes (pbr-spheres, pbr-foliage): GLB bytes, see scenes.pbr_scenes.
+BUILTIN_SCENES.update(
+    {
+        n: BuiltinScene(n, f, d, w, h, kind="gltf")
+        for n, (f, d, w, h) in pbr_scenes.PBR_SCENES.items()
+    }
+)
+
+# Scenes with moving objects (slide, spin): see scenes.moving_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in moving_scenes.MOVING_SCENES.items()}
+)
+
 #: The scenes the main job runs by default.
-DEFAULT_SCENES = ("plate", "city", "thin", "star", "curved", "spot", "point")
+DEFAULT_SCENES = ("plate", "city", "thin", "star", "curved", "spot", "point", "pbr-spheres")

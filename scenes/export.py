@@ -5,11 +5,20 @@
 - ``meshes/<shape>.ply``: world-space triangles (binary little-endian PLY; analytic spheres
   and cylinders are tessellated finely: 512 x 256 and 512 segments),
 - ``camera.json``: world-to-view and projection matrices in the OpenGL and Direct3D
-  conventions, fov, resolution, near/far and the pixel-centre convention,
+  conventions, fov, resolution, near/far and the pixel-centre convention, and ``sequence``:
+  the path, frame and object transforms this export was made for,
 - ``lights.json``: every usable light with its radiometric quantity,
 - ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
-  (``raster-oracle reference out/scene.xml``) and compared with the original.
+  (``raster-oracle reference out/scene.xml``) and compared with the original,
+- ``export.json``: what it was exported for: the scene, size, light, camera path, frame and
+  frame count, light path (``scenes.inputs`` reads it back: scoring an export uses them),
+- ``cameras/frame_NNN.json``: with a camera path, every frame's ``camera.json`` (what an
+  engine renders the path's frames from).
+
+A glTF scene (``loaded.pbr``) writes ``scene.glb`` instead of ``scene.xml`` (its meshes,
+camera, KHR lights and metallic-roughness materials: :mod:`scenes.gltf_export`), and its
+``materials.json`` records the glTF material of every shape.
 """
 
 from __future__ import annotations
@@ -26,7 +35,18 @@ import numpy as np
 from . import backend
 from . import meshes as _meshes
 
-__all__ = ["export", "shape_mesh"]
+__all__ = ["EXPORT_SCENE_FILES", "export", "export_scene_file", "shape_mesh"]
+
+#: The scene file of an export folder: Mitsuba XML, or GLB for a glTF scene.
+EXPORT_SCENE_FILES = ("scene.xml", "scene.glb")
+
+
+def export_scene_file(folder) -> Path | None:
+    """The scene file (``scene.xml`` or ``scene.glb``) of an export folder, or None."""
+    for name in EXPORT_SCENE_FILES:
+        if (Path(folder) / name).is_file():
+            return Path(folder) / name
+    return None
 
 
 def _tessellate_sphere(center, radius, n_phi=512, n_theta=256):
@@ -160,6 +180,46 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
     return "\n".join(lines)
 
 
+def _write_export_record(tmp: Path, loaded) -> None:
+    """``export.json`` (see the module docstring) and, along a camera path, every frame's
+    camera."""
+    moving = loaded.camera_path is not None or loaded.light_path is not None
+    record = {
+        "schema": "raster-oracle/export/1",
+        "scene": loaded.name,
+        "width": loaded.width,
+        "height": loaded.height,
+        "light": loaded.light_index,
+        "camera_path": loaded.camera_path,
+        "light_path": loaded.light_path,
+        "frame": loaded.frame if moving else 0,
+        "n_frames": loaded.n_frames if moving else None,
+    }
+    (tmp / "export.json").write_text(json.dumps(record, indent=2))
+    if loaded.camera_path is None:
+        return
+    (tmp / "cameras").mkdir()
+    for k in range(loaded.n_frames):
+        at = loaded.with_frame(k, path=loaded.camera_path, n_frames=loaded.n_frames)
+        cam = {**at.camera.to_json(), "sequence": _sequence(at)}
+        (tmp / "cameras" / f"frame_{k:03d}.json").write_text(json.dumps(cam, indent=2))
+
+
+def _sequence(loaded) -> dict:
+    """The frame of the sequence a camera record was made for (engines render the same
+    frame): its camera and light paths or camera file, and the moving objects' transforms."""
+    return {
+        "camera_path": loaded.camera_path,
+        "light_path": loaded.light_path,
+        "camera_file": loaded.camera_file,
+        "frame": loaded.frame,
+        "n_frames": loaded.n_frames,
+        "object_paths": {k: dict(v) for k, v in loaded.object_motion.items()} or None,
+        "object_transforms": {k: loaded.shape_transform(k).tolist() for k in loaded.object_motion}
+        or None,
+    }
+
+
 def export(loaded, out_dir: str | Path) -> dict:
     """Write the export files to ``out_dir`` (created if needed; each file renamed into place).
 
@@ -187,24 +247,36 @@ def export(loaded, out_dir: str | Path) -> dict:
                 "id": idx,
                 "source_type": sh.class_name(),
             }
-        (tmp / "camera.json").write_text(json.dumps(loaded.camera.to_json(), indent=2))
+        camera = loaded.camera.to_json()
+        # the frame of the sequence this export was made for (engines render the same frame)
+        camera["sequence"] = _sequence(loaded)
+        (tmp / "camera.json").write_text(json.dumps(camera, indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
+        if loaded.pbr is not None:  # with each light's glTF node matrix
+            from .gltf_export import light_records
+
+            lights["lights"] = light_records(loaded)
         (tmp / "lights.json").write_text(json.dumps(lights, indent=2))
-        (tmp / "materials.json").write_text(
-            json.dumps(
-                {
-                    "model": "two-sided diffuse (see scenes.shading)",
-                    # the scene-wide Blinn-Phong lobe (ks 0: none; the glossy scene has one)
-                    "specular": loaded.specular.to_json(),
-                    "shapes": summary["shapes"],
-                },
-                indent=2,
-            )
-        )
-        (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes))
+        materials = {
+            "model": "two-sided diffuse (see scenes.shading)",
+            # the scene-wide Blinn-Phong lobe (ks 0: none; the glossy scene has one)
+            "specular": loaded.specular.to_json(),
+            "shapes": summary["shapes"],
+        }
+        if loaded.pbr is not None:  # a glTF scene: its materials and a GLB (scenes.gltf_export)
+            from .gltf_export import materials_record, scene_glb
+
+            materials = materials_record(loaded, summary["shapes"])
+            (tmp / "scene.glb").write_bytes(scene_glb(loaded))
+        else:
+            (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes))
+        (tmp / "materials.json").write_text(json.dumps(materials, indent=2))
+        _write_export_record(tmp, loaded)
         summary["scene"] = loaded.provenance()
         out_dir.mkdir(exist_ok=True)
         (out_dir / "meshes").mkdir(exist_ok=True)
+        if (tmp / "cameras").is_dir():
+            (out_dir / "cameras").mkdir(exist_ok=True)
         for f in sorted(tmp.rglob("*")):
             if f.is_file():
                 os.replace(f, out_dir / f.relative_to(tmp))

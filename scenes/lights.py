@@ -9,6 +9,13 @@ Radiometry follows Mitsuba's emitters so that the shading model agrees with Mits
 - ``spot``: intensity ``I`` times Mitsuba's falloff: 1 inside ``beam_width``, falling
   linearly in angle to 0 at ``cutoff_angle``, 0 outside; irradiance ``I * falloff / d^2``.
 
+A light read from a glTF file (``model="gltf"``) follows KHR_lights_punctual instead:
+directional ``E`` in lux, point and spot ``I`` in candela (taken as the renderer's linear
+units, as the Khronos sample renderer does), the spot's smooth cone attenuation
+``saturate(cos_theta * s + o)^2`` with ``s = 1 / max(0.001, cos(inner) - cos(outer))`` and
+``o = -cos(outer) s`` (``beam_width`` = inner, ``cutoff_angle`` = outer cone angle), and, where
+``range > 0``, the window the extension recommends: ``clamp(1 - (d / range)^4, 0, 1) / d^2``.
+
 Every function works on NumPy ``(N, 3)`` arrays and on Dr.Jit ``Vector3f`` alike.
 """
 
@@ -34,7 +41,10 @@ class Light:
     color : RGB irradiance (directional) or intensity (point, spot), linear.
     direction : unit vector the light travels along (directional, spot axis).
     position : world position (point, spot).
-    cutoff_angle, beam_width : spot cone half-angles in degrees (Mitsuba's parameters).
+    cutoff_angle, beam_width : spot cone half-angles in degrees (Mitsuba's parameters; the
+        outer and inner cone angles of a glTF spot).
+    model : ``"mitsuba"`` (Mitsuba's emitters) or ``"gltf"`` (KHR_lights_punctual).
+    range : glTF point/spot range (0: unbounded).
     """
 
     kind: str
@@ -45,6 +55,8 @@ class Light:
     beam_width: float = 15.0
     name: str = ""
     extra: dict = field(default_factory=dict, compare=False)
+    model: str = "mitsuba"
+    range: float = 0.0
 
     @property
     def is_directional(self) -> bool:
@@ -69,6 +81,12 @@ class Light:
             return _ops.full_like_x(wl, 1.0)
         axis = np.asarray(self.direction, dtype=np.float64)
         cos_theta = -_ops.dot_const(wl, axis)
+        if self.model == "gltf":
+            cos_outer = math.cos(math.radians(self.cutoff_angle))
+            cos_inner = math.cos(math.radians(self.beam_width))
+            s = 1.0 / max(0.001, cos_inner - cos_outer)
+            att = _ops.clip(cos_theta * s - cos_outer * s, 0.0, 1.0)
+            return att * att
         theta = _ops.arccos(_ops.clip(cos_theta, -1.0, 1.0))
         cutoff = math.radians(self.cutoff_angle)
         beam = math.radians(min(self.beam_width, self.cutoff_angle))
@@ -87,6 +105,10 @@ class Light:
         """Scalar factor multiplying ``color`` to give irradiance on a facing surface."""
         if self.is_directional:
             return _ops.full_like_x(wl, 1.0)
+        if self.model == "gltf" and self.range > 0.0:
+            q = dist * (1.0 / self.range)
+            window = _ops.clip(1.0 - (q * q) * (q * q), 0.0, 1.0)
+            return self.falloff(wl) * window / (dist * dist)
         return self.falloff(wl) / (dist * dist)
 
     def to_json(self) -> dict:
@@ -100,4 +122,19 @@ class Light:
             out["beam_width_deg"] = self.beam_width
             out["falloff"] = "1 inside beam_width, linear in angle to 0 at cutoff_angle"
         out["units"] = "irradiance W/m^2" if self.is_directional else "intensity W/sr"
+        if self.model == "gltf":
+            out["model"] = "KHR_lights_punctual"
+            out["units"] = "illuminance lux" if self.is_directional else "intensity candela"
+            if self.kind == "spot":
+                out["inner_cone_angle_deg"] = self.beam_width
+                out["outer_cone_angle_deg"] = self.cutoff_angle
+                out["falloff"] = (
+                    "saturate(cos_theta * s - cos(outer) * s)^2, "
+                    "s = 1 / max(0.001, cos(inner) - cos(outer))"
+                )
+            if not self.is_directional:
+                out["range"] = self.range or None
+                out["distance_falloff"] = (
+                    "clamp(1 - (d / range)^4, 0, 1) / d^2" if self.range else "1 / d^2"
+                )
         return out

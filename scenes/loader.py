@@ -20,8 +20,11 @@ import numpy as np
 from . import backend
 from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
+from .camera_file import CameraFileError, load_camera_file
+from .gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
 from .lights import Light
+from .object_paths import check_motion, object_transform
 from .paths import CAMERA_PATHS, path_camera
 from .shading import Specular
 
@@ -65,10 +68,47 @@ class LoadedScene:
     light_path: str | None = None
     base_lights: list[Light] = field(default_factory=list)
     mesh_data: dict = field(default_factory=dict, repr=False)
+    #: glTF materials (:class:`scenes.gltf_materials.PbrMaterials`): the scene is shaded with
+    #: the glTF BRDF of :mod:`scenes.pbr`; None: the Lambert/Blinn-Phong of scenes.shading.
+    pbr: object = field(default=None, repr=False, compare=False)
     #: Per-scene memo caches of derived data (shape tables, occluder triangles, tie groups),
     #: keyed by their owner's name. A declared field, so ``dataclasses.replace`` carries it:
     #: only data that depends on the scene's geometry (not its camera or light) belongs here.
     memo: dict = field(default_factory=dict, repr=False, compare=False)
+    #: Object paths (:mod:`scenes.object_paths`): shape id -> spec; empty for a still scene.
+    object_motion: dict = field(default_factory=dict, repr=False)
+    #: A camera sequence from a file (``--camera-file``; frame k = entry k, frame -1 = entry
+    #: 0) or None; its file is named in ``camera_file``.
+    camera_sequence: tuple | None = field(default=None, repr=False)
+    camera_file: str | None = None
+    #: The built-in dictionary the moving shapes are rebuilt from, and the rebuilt Mitsuba
+    #: scenes by frame (shared by every frame of this scene).
+    scene_dict: dict | None = field(default=None, repr=False, compare=False)
+    frame_scenes: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def default_camera_path(self) -> str:
+        """The camera path frames follow when none is named: ``file`` for a camera file,
+        ``static`` when objects move, else ``dolly``."""
+        if self.camera_sequence is not None:
+            return "file"
+        return "static" if self.object_motion else "dolly"
+
+    def shape_transform(self, name: str, frame: int | None = None) -> np.ndarray:
+        """``(4, 4)`` transform of shape ``name`` at ``frame`` (default: this scene's frame)
+        relative to frame 0; the identity for a shape that does not move."""
+        spec = self.object_motion.get(name)
+        if spec is None:
+            return np.eye(4)
+        return object_transform(spec, self.frame if frame is None else frame)
+
+    def previous(self):
+        """This scene one frame earlier (frame -1 for frame 0): the camera, light and objects
+        of the previous frame. A scene without camera path, light path or moving objects is
+        its own previous frame."""
+        if self.camera_path is None and self.light_path is None and not self.object_motion:
+            return self
+        return self.with_frame(self.frame - 1, n_frames=self.n_frames)
 
     @property
     def light(self) -> Light:
@@ -98,12 +138,42 @@ class LoadedScene:
         if path is None and self.camera_path is None and self.light_path is not None:
             moved = replace(self, frame=frame, n_frames=n)
         else:
-            path = path or self.camera_path or "dolly"
-            cam = path_camera(self.base_camera, path, frame, n, scene=self)
+            path = path or self.camera_path or self.default_camera_path
+            if path == "file":
+                if self.camera_sequence is None:
+                    raise SceneError("camera path 'file' needs a camera file (--camera-file)")
+                if frame >= len(self.camera_sequence):
+                    raise SceneError(
+                        f"frame {frame} is past the camera file's {len(self.camera_sequence)} "
+                        "frames"
+                    )
+                cam = self.camera_sequence[max(int(frame), 0)]
+            else:
+                cam = path_camera(self.base_camera, path, frame, n, scene=self)
             moved = replace(self, camera=cam, camera_path=path, frame=frame, n_frames=n)
         if self.light_path is not None:
             moved = moved.with_light_frame(frame, path=self.light_path, n_frames=n)
+        if self.object_motion:
+            moved = moved._with_objects_at(frame)
         return moved
+
+    def _with_objects_at(self, frame: int):
+        """The same scene with its moving shapes where their paths put them at ``frame``."""
+        if frame not in self.frame_scenes:
+            mi = backend.mitsuba()
+            raw = dict(self.scene_dict)
+            for name, spec in self.object_motion.items():
+                m = object_transform(spec, frame)
+                entry = dict(raw[name])
+                v = np.asarray(entry["vertices"], dtype=np.float64)
+                entry["vertices"] = v @ m[:3, :3].T + m[:3, 3]
+                raw[name] = entry
+            meshes: dict = {}
+            mi_scene = mi.load_dict(_to_mitsuba_dict(mi, raw, meshes), optimize=False)
+            self.frame_scenes[frame] = (mi_scene, meshes)
+        mi_scene, meshes = self.frame_scenes[frame]
+        # derived geometry (memo) belongs to one placement of the shapes
+        return replace(self, mi_scene=mi_scene, mesh_data=meshes, memo={})
 
     def with_light_frame(self, frame: int, *, path: str, n_frames: int | None = None):
         """The same scene lit by frame ``frame`` of light path ``path`` (see
@@ -126,9 +196,21 @@ class LoadedScene:
             self, lights=lights, base_lights=base, light_path=path, frame=frame, n_frames=n
         )
 
+    @property
+    def shading_model(self) -> str:
+        """The shading model of the colour truth (recorded in provenance)."""
+        if self.pbr is not None:
+            from .pbr import SHADING_MODEL
+
+            return SHADING_MODEL
+        if self.specular.ks > 0.0:
+            return "lambert + normalized Blinn-Phong (scenes.shading)"
+        return "lambert (scenes.shading)"
+
     def provenance(self) -> dict:
         return {
             "name": self.name,
+            "shading_model": self.shading_model,
             "source": self.source,
             "content_hash": self.content_hash,
             "light_index": self.light_index,
@@ -138,6 +220,8 @@ class LoadedScene:
             "light_path": self.light_path,
             "frame": self.frame,
             "n_frames": self.n_frames,
+            "object_paths": {k: dict(v) for k, v in self.object_motion.items()} or None,
+            "camera_file": self.camera_file,
         }
 
 
@@ -167,10 +251,26 @@ def _to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
         if isinstance(value, dict) and value.get("type") == "ro_mesh":
             v = np.asarray(value["vertices"], dtype=np.float32)
             f = np.asarray(value["faces"], dtype=np.uint32)
-            mesh = mi.Mesh(key, vertex_count=len(v), face_count=len(f), has_vertex_normals=False)
+            # optional per-vertex data (glTF meshes, scenes.gltf): normals, uv, tangents
+            nrm, uv, tan = (value.get(k) for k in ("normals", "texcoords", "tangents"))
+            mesh = mi.Mesh(
+                key,
+                vertex_count=len(v),
+                face_count=len(f),
+                has_vertex_normals=nrm is not None,
+                has_vertex_texcoords=uv is not None,
+            )
             params = mi.traverse(mesh)
             params["vertex_positions"] = mi.Float(v.ravel())
             params["faces"] = mi.UInt32(f.ravel())
+            if nrm is not None:
+                params["vertex_normals"] = mi.Float(np.asarray(nrm, np.float32).ravel())
+            if uv is not None:
+                params["vertex_texcoords"] = mi.Float(np.asarray(uv, np.float32).ravel())
+            if tan is not None:
+                tan = np.asarray(tan, np.float32)
+                mesh.add_attribute("vertex_tangent", 3, mi.Float(tan[:, :3].ravel()))
+                mesh.add_attribute("vertex_tangent_w", 1, mi.Float(tan[:, 3].ravel()))
             params.update()
             bsdf = mi.load_dict(value["bsdf"])
             mesh.set_bsdf(bsdf)
@@ -323,8 +423,10 @@ def load(
     frame: int = 0,
     n_frames: int = 8,
     light_path: str | None = None,
+    camera_file=None,
+    camera: int | None = None,
 ) -> LoadedScene:
-    """Load a built-in scene by name or a Mitsuba XML file.
+    """Load a built-in scene by name, a Mitsuba XML file or a glTF 2.0 file.
 
     Parameters
     ----------
@@ -337,6 +439,13 @@ def load(
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
         that of ``frame`` (frame 0 is the scene's own light).
+    camera_file : a camera sequence file (:mod:`scenes.camera_file`): frames follow its
+        cameras (camera path ``file``).
+
+    Objects of a scene with object paths (:mod:`scenes.object_paths`) are placed for
+    ``frame``; such a scene's frames keep the camera still unless a camera path is named.
+    camera : glTF scenes: index of the document's camera to view through (default: the
+        scene's first camera node); see :mod:`scenes.gltf`.
 
     Raises
     ------
@@ -345,20 +454,23 @@ def load(
         unknown light path or one that does not fit the chosen light.
     """
     _check_size(width, height)
-    if light_path is not None and light_path not in LIGHT_PATHS:
-        raise SceneError(
-            f"unknown light path {light_path!r}; choose one of {', '.join(LIGHT_PATHS)}"
-        )
-    if camera_path is not None and camera_path not in CAMERA_PATHS:
-        raise SceneError(
-            f"unknown camera path {camera_path!r}; choose one of {', '.join(CAMERA_PATHS)}"
-        )
-    if not 0 <= int(frame) < max(int(n_frames), 1):
-        raise SceneError(f"frame must be in [0, {n_frames}), got {frame}")
+    _check_sequence(light_path, camera_path, camera_file, frame, n_frames)
     mi = backend.mitsuba()
     name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
-    if isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
+    try:  # a glTF file or built-in glTF scene (scenes.gltf), else None
+        gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
+    except GltfError as exc:
+        raise SceneError(str(exc)) from None
+    if gl is not None:
+        digest, source, description, name = gl.digest, gl.source, gl.description, gl.name
+        specular = Specular()
+        motion, scene_dict = {}, None
+        try:
+            mi_scene = mi.load_dict(_to_mitsuba_dict(mi, gl.raw, meshes), optimize=False)
+        except Exception as exc:
+            raise SceneError(f"glTF scene {name!r} failed to load: {exc}") from exc
+    elif isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
         spec = scene if isinstance(scene, BuiltinScene) else BUILTIN_SCENES[name]
         w, h = int(width or spec.width), int(height or spec.height)
         raw = spec.factory(w, h)
@@ -366,6 +478,7 @@ def load(
         _hash_obj(digest, raw)
         # a scene-wide Blinn-Phong lobe (scenes.aa_scenes' glossy); hashed above with the rest
         specular = Specular(**raw.pop("ro_specular", {}))
+        motion, scene_dict = _motion_of(raw, name), dict(raw)
         try:
             mi_scene = mi.load_dict(_to_mitsuba_dict(mi, raw, meshes), optimize=False)
         except Exception as exc:  # Mitsuba raises RuntimeError subclasses
@@ -375,8 +488,8 @@ def load(
         path = Path(name)
         if path.suffix.lower() != ".xml" and not path.exists():
             raise SceneError(
-                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}) "
-                "and not a Mitsuba XML file"
+                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}), "
+                "a Mitsuba XML file nor a glTF file (.gltf, .glb)"
             )
         if not path.is_file():
             raise SceneError(f"scene file not found: {path}")
@@ -390,6 +503,7 @@ def load(
             raise SceneError(f"cannot load {path}: {msg[-1] if msg else exc}") from exc
         source, description = str(path.resolve()), f"Mitsuba scene {path.name}"
         specular = Specular()
+        motion, scene_dict = {}, None
         name = path.stem
     sensors = mi_scene.sensors()
     if not sensors:
@@ -404,6 +518,8 @@ def load(
         lt = _light_from_emitter(mi, e, e.id() or f"emitter_{i}")
         if lt is not None:
             lights.append(lt)
+    if gl is not None:
+        lights = gl.lights(lights)
     if not lights:
         kinds = ", ".join(e.class_name() for e in emitters) or "none"
         raise SceneError(
@@ -427,15 +543,59 @@ def load(
         content_hash=digest.hexdigest(),
         specular=specular,
         mesh_data=meshes,
+        object_motion=motion,
+        scene_dict=scene_dict,
+        pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
     )
-    if camera_path is not None:
-        loaded = loaded.with_frame(int(frame), path=camera_path, n_frames=int(n_frames))
+    loaded = _placed(loaded, camera_file, camera_path, int(frame), int(n_frames))
     if light_path is not None:
         try:
             check_light_path(light_path, loaded.light)
         except ValueError as exc:
             raise SceneError(f"scene {name!r}: {exc}") from None
         loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
+    return loaded
+
+
+def _check_sequence(light_path, camera_path, camera_file, frame, n_frames) -> None:
+    """:class:`SceneError` for an unknown light or camera path, a ``file`` path without a
+    camera file, or a frame outside ``[0, n_frames)``."""
+    if light_path is not None and light_path not in LIGHT_PATHS:
+        raise SceneError(
+            f"unknown light path {light_path!r}; choose one of {', '.join(LIGHT_PATHS)}"
+        )
+    if camera_path == "file" and camera_file is None:
+        raise SceneError("camera path 'file' needs a camera file (--camera-file)")
+    if camera_path is not None and camera_path not in (*CAMERA_PATHS, "file"):
+        raise SceneError(
+            f"unknown camera path {camera_path!r}; choose one of {', '.join(CAMERA_PATHS)}"
+        )
+    if not 0 <= int(frame) < max(int(n_frames), 1):
+        raise SceneError(f"frame must be in [0, {n_frames}), got {frame}")
+
+
+def _motion_of(raw: dict, name: str) -> dict:
+    """The object paths a built-in dictionary declares (``"ro_motion"``, taken out of it)."""
+    motion = raw.pop("ro_motion", {})
+    try:
+        check_motion(motion)
+    except ValueError as exc:
+        raise SceneError(f"built-in scene {name!r}: {exc}") from None
+    return motion
+
+
+def _placed(loaded: LoadedScene, camera_file, camera_path, frame: int, n_frames: int):
+    """``loaded`` with its camera file's sequence, at ``frame`` of its camera path (or of its
+    objects' paths)."""
+    if camera_file is not None:
+        try:
+            sequence = load_camera_file(camera_file, loaded.camera)
+        except CameraFileError as exc:
+            raise SceneError(str(exc)) from None
+        loaded = replace(loaded, camera_sequence=sequence, camera_file=str(camera_file))
+        camera_path = camera_path or "file"
+    if camera_path is not None or loaded.object_motion:
+        loaded = loaded.with_frame(frame, path=camera_path, n_frames=n_frames)
     return loaded
 
 

@@ -6,6 +6,8 @@
   texel per frame, the texel being the scene's horizontal extent / 2048 (a 2048^2 map fit
   to the scene): the workload that stable cascades must not shimmer under.
 - ``rotate``: slow yaw of 0.5 degree per frame about the camera position.
+- ``static``: the scene's own camera every frame (scenes whose objects move,
+  :mod:`scenes.object_paths`; a static-camera TAA's convergence).
 - ``dolly``: the camera moves forward by 4 % of the distance to what the image centre sees
   (the scene's extent / 4 when that is sky) a frame;
   geometry newly enters the view, the workload for SDSM's readback latency.
@@ -22,6 +24,7 @@ from .camera import Camera
 __all__ = ["CAMERA_PATHS", "path_camera"]
 
 CAMERA_PATHS = {
+    "static": "the scene's own camera every frame (objects may move)",
     "subpixel-pan": "yaw by 1/4 pixel a frame (0.25 px image motion)",
     "subtexel-pan": "translate right by 1/4 shadow-map texel (scene extent / 2048) a frame",
     "rotate": "yaw by 0.5 degree a frame",
@@ -44,6 +47,8 @@ def path_camera(base: Camera, path: str, frame: int, n_frames: int, *, scene=Non
     """The camera of ``frame`` (0-based) along ``path``."""
     if path not in CAMERA_PATHS:
         raise ValueError(f"unknown camera path {path!r}; choose one of {', '.join(CAMERA_PATHS)}")
+    if path == "static":
+        return base
     m = np.asarray(base.to_world, dtype=np.float64)
     k = float(frame)
     if path == "subpixel-pan":

@@ -10,6 +10,13 @@ Two levels:
 - :func:`trace_film`, :func:`intersect` and :func:`occluded` take and return NumPy arrays,
   chunked so memory stays bounded; models use these to sample where a technique samples
   (MSAA sample positions, shadow-map texel centres from the light, ...).
+
+**One Mitsuba scene per Dr.Jit kernel.** Every helper here traces ``loaded.mi_scene`` only
+(primary, shadow and self-hit rays of one scene may share a kernel). Code that also traces
+another ``mi.Scene`` (a sub-scene of some of the shapes, as ACAA's tie groups) must evaluate
+one scene's results before tracing the other (:func:`.kernels.evaluate_trace`): on CUDA,
+OptiX disables the second trace in a kernel and it returns no hits, silently.
+:func:`.kernels.audit` checks the rule on the CPU.
 """
 
 from __future__ import annotations
@@ -17,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import backend
+from .gltf_materials import surface_dr
+from .pbr import shade_gltf
 from .shading import facing, receiver_mask, shade
 
 __all__ = ["CHUNK", "intersect", "occluded", "shape_table", "trace_film", "trace_film_dr"]
@@ -183,7 +192,11 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     scene = loaded.mi_scene
     light = loaded.light
     ray = camera_rays_dr(camera, x, y)
-    si = scene.ray_intersect(ray, ray_flags=primary_flags(mi), coherent=True)
+    pbr = loaded.pbr  # glTF scenes: materials of scenes.gltf_materials, BRDF of scenes.pbr
+    flags = primary_flags(mi)
+    if pbr is not None and pbr.has_normal_textures:
+        flags = mi.RayFlags.All  # dp/du: the normal texture's fallback tangent
+    si = scene.ray_intersect(ray, ray_flags=flags, coherent=True)
     valid = si.is_valid()
     to_eye = -ray.d
     n = facing(si.sh_frame.n, to_eye)
@@ -214,10 +227,28 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
         "cos_l": cos_l,
         "shadow_tested": candidate,
     }
-    if albedo or color:
+    if pbr is not None and (albedo or color):
+        mat = surface_dr(pbr, si, shape_index, n, to_eye, valid)
+        out["albedo"] = dr.select(valid, mat["base_color"], 0.0)
+    elif albedo or color:
         bsdf = si.bsdf(ray)
         out["albedo"] = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
-    if color:
+    if color and pbr is not None:
+        vis = dr.select(lit & valid, 1.0, 0.0)
+        rgb = shade_gltf(
+            base_color=mat["base_color"],
+            metallic=mat["metallic"],
+            roughness=mat["roughness"],
+            emissive=mat["emissive"],
+            normal=mat["normal"],
+            to_light=wl,
+            to_eye=to_eye,
+            irradiance_scale=light.irradiance_scale(wl, dist),
+            visibility=vis,
+            light=light,
+        )
+        out["color"] = dr.select(valid, rgb, 0.0)
+    elif color:
         vis = dr.select(lit & valid, 1.0, 0.0)
         rgb = shade(
             albedo=out["albedo"],

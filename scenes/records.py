@@ -32,6 +32,7 @@ PACKAGES = (
     "scikit-image",
     "colour-science",
     "flip-evaluator",
+    "pygltflib",
 )
 
 
@@ -100,9 +101,18 @@ def package_versions() -> dict[str, str | None]:
 
 
 def provenance() -> dict:
-    """The backend (Mitsuba variant, libLLVM) and package versions in use:
-    ``{"backend", "libllvm", "versions"}``."""
+    """The backend (Mitsuba variant, libLLVM), the machine it runs on, its self-check
+    verdict and the package versions in use: ``{"backend", "libllvm", "device",
+    "self_check", "versions"}``. ``device``: ``{"kind": "gpu", "name", "driver",
+    "cuda_driver"}`` or ``{"kind": "cpu", "name", "cores"}``; ``self_check``: ``{"status":
+    "passed" | "failed" | "trusted" | "not run", "failed": [check names], ...}``."""
     from . import backend
 
     info = backend.active()
-    return {"backend": info.variant, "libllvm": info.libllvm, "versions": package_versions()}
+    return {
+        "backend": info.variant,
+        "libllvm": info.libllvm,
+        "device": backend.device_info(info.variant),
+        "self_check": backend.self_check() or {"status": "not run", "failed": []},
+        "versions": package_versions(),
+    }

@@ -118,32 +118,44 @@ def _dot(n: np.ndarray, v: np.ndarray) -> np.ndarray:
     return n[:, :, 0] * v[:, None, 0] + n[:, :, 1] * v[:, None, 1] + n[:, :, 2] * v[:, None, 2]
 
 
-def flags_single(planes: np.ndarray, p: np.ndarray, floor: np.ndarray):
+def flags_single(planes: np.ndarray, p: np.ndarray, floor: np.ndarray, hit, epsilon: float):
     """Shadowed flags and epsilon-band flags of points ``p (P, 3)`` against ``planes
-    (P, 4, 4)``; ``floor (P,)``: the lower end of the band (:func:`band_floor`)."""
+    (P, 4, 4)``; ``floor (P,)``: the lower end of the band (:func:`band_floor`); ``hit (P, 3)``:
+    the pixels' exact hits, where the band is judged (edges within ``floor + epsilon``)."""
     v = _dot(planes[:, :, :3], p) + planes[:, :, 3]
+    w = _dot(planes[:, :, :3], hit) + planes[:, :, 3]
+    slack = -(floor + epsilon)
     edges = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0)
-    return edges & (v[:, 3] > 0), edges & (v[:, 3] <= 0) & (v[:, 3] > floor)
+    near = (w[:, 0] >= slack) & (w[:, 1] >= slack) & (w[:, 2] >= slack)
+    shadowed = edges & (v[:, 3] > 0)
+    return shadowed, near & (w[:, 3] > floor) & ~shadowed
 
 
-def _masks(v, threshold, bits):
-    inside = (v[:, 0] >= 0) & (v[:, 1] >= 0) & (v[:, 2] >= 0) & (v[:, 3] > threshold[:, None])
+def _masks(v, edge, threshold, bits):
+    e = edge[:, None]
+    inside = (v[:, 0] >= e) & (v[:, 1] >= e) & (v[:, 2] >= e) & (v[:, 3] > threshold[:, None])
     return (inside.astype(np.uint64) @ bits).astype(np.uint32)
 
 
-def masks_32(planes, p, dpdx, dpdy, floor, a, b):
+def masks_32(planes, p, dpdx, dpdy, floor, a, b, hit, epsilon):
     """32-bit masks of the points ``p + a dpdx + b dpdy`` inside the volumes and of the
-    points in the epsilon band (without the mask); bounds of the planes over the points
-    decide most pairs (none inside, band included: both 0; all inside: mask full)."""
+    points in the epsilon band (judged at ``hit + a dpdx + b dpdy``, edges within
+    ``floor + epsilon``; without the mask); bounds of the planes over the points decide most
+    pairs (none inside, band included: both 0; all inside: mask full)."""
     bits = np.left_shift(np.uint64(1), np.arange(32, dtype=np.uint64))
     n = planes[:, :, :3]
     base = _dot(n, p) + planes[:, :, 3]
+    exact = _dot(n, hit) + planes[:, :, 3]
     da = _dot(n, dpdx)
     db = _dot(n, dpdy)
+    slack = -(floor + epsilon)
     reach = np.abs(da) * np.abs(a).max() + np.abs(db) * np.abs(b).max()
     hi = base + reach
     lo = base - reach
-    none = (hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= floor)
+    top = exact + reach
+    none = ((hi[:, :3] < 0).any(axis=1) | (hi[:, 3] <= 0)) & (
+        (top[:, :3] < slack[:, None]).any(axis=1) | (top[:, 3] <= floor)
+    )
     full = (lo[:, :3] >= 0).all(axis=1) & (lo[:, 3] > 0)
     masks = np.zeros(len(p), dtype=np.uint32)
     band = np.zeros(len(p), dtype=np.uint32)
@@ -155,8 +167,14 @@ def masks_32(planes, p, dpdx, dpdy, floor, a, b):
             + da[mixed, :, None] * a[None, None, :]
             + db[mixed, :, None] * b[None, None, :]
         )
-        masks[mixed] = _masks(v, np.zeros(len(mixed)), bits)
-        band[mixed] = _masks(v, floor[mixed], bits) & ~masks[mixed]
+        w = (
+            exact[mixed, :, None]
+            + da[mixed, :, None] * a[None, None, :]
+            + db[mixed, :, None] * b[None, None, :]
+        )
+        zero = np.zeros(len(mixed))
+        masks[mixed] = _masks(v, zero, zero, bits)
+        band[mixed] = _masks(w, slack[mixed], floor[mixed], bits) & ~masks[mixed]
     return masks, band
 
 
@@ -168,9 +186,12 @@ def pair_tests(planes, recv: dict, epsilon: float, tri: np.ndarray, r: np.ndarra
     p = recv["p"][r]
     scale = recv.get("floor_scale")
     floor = band_floor(p, epsilon) if scale is None else band_floor(p, epsilon, scale[r])
+    hit = recv["hit"][r] if "hit" in recv else p
     if "dpdx" in recv:
-        return masks_32(pl, p, recv["dpdx"][r], recv["dpdy"][r], floor, recv["a"], recv["b"])
-    return flags_single(pl, p, floor)
+        return masks_32(
+            pl, p, recv["dpdx"][r], recv["dpdy"][r], floor, recv["a"], recv["b"], hit, epsilon
+        )
+    return flags_single(pl, p, floor, hit, epsilon)
 
 
 def join(planes, recv, epsilon, frag_tri, lo, n, node_recv, state, *, chunk=PAIR_CHUNK):

@@ -8,7 +8,10 @@ homogeneous edge functions, so triangles crossing the camera plane need no clipp
 triangle per sample, a shadow map rendered from a directional light (orthographic, the same
 rasterizer) gives each sample a depth-compared light visibility, and the colour is the
 two-sided diffuse shading of the export's materials, averaged over the samples (4x
-supersampling, what an MSAA resolve gives on these flat-shaded scenes).
+supersampling, what an MSAA resolve gives on these flat-shaded scenes). An export of a glTF
+scene (``materials.json`` model ``gltf-metallic-roughness``, factors only) is shaded with the
+glTF 2.0 Appendix B BRDF (:func:`gltf_brdf`, written here from the specification) plus the
+emissive factor; ``samples=n`` takes an n x n grid of samples a pixel instead of the 4x.
 
 Outputs per pixel: ``shadow`` (the lit fraction of the 4 samples; sky counts as lit),
 ``coverage`` (the fraction of samples that hit a triangle), ``color`` ``(H, W, 3)`` linear
@@ -30,21 +33,54 @@ SAMPLES_4X = np.array([[0.375, 0.125], [0.875, 0.375], [0.125, 0.625], [0.625, 0
 CHUNK = 1 << 21
 
 
+def gltf_brdf(base, metallic, roughness, n, l, v, *, alpha_of=lambda r: r * r):
+    """The glTF 2.0 BRDF (Appendix B.3, the normative ``mix`` form), float64: GGX ``D`` with
+    ``alpha = alpha_of(roughness)`` (the specification's ``roughness^2``; a wrong engine
+    passes ``lambda r: r``), height-correlated Smith ``V``, Schlick Fresnel, Lambert
+    diffuse, dielectric F0 0.04. Vectors ``(N, 3)``; ``base`` ``(N, 3)`` or ``(3,)``;
+    ``metallic``, ``roughness`` scalars or ``(N,)``."""
+    base = np.broadcast_to(np.asarray(base, dtype=np.float64), np.shape(n))
+    h = l + v
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    nl = np.abs(np.sum(n * l, -1))
+    nv = np.abs(np.sum(n * v, -1))
+    nh = np.sum(n * h, -1)
+    vh = np.abs(np.sum(v * h, -1))
+    a = alpha_of(np.asarray(roughness, dtype=np.float64))
+    a2 = a * a
+    d = np.where(nh > 0, a2 / (math.pi * (nh * nh * (a2 - 1) + 1) ** 2), 0.0)
+    vis = 1.0 / ((nl + np.sqrt(a2 + (1 - a2) * nl**2)) * (nv + np.sqrt(a2 + (1 - a2) * nv**2)))
+    spec = (vis * d)[..., None]
+    fw = ((1.0 - vh) ** 5)[..., None]
+    f_d = 0.04 + 0.96 * fw
+    dielectric = (1 - f_d) * base / math.pi + f_d * spec
+    metal = spec * (base + (1 - base) * fw)
+    m = np.asarray(metallic, dtype=np.float64)
+    m = m[..., None] if m.ndim else m
+    return (1 - m) * dielectric + m * metal
+
+
 def load_export(folder) -> dict:
-    """The export's triangles (world space, float64), per-triangle albedo, camera, light."""
+    """The export's triangles (world space, float64), per-triangle albedo (base colour),
+    metallic, roughness and emissive (glTF exports; None otherwise), camera, light."""
     folder = Path(folder)
     materials = json.loads((folder / "materials.json").read_text())
-    tris, albedo = [], []
+    tris, albedo, pbr = [], [], []
     for shape in materials["shapes"].values():
         ply = PlyData.read(str(folder / shape["file"]))
         v = np.stack([ply["vertex"][c] for c in "xyz"], -1).astype(np.float64)
         faces = np.stack(ply["face"]["vertex_indices"]).astype(np.int64)
         tris.append(v[faces])
         albedo.append(np.repeat([shape["albedo"]], len(faces), axis=0))
+        if "pbr" in shape:
+            m = shape["pbr"]
+            row = [m["metallic_factor"], m["roughness_factor"], *m["emissive"]]
+            pbr.append(np.repeat([row], len(faces), axis=0))
     lights = json.loads((folder / "lights.json").read_text())
     return {
         "triangles": np.concatenate(tris),
         "albedo": np.concatenate(albedo).astype(np.float64),
+        "pbr": np.concatenate(pbr).astype(np.float64) if pbr else None,
         "camera": json.loads((folder / "camera.json").read_text()),
         "light": lights["lights"][lights["chosen"]],
     }
@@ -92,11 +128,17 @@ def rasterize(clip_tris: np.ndarray, ndc: np.ndarray, *, near_w: float = 0.0, de
     return best, best_lam, best_w
 
 
-def _pixel_samples(width: int, height: int) -> np.ndarray:
-    """``(H * W * 4, 2)`` sample positions in pixels (x right, y down), pixel-major."""
+def _pixel_samples(width: int, height: int, pattern: np.ndarray = SAMPLES_4X) -> np.ndarray:
+    """``(H * W * S, 2)`` sample positions in pixels (x right, y down), pixel-major."""
     y, x = np.mgrid[0:height, 0:width]
     base = np.stack([x, y], -1).reshape(-1, 1, 2).astype(np.float64)
-    return (base + SAMPLES_4X[None]).reshape(-1, 2)
+    return (base + pattern[None]).reshape(-1, 2)
+
+
+def grid_pattern(n: int) -> np.ndarray:
+    """An ``n x n`` grid of sample positions in the pixel (cell centres)."""
+    c = (np.arange(n) + 0.5) / n
+    return np.stack(np.meshgrid(c, c), -1).reshape(-1, 2)
 
 
 def shadow_map(tris: np.ndarray, to_light: np.ndarray, *, size: int):
@@ -129,9 +171,17 @@ def shadow_map(tris: np.ndarray, to_light: np.ndarray, *, size: int):
     return depth_of
 
 
-def render(folder, *, shadow_map_size: int = 1024, bias: float = 0.05) -> dict:
+def render(
+    folder,
+    *,
+    shadow_map_size: int = 1024,
+    bias: float = 0.05,
+    samples: int | None = None,
+    alpha_of=lambda r: r * r,
+) -> dict:
     """Render an export folder: ``shadow`` and ``coverage`` ``(H, W)``, ``color``
-    ``(H, W, 3)``, all float32 (see the module docstring)."""
+    ``(H, W, 3)``, all float32 (see the module docstring). ``samples``: an n x n grid a
+    pixel (default the 4x pattern); ``alpha_of``: the glTF roughness remapping."""
     scene = load_export(folder)
     cam, light = scene["camera"], scene["light"]
     if light["kind"] != "directional":
@@ -142,7 +192,8 @@ def render(folder, *, shadow_map_size: int = 1024, bias: float = 0.05) -> dict:
     proj = np.asarray(cam["opengl"]["projection"])
     hom = np.concatenate([tris, np.ones(tris.shape[:2] + (1,))], -1)
     clip = hom @ (proj @ view).T  # (T, 3, 4)
-    px = _pixel_samples(width, height)
+    pattern = SAMPLES_4X if samples is None else grid_pattern(samples)
+    px = _pixel_samples(width, height, pattern)
     ndc = np.stack([2.0 * px[:, 0] / width - 1.0, 1.0 - 2.0 * px[:, 1] / height], -1)
     idx, lam, _ = rasterize(clip[..., [0, 1, 3]], ndc, near_w=cam["near"])
     hit = idx >= 0
@@ -160,9 +211,16 @@ def render(folder, *, shadow_map_size: int = 1024, bias: float = 0.05) -> dict:
     lit = (own_depth <= map_depth + bias) & (cos_l > 0)
     vis = np.where(hit, lit, True).astype(np.float64)
     irradiance = np.asarray(light["color"])[None] * (np.maximum(cos_l, 0) * vis)[:, None]
-    rgb = albedo[t] / math.pi * irradiance
+    if scene["pbr"] is None:
+        rgb = albedo[t] / math.pi * irradiance
+    else:
+        m = scene["pbr"][t]
+        to_eye_u = to_eye / np.linalg.norm(to_eye, axis=-1, keepdims=True)
+        lv = np.broadcast_to(to_light, normal.shape)
+        f = gltf_brdf(albedo[t], m[:, 0], m[:, 1], normal, lv, to_eye_u, alpha_of=alpha_of)
+        rgb = f * irradiance + m[:, 2:5]
     rgb = np.where(hit[:, None], rgb, 0.0)
-    n = len(SAMPLES_4X)
+    n = len(pattern)
     return {
         "shadow": vis.reshape(height, width, n).mean(-1).astype(np.float32),
         "coverage": hit.reshape(height, width, n).mean(-1).astype(np.float32),
@@ -172,7 +230,8 @@ def render(folder, *, shadow_map_size: int = 1024, bias: float = 0.05) -> dict:
 
 def write_engine_exr(path, images: dict) -> None:
     """Engine-style layered EXR with OpenEXR (as an engine's exporter writes it): layers
-    ``shadow.Y``, ``msaa.R/G/B`` and ``msaa.coverage``."""
+    ``shadow.Y``, ``msaa.R/G/B`` and ``msaa.coverage``, and with ``images["velocity"]``
+    (``(H, W, 2)``) its velocity buffer ``velocity.X/Y``."""
     import OpenEXR
 
     channels = {
@@ -182,6 +241,9 @@ def write_engine_exr(path, images: dict) -> None:
         "msaa.B": images["color"][..., 2],
         "msaa.coverage": images["coverage"],
     }
+    if "velocity" in images:
+        channels["velocity.X"] = images["velocity"][..., 0]
+        channels["velocity.Y"] = images["velocity"][..., 1]
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     chans = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
     with OpenEXR.File(header, chans) as f:
@@ -193,3 +255,30 @@ def write_grey_png(path, image: np.ndarray) -> None:
     from PIL import Image
 
     Image.fromarray(np.round(np.clip(image, 0, 1) * 255).astype(np.uint8), mode="L").save(path)
+
+
+def velocity(folder, previous_camera: dict) -> np.ndarray:
+    """The engine's velocity buffer: ``(H, W, 2)`` float64, at each pixel centre the film
+    position (pixels, y down) in the previous frame of the surface the centre sees, minus the
+    centre, as an engine computes it from its depth buffer: the point reconstructed from the
+    rasterized triangle (a sky pixel: the pixel's ray at the far plane) and projected with
+    ``previous_camera`` (an export's ``camera.json`` record) by its OpenGL matrices."""
+    scene = load_export(folder)
+    cam, tris = scene["camera"], scene["triangles"]
+    width, height = cam["width"], cam["height"]
+    view_proj = np.asarray(cam["opengl"]["projection"]) @ np.asarray(cam["opengl"]["world_to_view"])
+    hom = np.concatenate([tris, np.ones(tris.shape[:2] + (1,))], -1)
+    clip = hom @ view_proj.T
+    y, x = np.mgrid[0:height, 0:width].reshape(2, -1) + 0.5
+    ndc = np.stack([2.0 * x / width - 1.0, 1.0 - 2.0 * y / height], -1)
+    idx, lam, _ = rasterize(clip[..., [0, 1, 3]], ndc, near_w=cam["near"])
+    pos = np.einsum("si,sij->sj", lam, tris[np.maximum(idx, 0)])
+    far = np.concatenate([ndc, np.ones((len(ndc), 2))], -1) @ np.linalg.inv(view_proj).T
+    pos = np.where((idx >= 0)[:, None], pos, far[:, :3] / far[:, 3:4])
+    prev_vp = np.asarray(previous_camera["opengl"]["projection"]) @ np.asarray(
+        previous_camera["opengl"]["world_to_view"]
+    )
+    p = np.concatenate([pos, np.ones((len(pos), 1))], -1) @ prev_vp.T
+    px = (p[:, 0] / p[:, 3] + 1.0) / 2.0 * width
+    py = (1.0 - p[:, 1] / p[:, 3]) / 2.0 * height
+    return np.stack([px - x, py - y], -1).reshape(height, width, 2)

@@ -18,6 +18,7 @@ from raster_oracle.oracle.reference.cache import ReferenceCache
 from raster_oracle.oracle.reference.exr import read_exr, write_exr
 from raster_oracle.oracle.reference.render import ReferenceSettings
 from raster_oracle.oracle.reference.store import get_reference
+from raster_oracle.oracle.scoring.score import coverage_truth
 
 from raster_oracle import scenes
 
@@ -80,9 +81,12 @@ def test_msaa_8x_scores_colour_and_coverage(runs):
     # coverage error by hand from the reference's front-most primitive coverage (same scene,
     # spp and seed): what a model's coverage metrics measure
     loaded = scenes.load(SCENE, width=W, height=H)
-    settings = ReferenceSettings(spp=SPP, seed=0, channels=("coverage", "edge", "id"))
+    groups = ("coverage", "coverage_exact", "edge", "id")
+    settings = ReferenceSettings(spp=SPP, seed=0, channels=groups)
     ref = get_reference(loaded, settings, cache=ReferenceCache(), quiet=True).channels()
-    err = runs["model"]["front_coverage"].astype(np.float64) - ref["front_coverage"]
+    # the truth the scorer uses: the exact channel where valid (issue 28)
+    truth = coverage_truth(ref, "front_coverage")[0]
+    err = runs["model"]["front_coverage"].astype(np.float64) - truth
     assert m["coverage_mae"] == pytest.approx(np.abs(err).mean(), rel=TOL)
     assert m["coverage_bias"] == pytest.approx(err.mean(), abs=TOL)
     # 8x beats the one-sample floor and no AA on every aliasing and colour measure

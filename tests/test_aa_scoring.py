@@ -24,6 +24,7 @@ from raster_oracle.oracle.scoring.score import (
     COVERAGE_KEYS,
     METRIC_KEYS,
     coverage_metrics,
+    coverage_truth,
 )
 from raster_oracle.raster_models import params, registry
 from raster_oracle.raster_models.result import ModelResult
@@ -53,7 +54,9 @@ def _reference(scene, channels):
 
 def _fake_run(scene, p):
     color_ch = _reference(scene, ("color", "edge", "id"))
-    cov = _reference(scene, ("coverage", "edge", "id"))["front_coverage"]
+    # the truth the scorer uses: the exact channel where valid (issue 28)
+    cov_ch = _reference(scene, ("coverage", "coverage_exact", "edge", "id"))
+    cov = coverage_truth(cov_ch, "front_coverage")[0]
     color = np.stack([color_ch[f"color.{c}"] for c in "RGB"], -1).astype(np.float32)
     if p.mode == "binary":
         cov = (cov >= 0.5).astype(np.float32)
@@ -144,7 +147,10 @@ def test_exact_aa_technique_scores_zero(tmp_path, fake_aa):
     assert m["cost"]["framebuffer_bytes"] == W * H * 8 * 8
     assert m["params"] == {"samples": 8, "mode": "exact"}
     assert {k for k in m["noise_floor"] if k.startswith("coverage_")} >= {"coverage_mae"}
-    assert m["coverage_reference"]["channels"] == ["coverage", "edge", "id"]
+    assert m["coverage_reference"]["channels"] == ["coverage", "coverage_exact", "edge", "id"]
+    # star is a triangle scene: scored against the exact coverage, whose noise floor is 0
+    assert m["coverage_reference"]["coverage_truth"] == {"truth": "exact", "exact_fraction": 1.0}
+    assert m["noise_floor"]["coverage_mae"] == 0.0
     cand = read_exr(out / "candidate.exr")
     assert {"color.R", "color.G", "color.B"} <= set(cand)
     maps = read_exr(out / "error_maps.exr")
@@ -179,8 +185,9 @@ def test_binary_coverage_errors_match_hand_computation(tmp_path, fake_aa):
     m = json.loads((out / "metrics.json").read_text())
     from raster_oracle import scenes
 
-    ref = _reference(scenes.load(SCENE, width=W, height=H), ("coverage", "edge", "id"))
-    cov = ref["front_coverage"].astype(np.float64)
+    groups = ("coverage", "coverage_exact", "edge", "id")
+    ref = _reference(scenes.load(SCENE, width=W, height=H), groups)
+    cov = coverage_truth(ref, "front_coverage")[0]
     err = (cov >= 0.5) - cov
     edge = (ref["edge"] > 0.5) | ((cov > 0) & (cov < 1))
     assert edge.sum() > 50
@@ -213,7 +220,10 @@ def test_frames_on_subpixel_pan_add_flicker(tmp_path, fake_aa):
 def test_engine_coverage_mask(tmp_path):
     from raster_oracle import scenes
 
-    ref = _reference(scenes.load(SCENE, width=W, height=H), ("coverage", "edge", "id"))
+    ref = _reference(
+        scenes.load(SCENE, width=W, height=H), ("coverage", "coverage_exact", "edge", "id")
+    )
+    ref["coverage"] = coverage_truth(ref, "coverage")[0].astype(np.float32)  # the truth used
     write_exr(tmp_path / "mask.exr", {"coverage": ref["coverage"]})
     rc, out = _score(tmp_path, "--candidate", str(tmp_path / "mask.exr"), "--channel", "coverage")
     assert rc == 0

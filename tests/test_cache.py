@@ -243,3 +243,72 @@ def test_store_sweeps_temporary_folders_of_killed_writers(tmp_path):
     os.utime(stale, (old, old))
     cache.store(key, _source(tmp_path / "src"))
     assert not stale.exists() and fresh.is_dir()
+
+
+def _dead_pid() -> int:
+    """The pid of a process that has ended (and been reaped)."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def test_store_removes_a_dead_writers_temporary_folder_at_once(tmp_path):
+    """Issue 31: a temporary folder named after a writer of this host that no longer runs
+    goes with the next store however fresh it is; a live writer's stays (this process's,
+    and the parent's), and so does a fresh one of another host (its pid says nothing here)."""
+    cache = cache_mod.ReferenceCache(tmp_path / "cache")
+    key = "01" + "3" * 62
+    shard = cache.entry(key).parent
+    shard.mkdir(parents=True)
+    dead = shard / (cache_mod.temp_prefix(key, pid=_dead_pid()) + "x1")
+    mine = shard / (cache_mod.temp_prefix(key) + "x2")
+    parent = shard / (cache_mod.temp_prefix(key, pid=os.getppid()) + "x3")
+    other_host = shard / (cache_mod.temp_prefix(key, pid=_dead_pid(), host="elsewhere") + "x4")
+    for folder in (dead, mine, parent, other_host):
+        _source(folder)
+    cache.store("ef" + "2" * 62, _source(tmp_path / "src"))
+    assert not dead.exists()
+    assert mine.is_dir() and parent.is_dir() and other_host.is_dir()
+
+
+#: A writer that stops in the middle of storing (after its first file) and says so.
+_STALLED_WRITER = """
+import shutil, sys, time
+from raster_oracle.oracle.reference import cache as cache_mod
+copy = shutil.copyfile
+def stall(src, dst, **kw):
+    copy(src, dst, **kw)
+    print("stalled", flush=True)
+    time.sleep(600)
+shutil.copyfile = stall
+cache_mod.ReferenceCache(sys.argv[1]).store(sys.argv[2], __import__("pathlib").Path(sys.argv[3]))
+"""
+
+
+def test_writer_killed_while_storing_leaves_nothing_after_the_next_store(tmp_path):
+    """Issue 31: ``kill -9`` of a writer in the middle of storing a reference leaves its
+    temporary folder; the next writer (another key) removes it, and the killed key is
+    stored again whole."""
+    root = tmp_path / "cache"
+    key = "ab" + "4" * 62
+    src = _source(tmp_path / "src")
+    writer = subprocess.Popen(
+        [sys.executable, "-c", _STALLED_WRITER, str(root), key, str(src)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert writer.stdout.readline().strip() == "stalled"
+        left = list(root.glob("*/.*"))
+        assert len(left) == 1 and (left[0] / "reference.exr").is_file()
+        assert left[0].name.startswith(cache_mod.temp_prefix(key, pid=writer.pid))
+    finally:
+        writer.send_signal(signal.SIGKILL)
+        writer.wait()
+        writer.stdout.close()
+    cache = cache_mod.ReferenceCache(root)
+    assert cache.lookup(key) == (None, "miss")
+    cache.store("cd" + "5" * 62, _source(tmp_path / "other", "b"))
+    assert list(root.glob("*/.*")) == []
+    entry = cache.store(key, src)
+    assert cache.lookup(key) == (entry, "hit")

@@ -202,9 +202,13 @@ def test_negative_radiance_and_visibility_range(tmp_path, rgb):
     neg[0, 0, 0] = -0.5
     path = tmp_path / "c.exr"
     write_exr(path, {c: neg[..., i] for i, c in enumerate("RGB")} | {"visibility": neg[..., 0]})
-    with pytest.raises(CandidateError, match=r"1 negative radiance values \(minimum -0.5\)"):
+    with pytest.raises(
+        CandidateError, match=r"radiance must be >= 0, got 1 negative values \(min -0.5\)"
+    ):
         load_candidate(path)
-    with pytest.raises(CandidateError, match=r"visibility must be in \[0, 1\], got 1 values"):
+    with pytest.raises(
+        CandidateError, match=r"visibility must be in \[0, 1\], got 1 values outside \(min -0.5\)"
+    ):
         load_candidate(path, channel="visibility")
 
 

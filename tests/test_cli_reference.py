@@ -31,6 +31,9 @@ def test_reference_writes_every_channel(tmp_path):
         "coverage_stderr",
         "front_coverage",
         "front_coverage_stderr",
+        "coverage_exact",
+        "front_coverage_exact",
+        "coverage_exact_valid",
         "id",
         "depth",
         "edge",
@@ -58,8 +61,11 @@ def test_reference_writes_every_channel(tmp_path):
         "visibility_stderr_mean",
         "visibility_stderr_max",
         "color_stderr_max",
+        "coverage_exact",
     ):
         assert key in meta
+    # the Monte Carlo coverage cross-checked against the exact one (issue 28)
+    assert set(meta["coverage_exact"]["monte_carlo_vs_exact"]) == {"coverage", "front_coverage"}
     assert meta["resolution"] == [48, 27] and meta["spp"] == 4
     assert meta["rays_cast"] >= 4 * 48 * 27
     # the ground and the plate are both in view, with a shadow edge between them
@@ -135,7 +141,12 @@ NO_LIGHT = (
     ],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, message):
+    from raster_oracle.oracle.reference import render
+
     monkeypatch.chdir(tmp_path)
+    # the memory guard's case needs less memory than the machine has: 12000x12000 needs
+    # about 40 GiB, which the 128 GiB GPU machine had free (exit 0 there)
+    monkeypatch.setattr(render, "available_memory", lambda: 16 << 30)
     (tmp_path / "bad.xml").write_text(BAD_XML)
     (tmp_path / "nosensor.xml").write_text(NO_SENSOR)
     (tmp_path / "nolight.xml").write_text(NO_LIGHT)

@@ -240,3 +240,114 @@ def test_baseline_of_an_export_scored_after_a_copy(engine, tmp_path, capsys):
     code = main([*argv, "--baseline", baseline, "--out", str(tmp_path / "second")])
     assert first["reference"]["scene"]["name"] == "ci-plate"
     assert code == 0, _said(capsys)
+
+
+# --------------------------------------------------------------------------- issue 25: CI
+
+
+def _manifest(path, exports: dict) -> None:
+    """Two scenes, two layers each (the engine's shadow mask and its MSAA colour), with the
+    gates an engine team would set."""
+    text = "[defaults]\nspp = 16\n"
+    for name, folder in exports.items():
+        text += f"""
+[scenes.{name}]
+scene = "{folder}"
+file = "{name}.exr"
+[scenes.{name}.channels.shadow]
+fail_above = {{ misclassified_fraction = 0.01, edge_band_misclassified_fraction = 0.2 }}
+[scenes.{name}.channels.msaa]
+fail_above = {{ flip_mean = 0.2 }}
+"""
+    path.write_text(text)
+
+
+def _failed_junit(path) -> list[tuple[str, str]]:
+    cases = ET.parse(path).getroot().iter("testcase")
+    return [(c.get("classname"), c.get("name")) for c in cases if c.find("failure") is not None]
+
+
+def _summary_rows(path) -> list[tuple[str, str]]:
+    """(scene, check) of the failed-check table of a Markdown summary."""
+    rows = []
+    for line in path.read_text().splitlines():
+        m = re.match(r"^\| (\S+) \| `([^`]+)` \|", line)
+        if m:
+            rows.append((m.group(1), m.group(2)))
+    return rows
+
+
+def test_ci_manifest_run_names_one_failure_everywhere_and_accept_makes_it_pass(
+    engine, tmp_path, browser
+):
+    """Issue 25's end-to-end run: the engine renders two exported scenes (the plate, and the
+    plate from frame 3 of the dolly path), two layers each; one layer is deliberately changed
+    (the second scene's colour 10 % brighter: a lighting change under review). Against the
+    approved baseline the run exits 1, and the JUnit file, ``metrics.json``, the Markdown
+    summary and the report's first screen (in Chromium) name the same failed checks;
+    ``baseline accept`` approves the change and the next run passes."""
+    exports = {"front": engine["export"], "dolly": tmp_path / "dolly-export"}
+    args = ["export", "plate", "--width", "96", "--height", "54", "--camera-path", "dolly"]
+    assert main([*args, "--frame", "3", "--out", str(exports["dolly"])]) == 0
+    images = {name: render(folder) for name, folder in exports.items()}
+    manifest = tmp_path / "ci.toml"
+    _manifest(manifest, exports)
+    shots, changed, base = tmp_path / "shots", tmp_path / "shots-changed", tmp_path / "baselines"
+    for folder, brighter in ((shots, 1.0), (changed, 1.1)):
+        folder.mkdir()
+        for name, img in images.items():
+            img = dict(img, color=img["color"] * (brighter if name == "dolly" else 1.0))
+            write_engine_exr(folder / f"{name}.exr", img)
+
+    def run(root, out, *extra):
+        argv = ["score-folder", str(root), "--manifest", str(manifest), "--quiet"]
+        files = ["--junit", str(out / "junit.xml"), "--summary-md", str(out / "summary.md")]
+        return main([*argv, "--platform", "ci-linux", *files, "--out", str(out / "run"), *extra])
+
+    # the approved state
+    assert run(shots, tmp_path / "r0") == 0
+    note = ["--note", "first engine build"]
+    assert (
+        main(["baseline", "accept", str(tmp_path / "r0" / "run"), "--into", str(base), *note]) == 0
+    )
+    # the changed layer against it: exit 1, one failure named the same everywhere
+    out = tmp_path / "r1"
+    assert run(changed, out, "--baseline", str(base)) == 1
+    record = json.loads((out / "run" / "metrics.json").read_text())
+    failed = [(case, name) for case, names in record["failed"].items() for name in names]
+    assert failed and {case for case, _ in failed} == {"dolly/msaa"}
+    assert all(name.startswith("baseline ") for _, name in failed)
+    assert ("dolly/msaa", "baseline flip_mean") in failed
+    assert _failed_junit(out / "junit.xml") == failed
+    summary = (out / "summary.md").read_text()
+    assert (
+        summary.startswith("## raster-oracle: FAIL") and _summary_rows(out / "summary.md") == failed
+    )
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    try:
+        page.goto((out / "run" / "report.html").resolve().as_uri())
+        verdict = page.locator("#verdict")
+        box = verdict.bounding_box()
+        assert box is not None and box["y"] < 400  # on the first screen
+        assert "FAIL" in verdict.locator("h2").inner_text()
+        rows = verdict.locator("tr[data-check]")
+        shown = [
+            (rows.nth(i).locator("td").nth(0).inner_text(), rows.nth(i).get_attribute("data-check"))
+            for i in range(rows.count())
+        ]
+        assert shown == failed
+        first = rows.nth(0).bounding_box()
+        assert first is not None and first["y"] + first["height"] <= 800
+        # where: the failing case's worst tiles (reference, candidate, error) on that screen
+        where = verdict.locator(".verdict-where[data-case] img.crop")
+        assert where.count() >= 3
+        crop = where.nth(2).bounding_box()
+        assert crop is not None and crop["y"] + crop["height"] <= 800
+    finally:
+        page.close()
+    # the change is approved: the next run against the new baseline passes
+    note = ["--note", "sun 10 % brighter (art review 42)"]
+    assert main(["baseline", "accept", str(out / "run"), "--into", str(base), *note]) == 0
+    assert run(changed, tmp_path / "r2", "--baseline", str(base)) == 0
+    kept = json.loads((base / "ci-linux" / "previous" / "001" / "baseline.json").read_text())
+    assert kept["note"] == "first engine build"

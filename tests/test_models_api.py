@@ -216,7 +216,8 @@ def test_family_of_every_technique():
     assert rm.family_of("csm") == "shadow"
     assert rm.family_of("coherent-shadow-map") == "shadow"
     assert rm.family_of("msaa") == "aa"
-    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {"shadow", "aa"}
+    assert rm.family_of("taa") == "taa"
+    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {"shadow", "aa", "taa"}
     with pytest.raises(rm.ModelError, match=r"unknown technique 'nope'; choose one of shadow-map"):
         rm.family_of("nope")
 

@@ -57,12 +57,17 @@ def test_several_surfaces_per_pixel_in_thin_scene():
     assert ch["edge"].mean() > 0.1
 
 
-@pytest.mark.parametrize("path", list(scenes.CAMERA_PATHS))
+@pytest.mark.parametrize("path", [p for p in scenes.CAMERA_PATHS if p != "static"])
 def test_camera_paths_move_the_camera(path):
     s = scenes.load("city", camera_path=path, frame=0, n_frames=4)
     frames = [s.with_frame(k).camera for k in range(4)]
     assert np.allclose(frames[0].to_world, s.base_camera.to_world)
     assert not np.allclose(frames[1].to_world, frames[0].to_world)
+
+
+def test_static_path_keeps_the_camera():
+    s = scenes.load("city", camera_path="static", frame=3, n_frames=4)
+    assert np.array_equal(s.camera.to_world, s.base_camera.to_world)
 
 
 def test_subpixel_pan_moves_the_image_a_quarter_pixel():

@@ -140,7 +140,7 @@ def test_fail_above_exit_codes(tmp_path, refs):
         out="fail",
     )
     assert rc == 1
-    assert json.loads((out / "metrics.json").read_text())["failed"] == ["visibility_mae"]
+    assert json.loads((out / "metrics.json").read_text())["failed"] == ["visibility_mae <= 0"]
     rc, _ = _score(
         tmp_path,
         tmp_path / "v.exr",

@@ -102,7 +102,7 @@ def test_ssim_fail_below_passes_a_good_image_and_fails_a_bad_one(tmp_path, capsy
         out="bad",
     )
     m = _metrics(out)
-    assert rc == 1 and m["ssim"] < 0.9 and m["failed"] == ["ssim"]
+    assert rc == 1 and m["ssim"] < 0.9 and m["failed"] == ["ssim >= 0.9"]
     line = f"FAIL ssim {m['ssim']:.4g} < 0.9 (noise floor {m['noise_floor']['ssim']:.4g})"
     assert line in text.splitlines(), text
     assert "failed: ssim >= 0.9" in err
@@ -120,7 +120,7 @@ def test_failure_line_gives_value_threshold_and_floor(tmp_path, capsys, cands):
         "visibility_mae=0.001",
     )
     m = _metrics(out)
-    assert rc == 1 and m["failed"] == ["visibility_mae"]
+    assert rc == 1 and m["failed"] == ["visibility_mae <= 0.001"]
     floor = m["noise_floor"]["visibility_mae"]
     line = f"FAIL visibility_mae {m['visibility_mae']:.4g} > 0.001 (noise floor {floor:.4g})"
     assert line in text.splitlines(), text
@@ -240,7 +240,8 @@ def test_baseline_passes_an_equal_run_and_flags_a_worse_one(tmp_path, capsys, ca
     )
     assert line in text.splitlines(), text
     assert "baseline visibility_mae" in err
-    assert m["failed"] == []  # no threshold gate failed: the regression alone exits 1
+    # one verdict (issue 25): the regressions are failed checks of metrics.json too
+    assert "baseline visibility_mae" in m["failed"] and m["exit_code"] == 1
 
 
 def test_baseline_of_another_run_or_file_is_exit_2(tmp_path, capsys, cands):
@@ -379,7 +380,7 @@ def test_temporal_gates_on_two_frames_and_a_baseline_of_one_frame(tmp_path, caps
     for k in (0, 1):
         shutil.copy(cands["exact_vis"], tmp_path / f"f_{k}.exr")
     pattern = str(tmp_path / "f_{frame}.exr")
-    vis = ["--channel", "visibility", "--frames", "2"]
+    vis = ["--channel", "visibility", "--frames", "2", "--camera-path", "dolly"]
     gates = ["--fail-above", "flicker=10", "--fail-above", "temporal_error=10"]
     rc, two, text, _ = _score(tmp_path, capsys, pattern, *vis, *gates, out="two")
     m = _metrics(two)

@@ -341,6 +341,10 @@ def test_score_folder_by_scene_and_frame(tmp_path, capsys):
         vis = read_exr(out / "reference.exr")["visibility"]
         _engine_exr(root / "spot" / f"frame_{k:03d}.exr", {"Y": vis})
     args = ["score-folder", str(root), "--spp", "4", "--quiet", "--out", str(tmp_path / "o")]
+    # frames without the path they were rendered along: exit 2 (it used to be dolly, unsaid)
+    assert main([*args, "--fail-above", "visibility_mae=0.5"]) == 2
+    assert "--camera-path" in capsys.readouterr().err
+    args += ["--camera-path", "dolly"]
     assert main([*args, "--fail-above", "visibility_mae=0.5"]) == 0
     combined = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert sorted(combined["scenes"]) == ["plate", "spot"]

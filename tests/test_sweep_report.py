@@ -5,8 +5,12 @@ from __future__ import annotations
 import json
 
 import pytest
+from raster_oracle.oracle.sweeps.report import family_defaults
 from raster_oracle.reports.sections import failed_section
 from raster_oracle.reports.sweep import best_at_equal_cost, sweep_record, write_sweep_report
+
+#: The registry's per-family defaults, as the oracle passes them.
+FAMILIES = family_defaults()
 
 
 def _row(i, technique, resolution, cost, error, *, scene="plate", status="done", family="shadow"):
@@ -44,7 +48,7 @@ ROWS = [
 
 
 def test_fronts_hold_exactly_the_non_dominated_cases():
-    rec = sweep_record(ROWS, title="t")
+    rec = sweep_record(ROWS, title="t", families=FAMILIES)
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
     assert plate["n_cases"] == 7 and plate["n_done"] == 6
     front = next(
@@ -82,7 +86,7 @@ def test_best_at_equal_cost_picks_the_lowest_error_per_technique():
 
 
 def test_sensitivity_lists_the_varying_parameter_only():
-    rec = sweep_record(ROWS, title="t")
+    rec = sweep_record(ROWS, title="t", families=FAMILIES)
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
     items = {(s["technique"], s["param"]) for s in plate["sensitivity"]}
     assert items == {("shadow-map", "resolution"), ("csm", "resolution")}
@@ -103,6 +107,7 @@ def test_page_escapes_text_and_holds_every_section(tmp_path):
         out,
         title="a <b>title</b>",
         extra_sections=[failed],
+        families=FAMILIES,
     )
     html = out.read_text()
     assert "<script>alert(1)</script>" not in html and "&lt;script&gt;" in html
@@ -122,7 +127,7 @@ def test_front_plot_colours_each_technique_and_fills_the_front():
 
     from raster_oracle.reports.sections.sweep import PALETTE, front_svg
 
-    rec = sweep_record(ROWS, title="t")
+    rec = sweep_record(ROWS, title="t", families=FAMILIES)
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
     front = plate["fronts"][0]
     svg = str(front_svg(front))
@@ -154,7 +159,7 @@ def test_memory_axis_takes_a_techniques_own_memory_or_its_shadow_maps():
     assert "memory_bytes" not in with_memory({"framebuffer_bytes": 8})
     izb = _row(9, "izb", 512, 0, 0.04)
     izb["cost"] = {"memory_bytes": 200}
-    rec = sweep_record([*ROWS, izb], title="t")
+    rec = sweep_record([*ROWS, izb], title="t", families=FAMILIES)
     plate = next(g for g in rec["groups"] if g["scene"] == "plate")
     front = plate["fronts"][0]
     assert front["cost_key"] == "memory_bytes"
@@ -171,7 +176,7 @@ def test_front_cases_show_their_thumbnails_and_only_data_images(tmp_path):
         ROWS[1]["key"]: {"reference": png, "candidate": png, "error": png},  # dominated
     }
     out = tmp_path / "r.html"
-    write_sweep_report(ROWS, out, title="t", images=images)
+    write_sweep_report(ROWS, out, title="t", images=images, families=FAMILIES)
     html = out.read_text()
     gallery = html[html.index('id="gallery"') : html.index('id="sensitivity"')]
     # plate's headline front: rows 1, 4, 5; row 5 has no thumbnails, row 2 is not on it
@@ -298,13 +303,13 @@ AA_ROWS = [
 
 
 def test_a_metric_undefined_on_a_scene_is_left_out_with_its_reason(tmp_path):
-    rec = sweep_record(AA_ROWS, title="t")
+    rec = sweep_record(AA_ROWS, title="t", families=FAMILIES)
     (group,) = rec["groups"]
     assert [o["metric"] for o in group["omitted"]] == ["coverage_edge_rmse"]
     assert "0 for all 5 cases" in group["omitted"][0]["why"]
     assert {f["metric"] for f in group["fronts"]} == {"flip_mean"}
     out = tmp_path / "r.html"
-    write_sweep_report(AA_ROWS, out, title="t")
+    write_sweep_report(AA_ROWS, out, title="t", families=FAMILIES)
     html = out.read_text()
     assert "coverage_edge_rmse is not plotted: 0 for all 5 cases" in html
     assert 'aria-label="coverage_edge_rmse against' not in html
@@ -314,7 +319,7 @@ def test_a_metric_undefined_on_a_scene_is_left_out_with_its_reason(tmp_path):
 def test_summary_is_the_best_per_cost_level_with_its_noise_floor():
     from raster_oracle.reports.sections.overview import overview_record
 
-    record = sweep_record(AA_ROWS, title="t")
+    record = sweep_record(AA_ROWS, title="t", families=FAMILIES)
     claims = {
         "kind": "claims",
         "id": "claims",
@@ -353,7 +358,7 @@ def test_tick_labels_are_told_apart_and_plots_are_deterministic():
         "0.1",
         "0.10001",
     ]
-    rec = sweep_record(ROWS, title="t")
+    rec = sweep_record(ROWS, title="t", families=FAMILIES)
     front = rec["groups"][1]["fronts"][0]
     a = str(plots.front_plot(front, salt="s"))
     assert a == str(plots.front_plot(front, salt="s"))
@@ -365,7 +370,7 @@ def test_cases_show_a_metric_defined_on_their_scene():
     rows = [dict(r) for r in AA_ROWS]
     for r in rows:  # coverage_edge_rmse would be the headline if flip_mean were missing
         r["metrics"] = {"coverage_edge_rmse": 0.0, "flip_mean": r["metrics"]["flip_mean"]}
-    rec = sweep_record(rows, title="t")
+    rec = sweep_record(rows, title="t", families=FAMILIES)
     assert {c["metric"] for c in rec["cases"]} == {"flip_mean"}
     star = [dict(r, scene="star") for r in ROWS[:3]]
     for r in star:  # no shadow on the scene: misclassified is 0 everywhere
@@ -373,7 +378,7 @@ def test_cases_show_a_metric_defined_on_their_scene():
             "misclassified_fraction": 0.0,
             "visibility_mae": 0.01 * r["cost"]["texels_rendered"] / 100,
         }
-    rec = sweep_record(star, title="t")
+    rec = sweep_record(star, title="t", families=FAMILIES)
     assert {c["metric"] for c in rec["cases"]} == {"visibility_mae"}
     assert rec["groups"][0]["omitted"][0]["metric"] == "misclassified_fraction"
 
@@ -441,7 +446,7 @@ def test_viewers_are_fitted_to_the_page_budget(tmp_path):
     from raster_oracle.reports.sweep import sweep_record
     from raster_oracle.reports.viewer import viewer_bytes
 
-    rec = sweep_record(ROWS, title="t")
+    rec = sweep_record(ROWS, title="t", families=FAMILIES)
     viewers = {r["key"]: _viewer(0.1 * i) for i, r in enumerate(ROWS)}
     asked = []
 

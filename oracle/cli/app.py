@@ -8,10 +8,12 @@ Exit codes, for every command:
   significantly worse than the ``--baseline`` run (``REGRESSION`` lines), or, for the
   sweep and study commands, a case or section failed. The outputs are written.
 - **2**: usage or input error: one line on stderr naming what is wrong, nothing written to
-  the output folder. For ``score`` this includes a gate that cannot be judged (unknown
-  metric, a direction that makes it meaningless such as ``--fail-above ssim=...``, a metric
-  that does not apply to the candidate's kind or frame count, a null value) and a baseline
-  that is not a metrics.json or is of another scene, size, light, kind or frame count.
+  the output folder; also a backend that failed its self-check on this machine (the
+  failed checks named) unless ``--trust-backend``. For ``score`` this includes a gate
+  that cannot be judged (unknown metric, a direction that makes it meaningless such as
+  ``--fail-above ssim=...``, a metric that does not apply to the candidate's kind or
+  frame count, a null value) and a baseline that is not a metrics.json or is of another
+  scene, size, light, kind or frame count.
 - **130**: interrupted.
 
 ``raster-oracle --version`` prints ``raster-oracle X.Y.Z``. Each command group lives in its
@@ -26,7 +28,7 @@ import signal
 import sys
 import warnings
 
-from ..errors import one_line
+from ..errors import InputWarning, one_line
 from . import model, reference, score, studies, sweeps
 from .args import CliError, Parser, input_errors
 
@@ -54,6 +56,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="Mitsuba variant: auto, cuda_ad_rgb, llvm_ad_rgb or scalar_rgb "
         "(default: $RASTER_ORACLE_BACKEND or auto)",
     )
+    parser.add_argument(
+        "--trust-backend",
+        action="store_true",
+        help="use the backend even if its self-check (doctor --check) failed on this machine",
+    )
     parser.add_argument("--version", action="version", version=f"raster-oracle {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for group in (reference, model, score, sweeps, studies):
@@ -77,10 +84,24 @@ def _run(args) -> int:
         # NumPy's RuntimeWarnings (0/0 on empty masks, ...) are not the user's business;
         # results are checked for NaN/inf where they are made.
         warnings.simplefilter("ignore", RuntimeWarning)
-        if args.command != "doctor":
-            from ...scenes import backend
+        # a correction the library made to the input (values clamped): one line, once
+        warnings.simplefilter("always", InputWarning)
+        shown: set[str] = set()
 
-            backend.select(args.backend)
+        def show(message, category, *_args, **_kwargs):
+            text = one_line(message) if isinstance(message, Warning) else str(message)
+            if issubclass(category, InputWarning) and text not in shown:
+                shown.add(text)
+                print(f"raster-oracle: warning: {text}", file=sys.stderr)
+            elif not issubclass(category, InputWarning):
+                sys.stderr.write(warnings.formatwarning(message, category, *_args[:2]))
+
+        warnings.showwarning = show
+        if args.command != "doctor":
+            from ..certify import certified_select
+
+            # a backend is used only after its self-check passed on this machine
+            certified_select(args.backend, trust=args.trust_backend)
         return COMMANDS[args.command](args)
 
 

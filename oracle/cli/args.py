@@ -24,8 +24,6 @@ __all__ = [
     "check_distinct",
     "check_dir",
     "check_out",
-    "export_named",
-    "export_scene",
     "input_errors",
     "load_scene",
     "names",
@@ -114,12 +112,19 @@ def names(text: str) -> list[str]:
 
 
 def add_scene_args(p: argparse.ArgumentParser) -> None:
-    """``SCENE --light --width --height --camera-path --light-path --frame --frames``."""
+    """``SCENE --camera --light --width --height --camera-path --light-path --frame --frames``."""
     p.add_argument(
         "scene",
         metavar="SCENE",
-        help="built-in scene name, Mitsuba XML file, or an `export` folder (its scene.xml, at "
-        "its exported size and light)",
+        help="built-in scene name, Mitsuba XML file, glTF 2.0 file (.gltf, .glb), or an "
+        "`export` folder (its scene.xml or scene.glb, at its exported size and light)",
+    )
+    p.add_argument(
+        "--camera",
+        type=nonneg_int,
+        default=None,
+        help="glTF scenes: index of the file's camera to view through (default: the scene's "
+        "first camera node)",
     )
     p.add_argument(
         "--light",
@@ -132,7 +137,15 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--camera-path",
         default=None,
-        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly",
+        help="camera path for temporal work: subpixel-pan, subtexel-pan, rotate, dolly, "
+        "static (default of scenes whose objects move)",
+    )
+    p.add_argument(
+        "--camera-file",
+        default=None,
+        metavar="JSON",
+        help="camera sequence file: per-frame camera matrices and field of view "
+        "(docs/cli.md); frames follow it",
     )
     p.add_argument(
         "--light-path",
@@ -207,67 +220,31 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
     add_cache_args(p)
 
 
-def export_scene(scene: str) -> tuple[str, int | None]:
-    """``SCENE`` as ``scenes.load`` takes it, and the light an export chose (None: not an
-    export). An ``export`` folder stands for its ``scene.xml``; the export's ``lights.json``
-    records the light it was exported with."""
-    path = Path(scene)
-    if path.is_dir():
-        if not (path / "scene.xml").is_file():
-            raise CliError(
-                f"scene folder {scene} has no scene.xml: give a built-in scene, a Mitsuba XML "
-                "file or a folder written by `export`"
-            )
-        path = path / "scene.xml"
-    elif path.name != "scene.xml" or not path.is_file():
-        return scene, None
-    lights = path.parent / "lights.json"
-    chosen = None
-    if lights.is_file():
-        import json
-
-        try:
-            chosen = int(json.loads(lights.read_text())["chosen"])
-        except (OSError, ValueError, KeyError, TypeError):
-            chosen = None
-    return str(path), chosen
-
-
 def load_scene(args):
-    """The scene of ``add_scene_args`` options (its frame of a camera or light path). An
-    ``export`` folder (or its ``scene.xml``) is loaded at its exported size with its light."""
-    from ... import scenes
+    """The scene of ``add_scene_args`` options (its frame of a camera or light path), as
+    :func:`scenes.inputs.load_input` resolves it: an ``export`` folder (or its
+    ``scene.xml``) is loaded at its exported size with its light, named after its folder."""
+    from ...scenes.inputs import load_input
 
-    scene, chosen = export_scene(args.scene)
-    light = args.light if args.light is not None else (chosen or 0)
-    light_path = args.light_path
-    if args.frame and args.camera_path is None and light_path is None and not args.frames:
+    loaded = load_input(
+        args.scene,
+        width=args.width,
+        height=args.height,
+        light=args.light,
+        camera_path=args.camera_path,
+        frame=args.frame,
+        n_frames=args.frames or 8,
+        light_path=args.light_path,
+        camera_file=getattr(args, "camera_file", None),
+        camera=getattr(args, "camera", None),
+    )
+    # a frame needs a sequence: a camera or light path, a camera file or objects that move
+    if args.frame and loaded.camera_path is None and args.light_path is None and not args.frames:
         raise CliError(
             f"--frame {args.frame} needs --camera-path or --light-path (frame 0 is the "
             "scene's own camera and light)"
         )
-    loaded = scenes.load(
-        scene,
-        width=args.width,
-        height=args.height,
-        light=light,
-        camera_path=args.camera_path,
-        frame=args.frame,
-        n_frames=args.frames or 8,
-        light_path=light_path,
-    )
-    return export_named(loaded, scene)
-
-
-def export_named(loaded, scene: str):
-    """An export's ``scene.xml`` is named after its folder (``plate320``), not ``scene``: the
-    name records and report titles show."""
-    path = Path(scene)
-    if path.name != "scene.xml" or not (path.parent / "camera.json").is_file():
-        return loaded
-    from dataclasses import replace
-
-    return replace(loaded, name=path.resolve().parent.name)
+    return loaded
 
 
 def reference_cache(args):

@@ -9,10 +9,19 @@ gate or baseline that cannot be judged.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from . import args as A
 
-__all__ = ["add_gate_args", "check_junit", "print_verdict"]
+__all__ = [
+    "add_gate_args",
+    "add_visibility_arg",
+    "check_junit",
+    "check_output_file",
+    "parse_all_gates",
+    "print_verdict",
+    "write_outputs",
+]
 
 
 def add_gate_args(p, *, baseline_help: str) -> None:
@@ -33,6 +42,16 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         "psnr_db; repeatable)",
     )
     p.add_argument(
+        "--gate-profile",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="the gates of a tool engine teams use, at its published defaults (repeatable): "
+        "unreal-low, unreal-medium, unreal-high (screenshot comparison: per-channel tolerance, "
+        "10%% local and 2%% global error), unity (average JzAzBz delta E 0.005 above 0.001 a "
+        "pixel), edge-aware (0.5%% of pixels beyond 3 standard errors + 0.25 px at edges)",
+    )
+    p.add_argument(
         "--baseline", type=A.path, default=None, metavar="METRICS_JSON", help=baseline_help
     )
     p.add_argument(
@@ -42,15 +61,89 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         metavar="FILE",
         help="write the gates and baseline comparisons as JUnit XML (one test case each)",
     )
+    p.add_argument(
+        "--platform",
+        default=None,
+        metavar="NAME",
+        help="the platform this run stands for (GPU, driver, OS: e.g. linux-llvmpipe), "
+        "recorded; --baseline BASELINE_DIR then reads BASELINE_DIR/NAME (see `baseline "
+        "accept`), and a baseline of another platform is refused",
+    )
+    p.add_argument(
+        "--summary-md",
+        type=A.path,
+        default=None,
+        metavar="FILE",
+        help="write a Markdown summary (the verdict, failed checks first) for a pull-request "
+        "comment",
+    )
 
 
-def check_junit(path) -> None:
-    """A ``--junit`` file can be written: not a folder, in an existing folder."""
+def parse_all_gates(args) -> list:
+    """``--fail-above``, ``--fail-below`` and ``--gate-profile`` as gates (a later limit of
+    the same metric and direction replaces an earlier one)."""
+    from ..scoring.engine_gates import profile_gates
+    from ..scoring.gates import GateError, parse_gates
+
+    gates = profile_gates(args.gate_profile, error=GateError)
+    gates += parse_gates(args.fail_above, args.fail_below)
+    return list({(g.metric, g.op): g for g in gates}.values())
+
+
+def add_visibility_arg(p) -> None:
+    """``--visibility 1-is-lit|1-is-shadowed``: what a candidate mask's 1 means."""
+    p.add_argument(
+        "--visibility",
+        choices=["1-is-lit", "1-is-shadowed"],
+        default="1-is-lit",
+        help="what a shadow mask's 1 means (default 1-is-lit, the oracle's convention; "
+        "1-is-shadowed: a shadow-factor buffer, read as 1 - value)",
+    )
+
+
+def check_output_file(path, *, option: str, out=None) -> None:
+    """An output file (``--junit``, ``--summary-md``) can be written: not a folder, its folder
+    writable or creatable (created when the file is written), and not one of the files of
+    the ``--out`` folder ``out``. Checked before any work: a bad path is exit 2 and nothing
+    is written."""
     if path is None:
         return
     if path.is_dir():
-        raise A.CliError(f"--junit {path} is a folder; give the XML file to write")
-    A.check_dir(path.parent, label=f"--junit {path}: folder")
+        raise A.CliError(f"{option} {path} is a folder; give the file to write")
+    if path.exists() and not path.is_file():
+        raise A.CliError(f"{option} {path} exists and is not a file")
+    A.check_dir(path.parent if str(path.parent) else Path("."), label=f"{option} {path}: folder")
+    if out is not None:
+        from ..scoring.output import SCORE_FILES
+
+        A.check_distinct(
+            writes={option: path},
+            reads={f"--out's own file {f}:": Path(out) / f for f in SCORE_FILES},
+        )
+
+
+def check_junit(path, *, out=None, summary=None) -> None:
+    """``--junit`` and ``--summary-md`` can be written (:func:`check_output_file`) and are
+    two files."""
+    check_output_file(path, option="--junit", out=out)
+    check_output_file(summary, option="--summary-md", out=out)
+    if path is not None and summary is not None:
+        A.check_distinct(writes={"--summary-md": summary}, reads={"--junit": path})
+
+
+def write_outputs(args, verdicts, *, records=None, report=None) -> None:
+    """Write ``--junit`` and ``--summary-md`` of ``verdicts`` (their folders created)."""
+    from ..scoring.gates import write_junit
+    from ..scoring.summary import write_summary_md
+
+    if args.junit is not None:
+        args.junit.parent.mkdir(parents=True, exist_ok=True)
+        write_junit(args.junit, verdicts)
+        print(f"junit: {args.junit}")
+    if getattr(args, "summary_md", None) is not None:
+        args.summary_md.parent.mkdir(parents=True, exist_ok=True)
+        write_summary_md(args.summary_md, verdicts, records=records, report=report)
+        print(f"summary: {args.summary_md}")
 
 
 def print_verdict(verdict, *, baseline=None, prefix: str = "") -> None:
@@ -65,5 +158,7 @@ def print_verdict(verdict, *, baseline=None, prefix: str = "") -> None:
         print(f"{prefix}baseline {baseline}: {n} metrics compared, {bad} regressed")
     for note in verdict.notes:
         print(f"{prefix}{note}")
+    for _name, message in verdict.errors:
+        print(f"raster-oracle: {prefix}error: {message}", file=sys.stderr)
     if verdict.failed:
         print(f"raster-oracle: {prefix}failed: {', '.join(verdict.failed)}", file=sys.stderr)

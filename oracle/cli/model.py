@@ -24,7 +24,9 @@ def cmd_techniques(args) -> int:
     from ... import raster_models
 
     for tech in raster_models.list_techniques():
+        seq = ", over frame sequences" if tech["temporal"] else ""
         print(f"{tech['name']}: {tech['description']}")
+        print(f"  (family {tech['family']}: scored on {', '.join(tech['scored_on'])}{seq})")
         for prm in tech["params"]:
             choices = f" {{{', '.join(map(str, prm['choices']))}}}" if prm.get("choices") else ""
             print(f"  {prm['name']} = {prm['default']!r}{choices}  [{prm['source']}]")

@@ -15,7 +15,13 @@ __all__ = ["COMMANDS", "add_parsers"]
 
 def add_parsers(sub) -> None:
     """Add ``doctor``, ``scenes``, ``reference`` and ``export`` to the subparsers ``sub``."""
-    sub.add_parser("doctor", help="print the backend, libLLVM, versions and cores")
+    p = sub.add_parser("doctor", help="print the backend, libLLVM, versions and cores")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="run the backend's self-check (closed-form checks, < 30 s): one line a check, "
+        "exit 1 if any fails; the verdict is cached for --backend auto",
+    )
     sub.add_parser("scenes", help="list the built-in scenes and camera paths")
 
     p = sub.add_parser("reference", help="render (or fetch from the cache) a reference")
@@ -38,6 +44,8 @@ def cmd_doctor(args) -> int:
     from ...scenes import backend
     from ...scenes.records import package_versions
 
+    if args.check:
+        return _doctor_check(args)
     info = {"cores": os.cpu_count(), "versions": package_versions()}
     try:
         b = backend.select(args.backend)
@@ -55,6 +63,22 @@ def cmd_doctor(args) -> int:
         )
         return 2
     return 0
+
+
+def _doctor_check(args) -> int:
+    """``doctor --check``: the battery on the selected backend, one line a check."""
+    from ...scenes import backend
+    from ..certify import run_check
+
+    info = backend.select(args.backend)
+    device = backend.device_info()
+    print(f"backend {info.variant} on {device.get('name', 'an unknown device')}")
+    verdict = run_check(on_check=lambda c: print(c.line(), flush=True))
+    if verdict["passed"]:
+        print(f"self-check passed ({len(verdict['checks'])} checks, {verdict['seconds']} s)")
+        return 0
+    print(f"self-check FAILED: {', '.join(verdict['failed'])}")
+    return 1
 
 
 def cmd_scenes(args) -> int:

@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from . import args as A
-from . import score_folder
-from .gate_args import add_gate_args, check_junit, print_verdict
+from . import baseline_cmd, score_folder
+from .gate_args import (
+    add_gate_args,
+    add_visibility_arg,
+    check_junit,
+    parse_all_gates,
+    print_verdict,
+    write_outputs,
+)
 
 __all__ = ["COMMANDS", "add_parsers"]
 
@@ -39,11 +47,40 @@ def add_parsers(sub) -> None:
         default=None,
         help="what a --channel layer or channel holds (default: from its name and contents)",
     )
+    add_visibility_arg(p)
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
     p.add_argument(
         "--ppd", type=A.positive_float, default=None, help="FLIP pixels per degree (default 67.02)"
+    )
+    p.add_argument(
+        "--gate-frames",
+        type=A.positive_int,
+        default=None,
+        metavar="N",
+        help="with --frames: average the per-frame metrics over the last N frames (warm-up "
+        "neither passes nor fails a gate); convergence is judged against their level",
+    )
+    p.add_argument(
+        "--candidate-motion",
+        default=None,
+        metavar="LAYER",
+        help="the candidate EXR's motion-vector layer (LAYER.X/Y, .R/G or .U/V): adds "
+        "motion_epe_* against the reference motion",
+    )
+    p.add_argument(
+        "--motion-convention",
+        choices=["pixels", "unreal", "unity", "uv"],
+        default="pixels",
+        help="convention of --candidate-motion (docs/conventions.md; default pixels: previous "
+        "minus current, y down)",
+    )
+    p.add_argument(
+        "--candidate-disocclusion",
+        default=None,
+        metavar="CHANNEL",
+        help="the candidate EXR's disocclusion mask channel (disocclusion recall/precision)",
     )
     add_gate_args(
         p,
@@ -54,6 +91,7 @@ def add_parsers(sub) -> None:
     p.add_argument("--out", type=A.path, default=Path("out/score"), help="output folder")
 
     score_folder.add_parser(sub)
+    baseline_cmd.add_parser(sub)
 
     p = sub.add_parser("report", help="combine score folders (or a sweep) into one HTML report")
     p.add_argument("folders", nargs="*", type=Path, metavar="DIR")
@@ -81,19 +119,55 @@ def _check_frame_pattern(pattern: str | None) -> None:
         ) from None
 
 
+def _camera_path(args, loaded) -> str | None:
+    """The camera path of ``--frames``: ``--camera-path``, or the one an export was made for
+    (a light path alone keeps the camera still); ``--frames`` without any path is exit 2,
+    never a silent default. A scene whose objects move, or a camera file, has its own
+    default path."""
+    path = args.camera_path or loaded.camera_path
+    if path is None and args.light_path is None and loaded.default_camera_path != "dolly":
+        path = loaded.default_camera_path  # a camera file's or moving objects' own path
+    if args.frames is None or path is not None or args.light_path is not None:
+        return path
+    from ...scenes.inputs import resolve_input
+
+    rec = resolve_input(args.scene).export or {}
+    made = ""
+    if rec.get("camera_path"):
+        made = (
+            f"; {args.scene} was exported at frame {rec.get('frame')} of "
+            f"{rec['camera_path']}: export its frame 0 to score the path"
+        )
+    raise A.CliError(
+        f"--frames {args.frames} needs the camera path the frames were rendered along: "
+        f"--camera-path ({', '.join(_paths())}) or --light-path{made}"
+    )
+
+
+def _paths() -> tuple[str, ...]:
+    from ...scenes import CAMERA_PATHS
+
+    return tuple(CAMERA_PATHS)
+
+
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
-    from ..scoring.gates import load_baseline, parse_gates, write_junit
+    from ..scoring.baseline import check_platform, resolve_baseline
+    from ..scoring.gates import load_baseline
+    from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
     from ..scoring.score import ScoreError
     from .score_inputs import candidate_inputs
 
-    gates = parse_gates(args.fail_above, args.fail_below)
-    baseline = load_baseline(args.baseline) if args.baseline is not None else None
+    gates = parse_all_gates(args)
+    platform = check_platform(args.platform)
+    baseline = None
+    if args.baseline is not None:
+        baseline = load_baseline(resolve_baseline(args.baseline, platform=platform))
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
-    check_junit(args.junit)
+    check_junit(args.junit, out=args.out, summary=args.summary_md)
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -102,6 +176,25 @@ def cmd_score(args) -> int:
         params = raster_models.parse_params(args.technique, args.params)
     elif args.params:
         raise ScoreError("--set applies to --technique, not to --candidate")
+    options = ScoreOptions(
+        spp=args.spp,
+        seed=args.seed,
+        frames=args.frames,
+        camera_path=_camera_path(args, loaded),
+        quiet=args.quiet,
+        flip_mode=args.flip_mode,
+        ppd=args.ppd or M.DEFAULT_PPD,
+        platform=platform,
+        visibility=args.visibility,
+        gate_frames=args.gate_frames,
+        motion=None
+        if args.candidate_motion is None
+        else {
+            "layer": args.candidate_motion,
+            "convention": args.motion_convention,
+            "disocclusion": args.candidate_disocclusion,
+        },
+    )
     verdict = score_to_folder(
         loaded,
         out=args.out,
@@ -109,15 +202,8 @@ def cmd_score(args) -> int:
         params=params,
         candidate=args.candidate,
         channel=args.channel,
-        spp=args.spp,
-        seed=args.seed,
-        frames=args.frames,
-        # a light path alone keeps the scene's camera still (frames move the light only)
-        camera_path=args.camera_path or (None if args.light_path else "dolly"),
+        options=options,
         cache=cache,
-        quiet=args.quiet,
-        flip_mode=args.flip_mode,
-        ppd=args.ppd or M.DEFAULT_PPD,
         gates=gates,
         baseline=baseline,
         baseline_source=str(args.baseline),
@@ -125,9 +211,8 @@ def cmd_score(args) -> int:
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
-    if args.junit is not None:
-        write_junit(args.junit, [verdict])
-        print(f"junit: {args.junit}")
+    record = json.loads((args.out / "metrics.json").read_text())
+    write_outputs(args, [verdict], records=[record], report=args.out / "report.html")
     return verdict.exit_code
 
 
@@ -176,5 +261,6 @@ def cmd_report(args) -> int:
 COMMANDS = {
     "score": cmd_score,
     "score-folder": score_folder.cmd_score_folder,
+    "baseline": baseline_cmd.cmd_baseline,
     "report": cmd_report,
 }

@@ -6,49 +6,23 @@ Kept apart from the option block of :mod:`oracle.cli.score` so that both stay sh
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from . import args as A
 
-__all__ = ["candidate_inputs", "candidate_size", "find_export", "resolve_layout"]
+__all__ = ["candidate_inputs", "candidate_size", "resolve_layout"]
 
 
 def candidate_size(path: str | Path) -> tuple[int, int] | None:
     """``(width, height)`` of a candidate EXR or PNG (None when it cannot be read: the read
     itself then reports the problem)."""
+    from ..scoring.layout import candidate_format
+
     path = Path(path)
     try:
-        if path.suffix.lower() == ".png":
-            from PIL import Image
-
-            with Image.open(path) as im:
-                return im.size
-        from ..reference.exr import read_exr
-
-        h, w = next(iter(read_exr(path).values())).shape[:2]
-        return w, h
+        return candidate_format(path).size(path)
     except Exception:  # unreadable: the candidate reader says why, in one line
         return None
-
-
-def find_export(start: Path, size: tuple[int, int]) -> Path | None:
-    """The nearest export folder (``scene.xml`` + ``camera.json``) of ``size`` in ``start``'s
-    folder or one of its three nearest parents: where an engine usually renders."""
-    folder = start.resolve().parent
-    for _ in range(4):
-        cam = folder / "camera.json"
-        if cam.is_file() and (folder / "scene.xml").is_file():
-            try:
-                rec = json.loads(cam.read_text())
-                if (int(rec["width"]), int(rec["height"])) == tuple(size):
-                    return folder
-            except (OSError, ValueError, KeyError, TypeError):
-                pass
-        if folder.parent == folder:
-            break
-        folder = folder.parent
-    return None
 
 
 def _check_size(path: str, loaded) -> None:
@@ -56,7 +30,9 @@ def _check_size(path: str, loaded) -> None:
     if size is None or size == (loaded.width, loaded.height):
         return
     w, h = size
-    found = find_export(Path(path), size)
+    from ...scenes.inputs import nearest_export
+
+    found = nearest_export(Path(path), size)
     export = (
         f"score the export folder {found} that wrote it"
         if found

@@ -8,8 +8,10 @@ An entry is a folder ``<root>/<key[:2]>/<key>/`` holding ``reference.exr``,
 into place, so readers never see a partial entry, and a valid entry is never removed or
 replaced (a reader may be copying from it; a second writer of the same key keeps it). An
 entry whose checksums do not match is reported as corrupted, removed and rendered again; so
-is an entry that is not a folder (a file, a broken link). Temporary folders left by a writer
-killed while storing are swept after :data:`STALE_TEMP_SECONDS`.
+is an entry that is not a folder (a file, a broken link). A writer's temporary folder is named
+``<shard>/.<key[:8]>.<pid>@<host>.<random>``; the next writer (of any key) removes those of
+dead writers on this host at once, and any temporary folder older than
+:data:`STALE_TEMP_SECONDS` (another host's, or one named before writers were named).
 
 The cache folder is ``$RASTER_ORACLE_CACHE`` (``$RASTER_ORACLE_CACHE_DIR`` is accepted too),
 else ``$XDG_CACHE_HOME/raster-oracle``, else ``~/.cache/raster-oracle``.
@@ -26,7 +28,9 @@ import atexit
 import hashlib
 import json
 import os
+import re
 import shutil
+import socket
 import tempfile
 import time
 from pathlib import Path
@@ -42,6 +46,7 @@ __all__ = [
     "scratch_mark",
     "sweep_stale_scratch",
     "sweep_stale_temps",
+    "temp_prefix",
 ]
 
 #: Bump when the meaning of a reference channel changes: old cache entries become misses.
@@ -49,7 +54,8 @@ __all__ = [
 #: 4: the coverage group holds front_coverage (the front-most primitive's coverage) too.
 #: 5: jitter from a 6-round 32-bit TEA hash; adaptive sampling refines near features only
 #: and samples a scrambled Sobol sequence (issue 18).
-ORACLE_VERSION = "5"
+#: 6: the coverage_exact group (analytic coverage of triangle scenes, issue 28).
+ORACLE_VERSION = "6"
 FILES = ("reference.exr", "reference.json")
 
 #: Environment variables naming the cache folder, first set wins (the first is documented).
@@ -62,8 +68,12 @@ SCRATCH_PREFIX = "raster-oracle-ref-"
 STALE_SECONDS = 86400.0
 
 #: Age after which a hidden temporary entry folder (``<shard>/.<key[:8]>.*``, left by a
-#: process killed while storing) is swept: an hour, far longer than copying two files takes.
+#: process killed while storing) is swept whoever wrote it: an hour, far longer than copying
+#: two files takes. A dead writer's on this host goes at once (:func:`sweep_stale_temps`).
 STALE_TEMP_SECONDS = 3600.0
+
+#: A temporary entry folder's name: key prefix, writer's pid and host, mkdtemp's random part.
+_TEMP_NAME = re.compile(r"\.[0-9a-f]{8}\.(\d+)@([A-Za-z0-9-]+)\.")
 
 _scratch: list[Path] = []
 
@@ -93,6 +103,9 @@ def reference_key(loaded, settings, variant: str) -> str:
         "variant": variant,
         "oracle_version": ORACLE_VERSION,
     }
+    if getattr(loaded, "camera_file", None):
+        # a camera file sets the field of view per frame (the matrix alone does not say it)
+        record["fov_x"] = round(float(loaded.camera.fov_x), 12)
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode()).hexdigest()
 
 
@@ -120,7 +133,7 @@ atexit.register(remove_scratch)
 def _pid_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
-    except ProcessLookupError:
+    except (ProcessLookupError, OverflowError):  # no such process (or no such pid at all)
         return False
     except PermissionError:  # another user's live process
         return True
@@ -151,6 +164,18 @@ def sweep_stale_scratch(*, now: float | None = None, tmp: str | os.PathLike | No
         shutil.rmtree(folder, ignore_errors=True)
         removed += 1
     return removed
+
+
+def _host() -> str:
+    """This machine's name as it appears in temporary folder names (letters, digits, -)."""
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname())[:64] or "host"
+
+
+def temp_prefix(key: str, *, pid: int | None = None, host: str | None = None) -> str:
+    """Prefix of a temporary entry folder of ``key`` written by process ``pid`` (default:
+    this one) of ``host`` (default: this machine); ``mkdtemp`` adds a random part."""
+    pid = os.getpid() if pid is None else pid
+    return f".{key[:8]}.{pid}@{_host() if host is None else host}."
 
 
 def _sha256(path: Path) -> str:
@@ -204,7 +229,7 @@ class ReferenceCache:
         sweep_stale_temps(self.root)
         if self.lookup(key)[1] == "hit":
             return folder
-        tmp = Path(tempfile.mkdtemp(prefix=f".{key[:8]}.", dir=folder.parent))
+        tmp = Path(tempfile.mkdtemp(prefix=temp_prefix(key), dir=folder.parent))
         try:
             for name in FILES:
                 shutil.copyfile(source_dir / name, tmp / name)
@@ -223,17 +248,27 @@ class ReferenceCache:
 
 
 def sweep_stale_temps(root: Path, *, now: float | None = None) -> int:
-    """Remove temporary entry folders (``<shard>/.<key[:8]>.*``) older than
-    :data:`STALE_TEMP_SECONDS` from every shard of the cache ``root``: what writers killed
-    while storing leave. Returns how many were removed."""
+    """Remove the temporary entry folders (``<shard>/.<key[:8]>.*``) that writers killed while
+    storing left, in every shard of the cache ``root``: those named after a process of this
+    host that is no longer running, whatever their age, and any older than
+    :data:`STALE_TEMP_SECONDS` (a writer on another host sharing the folder, a pid reused by
+    another process). Returns how many were removed."""
     now = time.time() if now is None else now
+    host = _host()
     removed = 0
     for tmp in Path(root).glob("*/.*"):
         try:
             old = now - tmp.lstat().st_mtime > STALE_TEMP_SECONDS
         except OSError:
             continue
-        if old:
+        owner = _TEMP_NAME.match(tmp.name)
+        dead = (
+            owner is not None
+            and owner[2] == host
+            and int(owner[1]) != os.getpid()
+            and not _pid_alive(int(owner[1]))
+        )
+        if old or dead:
             _remove(tmp)
             removed += 1
     return removed

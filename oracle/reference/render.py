@@ -44,7 +44,8 @@ from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
 from ..phases import maybe_phase
-from .coverage import centre_shapes, front_hits
+from .coverage import centre_shapes, exact_channels, front_hits
+from .motion import motion_channels
 
 __all__ = [
     "ALL_CHANNELS",
@@ -67,6 +68,8 @@ __all__ = [
 CHANNEL_GROUPS = {
     "visibility": ["visibility", "visibility_stderr"],
     "coverage": ["coverage", "coverage_stderr", "front_coverage", "front_coverage_stderr"],
+    # analytic, noise-free coverage of triangle scenes (scenes.exact_coverage)
+    "coverage_exact": ["coverage_exact", "front_coverage_exact", "coverage_exact_valid"],
     "color": [
         "color.R",
         "color.G",
@@ -82,9 +85,12 @@ CHANNEL_GROUPS = {
     "normal": ["normal.X", "normal.Y", "normal.Z"],
     "albedo": ["albedo.R", "albedo.G", "albedo.B"],
     "tangent32": ["visibility_tangent32"],
+    # temporal truth (oracle.reference.motion): pixels to the previous frame, and 1 where the
+    # point was hidden from the previous frame's camera or outside its image
+    "motion": ["motion.X", "motion.Y", "disocclusion"],
 }
 #: Groups rendered only when asked for (``--channels ...,tangent32``), never by default.
-OPTIONAL_GROUPS = ("tangent32",)
+OPTIONAL_GROUPS = ("tangent32", "motion")
 ALL_CHANNELS = tuple(g for g in CHANNEL_GROUPS if g not in OPTIONAL_GROUPS)
 _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
 #: Samples per Dr.Jit launch: bounds a launch's working set whatever the resolution and spp
@@ -416,24 +422,25 @@ def _pass(
     seed: int,
     progress,
     progressive: bool = False,
+    launch: int | None = None,
 ) -> tuple[int, int]:
     """Trace ``spp`` stratified samples in each of ``pixels``; returns (primary, shadow) rays.
 
     With ``progressive`` the samples are points ``offset .. offset + spp - 1`` of each
     pixel's scrambled Sobol sequence (:func:`sobol_sample`), else a jittered ``m x n`` grid.
 
-    A launch holds at most :data:`SAMPLES_PER_CHUNK` samples: several pixels' samples, or,
-    when one pixel has more, a block of one pixel's samples at a time, so memory is bounded
-    for any ``spp``.
+    A launch holds at most ``launch`` (default :data:`SAMPLES_PER_CHUNK`) samples: several
+    pixels' samples, or, when one pixel has more, a block of one pixel's samples at a time,
+    so memory is bounded for any ``spp``.
     """
     mi = backend.mitsuba()
     import drjit as dr
 
     width = loaded.width
     m, n = grid_shape(spp)
-    chunk_samples = samples_per_chunk()
-    block = min(spp, chunk_samples)
-    per_chunk = max(1, chunk_samples // block)
+    launch = launch or samples_per_chunk()
+    block = min(spp, launch)
+    per_chunk = max(1, launch // block)
     bits = max(1, int(offset + spp - 1).bit_length())
     primary = shadow = 0
     for start in range(0, len(pixels), per_chunk):
@@ -505,13 +512,13 @@ def _reduce_and_add(acc: _Accum, res: dict, sums: dict, chunk, block: int) -> in
         dr.eval(*[v for v, _ in sums.values()], res["shadow_tested"])
     with maybe_phase(ph, "reductions", sync=True):
         shadow_count = dr.count(res["shadow_tested"])
-        outs = {k: dr.block_reduce(op, v, block, mode="evaluated") for k, (v, op) in sums.items()}
+        outs = {k: block_sum(dr, op, v, block) for k, (v, op) in sums.items()}
         dr.eval(*outs.values(), shadow_count)
     with maybe_phase(ph, "transfer"):
         # numpy_view: a colour vector component by component (Dr.Jit's own conversion
         # compiles a packing kernel for every array length: the last, shorter chunk)
         host = {
-            k: numpy_view(v) if k in ("smin", "smax") else numpy_view(v).astype(np.float64)
+            k: np.asarray(numpy_view(v), dtype=None if k in ("smin", "smax") else np.float64)
             for k, v in outs.items()
         }
         shadow_tested = int(shadow_count[0])
@@ -529,6 +536,18 @@ def _reduce_and_add(acc: _Accum, res: dict, sums: dict, chunk, block: int) -> in
             acc.smin[chunk] = np.minimum(acc.smin[chunk], host["smin"])
             acc.smax[chunk] = np.maximum(acc.smax[chunk], host["smax"])
     return shadow_tested
+
+
+def block_sum(dr, op, values, block: int):
+    """``dr.block_reduce`` of per-sample ``values``; float sums in float64. A float32 block
+    sum rounds in an order set by the block size and the backend (CUDA reduces in a tree):
+    a pixel's samples split over launches gave other bytes on an H200, and the standard
+    error of a constant pixel, ``sqrt(s2 - s^2 / n)``, came out as that rounding (4e-6 or
+    1.4e-6 instead of 0). In float64 the sums of float32 samples are exact up to 2^29 of
+    them and rounded at 2^-53 beyond, whatever the order."""
+    if op == dr.ReduceOp.Add and dr.type_v(values) == dr.VarType.Float32:
+        return dr.block_reduce(op, dr.float64_array_t(type(values))(values), block, mode="symbolic")
+    return dr.block_reduce(op, values, block, mode="evaluated")
 
 
 def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray]:
@@ -696,7 +715,7 @@ def _refine_mask(acc: _Accum, settings: ReferenceSettings, width: int, height: i
     return want & (acc.n < settings.max_spp)
 
 
-def _refine(loaded, acc: _Accum, settings: ReferenceSettings, passes: list, progress):
+def _refine(loaded, acc: _Accum, settings: ReferenceSettings, passes: list, progress, launch):
     """Adaptive passes after the first: each doubles the samples of the pixels of
     :func:`_refine_mask` (grouped by their current count, which differs once stopped pixels
     rejoin), until none is left; returns (primary, shadow) rays."""
@@ -712,14 +731,31 @@ def _refine(loaded, acc: _Accum, settings: ReferenceSettings, passes: list, prog
             if progress is not None:
                 progress.total += len(group) * spp_k
             p, s = _pass(
-                loaded, acc, group, spp_k, int(n_k), settings.seed, progress, progressive=True
+                loaded,
+                acc,
+                group,
+                spp_k,
+                int(n_k),
+                settings.seed,
+                progress,
+                progressive=True,
+                launch=launch,
             )
             primary, shadow = primary + p, shadow + s
             passes.append({"pixels": int(len(group)), "spp": spp_k})
 
 
-def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False, phases=None):
-    """Render the reference channels of ``loaded`` (its current camera frame).
+def render_reference(
+    loaded,
+    settings: ReferenceSettings,
+    *,
+    quiet: bool = False,
+    samples_per_launch: int | None = None,
+    phases=None,
+):
+    """Render the reference channels of ``loaded`` (its current camera frame), at most
+    ``samples_per_launch`` samples a Dr.Jit launch (default :func:`samples_per_chunk`; the
+    result does not depend on it, which ``doctor --check`` verifies).
 
     ``phases``: an :class:`oracle.phases.Phases` to profile the render into (``trace+shade``,
     ``reductions``, ``transfer``, ``accumulate``, ``centre``, ``finish``); each phase then
@@ -795,16 +831,19 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
                 settings.seed,
                 progress,
                 progressive=settings.adaptive,
+                launch=samples_per_launch,
             )
             primary, shadow = primary + p, shadow + s
             passes.append({"pixels": int(npix), "spp": spp0})
             if settings.adaptive:
-                p, s = _refine(loaded, acc, settings, passes, progress)
+                p, s = _refine(loaded, acc, settings, passes, progress, samples_per_launch)
                 primary, shadow = primary + p, shadow + s
         with maybe_phase(phases, "centre", sync=True):
             centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}
             if "tangent32" in groups:
                 centre["visibility_tangent32"] = _tangent32_channel(loaded)
+            if "motion" in groups:
+                centre.update(motion_channels(loaded))
     finally:
         if progress is not None:
             progress.close()
@@ -812,6 +851,10 @@ def render_reference(loaded, settings: ReferenceSettings, *, quiet: bool = False
     with maybe_phase(phases, "finish"):
         channels = _finish(acc, groups, centre, w, h)
     stats = _stats(settings, acc, channels, primary, shadow, wall, passes, (w, h), sampled)
+    if "coverage_exact" in groups:
+        with maybe_phase(phases, "coverage_exact"):
+            exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
+        channels.update(exact)
     return channels, stats
 
 

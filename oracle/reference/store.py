@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ...scenes import backend
 from ...scenes.files import atomic_copy, atomic_write_json
-from ...scenes.records import package_versions
+from ...scenes.records import package_versions, provenance
 from .cache import ORACLE_VERSION, ReferenceCache, reference_key, scratch_dir
 from .exr import read_exr, write_exr
 from .render import ReferenceSettings, render_reference
@@ -38,6 +38,7 @@ def _render_into(
 ) -> dict:
     channels, stats = render_reference(loaded, settings, quiet=quiet)
     info = backend.active()
+    machine = provenance()  # the device and the backend's self-check verdict
     meta = {
         "kind": "reference",
         "scene": loaded.provenance(),
@@ -54,6 +55,8 @@ def _render_into(
         "sampling": "stratified jittered grid, PCG32 per (pixel, sample)",
         "variant": info.variant,
         "libllvm": info.libllvm,
+        "device": machine["device"],
+        "self_check": machine["self_check"],
         "versions": package_versions(),
         "oracle_version": ORACLE_VERSION,
         "cache_key": key,

@@ -22,15 +22,34 @@ from __future__ import annotations
 
 import os
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
 import png
 
-from ..errors import InputError
+from ..errors import InputError, InputWarning
 from ..reference.exr import ExrError, read_exr
 
-__all__ = ["CandidateError", "check_candidate_values", "load_candidate", "png_is_grey"]
+__all__ = [
+    "DATA_RANGE_EPSILON",
+    "RADIANCE_EPSILON",
+    "CandidateError",
+    "CandidateWarning",
+    "MissingChannelError",
+    "check_candidate_values",
+    "load_candidate",
+    "load_motion",
+    "png_is_grey",
+]
+
+#: How far grey data (visibility, coverage) may leave [0, 1] and still be clamped into it:
+#: half-float conversion (1 ulp at 1.0 is 9.8e-4 / 2 ... 4.9e-4 below 1, 1e-7 in float32),
+#: filtering and TAA resolves overshoot by float rounding, never by a visible 1e-3.
+DATA_RANGE_EPSILON = 1e-4
+#: Negative radiance down to -RADIANCE_EPSILON x the image's maximum is clamped to 0: the
+#: ringing of a reconstruction filter or a resolve's float rounding, not a wrong image.
+RADIANCE_EPSILON = 1e-4
 
 _RGB = ("R", "G", "B")
 _ALPHA = ("A",)
@@ -41,6 +60,15 @@ _PNG_COLOUR_TYPES = (2, 6)
 
 class CandidateError(InputError):
     """A candidate image that cannot be used: unreadable, wrong size, missing channel, NaN."""
+
+
+class MissingChannelError(CandidateError):
+    """The candidate file lacks the channel or layer asked for (its own are listed): in a
+    folder run, an error of that scene alone."""
+
+
+class CandidateWarning(InputWarning):
+    """A candidate's values just outside their range were clamped (count and extremes)."""
 
 
 def load_candidate(
@@ -96,16 +124,20 @@ def load_candidate(
             "expected .exr or .png"
         )
     _check_shape(path, image, expected_shape)
-    _check_values(path, image, channel)
-    return image
+    return _check_values(path, image, channel)
 
 
-def check_candidate_values(path, image: np.ndarray, *, expected_shape, kind: str) -> None:
+def check_candidate_values(path, image: np.ndarray, *, expected_shape, kind: str) -> np.ndarray:
     """A candidate image of ``kind`` has the reference's size, finite values, non-negative
-    colour and grey data (visibility, coverage) in [0, 1]; else :class:`CandidateError`."""
+    colour and grey data (visibility, coverage) in [0, 1]; else :class:`CandidateError`.
+
+    Values outside their range by at most :data:`DATA_RANGE_EPSILON` (grey data) or
+    ``RADIANCE_EPSILON`` x the image maximum (negative radiance) are clamped, with one
+    :class:`CandidateWarning` giving their count and extreme values; returns the image
+    (clamped, or as given)."""
     path = Path(path)
     _check_shape(path, image, expected_shape)
-    _check_values(path, image, kind)
+    return _check_values(path, image, kind)
 
 
 def png_is_grey(path) -> bool:
@@ -128,7 +160,19 @@ def _check_shape(path: Path, image: np.ndarray, expected_shape) -> None:
         raise CandidateError(f"candidate is {cw}x{ch}, the reference is {w}x{h} ({path.name})")
 
 
-def _check_values(path: Path, image: np.ndarray, channel: str) -> None:
+def _exact(value) -> str:
+    """A float32 value with the digits that tell it from its neighbours (``1.0000001``,
+    ``-1e-07``): a rounded ``1`` would hide why it is out of range. The shortest text that
+    reads back as the same float32 (9 significant digits always do)."""
+    exact = np.float32(value)
+    for digits in range(1, 10):
+        text = f"{float(exact):.{digits}g}"
+        if np.float32(float(text)) == exact:
+            return text
+    return repr(float(exact))
+
+
+def _check_values(path: Path, image: np.ndarray, channel: str) -> np.ndarray:
     finite = np.isfinite(image)
     if not finite.all():
         n_nan = int(np.isnan(image).sum())
@@ -138,19 +182,40 @@ def _check_values(path: Path, image: np.ndarray, channel: str) -> None:
             f"values (of {image.size})"
         )
     if channel in ("visibility", "coverage"):
-        n_out = int(((image < 0) | (image > 1)).sum())
-        if n_out:
-            raise CandidateError(
-                f"candidate {path.name} {channel} must be in [0, 1], got {n_out} values "
-                f"outside (range {float(image.min()):.6g} to {float(image.max()):.6g})"
-            )
+        low, high = 0.0, 1.0
+        eps_low = eps_high = DATA_RANGE_EPSILON
+        what, tolerance = f"{channel} must be in [0, 1]", f"{DATA_RANGE_EPSILON:g}"
     elif channel == "color":
-        n_neg = int((image < 0).sum())
-        if n_neg:
-            raise CandidateError(
-                f"candidate {path.name} has {n_neg} negative radiance values "
-                f"(minimum {float(image.min()):.6g}); radiance must be >= 0"
-            )
+        low, high = 0.0, np.inf
+        eps_low, eps_high = RADIANCE_EPSILON * max(float(image.max()), 0.0), 0.0
+        what = "radiance must be >= 0"
+        tolerance = f"{RADIANCE_EPSILON:g} x the image maximum = {eps_low:.3g}"
+    else:
+        return image
+    out = (image < low) | (image > high)
+    n_out = int(out.sum())
+    if not n_out:
+        return image
+    lo, hi = float(image.min()), float(image.max())
+    extremes = ", ".join(
+        f"{label} {_exact(v)}"
+        for label, v, bad in (("min", lo, lo < low), ("max", hi, hi > high))
+        if bad
+    )
+    if lo < low - eps_low or hi > high + eps_high:
+        raise CandidateError(
+            f"candidate {path.name}: {what}, got {n_out} "
+            f"{'values outside' if high == 1.0 else 'negative values'} ({extremes}); "
+            f"beyond the {tolerance} that is clamped"
+        )
+    warnings.warn(
+        CandidateWarning(
+            f"candidate {path.name}: clamped {n_out} {channel} values outside "
+            f"{'[0, 1]' if high == 1.0 else '>= 0'} by at most {tolerance} ({extremes})"
+        ),
+        stacklevel=2,
+    )
+    return np.clip(image, low, high).astype(np.float32)
 
 
 # --------------------------------------------------------------------------- EXR
@@ -172,10 +237,67 @@ def _load_exr(path: Path, channel: str) -> np.ndarray:
         image = _exr_named(chans, channel)
     if image is None:
         available = ", ".join(sorted(chans))
-        raise CandidateError(
+        raise MissingChannelError(
             f"candidate {path.name} has no channel {channel!r}; available: {available}"
         )
     return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def load_motion(
+    path: str | os.PathLike,
+    *,
+    layer: str,
+    convention: str,
+    expected_shape: tuple[int, int],
+    disocclusion: str | None = None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """An engine's motion vectors from EXR layer ``layer`` (channels ``layer.X/Y``,
+    ``layer.R/G`` or ``layer.U/V``), converted from ``convention``
+    (:data:`metrics.motion.CONVENTIONS`) to the oracle's pixels, ``(H, W, 2)`` float64; and
+    with ``disocclusion``, that channel as the engine's disocclusion mask (``> 0.5``).
+
+    Raises
+    ------
+    CandidateError
+        Not an EXR, no such layer or channel (listing the channels), wrong size, NaN or inf.
+    """
+    from ... import metrics as M
+
+    path = Path(path)
+    if path.suffix.lower() != ".exr":
+        raise CandidateError(f"motion vectors are read from an EXR layer, got {path.name}")
+    try:
+        raw = read_exr(path)
+    except ExrError as exc:
+        raise CandidateError(f"candidate {path.name} is not a readable EXR ({exc})") from exc
+    pair = next(
+        (
+            (raw[f"{layer}.{a}"], raw[f"{layer}.{b}"])
+            for a, b in ("XY", "RG", "UV")
+            if f"{layer}.{a}" in raw and f"{layer}.{b}" in raw
+        ),
+        None,
+    )
+    if pair is None:
+        raise CandidateError(
+            f"candidate {path.name} has no motion layer {layer!r} ({layer}.X/Y, .R/G or .U/V); "
+            f"available: {', '.join(sorted(raw))}"
+        )
+    mv = np.stack([np.asarray(c, dtype=np.float64) for c in pair], -1)
+    _check_shape(path, mv[..., 0], expected_shape)
+    if not np.all(np.isfinite(mv)):
+        raise CandidateError(f"candidate {path.name}: motion layer {layer!r} holds NaN or inf")
+    h, w = expected_shape
+    mv = M.to_oracle_motion(mv, convention=convention, width=w, height=h)
+    mask = None
+    if disocclusion is not None:
+        if disocclusion not in raw:
+            raise CandidateError(
+                f"candidate {path.name} has no channel {disocclusion!r}; "
+                f"available: {', '.join(sorted(raw))}"
+            )
+        mask = np.asarray(raw[disocclusion]) > 0.5
+    return mv, mask
 
 
 def _group(chans: dict, prefix: str) -> np.ndarray | None:

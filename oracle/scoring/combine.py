@@ -22,9 +22,10 @@ SHARED_PROVENANCE = (
 )
 
 
-def combine_reports(folders: list[Path], out: Path, *, title: str) -> int:
+def combine_reports(folders: list[Path], out: Path, *, title: str, errors=None) -> int:
     """Combine the cases of several score folders into the report ``out`` (HTML, with its
-    JSON beside it); returns the case count.
+    JSON beside it); returns the case count. ``errors``: ``[{"case", "name", "message"}]``
+    of cases that could not be scored (listed first on the page).
 
     Raises
     ------
@@ -50,7 +51,7 @@ def combine_reports(folders: list[Path], out: Path, *, title: str) -> int:
     for key in SHARED_PROVENANCE:
         values = {json.dumps(p.get(key), sort_keys=True) for p in provs}
         provenance[key] = provs[0].get(key) if len(values) == 1 else "varies"
-    report = reports.build_report(cases, title=title, provenance=provenance)
+    report = reports.build_report(cases, title=title, provenance=provenance, errors=errors)
     out.parent.mkdir(parents=True, exist_ok=True)
     reports.write_report(report, out)
     return len(cases)

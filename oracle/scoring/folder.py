@@ -1,4 +1,6 @@
-"""A folder of engine images laid out by scene and frame (``raster-oracle score-folder``).
+"""A folder of engine images laid out by scene and frame (``raster-oracle score-folder``), and
+the library function that scores a folder's cases (:func:`score_folder`; the command line
+only builds the cases, from the folder's layout or a manifest).
 
 ``ROOT/<scene>.exr`` (or ``.png``) is one frame of ``<scene>``; ``ROOT/<scene>/frame_000.exr``,
 ``frame_001.exr``, ... are the frames of a camera path (numbered from 0 without gaps, one
@@ -9,13 +11,17 @@ other types are ignored, so notes and logs may sit beside the images.
 
 from __future__ import annotations
 
+import json
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...scenes.files import atomic_write_json
+from .gates import FOLDER_SCHEMA
+from .options import ScoreOptions
 from .score import ScoreError
 
-__all__ = ["FolderEntry", "discover"]
+__all__ = ["FolderCase", "FolderEntry", "FolderRun", "discover", "score_folder"]
 
 _IMAGE = (".exr", ".png")
 _FRAME = re.compile(r"^frame_(\d+)\.(exr|png)$", re.IGNORECASE)
@@ -80,3 +86,106 @@ def discover(root: str | Path) -> list[FolderEntry]:
     if not entries:
         raise ScoreError(f"score-folder: {root} holds no <scene>.exr/.png or <scene>/frame_000.exr")
     return list(entries.values())
+
+
+@dataclass(frozen=True)
+class FolderCase:
+    """One case of a folder run, checked and ready: written to ``OUT/<name>/``.
+
+    ``loaded`` (the scene), ``pattern`` (the candidate file or ``{frame}`` pattern),
+    ``channel`` and ``layout`` (what to read), ``options`` (:class:`ScoreOptions`),
+    ``gates``; or ``error``: why this case cannot be scored (a missing file or layer: a
+    JUnit error case while the others are scored)."""
+
+    name: str
+    scene: str
+    loaded: object = None
+    pattern: str | None = None
+    channel: str | None = None
+    layout: object = None
+    options: ScoreOptions = field(default_factory=ScoreOptions)
+    gates: tuple = ()
+    error: str | None = None
+
+
+@dataclass
+class FolderRun:
+    """What :func:`score_folder` did: one verdict per case and the combined record."""
+
+    verdicts: list = field(default_factory=list)
+    record: dict = field(default_factory=dict)
+
+    @property
+    def exit_code(self) -> int:
+        """1 when a case failed a check or could not be scored, else 0."""
+        return 1 if any(v.failed or v.errors for v in self.verdicts) else 0
+
+
+def score_folder(
+    cases,
+    *,
+    out,
+    cache=None,
+    baselines: dict | None = None,
+    baseline_source: str = "baseline",
+    root: str = "",
+    title: str = "engine images",
+) -> FolderRun:
+    """Score every case into ``out/<name>/``, then write ``out/metrics.json`` (schema
+    ``raster-oracle/score-folder/1``: every case's record under ``scenes``, ``failed`` case
+    -> failed check names, ``errors`` case -> message, ``exit_code``) and ``out/report.html``.
+
+    A case with ``error`` is not scored: its verdict holds the error (JUnit ``<error>``).
+    ``baselines``: case name -> a previous run's record of it (a case without one gets a
+    note).
+    """
+    from .combine import combine_reports
+    from .gates import Verdict
+    from .request import score_to_folder
+
+    out = Path(out)
+    combined = {"schema": FOLDER_SCHEMA, "root": root, "scenes": {}, "failed": {}, "errors": {}}
+    run = FolderRun(record=combined)
+    scored = []
+    for case in cases:
+        if case.error is not None:
+            verdict = Verdict(scene=case.name).add_error(f"{case.name} scored", case.error)
+            combined["errors"][case.name] = case.error
+            run.verdicts.append(verdict)
+            continue
+        baseline = (baselines or {}).get(case.name)
+        folder = out / case.name
+        verdict = score_to_folder(
+            case.loaded,
+            out=folder,
+            candidate=case.pattern,
+            channel=case.channel,
+            options=case.options,
+            cache=cache,
+            gates=list(case.gates),
+            baseline=baseline,
+            baseline_source=f"{baseline_source} scene {case.name}",
+            layout=case.layout,
+            name=case.name,
+        )
+        verdict.scene = case.name
+        if baselines is not None and baseline is None:
+            verdict.add(notes=[f"baseline: no scene {case.name} in {baseline_source}"])
+        run.verdicts.append(verdict)
+        record = json.loads((folder / "metrics.json").read_text())
+        record["folder"] = case.name
+        combined["scenes"][case.name] = record
+        if verdict.failed:
+            combined["failed"][case.name] = list(verdict.failed)
+        scored.append(folder)
+    combined["exit_code"] = run.exit_code
+    combined["platform"] = next((c.options.platform for c in cases), None)
+    errors = [
+        {"case": v.scene, "name": name, "message": message}
+        for v in run.verdicts
+        for name, message in v.errors
+    ]
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out / "metrics.json", combined)
+    combine_reports(scored, out / "report.html", title=title, errors=errors)
+    return run

@@ -98,6 +98,29 @@ class Check:
     passed: bool
     line: str
     kind: str = "gate"
+    #: this run's value, the gate's limit (gates), this run's noise floor, and for a baseline
+    #: comparison the previous run's value and noise floor
+    value: float | None = None
+    limit: float | None = None
+    floor: float | None = None
+    previous: float | None = None
+    previous_floor: float | None = None
+
+    def as_record(self) -> dict:
+        """The JSON record of the check: what ``metrics.json``, the report, the JUnit
+        properties and the Markdown summary show (one naming everywhere)."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "metric": self.metric,
+            "passed": self.passed,
+            "line": self.line,
+            "value": self.value,
+            "limit": self.limit,
+            "noise_floor": self.floor,
+            "previous": self.previous,
+            "previous_noise_floor": self.previous_floor,
+        }
 
 
 class Verdict(list):
@@ -113,6 +136,9 @@ class Verdict(list):
         self.scene = scene
         self.checks: list[Check] = []
         self.notes: list[str] = []
+        #: ``(name, message)`` of each part of the scene that could not be scored (a
+        #: manifest's layer missing from the file): a JUnit ``<error>`` case each
+        self.errors: list[tuple[str, str]] = []
         self.add(checks, notes)
 
     def add(self, checks=(), notes=()) -> Verdict:
@@ -126,10 +152,32 @@ class Verdict(list):
     def failed(self) -> list[str]:
         return list(self)
 
+    def add_error(self, name: str, message: str) -> Verdict:
+        """Record a part of the scene that could not be scored (it fails the run: exit 1,
+        the others scored and written all the same)."""
+        self.errors.append((name, message))
+        return self
+
     @property
     def exit_code(self) -> int:
-        """0 when every check passed, 1 otherwise."""
-        return 1 if self.failed else 0
+        """0 when every check passed, 1 when one failed or a part could not be scored."""
+        return 1 if self.failed or self.errors else 0
+
+    @property
+    def failed_checks(self) -> list[Check]:
+        """The failed gates and regressions, in check order."""
+        return [c for c in self.checks if not c.passed]
+
+    def as_record(self) -> dict:
+        """``{"exit_code", "failed": [names], "checks": [records]}``: the verdict as
+        ``metrics.json`` and the report hold it."""
+        return {
+            "exit_code": self.exit_code,
+            "failed": self.failed,
+            "errors": [{"name": n, "message": m} for n, m in self.errors],
+            "checks": [c.as_record() for c in self.checks],
+            "notes": list(self.notes),
+        }
 
     @property
     def lines(self) -> list[str]:
@@ -239,7 +287,9 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
             f"{'PASS' if passed else 'FAIL'} {g.metric} {_num(value, g.limit)} {shown} "
             f"{_limit(g.limit)} (noise floor {_num(floor)})"
         )
-        checks.append(Check(g.name, g.metric, passed, line))
+        checks.append(
+            Check(g.name, g.metric, passed, line, value=value, limit=g.limit, floor=floor)
+        )
     return checks
 
 
@@ -316,6 +366,7 @@ def _identity(record: dict) -> dict:
         "light": scene.get("light_index"),
         "candidate kind": " and ".join(scored_kinds(record)),
         "frames": len(record.get("frames") or []) or 1,
+        "platform": record.get("platform") or "default",
     }
 
 
@@ -325,12 +376,18 @@ def _check_same_run(mine: dict, theirs: dict, source: str) -> None:
     if diffs:
         raise GateError(
             f"--baseline {source} is another run: {'; '.join(diffs)} (baseline vs this run); "
-            "compare runs of one scene, size, light, candidate kind and frame count"
+            "compare runs of one scene, size, light, candidate kind, frame count and platform"
         )
 
 
 def check_baseline_scene(
-    baseline: dict, loaded, *, frames: int, kinds=None, source: str = "baseline"
+    baseline: dict,
+    loaded,
+    *,
+    frames: int,
+    kinds=None,
+    source: str = "baseline",
+    platform: str | None = None,
 ) -> None:
     """Before rendering: :class:`GateError` when ``baseline`` scored another scene, size, light
     or frame count than ``loaded`` with ``frames`` frames, or (``kinds`` given: the candidate
@@ -341,6 +398,7 @@ def check_baseline_scene(
         "resolution": f"{loaded.width}x{loaded.height}",
         "light": loaded.light_index,
         "frames": frames,
+        "platform": platform or "default",
     }
     if kinds is not None:
         mine["candidate kind"] = " and ".join(kinds)
@@ -371,7 +429,8 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
             f"{'REGRESSION' if bad else 'PASS baseline'} {key} {_num(b, a)} "
             f"(noise floor {_num(fb)}) vs baseline {_num(a, b)} (noise floor {_num(fa)})"
         )
-        verdict.add([Check(f"baseline {key}", key, not bad, line, kind="baseline")])
+        check = Check(f"baseline {key}", key, not bad, line, "baseline", b, None, fb, a, fa)
+        verdict.add([check])
     if skipped:
         why = "a value or noise floor missing or not finite"
         verdict.add(notes=[f"baseline: not compared ({why}): {', '.join(skipped)}"])
@@ -414,20 +473,52 @@ def judge(record: dict, *, fail_above=None, fail_below=None, baseline=None) -> V
     return verdict
 
 
+def _properties(case, check: Check) -> None:
+    """The check's numbers as JUnit ``<property>`` entries (passing cases carry them too, so
+    a CI dashboard can chart a metric's history)."""
+    values = {
+        "metric": check.metric,
+        "kind": "regression" if check.kind == "baseline" else check.kind,
+        "value": check.value,
+        "limit": check.limit,
+        "noise_floor": check.floor,
+        "previous": check.previous,
+        "previous_noise_floor": check.previous_floor,
+    }
+    props = ET.SubElement(case, "properties")
+    for key, value in values.items():
+        if value is not None:
+            text = value if isinstance(value, str) else repr(float(value))
+            ET.SubElement(props, "property", {"name": key, "value": text})
+
+
 def junit_xml(verdicts) -> bytes:
     """JUnit XML of the checks of ``verdicts``: one ``<testsuite>`` with one ``<testcase>`` per
-    scene x gate (classname = the scene), a ``<failure>`` holding the line of a failed one."""
+    scene x check (classname = the scene, name = the check's name, its numbers as
+    properties), a ``<failure>`` holding the line of a failed one, and an ``<error>`` case
+    per scene that could not be scored (``Verdict.errors``)."""
     checks = [(v.scene, c) for v in verdicts for c in v.checks]
+    errors = [(v.scene, e) for v in verdicts for e in getattr(v, "errors", [])]
     n_fail = sum(not c.passed for _, c in checks)
-    counts = {"tests": str(len(checks)), "failures": str(n_fail), "errors": "0", "skipped": "0"}
+    counts = {
+        "tests": str(len(checks) + len(errors)),
+        "failures": str(n_fail),
+        "errors": str(len(errors)),
+        "skipped": "0",
+    }
     root = ET.Element("testsuites", {"name": "raster-oracle", **counts})
     suite = ET.SubElement(root, "testsuite", {"name": "raster-oracle score", **counts})
     for scene, c in checks:
         case = ET.SubElement(suite, "testcase", {"classname": scene, "name": c.name})
+        _properties(case, c)
         if not c.passed:
             kind = "regression" if c.kind == "baseline" else "threshold"
             failure = ET.SubElement(case, "failure", {"message": c.line, "type": kind})
             failure.text = c.line
+    for scene, (name, message) in errors:
+        case = ET.SubElement(suite, "testcase", {"classname": scene, "name": name})
+        error = ET.SubElement(case, "error", {"message": message, "type": "input"})
+        error.text = message
     ET.indent(root)
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
 

@@ -26,15 +26,30 @@ the kind's usual channel names are looked up), an exact channel (``msaa.coverage
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..reference.exr import ExrError, read_exr
-from .candidates import CandidateError, check_candidate_values, load_candidate, png_is_grey
+from .candidates import (
+    CandidateError,
+    MissingChannelError,
+    check_candidate_values,
+    load_candidate,
+    png_is_grey,
+)
 
-__all__ = ["KINDS", "CandidateLayout", "candidate_layout", "read_candidate"]
+__all__ = [
+    "FORMATS",
+    "KINDS",
+    "CandidateFormat",
+    "CandidateLayout",
+    "candidate_format",
+    "candidate_layout",
+    "read_candidate",
+]
 
 #: What a candidate image can be: it picks the reference channels and the metrics.
 KINDS = ("visibility", "color", "coverage")
@@ -142,7 +157,9 @@ def _exr_kind(file_name: str, names, kind: str) -> CandidateLayout:
             )
         if "Y" in names:
             return _grey_layout("Y", kind)
-        raise CandidateError(f"candidate {file_name} has no channel 'color'; {_listing(names)}")
+        raise MissingChannelError(
+            f"candidate {file_name} has no channel 'color'; {_listing(names)}"
+        )
     if kind in names:
         return _grey_layout(kind, kind)
     for found in ([n for n in greys if _leaf(n) == kind], ["Y"] if "Y" in greys else []):
@@ -160,7 +177,7 @@ def _exr_kind(file_name: str, names, kind: str) -> CandidateLayout:
         )
     if "" in groups:  # grey stored as equal R, G, B: checked when read
         return _rgb_layout("", kind)
-    raise CandidateError(f"candidate {file_name} has no channel {kind!r}; {_listing(names)}")
+    raise MissingChannelError(f"candidate {file_name} has no channel {kind!r}; {_listing(names)}")
 
 
 def _exr_named(file_name: str, names, channel: str, kind: str | None) -> CandidateLayout:
@@ -177,7 +194,7 @@ def _exr_named(file_name: str, names, channel: str, kind: str | None) -> Candida
             f"candidate {file_name} layer {channel!r} holds {', '.join(sorted(members))}; "
             f"pick one with --channel {' or '.join(sorted(members))}"
         )
-    raise CandidateError(
+    raise MissingChannelError(
         f"candidate {file_name} has no channel or layer {channel!r}; {_listing(names)}"
     )
 
@@ -185,7 +202,7 @@ def _exr_named(file_name: str, names, channel: str, kind: str | None) -> Candida
 def _png_layout(path: Path, channel: str | None, kind: str | None) -> CandidateLayout:
     want = kind or channel
     if want is not None and want not in KINDS:
-        raise CandidateError(
+        raise MissingChannelError(
             f"candidate {path.name} is a PNG, which has no named channels: --channel must be "
             f"one of {', '.join(KINDS)}, got {channel!r}"
         )
@@ -221,20 +238,20 @@ def candidate_layout(
         raise CandidateError(f"channel must be a non-empty string, got {channel!r}")
     if not path.is_file():
         raise CandidateError(f"candidate file not found: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".png":
-        return _png_layout(path, channel, kind)
-    if suffix != ".exr":
-        raise CandidateError(
-            f"unknown candidate file extension {path.suffix or '(none)'!r} for {path.name}; "
-            "expected .exr or .png"
-        )
+    return candidate_format(path).layout(path, channel, kind)
+
+
+def _exr_names(path: Path) -> list[str]:
     try:
-        names = sorted(read_exr(path))
+        return sorted(read_exr(path))
     except ExrError as exc:
         raise CandidateError(
             f"candidate {path.name} is truncated or not a readable EXR ({exc})"
         ) from exc
+
+
+def _exr_layout(path: Path, channel: str | None, kind: str | None) -> CandidateLayout:
+    names = _exr_names(path)
     if channel is None and kind is None:
         return _exr_infer(path.name, names, None)
     if channel is None or channel in KINDS:
@@ -252,26 +269,76 @@ def read_candidate(
     [0, 1]; the same checks as :func:`oracle.scoring.candidates.load_candidate` (size,
     finite values, range) by kind."""
     path = Path(path)
-    if not layout.names:  # a PNG: colour decoded, grey kinds read as data
-        read = "color" if layout.kind == "color" else "visibility"
-        image = load_candidate(path, channel=read, expected_shape=expected_shape)
-    else:
-        try:
-            chans = read_exr(path)
-        except ExrError as exc:
-            raise CandidateError(
-                f"candidate {path.name} is truncated or not a readable EXR ({exc})"
-            ) from exc
-        missing = [n for n in layout.names if n not in chans]
-        if missing:
-            raise CandidateError(
-                f"candidate {path.name} has no channel {missing[0]!r} (as the first frame "
-                f"had); {_listing(chans)}"
-            )
-        planes = [np.asarray(chans[n], dtype=np.float32) for n in layout.names]
-        image = _shape_planes(path, planes, layout)
-        check_candidate_values(path, image, expected_shape=expected_shape, kind=layout.kind)
+    image = candidate_format(path).read(path, layout, expected_shape)
     return np.ascontiguousarray(image, dtype=np.float32)
+
+
+def _png_read(path: Path, layout: CandidateLayout, expected_shape) -> np.ndarray:
+    """A PNG is read whole: colour sRGB-decoded, grey kinds as data."""
+    read = "color" if layout.kind == "color" else "visibility"
+    return load_candidate(path, channel=read, expected_shape=expected_shape)
+
+
+def _exr_read(path: Path, layout: CandidateLayout, expected_shape) -> np.ndarray:
+    """The channels ``layout`` names, shaped and checked by kind."""
+    try:
+        chans = read_exr(path)
+    except ExrError as exc:
+        raise CandidateError(
+            f"candidate {path.name} is truncated or not a readable EXR ({exc})"
+        ) from exc
+    missing = [n for n in layout.names if n not in chans]
+    if missing:
+        raise MissingChannelError(
+            f"candidate {path.name} has no channel {missing[0]!r} (as the first frame "
+            f"had); {_listing(chans)}"
+        )
+    planes = [np.asarray(chans[n], dtype=np.float32) for n in layout.names]
+    image = _shape_planes(path, planes, layout)
+    return check_candidate_values(path, image, expected_shape=expected_shape, kind=layout.kind)
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return im.size
+
+
+def _exr_size(path: Path) -> tuple[int, int]:
+    h, w = next(iter(read_exr(path).values())).shape[:2]
+    return w, h
+
+
+@dataclass(frozen=True)
+class CandidateFormat:
+    """One reader per candidate file format: ``layout(path, channel, kind)`` decides what is
+    read (:func:`candidate_layout`), ``read(path, layout, expected_shape)`` reads and checks
+    it (:func:`read_candidate`), ``size(path)`` is ``(width, height)``."""
+
+    name: str
+    layout: Callable[[Path, str | None, str | None], CandidateLayout]
+    read: Callable[[Path, CandidateLayout, tuple | None], np.ndarray]
+    size: Callable[[Path], tuple[int, int]]
+
+
+#: Candidate file formats by suffix (lower case): the one place a new format registers.
+FORMATS = {
+    ".exr": CandidateFormat("OpenEXR", _exr_layout, _exr_read, _exr_size),
+    ".png": CandidateFormat("PNG", _png_layout, _png_read, _png_size),
+}
+
+
+def candidate_format(path) -> CandidateFormat:
+    """The reader of ``path``'s suffix; :class:`CandidateError` naming the known ones."""
+    path = Path(path)
+    found = FORMATS.get(path.suffix.lower())
+    if found is None:
+        raise CandidateError(
+            f"unknown candidate file extension {path.suffix or '(none)'!r} for {path.name}; "
+            f"expected {' or '.join(FORMATS)}"
+        )
+    return found
 
 
 def _shape_planes(path: Path, planes: list[np.ndarray], layout: CandidateLayout) -> np.ndarray:

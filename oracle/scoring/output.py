@@ -37,6 +37,9 @@ MAP_STYLES = {
     "flip": ("magma", (0.0, 1.0)),
     "delta_e2000": ("magma", (0.0, 20.0)),
     "neg_log10_p": ("magma", (0.0, 10.0)),
+    # temporal AA (oracle.scoring.temporal): added change per frame, motion-vector error in px
+    "flicker": ("magma", (0.0, 0.1)),
+    "motion_epe": ("magma", (0.0, 2.0)),
 }
 
 
@@ -99,7 +102,15 @@ def _viewer(result: ScoreResult, maps: dict) -> dict:
 
 
 def _case(
-    result: ScoreResult, *, name: str, scene: str, thresholds: dict, technique, params, cost
+    result: ScoreResult,
+    *,
+    name: str,
+    scene: str,
+    thresholds: dict,
+    technique,
+    params,
+    cost,
+    checks=(),
 ) -> dict:
     frame = result.frames[0]
     maps = {}
@@ -137,6 +148,8 @@ def _case(
             "error maps": "error_maps.exr",
         },
         viewer=_viewer(result, maps),
+        checks=[c.as_record() for c in checks],
+        diagnoses=[d["message"] for d in result.record.get("diagnoses") or []],
     )
 
 
@@ -219,10 +232,7 @@ def _front(technique: str | None, scene: str) -> str | None:
     scene (the shadow maps together, the anti-aliasing techniques together, others alone)."""
     if technique is None:
         return None
-    group = "shadow maps" if technique in ("shadow-map", "csm", "sdsm") else technique
-    if raster_models.family_of(technique) == "aa":
-        group = "anti-aliasing"
-    return f"{group} on {scene}"
+    return f"{raster_models.front_group(technique)} on {scene}"
 
 
 #: Resolutions at which the report restates an anti-aliasing model's framebuffer memory: the
@@ -254,7 +264,7 @@ def report_cost(cost: dict | None, technique: str | None) -> dict | None:
             for sub, v in value.items():
                 if isinstance(v, int | float | np.integer | np.floating) and np.isfinite(v):
                     out[f"{sub} {stem}"] = v
-    if technique is not None and raster_models.family_of(technique) == "aa":
+    if technique is not None and raster_models.family(technique).per_pixel_memory:
         total, w, h = cost.get("framebuffer_bytes"), cost.get("width"), cost.get("height")
         if all(isinstance(v, int | np.integer) and v > 0 for v in (total, w, h)):
             per_pixel, rest = divmod(int(total), int(w) * int(h))
@@ -277,6 +287,8 @@ def _provenance(result: ScoreResult, loaded) -> dict:
         "reference spp": ref["spp"],
         "seed": ref["seed"],
         "filter": ref["filter"],
+        # coverage scores: exact (analytic) truth, Monte Carlo, or exact where valid
+        "coverage truth": ref.get("coverage_truth"),
         "ppd": result.record["ppd"],
         "exposure (stops)": tm.get("exposure_stops"),
         "tone mapper": tm.get("tone_mapper", "none (visibility is data)"),
@@ -298,24 +310,26 @@ def write_score_folder(
     params=None,
     cost=None,
 ) -> list[str]:
-    """Write the score folder; returns the metrics of the failed gates.
+    """Write the score folder; returns the names of the failed checks.
 
     ``gates`` and ``verdict`` (their checks and the baseline's, judged by the caller) are
     recorded in ``metrics.json``: ``thresholds`` (``--fail-above`` limits), ``fail_below``,
-    ``gates`` (each check's name, metric, pass and line), ``failed`` (metrics of the failed
-    gates) and ``regressions`` (metrics worse than the baseline).
+    ``gates`` (every check: name, kind, metric, pass, line, value, limit, noise floor, the
+    baseline's value and floor), ``failed`` (the names of the failed checks, gates and
+    regressions alike: ``visibility_mae <= 0.02``, ``baseline ssim``), ``regressions``
+    (metrics worse than the baseline) and ``exit_code``. The report's case carries the same
+    checks, so its status and first screen say what the exit code says.
     """
     record = dict(result.record)
     checks = verdict.checks if verdict is not None else []
     record["thresholds"] = {g.metric: g.limit for g in gates if g.op == "<="}
     record["fail_below"] = {g.metric: g.limit for g in gates if g.op == ">="}
-    record["gates"] = [
-        {"name": c.name, "metric": c.metric, "kind": c.kind, "passed": c.passed, "line": c.line}
-        for c in checks
-    ]
-    failed = [c.metric for c in checks if not c.passed and c.kind == "gate"]
-    record["failed"] = list(dict.fromkeys(failed))
+    record["gates"] = [c.as_record() for c in checks]
+    # one verdict: the names of every failed check, gates and baseline regressions alike
+    # (the names JUnit, the report and the printed lines use)
+    record["failed"] = [c.name for c in checks if not c.passed]
     record["regressions"] = [c.metric for c in checks if not c.passed and c.kind == "baseline"]
+    record["exit_code"] = 1 if record["failed"] else 0
     record["technique"] = technique
     record["params"] = params
     record["cost"] = cost
@@ -341,6 +355,7 @@ def write_score_folder(
         technique=technique,
         params=params,
         cost=cost,
+        checks=checks,
     )
     frame_cases = _frame_cases(
         result, name=name, scene=loaded.name, technique=technique, params=params

@@ -11,7 +11,11 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from ... import metrics as M
+import numpy as np
+
+from ...scenes.inputs import read_export_record
+from .candidates import load_motion
+from .diagnosis import diagnose_result
 from .gates import (
     Gate,
     Verdict,
@@ -21,6 +25,7 @@ from .gates import (
     evaluate_gates,
 )
 from .layout import CandidateLayout, candidate_layout, read_candidate
+from .options import ScoreOptions
 from .output import write_score_folder
 from .score import ScoreError, score
 from .technique import score_model, technique_channels
@@ -38,12 +43,23 @@ def frame_file(pattern: str, k: int) -> str:
 
 
 def file_candidate(
-    pattern: str, *, channel: str | None, frames: int | None, layout: CandidateLayout | None = None
+    pattern: str,
+    *,
+    channel: str | None,
+    frames: int | None,
+    layout: CandidateLayout | None = None,
+    motion: dict | None = None,
+    visibility: str = "1-is-lit",
 ):
     """Candidate callable ``(frame_scene, k) -> (image, info)`` reading (and validating) an
     engine's image of each frame: ``pattern`` formatted with ``frame=k`` when it has a
     ``{frame}`` field (required for ``frames`` > 1). Every frame is read as ``layout`` says
     (None: :func:`oracle.scoring.layout.candidate_layout` of frame 0's file and ``channel``).
+    ``motion`` (``layer``, ``convention``, optional ``disocclusion``): also read each frame's
+    motion vectors (:func:`oracle.scoring.candidates.load_motion`) into the info's
+    ``motion`` / ``disocclusion``, which ``score`` turns into the end-point error metrics.
+    A visibility mask whose 1 means shadowed (``visibility="1-is-shadowed"``) is read as
+    ``1 - value``.
     """
     has_frame = bool(FRAME_PATTERN.search(pattern))
     if frames and frames > 1 and not has_frame:
@@ -55,8 +71,14 @@ def file_candidate(
 
     def run(frame_scene, k):
         path = frame_file(pattern, k)
-        image = read_candidate(path, layout, expected_shape=(frame_scene.height, frame_scene.width))
-        return image, {"frame": k, "file": str(path)}
+        shape = (frame_scene.height, frame_scene.width)
+        image = read_candidate(path, layout, expected_shape=shape)
+        if layout.kind == "visibility" and visibility == "1-is-shadowed":
+            image = (1.0 - image).astype(np.float32)
+        info = {"frame": k, "file": str(path)}
+        if motion is not None:
+            info["motion"], info["disocclusion"] = load_motion(path, expected_shape=shape, **motion)
+        return image, info
 
     return run
 
@@ -79,12 +101,14 @@ def _check_candidates(fn, loaded, frames, camera_path) -> None:
         fn(scene_k, k)
 
 
-def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source) -> None:
+def _check_before_rendering(*, gates, baseline, loaded, kinds, frames, source, platform) -> None:
     """Gates that do not apply to ``kinds`` / ``frames`` and a baseline of another scene,
     size, light, frame count or kind fail here, before any reference is rendered."""
     check_applicable(gates, kinds=kinds, frames=frames)
     if baseline is not None:
-        check_baseline_scene(baseline, loaded, frames=frames, kinds=kinds, source=source)
+        check_baseline_scene(
+            baseline, loaded, frames=frames, kinds=kinds, source=source, platform=platform
+        )
 
 
 def score_to_folder(
@@ -95,19 +119,14 @@ def score_to_folder(
     params: dict | None = None,
     candidate: str | None = None,
     channel: str | None = None,
-    spp: int = 64,
-    seed: int = 0,
-    frames: int | None = None,
-    camera_path: str | None = "dolly",
+    options: ScoreOptions | None = None,
     cache=None,
-    quiet: bool = True,
-    flip_mode: str = "LDR",
-    ppd: float = M.DEFAULT_PPD,
-    thresholds: dict[str, float] | None = None,
     gates: list[Gate] | None = None,
+    thresholds: dict[str, float] | None = None,
     baseline: dict | None = None,
     baseline_source: str = "baseline",
     layout: CandidateLayout | None = None,
+    name: str | None = None,
 ) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
@@ -124,26 +143,32 @@ def score_to_folder(
     candidate : an EXR or PNG file, or a pattern with ``{frame}`` (one of the two).
     channel : what is scored (None: the technique's primary channel; for files, inferred
         from the file when unambiguous); for files also an EXR channel or layer name.
+    options : :class:`oracle.scoring.options.ScoreOptions` (reference spp and seed, frames
+        and camera path, FLIP options, platform, the candidate mask's convention).
     layout : for files, what to read (:func:`oracle.scoring.layout.candidate_layout`; None:
         resolved here from frame 0's file and ``channel``).
-    frames : score that many frames of ``camera_path`` and add the temporal metrics (None or
-        1: the scene's own frame).
     thresholds : ``{metric: limit}`` (``--fail-above`` gates, as
         :func:`oracle.scoring.score.parse_thresholds` gives them).
     gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``).
     baseline, baseline_source : a previous run's ``metrics.json`` record (from
-        :func:`oracle.scoring.gates.load_baseline`) and its path, for messages.
+        :func:`oracle.scoring.gates.load_baseline`) and its path, for messages; a baseline
+        of another platform (``options.platform``) is a
+        :class:`oracle.scoring.gates.GateError`.
+    name : how the report names the case (default: the technique, or the candidate's file
+        name; ``score-folder`` gives its case name, ``scene/channel``).
     """
+    o = (options or ScoreOptions()).validate()
+    frames, camera_path, platform = o.frames, o.camera_path, o.platform
     if (technique is None) == (candidate is None):
         raise ScoreError("score: give a technique or a candidate file (one of them)")
-    frames = frames if frames and frames > 1 else None
     gates = [*(gates or []), *(Gate(k, "<=", v) for k, v in (thresholds or {}).items())]
     # gates and the baseline are checked before rendering anything, against the kinds that
     # will be scored, and again on the record (evaluate_gates, compare_baseline)
     check = dict(gates=gates, baseline=baseline, loaded=loaded, frames=frames or 1)
-    check.update(source=baseline_source)
-    opts = dict(spp=spp, seed=seed, frames=frames, camera_path=camera_path, cache=cache)
-    opts.update(quiet=quiet, flip_mode=flip_mode, ppd=ppd)
+    check.update(source=baseline_source, platform=platform)
+    opts = dict(o.score_kwargs(), cache=cache)
+    if o.motion is not None and technique is not None:
+        raise ScoreError("--candidate-motion applies to --candidate, not to --technique")
     cost = None
     if technique is not None:
         params = dict(params or {})
@@ -152,24 +177,62 @@ def score_to_folder(
         result = score_model(loaded, technique, params, channel=channel, **opts)
         info = result.record["candidate_info"][0]
         cost, params = info["cost"], info["params"]
-        name = technique
+        label = technique
     else:
         if params:
             raise ScoreError("--set applies to --technique, not to --candidate")
         params = None
         if layout is None:
             layout = candidate_layout(frame_file(candidate, 0), channel=channel)
+        if o.visibility != "1-is-lit" and layout.kind != "visibility":
+            raise ScoreError(
+                f"--visibility {o.visibility} applies to shadow masks; this candidate is "
+                f"{layout.kind}"
+            )
         _check_before_rendering(kinds=(layout.kind,), **check)
-        read = file_candidate(candidate, channel=channel, frames=frames, layout=layout)
+        read = file_candidate(
+            candidate,
+            channel=channel,
+            frames=frames,
+            layout=layout,
+            motion=o.motion,
+            visibility=o.visibility,
+        )
         _check_candidates(read, loaded, frames, camera_path)
         result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
         result.record["candidate_layout"] = {
             "kind": layout.kind,
             "channels": list(layout.names),
             "source": layout.source,
+            "visibility": o.visibility if layout.kind == "visibility" else None,
         }
-        name = candidate_name(candidate, frames=frames, camera_path=camera_path)
+        label = candidate_name(candidate, frames=frames, camera_path=camera_path)
+    # what an export was made for (size, light, camera path and frame): recorded with it
+    source = Path(str(loaded.source))
+    if source.name in ("scene.xml", "scene.glb") and source.is_file():
+        result.record["export"] = read_export_record(source.parent)
+    # the machine and driver the run stands for: baselines are kept per platform
+    result.record["platform"] = platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
+    # an engine's image that went wrong on its way out (flipped, encoded twice, shifted):
+    # diagnosed; a model's output is what the technique computes, not a file to diagnose
+    result.record["diagnoses"] = []
+    if candidate is not None:
+        found = diagnose_result(result)
+        result.record["diagnosis"] = {k: found[k] for k in ("error", "noise_floor", "tried")}
+        if found["likely"]:
+            result.record["diagnoses"].append(found["likely"])
+        result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
+        verdict.add(notes=[d["message"] for d in result.record["diagnoses"]])
+    outside = result.record.get("outside_receivers") or {}
+    if outside.get("differing"):
+        verdict.add(
+            notes=[
+                f"visibility: {outside['differing']} of the {outside['pixels']} pixels off the "
+                "oracle's receivers (sky, back faces, outside a spot cone) differ from the "
+                "reference there; they are not scored"
+            ]
+        )
     if baseline is not None:
         against = compare_baseline(result.record, baseline, source=baseline_source)
         verdict.add(against.checks, against.notes)
@@ -177,7 +240,7 @@ def score_to_folder(
         result,
         out,
         loaded=loaded,
-        name=name,
+        name=name or label,
         gates=gates,
         verdict=verdict,
         technique=technique,

@@ -28,10 +28,13 @@ from pathlib import Path
 import numpy as np
 
 from ... import metrics as M
+from ...scenes.records import provenance
 from ...scenes.shading import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
+from .engine_metrics import add_engine_gate_metrics, exact_floors
+from .temporal import add_temporal_aa
 
 __all__ = [
     "COVERAGE_FLOOR_RMS",
@@ -42,6 +45,7 @@ __all__ = [
     "ScoreResult",
     "added_flicker",
     "coverage_metrics",
+    "coverage_truth",
     "failures",
     "metric_limit",
     "parse_thresholds",
@@ -70,14 +74,31 @@ COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
 REFERENCE_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
-    "coverage": ("coverage", "edge", "id"),
+    "coverage": ("coverage", "coverage_exact", "edge", "id"),
     # the coverage of each pixel's front-most primitive (oracle.reference.coverage): what the
     # anti-aliasing models are scored on, so that backdrop scenes have coverage edges too
-    "front_coverage": ("coverage", "edge", "id"),
+    "front_coverage": ("coverage", "coverage_exact", "edge", "id"),
 }
 #: Channels of sample counts (binary samples: binomial noise floor).
 COVERAGE_CHANNELS = ("coverage", "front_coverage")
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
+
+
+def coverage_truth(ref_ch: dict, channel: str):
+    """The truth a coverage channel is scored against: the exact channel
+    (``coverage_exact``/``front_coverage_exact``, standard error 0) where
+    ``coverage_exact_valid``, the Monte Carlo estimate elsewhere. Returns ``(truth, stderr,
+    record)``; the record names the truth used and the fraction of exact pixels."""
+    ref = np.asarray(ref_ch[channel], np.float64)
+    se = np.asarray(ref_ch[f"{channel}_stderr"], np.float64)
+    exact = ref_ch.get(f"{channel}_exact")
+    if exact is None:
+        return ref, se, {"truth": "monte carlo", "exact_fraction": 0.0}
+    valid = ref_ch["coverage_exact_valid"] > 0.5
+    fraction = float(valid.mean())
+    truth = "exact" if fraction == 1.0 else "exact where valid, monte carlo elsewhere"
+    record = {"truth": truth if fraction > 0 else "monte carlo", "exact_fraction": fraction}
+    return np.where(valid, exact, ref), np.where(valid, 0.0, se), record
 
 
 class ScoreError(InputError):
@@ -127,6 +148,83 @@ def _finite(value):
     return value
 
 
+def _linear_display(ref, cand, *, ppd, full, out):
+    """FLIP, SSIM and PSNR of data in [0, 1] shown as it is (no tone mapping)."""
+    lin = dict(tone_mapper="clip", exposure=0.0)
+    out["ssim"] = M.ssim(ref, cand, **lin)
+    out["psnr_db"] = M.psnr_db(ref, cand, **lin)
+    return M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
+
+
+def _receivers_only(ref_ch, cand, *, light, out):
+    """A shadow mask with the reference's values off the oracle's receivers. Engine
+    conventions differ there (sky, back faces, outside a spot cone: 1 in most engines, 0 in
+    the oracle): only receivers are scored, the rest are counted in ``out``."""
+    ref = ref_ch["visibility"]
+    rec = reference_receivers(ref_ch, light)
+    out["outside_receivers"] = int((~rec).sum())
+    out["outside_receivers_differing"] = int(((cand != ref) & ~rec).sum())
+    return np.where(rec, cand, ref).astype(np.float32)
+
+
+def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A shadow mask: shadow metrics on the receivers."""
+    ref = ref_ch["visibility"]
+    rec = reference_receivers(ref_ch, kw["light"])
+    sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
+    for k in _SHADOW_VALUES:
+        out[k] = sm[k]
+    out["receiver_count"] = sm["receiver_count"]
+    out["edge_band_count"] = sm["edge_band_count"]
+    if full:
+        maps["visibility_error"] = sm["signed_error"]
+        maps["misclassified"] = sm["misclassified"].astype(np.float32)
+    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    return ref, ref_ch["visibility_stderr"], rec, edge, fl
+
+
+def _coverage_channel_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A coverage mask: coverage error against the N-sample straight-edge floor, against
+    the exact coverage where it is valid (:func:`coverage_truth`)."""
+    ref, ref_se, _ = coverage_truth(ref_ch, channel)
+    out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=kw["aa_samples"]))
+    if full:
+        maps["coverage_error"] = (cand - ref).astype(np.float32)
+    fl = None  # coverage_only: no FLIP, SSIM, PSNR (their values would be dropped)
+    if not kw["coverage_only"]:
+        fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    # silhouettes against the sky are edges of coverage even where one shape is seen
+    return ref, ref_se, None, edge | ((ref > 0) & (ref < 1)), fl
+
+
+def _color_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """Linear radiance: tone-mapped FLIP (or HDR-FLIP), SSIM, PSNR and CIEDE2000."""
+    ref = _rgb(ref_ch, "color")
+    exposure = kw["exposure"]
+    if kw["flip_mode"] == "HDR":
+        fl = M.flip(
+            ref, cand, mode="HDR", ppd=kw["ppd"], exposure_range=kw["flip_range"], full=full
+        )
+    else:
+        fl = M.flip(ref, cand, mode="LDR", ppd=kw["ppd"], exposure=exposure, full=full)
+    out["ssim"] = M.ssim(ref, cand, exposure=exposure)
+    out["psnr_db"] = M.psnr_db(ref, cand, exposure=exposure)
+    de = M.delta_e2000(ref, cand, exposure=exposure, full=full)
+    out["delta_e2000_mean"] = de[0] if full else de
+    if full:
+        maps["delta_e2000"] = de[1]
+    return ref, _rgb(ref_ch, "color_stderr"), None, edge, fl
+
+
+#: Scored channel -> (its catalogue kind, the function computing its own metrics).
+CHANNEL_METRICS = {
+    "visibility": ("visibility", _visibility_metrics),
+    "coverage": ("coverage", _coverage_channel_metrics),
+    "front_coverage": ("coverage", _coverage_channel_metrics),
+    "color": ("color", _color_metrics),
+}
+
+
 def _metrics_for(
     channel,
     ref_ch,
@@ -142,57 +240,31 @@ def _metrics_for(
     aa_samples=None,
     coverage_only: bool = False,
 ):
-    """Metric values (and, with ``full``, error maps) of one candidate frame.
+    """Metric values (and, with ``full``, error maps) of one candidate frame: the channel's
+    own metrics (:data:`CHANNEL_METRICS`), then those every kind shares; a metric the
+    catalogue does not declare for the channel's kind stays None.
 
     ``coverage_only`` (a coverage channel scored beside colour, which keeps only its
     :data:`COVERAGE_KEYS`): FLIP, SSIM and PSNR of the coverage image are not computed
     (None), FLIP being the most expensive metric of a case."""
     out = dict.fromkeys(METRIC_KEYS)
     maps = {}
+    kind, own = CHANNEL_METRICS[channel]
+    kw = dict(
+        light=light,
+        exposure=exposure,
+        flip_mode=flip_mode,
+        flip_range=flip_range,
+        ppd=ppd,
+        aa_samples=aa_samples,
+        coverage_only=coverage_only,
+    )
     edge = ref_ch["edge"] > 0.5
     if channel == "visibility":
-        ref = ref_ch["visibility"]
-        rec = reference_receivers(ref_ch, light)
-        sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
-        for k in _SHADOW_VALUES:
-            out[k] = sm[k]
-        out["receiver_count"] = sm["receiver_count"]
-        ref_se = ref_ch["visibility_stderr"]
-        lin = dict(tone_mapper="clip", exposure=0.0)
-        fl = M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
-        out["ssim"] = M.ssim(ref, cand, **lin)
-        out["psnr_db"] = M.psnr_db(ref, cand, **lin)
-        if full:
-            maps["visibility_error"] = sm["signed_error"]
-            maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    elif channel in COVERAGE_CHANNELS:
-        ref = ref_ch[channel]
-        rec = None
-        ref_se = ref_ch[f"{channel}_stderr"]
-        out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=aa_samples))
-        # silhouettes against the sky are edges of coverage even where one shape is seen
-        edge = edge | ((ref > 0) & (ref < 1))
-        lin = dict(tone_mapper="clip", exposure=0.0)
-        fl = None if coverage_only else M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
-        if not coverage_only:
-            out["ssim"] = M.ssim(ref, cand, **lin)
-            out["psnr_db"] = M.psnr_db(ref, cand, **lin)
-        if full:
-            maps["coverage_error"] = (cand - ref).astype(np.float32)
-    else:
-        ref = _rgb(ref_ch, "color")
-        rec = None
-        ref_se = _rgb(ref_ch, "color_stderr")
-        if flip_mode == "HDR":
-            fl = M.flip(ref, cand, mode="HDR", ppd=ppd, exposure_range=flip_range, full=full)
-        else:
-            fl = M.flip(ref, cand, mode="LDR", ppd=ppd, exposure=exposure, full=full)
-        out["ssim"] = M.ssim(ref, cand, exposure=exposure)
-        out["psnr_db"] = M.psnr_db(ref, cand, exposure=exposure)
-        de = M.delta_e2000(ref, cand, exposure=exposure, full=full)
-        out["delta_e2000_mean"] = de[0] if full else de
-        if full:
-            maps["delta_e2000"] = de[1]
+        cand = _receivers_only(ref_ch, cand, light=light, out=out)
+    ref, ref_se, rec, edge, fl = own(
+        ref_ch, cand, channel=channel, edge=edge, full=full, kw=kw, out=out, maps=maps
+    )
     if fl is None:
         out["flip_mean"] = None
     elif full:
@@ -211,6 +283,9 @@ def _metrics_for(
         p = p if p.ndim == 2 else p.min(axis=-1)
         # -log10 p: 0 where the difference is pure noise, large where it is significant
         maps["neg_log10_p"] = -np.log10(np.maximum(p, 1e-300))
+    for key in METRIC_KEYS:
+        if kind not in M.CATALOG[key].kinds:
+            out[key] = None
     return {k: _finite(v) if k in METRIC_KEYS else v for k, v in out.items()}, maps, ref, rec
 
 
@@ -252,15 +327,29 @@ def _noise_floor(
     if cached is not None and floor_key[0] is not None:
         return dict(cached)
     ref2_ch = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
-    second = ref2_ch[channel] if channel != "color" else _rgb(ref2_ch, "color")
+    second = _second(ref2_ch, channel)
     # what an exact candidate would score: A + (B - A)/sqrt(2) differs from A by noise of
     # A's variance (B itself would overstate the floor by about sqrt(2))
     exact = M.exact_surrogate(ref_img, second)
-    floor, _, _, _ = _metrics_for(channel, ref_ch, exact, full=False, **kw)
+    floor, _, _, rec = _metrics_for(channel, ref_ch, exact, full=False, **kw)
     floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
+    # the engine teams' gates (Unreal, Unity, edge-aware) on the same exact surrogate
+    floor.update(
+        exact_floors(ref_img, exact, ref_ch, channel=channel, exposure=kw["exposure"], mask=rec)
+    )
     if floor_cache is not None and floor_key[0] is not None:
         floor_cache[floor_key] = dict(floor)
     return floor
+
+
+def _second(ref2_ch: dict, channel: str) -> np.ndarray:
+    """The independently seeded reference of the noise floor (exact where its coverage is:
+    an exact truth has no noise floor)."""
+    if channel == "color":
+        return _rgb(ref2_ch, "color")
+    if channel in COVERAGE_CHANNELS:
+        return coverage_truth(ref2_ch, channel)[0]
+    return ref2_ch[channel]
 
 
 def added_flicker(reference_frames: np.ndarray, candidate_frames: np.ndarray) -> float:
@@ -282,25 +371,27 @@ def added_flicker(reference_frames: np.ndarray, candidate_frames: np.ndarray) ->
     return float(np.maximum(excess, 0.0).mean())
 
 
-def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet) -> dict:
+def _temporal_floor(result, scenes_k, settings, channel, *, cache, quiet):
     """Temporal metrics an exact candidate scores: every frame's independently seeded second
-    reference (``settings``) turned into the exact surrogate of its first."""
+    reference (``settings``) turned into the exact surrogate of its first; and those exact
+    frames (``(T, H, W[, 3])``, for the temporal AA metrics' floors)."""
     exact = []
     for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
         ch2 = get_reference(frame_scene, settings, cache=cache, quiet=quiet).channels()
-        second = ch2[channel] if channel != "color" else _rgb(ch2, "color")
+        second = _second(ch2, channel)
         exact.append(M.exact_surrogate(frame.reference, second))
     refs = np.stack([f.reference for f in result.frames])
     exact = np.stack(exact)
     return {
         "flicker": added_flicker(refs, exact),
         "temporal_error": M.temporal_error(refs, exact),
-    }
+    }, exact
 
 
-def _summary(result: ScoreResult, *, temporal: bool) -> dict:
-    """Per-frame metrics averaged over the frames, and the temporal metrics of the path."""
-    per_frame = [f.metrics for f in result.frames]
+def _summary(result: ScoreResult, *, temporal: bool, gate_frames: int | None = None) -> dict:
+    """Per-frame metrics averaged over the frames (the last ``gate_frames`` only, when
+    given: warm-up does not pass or fail a gate), and the temporal metrics of the path."""
+    per_frame = [f.metrics for f in result.frames][-(gate_frames or len(result.frames)) :]
     summary = {}
     for key in METRIC_KEYS:
         vals = [m[key] for m in per_frame if m.get(key) is not None]
@@ -313,6 +404,18 @@ def _summary(result: ScoreResult, *, temporal: bool) -> dict:
     return summary
 
 
+def _tone(channel, exposure, flip_mode, flip_range) -> dict | None:
+    """The record's ``tone_mapping`` (colour only)."""
+    if channel != "color":
+        return None
+    return {
+        "exposure_stops": exposure,
+        "tone_mapper": "aces",
+        "flip_mode": flip_mode,
+        "flip_exposure_range": list(flip_range) if flip_range else None,
+    }
+
+
 def _record(
     result, loaded, ref_meta, *, channel, summary, frames, camera_path, tone, ppd, spp, seed
 ) -> dict:
@@ -320,6 +423,9 @@ def _record(
     return {
         "schema": "raster-oracle/metrics/1",
         "channel": channel,
+        # this run's backend, device and self-check (a model ran here; the reference's
+        # own are under "reference")
+        "provenance": provenance(),
         **summary,
         "noise_floor": result.frames[0].noise_floor,
         "frames": [f.metrics for f in result.frames] if frames else None,
@@ -336,6 +442,10 @@ def _record(
             "noise_floor_seed": seed + 1,
             "channels": list(REFERENCE_GROUPS[channel]),
             "variant": ref_meta["variant"],
+            # the machine that rendered the reference and its self-check (older cache
+            # entries have neither)
+            "device": ref_meta.get("device"),
+            "self_check": ref_meta.get("self_check"),
             "versions": ref_meta["versions"],
             "cache_key": ref_meta["cache_key"],
             "filter": ref_meta["filter"],
@@ -359,6 +469,7 @@ def score(
     aa_samples: int | None = None,
     floor_cache: dict | None = None,
     coverage_only: bool = False,
+    gate_frames: int | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
@@ -375,7 +486,17 @@ def score(
         the references and scoring options only, so it is computed once per reference.
     coverage_only : a coverage channel whose coverage metrics alone are kept (an AA model's
         ``front_coverage`` beside its colour): no FLIP, SSIM or PSNR of it.
+    gate_frames : average the per-frame metrics over the last ``gate_frames`` frames only
+        (None: all), and judge convergence against their level.
+
+    A colour sequence (``frames`` >= 2) also gets the temporal AA metrics
+    (:mod:`oracle.scoring.temporal`); a candidate whose ``info`` carries ``"motion"`` (its
+    motion vectors, ``(H, W, 2)`` in the oracle's convention) and optionally
+    ``"disocclusion"`` gets their end-point error (the arrays leave ``info`` before it is
+    recorded).
     """
+    if gate_frames is not None and not 1 <= int(gate_frames) <= (frames or 1):
+        raise ScoreError(f"--gate-frames must be in [1, {frames or 1}], got {gate_frames}")
     if channel not in REFERENCE_GROUPS:
         raise ScoreError(f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {channel!r}")
     flip_mode = flip_mode.upper()
@@ -389,6 +510,7 @@ def score(
     result = ScoreResult(record={})
     exposure = flip_range = None
     infos = []
+    engine = []
     scenes_k = []
     for k in range(n):
         frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
@@ -396,6 +518,7 @@ def score(
         ref = get_reference(frame_scene, settings, cache=cache, quiet=quiet)
         ref_ch = ref.channels()
         cand, info = candidate_frames(frame_scene, k)
+        engine.append((info.pop("motion", None), info.pop("disocclusion", None)))
         infos.append(info)
         if k == 0 and channel == "color":
             ref_rgb = _rgb(ref_ch, "color")
@@ -415,6 +538,7 @@ def score(
         floor = None
         if k == 0:
             ref_meta = ref.meta
+            truth = coverage_truth(ref_ch, channel)[2] if channel in COVERAGE_CHANNELS else None
             floor = _noise_floor(
                 frame_scene,
                 ref,
@@ -429,26 +553,35 @@ def score(
             )
         result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
         result.reference_folders.append(ref.folder)
+    exact_frames = None
     if frames and n >= 2:
         floor = dict(result.frames[0].noise_floor or {})
-        floor.update(
-            _temporal_floor(result, scenes_k, noise_settings, channel, cache=cache, quiet=quiet)
+        tf, exact_frames = _temporal_floor(
+            result, scenes_k, noise_settings, channel, cache=cache, quiet=quiet
         )
+        floor.update(tf)
         result.frames[0].noise_floor = floor
-    tone = None
-    if channel == "color":
-        tone = {
-            "exposure_stops": exposure,
-            "tone_mapper": "aces",
-            "flip_mode": flip_mode,
-            "flip_exposure_range": list(flip_range) if flip_range else None,
-        }
+    tone = _tone(channel, exposure, flip_mode, flip_range)
+    summary = _summary(result, temporal=bool(frames) and n >= 2, gate_frames=gate_frames)
+    taa_detail = None
+    if frames and n >= 2 and channel == "color":
+        taa, taa_detail = add_temporal_aa(
+            result,
+            scenes_k,
+            seed=seed,
+            cache=cache,
+            quiet=quiet,
+            gate_frames=gate_frames,
+            engine_motion=engine,
+            exact_frames=exact_frames,
+        )
+        summary.update(taa)
     result.record = _record(
         result,
         loaded,
         ref_meta,
         channel=channel,
-        summary=_summary(result, temporal=bool(frames) and n >= 2),
+        summary=summary,
         frames=frames,
         camera_path=camera_path,
         tone=tone,
@@ -456,9 +589,62 @@ def score(
         spp=spp,
         seed=seed,
     )
+    _engine_records(result, channel=channel, exposure=exposure)
+    if truth is not None:
+        # which truth the coverage metrics used: exact (noise floor 0 there) or Monte Carlo
+        result.record["reference"]["coverage_truth"] = truth
     result.record["candidate_info"] = infos
+    result.record["gate_frames"] = gate_frames
+    result.record["temporal_aa"] = taa_detail
     result.record["wall_seconds"] = time.perf_counter() - t0
     return result
+
+
+#: Fractions of pixels and the frame metric holding how many pixels each is a fraction of
+#: (None: every tested value of the image).
+_FRACTION_OF = {
+    "significant_fraction": None,
+    "misclassified_fraction": "receiver_count",
+    "false_lit_fraction": "receiver_count",
+    "false_shadow_fraction": "receiver_count",
+    "edge_band_misclassified_fraction": "edge_band_count",
+}
+
+
+def _engine_records(result: ScoreResult, *, channel: str, exposure) -> None:
+    """The pixel-fraction noise floors, the engine teams' gate metrics and, for a shadow
+    mask, the pixels off the oracle's receivers (ignored and counted) of a scored result."""
+    _fraction_floors(result)
+    add_engine_gate_metrics(result, channel=channel, exposure=exposure)
+    if channel == "visibility":
+        result.record["outside_receivers"] = {
+            key: sum(int(f.metrics[k]) for f in result.frames)
+            for key, k in (
+                ("pixels", "outside_receivers"),
+                ("differing", "outside_receivers_differing"),
+            )
+        }
+
+
+def _fraction_floors(result: ScoreResult) -> None:
+    """The noise floors of the fractions of pixels: an exact candidate flags ~0 pixels
+    (``significant_fraction``'s Sidak correction; a 0.5 threshold), yet a re-rendered
+    reference flips the pixels near the threshold; each floor is at least that flip's bound
+    (:func:`metrics.fraction_floor` of the run's fraction over the pixels it counts), so an
+    unchanged candidate against another seed's reference is no regression."""
+    floors = result.record.get("noise_floor")
+    if floors is None:
+        return
+    for key, count_key in _FRACTION_OF.items():
+        value = result.record.get(key)
+        if value is None:
+            continue
+        if count_key is None:
+            n = sum(int(f.candidate.size) for f in result.frames)
+        else:
+            n = sum(int(f.metrics.get(count_key) or 0) for f in result.frames)
+        if n > 0:
+            floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(value, n))
 
 
 def metric_limit(

@@ -18,16 +18,14 @@ from ... import metrics as M
 from ... import raster_models
 from .score import COVERAGE_KEYS, ScoreError, ScoreResult, score
 
-__all__ = ["FAMILY_CHANNELS", "model_candidate", "score_model", "technique_channels"]
-
-#: Candidate channels each technique family produces (the first is scored first).
-FAMILY_CHANNELS = {"shadow": ("visibility",), "aa": ("color", "coverage")}
+__all__ = ["model_candidate", "score_model", "technique_channels"]
 
 
 def technique_channels(technique: str) -> tuple[str, ...]:
     """The channels a registered technique's model produces and is scored on (first: the
-    primary one). Raises ``raster_models.ModelError`` for an unknown technique."""
-    return FAMILY_CHANNELS[raster_models.family_of(technique)]
+    primary one; its family record's ``channels``). Raises ``raster_models.ModelError`` for
+    an unknown technique."""
+    return raster_models.family(technique).channels
 
 
 def model_candidate(technique: str, params: dict, *, channel: str = "visibility", runs=None):
@@ -51,6 +49,13 @@ def model_candidate(technique: str, params: dict, *, channel: str = "visibility"
             "diagnostics": res.diagnostics,
             "model_seconds": res.wall_seconds,
         }
+        if channel == "color" and "velocity_x" in res.outputs:
+            # a temporal model's own velocity buffer and history rejection, scored as an
+            # engine's motion vectors and disocclusion mask (oracle.scoring.temporal)
+            info["motion"] = np.stack(
+                [res.outputs["velocity_x"], res.outputs["velocity_y"]], -1
+            ).astype(np.float64)
+            info["disocclusion"] = np.asarray(res.outputs["rejected"]) > 0.5
         return np.asarray(res.outputs[channel], dtype=np.float32), info
 
     return run
@@ -97,6 +102,7 @@ def score_model(
     flip_mode: str = "LDR",
     ppd: float = M.DEFAULT_PPD,
     floor_cache: dict | None = None,
+    gate_frames: int | None = None,
 ) -> ScoreResult:
     """Score one technique configuration on ``loaded`` (``raster-oracle score --technique``).
 
@@ -110,6 +116,7 @@ def score_model(
     floor_cache : see :func:`oracle.scoring.score.score` (a sweep worker's noise floors).
     """
     produced = technique_channels(technique)
+    cov_channel = raster_models.family(technique).coverage_channel
     if channel is not None and channel not in produced:
         raise ScoreError(
             f"technique {technique} produces {' and '.join(produced)}; "
@@ -117,7 +124,7 @@ def score_model(
         )
     runs: dict = {}
     aa_samples = None
-    if "coverage" in produced:
+    if cov_channel is not None:
         # run frame 0 first: its full parameter record gives the sample count
         scene0 = loaded.with_frame(0, path=camera_path, n_frames=frames) if frames else loaded
         model_candidate(technique, params, channel=produced[0], runs=runs)(scene0, 0)
@@ -133,6 +140,7 @@ def score_model(
         ppd=ppd,
         aa_samples=aa_samples,
         floor_cache=floor_cache,
+        gate_frames=gate_frames,
     )
     result = score(
         loaded,
@@ -140,17 +148,40 @@ def score_model(
         candidate_frames=model_candidate(technique, params, channel=produced[0], runs=runs),
         **kw,
     )
-    if "coverage" in produced:
+    if cov_channel is not None:
         # the coverage metrics of a model: its front-most primitive's coverage against the
         # reference's (oracle.reference.coverage), an edge on every scene, backdrops included
         coverage = score(
             loaded,
-            channel="front_coverage",
-            candidate_frames=model_candidate(
-                technique, params, channel="front_coverage", runs=runs
-            ),
+            channel=cov_channel,
+            candidate_frames=model_candidate(technique, params, channel=cov_channel, runs=runs),
             coverage_only=True,  # only its COVERAGE_KEYS are kept (_merge_coverage)
             **kw,
         )
         _merge_coverage(result, coverage)
+    if raster_models.family(technique).temporal and frames and frames >= 2:
+        _against_ssaa8(result, loaded, frames=frames, camera_path=camera_path, judged=gate_frames)
     return result
+
+
+#: The steady level of a temporal technique is compared with this supersampling rate.
+STEADY_SSAA_SAMPLES = 8
+
+
+def _against_ssaa8(result: ScoreResult, loaded, *, frames: int, camera_path, judged) -> None:
+    """Record, next to a temporal technique's steady error, 8x SSAA's mean absolute error
+    over the same judged frames against the same references (``temporal_aa``:
+    ``ssaa8_error`` and ``steady_over_ssaa8``)."""
+    detail = result.record.get("temporal_aa")
+    if detail is None:
+        return
+    n = int(judged or frames)
+    errors = []
+    for k in range(frames - n, frames):
+        frame_scene = loaded.with_frame(k, path=camera_path, n_frames=frames)
+        ssaa = raster_models.run("ssaa", frame_scene, samples=STEADY_SSAA_SAMPLES)
+        ref = result.frames[k].reference
+        errors.append(float(np.abs(np.asarray(ssaa.outputs["color"]) - ref).mean()))
+    detail["ssaa8_error"] = float(np.mean(errors))
+    steady = result.record.get("steady_error")
+    detail["steady_over_ssaa8"] = steady / detail["ssaa8_error"] if detail["ssaa8_error"] else None

@@ -4,7 +4,9 @@
 loop of ``ray_intersect`` + ``ray_test`` on the same rays (generated beforehand and not timed,
 chunked the same way), its colour reference against Mitsuba's own ``direct`` integrator at
 the same spp on the same frame, and adaptive against uniform sampling at the same true
-maximum error on ``thin``, ``city`` and ``plate`` (:func:`bench_adaptive`).
+maximum error on ``thin``, ``city`` and ``plate`` (:func:`bench_adaptive`), and the analytic
+coverage channel against the 64-spp coverage reference on ``city`` and ``thin``
+(:func:`bench_exact_coverage`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,14 @@ import numpy as np
 from ...scenes import backend
 from ..phases import Phases, device_description, kernel_profile
 
-__all__ = ["ADAPTIVE_SCENES", "bench_adaptive", "bench_models", "bench_oracle"]
+__all__ = [
+    "ADAPTIVE_SCENES",
+    "EXACT_COVERAGE_SCENES",
+    "bench_adaptive",
+    "bench_exact_coverage",
+    "bench_models",
+    "bench_oracle",
+]
 
 
 def _bare_loop(loaded, spp: int, seed: int) -> tuple[float, int]:
@@ -148,6 +157,44 @@ def bench_adaptive(
         "ratio is against that largest one, an upper bound",
         "seconds": astats["wall_seconds"],
     }
+
+
+#: Scenes of the exact-coverage cost (issue 28).
+EXACT_COVERAGE_SCENES = ("city", "thin")
+
+
+def bench_exact_coverage(
+    *, scenes_: tuple[str, ...] = EXACT_COVERAGE_SCENES, width: int = 1920, height: int = 1080
+) -> dict:
+    """Cost of the analytic ``coverage_exact`` group against the 64-spp Monte Carlo
+    ``coverage`` group on the same frame: wall seconds of each reference (both trace the
+    pixel centres' shapes) and their ratio, per scene (one round each after a warm-up of
+    the Monte Carlo kernels)."""
+    from ... import scenes
+    from ..reference.render import ReferenceSettings, render_reference
+
+    out = {}
+    for name in scenes_:
+        loaded = scenes.load(name, width=width, height=height)
+        mc = ReferenceSettings(spp=64, channels=("coverage",))
+        render_reference(loaded, mc, quiet=True)  # warm-up: kernel compilation
+        t0 = time.perf_counter()
+        render_reference(loaded, mc, quiet=True)
+        mc_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        _, stats = render_reference(
+            loaded, ReferenceSettings(spp=64, channels=("coverage_exact",)), quiet=True
+        )
+        exact_s = time.perf_counter() - t0
+        out[name] = {
+            "resolution": [width, height],
+            "coverage_64spp_seconds": mc_s,
+            "coverage_exact_seconds": exact_s,
+            "exact_over_64spp_ratio": exact_s / mc_s,
+            "valid_fraction": stats["coverage_exact"]["valid_fraction"],
+            "triangles_projected": stats["coverage_exact"]["triangles_projected"],
+        }
+    return out
 
 
 def _mitsuba_direct(loaded, spp: int, seed: int) -> float:
@@ -297,6 +344,7 @@ def bench_oracle(
     color_cpu_ratio = float(np.median(np.array(color_cpu) / np.array(direct_cpu)))
     profile = color_profile(loaded, spp, tracing_seconds=float(np.median(bare_s_rounds)))
     adaptive = {name: bench_adaptive(scene=name, quiet=quiet) for name in adaptive_scenes}
+    exact_cov = bench_exact_coverage(width=width, height=height)
     device = device_description(backend.active().variant)
     return {
         "scene": "city",
@@ -336,6 +384,10 @@ def bench_oracle(
         "color_over_mitsuba_direct_target": "<= 1.0 (median of the per-round ratios; the CPU "
         "ratio, process CPU seconds, is the steadier one on a shared machine)",
         "adaptive": adaptive,
+        "coverage_exact": exact_cov,
+        "coverage_exact_over_64spp_ratio": {
+            name: row["exact_over_64spp_ratio"] for name, row in exact_cov.items()
+        },
         "adaptive_rays_ratio_vs_uniform": {
             name: row["rays_ratio_vs_uniform"] for name, row in adaptive.items()
         },

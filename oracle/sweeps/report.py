@@ -5,12 +5,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ... import raster_models
 from ...metrics.catalog import error_of
 from ...reports.sweep import with_memory, write_sweep_report
 from .run import SweepError
 from .store import SweepStore
 
-__all__ = ["metric_error", "sweep_report"]
+__all__ = ["family_defaults", "metric_error", "sweep_report"]
+
+
+def family_defaults() -> dict:
+    """``{family: {"metrics": [...], "costs": [...], "group": ...}}`` from the registry's
+    family records: what the report plots for a family when no metric or cost is requested,
+    and whose fronts its techniques join."""
+    return {
+        f.name: {"metrics": list(f.metrics), "costs": list(f.costs), "group": f.group}
+        for f in raster_models.FAMILIES.values()
+    }
 
 
 def metric_error(metric: str, value: float) -> float:
@@ -76,6 +87,7 @@ def sweep_report(
             costs=costs,
             metrics=metrics,
             extra_sections=extra_sections,
+            families=family_defaults(),
             images=images,
             viewers=store.viewers,
             rank=metric_error,

@@ -95,6 +95,12 @@ class WorkerCache:
 
         backend.select(variant)
         self.variant = variant
+        if backend.self_check() is None:  # a worker process: this machine's cached verdict
+            from ..certify.verdict import cached_verdict, summary
+
+            verdict = cached_verdict(variant)
+            if verdict is not None:
+                backend.set_self_check(summary(verdict))
         if self.threads is not None:
             import drjit as dr
 
@@ -177,15 +183,46 @@ def render_reference(job: dict, cache_root: str, variant: str | None) -> str:
     return ref.cache_status
 
 
+#: Last frames of a sequence case whose metrics are averaged (the steady state).
+SEQUENCE_GATE_FRAMES = 4
+
+
+def sequence_frames(rec: dict, loaded) -> int | None:
+    """Frames a case scores as one sequence (None: its own frame alone): every frame of its
+    camera path for a temporal family (TAA: ghosting and steady error need the sequence) and
+    for any technique on a scene whose objects move (the baselines beside it)."""
+    temporal = raster_models.family(rec["technique"]).temporal or bool(loaded.object_motion)
+    if temporal and rec.get("camera_path") and rec.get("n_frames", 1) >= 2:
+        return int(rec["n_frames"])
+    return None
+
+
 def evaluate_case(
-    loaded, technique: str, params: dict, *, spp: int, seed: int, cache, images: bool = False
+    loaded,
+    technique: str,
+    params: dict,
+    *,
+    spp: int,
+    seed: int,
+    cache,
+    images: bool = False,
+    frames: int | None = None,
 ) -> dict:
     """Score one technique configuration on ``loaded``: metrics, noise floor, cost, params.
 
     Shadow techniques are scored on visibility; anti-aliasing techniques on colour with the
     coverage metrics merged in, exactly as ``raster-oracle score --technique`` does. With
-    ``images``, ``"images"`` holds thumbnails (:func:`case_images`).
+    ``images``, ``"images"`` holds thumbnails (:func:`case_images`). With ``frames``, the
+    frames 0.. of ``loaded``'s camera path are scored as one sequence, the per-frame metrics
+    averaged over the last :data:`SEQUENCE_GATE_FRAMES` (the temporal AA metrics added).
     """
+    seq = {}
+    if frames:
+        seq = dict(
+            frames=frames,
+            camera_path=loaded.camera_path,
+            gate_frames=min(SEQUENCE_GATE_FRAMES, frames),
+        )
     result = score_model(
         loaded,
         technique,
@@ -195,6 +232,7 @@ def evaluate_case(
         cache=cache,
         quiet=True,
         floor_cache=WORKER_CACHE.floors,
+        **seq,
     )
     record = result.record
     info = record["candidate_info"][0]
@@ -218,14 +256,16 @@ def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bo
     t0 = time.perf_counter()
     try:
         WORKER_CACHE.ensure_backend(variant)
+        loaded = case_scene(rec)
         out = evaluate_case(
-            case_scene(rec),
+            loaded,
             rec["technique"],
             rec["params"],
             spp=rec["spp"],
             seed=rec["seed"],
             cache=ReferenceCache(cache_root),
             images=images,
+            frames=sequence_frames(rec, loaded),
         )
         out["status"], out["error"] = "done", None
     except Exception as exc:  # recorded in the store; the sweep goes on
@@ -272,7 +312,9 @@ def sweep_keys(cases: list[Case], variant: str) -> list[tuple[str, dict, dict]]:
         tech = raster_models.TECHNIQUES[case.technique]
         full = params.as_dict(params.make(case.technique, tech.params, case.params))
         identity = {
-            "scene": Path(case.scene).name if case.scene.endswith(".xml") else case.scene,
+            "scene": Path(case.scene).name
+            if case.scene.endswith((".xml", ".gltf", ".glb"))
+            else case.scene,
             "scene_hash": base.content_hash,
             "technique": case.technique,
             "params": full,

@@ -315,10 +315,10 @@ def _scene_name(where: str, name, base_dir: Path | None) -> str:
     path = Path(name)
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
-    if path.suffix.lower() != ".xml" or not path.is_file():
+    if path.suffix.lower() not in (".xml", ".gltf", ".glb") or not path.is_file():
         raise SpecError(
             f"{where}: unknown scene {name!r}: not a built-in scene "
-            f"({', '.join(scenes.BUILTIN_SCENES)}) and not a Mitsuba XML file"
+            f"({', '.join(scenes.BUILTIN_SCENES)}), a Mitsuba XML file nor a glTF file"
         )
     return str(path.resolve())
 

@@ -18,12 +18,20 @@ the reference, the candidate and its primary error map as ``data:`` URIs). Table
 :func:`reports.viewer.viewer_record`, at the thumbnails' resolution; about 0.1 to 1 MB a case).
 A store written before viewers were kept lacks that table: opened for writing it gains it
 (``CREATE TABLE IF NOT EXISTS``, its old rows keep no viewer); read only, it has no viewers.
+
+A store is untrusted when read (:meth:`SweepStore.check_integrity`, :meth:`SweepStore.rows`):
+a file shorter than its header says or not a whole number of pages (SQLite reads the missing
+bytes of a cut last page as zeros, and its own integrity check can pass), pages that fail
+SQLite's ``integrity_check``, text that is not UTF-8 and a row whose ``params``, ``metrics``
+or ``cost`` is not a JSON object, or whose metric values are not numbers (or null), are each a
+:class:`StoreError` naming the damage.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import sqlite3
 import time
@@ -97,8 +105,74 @@ CREATE TABLE IF NOT EXISTS sweep_viewers (key TEXT PRIMARY KEY, viewer TEXT NOT 
 """
 
 
+#: The 16 bytes every SQLite 3 database file starts with.
+SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
 class StoreError(InputError):
-    """The store file cannot be used (not SQLite, another schema, not writable)."""
+    """The store file cannot be used (not SQLite, another schema, not writable, damaged)."""
+
+
+def file_damage(path: str | os.PathLike) -> str | None:
+    """What is wrong with an SQLite file's size against its own header, or None.
+
+    The header (the first 100 bytes) gives the page size and, when its "version-valid-for"
+    number equals the change counter, the number of pages; a file shorter than that, or not
+    a whole number of pages, lost its end. Not judged while a non-empty write-ahead log
+    (``-wal``) lies beside the file: a checkpoint in progress writes the header first. A file
+    that is not SQLite at all is left to SQLite's own error.
+    """
+    path = Path(path)
+    wal = Path(f"{path}-wal")
+    try:
+        size = path.stat().st_size
+        if wal.is_file() and wal.stat().st_size > 0:
+            return None
+        with open(path, "rb") as f:
+            head = f.read(100)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    if len(head) < 100 or not head.startswith(SQLITE_MAGIC):
+        return None
+    page = int.from_bytes(head[16:18], "big")
+    page = 65536 if page == 1 else page
+    if page < 512 or page & (page - 1):
+        return f"its header names a page size of {page} bytes"
+    if size % page:
+        return f"truncated: {size} bytes is not a whole number of {page}-byte pages"
+    pages = int.from_bytes(head[28:32], "big")
+    if pages and head[24:28] == head[92:96] and size < pages * page:
+        return f"truncated: {size // page} pages of the {pages} its header counts"
+    return None
+
+
+def _value_error(value) -> str | None:
+    """Why a stored metric value is unusable (not a finite number or null), or None."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return f"a JSON {_json_kind(value)}"
+    return None if math.isfinite(value) else f"{value} (not finite)"
+
+
+def _json_kind(value) -> str:
+    kinds = {bool: "boolean", str: "string", list: "list", dict: "object"}
+    return kinds.get(type(value), type(value).__name__)
+
+
+def metrics_error(metrics: dict) -> str | None:
+    """Why a row's ``metrics`` object is unusable, or None: every value is a finite number or
+    null, ``noise_floor`` an object of those (or null)."""
+    for key, value in metrics.items():
+        if key == "noise_floor" and value is not None:
+            if not isinstance(value, dict):
+                return f"metrics['noise_floor'] is a JSON {_json_kind(value)}, not an object"
+            for name, floor in value.items():
+                if (why := _value_error(floor)) is not None:
+                    return f"metrics['noise_floor'][{name!r}] is {why}, not a number"
+        elif key != "noise_floor" and (why := _value_error(value)) is not None:
+            return f"metrics[{key!r}] is {why}, not a number"
+    return None
 
 
 def dumps(value) -> str:
@@ -139,10 +213,13 @@ class SweepStore:
             raise StoreError(f"sweep database {self.path}: no such file")
         if self.path.exists() and not self.path.is_file():
             raise StoreError(f"sweep database {self.path} exists and is not a file")
+        if readonly and (why := file_damage(self.path)) is not None:
+            raise StoreError(f"sweep database {self.path}: {why}")
         if not readonly and self.path.is_file() and self.path.stat().st_size > 0:
-            # An existing file is checked read-only first: a foreign database or another
-            # schema version is refused without a byte of it changed.
-            SweepStore(self.path, readonly=True).conn.close()
+            # An existing file is checked read-only first: a foreign database, another
+            # schema version or a damaged file is refused without a byte of it changed.
+            with SweepStore(self.path, readonly=True) as existing:
+                existing.check_integrity(quick=True)
         try:
             if readonly:
                 uri = f"file:{self.path.resolve()}?mode=ro"
@@ -160,8 +237,8 @@ class SweepStore:
                 )
                 self.conn.commit()
             row = self.conn.execute("SELECT value FROM sweep_meta WHERE name = 'schema'").fetchone()
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        except (sqlite3.DatabaseError, UnicodeDecodeError) as exc:
+            raise self._damaged(exc) from None
         if row is None or row[0] != str(SCHEMA_VERSION):
             found = row[0] if row else "none"
             raise StoreError(
@@ -246,8 +323,14 @@ class SweepStore:
         sql += " ORDER BY finished, key"
         try:
             return [self._row(r) for r in self.conn.execute(sql, params).fetchall()]
-        except sqlite3.DatabaseError as exc:  # missing table, wrong shape, damaged pages
-            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        except (sqlite3.DatabaseError, UnicodeDecodeError) as exc:  # missing table, wrong
+            raise self._damaged(exc) from None  # shape, damaged pages, text not UTF-8
+
+    def _damaged(self, exc: Exception) -> StoreError:
+        """The :class:`StoreError` of an error SQLite (or the decoding of its text) raised."""
+        if isinstance(exc, UnicodeDecodeError):
+            return StoreError(f"sweep database {self.path}: damaged: text that is not UTF-8")
+        return StoreError(f"sweep database {self.path}: {exc}")
 
     def _row(self, values) -> dict:
         """One row as a record; rows are untrusted (a store can be edited by hand): a JSON
@@ -267,6 +350,8 @@ class SweepStore:
                     "a JSON object"
                 )
             row[name] = value
+        if row["metrics"] is not None and (why := metrics_error(row["metrics"])) is not None:
+            raise StoreError(f"sweep database {self.path}: row {str(row['key'])[:16]!r}: {why}")
         return row
 
     def images(self, keys) -> dict[str, dict]:
@@ -280,8 +365,8 @@ class SweepStore:
                     out[key] = images
         except sqlite3.OperationalError:  # a store written before thumbnails were kept
             return {}
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        except (sqlite3.DatabaseError, UnicodeDecodeError) as exc:
+            raise self._damaged(exc) from None
         return out
 
     def viewers(self, keys) -> dict[str, dict]:
@@ -304,18 +389,29 @@ class SweepStore:
                     out[key] = viewer
         except sqlite3.OperationalError:  # a store written before viewers were kept
             return {}
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(f"sweep database {self.path}: {exc}") from None
+        except (sqlite3.DatabaseError, UnicodeDecodeError) as exc:
+            raise self._damaged(exc) from None
         return out
 
-    def check_integrity(self) -> None:
-        """Raise :class:`StoreError` when SQLite's ``integrity_check`` finds damage."""
+    def check_integrity(self, *, quick: bool = False) -> None:
+        """Raise :class:`StoreError` naming the damage when the file is shorter than its
+        header says (:func:`file_damage`) or SQLite's ``integrity_check`` (``quick_check``
+        with ``quick``: pages and records, not indexes against their tables) finds any."""
+        if (why := file_damage(self.path)) is not None:
+            raise StoreError(f"sweep database {self.path}: {why}")
+        pragma = "quick_check" if quick else "integrity_check"
         try:
-            ok = self.integrity_ok()
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(f"sweep database {self.path}: {exc}") from None
-        if not ok:
-            raise StoreError(f"sweep database {self.path}: fails SQLite's integrity check")
+            found = self.conn.execute(f"PRAGMA {pragma}(1)").fetchone()[0]
+        except (sqlite3.DatabaseError, UnicodeDecodeError) as exc:
+            raise self._damaged(exc) from None
+        if found != "ok":
+            raise StoreError(
+                f"sweep database {self.path}: damaged: SQLite's {pragma} says {found!r}"
+            )
 
     def integrity_ok(self) -> bool:
-        return self.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        try:
+            self.check_integrity()
+        except StoreError:
+            return False
+        return True

@@ -35,10 +35,8 @@ from .run import run_case, store_row, sweep_keys
 from .spec import Case
 from .store import SweepStore
 
-__all__ = ["DEFAULT_COST", "TuneError", "parse_space", "parse_target", "run_tune"]
+__all__ = ["TuneError", "parse_space", "parse_target", "run_tune"]
 
-#: Cost minimised when ``--minimize`` is not given: the family's memory.
-DEFAULT_COST = {"shadow": "shadow_map_bytes", "aa": "framebuffer_bytes"}
 #: Default search space: shadow-map resolution from 64^2 to 4096^2 texels (log scale).
 DEFAULT_RESOLUTION = (64, 4096)
 #: Constraint value of a trial whose case failed (infeasible, worse than any real miss).
@@ -173,7 +171,8 @@ def _problem(
     loaded = scenes.load(scene, width=width, height=height, light=light)
     if loaded.light.kind not in raster_models.TECHNIQUES[technique].lights:
         raise TuneError(f"{technique} does not support the {loaded.light.kind} light of {scene}")
-    cost_key = minimize or DEFAULT_COST.get(raster_models.family_of(technique))
+    # the cost minimised when --minimize is not given: the family's memory
+    cost_key = minimize or raster_models.family(technique).memory_cost
     _probe_cost_key(scene, technique=technique, cost_key=cost_key, light=light, params=fixed_params)
     ident = json.dumps(
         [

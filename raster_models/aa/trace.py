@@ -21,7 +21,9 @@ intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engin
 Values are float32 (Mitsuba's ``Float``), as a GPU computes them. The Dr.Jit side of each
 (:func:`prepass_dr`, :func:`attributes_dr`, :func:`shade_dr`) is also callable on Dr.Jit
 arrays, for models that chain them without NumPy round trips (:mod:`.agaa.kernels`,
-:mod:`.acaa.trace`).
+:mod:`.acaa.trace`). ``target`` (a sub-scene) and ``scene.mi_scene`` are different Mitsuba
+scenes: evaluate what one traced (``scenes.kernels.evaluate_trace``) before the other
+traces (one scene per kernel; OptiX silently disables the second trace).
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ import math
 import numpy as np
 
 from ...scenes import backend
+from ...scenes.gltf_materials import surface_dr
+from ...scenes.pbr import shade_gltf
 from ...scenes.raycast import (
     SHADOW_OFFSET,
     SHADOW_OFFSET_MESH,
@@ -226,6 +230,12 @@ def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, fra
 
 #: The (F, 3) attributes of :func:`fragment_attributes`.
 _VECTOR_ATTRIBUTES = ("position", "normal", "geo_normal", "albedo", "to_eye")
+#: The further (F, 3) attributes on a glTF scene: (metallic, roughness, 0) and emissive.
+_PBR_ATTRIBUTES = ("material", "emissive")
+
+
+def _vector_keys(scene) -> tuple[str, ...]:
+    return _VECTOR_ATTRIBUTES + (_PBR_ATTRIBUTES if scene.pbr is not None else ())
 
 
 def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
@@ -243,7 +253,10 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
     dict of NumPy arrays (F rows): ``valid``, ``position`` (on the primitive's plane, under
     ``(cx, cy)``), ``normal`` (shading normal extrapolated to that point, unit, facing the
     viewer), ``geo_normal``, ``albedo``, ``to_eye``, ``offset`` (the oracle's shadow-ray
-    offset for the shape type), ``depth`` (view depth of ``position``); ``float32``.
+    offset for the shape type), ``depth`` (view depth of ``position``); ``float32``. On a glTF
+    scene also ``material`` ((metallic, roughness, 0)) and ``emissive``, evaluated at the
+    extrapolated ``uv``, ``albedo`` is the base colour and ``normal`` is bent by the normal
+    texture.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -258,7 +271,7 @@ def fragment_attributes(scene, sx, sy, cx, cy, *, mi_scene=None) -> dict:
     }
     # Vectors are (F, 3) views of planar (3, F) storage: Dr.Jit's own layout, so neither the
     # copy out of Dr.Jit nor :func:`shade_points`' copy back in interleaves or gathers.
-    planar = {k: np.zeros((3, total), np.float32) for k in _VECTOR_ATTRIBUTES}
+    planar = {k: np.zeros((3, total), np.float32) for k in _vector_keys(scene)}
     for start in range(0, total, CHUNK):
         sl = slice(start, min(total, start + CHUNK))
         vals = attributes_dr(scene, target, *(mi.Float(a[sl]) for a in (sx, sy, cx, cy)))
@@ -315,8 +328,20 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
     ns = facing(ns, to_eye)
     si.uv = si.uv + mi.Point2f(du, dv)
     si.p = xc
-    bsdf = si.bsdf(ray_s)
-    albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
+    pbr_vals = {}
+    if scene.pbr is not None:  # glTF material at the extrapolated uv (scenes.gltf_materials)
+        shape = dr.gather(
+            mi.Int32, shape_table(mi, dr, scene), dr.reinterpret_array(mi.UInt32, si.shape)
+        )
+        mat = surface_dr(scene.pbr, si, shape, ns, to_eye, valid)
+        albedo, ns = dr.select(valid, mat["base_color"], 0.0), mat["normal"]
+        pbr_vals = {
+            "material": mi.Vector3f(mat["metallic"], mat["roughness"], 0.0),
+            "emissive": mi.Vector3f(mat["emissive"].x, mat["emissive"].y, mat["emissive"].z),
+        }
+    else:
+        bsdf = si.bsdf(ray_s)
+        albedo = dr.select(valid, bsdf.eval_diffuse_reflectance(si, valid), 0.0)
     offset = dr.select(si.shape.is_mesh(), SHADOW_OFFSET_MESH, SHADOW_OFFSET)
     depth = view_depth(cam, xc)
     vals = {
@@ -328,6 +353,7 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
         "to_eye": to_eye,
         "offset": offset,
         "depth": depth,
+        **pbr_vals,
     }
     return vals
 
@@ -376,6 +402,9 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
             offset = mi.Float(aligned(attrs["offset"][sl]))
         else:
             vis = mi.Float(aligned(visibility[sl]))
+        pbr = {}
+        if scene.pbr is not None and "material" in attrs:
+            pbr = {"material": vec("material", sl), "emissive": mi.Color3f(vec("emissive", sl))}
         rgb, candidate = shade_dr(
             scene,
             valid,
@@ -387,6 +416,7 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
             offset=offset,
             visibility=vis,
             filtered_normal=filtered_normal,
+            **pbr,
         )
         count = dr.count(candidate) if visibility is None else None
         if count is not None:
@@ -410,10 +440,17 @@ def shade_dr(
     offset=None,
     visibility=None,
     filtered_normal: bool = False,
+    material=None,
+    emissive=None,
 ):
     """The Dr.Jit side of :func:`shade_points` on Dr.Jit arrays (``offset`` for the exact
     shadow ray when ``visibility`` is None). Returns ``(rgb, candidate)``: the Color3f
-    radiance (0 where not ``valid``) and the lanes given a shadow test (unevaluated)."""
+    radiance (0 where not ``valid``) and the lanes given a shadow test (unevaluated).
+
+    On a glTF scene, ``material`` ((metallic, roughness, 0), Vector3f) and ``emissive``
+    (Color3f) select the glTF BRDF (:func:`scenes.pbr.shade_gltf`) with ``albedo`` as the
+    base colour; a filtered normal is then used normalized (its length scales the result,
+    the linear average of the fragments' cosine terms where they all face the light)."""
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -434,6 +471,20 @@ def shade_dr(
     else:
         vis = dr.select(candidate, visibility, 0.0)
     irr = light.irradiance_scale(wl, dist)
+    if scene.pbr is not None and material is not None:
+        rgb = shade_gltf(
+            base_color=albedo,
+            metallic=material.x,
+            roughness=material.y,
+            emissive=mi.Color3f(0.0),
+            normal=nh,
+            to_light=wl,
+            to_eye=to_eye,
+            irradiance_scale=irr * length if filtered_normal else irr,
+            visibility=vis,
+            light=light,
+        )
+        return dr.select(valid, rgb + emissive, 0.0), candidate
     rgb = shade(
         albedo=albedo * length if filtered_normal else albedo,
         normal=nh,

@@ -2,14 +2,15 @@
 rasterization of triangles over a light-space grid (all vectorized, chunked by rows).
 
 Shadow volume of a triangle under a directional light travelling along ``d`` (unit): the
-three edge planes through each edge and ``d`` (normals ``(v_j - v_i) x d`` turned to face
-the third vertex) and the triangle's own plane (unit normal turned along ``d``, pushed away
-from the light by ``epsilon`` world units). Under a spot light at ``L`` the edge planes pass
-through ``L`` (normals ``(v_i - L) x (v_j - L)``): the three half-spaces meet in the cone
-from ``L`` through the triangle (one nappe: the cone spanned by ``v_i - L``). A point ``q``
-is in shadow of the triangle when every edge plane has ``q`` on its inner side (``>= 0``:
-closed) and ``n . (q - v0) > eps``. Triangles whose plane contains ``d`` (or ``L``) have
-zero projected area, cast no shadow and are culled.
+three edge planes through each edge and ``d`` (unit normals along ``(v_j - v_i) x d`` turned
+to face the third vertex: a plane value is a distance) and the triangle's own plane (unit
+normal turned along ``d``, pushed away from the light by ``epsilon`` world units). Under a
+spot light at ``L`` the edge planes pass through ``L`` (unit normals along ``(v_i - L) x
+(v_j - L)``): the three half-spaces meet in the cone from ``L`` through the triangle (one
+nappe: the cone spanned by ``v_i - L``). A point ``q`` is in shadow of the triangle when
+every edge plane has ``q`` on its inner side (``>= 0``: closed) and ``n . (q - v0) > eps``.
+Triangles whose plane contains ``d`` (or ``L``) have zero projected area, cast no shadow and
+are culled.
 
 Conservative rasterization: a texel square ``[i, i+1] x [j, j+1]`` (texel units) overlaps a
 2D triangle exactly when it overlaps its bounding box and, for each edge, the square's corner
@@ -25,10 +26,13 @@ import numpy as np
 
 __all__ = [
     "CONSERVATIVE_MARGIN",
+    "HIT_REACH",
     "MEMO_KEY",
     "RASTER_CHUNK",
     "chunks_by_total",
     "conservative_fragments",
+    "grown_fragments",
+    "ray_hits",
     "onto_own_planes",
     "scene_triangles",
     "surface_triangles",
@@ -38,6 +42,12 @@ __all__ = [
 #: Texels of slack in the conservative overlap test (float64 rounding of edge functions is
 #: ~1e-12 texels at 16384^2; a million times that keeps every touched texel).
 CONSERVATIVE_MARGIN = 1e-6
+
+#: How far from its G-buffer position (relative to ``1 + max|p|``) a pixel ray's hit on the
+#: point's own plane is taken as its exact hit (:func:`ray_hits`): float32 rounding
+#: puts the position about 2^-22 of that from it; 2^-12 keeps a margin and drops a ray nearly
+#: parallel to the plane (no stable hit).
+HIT_REACH = 2.0**-12
 
 #: Candidate (texel) tests per rasterization chunk: bounds memory (~100 MiB a chunk).
 RASTER_CHUNK = 1 << 22
@@ -111,7 +121,8 @@ def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
     and a distance to another triangle's plane is known to that precision too: what lets the
     epsilon band (:func:`raster_models.izb.kernel.band_floor`) flag gaps far below float32
     rounding. The move is along the normal only, by that rounding: the sample stays where the
-    pixel's ray met the surface, up to float32 precision.
+    pixel's ray met the surface, up to float32 precision, as the oracle's own rays start
+    (:func:`ray_hits` gives the exact hit).
     """
     p = np.array(p, dtype=np.float64)
     moved = own >= 0
@@ -126,6 +137,32 @@ def onto_own_planes(tris: np.ndarray, own: np.ndarray, p: np.ndarray):
     moved[:] = False
     moved[rows] = True
     return p, moved
+
+
+def ray_hits(tris: np.ndarray, own: np.ndarray, p: np.ndarray, origins, directions):
+    """Where rays meet the planes of triangles ``own`` (index into ``tris``), in float64: the
+    pixels' exact hits of points ``p (N, 3)`` on their own planes (:func:`onto_own_planes`)
+    from the pixels' camera rays ``origins``, ``directions`` ``(N, 3)``
+    (:meth:`scenes.camera.Camera.rays`), put back on the plane along its normal.
+
+    Within its plane the G-buffer position lies beside the pixel's true hit by float32
+    rounding (3.6e-6 units at the origin for a 15-unit rectangle 1 unit from the camera,
+    1.3e-4 units 1,000 units out): enough to put a pixel outside an occluder's edge plane that
+    an exact ray from its true hit is inside, which the epsilon band must flag
+    (:class:`raster_models.izb.kernel.PairTester`). A point keeps ``p`` where its ray is
+    parallel to the plane or meets it farther than :data:`HIT_REACH` from it.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        normal /= np.linalg.norm(normal, axis=1)[:, None]  # per triangle, then per point
+        n, v0 = normal[own], tris[own, 0]
+        s = np.einsum("ij,ij->i", v0 - origins, n) / np.einsum("ij,ij->i", directions, n)
+        h = directions * s[:, None]
+        h += origins
+        h -= np.einsum("ij,ij->i", h - v0, n)[:, None] * n  # the hit's rounding off the plane
+        reach = HIT_REACH * (1.0 + np.abs(p).max(axis=1))
+        use = np.abs(h - p).max(axis=1) <= reach  # False where h is not finite
+    return np.where(use[:, None], h, p)
 
 
 def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None):
@@ -168,6 +205,10 @@ def shadow_volumes(tris: np.ndarray, direction, epsilon: float, *, position=None
         else:
             ne = np.cross(a - light, b - light)
         s = np.sign(np.einsum("ij,ij->i", ne, c - a))
+        length = np.linalg.norm(ne, axis=1)
+        # unit length (a plane value is a distance: the band's edge slack is one); an edge
+        # along the light direction has no plane and stays 0 (always inside)
+        s = np.divide(s, length, out=np.zeros_like(s), where=length > 0)
         ne = ne * s[:, None]
         planes[:, row, :3] = ne
         planes[:, row, 3] = -np.einsum("ij,ij->i", ne, a)
@@ -219,11 +260,21 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
     chunks of at most about :data:`RASTER_CHUNK` candidate texels (one triangle's bounding
     box is split by rows, so memory is bounded for any triangle size).
     """
+    for tri, texel, _ in grown_fragments(uv, resolution, margin=0.0):  # chunks
+        yield tri, texel
+
+
+def grown_fragments(uv: np.ndarray, resolution: int, *, margin: float):
+    """:func:`conservative_fragments` of the triangles grown by ``margin`` texels: every
+    texel within that distance (max-norm) of a triangle, with ``exact`` (bool), whether the
+    triangle itself touches it (a fragment of :func:`conservative_fragments`); with
+    ``margin=0`` every fragment is exact. Yields ``(tri, texel, exact)`` chunks."""
     r = int(resolution)
     if len(uv) == 0:
         return
-    lo = np.floor(uv.min(axis=1)).astype(np.int64)
-    hi = np.floor(uv.max(axis=1)).astype(np.int64)
+    tight = np.floor(uv.min(axis=1)).astype(np.int64), np.floor(uv.max(axis=1)).astype(np.int64)
+    lo = np.floor(uv.min(axis=1) - margin).astype(np.int64)
+    hi = np.floor(uv.max(axis=1) + margin).astype(np.int64)
     lo = np.maximum(lo, 0)
     hi = np.minimum(hi, r - 1)
     ok = np.all(hi >= lo, axis=1)
@@ -231,6 +282,7 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
     if len(idx) == 0:
         return
     lo, hi = lo[idx], hi[idx]
+    tight = tight[0][idx], tight[1][idx]
     coef = _edge_functions(uv[idx])
     width = hi[:, 0] - lo[:, 0] + 1
     height = hi[:, 1] - lo[:, 1] + 1
@@ -244,9 +296,23 @@ def conservative_fragments(uv: np.ndarray, resolution: int):
         j = np.repeat(row_j[sl], row_w[sl])
         first = np.cumsum(row_w[sl]) - row_w[sl]
         i = lo[t, 0] + (np.arange(len(t)) - np.repeat(first, row_w[sl]))
-        inside = np.ones(len(t), dtype=bool)
-        for e in range(3):  # the three edges
-            a, b, c = coef[t, e, 0], coef[t, e, 1], coef[t, e, 2]
-            best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
-            inside &= best >= -CONSERVATIVE_MARGIN * (np.abs(a) + np.abs(b))
-        yield idx[t[inside]], j[inside] * r + i[inside]
+        inside = _touched(coef, t, i, j, CONSERVATIVE_MARGIN + margin)
+        t, i, j = t[inside], i[inside], j[inside]
+        if margin > 0:  # the fragments (few) again, without the margin
+            exact = (i >= tight[0][t, 0]) & (i <= tight[1][t, 0])
+            exact &= (j >= tight[0][t, 1]) & (j <= tight[1][t, 1])
+            exact &= _touched(coef, t, i, j, CONSERVATIVE_MARGIN)
+        else:
+            exact = np.ones(len(t), dtype=bool)
+        yield idx[t], j * r + i, exact
+
+
+def _touched(coef, t, i, j, margin: float) -> np.ndarray:
+    """Whether texels ``(i, j)`` lie within ``margin`` texels of triangles ``t`` (edge
+    functions ``coef``): for each edge, the texel's corner farthest inside is inside."""
+    inside = np.ones(len(t), dtype=bool)
+    for e in range(3):  # the three edges
+        a, b, c = coef[t, e, 0], coef[t, e, 1], coef[t, e, 2]
+        best = a * (i + (a > 0)) + b * (j + (b > 0)) + c
+        inside &= best >= -margin * (np.abs(a) + np.abs(b))
+    return inside

@@ -3,12 +3,16 @@
 A join takes fragments (triangle, first node, list length) and tests every (triangle,
 receiver) pair of their lists: per pair the shadowed flag (1 sample) or the 32-bit mask of
 the tangent-plane points inside the triangle's shadow volume (32 samples), and the flag/mask
-of the samples in the epsilon band (inside the edge planes, beyond the pushed triangle plane
-by more than float32 rounding but by at most ``epsilon``; see :data:`BAND_FLOOR`), OR-ed
-into the receivers' state (an OR is order-free: the same bits however the pairs are split).
+of the samples in the epsilon band (see :class:`PairTester`: samples whose exact shadow ray,
+from the pixel's exact hit, may meet the triangle; those the volume does not shadow are lit
+by the epsilon or by the rounding of the G-buffer position), OR-ed into the receivers' state
+(an OR is order-free: the same bits however the pairs are split).
 
 Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
-``(base + da a) + db b``, in float64 without fused multiply-adds.
+``(base + da a) + db b``, in float64 without fused multiply-adds: every product is rounded
+explicitly (:func:`scenes.kernels.product_rounder`), since ``ptxas`` contracts a
+multiply and an add on CUDA (IZB on a spot light disagreed with the oracle's centre ray and
+tangent-plane reference on an H200, within the float rounding of these planes).
 ``tests/_izb_reference.py`` holds a NumPy version of the same tests, the reference
 ``tests/test_izb.py`` compares the kernels with (exactly: masks and flags).
 
@@ -26,10 +30,10 @@ band included: both masks 0; all inside every plane: mask full); the second eval
 points of the remaining pairs only.
 
 Memory layout (the join is bound by fetching receivers, not by arithmetic): each receiver's
-values are one row in arrays of power-of-two widths (``p``, ``dP/dx``, ``dP/dy``, floor:
-8 + 2 float64; ``p``, floor: 4), rows stored in the order the pairs read them (list-node
-order as built), and rows and triangle planes are fetched as packet loads
-(``JitFlag.PacketOps``).
+values are one row in arrays of power-of-two widths (``p``, ``dP/dx``, ``dP/dy``, floor,
+exact hit and a pad: 8 + 2 + 4 float64; ``p``, floor, exact hit, pad: 4 + 4), rows stored in
+the order the pairs read them (list-node order as built), and rows and triangle planes are
+fetched as packet loads (``JitFlag.PacketOps``).
 The values and the arithmetic are unchanged: the same bits.
 """
 
@@ -40,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...scenes.kernels import product_rounder
 from .geometry import chunks_by_total
 
 __all__ = [
@@ -135,12 +140,25 @@ class PairTester:
     planes : ``(K, 4, 4)`` float64 shadow-volume planes
         (:func:`raster_models.izb.geometry.shadow_volumes`).
     recv : ``p`` ``(M, 3)``, optionally ``floor_scale`` ``(M,)`` (the ``scale`` of each
-        receiver's :func:`band_floor`; :data:`BAND_FLOOR` without it) and, for 32 samples,
-        ``dpdx``, ``dpdy`` ``(M, 3)`` and the tangent-plane offsets ``a``, ``b`` ``(32,)``.
+        receiver's :func:`band_floor`; :data:`BAND_FLOOR` without it), ``hit`` ``(M, 3)``
+        (the pixel's exact hit, :func:`raster_models.izb.geometry.ray_hits`; ``p``
+        without it) and, for 32 samples, ``dpdx``, ``dpdy`` ``(M, 3)`` and the tangent-plane
+        offsets ``a``, ``b`` ``(32,)``.
     node_recv : ``(N,)`` receiver of each node of the lists as built; a join's lists are
         these nodes or a subset of them (``node_id``, see :meth:`join`).
     epsilon : the shadow volumes' epsilon (world units); each receiver's band floor is
         :func:`band_floor` of its ``p``, computed where needed.
+
+    A sample (``p``, or ``p + a dP/dx + b dP/dy``) is shadowed by a triangle inside every
+    edge plane (``>= 0``) and beyond the pushed plane (``> 0``). Its band bit says that an
+    exact shadow ray from the same sample of the pixel's exact hit (``hit`` in place of
+    ``p``) may meet the triangle: that point inside every edge plane up to the rounding of
+    the plane values (``>= -(floor + epsilon)``: the unit-normal edge planes of
+    :func:`raster_models.izb.geometry.shadow_volumes` give distances) and beyond the
+    triangle's plane by more than that rounding (``> floor``). The output keeps the band
+    bits of the samples the model lights: lit by the epsilon (the gap to the occluder below
+    it), or by the G-buffer's float32 position lying outside an edge its exact hit is
+    inside (a grazing light turns 1e-4 units of rounding 1,000 units out into a 2-cm strip).
 
     Attributes
     ----------
@@ -209,14 +227,16 @@ class PairTester:
             dr.eval(d["planes"])
             keys = ("p", "dpdx", "dpdy") if self.thirty_two else ("p",)
             # NumPy-backed (no copy) sources of the receivers' rows
+            keys += ("hit" if "hit" in self.recv else "p",)
             d["sources"] = [
                 f64(np.ascontiguousarray(self.recv[k], dtype=np.float64).ravel()) for k in keys
             ]
             scale = self.recv.get("floor_scale")
             d["scale"] = None if scale is None else f64(np.asarray(scale, dtype=np.float64))
             # row arrays of power-of-two widths (packet loads, see _plane_terms): p, dP/dx,
-            # dP/dy and the floor (10 values) as 8 + 2; p and the floor as 4
-            d["widths"] = (8, 2) if self.thirty_two else (4,)
+            # dP/dy, the floor, the exact hit and a pad (14 values) as 8 + 2 + 4; p, the
+            # floor, the exact hit and a pad as 4 + 4
+            d["widths"] = (8, 2, 4) if self.thirty_two else (4, 4)
             d["array"] = importlib.import_module(f64.__module__).ArrayXf64
             self._dr = (mi, d)
         return self._dr
@@ -243,8 +263,11 @@ class PairTester:
         f64 = mi.Float64
         n = dr.width(recv)
         cols = [dr.gather(f64, src, recv * 3 + j) for src in d["sources"] for j in range(3)]
+        hit = cols[-3:]
+        cols = cols[:-3]
         scale = BAND_FLOOR if d["scale"] is None else dr.gather(f64, d["scale"], recv)
         cols.append(band_floor(cols[:3], self.epsilon, scale))
+        cols += [*hit, dr.zeros(f64, n)]
         out, lane = [], dr.arange(mi.UInt32, n)
         for w in d["widths"]:  # packet stores
             arr = dr.empty(f64, n * w)
@@ -275,11 +298,12 @@ class PairTester:
 
     # ---- the tests
     def _plane_terms(self, tri, rows, row):
-        """Dr.Jit ``base``, ``da``, ``db`` (lists of 4) and ``floor`` of pairs: triangles
-        ``tri``, receivers at ``row`` of ``rows`` (:meth:`_rows`)."""
+        """Dr.Jit ``base``, ``da``, ``db`` (lists of 4), ``floor`` and ``exact`` (the plane
+        values at the exact hit, a list of 4) of pairs: triangles ``tri``, receivers at
+        ``row`` of ``rows`` (:meth:`_rows`)."""
         import drjit as dr
 
-        _, d = self._inputs()
+        mi, d = self._inputs()
         # Packet gathers (JitFlag.PacketOps): a triangle's 16 plane values and a receiver's
         # row are contiguous, loaded as packets instead of one gather per value.
         pl = dr.gather(d["array"], d["planes"], tri, shape=(16, dr.width(tri)))
@@ -288,55 +312,70 @@ class PairTester:
             rv += list(dr.gather(d["array"], arr, row, shape=(w, dr.width(row))))
         rows = [[pl[4 * k + j] for j in range(4)] for k in range(4)]
         p = [rv[0], rv[1], rv[2]]
+        mul = product_rounder(mi.Float64)
 
         def dot(n, v):
-            return n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+            return mul(n[0], v[0]) + mul(n[1], v[1]) + mul(n[2], v[2])
 
         base = [dot(row, p) + row[3] for row in rows]
-        floor = rv[-1]
+        floor, hit = rv[-5], rv[-4:-1]
+        exact = [dot(row, hit) + row[3] for row in rows]
         if not self.thirty_two:
-            return base, None, None, floor
+            return base, None, None, floor, exact
         dx, dy = [rv[3], rv[4], rv[5]], [rv[6], rv[7], rv[8]]
         da = [dot(row, dx) for row in rows]
         db = [dot(row, dy) for row in rows]
-        return base, da, db, floor
+        return base, da, db, floor, exact
 
-    def _classes(self, base, da, db, floor):
+    def _classes(self, base, da, db, floor, exact):
         """Dr.Jit 32 samples: ``none`` (no point inside, none in the band) and ``full`` (every
         point inside) from bounds of the planes over the pixel's points."""
         import drjit as dr
 
+        mi, _ = self._inputs()
+        mul = product_rounder(mi.Float64)
         a, b = self.recv["a"], self.recv["b"]
         amax, bmax = float(np.abs(a).max()), float(np.abs(b).max())
-        spread = [dr.abs(da[k]) * amax + dr.abs(db[k]) * bmax for k in range(4)]
+        spread = [mul(dr.abs(da[k]), amax) + mul(dr.abs(db[k]), bmax) for k in range(4)]
         hi = [base[k] + spread[k] for k in range(4)]
         lo = [base[k] - spread[k] for k in range(4)]
-        none = (hi[0] < 0) | (hi[1] < 0) | (hi[2] < 0) | (hi[3] <= floor)
+        top = [exact[k] + spread[k] for k in range(4)]
+        slack = -(floor + self.epsilon)
+        none = ((hi[0] < 0) | (hi[1] < 0) | (hi[2] < 0) | (hi[3] <= 0)) & (
+            (top[0] < slack) | (top[1] < slack) | (top[2] < slack) | (top[3] <= floor)
+        )
         full = (lo[0] >= 0) & (lo[1] >= 0) & (lo[2] >= 0) & (lo[3] > 0)
         return none, full
 
-    def _points(self, base, da, db, floor):
+    def _points(self, base, da, db, floor, exact):
         """Dr.Jit 32 samples, point by point: the mask and the band mask (without the mask)."""
         import drjit as dr
 
         mi, _ = self._inputs()
         u32 = mi.UInt32
+        mul = product_rounder(mi.Float64)
         a, b = self.recv["a"], self.recv["b"]
+        slack = -(floor + self.epsilon)
         m = u32(0)
         bm = u32(0)
         for q in range(32):  # the 32 fixed points (unrolled into the kernel)
             aq, bq = float(a[q]), float(b[q])
-            v = [(base[k] + da[k] * aq) + db[k] * bq for k in range(4)]
+            v = [(base[k] + mul(da[k], aq)) + mul(db[k], bq) for k in range(4)]
+            w = [(exact[k] + mul(da[k], aq)) + mul(db[k], bq) for k in range(4)]
             edges = (v[0] >= 0) & (v[1] >= 0) & (v[2] >= 0)
+            near = (w[0] >= slack) & (w[1] >= slack) & (w[2] >= slack)
             bit = u32(1 << q)
             m = m | dr.select(edges & (v[3] > 0), bit, u32(0))
-            bm = bm | dr.select(edges & (v[3] > floor), bit, u32(0))
+            bm = bm | dr.select(near & (w[3] > floor), bit, u32(0))
         return m, bm & ~m
 
-    @staticmethod
-    def _single(base, floor):
+    def _single(self, base, floor, exact):
+        """Dr.Jit 1 sample: the shadowed flag and the band flag (without the flag)."""
+        slack = -(floor + self.epsilon)
         edges = (base[0] >= 0) & (base[1] >= 0) & (base[2] >= 0)
-        return edges & (base[3] > 0), edges & (base[3] <= 0) & (base[3] > floor)
+        near = (exact[0] >= slack) & (exact[1] >= slack) & (exact[2] >= slack)
+        hit = edges & (base[3] > 0)
+        return hit, near & (exact[3] > floor) & ~hit
 
     def _test_chunk(self, chunk, nodes, acc: dict) -> None:
         """Every pair of a chunk (:meth:`_chunk`) with the lists' ``nodes`` (:meth:`_nodes`)
@@ -348,14 +387,14 @@ class PairTester:
         (tri, lo, first), f, n_pairs = chunk
         frags = (tri, lo, first, *nodes[:2])
         ti, ri, node = _pair(frags, dr.arange(u32, n_pairs), f)
-        base, da, db, floor = self._plane_terms(ti, nodes[2], node)
+        base, da, db, floor, exact = self._plane_terms(ti, nodes[2], node)
         if not self.thirty_two:
-            hit, near = self._single(base, floor)
+            hit, near = self._single(base, floor, exact)
             dr.scatter_reduce(dr.ReduceOp.Or, acc["shadowed"], u32(1), ri, hit)
             dr.scatter_reduce(dr.ReduceOp.Or, acc["band"], u32(1), ri, near)
             dr.eval(acc["shadowed"], acc["band"])
             return
-        none, full = self._classes(base, da, db, floor)
+        none, full = self._classes(base, da, db, floor, exact)
         mixed = ~none & ~full
         dr.scatter_reduce(dr.ReduceOp.Or, acc["mask"], u32(FULL_MASK), ri, full & ~none)
         dr.eval(acc["mask"], mixed)
@@ -384,13 +423,13 @@ class PairTester:
             return empty, empty, np.zeros(0, dtype=np.uint32)
         fi = dr.gather(u32, f, idx)
         ti, ri, node = _pair(frags, idx, fi)
-        base, da, db, floor = self._plane_terms(ti, nodes[2], node)
+        base, da, db, floor, exact = self._plane_terms(ti, nodes[2], node)
         if self.thirty_two:
-            none, full = self._classes(base, da, db, floor)
-            m, _ = self._points(base, da, db, floor)
+            none, full = self._classes(base, da, db, floor, exact)
+            m, _ = self._points(base, da, db, floor, exact)
             result = dr.select(none, u32(0), dr.select(full, u32(FULL_MASK), m))
         else:
-            hit, _ = self._single(base, floor)
+            hit, _ = self._single(base, floor, exact)
             result = dr.select(hit, u32(1), u32(0))
         dr.eval(fi, ri, result)
         return fi.numpy().astype(np.int64), ri.numpy().astype(np.int64), result.numpy()

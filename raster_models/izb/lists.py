@@ -207,15 +207,19 @@ class Joins:
         self._round = 0
         self._dead = 0
 
-    def add(self, frag_tri: np.ndarray, frag_texel: np.ndarray) -> None:
-        """Fragments ``(triangle, global texel)`` of the current round."""
-        self.stats.fragments += len(frag_tri)
+    def add(self, frag_tri: np.ndarray, frag_texel: np.ndarray, counted=None) -> None:
+        """Fragments ``(triangle, global texel)`` of the current round; ``counted`` (bool per
+        fragment, default all): those of the technique, in the counters. The others (a
+        triangle grown for the epsilon band, :func:`raster_models.izb.geometry.
+        grown_fragments`) touch no sample of their texel: they set band bits only."""
+        counted = np.ones(len(frag_tri), dtype=bool) if counted is None else counted
+        self.stats.fragments += int(np.count_nonzero(counted))
         if len(frag_tri) == 0 or len(self.lists.node_texel) == 0:
             return
         lo, n = self.lists.span(frag_texel)
         has = n > 0
         if has.any():
-            self._batch.append((frag_tri[has], lo[has], n[has], self._round))
+            self._batch.append((frag_tri[has], lo[has], n[has], self._round, counted[has]))
             self._pairs += int(n[has].sum())
 
     def end_round(self) -> None:
@@ -231,14 +235,15 @@ class Joins:
         if self._batch:
             tri, lo, n = (np.concatenate([b[i] for b in self._batch]) for i in range(3))
             rnd = np.repeat([b[3] for b in self._batch], [len(b[0]) for b in self._batch])
+            counted = np.concatenate([b[4] for b in self._batch])
             several = self._batch[-1][3] > self._batch[0][3]
             before = self.state[key].copy() if several else None
             dead = self.tester.join(tri, lo, n, self.lists.node_id, self.state, dead=several)
-            live = n if dead is None else n - late_pairs(dead, rnd, before)
+            live = (n if dead is None else n - late_pairs(dead, rnd, before))[counted]
             st = self.stats
             st.tests += int(live.sum())
             st.fragments_with_list += int(np.count_nonzero(live))
-            st.list_max = max(st.list_max, int(live.max()))
+            st.list_max = max(st.list_max, int(live.max(initial=0)))
         self._batch, self._pairs, self._round = [], 0, 0
         done = self.state[key] == self.tester.full
         n_dead = int(np.count_nonzero(done))

@@ -18,11 +18,14 @@
 
 Outputs (``(H, W)`` float32): ``visibility`` (1 = lit; sky 1, back-facing 0, as the
 oracle), ``cascade`` (grid of the pixel, -1 for non-receivers), ``list_length`` (length of
-the list of the texel holding the pixel centre), ``epsilon_band`` (1 where a sample lies
-inside an occluder's edge planes, beyond its plane by more than float32 rounding but by at
-most ``epsilon``: lit by the epsilon, though an exact shadow ray could still hit the
-occluder; outside this band the model and the oracle's rays differ only where float32 ray
-origins round across a shadow edge).
+the list of the texel holding the pixel centre), ``epsilon_band`` (1 where the model lights a
+sample whose exact shadow ray, from the same sample of the pixel's exact float64 hit, may
+meet an occluder: inside its edge planes up to float64 rounding and beyond its plane by more
+than that rounding. Lit by the epsilon (a gap below it), or by the float32 G-buffer position
+lying outside an occluder's edge that the exact hit is inside (a grazing light makes that a
+strip); the triangles are rasterized grown by the distance between the two, so that such a
+receiver's list is tested. Outside this band the model and an exact ray differ only where
+the model shadows a sample by the float32 rounding of its position at a shadow edge).
 
 Cascaded IZB (``cascades > 1``): receivers are split by view depth with the SDSM sample's log
 partitioning over ``[zmin, zmax]`` of the receivers (:func:`raster_models.splits.log_splits`),
@@ -74,8 +77,9 @@ from ..params import param
 from ..result import ModelResult, model_result
 from ..shadowmaps.fit import light_frame_for
 from .geometry import (
-    conservative_fragments,
+    grown_fragments,
     onto_own_planes,
+    ray_hits,
     scene_triangles,
     shadow_volumes,
     surface_triangles,
@@ -162,15 +166,22 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
         frame = make_frame(light.direction, [("world_y", (0.0, 1.0, 0.0))], light.position)
     else:
         frame = light_frame_for(light, scene.camera, p.light_up)
-    position, floor_scale = _receiver_positions(scene, gbuf)
+    position, floor_scale, hit = _receiver_positions(scene, gbuf)
     smp = frame_samples(
-        gbuf, light, frame, samples=p.samples, position=position, floor_scale=floor_scale
+        gbuf,
+        light,
+        frame,
+        samples=p.samples,
+        position=position,
+        floor_scale=floor_scale,
+        hit=hit,
     )
     splits, part = partitions(np.take(gbuf.depth, smp.rec), p.cascades)
     grids = build_grids(smp, part, cascades=p.cascades, resolution=p.resolution)
     built = grids.lists.lengths()
     centre_len = grids.lists.length_at(grids.centre_texel)
-    trav = _traverse(scene, light, frame, smp, grids, p)
+    reach = _hit_reach(smp, frame.to_light(np.take(hit, smp.rec, axis=0)), part, grids, p)
+    trav = _traverse(scene, light, frame, smp, grids, p, reach)
     outputs, fully, band = _outputs(gbuf, smp, part, trav.state, centre_len)
     cost = _cost(trav.stats, built, grids, p, n_pix=gbuf.size)
     diagnostics = {
@@ -201,13 +212,19 @@ def run(scene, params: IzbParams | None = None, **kwargs) -> ModelResult:
 
 
 def _receiver_positions(scene, gbuf):
-    """The pixels' positions put on their own triangles' planes in float64, and the epsilon
-    band's floor scale of each (exact on a plane, float32 rounding elsewhere): see
-    :func:`raster_models.izb.geometry.onto_own_planes`."""
+    """The pixels' positions put on their own triangles' planes in float64, the epsilon
+    band's floor scale of each (exact on a plane, float32 rounding elsewhere) and the exact
+    hit of each receiver's pixel-centre ray on that plane (the position elsewhere), where the
+    band is judged: see :func:`raster_models.izb.geometry.onto_own_planes` and
+    :func:`raster_models.izb.geometry.ray_hits`."""
     tris = scene_triangles(scene)
     own = surface_triangles(scene, gbuf.shape, gbuf.prim)
     position, moved = onto_own_planes(tris, own, gbuf.position)
-    return position, np.where(moved, BAND_FLOOR_ON_PLANE, BAND_FLOOR)
+    hit = position.copy()
+    pix = np.flatnonzero(moved & gbuf.receiver)  # the pixels the band is judged for
+    o, d, _ = scene.camera.rays(pix % gbuf.width + 0.5, pix // gbuf.width + 0.5)
+    hit[pix] = ray_hits(tris, own[pix], position[pix], o, d)
+    return position, np.where(moved, BAND_FLOOR_ON_PLANE, BAND_FLOOR), hit
 
 
 def _check_light(light) -> None:
@@ -238,10 +255,37 @@ class _Traversal:
     culled: int
 
 
-def _traverse(scene, light, frame, smp: Samples, grids: Grids, p: IzbParams) -> _Traversal:
+def _hit_reach(smp: Samples, hit_lc: np.ndarray, part: np.ndarray, grids: Grids, p: IzbParams):
+    """Per grid, how far the receivers' exact hits (light frame ``hit_lc``, :func:`_receiver_
+    positions`) lie from their tested positions: in texels (max-norm, doubled for the 32
+    points under a spot light's perspective), and in light depth. Each triangle is
+    rasterized that much larger and reaches that much deeper, so that the list of a receiver
+    whose exact hit is inside a triangle it is not inside is tested for the band (0 and 0
+    where every hit is its position: nothing changes)."""
+    out = []
+    r = p.resolution
+    for c, box in enumerate(grids.boxes):  # cascades
+        sel = part == c
+        if box is None or not sel.any():
+            out.append((0.0, 0.0))
+            continue
+        q, h = smp.lc[sel], hit_lc[sel]
+        if smp.spot:
+            q = np.column_stack([q[:, :2] / q[:, 2:], q[:, 2]])
+            h = np.column_stack([h[:, :2] / h[:, 2:], h[:, 2]])
+        texel = np.array([(box[1] - box[0]) / r, (box[3] - box[2]) / r])
+        far = float(np.max(np.abs(h[:, :2] - q[:, :2]) / texel))
+        out.append((2.0 * far if np.isfinite(far) else 0.0, float(np.abs(h[:, 2] - q[:, 2]).max())))
+    return out
+
+
+def _traverse(
+    scene, light, frame, smp: Samples, grids: Grids, p: IzbParams, reach: list
+) -> _Traversal:
     """Rounds of :data:`ROUND_TRIANGLES` occluder triangles (scene order), each rasterized
-    into every grid and joined with its lists; after a round the fully shadowed receivers
-    leave the lists (the joins batched over rounds: :class:`raster_models.izb.lists.Joins`)."""
+    into every grid, grown by the grid's ``reach`` (:func:`_hit_reach`), and joined with its
+    lists; after a round the fully shadowed receivers leave the lists (the joins batched over
+    rounds: :class:`raster_models.izb.lists.Joins`)."""
     spot = smp.spot
     tris = scene_triangles(scene)
     keep, planes = shadow_volumes(
@@ -264,26 +308,30 @@ def _traverse(scene, light, frame, smp: Samples, grids: Grids, p: IzbParams) -> 
         for c, box in enumerate(grids.boxes):  # cascades
             if box is None:
                 continue
-            idx, uv, crossing = _grid_triangles(t_lc, box, grids.zmax[c], r, spot=spot)
-            crossing_count += crossing
-            for ft, fx in conservative_fragments(uv, r):  # chunks
-                joins.add(start + idx[ft], c * r * r + fx)
+            grow, deeper = reach[c]
+            idx, uv, tight = _grid_triangles(t_lc, box, (grids.zmax[c], deeper), r, spot=spot)
+            crossing_count += tight[1]
+            for ft, fx, exact in grown_fragments(uv, r, margin=grow):  # chunks
+                joins.add(start + idx[ft], c * r * r + fx, exact & tight[0][ft])
         joins.end_round()
     joins.flush()
     stats = joins.stats
     return _Traversal(state, stats, rounds, crossing_count, int(len(keep)), int((~keep).sum()))
 
 
-def _grid_triangles(t_lc: np.ndarray, box, zmax: float, r: int, *, spot: bool):
+def _grid_triangles(t_lc: np.ndarray, box, depth: tuple, r: int, *, spot: bool):
     """Light-frame triangles ``t_lc`` ``(T, 3, 3)`` of a round in one grid: the indices of
-    those that can shadow a sample, their vertices in texel units ``(n, 3, 2)``, and how many
-    cross a spot light's plane (rasterized over the whole grid)."""
+    those that can shadow a sample or, ``depth[1]`` deeper than the samples' ``depth[0]``,
+    put an exact hit in the band, their vertices in texel units ``(n, 3, 2)``, and
+    ``(tight, crossing)``: whether each is of the first kind (its fragments count), and how
+    many of those cross a spot light's plane (rasterized over the whole grid)."""
     x0, x1, y0, y1 = box
+    zmax, deeper = depth
     # A triangle wholly farther from the light than every sample shadows none.
-    near = t_lc[:, :, 2].min(axis=1) <= zmax
-    idx = np.flatnonzero(near)
+    zmin = t_lc[:, :, 2].min(axis=1)
+    idx = np.flatnonzero(zmin <= zmax + deeper)
     if len(idx) == 0:
-        return idx, np.empty((0, 3, 2)), 0
+        return idx, np.empty((0, 3, 2)), (np.zeros(0, dtype=bool), 0)
     gx, gy = t_lc[idx, :, 0], t_lc[idx, :, 1]
     crossing = np.zeros(len(idx), dtype=bool)
     if spot:
@@ -299,7 +347,8 @@ def _grid_triangles(t_lc: np.ndarray, box, zmax: float, r: int, *, spot: bool):
     uv[..., 0] = (gx - x0) / ((x1 - x0) / r)
     uv[..., 1] = (y1 - gy) / ((y1 - y0) / r)
     uv[crossing] = WHOLE_GRID * r
-    return idx, uv, int(crossing.sum())
+    tight = zmin[idx] <= zmax
+    return idx, uv, (tight, int((crossing & tight).sum()))
 
 
 def _outputs(gbuf, smp: Samples, part: np.ndarray, state: dict, centre_len: np.ndarray):

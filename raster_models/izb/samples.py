@@ -101,11 +101,14 @@ def unlit_bits(light, gbuf, cand: np.ndarray, a: np.ndarray, b: np.ndarray) -> n
     return out
 
 
-def frame_samples(gbuf, light, frame, *, samples: int, position=None, floor_scale=None) -> Samples:
+def frame_samples(
+    gbuf, light, frame, *, samples: int, position=None, floor_scale=None, hit=None
+) -> Samples:
     """The receivers of G-buffer ``gbuf`` under ``light`` and their samples in light frame
     ``frame`` (``samples``: 1 or 32). ``position`` ``(N, 3)``: the pixels' positions to use
     instead of ``gbuf.position`` (on their own triangles' planes), with ``floor_scale``
-    ``(N,)`` the band floor's scale of each (see :class:`raster_models.izb.kernel.PairTester`)."""
+    ``(N,)`` the band floor's scale of each and ``hit`` ``(N, 3)`` the pixels' exact hits,
+    where the band is judged (see :class:`raster_models.izb.kernel.PairTester`)."""
     spot = light.kind == "spot"
     a, b = tangent_offsets()
     if spot and samples == 32:
@@ -123,6 +126,8 @@ def frame_samples(gbuf, light, frame, *, samples: int, position=None, floor_scal
     recv = {"p": pos}
     if floor_scale is not None:
         recv["floor_scale"] = np.take(floor_scale, rec)
+    if hit is not None:
+        recv["hit"] = np.take(hit, rec, axis=0)
     ldx = ldy = None
     if samples == 32:
         recv.update(dpdx=np.take(gbuf.dpdx, rec, axis=0), dpdy=np.take(gbuf.dpdy, rec, axis=0))

@@ -4,11 +4,13 @@ package's jinja2 templates (autoescaped, self-contained: inline CSS, SVG and scr
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 
 from .. import _env
 from ..viewer import MAX_VIEWER_PAGE_BYTES
 from ..viewer import viewer_cases as fit_viewer_cases
+from . import aa_memory, aa_ranking, claims, converge, extremes, sweep
 from ._record import SECTION_SCHEMA
 from .overview import overview_record
 from .sweep import sweep_view
@@ -24,6 +26,31 @@ __all__ = [
 
 #: Value of the ``"schema"`` key of a study page record.
 STUDY_PAGE_SCHEMA = "raster-oracle.study-page/1"
+
+
+@functools.cache
+def _environment():
+    """The shared filters plus each section's own (built once per process)."""
+    return _env.build_environment(
+        {
+            "front_svg": sweep.front_svg,
+            "sensitivity_svg": sweep.sensitivity_svg,
+            "params_text": sweep.fmt_params,
+            "cost_level": sweep.fmt_cost_level,
+            "verdict_class": claims.verdict_class,
+            "extra_value": claims.fmt_extra,
+            "cell_class": extremes.cell_class,
+            "cell_text": extremes.fmt_cell,
+            "cell_tip": extremes.fmt_cell_tip,
+            "cell_style": extremes.cell_style,
+            "cell_mark": extremes.cell_mark,
+            "slope": converge.fmt_slope,
+            "quoted_value": aa_memory.fmt_quoted,
+            "computed_text": aa_memory.fmt_computed,
+            "quote_note": aa_memory.fmt_note,
+            "with_floor": aa_ranking.fmt_with_floor,
+        }
+    )
 
 
 def _check_sections(sections: Sequence[Mapping]) -> None:
@@ -46,7 +73,7 @@ def study_page(sections: Sequence[Mapping], *, title: str) -> dict:
 def render_section(section: Mapping) -> str:
     """One section record as an HTML fragment (``<section id=...>``)."""
     _check_sections([section])
-    return _env.environment().get_template("section.html").render(section=section)
+    return _environment().get_template("section.html").render(section=section)
 
 
 def render_study_page(page: Mapping) -> str:
@@ -54,7 +81,7 @@ def render_study_page(page: Mapping) -> str:
     if not isinstance(page, Mapping) or page.get("schema") != STUDY_PAGE_SCHEMA:
         raise ValueError(f"page must be a record from study_page ({STUDY_PAGE_SCHEMA})")
     _check_sections(page["sections"])
-    return _env.environment().get_template("study.html").render(page=page)
+    return _environment().get_template("study.html").render(page=page)
 
 
 def summary_viewer_cases(
@@ -118,7 +145,7 @@ def render_sweep_page(
     if "overview" not in record:
         record["overview"] = overview_record(record)
     view = sweep_view(record, images=images)
-    template = _env.environment().get_template("sweep.html")
+    template = _environment().get_template("sweep.html")
     cases = list(viewer_cases or [])
     return template.render(
         record=record,

@@ -58,9 +58,8 @@ __all__ = [
 ]
 
 BASE_SCENE = "plate"
-#: Base scene of each technique family: shadow models get the plate's clean hard shadow,
-#: anti-aliasing models the Siemens star's edges against the sky (coverage to get wrong).
-BASE_SCENES = {"shadow": "plate", "aa": "star"}
+# Base scene of each technique family: its record's ``extremes_scene`` (shadow models get
+# the plate's clean hard shadow, anti-aliasing models the Siemens star's edges against the sky)
 #: Peak resident bytes per shadow-map texel of the current models (maps are rendered and
 #: filtered in bounded launches; the whole-map arrays are the stored depth and moments),
 #: measured above the process's own 0.12 GB: ``shadow-map`` 16384^2 1.37 GB (about 5
@@ -167,7 +166,7 @@ def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
     from .... import metrics as M
     from ...scoring.score import reference_receivers
 
-    if family == "aa" and "coverage" in res.outputs:
+    if family != "shadow" and "coverage" in res.outputs:
         d = np.asarray(res.outputs["coverage"], np.float64) - ref["coverage"]
         return "coverage_rmse", float(np.sqrt(np.mean(d * d))), {}
     rec = reference_receivers(ref, loaded.light)
@@ -186,7 +185,7 @@ def run_cell(technique, extreme: Extreme, loaded, ref: dict, *, huge: int) -> di
 
     family = raster_models.family_of(technique.name)
     exp = expectation(technique.name, extreme.name, family)
-    metric = "coverage_rmse" if family == "aa" else "misclassified_fraction"
+    metric = raster_models.family(family).extremes_metric
     cell = {
         "technique": technique.name,
         "extreme": extreme.name,
@@ -283,6 +282,8 @@ def run_extremes(
     width, height, spp = (64, 36, 16) if quick else (160, 90, 64)
     huge = int(huge or (QUICK_HUGE if quick else 16384))
     techs = [raster_models.TECHNIQUES[t] for t in (techniques or raster_models.TECHNIQUES)]
+    # families without an extremes scene (the temporal ones) are not in this study
+    techs = [t for t in techs if raster_models.family(t.name).extremes_scene is not None]
     names = extremes or list(EXTREMES)
     t0 = time.perf_counter()
     cells, scenes_info = [], {}
@@ -292,7 +293,7 @@ def run_extremes(
         row = []
         scenes_info[name] = {"description": ext.description, "params": ext.params, "scenes": {}}
         for fam in families:
-            base = BASE_SCENES.get(fam, BASE_SCENE)
+            base = raster_models.FAMILIES[fam].extremes_scene
             loaded = load_extreme(ext, width=width, height=height, base=base)
             ref = reference_channels(loaded, spp=spp, cache=cache, quiet=quiet)
             scenes_info[name]["scenes"][fam] = {
@@ -316,7 +317,7 @@ def run_extremes(
         "cell_map": CELL_MAP,
         "huge_map": huge,
         "base_scene": BASE_SCENE,
-        "base_scenes": dict(BASE_SCENES),
+        "base_scenes": {f: raster_models.FAMILIES[f].extremes_scene for f in families},
         "extremes": scenes_info,
         "techniques": [t.name for t in techs],
         "cells": cells,

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....scenes import backend
+from ....scenes.kernels import evaluate_trace
 from ....scenes.raycast import camera_rays_dr, shape_table
 from .. import pixel_dr as _pixel_dr
 from .. import trace as _trace
@@ -289,6 +290,9 @@ def shade(
             else:
                 cx, cy = (dr.gather(mi.Float, c, part) for c in centre)
             a = attributes_dr(scene, sub, sx, sy, cx, cy)
+            # the fragments' surfaces come from the group's scene, their shadow rays from
+            # the whole scene: one scene per kernel (on OptiX the second trace is disabled)
+            evaluate_trace(a)
             color, tested = shade_dr(
                 scene,
                 a["valid"],
@@ -299,6 +303,8 @@ def shade(
                 a["to_eye"],
                 offset=a["offset"],
                 visibility=None,
+                material=a.get("material"),
+                emissive=a.get("emissive"),
             )
             count = dr.count(tested)
             for c in range(3):

@@ -42,6 +42,15 @@ __all__ = ["CHANNELS", "LAUNCH_CHUNKS", "filtered_visibility", "render"]
 #: Attribute channels summed per aggregate (the averages are stored per aggregate in this
 #: order, then its shadow-ray offset and its sample count).
 CHANNELS = ("albedo", "normal", "position", "to_eye", "geo_normal")
+#: The further channels of a glTF scene ((metallic, roughness, 0) and emissive), averaged
+#: like the albedo (the base colour there) and stored after :data:`CHANNELS`.
+PBR_CHANNELS = ("material", "emissive")
+
+
+def _channels(scene) -> tuple[str, ...]:
+    return CHANNELS + (PBR_CHANNELS if scene.pbr is not None else ())
+
+
 #: Prepass samples a launch, in :data:`..trace.CHUNK` s (``1 << 23``): every launch
 #: generates its kernels' code again (the intersection and BSDF calls of every shape), so
 #: fewer, larger launches save time; peak memory at 1920x1080 x 8 samples is about 1.1 GiB,
@@ -143,7 +152,7 @@ def _fragment_table(mi, dr, scene, rep_bits, start, ox, oy, n):
     attrs = _trace.attributes_dr(scene, scene.mi_scene, sx, sy, px + 0.5, py + 0.5)
     hit = attrs["valid"]
     table_f = []
-    for key in CHANNELS:
+    for key in _channels(scene):
         table_f += [dr.select(hit, c, 0.0) for c in attrs[key]]
     offset_f = dr.select(hit, attrs["offset"], 0.0)
     dr.eval(table_f, offset_f)
@@ -184,7 +193,8 @@ def _averages(dr, sums, weight, offset):
     :data:`CHANNELS` order (geometric normal and eye direction normalized, the shading
     normal not), its shadow-ray offset and the samples it holds."""
     means = [c / weight for c in sums]
-    m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(CHANNELS)}
+    keys = CHANNELS + PBR_CHANNELS[: len(sums) // 3 - len(CHANNELS)]  # a glTF scene's too
+    m = {key: means[3 * i : 3 * i + 3] for i, key in enumerate(keys)}
     g = m["geo_normal"]
     g_len = dr.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
     g_safe = dr.maximum(g_len, 1e-30)
@@ -192,7 +202,7 @@ def _averages(dr, sums, weight, offset):
     e = m["to_eye"]
     e_len = dr.maximum(dr.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]), 1e-30)
     m["to_eye"] = [c / e_len for c in e]
-    return [c for key in CHANNELS for c in m[key]] + [offset, weight]
+    return [c for key in keys for c in m[key]] + [offset, weight]
 
 
 def _aggregate_store(mi, dr, first, agg, rep_bits, frag_base, table_f, offset_f, k):
@@ -254,6 +264,8 @@ _RECORD = {
     "position": slice(6, 9),
     "to_eye": slice(9, 12),
     "geo_normal": slice(12, 15),
+    "material": slice(15, 18),  # glTF scenes only
+    "emissive": slice(18, 21),
 }
 
 
@@ -312,6 +324,12 @@ def _shade_resolve(mi, dr, scene, store, exists, n, f_vis):
         if not dr.width(idx[a]):
             continue
         c = [dr.gather(mi.Float, v, idx[a]) for v in st]
+        pbr = {}
+        if scene.pbr is not None:
+            pbr = {
+                "material": mi.Vector3f(*c[_RECORD["material"]]),
+                "emissive": mi.Color3f(*c[_RECORD["emissive"]]),
+            }
         rgb, _ = _trace.shade_dr(
             scene,
             dr.full(mi.Bool, True, dr.width(idx[a])),
@@ -322,6 +340,7 @@ def _shade_resolve(mi, dr, scene, store, exists, n, f_vis):
             mi.Vector3f(*c[_RECORD["to_eye"]]),
             visibility=dr.gather(mi.Float, f_vis[a], idx[a]),
             filtered_normal=True,
+            **pbr,
         )
         dr.eval(rgb)
         rgb_pix = dr.zeros(mi.Color3f, n_lanes)

@@ -1,0 +1,117 @@
+"""The engine teams' gates as metrics of a score (:mod:`metrics.engine_gates`), with their
+noise floors; :mod:`oracle.scoring.engine_gates` names the profiles that judge them.
+
+Metrics (every frame; the record holds their mean over frames):
+
+- ``unreal_{low,medium,high}_global_error`` / ``_local_error``: Unreal's screenshot
+  comparison at its Low, Medium and High tolerances;
+- ``unity_average_delta_e``: Unity's average JzAzBz delta E above the per-pixel 0.001;
+- ``edge_aware_error_fraction`` (visibility, coverage): pixels beyond the edge-aware
+  tolerance.
+
+The images compared are what a screenshot holds: colour through the shared tone mapper
+(sRGB-encoded display values), visibility and coverage as grey data; a shadow mask on the
+oracle's receivers only (elsewhere the reference's value, as the other metrics see it).
+
+Noise floors: the fractions get :func:`metrics.fraction_floor` of their value (the flagged
+pixels near a tolerance flip when the reference is re-rendered, as for
+``significant_fraction``), at least what the exact surrogate scores; Unity's average its
+exact surrogate's mean delta E without the per-pixel allowance: ``max(0, dE - t)`` moves by
+at most ``dE(r, r')`` when the reference ``r`` is re-rendered as ``r'``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import metrics as M
+from ...metrics import engine_gates as G
+from ..reference.exr import read_exr
+
+__all__ = ["ENGINE_CHANNELS", "ENGINE_GATE_KEYS", "add_engine_gate_metrics", "exact_floors"]
+
+#: The channels an engine writes (a model's front-most coverage is not one).
+ENGINE_CHANNELS = ("visibility", "color", "coverage")
+
+_FRACTIONS = tuple(
+    f"unreal_{level}_{which}_error"
+    for level in G.UNREAL_TOLERANCES
+    for which in ("global", "local")
+)
+#: The metric keys this module adds.
+ENGINE_GATE_KEYS = (*_FRACTIONS, "unity_average_delta_e", "edge_aware_error_fraction")
+
+
+def _display(image: np.ndarray, channel: str, exposure) -> np.ndarray:
+    if channel == "color":
+        return M.tonemap(image, exposure=exposure or 0.0)
+    return np.clip(image, 0.0, 1.0)
+
+
+def _values(ref, cand, se, *, channel, exposure, mask) -> dict:
+    """The engine-gate metrics of one frame (and the pixel counts of their fractions)."""
+    r, c = _display(ref, channel, exposure), _display(cand, channel, exposure)
+    out, counts = {}, {}
+    h, w = ref.shape[:2]
+    block = int(np.ceil(h / 10.0)) * int(np.ceil(w / 10.0))
+    for level, found in G.unreal_comparisons(r, c, tolerances=G.UNREAL_TOLERANCES).items():
+        out[f"unreal_{level}_global_error"] = found["global_error"]
+        out[f"unreal_{level}_local_error"] = found["local_error"]
+        counts[f"unreal_{level}_global_error"] = h * w
+        counts[f"unreal_{level}_local_error"] = block
+    unity = G.unity_delta_e(r, c)
+    out["unity_average_delta_e"] = unity["average"]
+    if channel != "color":
+        edge = G.edge_aware_error(ref, cand, reference_stderr=se, mask=mask)
+        out["edge_aware_error_fraction"] = edge["fraction"]
+        counts["edge_aware_error_fraction"] = int(mask.sum()) if mask is not None else h * w
+    return out, counts, unity
+
+
+def _stderr(ch: dict, channel: str) -> np.ndarray:
+    if channel == "color":
+        return np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1)
+    return ch[f"{channel}_stderr"]
+
+
+def exact_floors(reference, exact, reference_channels: dict, *, channel, exposure, mask) -> dict:
+    """What the exact surrogate ``exact`` scores on the engine-gate metrics against
+    ``reference`` (the noise floors before the fractions' binomial bound; Unity's: the mean
+    delta E, see the module docstring). Empty for channels other than visibility, color
+    and coverage."""
+    if channel not in ENGINE_CHANNELS:
+        return {}
+    se = _stderr(reference_channels, channel)
+    if mask is not None:  # a shadow mask is judged on the receivers, as the candidate is
+        exact = np.where(mask, exact, reference)
+    values, _, unity = _values(reference, exact, se, channel=channel, exposure=exposure, mask=mask)
+    values["unity_average_delta_e"] = float(np.mean(unity["map"]))
+    return values
+
+
+def add_engine_gate_metrics(result, *, channel, exposure) -> None:
+    """Add the engine-gate metrics to every frame's metrics, their mean to the record, and
+    raise each fraction's noise floor (the exact surrogate's, from :func:`exact_floors`) to
+    at least its binomial bound (channels visibility, color and coverage: what an engine
+    writes)."""
+    if channel not in ENGINE_CHANNELS:
+        return
+    per_frame, counts = [], {}
+    for k, frame in enumerate(result.frames):
+        mask = frame.receivers
+        cand = frame.candidate if mask is None else np.where(mask, frame.candidate, frame.reference)
+        se = _stderr(read_exr(result.reference_folders[k] / "reference.exr"), channel)
+        values, counts, _ = _values(
+            frame.reference, cand, se, channel=channel, exposure=exposure, mask=mask
+        )
+        frame.metrics.update(values)
+        per_frame.append(values)
+    record = result.record
+    for key in per_frame[0]:
+        record[key] = float(np.mean([v[key] for v in per_frame]))
+    floors = record.get("noise_floor")
+    if floors is None:
+        return
+    n_frames = len(result.frames)
+    for key, n in counts.items():
+        floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(record[key], n * n_frames))

@@ -1,0 +1,231 @@
+"""A CI manifest for ``score-folder ROOT --manifest ci.toml``: each scene's file, channels,
+gates, frames and camera path.
+
+.. code-block:: toml
+
+    [defaults]                      # optional; every key may be given per scene too
+    spp = 16
+    profiles = ["unreal-low"]       # gate profiles (--gate-profile)
+    exports = "exports"             # folder of `export` folders, relative to the manifest
+    fail_above = { flip_mean = 0.1 }
+
+    [scenes.plate]                  # a built-in scene, EXPORTS/plate, or `scene = "..."`
+    file = "plate.exr"              # relative to ROOT; a {frame} pattern with frames
+    [scenes.plate.channels.shadow]  # a layer or channel of the file: one scored case each
+    fail_above = { misclassified_fraction = 0.01 }
+    [scenes.plate.channels.msaa]
+    fail_below = { ssim = 0.95 }
+
+    [scenes.pan]
+    scene = "exports/plate"         # relative to the manifest
+    file = "pan/frame_{frame:03d}.exr"
+    frames = 4
+    camera_path = "subpixel-pan"    # needed with frames (unless the export records one)
+    channels = { shadow = {} }
+
+Every key is checked (an unknown key, a wrong type or an unknown metric is a
+:class:`ManifestError` naming it, before anything is scored). Gates add up from
+``[defaults]`` to the scene to the channel; a later limit of the same metric and direction
+replaces an earlier one.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ...scenes import SceneError
+from ...scenes.inputs import named_input
+from .gates import Gate, GateError, parse_gates
+from .options import VISIBILITY_CONVENTIONS
+
+__all__ = ["Manifest", "ManifestCase", "ManifestError", "read_manifest"]
+
+_COMMON = {
+    "fail_above",
+    "fail_below",
+    "profiles",
+    "visibility",
+    "camera_path",
+    "spp",
+    "seed",
+    "flip_mode",
+}
+_DEFAULT_KEYS = _COMMON | {"exports"}
+_SCENE_KEYS = _COMMON | {"scene", "file", "frames", "channels"}
+_CHANNEL_KEYS = {"kind", "fail_above", "fail_below", "profiles", "visibility"}
+_KINDS = ("visibility", "color", "coverage")
+
+
+class ManifestError(GateError):
+    """A manifest that cannot be used (exit 2 before anything is scored)."""
+
+
+@dataclass(frozen=True)
+class ManifestCase:
+    """One scored case: ``scene`` key x ``channel`` (None: the file's only image)."""
+
+    name: str
+    scene_key: str
+    scene: str
+    file: str
+    channel: str | None
+    kind: str | None
+    frames: int | None
+    camera_path: str | None
+    visibility: str
+    gates: tuple[Gate, ...]
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """The cases of a manifest and its reference options (``spp``, ``seed``,
+    ``flip_mode``: None where the manifest leaves them to the command line)."""
+
+    path: Path
+    cases: list[ManifestCase] = field(default_factory=list)
+    spp: int | None = None
+    seed: int | None = None
+    flip_mode: str | None = None
+
+
+def _table(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise ManifestError(f"{where} must be a table, got {type(value).__name__}")
+    return value
+
+
+def _keys(table: dict, allowed: set, where: str) -> None:
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise ManifestError(
+            f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(sorted(allowed))}"
+        )
+
+
+def _int(value, where: str, *, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ManifestError(f"{where} must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def _text(value, where: str, choices=None) -> str:
+    if not isinstance(value, str) or not value:
+        raise ManifestError(f"{where} must be a non-empty string, got {value!r}")
+    if choices is not None and value not in choices:
+        raise ManifestError(f"{where} must be one of {', '.join(choices)}, got {value!r}")
+    return value
+
+
+def _gates(table: dict, where: str) -> list[Gate]:
+    texts = {}
+    for key, option in (("fail_above", "--fail-above"), ("fail_below", "--fail-below")):
+        limits = _table(table.get(key, {}), f"{where}.{key}")
+        for metric, limit in limits.items():
+            if isinstance(limit, bool) or not isinstance(limit, int | float):
+                raise ManifestError(f"{where}.{key}.{metric} must be a number, got {limit!r}")
+        texts[option] = [f"{m}={float(v)!r}" for m, v in limits.items()]
+    profiles = table.get("profiles", [])
+    if not isinstance(profiles, list) or not all(isinstance(p, str) for p in profiles):
+        raise ManifestError(f"{where}.profiles must be a list of names, got {profiles!r}")
+    from .engine_gates import profile_gates
+
+    try:
+        gates = profile_gates(profiles, error=ManifestError)
+        return gates + parse_gates(texts["--fail-above"], texts["--fail-below"])
+    except GateError as exc:
+        raise ManifestError(f"{where}: {exc}") from None
+
+
+def _merge(*levels: list[Gate]) -> tuple[Gate, ...]:
+    merged: dict = {}
+    for gates in levels:
+        for g in gates:
+            merged[(g.metric, g.op)] = g
+    return tuple(merged.values())
+
+
+def _scene_ref(table: dict, key: str, where: str, *, base: Path, exports: Path | None) -> str:
+    if "scene" in table:
+        text = _text(table["scene"], f"{where}.scene")
+        local = base / text
+        return str(local) if local.exists() else text
+    try:
+        return named_input(key, exports=exports)
+    except SceneError as exc:
+        raise ManifestError(f'{where}: {exc} (or give scene = "...")') from None
+
+
+def _opt(table: dict, key: str, check, *args, **kw):
+    """``check(table[key], ...)`` when the key is given, else None."""
+    return check(table[key], *args, **kw) if key in table else None
+
+
+def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCase]:
+    where = f"[scenes.{key}]"
+    table = _table(table, where)
+    _keys(table, _SCENE_KEYS, where)
+    for k in ("spp", "seed", "flip_mode"):
+        if k in table:
+            raise ManifestError(f"{where}.{k}: give {k} in [defaults] (one setting a run)")
+    merged = {**defaults, **table}
+    file = _text(table.get("file", f"{key}.exr"), f"{where}.file")
+    frames = _opt(table, "frames", _int, f"{where}.frames", minimum=1)
+    camera = _opt(merged, "camera_path", _text, f"{where}.camera_path")
+    scene = _scene_ref(table, key, where, base=ctx["base"], exports=ctx["exports"])
+    scene_gates = _gates(table, where)
+    cases = []
+    for channel, ctable in _table(table.get("channels", {None: {}}), f"{where}.channels").items():
+        cwhere = f"{where}.channels.{channel}"
+        ctable = _table(ctable, cwhere)
+        _keys(ctable, _CHANNEL_KEYS, cwhere)
+        visibility = ctable.get("visibility", merged.get("visibility", "1-is-lit"))
+        cases.append(
+            ManifestCase(
+                name=key if channel is None else f"{key}/{channel}",
+                scene_key=key,
+                scene=scene,
+                file=file,
+                channel=channel,
+                kind=_opt(ctable, "kind", _text, f"{cwhere}.kind", _KINDS),
+                frames=frames if frames and frames > 1 else None,
+                camera_path=camera,
+                visibility=_text(visibility, f"{cwhere}.visibility", VISIBILITY_CONVENTIONS),
+                gates=_merge(ctx["gates"], scene_gates, _gates(ctable, cwhere)),
+            )
+        )
+    return cases
+
+
+def read_manifest(path) -> Manifest:
+    """Read and check a manifest (see the module docstring); :class:`ManifestError` names
+    the first problem."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ManifestError(f"--manifest {path}: cannot read it ({type(exc).__name__})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ManifestError(f"--manifest {path} is not TOML: {exc}") from None
+    _keys(data, {"defaults", "scenes"}, f"--manifest {path}")
+    defaults = _table(data.get("defaults", {}), "[defaults]")
+    _keys(defaults, _DEFAULT_KEYS, "[defaults]")
+    scenes = _table(data.get("scenes", {}), "[scenes]")
+    if not scenes:
+        raise ManifestError(f"--manifest {path} names no scene ([scenes.NAME] tables)")
+    base = path.resolve().parent
+    exports = _opt(defaults, "exports", _text, "[defaults].exports")
+    ctx = {
+        "base": base,
+        "exports": base / exports if exports else None,
+        "gates": _gates(defaults, "[defaults]"),
+    }
+    cases = [c for key, table in scenes.items() for c in _scene_cases(key, table, defaults, ctx)]
+    return Manifest(
+        path=path,
+        cases=cases,
+        spp=_opt(defaults, "spp", _int, "[defaults].spp", minimum=1),
+        seed=_opt(defaults, "seed", _int, "[defaults].seed", minimum=0),
+        flip_mode=_opt(defaults, "flip_mode", _text, "[defaults].flip_mode", ("LDR", "HDR")),
+    )

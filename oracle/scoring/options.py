@@ -1,0 +1,73 @@
+"""How a score request is made: one options record instead of a long keyword list.
+
+:class:`ScoreOptions` holds everything but *what* is scored (technique or candidate files)
+and *where* the results go: the reference's sampling, the frames and their camera path, the
+FLIP options, the platform the run stands for and the engine conventions of a candidate.
+A new option (the temporal family's gate frames, motion vectors) is a new field with a
+default, so no call site changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+from ... import metrics as M
+from .score import ScoreError
+
+__all__ = ["VISIBILITY_CONVENTIONS", "ScoreOptions"]
+
+#: What a candidate shadow mask's 1 means: ``1-is-lit`` (the oracle's convention) or
+#: ``1-is-shadowed`` (a shadow-factor buffer; read as ``1 - value``). Stated, never guessed.
+VISIBILITY_CONVENTIONS = ("1-is-lit", "1-is-shadowed")
+
+
+@dataclass(frozen=True)
+class ScoreOptions:
+    """Options of :func:`oracle.scoring.request.score_to_folder`.
+
+    spp, seed : the reference's samples per pixel and seed (the noise floor uses seed + 1).
+    frames, camera_path : score that many frames of the camera path (None or 1: the
+        scene's own frame).
+    flip_mode, ppd : FLIP's mode (``LDR``/``HDR``) and pixels per degree.
+    quiet : no progress bar.
+    platform : the platform the run stands for (recorded; baselines are kept per platform).
+    visibility : the candidate mask's convention (:data:`VISIBILITY_CONVENTIONS`).
+    gate_frames : the gates judge the mean over the last N frames (None: all frames), so a
+        temporal technique's warm-up neither passes nor fails a build.
+    motion : an engine's motion-vector layer (``layer``, ``convention``, optional
+        ``disocclusion``; :func:`oracle.scoring.request.file_candidate`), scored against the
+        reference's motion (candidates only).
+    """
+
+    spp: int = 64
+    seed: int = 0
+    frames: int | None = None
+    camera_path: str | None = "dolly"
+    flip_mode: str = "LDR"
+    ppd: float = M.DEFAULT_PPD
+    quiet: bool = True
+    platform: str | None = None
+    visibility: str = "1-is-lit"
+    gate_frames: int | None = None
+    motion: dict | None = None
+
+    def validate(self) -> ScoreOptions:
+        """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
+        1 as None and ``flip_mode`` upper-case."""
+        if self.visibility not in VISIBILITY_CONVENTIONS:
+            raise ScoreError(
+                f"visibility must be one of {', '.join(VISIBILITY_CONVENTIONS)}, "
+                f"got {self.visibility!r}"
+            )
+        if str(self.flip_mode).upper() not in ("LDR", "HDR"):
+            raise ScoreError(f"flip mode must be LDR or HDR, got {self.flip_mode!r}")
+        frames = self.frames if self.frames and self.frames > 1 else None
+        return replace(self, frames=frames, flip_mode=str(self.flip_mode).upper())
+
+    def score_kwargs(self) -> dict:
+        """The keywords of :func:`oracle.scoring.score.score` these options set."""
+        keys = ("spp", "seed", "frames", "camera_path", "quiet", "flip_mode", "ppd", "gate_frames")
+        return {k: getattr(self, k) for k in keys}
+
+    def as_record(self) -> dict:
+        return asdict(self)

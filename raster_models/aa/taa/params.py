@@ -1,0 +1,232 @@
+"""Parameters of the ``taa`` model and its presets.
+
+Every part can be set on its own; a part left at ``preset`` (strings) or 0 (numbers) takes
+the value of the chosen ``preset``, each value's source named in :data:`PRESET_SOURCES`.
+``preset=custom`` takes UE4's values for the parts left unset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ... import params as _params
+from ...errors import ModelError
+from .blend import BLENDS
+from .filters import HISTORY_FILTERS, INPUT_FILTERS
+from .jitter import JITTERS
+from .rectify import COLOR_SPACES, NEIGHBOURHOODS, RECTIFIERS
+
+__all__ = ["PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"]
+
+DILATIONS = ("none", "nearest-depth-3x3")
+REPROJECTIONS = ("motion", "off")
+REJECTIONS = ("none", "offscreen", "depth")
+
+#: The published TAAs, part by part.
+PRESETS = {
+    "ue4": dict(
+        jitter="ue4-gaussian",
+        samples=8,
+        input_filter="ue4",
+        history_filter="catmull-rom",
+        dilation="nearest-depth-3x3",
+        reprojection="motion",
+        rectify="clamp",
+        color_space="ycocg",
+        neighbourhood="rounded",
+        gamma=1.0,
+        blend="ue4",
+        alpha=0.04,
+        reject="offscreen",
+    ),
+    "inside": dict(
+        jitter="halton",
+        samples=16,
+        input_filter="box",
+        history_filter="bilinear",
+        dilation="nearest-depth-3x3",
+        reprojection="motion",
+        rectify="clip",
+        color_space="rgb",
+        neighbourhood="rounded",
+        gamma=1.0,
+        blend="inside",
+        alpha=0.0,
+        reject="offscreen",
+    ),
+    "hdrp": dict(
+        jitter="halton",
+        samples=8,
+        input_filter="ue4",
+        history_filter="catmull-rom",
+        dilation="nearest-depth-3x3",
+        reprojection="motion",
+        rectify="variance",
+        color_space="ycocg",
+        neighbourhood="3x3",
+        gamma=1.0,
+        blend="constant",
+        alpha=0.125,
+        reject="offscreen",
+    ),
+    "filament": dict(
+        jitter="halton",
+        samples=16,
+        input_filter="ue4",
+        history_filter="catmull-rom",
+        dilation="none",
+        reprojection="motion",
+        rectify="clip",
+        color_space="rgb",
+        neighbourhood="3x3",
+        gamma=1.0,
+        blend="constant",
+        alpha=0.12,
+        reject="offscreen",
+    ),
+}
+PRESETS["custom"] = dict(PRESETS["ue4"])
+
+#: Where each preset's values come from.
+PRESET_SOURCES = {
+    "ue4": "B. Karis, High Quality Temporal Supersampling, SIGGRAPH 2014; UE 4.x "
+    "SceneRendering.cpp (Halton 2,3 mapped to a windowed Gaussian, sigma 0.47, 8 samples), "
+    "PostProcessTemporalAA.cpp (3x3 exp(-2.29 d^2) input filter), PostProcessTemporalCommon.usf "
+    "(Catmull-Rom history, velocity of the nearest depth in 3x3, rounded YCoCg min/max clamp, "
+    "BlendFinal 0.04 -> 0.2 by velocity and the 0.01 luma-contrast floor, HdrWeight4)",
+    "inside": "L. J. F. Pedersen, Temporal Reprojection Anti-Aliasing in INSIDE, GDC 2016; "
+    "Playdead/TemporalReprojectionAntialiasing defaults: FrustumJitter Halton_2_3_X16, "
+    "unjittered colour not filtered, bilinear history, useDilation (3x3 closest depth), "
+    "useClipping (clip_aabb towards the centre, MINMAX_3X3_ROUNDED), useYCoCg off, "
+    "feedbackMin/Max 0.88/0.97",
+    "hdrp": "Unity HDRP TemporalAntialiasing.hlsl / HDAdditionalCameraData (8 Halton 2,3 "
+    "samples, Blackman-Harris central filter, Catmull-Rom history, variance clipping in YCoCg, "
+    "taaBaseBlendFactor 0.875 -> alpha 0.125)",
+    "filament": "Filament View.h TemporalAntiAliasingOptions defaults: HALTON_23_X16, "
+    "filterInput (Blackman-Harris), filterHistory (Catmull-Rom), useYCoCg false, boxType AABB, "
+    "boxClipping ACCURATE, varianceGamma 1, feedback 0.12",
+    "custom": "UE4's values for every part not set",
+}
+
+
+def _choices(names) -> tuple[str, ...]:
+    return ("preset", *names)
+
+
+def _by_preset(key: str) -> str:
+    """A part's ``source``: each published preset's value (their sources: PRESET_SOURCES)."""
+    values = ", ".join(f"{name} {PRESETS[name][key]}" for name in PRESETS if name != "custom")
+    return f"the preset's: {values} (raster_models/aa/taa/params.py PRESET_SOURCES)"
+
+
+@dataclass(frozen=True)
+class TaaParams:
+    """Parameters of :func:`raster_models.aa.taa.run` (see the package docstring)."""
+
+    preset: str = _params.param(
+        "ue4",
+        source="UE4 2015: the most copied TAA (Karis 2014)",
+        help="published TAA whose values the parts left at 'preset' take: ue4, inside (Playdead), "
+        "hdrp (Unity), filament, custom (= ue4)",
+        choices=tuple(PRESETS),
+    )
+    jitter: str = _params.param(
+        "preset",
+        source=_by_preset("jitter"),
+        help="sub-pixel jitter: halton (2,3), ue4-gaussian (UE4's windowed Gaussian), none",
+        choices=_choices(JITTERS),
+    )
+    samples: int = _params.param(
+        0,
+        source=_by_preset("samples"),
+        help="jitter sequence length (0: the preset's; 8 or 16)",
+        lo=0,
+        hi=64,
+    )
+    input_filter: str = _params.param(
+        "preset",
+        source=_by_preset("input_filter"),
+        help="current-frame filter: ue4 (3x3 exp(-2.29 d^2)) or box (own sample)",
+        choices=_choices(INPUT_FILTERS),
+    )
+    history_filter: str = _params.param(
+        "preset",
+        source=_by_preset("history_filter"),
+        help="history sampling: bilinear or catmull-rom",
+        choices=_choices(HISTORY_FILTERS),
+    )
+    dilation: str = _params.param(
+        "preset",
+        source=_by_preset("dilation"),
+        help="velocity of the pixel (none) or of its nearest-depth 3x3 neighbour",
+        choices=_choices(DILATIONS),
+    )
+    reprojection: str = _params.param(
+        "preset",
+        source=_by_preset("reprojection"),
+        help="history read where the model's own motion vectors point (motion) or at the same "
+        "pixel (off)",
+        choices=_choices(REPROJECTIONS),
+    )
+    rectify: str = _params.param(
+        "preset",
+        source=_by_preset("rectify"),
+        help="history rectification: none, clamp (min/max), clip (AABB clip), variance",
+        choices=_choices(RECTIFIERS),
+    )
+    color_space: str = _params.param(
+        "preset",
+        source=_by_preset("color_space"),
+        help="rectification space: rgb, ycocg",
+        choices=_choices(COLOR_SPACES),
+    )
+    neighbourhood: str = _params.param(
+        "preset",
+        source=_by_preset("neighbourhood"),
+        help="rectification neighbourhood: 3x3, plus (5 taps), rounded (their average)",
+        choices=_choices(NEIGHBOURHOODS),
+    )
+    gamma: float = _params.param(
+        0.0,
+        source=_by_preset("gamma"),
+        help="variance clip gamma (0: the preset's)",
+        lo=0.0,
+        hi=4.0,
+    )
+    blend: str = _params.param(
+        "preset",
+        source=_by_preset("blend"),
+        help="history blend: constant alpha, ue4 (luma-contrast feedback), inside (0.88-0.97)",
+        choices=_choices(BLENDS),
+    )
+    alpha: float = _params.param(
+        0.0,
+        source=_by_preset("alpha"),
+        help="current-frame weight of constant and ue4 blends (0: the preset's)",
+        lo=0.0,
+        hi=1.0,
+    )
+    reject: str = _params.param(
+        "preset",
+        source=_by_preset("reject"),
+        help="history rejected where its position is off screen (offscreen), also where the "
+        "previous depth there disagrees with the reprojected point's by > 1% (depth), or never",
+        choices=_choices(REJECTIONS),
+    )
+
+    def check(self, technique: str) -> None:
+        r = resolve(self)
+        if r["jitter"] != "none" and r["samples"] < 1:
+            raise ModelError(f"{technique}: samples must be >= 1 with jitter {r['jitter']}")
+        if r["blend"] != "inside" and not r["alpha"] > 0.0:
+            raise ModelError(f"{technique}: alpha must be > 0 with blend {r['blend']}")
+
+
+def resolve(p: TaaParams) -> dict:
+    """Every part's value: the parameter where set, else the preset's."""
+    base = PRESETS[p.preset]
+    out = {}
+    for key, default in base.items():
+        v = getattr(p, key)
+        out[key] = default if v in ("preset", 0, 0.0) else v
+    return out
