@@ -37,6 +37,9 @@ def numpy_view(a) -> np.ndarray:
     if dr.is_array_v(a) and dr.depth_v(a) == 2 and dr.size_v(a) > 0:
         # component by component: a vector's own .numpy() packs it with a kernel whose
         # literal is the array's length, so every new length compiled a kernel again
-        return np.stack([numpy_view(a[i]) for i in range(dr.size_v(a))])
+        # a component may be narrower (a literal of width 1): broadcast it as Dr.Jit does
+        width = dr.width(a)
+        parts = [numpy_view(a[i]) for i in range(dr.size_v(a))]
+        return np.stack([np.broadcast_to(p, (width, *p.shape[1:])) for p in parts])
     to_numpy = getattr(a, "numpy", None)
     return np.asarray(to_numpy() if to_numpy is not None else a)

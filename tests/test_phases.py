@@ -168,6 +168,17 @@ def test_numpy_view_of_a_vector_launches_no_kernel(mi):
         np.testing.assert_array_equal(arr, np.arange(n, dtype=np.float32) * [[1], [2], [3]])
 
 
+def test_numpy_view_broadcasts_a_narrow_component(mi):
+    """A vector may hold a width-1 component (a literal): it is broadcast as Dr.Jit does
+    (the glTF scenes' MSAA failed on np.stack of unequal parts without it)."""
+    import drjit as dr
+    from raster_oracle.raster_models.drjit import numpy_view
+
+    v = mi.Vector3f(dr.arange(mi.Float, 5), 2.0, dr.arange(mi.Float, 5) * 3.0)
+    np.testing.assert_array_equal(numpy_view(v), np.asarray(v.numpy()))
+    assert numpy_view(v).shape == (3, 5)
+
+
 def test_aligned_copies_start_on_the_boundary_and_reuse_the_kernel(mi):
     import drjit as dr
     from raster_oracle.raster_models.drjit import DRJIT_ALIGN, aligned
