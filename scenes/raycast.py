@@ -55,16 +55,19 @@ def camera_rays_dr(camera, x, y):
     m = np.asarray(camera.to_world, dtype=np.float64)
     o_local = mi.Point3f(ox, oy, oz)
     d_local = mi.Vector3f(dx, dy, dz)
-    r = [[float(m[i, j]) for j in range(3)] for i in range(3)]
+    # the pose is opaque (a value in memory, not a literal of the kernel): every camera
+    # frame then reuses the compiled kernels instead of compiling its own
+    r = [[dr.opaque(mi.Float, float(m[i, j])) for j in range(3)] for i in range(3)]
+    t = [dr.opaque(mi.Float, float(m[i, 3])) for i in range(3)]
     d = mi.Vector3f(
         r[0][0] * d_local.x + r[0][1] * d_local.y + r[0][2] * d_local.z,
         r[1][0] * d_local.x + r[1][1] * d_local.y + r[1][2] * d_local.z,
         r[2][0] * d_local.x + r[2][1] * d_local.y + r[2][2] * d_local.z,
     )
     o = mi.Point3f(
-        r[0][0] * o_local.x + r[0][1] * o_local.y + r[0][2] * o_local.z + float(m[0, 3]),
-        r[1][0] * o_local.x + r[1][1] * o_local.y + r[1][2] * o_local.z + float(m[1, 3]),
-        r[2][0] * o_local.x + r[2][1] * o_local.y + r[2][2] * o_local.z + float(m[2, 3]),
+        r[0][0] * o_local.x + r[0][1] * o_local.y + r[0][2] * o_local.z + t[0],
+        r[1][0] * o_local.x + r[1][1] * o_local.y + r[1][2] * o_local.z + t[1],
+        r[2][0] * o_local.x + r[2][1] * o_local.y + r[2][2] * o_local.z + t[2],
     )
     length = dr.norm(d)
     d = d / length
@@ -202,12 +205,11 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     candidate = receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=light)
     occluded_ = shadow_occluded_dr(scene, light, si, wl, candidate)
     lit = dr.select(valid, candidate & ~occluded_, True)
-    fwd = camera.forward
+    fwd = [dr.opaque(mi.Float, float(c)) for c in camera.forward]  # opaque: kernel reuse
+    pos = [dr.opaque(mi.Float, float(c)) for c in camera.position]
     depth = dr.select(
         valid,
-        (si.p.x - float(camera.position[0])) * float(fwd[0])
-        + (si.p.y - float(camera.position[1])) * float(fwd[1])
-        + (si.p.z - float(camera.position[2])) * float(fwd[2]),
+        (si.p.x - pos[0]) * fwd[0] + (si.p.y - pos[1]) * fwd[1] + (si.p.z - pos[2]) * fwd[2],
         0.0,
     )
     shape_index = dr.gather(

@@ -98,11 +98,53 @@ def test_score_technique_records_cost(tmp_path):
     assert (out / "report.html").is_file()
 
 
+#: Keys of a kernel profile (oracle.phases.kernel_profile) in the bench figures.
+PROFILE_KEYS = {
+    "trace_seconds",
+    "kernel_seconds",
+    "reduction_seconds",
+    "copy_seconds",
+    "compile_seconds",
+    "launches",
+    "cache_hits",
+    "compiled",
+    "wall_seconds",
+    "host_seconds",
+}
+
+
 def test_bench_commands_print_ratios(capsys):
     assert main(["bench", "oracle", "--width", "48", "--height", "27", "--spp", "4"]) == 0
-    fig = json.loads(capsys.readouterr().out)
+    printed = capsys.readouterr()
+    fig = json.loads(printed.out)
     assert fig["oracle_over_bare_ratio"] > 0 and fig["color_over_mitsuba_direct_ratio"] > 0
     assert all(fig["adaptive"][s]["rays_ratio_vs_uniform"] > 0 for s in ("thin", "city", "plate"))
+    # the device beside the figures, and the colour reference's profile by phase
+    assert fig["device"]["variant"] == fig["variant"] and fig["device"]["name"]
+    profile = fig["color_profile"]
+    assert list(profile["phases"])[:3] == ["record", "tracing", "shading"]
+    assert {"reductions", "transfer", "accumulate", "finish"} <= set(profile["phases"])
+    assert set(profile["kernels"]) == PROFILE_KEYS == set(profile["mitsuba_direct_kernels"])
+    err = printed.err.splitlines()
+    assert err[0].startswith("device: ") and fig["device"]["variant"] in err[0]
+    assert err[1].startswith("colour reference by phase: ") and err[-1].startswith("kernels: ")
+    assert [ln.split()[0] for ln in err[2:-1]] == list(profile["phases"])
     assert main(["bench", "models", "--width", "48", "--height", "27", "--spp", "4"]) == 0
-    fig = json.loads(capsys.readouterr().out)
+    printed = capsys.readouterr()
+    fig = json.loads(printed.out)
     assert fig["sdsm_over_oracle_ratio"] > 0
+    assert fig["device"]["name"]
+    for family, ref in (("models", "oracle_visibility"), ("aa_models", "oracle_color")):
+        assert set(fig[ref]["profile"]) == PROFILE_KEYS | {"phases"}
+        for row in fig[family].values():
+            assert set(row["profile"]) == PROFILE_KEYS | {"on_new_frame"}
+            new = row["profile"]["on_new_frame"]
+            assert new["cache_hits"] + new["compiled"] == new["launches"]
+    # stderr: the device, then per family a header, a column line and one row per model
+    err = printed.err.splitlines()
+    assert err[0].startswith("device: ")
+    for title, family in (("shadow models", "models"), ("AA models", "aa_models")):
+        at = err.index(f"{title} (profiled runs; seconds)")
+        assert err[at + 1].split()[:2] == ["wall", "trace"]
+        names = [ln.split()[0] for ln in err[at + 2 : at + 3 + len(fig[family])]]
+        assert names == ["reference", *fig[family]]

@@ -74,6 +74,11 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert main(["main", "--scenes", "plate,spot,decal", "--out", str(out), *SMALL]) == 0
     printed = capsys.readouterr().out
     assert str((out / "report.html").resolve()) in printed
+    # its own time by phase at the end, one line per phase, before the report's path
+    lines = printed.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("main job by phase: "))
+    named = [line.split()[0] for line in lines[head + 1 : head + 1 + len(MAIN_PHASES)]]
+    assert named == list(MAIN_PHASES)
     with SweepStore(out / "sweep.db", readonly=True) as store:
         rows = store.rows()
         assert store.integrity_ok()
@@ -110,10 +115,36 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert f"({len(rows)} already done, 0 done, 0 failed)" in capsys.readouterr().out
 
 
+#: The main job's phases, in the order it prints them (mainjob.timing_record).
+MAIN_PHASES = (
+    "references",
+    "models",
+    "metrics",
+    "images",
+    "sweep",
+    "claims",
+    "extremes",
+    "aa_memory",
+    "aa_ranking",
+    "report",
+)
+#: Slack of the phases' sum against the wall time: the phases are disjoint stretches of the
+#: job (inline), their sum cannot exceed the wall; the slack only covers clock rounding.
+PHASE_SUM_SLACK_S = 1e-3
+
+
 def test_report_json_holds_every_section_record(tmp_path, sections):
     out = tmp_path / "main"
     assert main(["main", "--scenes", "spot", "--out", str(out), *SMALL]) == 0
     report = json.loads((out / "report.json").read_text())
+    # the job's time by phase: in timing.json and in report.json
+    timing = report["timing"]
+    assert timing == json.loads((out / "timing.json").read_text())
+    assert list(timing["phases"]) == list(MAIN_PHASES)
+    assert all(v >= 0 for v in timing["phases"].values())
+    assert timing["phases"]["references"] > 0 and timing["phases"]["models"] > 0
+    assert sum(timing["phases"].values()) <= timing["wall_seconds"] + PHASE_SUM_SLACK_S
+    assert timing["sweep_phases"] == "wall seconds in this process"
     found = {s["kind"]: s for s in report["sections"]}
     assert [s["id"] for s in report["sections"]] == [
         "claims",

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from . import args as A
@@ -23,7 +24,9 @@ def add_parsers(sub) -> None:
         default="",
         help="models: comma-separated techniques to time (default: every row)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress bar, no profile tables on stderr"
+    )
 
     p = sub.add_parser(
         "aa-memory", help="AA framebuffer memory (models' accounting) vs the quoted figures"
@@ -64,7 +67,12 @@ def add_parsers(sub) -> None:
 
 
 def cmd_bench(args) -> int:
-    from ..studies.bench import bench_models, bench_oracle
+    from ..studies.bench import (
+        bench_models,
+        bench_oracle,
+        models_profile_lines,
+        oracle_profile_lines,
+    )
 
     kwargs = dict(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet)
     if args.what == "models":
@@ -77,6 +85,9 @@ def cmd_bench(args) -> int:
     else:
         figures = bench_oracle(**kwargs)
     print(json.dumps(figures, indent=2))
+    if not args.quiet:  # where the time goes, for a reader (the JSON holds it all)
+        lines = models_profile_lines if args.what == "models" else oracle_profile_lines
+        print("\n".join(lines(figures)), file=sys.stderr)
     return 0
 
 

@@ -39,9 +39,11 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ...metrics.stats import binomial_stderr_floor
+from ...raster_models.drjit import numpy_view
 from ...scenes import backend
 from ...scenes.raycast import trace_film_dr
 from ..errors import InputError
+from ..phases import maybe_phase
 from .coverage import centre_shapes, exact_channels, front_hits
 from .motion import motion_channels
 
@@ -58,6 +60,7 @@ __all__ = [
     "grid_shape",
     "render_reference",
     "sample_jitter",
+    "samples_per_chunk",
     "sobol_sample",
 ]
 
@@ -95,6 +98,20 @@ _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
 #: tracing and launch time: the 1080p 32-spp colour reference took 1.20x the CPU time of
 #: Mitsuba's ``direct`` integrator at 2^22 samples a launch, 1.09x at 2^24.
 SAMPLES_PER_CHUNK = 1 << 24
+#: Launches are this many times larger on a CUDA variant (2^26 samples, about 4 GiB of device
+#: memory with colour): each launch records its kernel in Python again (27 ms a launch on
+#: this 2-core CPU), which the H200 run of 2026-11-27 showed dominates there (the colour
+#: reference took 3.6x the time of Mitsuba's ``direct``, which records once per image).
+CUDA_CHUNK_FACTOR = 4
+
+
+def samples_per_chunk() -> int:
+    """Samples per sampling launch of the active backend (:data:`SAMPLES_PER_CHUNK`, times
+    :data:`CUDA_CHUNK_FACTOR` on CUDA); results do not depend on it."""
+    cuda = "cuda" in backend.active().variant
+    return SAMPLES_PER_CHUNK * (CUDA_CHUNK_FACTOR if cuda else 1)
+
+
 # Memory model of estimate_memory (peak RSS above the loaded scene, plate, LLVM backend,
 # measured 2026-11-24; see its docstring).
 _BASE_BYTES = 64 << 20
@@ -251,6 +268,8 @@ class _Accum:
     rgb2: np.ndarray | None = field(init=False)
     smin: np.ndarray = field(init=False)
     smax: np.ndarray = field(init=False)
+    #: :class:`oracle.phases.Phases` of a profiled render (None: no profiling, no syncs)
+    phases: object = None
 
     def __post_init__(self):
         def size(name):
@@ -260,8 +279,9 @@ class _Accum:
         self.vis = np.zeros(size("vis"))
         self.cov = np.zeros(size("cov"))
         self.front = np.zeros(size("front"))
-        self.rgb = np.zeros((self.npix, 3)) if self.color else None
-        self.rgb2 = np.zeros((self.npix, 3)) if self.color else None
+        # planar (3, npix), the layout Dr.Jit hands over: the sums add rows, not a transpose
+        self.rgb = np.zeros((3, self.npix)) if self.color else None
+        self.rgb2 = np.zeros((3, self.npix)) if self.color else None
         self.smin = np.full(size("shape"), np.iinfo(np.int32).max, dtype=np.int64)
         self.smax = np.full(size("shape"), np.iinfo(np.int32).min, dtype=np.int64)
 
@@ -292,15 +312,15 @@ class _Accum:
         )
 
     def rgb_stderr(self):
-        n = self.n[:, None]
-        return self.stderr(self.rgb, self.rgb2, n)
+        """``(3, npix)``."""
+        return self.stderr(self.rgb, self.rgb2, self.n)
 
     def sample_variance(self):
         """Largest per-pixel sample variance over the tracked quantities."""
         n = np.maximum(self.n, 2)
         parts = [(self.vis - self.vis**2 / n) / (n - 1), (self.cov - self.cov**2 / n) / (n - 1)]
         if self.color:
-            parts.append(np.max((self.rgb2 - self.rgb**2 / n[:, None]) / (n[:, None] - 1), 1))
+            parts.append(np.max((self.rgb2 - self.rgb**2 / n) / (n - 1), 0))
         return np.maximum(np.max(parts, axis=0), 0.0)
 
 
@@ -418,7 +438,7 @@ def _pass(
 
     width = loaded.width
     m, n = grid_shape(spp)
-    launch = launch or SAMPLES_PER_CHUNK
+    launch = launch or samples_per_chunk()
     block = min(spp, launch)
     per_chunk = max(1, launch // block)
     bits = max(1, int(offset + spp - 1).bit_length())
@@ -431,7 +451,12 @@ def _pass(
             idx = dr.arange(mi.UInt32, count)
             local = idx // bsz
             s = idx - local * bsz + s0
-            pix = dr.gather(mi.UInt32, mi.UInt32(chunk), local)
+            if int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
+                # a run of pixels: no upload of their indices; the first is opaque, so every
+                # chunk reuses one compiled kernel
+                pix = local + dr.opaque(mi.UInt32, int(chunk[0]))
+            else:
+                pix = dr.gather(mi.UInt32, mi.UInt32(chunk), local)
             if progressive:
                 u, v = sobol_sample(pix, s + offset, seed, bits=bits)
             else:
@@ -450,10 +475,17 @@ def _pass(
 def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int:
     """Trace the samples ``(x, y)`` (``block`` consecutive ones per pixel of ``chunk``) and
     add their sums to ``acc``; returns the shadow rays cast."""
+    with maybe_phase(acc.phases, "record"):  # Python: recording the kernel's operations
+        res = trace_film_dr(loaded, x, y, color=acc.color, albedo=False)
+        sums = _sample_sums(acc, res, chunk, block)
+    return _reduce_and_add(acc, res, sums, chunk, block)
+
+
+def _sample_sums(acc: _Accum, res: dict, chunk, block: int) -> dict:
+    """The per-sample values to sum per pixel: name -> (Dr.Jit array, reduction)."""
     import drjit as dr
 
-    res = trace_film_dr(loaded, x, y, color=acc.color, albedo=False)
-    sums = {}  # name -> (per-sample value, reduction)
+    sums = {}
     if "vis" in acc.track:
         sums["vis"] = (dr.select(res["lit"], 1.0, 0.0), dr.ReduceOp.Add)
     if "cov" in acc.track:
@@ -466,22 +498,44 @@ def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int
         sums["rgb2"] = (res["color"] * res["color"], dr.ReduceOp.Add)
     if "front" in acc.track:
         sums["front"] = (front_hits(res["shape"], acc.centre[chunk], block), dr.ReduceOp.Add)
-    # one kernel traces every sample; reductions then read the evaluated arrays
-    dr.eval(*[v for v, _ in sums.values()], res["shadow_tested"])
-    shadow_count = dr.count(res["shadow_tested"])
-    outs = {k: block_sum(dr, op, v, block) for k, (v, op) in sums.items()}
-    dr.eval(*outs.values(), shadow_count)
-    if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
-        chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
-    acc.n[chunk] += block
-    for k in ("vis", "cov", "front", "rgb", "rgb2"):
-        if k in outs:
-            arr = np.array(outs[k], dtype=np.float64)
-            getattr(acc, k)[chunk] += arr.T if arr.ndim == 2 else arr
-    if "smin" in outs:
-        acc.smin[chunk] = np.minimum(acc.smin[chunk], np.array(outs["smin"]))
-        acc.smax[chunk] = np.maximum(acc.smax[chunk], np.array(outs["smax"]))
-    return int(shadow_count[0])
+    return sums
+
+
+def _reduce_and_add(acc: _Accum, res: dict, sums: dict, chunk, block: int) -> int:
+    """Evaluate the samples' values, reduce them per pixel and add them to ``acc``."""
+    import drjit as dr
+
+    # one kernel traces every sample; reductions then read the evaluated arrays. A profiled
+    # render (acc.phases) waits at the end of each phase so its launches count there.
+    ph = acc.phases
+    with maybe_phase(ph, "trace+shade", sync=True):
+        dr.eval(*[v for v, _ in sums.values()], res["shadow_tested"])
+    with maybe_phase(ph, "reductions", sync=True):
+        shadow_count = dr.count(res["shadow_tested"])
+        outs = {k: block_sum(dr, op, v, block) for k, (v, op) in sums.items()}
+        dr.eval(*outs.values(), shadow_count)
+    with maybe_phase(ph, "transfer"):
+        # numpy_view: a colour vector component by component (Dr.Jit's own conversion
+        # compiles a packing kernel for every array length: the last, shorter chunk)
+        host = {
+            k: np.asarray(numpy_view(v), dtype=None if k in ("smin", "smax") else np.float64)
+            for k, v in outs.items()
+        }
+        shadow_tested = int(shadow_count[0])
+    with maybe_phase(ph, "accumulate"):
+        if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
+            chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
+        acc.n[chunk] += block
+        for k in ("vis", "cov", "front"):
+            if k in host:
+                getattr(acc, k)[chunk] += host[k]
+        for k in ("rgb", "rgb2"):
+            if k in host:
+                getattr(acc, k)[:, chunk] += host[k]  # (3, pixels) onto planar sums
+        if "smin" in host:
+            acc.smin[chunk] = np.minimum(acc.smin[chunk], host["smin"])
+            acc.smax[chunk] = np.maximum(acc.smax[chunk], host["smax"])
+    return shadow_tested
 
 
 def block_sum(dr, op, values, block: int):
@@ -657,7 +711,7 @@ def _refine_mask(acc: _Accum, settings: ReferenceSettings, width: int, height: i
         se = np.maximum(se, binary_stderr(acc.front, acc.n))
     want = feature_mask(acc, width, height) & (se > settings.target_stderr)
     if acc.color:
-        want |= acc.rgb_stderr().max(axis=1) > settings.target_stderr
+        want |= acc.rgb_stderr().max(axis=0) > settings.target_stderr
     return want & (acc.n < settings.max_spp)
 
 
@@ -697,10 +751,15 @@ def render_reference(
     *,
     quiet: bool = False,
     samples_per_launch: int | None = None,
+    phases=None,
 ):
     """Render the reference channels of ``loaded`` (its current camera frame), at most
-    ``samples_per_launch`` samples a Dr.Jit launch (default :data:`SAMPLES_PER_CHUNK`; the
+    ``samples_per_launch`` samples a Dr.Jit launch (default :func:`samples_per_chunk`; the
     result does not depend on it, which ``doctor --check`` verifies).
+
+    ``phases``: an :class:`oracle.phases.Phases` to profile the render into (``trace+shade``,
+    ``reductions``, ``transfer``, ``accumulate``, ``centre``, ``finish``); each phase then
+    waits for its Dr.Jit work, which the normal path (None) never does.
 
     Returns
     -------
@@ -741,7 +800,7 @@ def render_reference(
     centre = centre_shapes(loaded) if "coverage" in groups else None
     if centre is not None:
         track.add("front")
-    acc = _Accum(npix, color, centre=centre, track=frozenset(track))
+    acc = _Accum(npix, color, centre=centre, track=frozenset(track), phases=phases)
     t0 = time.perf_counter()
     progress = None
     # a bar only on a terminal: in a CI log its carriage-return redraws are noise
@@ -779,15 +838,29 @@ def render_reference(
             if settings.adaptive:
                 p, s = _refine(loaded, acc, settings, passes, progress, samples_per_launch)
                 primary, shadow = primary + p, shadow + s
-        centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}
-        if "tangent32" in groups:
-            centre["visibility_tangent32"] = _tangent32_channel(loaded)
-        if "motion" in groups:
-            centre.update(motion_channels(loaded))
+        with maybe_phase(phases, "centre", sync=True):
+            centre = _centre_channels(loaded, groups, progress) if groups & _CENTRE_GROUPS else {}
+            if "tangent32" in groups:
+                centre["visibility_tangent32"] = _tangent32_channel(loaded)
+            if "motion" in groups:
+                centre.update(motion_channels(loaded))
     finally:
         if progress is not None:
             progress.close()
-    wall = time.perf_counter() - t0
+    wall = time.perf_counter() - t0  # rendering only: the images below are not counted
+    with maybe_phase(phases, "finish"):
+        channels = _finish(acc, groups, centre, w, h)
+    stats = _stats(settings, acc, channels, primary, shadow, wall, passes, (w, h), sampled)
+    if "coverage_exact" in groups:
+        with maybe_phase(phases, "coverage_exact"):
+            exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
+        channels.update(exact)
+    return channels, stats
+
+
+def _finish(acc: _Accum, groups: set, centre: dict, w: int, h: int) -> dict[str, np.ndarray]:
+    """The output images from the sums: means, standard errors, edge, centre channels."""
+    color = acc.color
     channels: dict[str, np.ndarray] = {}
 
     def img(a):
@@ -802,21 +875,17 @@ def render_reference(
         channels["front_coverage"] = img(acc.front / acc.n)
         channels["front_coverage_stderr"] = img(acc.front_stderr())
     if color:
-        mean = acc.rgb / acc.n[:, None]
+        mean = acc.rgb / acc.n
         se = acc.rgb_stderr()
         for i, c in enumerate("RGB"):
-            channels[f"color.{c}"] = img(mean[:, i])
+            channels[f"color.{c}"] = img(mean[i])
         for i, c in enumerate("RGB"):
-            channels[f"color_stderr.{c}"] = img(se[:, i])
+            channels[f"color_stderr.{c}"] = img(se[i])
     if "edge" in groups:
         mixed = (acc.vis > 0) & (acc.vis < acc.n)
         channels["edge"] = img((acc.smin != acc.smax) | mixed)
     channels.update(centre)
-    stats = _stats(settings, acc, channels, primary, shadow, wall, passes, (w, h), sampled)
-    if "coverage_exact" in groups:
-        exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
-        channels.update(exact)
-    return channels, stats
+    return channels
 
 
 def _stats(settings, acc, channels, primary, shadow, wall, passes, size, sampled) -> dict:
@@ -860,7 +929,7 @@ def _adaptive_stats(settings: ReferenceSettings, acc: _Accum, width: int, height
     npix = width * height
     se = np.maximum(acc.vis_stderr(), acc.cov_stderr())
     if acc.color:
-        se = np.maximum(se, acc.rgb_stderr().max(axis=1))
+        se = np.maximum(se, acc.rgb_stderr().max(axis=0))
     near = feature_mask(acc, width, height)
     near_se = float(se[near].max()) if near.any() else 0.0
     var = acc.sample_variance()

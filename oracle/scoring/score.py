@@ -190,7 +190,9 @@ def _coverage_channel_metrics(ref_ch, cand, *, channel, edge, full, kw, out, map
     out.update(coverage_metrics(ref, cand, edge=edge, aa_samples=kw["aa_samples"]))
     if full:
         maps["coverage_error"] = (cand - ref).astype(np.float32)
-    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    fl = None  # coverage_only: no FLIP, SSIM, PSNR (their values would be dropped)
+    if not kw["coverage_only"]:
+        fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
     # silhouettes against the sky are edges of coverage even where one shape is seen
     return ref, ref_se, None, edge | ((ref > 0) & (ref < 1)), fl
 
@@ -236,10 +238,15 @@ def _metrics_for(
     full: bool,
     samples,
     aa_samples=None,
+    coverage_only: bool = False,
 ):
     """Metric values (and, with ``full``, error maps) of one candidate frame: the channel's
     own metrics (:data:`CHANNEL_METRICS`), then those every kind shares; a metric the
-    catalogue does not declare for the channel's kind stays None."""
+    catalogue does not declare for the channel's kind stays None.
+
+    ``coverage_only`` (a coverage channel scored beside colour, which keeps only its
+    :data:`COVERAGE_KEYS`): FLIP, SSIM and PSNR of the coverage image are not computed
+    (None), FLIP being the most expensive metric of a case."""
     out = dict.fromkeys(METRIC_KEYS)
     maps = {}
     kind, own = CHANNEL_METRICS[channel]
@@ -250,6 +257,7 @@ def _metrics_for(
         flip_range=flip_range,
         ppd=ppd,
         aa_samples=aa_samples,
+        coverage_only=coverage_only,
     )
     edge = ref_ch["edge"] > 0.5
     if channel == "visibility":
@@ -257,7 +265,9 @@ def _metrics_for(
     ref, ref_se, rec, edge, fl = own(
         ref_ch, cand, channel=channel, edge=edge, full=full, kw=kw, out=out, maps=maps
     )
-    if full:
+    if fl is None:
+        out["flip_mean"] = None
+    elif full:
         out["flip_mean"], maps["flip"] = fl[0], fl[1]
     else:
         out["flip_mean"] = fl
@@ -312,7 +322,7 @@ def _noise_floor(
     reference (``settings``) stands for it. Cached in ``floor_cache`` by reference and options.
     """
     floor_key = (ref.meta.get("cache_key"), channel, kw["flip_mode"], kw["ppd"], kw["samples"])
-    floor_key += (kw["aa_samples"],)
+    floor_key += (kw["aa_samples"], kw["coverage_only"])
     cached = floor_cache.get(floor_key) if floor_cache is not None else None
     if cached is not None and floor_key[0] is not None:
         return dict(cached)
@@ -458,6 +468,7 @@ def score(
     ppd: float = M.DEFAULT_PPD,
     aa_samples: int | None = None,
     floor_cache: dict | None = None,
+    coverage_only: bool = False,
     gate_frames: int | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
@@ -473,6 +484,8 @@ def score(
         coverage floor ``coverage_floor_rms`` (None: no floor).
     floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
         the references and scoring options only, so it is computed once per reference.
+    coverage_only : a coverage channel whose coverage metrics alone are kept (an AA model's
+        ``front_coverage`` beside its colour): no FLIP, SSIM or PSNR of it.
     gate_frames : average the per-frame metrics over the last ``gate_frames`` frames only
         (None: all), and judge convergence against their level.
 
@@ -519,6 +532,7 @@ def score(
             ppd=ppd,
             samples=spp,
             aa_samples=aa_samples,
+            coverage_only=coverage_only and channel in COVERAGE_CHANNELS,
         )
         values, maps, ref_img, rec = _metrics_for(channel, ref_ch, cand, full=True, **kw)
         floor = None

@@ -155,6 +155,7 @@ def score_model(
             loaded,
             channel=cov_channel,
             candidate_frames=model_candidate(technique, params, channel=cov_channel, runs=runs),
+            coverage_only=True,  # only its COVERAGE_KEYS are kept (_merge_coverage)
             **kw,
         )
         _merge_coverage(result, coverage)

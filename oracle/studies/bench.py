@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from ...scenes import backend
+from ..phases import Phases, device_description, kernel_profile
 
 __all__ = [
     "ADAPTIVE_SCENES",
@@ -33,12 +34,12 @@ def _bare_loop(loaded, spp: int, seed: int) -> tuple[float, int]:
     import drjit as dr
 
     from ...scenes.raycast import camera_rays_dr, shadow_ray_dr
-    from ..reference.render import SAMPLES_PER_CHUNK, grid_shape, sample_jitter
+    from ..reference.render import grid_shape, sample_jitter, samples_per_chunk
 
     w, h = loaded.width, loaded.height
     npix = w * h
     m, n = grid_shape(spp)
-    per_chunk = max(1, SAMPLES_PER_CHUNK // spp)
+    per_chunk = max(1, samples_per_chunk() // spp)
     light = loaded.light
     wl = mi.Vector3f(*[-float(c) for c in light.direction])
     seconds, rays = 0.0, 0
@@ -215,6 +216,82 @@ def _mitsuba_direct(loaded, spp: int, seed: int) -> float:
     return time.perf_counter() - t0, time.process_time() - c0
 
 
+def device_line(device: dict) -> str:
+    """``device: NAME, N cores, T Dr.Jit threads (variant)``."""
+    return (
+        f"device: {device['name']} ({device['kind']}), {device['cores']} cores, "
+        f"{device['drjit_threads']} Dr.Jit threads, {device['variant']}"
+    )
+
+
+def kernel_line(kernels: dict) -> str:
+    """One line of a :func:`oracle.phases.kernel_profile` record."""
+    return (
+        f"kernels: {kernels['launches']} launches, {kernels['cache_hits']} cache hits, "
+        f"{kernels['compiled']} compiled ({kernels['compile_seconds']:.3f} s); device "
+        f"trace {kernels['trace_seconds']:.3f} s, kernels {kernels['kernel_seconds']:.3f} s, "
+        f"reductions {kernels['reduction_seconds']:.3f} s, copies "
+        f"{kernels['copy_seconds']:.3f} s; host {kernels['host_seconds']:.3f} s of "
+        f"{kernels['wall_seconds']:.3f} s"
+    )
+
+
+def oracle_profile_lines(figures: dict) -> list[str]:
+    """Printable lines of :func:`bench_oracle`'s figures: the device, the colour reference
+    by phase, its kernel line."""
+    profile = figures["color_profile"]
+    phases = Phases()
+    phases.merge(profile["phases"])
+    lines = [device_line(figures["device"])]
+    lines += phases.lines(title="colour reference by phase")
+    return [*lines, kernel_line(profile["kernels"])]
+
+
+def models_profile_lines(figures: dict) -> list[str]:
+    """Printable lines of :func:`bench_models`' figures: the device, then per family a table
+    of the reference and each model (profiled runs)."""
+    lines = [device_line(figures["device"])]
+    for title, ref, family in (
+        ("shadow models", "oracle_visibility", "models"),
+        ("AA models", "oracle_color", "aa_models"),
+    ):
+        if family in figures:
+            profiles = {name: row["profile"] for name, row in figures[family].items()}
+            lines += _model_profile_lines(title, figures[ref]["profile"], profiles)
+    return lines
+
+
+def color_profile(loaded, spp: int, *, tracing_seconds: float | None = None) -> dict:
+    """Where the colour reference's time goes: one profiled render and one profiled
+    Mitsuba ``direct`` of the same frame and spp (after the timed rounds: profiling
+    synchronises after each phase, so these times are not the benchmark's).
+
+    ``phases``: wall seconds of ``record`` (Python recording the kernel), ``trace+shade``
+    (one fused kernel), ``reductions`` (per-pixel sums), ``transfer`` (to the host),
+    ``accumulate`` (NumPy sums), ``finish`` (means, standard errors, images). With
+    ``tracing_seconds`` (the bare loop's intersect + shadow test on the same rays),
+    ``tracing`` and ``shading`` split ``trace+shade`` (shading = the rest, an estimate).
+    ``kernels``, ``mitsuba_direct_kernels``: :func:`oracle.phases.kernel_profile` records.
+    """
+    from ..reference.render import ReferenceSettings, render_reference
+
+    phases = Phases()
+    settings = ReferenceSettings(spp=spp, channels=("color",))
+    _, kernels = kernel_profile(render_reference, loaded, settings, quiet=True, phases=phases)
+    _, direct = kernel_profile(_mitsuba_direct, loaded, spp, 0)
+    seconds = phases.record()
+    if tracing_seconds is not None and "trace+shade" in seconds:
+        fused = seconds["trace+shade"]
+        tracing = min(fused, float(tracing_seconds))
+        split = {"tracing": tracing, "shading": fused - tracing}
+        seconds = {
+            k2: v2
+            for k, v in seconds.items()
+            for k2, v2 in (split if k == "trace+shade" else {k: v}).items()
+        }
+    return {"phases": seconds, "kernels": kernels, "mitsuba_direct_kernels": direct}
+
+
 def bench_oracle(
     *,
     width: int = 1920,
@@ -247,12 +324,13 @@ def bench_oracle(
     render_reference(loaded, color_settings, quiet=True)
     _mitsuba_direct(loaded, spp, 0)
     oracle_rounds, bare_rounds, color_s, direct_s, color_cpu, direct_cpu = [], [], [], [], [], []
-    stats, cstats, bare_s, bare_rays = {}, {}, 0.0, 0
+    stats, cstats, bare_s, bare_rays, bare_s_rounds = {}, {}, 0.0, 0, []
     for _ in range(repeats):
         _, stats = render_reference(loaded, settings, quiet=quiet)
         oracle_rounds.append(stats["mrays_per_second"])
         bare_s, bare_rays = _bare_loop(loaded, spp, 0)
         bare_rounds.append(bare_rays / bare_s / 1e6)
+        bare_s_rounds.append(bare_s)
         c0 = time.process_time()
         _, cstats = render_reference(loaded, color_settings, quiet=quiet)
         color_cpu.append(time.process_time() - c0)
@@ -264,13 +342,16 @@ def bench_oracle(
     bare_mrays = float(np.median(bare_rounds))
     color_ratio = float(np.median(np.array(color_s) / np.array(direct_s)))
     color_cpu_ratio = float(np.median(np.array(color_cpu) / np.array(direct_cpu)))
+    profile = color_profile(loaded, spp, tracing_seconds=float(np.median(bare_s_rounds)))
     adaptive = {name: bench_adaptive(scene=name, quiet=quiet) for name in adaptive_scenes}
     exact_cov = bench_exact_coverage(width=width, height=height)
+    device = device_description(backend.active().variant)
     return {
         "scene": "city",
         "resolution": [width, height],
         "spp": spp,
         "variant": backend.active().variant,
+        "device": device,
         "rounds": repeats,
         "oracle": {
             "rays": stats["rays_cast"],
@@ -298,6 +379,7 @@ def bench_oracle(
             "cpu_seconds_per_round": direct_cpu,
         },
         "color_over_mitsuba_direct_ratio": color_ratio,
+        "color_profile": profile,
         "color_over_mitsuba_direct_cpu_ratio": color_cpu_ratio,
         "color_over_mitsuba_direct_target": "<= 1.0 (median of the per-round ratios; the CPU "
         "ratio, process CPU seconds, is the steadier one on a shared machine)",
@@ -357,6 +439,68 @@ def _time_models(loaded, cases: dict, times: dict) -> None:
         times[technique].append(time.perf_counter() - t0)
 
 
+#: Camera path and frame of ``bench models``' kernel-reuse check: the same models on a moved
+#: camera, after the base frame compiled their kernels.
+REUSE_FRAME = ("dolly", 1, 8)
+
+
+def _profile_models(loaded, cases: dict) -> dict:
+    """Each case profiled (:func:`oracle.phases.kernel_profile`) on the warm base frame, and
+    again on another camera frame (``on_new_frame``: its ``compiled`` counts the kernels a
+    new frame recompiles instead of reusing)."""
+    from ... import raster_models
+
+    path, frame, n_frames = REUSE_FRAME
+    moved = loaded.with_frame(frame, path=path, n_frames=n_frames)
+    out = {}
+    for technique, params in cases.items():
+        _, rec = kernel_profile(raster_models.run, technique, loaded, **params)
+        _, again = kernel_profile(raster_models.run, technique, moved, **params)
+        rec["on_new_frame"] = {k: again[k] for k in ("launches", "cache_hits", "compiled")}
+        rec["on_new_frame"]["compile_seconds"] = again["compile_seconds"]
+        out[technique] = rec
+    return out
+
+
+def _model_profile_lines(title: str, reference: dict, profiles: dict) -> list[str]:
+    """One line per model (and its reference): wall, device split, host, kernel reuse."""
+    head = "  {:<22}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}  {}"
+    lines = [
+        f"{title} (profiled runs; seconds)",
+        head.format("", "wall", "trace", "kernels", "reduce", "compile", "host", "hits/launches"),
+    ]
+    for name, rec in {"reference": reference, **profiles}.items():
+        reuse = f"{rec['cache_hits']}/{rec['launches']}"
+        if "on_new_frame" in rec:
+            new = rec["on_new_frame"]
+            reuse += f", new frame {new['cache_hits']}/{new['launches']}"
+        lines.append(
+            head.format(
+                name,
+                f"{rec['wall_seconds']:.3f}",
+                f"{rec['trace_seconds']:.3f}",
+                f"{rec['kernel_seconds']:.3f}",
+                f"{rec['reduction_seconds']:.3f}",
+                f"{rec['compile_seconds']:.3f}",
+                f"{rec['host_seconds']:.3f}",
+                reuse,
+            )
+        )
+    return lines
+
+
+def _profiled_family(loaded, settings, cases: dict) -> tuple[dict, dict]:
+    """The reference of a family and its models profiled; ``(reference, models)`` records
+    (the reference's also holds its ``phases``)."""
+    from ..reference.render import render_reference
+
+    phases = Phases()
+    _, reference = kernel_profile(render_reference, loaded, settings, quiet=True, phases=phases)
+    reference["phases"] = phases.record()
+    profiles = _profile_models(loaded, cases)
+    return reference, profiles
+
+
 def _reference_row(spp: int, times: list[float], stats: dict) -> dict:
     """JSON row of a reference timed over the rounds: median seconds, each round, rays."""
     return {
@@ -367,8 +511,9 @@ def _reference_row(spp: int, times: list[float], stats: dict) -> dict:
     }
 
 
-def _model_rows(cases, times, results, prefix, ref_s, ratio_key, target) -> dict:
-    """One JSON row per case: median seconds, its ratio to the reference, the cost record."""
+def _model_rows(cases, times, results, prefix, ref_s, ratio_key, target, profiles=None) -> dict:
+    """One JSON row per case: median seconds, its ratio to the reference, the cost record
+    and (``profiles``) its profiled run."""
     rows = {}
     for technique, params in cases.items():
         model_s = float(np.median(times[technique]))
@@ -380,6 +525,8 @@ def _model_rows(cases, times, results, prefix, ref_s, ratio_key, target) -> dict
             "meets_target": model_s / ref_s <= target,
             "cost": results[prefix + technique].cost,
         }
+        if profiles is not None:
+            rows[technique]["profile"] = profiles[technique]
     return rows
 
 
@@ -446,9 +593,12 @@ def bench_models(
             _, cstats = render_reference(loaded, color_settings, quiet=quiet)
             color_times.append(cstats["wall_seconds"])
             _time_models(loaded, aa_cases, aa_times)
+    device = device_description(backend.active().variant)
     figures: dict = {"scene": "city", "resolution": [width, height], "rounds": repeats}
+    figures["device"] = device
     if shadow_cases:
         oracle_s = float(np.median(oracle_times))
+        ref_profile, profiles = _profiled_family(loaded, settings, shadow_cases)
         models = _model_rows(
             shadow_cases,
             model_times,
@@ -457,8 +607,10 @@ def bench_models(
             oracle_s,
             "over_oracle_ratio",
             MODEL_RATIO_TARGET,
+            profiles,
         )
         figures["oracle_visibility"] = _reference_row(spp, oracle_times, stats)
+        figures["oracle_visibility"]["profile"] = ref_profile
         figures["models"] = models
         if "sdsm" in models:
             figures["sdsm"] = models["sdsm"]
@@ -466,6 +618,7 @@ def bench_models(
         figures["target"] = f"<= {MODEL_RATIO_TARGET} (model seconds / 32-spp reference seconds)"
     if aa_cases:
         color_s = float(np.median(color_times))
+        ref_profile, profiles = _profiled_family(loaded, color_settings, aa_cases)
         aa_models = _model_rows(
             aa_cases,
             aa_times,
@@ -474,12 +627,14 @@ def bench_models(
             color_s,
             "over_color_reference_ratio",
             AA_RATIO_TARGET,
+            profiles,
         )
         for technique in ("msaa", "agaa"):
             if technique in aa_models:
                 row = aa_models[technique]
                 row["meets_issue9_target"] = row["over_color_reference_ratio"] <= AA_ISSUE9_TARGET
         figures["oracle_color"] = _reference_row(spp, color_times, cstats)
+        figures["oracle_color"]["profile"] = ref_profile
         figures["aa_models"] = aa_models
         figures["aa_target"] = (
             f"<= {AA_RATIO_TARGET} (model seconds / 32-spp colour reference seconds; issue 11)"

@@ -12,11 +12,16 @@ extremes and the claims, and one report.
 3. ``OUT/report.html`` (+ ``report.json``, which holds every section record of the page):
    Pareto fronts, parameter sensitivity, best at equal cost, the claims, the extremes, the
    memory table and every case.
+
+At the end it prints its own time by phase (:func:`timing_record`) and records it in
+``OUT/timing.json`` and under ``timing`` in ``report.json``.
 """
 
 from __future__ import annotations
 
 import importlib.resources
+import json
+import time
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -28,13 +33,15 @@ from ...reports.sections import (
     extremes_section,
     failed_section,
 )
+from ...scenes.files import atomic_write_bytes, atomic_write_json
 from ..errors import one_line
+from ..phases import Phases, maybe_phase
 from ..studies.aa_memory import memory_report
 from ..studies.aa_ranking import aa_ranking
 from ..studies.claims.run import run_claims
 from ..studies.extremes.run import run_extremes
 
-__all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main", "run_sections"]
+__all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main", "run_sections", "timing_record"]
 
 #: The main job's sweep spec (package data).
 DEFAULT_SPEC = "specs/default.toml"
@@ -97,7 +104,7 @@ def _restrict(data: dict, names, spp: int | None, size) -> dict:
 
 
 def run_sections(
-    out: Path, *, cache, quiet: bool, echo=print, quick: bool = True
+    out: Path, *, cache, quiet: bool, echo=print, quick: bool = True, phases=None
 ) -> tuple[list[dict], list[str]]:
     """Run the studies of :data:`SECTIONS` into ``out``; their section records, and the ids
     of those that failed.
@@ -105,13 +112,15 @@ def run_sections(
     A study that raises is reported, not fatal: its record is a failed section (the page
     shows the error in its place), its id is in the returned list (the main job then exits
     with status 1) and ``echo`` says so. Import errors are not caught: the modules are
-    imported with this one.
+    imported with this one. ``phases`` (:class:`oracle.phases.Phases`): each study's wall
+    seconds are added under its kind.
     """
     sections, failed = [], []
     for kind, sid, title, study, section in SECTIONS:
         try:
-            data = study(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
-            record = section(data, section_id=sid, title=title)
+            with maybe_phase(phases, kind):
+                data = study(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+                record = section(data, section_id=sid, title=title)
         except Exception as exc:  # in the page and in the exit status, not fatal
             record = failed_section(
                 kind=kind, section_id=sid, title=title, error=one_line(exc, with_type=True)
@@ -149,6 +158,8 @@ def run_main(
     from .spec import expand_spec
 
     out = Path(out)
+    t_start = time.perf_counter()
+    phases = Phases()
     data = _restrict(default_spec(), names, spp, size)
     expansion = expand_spec(data, skip_unregistered=True)
     out.mkdir(parents=True, exist_ok=True)
@@ -164,14 +175,53 @@ def run_main(
         f"{summary['wall_seconds']:.1f} s: {db}"
     )
     failed = [f"{summary['failed']} sweep case(s)"] if summary["failed"] else []
-    sections, failed_sections = run_sections(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+    phases.merge(summary["phases"])
+    phases.add("sweep", max(0.0, summary["wall_seconds"] - sum(summary["phases"].values())))
+    sections, failed_sections = run_sections(
+        out, cache=cache, quiet=quiet, echo=echo, quick=quick, phases=phases
+    )
     failed += failed_sections
     report = out / "report.html"
-    sweep_report(
-        db,
-        report,
-        sweep=expansion.name,
-        title="raster-oracle: the default sweep, claims and extremes",
-        extra_sections=sections,
-    )
+    with phases.phase("report"):
+        sweep_report(
+            db,
+            report,
+            sweep=expansion.name,
+            title="raster-oracle: the default sweep, claims and extremes",
+            extra_sections=sections,
+        )
+    timing = timing_record(phases, time.perf_counter() - t_start, inline=workers == 0)
+    for line in phases.lines(title="main job by phase", wall=timing["wall_seconds"]):
+        echo(line)
+    atomic_write_json(out / "timing.json", timing)
+    _add_timing(report.with_suffix(".json"), timing)
     return report, failed
+
+
+def timing_record(phases: Phases, wall: float, *, inline: bool) -> dict:
+    """The main job's time record: its wall seconds and seconds by phase.
+
+    Phases: ``references`` (rendering the sweep's references), ``models`` (the technique
+    models' own runs), ``metrics`` (scoring: reading cached references, noise floors,
+    metrics), ``images`` (the cases' thumbnails), ``sweep`` (the rest of the sweep: keys,
+    store), then each study after it (``claims``, ``extremes``, ``aa_memory``,
+    ``aa_ranking``) and ``report`` (writing the page). The sweep's phases are wall seconds
+    in this process when it ran inline (``workers=0``), else seconds summed over the Dask
+    workers (they can add up to more than the wall time); ``sweep`` is then what is left of
+    the sweep's wall time, if anything.
+    """
+    return {
+        "wall_seconds": float(wall),
+        "phases": phases.record(),
+        "sweep_phases": "wall seconds in this process" if inline else "worker seconds, summed",
+    }
+
+
+def _add_timing(path: Path, timing: dict) -> None:
+    """Add the ``timing`` record to the report's JSON twin (when it was written)."""
+    if not path.is_file():
+        return
+    record = json.loads(path.read_text("utf-8"))
+    record["timing"] = timing
+    text = json.dumps(record, indent=1, allow_nan=False)  # as reports.sweep writes it
+    atomic_write_bytes(path, text.encode("utf-8"))

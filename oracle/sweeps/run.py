@@ -42,10 +42,12 @@ __all__ = [
     "WORKER_CACHE",
     "SweepError",
     "WorkerCache",
+    "case_phases",
     "check_scheduler",
     "completed_while_workers",
     "evaluate_case",
     "reference_jobs",
+    "render_reference_timed",
     "run_case",
     "run_sweep",
     "store_row",
@@ -238,8 +240,14 @@ def evaluate_case(
     metrics["noise_floor"] = record.get("noise_floor")
     metrics["receiver_count"] = result.frames[0].metrics.get("receiver_count")
     out = {"metrics": metrics, "cost": info["cost"], "params": info["params"]}
+    # the models' own seconds (each frame's run, once however many channels are scored)
+    out["model_seconds"] = float(
+        sum(i.get("model_seconds") or 0.0 for i in record["candidate_info"])
+    )
     if images:
+        t0 = time.perf_counter()
         out["images"] = case_images(result)
+        out["image_seconds"] = time.perf_counter() - t0
     return out
 
 
@@ -264,7 +272,25 @@ def run_case(rec: dict, cache_root: str, variant: str | None, *_deps, images: bo
         out = {"status": "failed", "error": _error(exc), "metrics": None, "cost": None}
         out["params"] = rec["params"]
     out["wall_seconds"] = time.perf_counter() - t0
+    out["phases"] = case_phases(out)
     return out
+
+
+def case_phases(res: dict) -> dict[str, float]:
+    """A finished case's seconds by phase: ``models`` (the model runs), ``images`` (its
+    thumbnails) and ``metrics`` (the rest: reading the cached references, noise floors,
+    metrics)."""
+    wall = float(res.get("wall_seconds") or 0.0)
+    models = float(res.pop("model_seconds", 0.0) or 0.0)
+    images = float(res.pop("image_seconds", 0.0) or 0.0)
+    return {"models": models, "images": images, "metrics": max(0.0, wall - models - images)}
+
+
+def render_reference_timed(job: dict, cache_root: str, variant: str | None) -> dict:
+    """Worker task of a Dask sweep: :func:`render_reference` and its wall seconds."""
+    t0 = time.perf_counter()
+    status = render_reference(job, cache_root, variant)
+    return {"status": status, "seconds": time.perf_counter() - t0}
 
 
 def _versions(variant: str) -> dict:
@@ -431,6 +457,8 @@ def run_sweep(
         "done": 0,
         "failed": 0,
         "references": 0,
+        # seconds by phase: wall in this process (workers=0), else summed over the workers
+        "phases": {"references": 0.0, "models": 0.0, "metrics": 0.0, "images": 0.0},
     }
     with SweepStore(db) as store:
         finished = store.finished_keys(include_failed=not retry_failed)
@@ -461,6 +489,8 @@ def run_sweep(
                 )
                 summary["ran"] += 1
                 summary[res["status"]] += 1
+                for name, seconds in (res.get("phases") or {}).items():
+                    summary["phases"][name] = summary["phases"].get(name, 0.0) + seconds
     summary["wall_seconds"] = time.perf_counter() - t0
     return summary
 
@@ -477,6 +507,7 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
     refs = _unique_references(todo)
     summary["references"] = len(refs)
     failed_refs: dict[str, str] = {}
+    t0 = time.perf_counter()
     with _progress(len(refs), quiet=quiet, desc="references") as bar:
         for text, job in refs.items():
             try:
@@ -484,6 +515,7 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
             except Exception as exc:  # the cases that need it fail with this error
                 failed_refs[text] = _error(exc)
             bar.update()
+    summary["phases"]["references"] += time.perf_counter() - t0
 
     with _progress(len(todo), quiet=quiet, desc=summary["sweep"]) as bar:
         for key, rec, row in todo:
@@ -540,6 +572,15 @@ def completed_while_workers(client, futures, *, worker_timeout: float, where: st
         yield from done
 
 
+def _reference_seconds(futures) -> float:
+    """Worker seconds of the finished reference tasks (failed ones are not counted)."""
+    total = 0.0
+    for fut in futures:
+        if fut.status == "finished":
+            total += float(fut.result().get("seconds", 0.0))
+    return total
+
+
 def _run_dask(
     todo, cache_root, variant, summary, *, workers, scheduler, quiet, images, worker_timeout
 ):
@@ -574,7 +615,7 @@ def _run_dask(
         refs = _unique_references(todo)
         summary["references"] = len(refs)
         ref_futures = {
-            text: client.submit(render_reference, job, cache_root, variant, pure=False)
+            text: client.submit(render_reference_timed, job, cache_root, variant, pure=False)
             for text, job in refs.items()
         }
         futures = {}
@@ -596,6 +637,7 @@ def _run_dask(
                     res = {"status": "failed", "error": _error(exc), "wall_seconds": None}
                 bar.update()
                 yield key, rec, row, res
+        summary["phases"]["references"] += _reference_seconds(ref_futures.values())
     finally:
         client.close()
         if cluster is not None:

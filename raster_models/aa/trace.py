@@ -43,6 +43,7 @@ from ...scenes.raycast import (
     shape_table,
 )
 from ...scenes.shading import facing, receiver_mask, shade
+from ..drjit import aligned, numpy_view
 from . import pixel_dr as _pixel_dr
 
 __all__ = [
@@ -67,19 +68,18 @@ CHUNK = 1 << 21
 def to_numpy(a) -> np.ndarray:
     """NumPy view of an evaluated Dr.Jit array (a vector gives ``(3, N)``); every caller
     copies it into its own output at once."""
-    method = getattr(a, "numpy", None)
-    return np.asarray(method() if method is not None else a)
+    return numpy_view(a)  # a vector component by component: no packing kernel per length
 
 
 def view_depth(camera, p):
     """View depth (distance along the camera's forward axis, camera units) of Dr.Jit
-    points ``p``, in float32."""
-    fwd, pos = camera.forward, camera.position
-    return (
-        (p.x - float(pos[0])) * float(fwd[0])
-        + (p.y - float(pos[1])) * float(fwd[1])
-        + (p.z - float(pos[2])) * float(fwd[2])
-    )
+    points ``p``, in float32. The camera's pose is opaque: every frame reuses the kernel."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    fwd = [dr.opaque(mi.Float, float(c)) for c in camera.forward]
+    pos = [dr.opaque(mi.Float, float(c)) for c in camera.position]
+    return (p.x - pos[0]) * fwd[0] + (p.y - pos[1]) * fwd[1] + (p.z - pos[2]) * fwd[2]
 
 
 def trace_samples(
@@ -387,11 +387,11 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
 
     def vec(key, sl):
         a = np.asarray(attrs[key][sl], np.float32)
-        return mi.Vector3f(*(mi.Float(np.ascontiguousarray(a[:, i])) for i in range(3)))
+        return mi.Vector3f(*(mi.Float(aligned(a[:, i])) for i in range(3)))
 
     for start in range(0, total, CHUNK):
         sl = slice(start, min(total, start + CHUNK))
-        valid = mi.Bool(valid_all[sl])
+        valid = mi.Bool(aligned(valid_all[sl], bool))  # aligned: one kernel, any address
         p = mi.Point3f(vec("position", sl))
         n = vec("normal", sl)
         ng = vec("geo_normal", sl)
@@ -399,9 +399,9 @@ def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool =
         to_eye = vec("to_eye", sl)
         offset = vis = None
         if visibility is None:
-            offset = mi.Float(np.asarray(attrs["offset"][sl], np.float32))
+            offset = mi.Float(aligned(attrs["offset"][sl]))
         else:
-            vis = mi.Float(np.asarray(visibility[sl], np.float32))
+            vis = mi.Float(aligned(visibility[sl]))
         pbr = {}
         if scene.pbr is not None and "material" in attrs:
             pbr = {"material": vec("material", sl), "emissive": mi.Color3f(vec("emissive", sl))}
