@@ -193,6 +193,11 @@ def run_main(
     timing = timing_record(phases, time.perf_counter() - t_start, inline=workers == 0)
     for line in phases.lines(title="main job by phase", wall=timing["wall_seconds"]):
         echo(line)
+    if workers != 0:
+        echo(
+            "  (references, models, metrics and images are seconds summed over the sweep's "
+            "workers, so their shares can add up to more than the wall time)"
+        )
     atomic_write_json(out / "timing.json", timing)
     _add_timing(report.with_suffix(".json"), timing)
     return report, failed
