@@ -33,6 +33,8 @@ Auzinger, Wimmer, Jeschke, "Analytic Visibility on the GPU", Computer Graphics F
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import time
 from dataclasses import dataclass
@@ -79,6 +81,9 @@ BIG_TILES = 4.0
 #: Key of the triangle sets in ``LoadedScene.memo`` (one per camera and film: the
 #: tessellation of curved shapes follows their size on the film).
 MEMO_KEY = "exact_coverage_triangles"
+#: Key of the last view's exact coverage in ``LoadedScene.memo``: it depends on the geometry
+#: and the camera only, so the noise-floor reference (seed + 1) of the same view reuses it.
+RESULT_MEMO_KEY = "exact_coverage_result"
 
 
 @dataclass(frozen=True)
@@ -452,7 +457,15 @@ def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
     centre : ``(H*W,)`` or ``(H, W)`` int shape index seen through each pixel centre
         (-1: sky), as the Monte Carlo ``front_coverage`` uses it.
     """
-    return exact_coverage_of(loaded.camera, scene_triangle_set(loaded), centre)
+    centre = np.ascontiguousarray(centre, dtype=np.int64)
+    view = json.dumps(loaded.camera.to_json(), sort_keys=True)
+    key = (view, hashlib.sha256(centre.tobytes()).hexdigest())
+    slot = loaded.memo.get(RESULT_MEMO_KEY)
+    if slot is not None and slot[0] == key:
+        return slot[1]
+    out = exact_coverage_of(loaded.camera, scene_triangle_set(loaded), centre)
+    loaded.memo[RESULT_MEMO_KEY] = (key, out)
+    return out
 
 
 def exact_coverage_of(
