@@ -18,7 +18,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from . import backend
-from .builtin import BUILTIN_SCENES, BuiltinScene
+from .builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 from .camera import Camera
 from .camera_file import CameraFileError, load_camera_file
 from .gltf import GltfError, gltf_scene
@@ -430,7 +430,9 @@ def load(
 
     Parameters
     ----------
-    scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
+    scene : built-in name (see :func:`scene_names`; with parameters such as
+        ``meadow:n=100000``, see :func:`scenes.builtin.builtin_scene`) or path to a Mitsuba
+        XML file.
         A :class:`scenes.builtin.BuiltinScene` (e.g. a built-in scene's factory wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
@@ -456,10 +458,11 @@ def load(
     _check_size(width, height)
     _check_sequence(light_path, camera_path, camera_file, frame, n_frames)
     mi = backend.mitsuba()
-    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
+    builtin = _builtin(scene)  # a built-in name, with its parameters (meadow:n=1000)
+    name = builtin.name if builtin is not None else str(scene)
     meshes: dict = {}
     try:  # a glTF file or built-in glTF scene (scenes.gltf), else None
-        gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
+        gl = gltf_scene(builtin or scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
     except GltfError as exc:
         raise SceneError(str(exc)) from None
     if gl is not None:
@@ -470,10 +473,9 @@ def load(
             mi_scene = mi.load_dict(_to_mitsuba_dict(mi, gl.raw, meshes), optimize=False)
         except Exception as exc:
             raise SceneError(f"glTF scene {name!r} failed to load: {exc}") from exc
-    elif isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
-        spec = scene if isinstance(scene, BuiltinScene) else BUILTIN_SCENES[name]
-        w, h = int(width or spec.width), int(height or spec.height)
-        raw = spec.factory(w, h)
+    elif builtin is not None:
+        w, h = int(width or builtin.width), int(height or builtin.height)
+        raw = builtin.factory(w, h)
         digest = hashlib.sha256(b"builtin:" + name.encode())
         _hash_obj(digest, raw)
         # a scene-wide Blinn-Phong lobe (scenes.aa_scenes' glossy); hashed above with the rest
@@ -483,7 +485,7 @@ def load(
             mi_scene = mi.load_dict(_to_mitsuba_dict(mi, raw, meshes), optimize=False)
         except Exception as exc:  # Mitsuba raises RuntimeError subclasses
             raise SceneError(f"built-in scene {name!r} failed to load: {exc}") from exc
-        source, description = "builtin", spec.description
+        source, description = "builtin", builtin.description
     else:
         path = Path(name)
         if path.suffix.lower() != ".xml" and not path.exists():
@@ -555,6 +557,15 @@ def load(
             raise SceneError(f"scene {name!r}: {exc}") from None
         loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
     return loaded
+
+
+def _builtin(scene):
+    """The :class:`scenes.builtin.BuiltinScene` ``scene`` names (None: not a built-in one);
+    :class:`SceneError` for a bad scene parameter."""
+    try:
+        return builtin_scene(scene)
+    except SceneParamError as exc:
+        raise SceneError(str(exc)) from None
 
 
 def _check_sequence(light_path, camera_path, camera_file, frame, n_frames) -> None:

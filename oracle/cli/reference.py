@@ -88,6 +88,8 @@ def cmd_scenes(args) -> int:
     width = max(len(n) for n in BUILTIN_SCENES)
     for name, spec in BUILTIN_SCENES.items():
         print(f"{name:<{width}}  {spec.width}x{spec.height}  {spec.description}")
+        for param in spec.params:  # meadow:n=100000
+            print(f"{'':<{width}}    {name}:{param.key}=N  {param.doc}")
     print("\ncamera paths (--camera-path NAME --frame K --frames N):")
     for name, text in CAMERA_PATHS.items():
         print(f"  {name:<13} {text}")
