@@ -44,7 +44,14 @@ import shapely
 
 from . import backend
 from . import meshes as _meshes
-from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area, touched_pixels
+from .coverage_edges import convex_arrays, visible_segments
+from .pixel_area import (
+    edge_pieces,
+    pixel_area,
+    segment_pieces,
+    tagged_pixel_area,
+    touched_pixels,
+)
 
 __all__ = [
     "ExactCoverage",
@@ -78,6 +85,12 @@ FILM_MARGIN = 1.0
 TILES_ACROSS = 16
 #: Polygons covering more than this many tiles' area are cut into tiles (see ``_tile``).
 BIG_TILES = 4.0
+#: Polygons per chunk of a bounding-box query (a long C call is cut so that a signal
+#: handler runs between chunks).
+QUERY_CHUNK = 20_000
+#: Above this many shapes the cross-shape pairs come from one tree over every polygon
+#: instead of one tree per shape.
+SHAPE_TREES = 64
 #: Key of the triangle sets in ``LoadedScene.memo`` (one per camera and film: the
 #: tessellation of curved shapes follows their size on the film).
 MEMO_KEY = "exact_coverage_triangles"
@@ -297,7 +310,23 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="intersects")
     keep = a < b
-    a, b = a[keep], b[keep]
+    o = _pair_order(camera, polys, tri_idx, tset, a[keep], b[keep])
+    a, b, over, a_front, b_front, cross, bad = o
+    n, c = _planes(tset.tris[tri_idx])
+    a_near, b_near = _split_overlap(
+        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
+    )
+    back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
+    # what hides the back one: the overlap (inside the back polygon: unions stay local), or
+    # the front one's side of the intersection line
+    occluder = np.concatenate([over[a_front], over[b_front], a_near, b_near])
+    return back, occluder, (a[bad], b[bad], over[bad])
+
+
+def _pair_order(camera, polys, tri_idx, tset, a, b):
+    """Depth order of the candidate pairs ``(a, b)`` whose overlap has an area:
+    ``(a, b, overlap, a_front, b_front, cross, bad)`` (``cross``: planar triangles that
+    interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`)."""
     over = shapely.intersection(polys[a], polys[b])
     big = shapely.area(over) > AREA_MIN
     a, b, over = a[big], b[big], over[big]
@@ -330,14 +359,7 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     # planar triangles crossing each other: split the overlap along their intersection
     cross = (hi > 0) & (lo < 0) & (slack[a] == 0) & (slack[b] == 0)
     bad &= ~cross
-    a_near, b_near = _split_overlap(
-        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
-    )
-    back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
-    # what hides the back one: the overlap (inside the back polygon: unions stay local), or
-    # the front one's side of the intersection line
-    occluder = np.concatenate([over[a_front], over[b_front], a_near, b_near])
-    return back, occluder, (a[bad], b[bad], over[bad])
+    return a, b, over, a_front, b_front, cross, bad
 
 
 def _split_overlap(camera, over, na, ca, nb, cb):
@@ -469,7 +491,7 @@ def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
 
 
 def exact_coverage_of(
-    camera, tset: TriangleSet, centre: np.ndarray, *, grid_offset=(0.0, 0.0)
+    camera, tset: TriangleSet, centre: np.ndarray, *, grid_offset=(0.0, 0.0), check=None
 ) -> ExactCoverage:
     """:func:`exact_coverage` of the triangles ``tset`` seen by ``camera`` (a
     :class:`scenes.camera.Camera`; its film size is the output's).
@@ -477,17 +499,28 @@ def exact_coverage_of(
     ``grid_offset`` ``(ox, oy)`` in ``[-1, 1]`` pixels moves the pixel grid: pixel ``(x, y)``
     then covers ``[x + ox, x + ox + 1) x [y + oy, y + oy + 1)`` (the expected coverage of a
     sample under random sub-pixel translations of the scene is the coverage of such a box).
+    ``check``: called between chunks of the long loops (a signal handler runs there).
+
+    Where the shapes have one depth order wherever they overlap (no interpenetration or tie
+    between shapes, no curved shape) the visible boundaries come from
+    :mod:`scenes.coverage_edges` (``stats["method"] == "layered"``: work in proportion to the
+    overlapping pairs, no polygon booleans); otherwise each triangle's visible polygon is
+    its projection less the union of what is in front of it (``"polygons"``).
     """
     t0 = time.perf_counter()
     cam = camera
     w, h = cam.width, cam.height
-    polys, tri_idx = _project(cam, tset.tris)
-    polys, tri_idx = _tile(polys, tri_idx, w, h)
-    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
-    vis = _visible(polys, back, occluder)
     off = np.asarray(grid_offset, dtype=np.float64)
     if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
         raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
+    polys, tri_idx = _project(cam, tset.tris)
+    polys, tri_idx = _tile(polys, tri_idx, w, h)
+    fast = _layered(cam, polys, tri_idx, tset, centre, off, check)
+    if fast is not None:
+        fast.stats["seconds"] = time.perf_counter() - t0
+        return fast
+    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
+    vis = _visible(polys, back, occluder)
     if np.any(off != 0.0):
         vis = shapely.transform(vis, lambda xy: xy - off)
         bad_over = shapely.transform(bad_over, lambda xy: xy - off)
@@ -513,6 +546,107 @@ def exact_coverage_of(
         "unresolved_pairs": int(len(bad_a)),
         "curved_triangles": int(curved.sum()),
         "invalid_pixels": int(invalid.sum()),
+        "method": "polygons",
         "seconds": time.perf_counter() - t0,
     }
     return ExactCoverage(np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), ~invalid, stats)
+
+
+def _cross_shape_pairs(polys, shape, check=None):
+    """Candidate pairs ``(a, b)`` (``a < b``, bounding boxes overlapping) of polygons of
+    different shapes: one tree per shape (few shapes), else one tree over all, queried in
+    chunks."""
+    ids = np.unique(shape)
+    out_a, out_b = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    if len(ids) <= SHAPE_TREES:
+        for s in ids[:-1]:  # a loop over shapes, not triangles
+            mine = np.flatnonzero(shape == s)
+            other = np.flatnonzero(shape > s)
+            tree = shapely.STRtree(polys[mine])
+            for start in range(0, len(other), QUERY_CHUNK):
+                if check is not None:
+                    check()
+                q = other[start : start + QUERY_CHUNK]
+                i, j = tree.query(polys[q])
+                a, b = mine[j], q[i]
+                out_a.append(np.minimum(a, b))
+                out_b.append(np.maximum(a, b))
+    else:
+        tree = shapely.STRtree(polys)
+        for start in range(0, len(polys), QUERY_CHUNK):
+            if check is not None:
+                check()
+            i, j = tree.query(polys[start : start + QUERY_CHUNK])
+            a = i + start
+            keep = (a < j) & (shape[a] != shape[j])
+            out_a.append(a[keep])
+            out_b.append(j[keep])
+    return np.concatenate(out_a), np.concatenate(out_b)
+
+
+def _shape_layers(front, back, ids):
+    """Rank of each shape in a depth order where every ``front[k]`` precedes ``back[k]``
+    (Kahn's algorithm over shapes), or None where the relation has a cycle."""
+    edges = set(zip(front.tolist(), back.tolist(), strict=True))
+    indeg = {s: 0 for s in ids.tolist()}
+    succ: dict = {s: [] for s in indeg}
+    for f, b in edges:
+        succ[f].append(b)
+        indeg[b] += 1
+    ready = sorted(s for s, d in indeg.items() if d == 0)
+    rank = {}
+    while ready:  # a loop over shapes
+        s = ready.pop(0)
+        rank[s] = len(rank)
+        for t in sorted(succ[s]):
+            indeg[t] -= 1
+            if indeg[t] == 0:
+                ready.append(t)
+        ready.sort()
+    return rank if len(rank) == len(indeg) else None
+
+
+def _layered(cam, polys, tri_idx, tset, centre, off, check):
+    """The exact channels from the visible boundaries of layered shapes
+    (:mod:`scenes.coverage_edges`), or None where the shapes have no depth order (an
+    interpenetration, a tie between shapes, a cycle) or a shape is curved."""
+    w, h = cam.width, cam.height
+    shape = tset.shape[tri_idx]
+    if len(polys) == 0 or np.any(tset.slack[tri_idx] > 0):
+        return None
+    a, b = _cross_shape_pairs(polys, shape, check)
+    a, b, _, a_front, b_front, cross, bad = _pair_order(cam, polys, tri_idx, tset, a, b)
+    if bad.any() or cross.any():
+        return None
+    front = np.concatenate([shape[a[a_front]], shape[b[b_front]]])
+    back = np.concatenate([shape[b[a_front]], shape[a[b_front]]])
+    ids = np.unique(shape)
+    rank = _shape_layers(front, back, ids)
+    if rank is None:
+        return None
+    layer = np.array([rank[s] for s in ids.tolist()])[np.searchsorted(ids, shape)]
+    v, count = convex_arrays(polys)
+    tree = shapely.STRtree(polys)
+
+    def pairs(idx):
+        i, j = tree.query(polys[idx])
+        keep = idx[i] != j
+        return idx[i][keep], j[keep]
+
+    x0, y0, x1, y1, tag = visible_segments(v, count, layer, shape, pairs, check=check)
+    pieces = segment_pieces(x0 - off[0], y0 - off[1], x1 - off[0], y1 - off[1], tag, w, h)
+    cov = pixel_area(None, w, h, pieces=pieces)
+    centre = np.asarray(centre, dtype=np.int64).reshape(h, w)
+    front_cov = np.where(centre < 0, 1.0 - cov, tagged_pixel_area(pieces, centre))
+    stats = {
+        "triangles_projected": int(len(np.unique(tri_idx))),
+        "tile_pieces": int(len(polys)),
+        "occlusion_pairs": int(a_front.sum() + b_front.sum()),
+        "unresolved_pairs": 0,
+        "curved_triangles": 0,
+        "invalid_pixels": 0,
+        "method": "layered",
+        "boundary_segments": int(len(x0)),
+    }
+    valid = np.ones((h, w), bool)
+    return ExactCoverage(np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), valid, stats)
