@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 from raster_oracle.oracle.cli import main
-from raster_oracle.scenes.builtin import SceneParamError, builtin_scene
-from raster_oracle.scenes.scale_scenes import grass_blades, meadow
+from raster_oracle.scenes.catalogue.builtin import SceneParamError, builtin_scene
+from raster_oracle.scenes.catalogue.scale_scenes import grass_blades, meadow
 
 from raster_oracle import scenes
 
@@ -108,7 +108,7 @@ def test_layered_boundaries_match_the_polygon_path(name, monkeypatch):
     """The visible-boundary path (shapes in one depth order) gives the polygon-boolean path's
     channels within 1e-9 on layered scenes, and says which path it took."""
     from raster_oracle.oracle.reference.coverage import centre_shapes
-    from raster_oracle.scenes import exact_coverage as ec
+    from raster_oracle.scenes.geometry import exact_coverage as ec
 
     loaded = scenes.load(name, width=64, height=36)
     centre = centre_shapes(loaded)
@@ -128,7 +128,7 @@ def test_interpenetrating_shapes_take_the_polygon_path():
     """Two quads of two shapes crossing each other have no depth order: the polygon path
     splits them along their intersection."""
     from raster_oracle.scenes.camera import Camera
-    from raster_oracle.scenes.exact_coverage import TriangleSet, exact_coverage_of
+    from raster_oracle.scenes.geometry.exact_coverage import TriangleSet, exact_coverage_of
 
     m = np.eye(4)
     m[:3, 3] = (0.0, 0.0, -10.0)

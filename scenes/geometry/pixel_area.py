@@ -135,7 +135,7 @@ def edge_pieces(geoms, width: int, height: int, *, tags=None) -> EdgePieces:
 def segment_pieces(x0, y0, x1, y1, tag, width: int, height: int) -> EdgePieces:
     """:func:`edge_pieces` of directed boundary segments ``(x0, y0) -> (x1, y1)`` (regions on
     their left; ``tag`` per segment) instead of polygons: the boundaries of
-    :mod:`scenes.coverage_edges`."""
+    :mod:`scenes.geometry.coverage_edges`."""
     xa, ya, xb, yb, t = _split_segments(
         *(np.asarray(c, np.float64) for c in (x0, y0, x1, y1)),
         np.asarray(tag, np.int64),

@@ -1,11 +1,11 @@
 """Visible boundaries of layered convex polygons without polygon booleans: the fast path of
-:mod:`scenes.exact_coverage`.
+:mod:`scenes.geometry.exact_coverage`.
 
 Input: convex film polygons, each with a *layer* (its shape's rank in a depth order that
 holds wherever two shapes overlap: a shape of lower layer is in front) and a *tag* (its
 shape). The visible region of a shape is where the nearest polygon covering a point is one
 of its own; its area inside each pixel follows from Green's theorem over its boundary
-(:mod:`scenes.pixel_area`). That boundary is made of pieces of the polygons' own edges:
+(:mod:`scenes.geometry.pixel_area`). That boundary is made of pieces of the polygons' own edges:
 
 - a piece of an edge of polygon ``A`` (layer ``j``, interior on its left) is dropped where a
   polygon of a nearer layer covers its left side (hidden), or a polygon of layer ``<= j``

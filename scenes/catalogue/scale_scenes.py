@@ -2,7 +2,7 @@
 block: large buildings among N small leaves).
 
 Both take their size as scene parameters (``meadow:n=1000000``, ``city-foliage:n=200000:
-seed=3``; see :func:`scenes.builtin.builtin_scene`); every mesh is built with NumPy in one
+seed=3``; see :func:`scenes.catalogue.builtin.builtin_scene`); every mesh is built with NumPy in one
 pass (no loop over triangles), so a million blades take well under a second. The blades
 and the leaves are each one mesh (one Mitsuba shape), as an engine would export a level's
 grass: the shape ids stay few whatever N is.
