@@ -97,6 +97,9 @@ def _run(args) -> int:
                 sys.stderr.write(warnings.formatwarning(message, category, *_args[:2]))
 
         warnings.showwarning = show
+        from ..reference.render import set_exact_budget
+
+        set_exact_budget(getattr(args, "exact_budget", None))  # None: the documented default
         if args.command != "doctor":
             from ..certify import certified_select
 

@@ -30,8 +30,9 @@ def add_parsers(sub) -> None:
     p.add_argument(
         "--channels",
         default=None,
-        help="comma-separated channel groups (default: all): visibility, coverage, "
-        "color, edge, id, depth, position, normal, albedo",
+        help="comma-separated channel groups (default: all but the optional ones): "
+        "visibility, coverage, coverage_exact, color, edge, id, depth, position, normal, "
+        "albedo; optional: tangent32, motion",
     )
     p.add_argument("--out", type=A.path, default=Path("out/reference"), help="output folder")
 

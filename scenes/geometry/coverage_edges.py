@@ -195,14 +195,15 @@ def _chunk(a, b, idx, geo):
     edge, bb, e0, e1 = edge[near], bb[near], e0[near], e1[near]
     la, lb = layer[owner[edge]], layer[bb]
     earlier = (lb == la) & (bb < owner[edge])
-    parts = [np.zeros(0)] * 4
-    if len(edge):
-        parts = []
-        for lo in range(0, len(edge), ROW_CHUNK):
-            sl = slice(lo, lo + ROW_CHUNK)
-            parts.append(_clip_rows(e0[sl], e1[sl] - e0[sl], hp, bb[sl], earlier[sl]))
-        parts = [np.concatenate(x) for x in zip(*parts, strict=True)]
-    l_lo, l_hi, r_lo, r_hi = parts
+    l_lo, l_hi, r_lo, r_hi = (np.full(len(edge), np.nan) for _ in range(4))
+    kb = count[bb]
+    for k in np.unique(kb):  # rows by the candidate's vertex count: no padding work
+        rows = np.flatnonzero(kb == k)
+        hp_k = tuple(x[:, :k] for x in hp)
+        for lo in range(0, len(rows), ROW_CHUNK):
+            r = rows[lo : lo + ROW_CHUNK]
+            out = _clip_rows(e0[r], e1[r] - e0[r], hp_k, bb[r], earlier[r])
+            l_lo[r], l_hi[r], r_lo[r], r_hi[r] = out
     # edges of this chunk, numbered locally
     e_first = first_edge[idx[0]]
     e_all = np.arange(e_first, first_edge[idx[-1]] + count[idx[-1]])

@@ -55,6 +55,8 @@ from .pixel_area import (
 
 __all__ = [
     "ExactCoverage",
+    "OverBudget",
+    "estimate_cost",
     "TriangleSet",
     "exact_coverage",
     "exact_coverage_of",
@@ -91,6 +93,18 @@ QUERY_CHUNK = 20_000
 #: Above this many shapes the cross-shape pairs come from one tree over every polygon
 #: instead of one tree per shape.
 SHAPE_TREES = 64
+#: The cost model of :func:`estimate_cost` (seconds on one core of the 2-core development
+#: machine, measured in CPU time on the built-in scenes and meadow:n=10k-100k; see
+#: docs/research.md): per projected triangle, per candidate pair sharing a grid cell on the
+#: layered path, and per pair on the polygon path (shapely intersections and unions).
+COST_PER_TRIANGLE = 3e-5
+COST_PER_PAIR_LAYERED = 1.5e-6
+COST_PER_PAIR_POLYGONS = 6e-6
+#: Cells across the film of the grid :func:`estimate_cost` counts candidate pairs on (a
+#: fixed number, so that the estimate does not grow with the resolution); polygons covering
+#: more than ``BIG_CELLS`` cells are counted against every other polygon.
+COST_CELLS_ACROSS = 80
+BIG_CELLS = 4096
 #: Key of the triangle sets in ``LoadedScene.memo`` (one per camera and film: the
 #: tessellation of curved shapes follows their size on the film).
 MEMO_KEY = "exact_coverage_triangles"
@@ -432,6 +446,78 @@ def _visible(polys, back, occluder):
     return vis
 
 
+class OverBudget(Exception):
+    """The estimated cost of the exact coverage exceeds the budget; ``estimate`` says by how
+    much (:func:`estimate_cost`)."""
+
+    def __init__(self, estimate: dict, budget: float):
+        super().__init__(
+            f"estimated {estimate['seconds']:.3g} s > budget {budget:g} s "
+            f"({estimate['triangles']} projected triangles, {estimate['pairs']} overlapping "
+            f"pairs, {estimate['path']} path)"
+        )
+        self.estimate, self.budget = estimate, budget
+
+
+def estimate_cost(camera, tset: TriangleSet, path: str = "layered", pairs=None) -> dict:
+    """Deterministic cost estimate of :func:`exact_coverage_of` from the projected
+    triangles and their overlaps, made before any polygon work: the triangles are clipped
+    and projected with NumPy (in chunks), their bounding boxes binned on a grid of
+    :data:`COST_CELLS_ACROSS` cells across, and the pairs sharing a cell counted (``pairs``
+    given: that count). ``{"seconds", "triangles", "pairs", "path"}``; seconds by the cost
+    model above (``path``: ``"layered"`` or ``"polygons"``)."""
+    w, h = camera.width, camera.height
+    cell = w / COST_CELLS_ACROSS
+    nx, ny = int(w / cell) + 3, int(h / cell) + 3
+    counts = np.zeros(nx * ny, np.int64)
+    n_tri = n_big = 0
+    for start in range(0, len(tset.tris), 1 << 18):
+        box = _film_boxes(camera, tset.tris[start : start + (1 << 18)])
+        if box is None:
+            continue
+        c0 = np.floor((box[:, :2] + FILM_MARGIN) / cell).astype(np.int64) + 1
+        c1 = np.floor((box[:, 2:] + FILM_MARGIN) / cell).astype(np.int64) + 1
+        c0, c1 = np.clip(c0, 0, [nx - 1, ny - 1]), np.clip(c1, 0, [nx - 1, ny - 1])
+        span = (c1 - c0 + 1).prod(axis=1)
+        big = span > BIG_CELLS
+        n_tri += len(box)
+        n_big += int(big.sum())
+        c0, c1, span = c0[~big], c1[~big], span[~big]
+        own = np.repeat(np.arange(len(span)), span)
+        k = np.arange(int(span.sum())) - np.repeat(np.cumsum(span) - span, span)
+        wx = (c1 - c0 + 1)[own, 0]
+        at = (c0[own, 1] + k // wx) * nx + c0[own, 0] + k % wx
+        counts += np.bincount(at, minlength=nx * ny)
+    if pairs is None:
+        pairs = int((counts * (counts - 1) // 2).sum()) + n_big * n_tri
+    rate = COST_PER_PAIR_LAYERED if path == "layered" else COST_PER_PAIR_POLYGONS
+    seconds = COST_PER_TRIANGLE * n_tri + rate * pairs
+    return {"seconds": float(seconds), "triangles": int(n_tri), "pairs": int(pairs), "path": path}
+
+
+def _film_boxes(camera, tris):
+    """Film bounding boxes ``(N, 4)`` (x0, y0, x1, y1) of the triangles' parts between the
+    near and far planes that meet the film and its margin; None when none does."""
+    v, count = tris, np.full(len(tris), 3)
+    for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):
+        depth = (v - camera.position) @ camera.forward
+        v, count = _clip_plane(v, count, sign * (depth - plane))
+    ok = count >= 3
+    if not ok.any():
+        return None
+    v, count = v[ok], count[ok]
+    with np.errstate(all="ignore"):
+        film = camera.project(v)
+    used = np.arange(film.shape[1])[None, :] < count[:, None]
+    lo = np.where(used[..., None], film, np.inf).min(axis=1)
+    hi = np.where(used[..., None], film, -np.inf).max(axis=1)
+    box = np.concatenate([lo, hi], axis=1)
+    w, h = camera.width + FILM_MARGIN, camera.height + FILM_MARGIN
+    box = np.clip(box, -FILM_MARGIN, [w, h, w, h])
+    keep = np.isfinite(box).all(axis=1) & (box[:, 2] > box[:, 0]) & (box[:, 3] > box[:, 1])
+    return box[keep] if keep.any() else None
+
+
 @dataclass
 class ExactCoverage:
     """The exact channels (``(H, W)`` float64) and a record of how they were made."""
@@ -470,7 +556,7 @@ def _curved_invalid(vis, curved, tset, tri_idx, camera, w, h):
     return binary_dilation(partial, iterations=radius)
 
 
-def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
+def exact_coverage(loaded, centre: np.ndarray, *, budget=None, check=None) -> ExactCoverage:
     """Exact ``coverage``, ``front_coverage`` and validity of ``loaded``'s current view.
 
     Parameters
@@ -485,13 +571,21 @@ def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
     slot = loaded.memo.get(RESULT_MEMO_KEY)
     if slot is not None and slot[0] == key:
         return slot[1]
-    out = exact_coverage_of(loaded.camera, scene_triangle_set(loaded), centre)
+    out = exact_coverage_of(
+        loaded.camera, scene_triangle_set(loaded), centre, budget=budget, check=check
+    )
     loaded.memo[RESULT_MEMO_KEY] = (key, out)
     return out
 
 
 def exact_coverage_of(
-    camera, tset: TriangleSet, centre: np.ndarray, *, grid_offset=(0.0, 0.0), check=None
+    camera,
+    tset: TriangleSet,
+    centre: np.ndarray,
+    *,
+    grid_offset=(0.0, 0.0),
+    check=None,
+    budget: float | None = None,
 ) -> ExactCoverage:
     """:func:`exact_coverage` of the triangles ``tset`` seen by ``camera`` (a
     :class:`scenes.camera.Camera`; its film size is the output's).
@@ -500,6 +594,8 @@ def exact_coverage_of(
     then covers ``[x + ox, x + ox + 1) x [y + oy, y + oy + 1)`` (the expected coverage of a
     sample under random sub-pixel translations of the scene is the coverage of such a box).
     ``check``: called between chunks of the long loops (a signal handler runs there).
+    ``budget``: seconds of estimated work (:func:`estimate_cost`) allowed; over it,
+    :class:`OverBudget` is raised before the work (before each path's own work).
 
     Where the shapes have one depth order wherever they overlap (no interpenetration or tie
     between shapes, no curved shape) the visible boundaries come from
@@ -514,12 +610,19 @@ def exact_coverage_of(
     off = np.asarray(grid_offset, dtype=np.float64)
     if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
         raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
+    est = estimate_cost(cam, tset)
+    if budget is not None and est["seconds"] > budget:
+        raise OverBudget(est, budget)
     polys, tri_idx = _project(cam, tset.tris)
     polys, tri_idx = _tile(polys, tri_idx, w, h)
     fast = _layered(cam, polys, tri_idx, tset, centre, off, check)
     if fast is not None:
-        fast.stats["seconds"] = time.perf_counter() - t0
+        fast.stats.update(estimate=est, seconds=time.perf_counter() - t0)
         return fast
+    est = dict(est, path="polygons")
+    est["seconds"] = COST_PER_TRIANGLE * est["triangles"] + COST_PER_PAIR_POLYGONS * est["pairs"]
+    if budget is not None and est["seconds"] > budget:
+        raise OverBudget(est, budget)
     back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
     vis = _visible(polys, back, occluder)
     if np.any(off != 0.0):
@@ -548,6 +651,7 @@ def exact_coverage_of(
         "curved_triangles": int(curved.sum()),
         "invalid_pixels": int(invalid.sum()),
         "method": "polygons",
+        "estimate": est,
         "seconds": time.perf_counter() - t0,
     }
     return ExactCoverage(np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), ~invalid, stats)
