@@ -32,9 +32,9 @@ import shapely
 __all__ = ["POLY_CHUNK", "ROW_CHUNK", "convex_arrays", "visible_segments"]
 
 #: Polygons whose edges are resolved per pass (their candidate pairs are queried together).
-POLY_CHUNK = 1024
+POLY_CHUNK = 512
 #: Rows (an edge against a candidate polygon) per NumPy pass of the clipping.
-ROW_CHUNK = 262_144
+ROW_CHUNK = 131_072
 #: Distance (px) within which two edges count as collinear, and relative parallelism.
 COLLINEAR_PX = 1e-10
 PARALLEL_REL = 1e-12

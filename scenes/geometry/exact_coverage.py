@@ -89,7 +89,7 @@ TILES_ACROSS = 16
 BIG_TILES = 4.0
 #: Polygons per chunk of a bounding-box query (a long C call is cut so that a signal
 #: handler runs between chunks).
-QUERY_CHUNK = 20_000
+QUERY_CHUNK = 8192
 #: Above this many shapes the cross-shape pairs come from one tree over every polygon
 #: instead of one tree per shape.
 SHAPE_TREES = 64
@@ -244,7 +244,18 @@ def _clip_plane(v, count, dist):
 
 
 def _project(camera, tris):
-    """Film polygons (shapely, clipped to the film) of the triangles, and each one's index."""
+    """Film polygons (shapely, clipped to the film) of the triangles, and each one's index;
+    in chunks (a signal handler runs between them)."""
+    polys, idx = [np.empty(0, dtype=object)], [np.zeros(0, np.int64)]
+    for start in range(0, len(tris), QUERY_CHUNK):
+        p, i = _project_chunk(camera, tris[start : start + QUERY_CHUNK])
+        polys.append(p)
+        idx.append(i + start)
+    return np.concatenate(polys), np.concatenate(idx)
+
+
+def _project_chunk(camera, tris):
+    """:func:`_project` of one chunk."""
     v, count = tris, np.full(len(tris), 3)
     for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):  # near, then far
         depth = (v - camera.position) @ camera.forward
@@ -252,6 +263,8 @@ def _project(camera, tris):
     film = camera.project(v)
     ok = count >= 3
     idx = np.flatnonzero(ok)
+    if not len(idx):  # everything behind the camera, nearer than near or beyond far
+        return np.empty(0, dtype=object), idx
     kmax = film.shape[1]
     ring_idx = np.repeat(idx, count[ok])
     sel = np.arange(kmax)[None, :] < count[ok][:, None]
@@ -322,7 +335,12 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     tie (coplanar, of two shapes) or come within a curved shape's tessellation bound of each
     other."""
     tree = shapely.STRtree(polys)
-    a, b = tree.query(polys, predicate="intersects")
+    a, b = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for start in range(0, len(polys), QUERY_CHUNK):  # chunks: a signal handler runs between
+        i, j = tree.query(polys[start : start + QUERY_CHUNK], predicate="intersects")
+        a.append(i + start)
+        b.append(j)
+    a, b = np.concatenate(a), np.concatenate(b)
     keep = a < b
     o = _pair_order(camera, polys, tri_idx, tset, a[keep], b[keep])
     a, b, over, a_front, b_front, cross, bad = o
@@ -341,7 +359,7 @@ def _pair_order(camera, polys, tri_idx, tset, a, b):
     """Depth order of the candidate pairs ``(a, b)`` whose overlap has an area:
     ``(a, b, overlap, a_front, b_front, cross, bad)`` (``cross``: planar triangles that
     interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`)."""
-    over = shapely.intersection(polys[a], polys[b])
+    over = _chunked(shapely.intersection, polys[a], polys[b])
     big = shapely.area(over) > AREA_MIN
     a, b, over = a[big], b[big], over[big]
     xy, owner = shapely.get_coordinates(over, return_index=True)
@@ -374,6 +392,16 @@ def _pair_order(camera, polys, tri_idx, tset, a, b):
     cross = (hi > 0) & (lo < 0) & (slack[a] == 0) & (slack[b] == 0)
     bad &= ~cross
     return a, b, over, a_front, b_front, cross, bad
+
+
+def _chunked(fn, *arrays):
+    """``fn(*arrays)`` (an element-wise shapely function) in chunks of
+    :data:`QUERY_CHUNK`: one long C call is cut so that a signal handler runs between."""
+    n = len(arrays[0])
+    if n <= QUERY_CHUNK:
+        return fn(*arrays)
+    parts = [fn(*(x[s : s + QUERY_CHUNK] for x in arrays)) for s in range(0, n, QUERY_CHUNK)]
+    return np.concatenate(parts)
 
 
 def _split_overlap(camera, over, na, ca, nb, cb):
@@ -441,8 +469,8 @@ def _visible(polys, back, occluder):
     has[back] = True
     vis = polys.copy()
     if has.any():
-        occ = shapely.union_all(groups[has][:, None], axis=1)
-        vis[has] = shapely.difference(polys[has], occ)
+        occ = _chunked(lambda g: shapely.union_all(g[:, None], axis=1), groups[has])
+        vis[has] = _chunked(shapely.difference, polys[has], occ)
     return vis
 
 
@@ -471,8 +499,8 @@ def estimate_cost(camera, tset: TriangleSet, path: str = "layered", pairs=None) 
     nx, ny = int(w / cell) + 3, int(h / cell) + 3
     counts = np.zeros(nx * ny, np.int64)
     n_tri = n_big = 0
-    for start in range(0, len(tset.tris), 1 << 18):
-        box = _film_boxes(camera, tset.tris[start : start + (1 << 18)])
+    for start in range(0, len(tset.tris), 1 << 15):
+        box = _film_boxes(camera, tset.tris[start : start + (1 << 15)])
         if box is None:
             continue
         c0 = np.floor((box[:, :2] + FILM_MARGIN) / cell).astype(np.int64) + 1
