@@ -105,3 +105,26 @@ def main_help() -> str:
     with contextlib.redirect_stdout(buf):
         main(["reference", "--help"])
     return " ".join(buf.getvalue().split())
+
+
+def test_bench_scale_prints_every_phase(capsys):
+    """``bench scale`` (tiny): per size, every phase with seconds, peak memory and its ratio to
+    the tracing (1 for the tracing itself), and the exact coverage's decision."""
+    argv = ["bench", "scale", "--sizes", "300", "--width", "48", "--height", "27"]
+    assert main([*argv, "--spp", "2", "--only", "fxaa", "--quiet"]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    rec = figures["sizes"]["300"]
+    assert rec["scene"] == "meadow:n=300" and figures["resolution"] == [48, 27]
+    phases = rec["phases"]
+    assert list(phases) == [
+        "loading",
+        "tracing",
+        "coverage_mc",
+        "coverage_exact",
+        "fxaa",
+        "metrics",
+    ]
+    assert phases["tracing"]["ratio_to_tracing"] == 1.0
+    assert all(p["seconds"] > 0 and p["peak_gb"] > 0.01 for p in phases.values())
+    assert rec["coverage_exact"]["decision"] == "computed"
+    assert main(["bench", "scale", "--sizes", "x"]) == 2
