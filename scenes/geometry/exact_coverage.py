@@ -55,6 +55,7 @@ from .pixel_area import (
 
 __all__ = [
     "ExactCoverage",
+    "NotExact",
     "OverBudget",
     "estimate_cost",
     "TriangleSet",
@@ -474,6 +475,17 @@ def _visible(polys, back, occluder):
     return vis
 
 
+#: Largest rounding error (px) of clipped and projected vertices that still counts as exact:
+#: float64 rounding of world coordinates of magnitude ``M`` seen at the near plane is about
+#: ``M * 2^-52 * pixels per unit there``; a ground of +-1e30 gives 1e16 px.
+ROUNDING_PX_MAX = 1e-6
+
+
+class NotExact(Exception):
+    """The scene's geometry cannot be clipped and projected exactly in float64 (coordinates
+    so large that rounding moves vertices by more than :data:`ROUNDING_PX_MAX` pixels)."""
+
+
 class OverBudget(Exception):
     """The estimated cost of the exact coverage exceeds the budget; ``estimate`` says by how
     much (:func:`estimate_cost`)."""
@@ -499,8 +511,10 @@ def estimate_cost(camera, tset: TriangleSet, path: str = "layered", pairs=None) 
     nx, ny = int(w / cell) + 3, int(h / cell) + 3
     counts = np.zeros(nx * ny, np.int64)
     n_tri = n_big = 0
+    reach = 0.0
     for start in range(0, len(tset.tris), 1 << 15):
-        box = _film_boxes(camera, tset.tris[start : start + (1 << 15)])
+        box, far = _film_boxes(camera, tset.tris[start : start + (1 << 15)])
+        reach = max(reach, far)
         if box is None:
             continue
         c0 = np.floor((box[:, :2] + FILM_MARGIN) / cell).astype(np.int64) + 1
@@ -520,19 +534,39 @@ def estimate_cost(camera, tset: TriangleSet, path: str = "layered", pairs=None) 
         pairs = int((counts * (counts - 1) // 2).sum()) + n_big * n_tri
     rate = COST_PER_PAIR_LAYERED if path == "layered" else COST_PER_PAIR_POLYGONS
     seconds = COST_PER_TRIANGLE * n_tri + rate * pairs
-    return {"seconds": float(seconds), "triangles": int(n_tri), "pairs": int(pairs), "path": path}
+    return {
+        "seconds": float(seconds),
+        "triangles": int(n_tri),
+        "pairs": int(pairs),
+        "path": path,
+        "rounding_px": float(reach * 2.0**-52 * _pixels_per_unit_near(camera)),
+    }
+
+
+def _pixels_per_unit_near(camera) -> float:
+    """Film pixels per world unit at the near plane (the largest scale a world distance in
+    view is seen at)."""
+    if camera.kind != "perspective":
+        return camera.width / (2.0 * camera.half_extent()[0])
+    return camera.width / (2.0 * camera.tan_half_x) / camera.near
 
 
 def _film_boxes(camera, tris):
     """Film bounding boxes ``(N, 4)`` (x0, y0, x1, y1) of the triangles' parts between the
-    near and far planes that meet the film and its margin; None when none does."""
+    near and far planes that meet the film and its margin (None when none does), and the
+    largest distance from the camera of a vertex of a triangle that reaches that range."""
     v, count = tris, np.full(len(tris), 3)
-    for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):
-        depth = (v - camera.position) @ camera.forward
-        v, count = _clip_plane(v, count, sign * (depth - plane))
+    with np.errstate(all="ignore"):
+        for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):
+            depth = (v - camera.position) @ camera.forward
+            v, count = _clip_plane(v, count, sign * (depth - plane))
     ok = count >= 3
     if not ok.any():
-        return None
+        return None, 0.0
+    with np.errstate(all="ignore"):
+        far = float(np.abs(tris[ok] - camera.position).max())
+    if not np.isfinite(far):
+        far = np.inf
     v, count = v[ok], count[ok]
     with np.errstate(all="ignore"):
         film = camera.project(v)
@@ -543,7 +577,7 @@ def _film_boxes(camera, tris):
     w, h = camera.width + FILM_MARGIN, camera.height + FILM_MARGIN
     box = np.clip(box, -FILM_MARGIN, [w, h, w, h])
     keep = np.isfinite(box).all(axis=1) & (box[:, 2] > box[:, 0]) & (box[:, 3] > box[:, 1])
-    return box[keep] if keep.any() else None
+    return (box[keep] if keep.any() else None), far
 
 
 @dataclass
@@ -639,8 +673,15 @@ def exact_coverage_of(
     if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
         raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
     est = estimate_cost(cam, tset)
+    if not est["rounding_px"] <= ROUNDING_PX_MAX:
+        raise NotExact(
+            f"coordinates too large for exact clipping in float64: rounding up to "
+            f"{est['rounding_px']:.3g} px (more than {ROUNDING_PX_MAX:g})"
+        )
     if budget is not None and est["seconds"] > budget:
         raise OverBudget(est, budget)
+    if est["triangles"] == 0:  # nothing between the near and far planes in view
+        return _empty_view(cam, centre, est, t0)
     polys, tri_idx = _project(cam, tset.tris)
     polys, tri_idx = _tile(polys, tri_idx, w, h)
     fast = _layered(cam, polys, tri_idx, tset, centre, off, check)
@@ -683,6 +724,26 @@ def exact_coverage_of(
         "seconds": time.perf_counter() - t0,
     }
     return ExactCoverage(np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), ~invalid, stats)
+
+
+def _empty_view(cam, centre, est, t0) -> ExactCoverage:
+    """Nothing in view: coverage 0 everywhere (exact), front coverage 1 where the centre
+    sees the sky."""
+    w, h = cam.width, cam.height
+    zero = np.zeros((h, w))
+    centre = np.asarray(centre, dtype=np.int64).reshape(h, w)
+    stats = {
+        "triangles_projected": 0,
+        "tile_pieces": 0,
+        "occlusion_pairs": 0,
+        "unresolved_pairs": 0,
+        "curved_triangles": 0,
+        "invalid_pixels": 0,
+        "method": "empty",
+        "estimate": est,
+        "seconds": time.perf_counter() - t0,
+    }
+    return ExactCoverage(zero, np.where(centre < 0, 1.0, 0.0), np.ones((h, w), bool), stats)
 
 
 def _cross_shape_pairs(polys, shape, check=None):
