@@ -57,8 +57,10 @@ def test_scenes_are_seeded_and_n_sets_the_triangle_count():
     assert not np.array_equal(a["grass"]["vertices"], c["grass"]["vertices"])
     loaded = scenes.load("city-foliage:n=700", width=32, height=18)
     assert loaded.name == "city-foliage:n=700"
-    assert loaded.mesh_data["foliage"][1].shape == (700, 3)
-    assert len(loaded.mesh_data) == 12 + 3  # buildings, ground, trunks, foliage
+    trees = [k for k in loaded.mesh_data if k.startswith("tree_")]
+    assert len(trees) == 16 and len(loaded.mesh_data) == 12 + 1 + 16  # buildings, ground
+    # every leaf in one tree's mesh, beside its trunk (a box of 10 triangles: no bottom)
+    assert sum(len(loaded.mesh_data[k][1]) for k in trees) == 700 + 16 * 10
     other = scenes.load("city-foliage:n=701", width=32, height=18)
     assert other.content_hash != loaded.content_hash
     assert scenes.load("meadow:n=0", width=16, height=9).shape_names == ["ground"]
@@ -103,7 +105,7 @@ def test_sweep_spec_takes_scene_parameters():
         expand_spec(bad)
 
 
-@pytest.mark.parametrize("name", ["meadow:n=400", "plate", "star", "slide"])
+@pytest.mark.parametrize("name", ["meadow:n=400", "city-foliage:n=400", "plate", "star", "slide"])
 def test_layered_boundaries_match_the_polygon_path(name, monkeypatch):
     """The visible-boundary path (shapes in one depth order) gives the polygon-boolean path's
     channels within 1e-9 on layered scenes, and says which path it took."""

@@ -59,7 +59,7 @@ def meadow(width: int, height: int, *, n: int = MEADOW_N, seed: int = 1) -> dict
 def leaves(rng: np.random.Generator, n: int, centres: np.ndarray, radius: np.ndarray):
     """``n`` leaves (one triangle each, 0.08-0.16 across, random orientation) spread over
     spherical crowns (``centres (K, 3)``, ``radius (K,)``), crowns chosen at random.
-    ``(vertices (3n, 3), faces (n, 3))``."""
+    ``(vertices (3n, 3), faces (n, 3), crown (n,))``."""
     crown = rng.integers(0, len(centres), n)
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
@@ -75,12 +75,21 @@ def leaves(rng: np.random.Generator, n: int, centres: np.ndarray, radius: np.nda
     b = p - 0.5 * u * size[:, None] + w * (0.8 * size[:, None])
     c = p - 0.5 * u * size[:, None] - w * (0.8 * size[:, None])
     verts = np.stack([a, b, c], 1).reshape(-1, 3)
-    return verts, np.arange(3 * n, dtype=np.uint32).reshape(n, 3)
+    return verts, np.arange(3 * n, dtype=np.uint32).reshape(n, 3), crown
+
+
+def _standing_box(lo, hi):
+    """An axis-aligned box without its bottom face (it stands on the ground: no coplanar
+    tie with it)."""
+    v, f = meshes.box(lo, hi)
+    return v, np.delete(f, [2, 8], axis=0)  # the two triangles of the face y = lo
 
 
 def city_foliage(width: int, height: int, *, n: int = CITY_FOLIAGE_N, seed: int = 1) -> dict:
     """A city block: twelve buildings 6-30 tall around a street lined with sixteen trees
-    whose crowns hold ``n`` leaves in all (large shadow casters among small ones)."""
+    whose crowns hold ``n`` leaves in all (large shadow casters among small ones). Each
+    tree (trunk and leaves) is one mesh; buildings, trees and the ground are separated by
+    planes, so the shapes have one depth order (exact coverage's layered path)."""
     rng = np.random.default_rng([int(seed), 36])
     scene = {
         "type": "scene",
@@ -96,18 +105,18 @@ def city_foliage(width: int, height: int, *, n: int = CITY_FOLIAGE_N, seed: int 
             w, d = rng.uniform(7, 11), rng.uniform(8, 12)
             h = rng.uniform(6, 30)
             lo, hi = (x - w / 2, 0, z - d / 2), (x + w / 2, h, z + d / 2)
-            scene[f"building_{side}_{j}"] = mesh(meshes.box(lo, hi), rng.uniform(0.3, 0.8, 3))
+            scene[f"building_{side}_{j}"] = mesh(_standing_box(lo, hi), rng.uniform(0.3, 0.8, 3))
     tz = np.arange(8) * 9.0 - 8.0
     tx = np.array([-7.0, 7.0])
-    trunk_base = np.stack(np.meshgrid(tx, tz, indexing="ij"), -1).reshape(-1, 2)
-    trunk_h = rng.uniform(3.0, 4.5, len(trunk_base))
-    trunks = [
-        meshes.box((x - 0.2, 0, z - 0.2), (x + 0.2, th, z + 0.2))
-        for (x, z), th in zip(trunk_base, trunk_h, strict=True)
-    ]  # a loop over 16 trees, not triangles
-    scene["trunks"] = mesh(meshes.merge(trunks), (0.35, 0.25, 0.15))
-    radius = rng.uniform(1.8, 2.6, len(trunk_base))
-    centres = np.column_stack([trunk_base[:, 0], trunk_h + 0.6 * radius, trunk_base[:, 1]])
-    if n > 0:
-        scene["foliage"] = mesh(leaves(rng, int(n), centres, radius), (0.2, 0.45, 0.15))
+    base = np.stack(np.meshgrid(tx, tz, indexing="ij"), -1).reshape(-1, 2)
+    trunk_h = rng.uniform(3.0, 4.5, len(base))
+    radius = rng.uniform(1.8, 2.6, len(base))
+    centres = np.column_stack([base[:, 0], trunk_h + 0.6 * radius, base[:, 1]])
+    lv, lf, crown = leaves(rng, int(n), centres, radius)
+    tri = lv[lf]
+    for t, ((x, z), th) in enumerate(zip(base, trunk_h, strict=True)):  # 16 trees
+        trunk = _standing_box((x - 0.2, 0, z - 0.2), (x + 0.2, th, z + 0.2))
+        mine = tri[crown == t].reshape(-1, 3)
+        crown_mesh = (mine, np.arange(len(mine), dtype=np.uint32).reshape(-1, 3))
+        scene[f"tree_{t:02d}"] = mesh(meshes.merge([trunk, crown_mesh]), (0.2, 0.45, 0.15))
     return scene
