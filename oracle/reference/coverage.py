@@ -88,7 +88,7 @@ def exact_channels(
     if centre is None:
         centre = centre_shapes(loaded)
     try:
-        ex = exact_coverage(loaded, centre, budget=budget)
+        ex = exact_coverage(loaded, centre, **({} if budget is None else {"budget": budget}))
     except OverBudget as exc:
         # too costly for this view: skipped with one line, Monte Carlo truth instead
         print(
