@@ -32,6 +32,7 @@ from ....scenes.motion import film_motion
 from ... import params as _params
 from ...result import model_result
 from ..trace import sample_colors
+from . import filament, inside
 from .blend import blend
 from .filters import bilinear, catmull_rom, filter_current, neighbours
 from .jitter import jitter_offsets
@@ -77,6 +78,51 @@ def _velocity(m: dict, h: int, w: int, dilation: str):
     nearest = np.argmin(neighbours(depth[..., None])[..., 0], axis=0)
     mv = np.take_along_axis(neighbours(mv), nearest[None, ..., None], axis=0)[0]
     return mv, depth
+
+
+def _camera_reprojection(scene, x, y, m: dict):
+    """Filament's history position: the point at the sample's view depth on the pixel
+    centre's ray, projected by the previous camera (the sky: the ray's direction)."""
+    cam, pcam = scene.camera, scene.previous().camera
+    o, d, tmax = cam.rays(x, y)
+    z = np.asarray(m["depth"], dtype=np.float64)
+    t = (z - cam.view_depth(o)) / (d @ cam.forward)
+    q = o + d * t[:, None]
+    sky = pcam.position + d if cam.kind == "perspective" else o + d * tmax[:, None]
+    film = pcam.project(np.where(m["valid"][:, None], q, sky))
+    return film[:, 0].reshape(x.shape), film[:, 1].reshape(x.shape)
+
+
+def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
+    """One frame of an engine's transcribed resolve (``r["engine"]``: inside, filament)."""
+    h, w = scene.height, scene.width
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64) + 0.5
+    mod = inside if r["engine"] == "inside" else filament
+    jit = mod.jitter(frame)
+    res, rays = sample_colors(scene, np.array([[0.5 + jit[0], 0.5 + jit[1]]]))
+    samples = res["color"].reshape(h, w, 3).astype(np.float64)
+    m = film_motion(scene, x + jit[0], y + jit[1], disocclusion=False)
+    depth = np.where(m["valid"], m["depth"], np.inf).reshape(h, w)
+    previous = None if state is None else state["history"]
+    if mod is inside:
+        mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
+        out, history, k = inside.step(previous, samples, jit, mv, depth)
+        weight = 1.0 - k
+        vel = inside.closest_velocity(mv if state is not None else 0.0 * mv, depth)
+    else:
+        hx, hy = (x, y) if state is None else _camera_reprojection(scene, x, y, m)
+        out, weight = filament.step(previous, samples, frame, hx, hy)
+        history = out
+        vel = np.stack([hx - x, hy - y], -1)
+    rejected = np.full((h, w), state is None)
+    outputs = {
+        "color": out.astype(np.float32),
+        "current_weight": np.asarray(weight, dtype=np.float32),
+        "rejected": rejected.astype(np.float32),
+        "velocity_x": vel[..., 0].astype(np.float32),
+        "velocity_y": vel[..., 1].astype(np.float32),
+    }
+    return {"history": history, "depth": depth, "rays": rays}, outputs
 
 
 def _step(scene, state, r: dict, jitter: np.ndarray) -> tuple[dict, dict]:
@@ -170,7 +216,11 @@ def run(scene, params: TaaParams | None = None, **kwargs):
     t0 = time.perf_counter()
     p = params or _params.make(NAME, TaaParams, kwargs)
     r = resolve(p)
-    offsets = jitter_offsets(r["jitter"], r["samples"] or 1)
+    if r["engine"] != "none":
+        mod = inside if r["engine"] == "inside" else filament
+        offsets = np.array([mod.jitter(i) for i in range(mod.N_SAMPLES + 1)])
+    else:
+        offsets = jitter_offsets(r["jitter"], r["samples"] or 1)
     key = _sequence_key(scene, r)
     k = int(scene.frame)
     start, state, outputs = 0, None, None
@@ -179,7 +229,10 @@ def run(scene, params: TaaParams | None = None, **kwargs):
         start = done + 1
     rays = 0
     for j in range(start, k + 1):
-        state, outputs = _step(_frame(scene, j), state, r, offsets[j % len(offsets)])
+        if r["engine"] != "none":
+            state, outputs = _engine_step(_frame(scene, j), state, r, j)
+        else:
+            state, outputs = _step(_frame(scene, j), state, r, offsets[j % len(offsets)])
         rays += state["rays"]
     _STATES[key] = (k, state, outputs)
     _STATES.move_to_end(key)

@@ -16,7 +16,11 @@ from .filters import HISTORY_FILTERS, INPUT_FILTERS
 from .jitter import JITTERS
 from .rectify import COLOR_SPACES, NEIGHBOURHOODS, RECTIFIERS
 
-__all__ = ["PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"]
+__all__ = ["ENGINE_PRESETS", "PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"]
+
+#: Presets whose every step is a transcription of the engine's shipped shader
+#: (:mod:`.inside`, :mod:`.filament`); setting any part runs the part-by-part pipeline.
+ENGINE_PRESETS = ("inside", "filament")
 
 DILATIONS = ("none", "nearest-depth-3x3")
 REPROJECTIONS = ("motion", "off")
@@ -223,10 +227,15 @@ class TaaParams:
 
 
 def resolve(p: TaaParams) -> dict:
-    """Every part's value: the parameter where set, else the preset's."""
+    """Every part's value: the parameter where set, else the preset's; ``engine`` names the
+    transcribed resolve (:data:`ENGINE_PRESETS`) that runs when no part is set, else
+    ``none`` (the part-by-part pipeline with the preset's part values)."""
     base = PRESETS[p.preset]
     out = {}
+    overridden = False
     for key, default in base.items():
         v = getattr(p, key)
+        overridden |= v not in ("preset", 0, 0.0)
         out[key] = default if v in ("preset", 0, 0.0) else v
+    out["engine"] = p.preset if p.preset in ENGINE_PRESETS and not overridden else "none"
     return out

@@ -1,0 +1,277 @@
+"""The engine presets of ``taa`` against transcriptions written here from the engines'
+shaders, one pixel at a time in the engines' own texture layout (Unity and OpenGL: row 0 at
+the bottom, uv y up), independent of the model's vectorized code: a hand-built frame with a
+history, a jitter, object motion, ties in depth and HDR radiance. Sources:
+playdeadgames/temporal 4795aa0 (TemporalReprojection.shader, IncDepth.cginc,
+FrustumJitter.cs), google/filament (taa.mat 63ddbb2, PostProcessManager.cpp 003e500)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from raster_oracle.raster_models.aa.taa import filament, inside
+from raster_oracle.raster_models.aa.taa.params import TaaParams, resolve
+
+from raster_oracle import raster_models, scenes
+
+#: float64 transcription against float64 model: rounding only.
+TOL = 1e-9
+W, H = 7, 5
+
+
+def _frame(seed):
+    rng = np.random.default_rng(seed)
+    samples = rng.random((H, W, 3)) * 1.3
+    samples[2, 3] = [5.0, 4.5, 6.0]  # an HDR highlight (peak radiance above 4)
+    samples = samples.astype(np.float16).astype(np.float64)  # what a half-float target holds
+    mv = rng.uniform(-1.6, 1.6, (H, W, 2))
+    depth = rng.choice([2.0, 3.0, 3.0, 5.0], size=(H, W))  # ties: the first minimum wins
+    return samples, mv, depth
+
+
+# ------------------------------------------------------------------ Unity texture helpers
+
+
+def _up(img):
+    """An image (rows top to bottom) in Unity's layout (row 0 at the bottom)."""
+    return img[::-1]
+
+
+def _tex2d(tex, u, v):
+    """Bilinear ``tex2D`` with TextureWrapMode.Clamp; ``tex`` rows bottom-up, uv y up."""
+    h, w = tex.shape[:2]
+    fx, fy = u * w - 0.5, v * h - 0.5
+    x0, y0 = math.floor(fx), math.floor(fy)
+    tx, ty = fx - x0, fy - y0
+
+    def at(i, j):
+        return tex[min(max(j, 0), h - 1), min(max(i, 0), w - 1)]
+
+    return (1 - ty) * ((1 - tx) * at(x0, y0) + tx * at(x0 + 1, y0)) + ty * (
+        (1 - tx) * at(x0, y0 + 1) + tx * at(x0 + 1, y0 + 1)
+    )
+
+
+def _srgb8(c):
+    c = min(max(c, 0.0), 1.0)
+    e = 12.92 * c if c <= 0.0031308 else 1.055 * c ** (1 / 2.4) - 0.055
+    q = round(255.0 * e) / 255.0
+    return q / 12.92 if q <= 0.04045 else ((q + 0.055) / 1.055) ** 2.4
+
+
+def _halton_seq(prime, index):  # FrustumJitter.HaltonSeq
+    r, f, i = 0.0, 1.0, index
+    while i > 0:
+        f /= prime
+        r += f * (i % prime)
+        i = int(math.floor(i / prime))
+    return r
+
+
+# ------------------------------------------------------------------ INSIDE
+
+
+def _inside_pixel(src, prev, vel_tex, depth_tex, sample, px, py):
+    """TemporalReprojection.shader ``frag`` for pixel (px, py) of Unity's layout."""
+    luminance = (0.0396819152, 0.458021790, 0.00609653955)
+    du, dv = 1.0 / W, 1.0 / H
+    uv = ((px + 0.5) / W, (py + 0.5) / H)
+    # find_closest_fragment_3x3 (point-sampled depth texture, clamped)
+    order = [(-1, -1), (0, -1), (1, -1), (-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+
+    def texel(t, i, j):
+        return t[min(max(py + j, 0), H - 1), min(max(px + i, 0), W - 1)]
+
+    dmin = order[0]
+    for o in order[1:]:
+        if texel(depth_tex, *dmin) > texel(depth_tex, *o):
+            dmin = o
+    ss_vel = texel(vel_tex, *dmin)
+    jitter_uv = (sample[0] / W, sample[1] / H)
+    texel0 = _tex2d(src, uv[0] - jitter_uv[0], uv[1] - jitter_uv[1])  # UNJITTER_COLORSAMPLES
+    texel1 = _tex2d(prev, uv[0] - ss_vel[0], uv[1] - ss_vel[1])
+    taps = {
+        (i, j): _tex2d(src, uv[0] + i * du, uv[1] + j * dv) for i in (-1, 0, 1) for j in (-1, 0, 1)
+    }
+    plus = [taps[k] for k in ((0, -1), (-1, 0), (0, 0), (1, 0), (0, 1))]
+    cmin = 0.5 * (np.min(list(taps.values()), axis=0) + np.min(plus, axis=0))
+    cmax = 0.5 * (np.max(list(taps.values()), axis=0) + np.max(plus, axis=0))
+    # clip_aabb, USE_OPTIMIZATIONS
+    p_clip = 0.5 * (cmax + cmin)
+    e_clip = 0.5 * (cmax - cmin) + 0.00000001
+    v_clip = texel1 - p_clip
+    ma_unit = max(abs(v_clip[c] / e_clip[c]) for c in range(3))
+    if ma_unit > 1.0:
+        texel1 = p_clip + v_clip / ma_unit
+    lum0 = sum(luminance[c] * texel0[c] for c in range(3))
+    lum1 = sum(luminance[c] * texel1[c] for c in range(3))
+    unbiased_diff = abs(lum0 - lum1) / max(lum0, max(lum1, 0.2))
+    k_feedback = 0.88 + (0.97 - 0.88) * (1.0 - unbiased_diff) ** 2
+    color = texel0 + k_feedback * (texel1 - texel0)  # lerp(texel0, texel1, k)
+    return np.clip(color, 0.0, 1.0), np.array([_srgb8(c) for c in color]), k_feedback
+
+
+def _inside_transcription(samples, history, mv, depth, frame):
+    if frame == 0:
+        sample = (0.0, 0.0)  # FrustumJitter: activeIndex -2 -> unjittered
+    else:
+        i = (frame - 1) % 16  # activeIndex, Sample(pattern, i) = Halton(i + 1) - 0.5
+        sample = (_halton_seq(2, i + 1) - 0.5, _halton_seq(3, i + 1) - 0.5)
+    src = _up(samples)
+    if history is None:
+        prev = np.vectorize(_srgb8)(src)  # bootstrap: Graphics.Blit(source, history)
+        mv = np.zeros_like(mv)
+    else:
+        prev = _up(history)
+    # the velocity buffer holds ss_txc - previous uv (Unity uv, y up)
+    vel_tex = _up(np.stack([-mv[..., 0] / W, mv[..., 1] / H], -1))
+    depth_tex = _up(depth)
+    out = np.zeros((H, W, 3))
+    store = np.zeros((H, W, 3))
+    k = np.zeros((H, W))
+    for py in range(H):
+        for px in range(W):
+            o, s, kk = _inside_pixel(src, prev, vel_tex, depth_tex, sample, px, py)
+            out[H - 1 - py, px], store[H - 1 - py, px], k[H - 1 - py, px] = o, s, kk
+    return out, store, k
+
+
+@pytest.mark.parametrize("frame", [0, 3])
+def test_inside_resolve_is_the_shaders_on_a_hand_built_frame(frame):
+    samples, mv, depth = _frame(1)
+    history = None
+    if frame:
+        history = np.vectorize(_srgb8)(np.random.default_rng(2).random((H, W, 3)) * 1.2)
+    jit = inside.jitter(frame)
+    out, store, k = inside.step(history, samples, jit, mv, depth)
+    t_out, t_store, t_k = _inside_transcription(samples, history, mv, depth, frame)
+    assert np.max(np.abs(out - t_out)) <= TOL
+    assert np.max(np.abs(store - t_store)) <= TOL
+    assert np.max(np.abs(k - t_k)) <= TOL
+    # the history is 8-bit: radiance above 1 is clipped, every value is one of 256 codes
+    assert store.max() <= 1.0 and out.max() <= 1.0
+    assert samples.max() > 4.0
+
+
+def test_inside_jitter_is_frustum_jitters_halton_x16_after_an_unjittered_frame():
+    assert np.all(inside.jitter(0) == 0)
+    # frame 1: Halton(1) - 0.5 = (0, -1/6) in Unity's y-up pixels, +1/6 in y-down
+    np.testing.assert_allclose(inside.jitter(1), [0.0, 1 / 6], atol=1e-15)
+    np.testing.assert_allclose(inside.jitter(2), [-0.25, -(2 / 3 - 0.5)], atol=1e-15)
+    np.testing.assert_allclose(inside.jitter(17), inside.jitter(1), atol=0)
+
+
+# ------------------------------------------------------------------ Filament
+
+
+def _gl_catmull_rom(tex, u, v):
+    """taa.mat ``sampleTextureCatmullRom`` (tex rows bottom-up, bilinear, clamp to edge)."""
+    size = np.array([W, H], dtype=np.float64)
+    sample_pos = np.array([u, v]) * size
+    tex_pos1 = np.floor(sample_pos - 0.5) + 0.5
+    f = sample_pos - tex_pos1
+    f2, f3 = f * f, f * f * f
+    w0 = f2 - 0.5 * (f3 + f)
+    w1 = 1.5 * f3 - 2.5 * f2 + 1.0
+    w3 = 0.5 * (f3 - f2)
+    w2 = 1.0 - w0 - w1 - w3
+    w12 = w1 + w2
+    tex_pos0 = (tex_pos1 - 1.0) / size
+    tex_pos3 = (tex_pos1 + 2.0) / size
+    tex_pos12 = (tex_pos1 + w2 / w12) / size
+    k = [w12[0] * w0[1], w0[0] * w12[1], w12[0] * w12[1], w3[0] * w12[1], w12[0] * w3[1]]
+    s = [
+        _tex2d(tex, tex_pos12[0], tex_pos0[1]),
+        _tex2d(tex, tex_pos0[0], tex_pos12[1]),
+        _tex2d(tex, tex_pos12[0], tex_pos12[1]),
+        _tex2d(tex, tex_pos3[0], tex_pos12[1]),
+        _tex2d(tex, tex_pos12[0], tex_pos3[1]),
+    ]
+    result = sum(ki * si for ki, si in zip(k, s, strict=True)) * (1.0 / sum(k))
+    return np.maximum(result, 0.0)
+
+
+def _filament_weights(jitter):
+    offsets = [(-1, -1), (0, -1), (1, -1), (-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+    w = [math.exp(-2.29 * ((ox - jitter[0]) ** 2 + (oy - jitter[1]) ** 2)) for ox, oy in offsets]
+    return offsets, [x / sum(w) for x in w]
+
+
+def _filament_transcription(samples, history, hist_x, hist_y, frame):
+    i = frame % 16 + 409  # halton(i, b): i += 409; JitterSequence: - 0.5
+    jitter = (_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5)
+    offsets, weights = _filament_weights(jitter)
+    color = _up(samples.astype(np.float16).astype(np.float64))
+    hist_tex = color if history is None else _up(history)
+    out = np.zeros((H, W, 3))
+    for py in range(H):
+        for px in range(W):
+            row = H - 1 - py  # y-down row of this GL pixel
+            zw = (hist_x[row, px] / W, 1.0 - hist_y[row, px] / H)
+            hist = _gl_catmull_rom(hist_tex, *zw)
+
+            s = [color[np.clip(py + b, 0, H - 1), np.clip(px + a, 0, W - 1)] for a, b in offsets]
+            filtered = np.maximum(sum(wi * si for wi, si in zip(weights, s, strict=True)), 0.0)
+            boxmin = np.minimum(s[4], np.minimum(np.minimum(s[1], s[3]), np.minimum(s[5], s[7])))
+            boxmax = np.maximum(s[4], np.maximum(np.maximum(s[1], s[3]), np.maximum(s[5], s[7])))
+            box9min = np.minimum(boxmin, np.minimum(np.minimum(s[0], s[2]), np.minimum(s[6], s[8])))
+            box9max = np.maximum(boxmax, np.maximum(np.maximum(s[0], s[2]), np.maximum(s[6], s[8])))
+            boxmin, boxmax = (boxmin + box9min) * 0.5, (boxmax + box9max) * 0.5
+            r = filtered - hist  # clipToBox ACCURATE
+            ir = 1.0 / (0.0001 + r)
+            imin = np.minimum((boxmax - hist) * ir, (boxmin - hist) * ir)
+            hist = hist + r * min(max(max(imin), 0.0), 1.0)
+            filtered = filtered * (1.0 / (1.0 + max(filtered)))
+            hist = hist * (1.0 / (1.0 + max(hist)))
+            result = hist * (1.0 - 0.12) + filtered * 0.12  # mix(history, filtered, alpha)
+            result = result * (1.0 / max(1.0 / 65504.0, 1.0 - max(result)))
+            out[row, px] = result.astype(np.float16).astype(np.float64)  # RGB16F target
+    return out
+
+
+@pytest.mark.parametrize("frame", [0, 5])
+def test_filament_resolve_is_the_materials_on_a_hand_built_frame(frame):
+    samples, mv, _ = _frame(3)
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64) + 0.5
+    history = None
+    hist_x, hist_y = x, y  # the first frame reprojects with the current projection
+    if frame:
+        history = np.random.default_rng(4).random((H, W, 3)) * 3.0
+        history = history.astype(np.float16).astype(np.float64)
+        hist_x, hist_y = x + mv[..., 0], y + mv[..., 1]
+    out, alpha = filament.step(history, samples, frame, hist_x, hist_y)
+    expect = _filament_transcription(samples, history, hist_x, hist_y, frame)
+    # half-float output: a rounding boundary crossed by 1e-16 would show as one half ulp
+    assert np.max(np.abs(out - expect)) <= TOL
+    assert np.all(alpha == 0.12)
+
+
+def test_filament_jitter_starts_at_halton_index_409_and_moves_the_image():
+    i = 409
+    j = filament.jitter_gl(0)
+    np.testing.assert_allclose(j, [_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5])
+    np.testing.assert_allclose(filament.jitter_gl(16), j, atol=0)
+    # pixel c sees the point at c - jitter (y up): y-down offset (-jx, +jy)
+    np.testing.assert_allclose(filament.jitter(0), [-j[0], j[1]])
+    w = filament.filter_weights(3)
+    assert w.sum() == pytest.approx(1.0, abs=1e-15)
+
+
+# ------------------------------------------------------------------ the model
+
+
+def test_engine_presets_run_the_transcription_and_parts_run_the_pipeline():
+    assert resolve(TaaParams(preset="inside"))["engine"] == "inside"
+    assert resolve(TaaParams(preset="filament"))["engine"] == "filament"
+    assert resolve(TaaParams(preset="filament", alpha=0.2))["engine"] == "none"
+    assert resolve(TaaParams(preset="ue4"))["engine"] == "none"
+
+
+def test_filament_reprojects_by_camera_only_and_inside_by_object_motion():
+    s = scenes.load("slide", width=48, height=27)  # a still camera, a sliding panel
+    fil = raster_models.run("taa", s.with_frame(2), preset="filament")
+    ins = raster_models.run("taa", s.with_frame(2), preset="inside")
+    assert np.abs(fil.outputs["velocity_x"]).max() < 1e-6
+    assert np.abs(ins.outputs["velocity_x"]).max() > 0.5
