@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from raster_oracle.raster_models.aa.taa import filament, inside
+from raster_oracle.raster_models.aa.taa import filament, hdrp, inside
 from raster_oracle.raster_models.aa.taa.params import TaaParams, resolve
 
 from raster_oracle import raster_models, scenes
@@ -275,3 +275,202 @@ def test_filament_reprojects_by_camera_only_and_inside_by_object_motion():
     ins = raster_models.run("taa", s.with_frame(2), preset="inside")
     assert np.abs(fil.outputs["velocity_x"]).max() < 1e-6
     assert np.abs(ins.outputs["velocity_x"]).max() > 0.5
+
+
+# ------------------------------------------------------------------ HDRP
+
+
+def _hd_fetch(tex, uv):
+    """``Fetch4``: uv clamped to ``1 - 1/size`` (ClampAndScaleForBilinearWithCustomScale),
+    then a bilinear linear-clamp fetch (D3D layout: row 0 at the top, uv y down)."""
+    u = min(uv[0], 1.0 - 1.0 / W)
+    v = min(uv[1], 1.0 - 1.0 / H)
+    return _tex2d(tex, u, v)
+
+
+def _ycocg(c):  # Color.hlsl RGBToYCoCg with YCOCG_CHROMA_BIAS
+    b = 128.0 / 255.0
+    return np.array(
+        [
+            0.25 * c[0] + 0.5 * c[1] + 0.25 * c[2],
+            0.5 * c[0] - 0.5 * c[2] + b,
+            -0.25 * c[0] + 0.5 * c[1] - 0.25 * c[2] + b,
+        ]
+    )
+
+
+def _rgb(c):
+    b = 128.0 / 255.0
+    y, co, cg = c[0], c[1] - b, c[2] - b
+    return np.array([y + co - cg, y + cg, y - co - cg])
+
+
+def _r11g11b10_value(v, bits):
+    if not v > 0:
+        return 0.0
+    e = max(math.floor(math.log2(v)), -14)
+    ulp = 2.0 ** (e - bits)
+    return min(round(v / ulp) * ulp, (2 - 2.0**-bits) * 2.0**15)
+
+
+def _r11g11b10(img):
+    out = np.zeros_like(img)
+    for idx in np.ndindex(img.shape[:2]):
+        out[idx] = [_r11g11b10_value(img[idx][c], (6, 6, 5)[c]) for c in range(3)]
+    return out
+
+
+def _hdrp_pixel(src, prev, mv_tex, depth, px, py, frame, high):
+    size = (W, H)
+    uv = ((px + 0.5) / W, (py + 0.5) / H)
+    quad = (float(px & 1) * 2.0 - 1.0, float(py & 1) * 2.0 - 1.0)  # GetQuadOffset
+
+    def load_depth(i, j):  # out-of-bounds loads read 0 (reversed Z: the far plane)
+        return depth[j, i] if 0 <= i < W and 0 <= j < H else math.inf
+
+    # GetClosestFragmentOffset (COMPARE_DEPTH(a, b) = step(b, a) on reversed Z)
+    q = (int(quad[0]), int(quad[1]))
+    closest = (0, 0, load_depth(px, py))
+    for o in ((-q[0], -q[1]), q, (q[0], -q[1]), (-q[0], q[1])):
+        s = load_depth(px + o[0], py + o[1])
+        if s <= closest[2]:  # nearer or equal in view depth
+            closest = (o[0], o[1], s)
+    mx = min(max(px + closest[0], 0), W - 1)
+    my = min(max(py + closest[1], 0), H - 1)
+    motion = (-mv_tex[my, mx, 0] / W, -mv_tex[my, mx, 1] / H)  # uv: current - previous
+    prev_uv = (uv[0] - motion[0], uv[1] - motion[1])
+    # HistoryBicubic5Tap, sharpening 0.35
+    c = 0.35
+    sample_pos = np.array(prev_uv) * size
+    tc1 = np.floor(sample_pos - 0.5) + 0.5
+    f = sample_pos - tc1
+    f2, f3 = f * f, f * f * f
+    w0 = -c * f3 + 2.0 * c * f2 - c * f
+    w1 = (2.0 - c) * f3 - (3.0 - c) * f2 + 1.0
+    w2 = -(2.0 - c) * f3 + (3.0 - 2.0 * c) * f2 + c * f
+    w3 = c * f3 - c * f2
+    w12 = w1 + w2
+    tc0, tc3, tc12 = (tc1 - 1.0) / size, (tc1 + 2.0) / size, (tc1 + w2 / w12) / size
+    s = [
+        _hd_fetch(prev, (tc12[0], tc0[1])),
+        _hd_fetch(prev, (tc0[0], tc12[1])),
+        _hd_fetch(prev, (tc12[0], tc12[1])),
+        _hd_fetch(prev, (tc3[0], tc0[1])),
+        _hd_fetch(prev, (tc12[0], tc3[1])),
+    ]
+    cw = [w12[0] * w0[1], w0[0] * w12[1], w12[0] * w12[1], w3[0] * w12[1], w12[0] * w3[1]]
+    history = sum(si * ci for si, ci in zip(s, cw, strict=True)) * (1.0 / sum(cw))
+    history = _ycocg(np.clip(history, 0, 65472.0))
+    off_screen = any(abs(prev_uv[k] * 2 - 1) >= (1.0 - 1.0 / size[k]) for k in range(2))
+    history = history * (1.0 / (history[0] + 1.0))
+
+    def central_of(i, j):  # the colour a pixel (or its quad partner) computes for itself
+        return _ycocg(np.clip(_hd_fetch(src, ((i + 0.5) / W, (j + 0.5) / H)), 0, 65472.0))
+
+    color = central_of(px, py)
+    nb = [
+        _ycocg(_hd_fetch(src, (uv[0], uv[1] + quad[1] / H))),
+        _ycocg(_hd_fetch(src, (uv[0] + quad[0] / W, uv[1]))),
+        central_of(px - q[0], py),
+        central_of(px, py - q[1]),
+    ]
+    if high:
+        for o in ((-q[0], q[1]), (q[0], -q[1]), q, (-q[0], -q[1])):
+            nb.append(_ycocg(_hd_fetch(src, (uv[0] + o[0] / W, uv[1] + o[1] / H))))
+    nb = [n * (1.0 / (n[0] + 1.0)) for n in nb]
+    central = color * (1.0 / (color[0] + 1.0))
+    filtered = central
+    if high:
+        i = frame % 8 + 1
+        jit = (_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5)
+        offs = [(0, 0), (0, 1), (1, 0), (-1, 0), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
+        raw = [
+            math.exp((-0.5 / 0.22) * ((o[0] + jit[0]) ** 2 + (o[1] + jit[1]) ** 2)) for o in offs
+        ]
+        fp1 = [raw[k] / sum(raw) for k in range(1, 5)]
+        fp2 = [raw[k] / sum(raw) for k in range(5, 9)]
+        sw = ((px & 1) == 0, (py & 1) == 0)
+        if sw[0]:
+            fp1[1], fp1[2] = fp1[2], fp1[1]
+        if sw[1]:
+            fp1[0], fp1[3] = fp1[3], fp1[0]
+        x_, y_, z_, w_ = fp2
+        if all(sw):
+            fp2 = [y_, x_, w_, z_]
+        elif sw[0] and not sw[1]:
+            fp2 = [z_, w_, x_, y_]
+        elif not sw[0] and sw[1]:
+            fp2 = [w_, z_, y_, x_]
+        filtered = central * (raw[0] / sum(raw)) + sum(
+            n * k for n, k in zip(nb, fp1 + fp2, strict=True)
+        )
+    if off_screen:
+        history = filtered
+    color_luma, history_luma = filtered[0], history[0]
+    m1 = sum(nb)
+    m2 = sum(n * n for n in nb)
+    avg = m1 / len(nb)
+    m1 = (m1 + central) / (len(nb) + 1)
+    m2 = (m2 + central * central) / (len(nb) + 1)
+    std = np.sqrt(np.abs(m2 - m1 * m1))
+    contrast = min(max(abs(color_luma - history_luma) / max(0.2, color_luma, history_luma), 0), 1)
+    anti_flicker = 1.75  # lerp(0, 3.5, 0.5)
+    if high:
+        mv_px = math.hypot(*motion) * math.hypot(W, H)
+        anti_flicker = anti_flicker * 0.8 + (anti_flicker * 2.25 - anti_flicker * 0.8) * min(
+            max(1.0 - 2.0 * mv_px, 0.0), 1.0
+        )
+    t = min(max((contrast - 0.05) / (0.475 - 0.05), 0.0), 1.0)
+    mult = 1.5 + anti_flicker * t * t * (3 - 2 * t)
+    lo, hi = m1 - std * mult, m1 + std * mult
+    # DirectClipToAABB
+    center, extents = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    offset = history - center
+    units = [abs(offset[k] / extents[k]) if extents[k] != 0 else math.inf for k in range(3)]
+    units = [u for u, o, e in zip(units, offset, extents, strict=True) if not (o == 0 and e == 0)]
+    max_unit = max(units) if units else 0.0
+    if max_unit > 1.0:
+        history = center + offset / max_unit
+    # SharpenColor, strength 0.5
+    lin_c = _rgb(filtered * (1.0 / (1.0 - filtered[0])))
+    lin_a = _rgb(avg * (1.0 / (1.0 - avg[0])))
+    lin_c = np.clip(lin_c + np.maximum(0, lin_c - lin_a) * 0.5 * 3, 0, 65472.0)
+    sharpened = _ycocg(lin_c)
+    filtered = sharpened * (1.0 / (sharpened[0] + 1.0))
+    luma_contrast = max(hi[0] - lo[0], 0) / history_luma if history_luma else math.inf
+    blend = max(min(max(0.125 * (1.0 / (1.0 + luma_contrast)), 0.0), 1.0), 0.03)
+    final = history + blend * (filtered - history)
+    final = final * (1.0 / (1.0 - final[0]))
+    return np.clip(_rgb(final), 0, 65472.0), blend
+
+
+def _hdrp_transcription(samples, history, mv, depth, frame, high):
+    src = _r11g11b10(samples)
+    prev = src if history is None else history
+    out = np.zeros((H, W, 3))
+    blend = np.zeros((H, W))
+    for py in range(H):
+        for px in range(W):
+            out[py, px], blend[py, px] = _hdrp_pixel(src, prev, mv, depth, px, py, frame, high)
+    return _r11g11b10(out), blend
+
+
+@pytest.mark.parametrize("quality", ["medium", "high"])
+@pytest.mark.parametrize("frame", [0, 6])
+def test_hdrp_resolve_is_the_shaders_on_a_hand_built_frame(frame, quality):
+    samples, mv, depth = _frame(5)
+    history = None
+    if frame:
+        history = _r11g11b10(np.random.default_rng(6).random((H, W, 3)) * 2.0)
+    else:
+        mv = np.zeros_like(mv)
+    out, blend, _ = hdrp.step(history, samples, frame, mv, depth, quality)
+    expect, t_blend = _hdrp_transcription(samples, history, mv, depth, frame, quality == "high")
+    assert np.max(np.abs(out - expect)) <= TOL
+    assert np.max(np.abs(blend - t_blend)) <= TOL
+    assert blend.min() >= 0.03
+
+
+def test_hdrp_jitter_cycles_eight_halton_points_from_index_one():
+    np.testing.assert_allclose(hdrp.jitter(0), [0.0, -(1 / 3 - 0.5)], atol=1e-15)
+    np.testing.assert_allclose(hdrp.jitter(8), hdrp.jitter(0), atol=0)

@@ -22,6 +22,7 @@ from .filters import bilinear
 
 __all__ = [
     "catmull_rom_5tap",
+    "r11g11b10",
     "half_float",
     "srgb8_store",
     "srgb_decode",
@@ -83,3 +84,24 @@ def catmull_rom_5tap(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarra
     total = sum(k for k, _, _ in taps)
     out = sum(k[..., None] * bilinear(img, px, py) for k, px, py in taps)
     return out / total[..., None]
+
+
+def _small_float(v: np.ndarray, mantissa_bits: int) -> np.ndarray:
+    """Non-negative values rounded to an unsigned float with a 5-bit exponent (bias 15) and
+    ``mantissa_bits`` mantissa bits, to nearest (ties to even); negatives and NaN read 0,
+    values beyond the largest finite one read it."""
+    v = np.nan_to_num(np.asarray(v, dtype=np.float64), nan=0.0, posinf=np.inf)
+    v = np.maximum(v, 0.0)
+    largest = (2.0 - 2.0**-mantissa_bits) * 2.0**15
+    with np.errstate(divide="ignore"):
+        e = np.floor(np.log2(np.where(v > 0, v, 1.0)))
+    e = np.maximum(e, -14.0)  # denormals share the smallest normal exponent's step
+    ulp = np.power(2.0, e - mantissa_bits)
+    return np.minimum(np.rint(v / ulp) * ulp, largest)
+
+
+def r11g11b10(rgb: np.ndarray) -> np.ndarray:
+    """Values stored in an R11G11B10 float buffer (6, 6 and 5 mantissa bits) and read back."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    bits = (6, 6, 5)
+    return np.stack([_small_float(rgb[..., i], bits[i]) for i in range(3)], -1)

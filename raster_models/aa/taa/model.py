@@ -32,7 +32,7 @@ from ....scenes.motion import film_motion
 from ... import params as _params
 from ...result import model_result
 from ..trace import sample_colors
-from . import filament, inside
+from . import filament, hdrp, inside
 from .blend import blend
 from .filters import bilinear, catmull_rom, filter_current, neighbours
 from .jitter import jitter_offsets
@@ -93,18 +93,28 @@ def _camera_reprojection(scene, x, y, m: dict):
     return film[:, 0].reshape(x.shape), film[:, 1].reshape(x.shape)
 
 
+def _engine_module(engine: str):
+    return {"inside": inside, "filament": filament, "hdrp": hdrp, "hdrp-high": hdrp}[engine]
+
+
 def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
     """One frame of an engine's transcribed resolve (``r["engine"]``: inside, filament)."""
     h, w = scene.height, scene.width
     y, x = np.mgrid[0:h, 0:w].astype(np.float64) + 0.5
-    mod = inside if r["engine"] == "inside" else filament
+    mod = _engine_module(r["engine"])
     jit = mod.jitter(frame)
     res, rays = sample_colors(scene, np.array([[0.5 + jit[0], 0.5 + jit[1]]]))
     samples = res["color"].reshape(h, w, 3).astype(np.float64)
     m = film_motion(scene, x + jit[0], y + jit[1], disocclusion=False)
     depth = np.where(m["valid"], m["depth"], np.inf).reshape(h, w)
     previous = None if state is None else state["history"]
-    if mod is inside:
+    if mod is hdrp:
+        mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
+        mv = mv if state is not None else 0.0 * mv
+        quality = "high" if r["engine"] == "hdrp-high" else "medium"
+        out, weight, vel = hdrp.step(previous, samples, frame, mv, depth, quality)
+        history = out
+    elif mod is inside:
         mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
         out, history, k = inside.step(previous, samples, jit, mv, depth)
         weight = 1.0 - k
@@ -217,7 +227,7 @@ def run(scene, params: TaaParams | None = None, **kwargs):
     p = params or _params.make(NAME, TaaParams, kwargs)
     r = resolve(p)
     if r["engine"] != "none":
-        mod = inside if r["engine"] == "inside" else filament
+        mod = _engine_module(r["engine"])
         offsets = np.array([mod.jitter(i) for i in range(mod.N_SAMPLES + 1)])
     else:
         offsets = jitter_offsets(r["jitter"], r["samples"] or 1)

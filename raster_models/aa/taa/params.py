@@ -20,7 +20,7 @@ __all__ = ["ENGINE_PRESETS", "PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"
 
 #: Presets whose every step is a transcription of the engine's shipped shader
 #: (:mod:`.inside`, :mod:`.filament`); setting any part runs the part-by-part pipeline.
-ENGINE_PRESETS = ("inside", "filament")
+ENGINE_PRESETS = ("inside", "filament", "hdrp", "hdrp-high")
 
 DILATIONS = ("none", "nearest-depth-3x3")
 REPROJECTIONS = ("motion", "off")
@@ -89,6 +89,7 @@ PRESETS = {
         reject="offscreen",
     ),
 }
+PRESETS["hdrp-high"] = dict(PRESETS["hdrp"])
 PRESETS["custom"] = dict(PRESETS["ue4"])
 
 #: Where each preset's values come from.
@@ -98,17 +99,33 @@ PRESET_SOURCES = {
     "PostProcessTemporalAA.cpp (3x3 exp(-2.29 d^2) input filter), PostProcessTemporalCommon.usf "
     "(Catmull-Rom history, velocity of the nearest depth in 3x3, rounded YCoCg min/max clamp, "
     "BlendFinal 0.04 -> 0.2 by velocity and the 0.01 luma-contrast floor, HdrWeight4)",
-    "inside": "L. J. F. Pedersen, Temporal Reprojection Anti-Aliasing in INSIDE, GDC 2016; "
-    "Playdead/TemporalReprojectionAntialiasing defaults: FrustumJitter Halton_2_3_X16, "
-    "unjittered colour not filtered, bilinear history, useDilation (3x3 closest depth), "
-    "useClipping (clip_aabb towards the centre, MINMAX_3X3_ROUNDED), useYCoCg off, "
-    "feedbackMin/Max 0.88/0.97",
-    "hdrp": "Unity HDRP TemporalAntialiasing.hlsl / HDAdditionalCameraData (8 Halton 2,3 "
-    "samples, Blackman-Harris central filter, Catmull-Rom history, variance clipping in YCoCg, "
-    "taaBaseBlendFactor 0.875 -> alpha 0.125)",
-    "filament": "Filament View.h TemporalAntiAliasingOptions defaults: HALTON_23_X16, "
-    "filterInput (Blackman-Harris), filterHistory (Catmull-Rom), useYCoCg false, boxType AABB, "
-    "boxClipping ACCURATE, varianceGamma 1, feedback 0.12",
+    "inside": "playdeadgames/temporal@4795aa0007d4 (2017-03-31): TemporalReprojection.cs:34-45 "
+    "(MinMax3x3Rounded, unjitterColorSamples, useClipping, useDilation, useOptimizations, "
+    "feedback 0.88-0.97), :90-92 + EffectBase.cs:73 (ARGB32 Default: 8-bit sRGB history), "
+    ":122-127 (frame 0 history = blit of the frame); TemporalReprojection.shader:216 (bilinear "
+    "current at c - jitter), :220 (bilinear history), :229-258 (rounded min/max), :122-137 "
+    "(clip towards the centre, FLT_EPS 1e-8 :37), :305-319 (Luminance feedback), :393-394 "
+    "(saturate); IncDepth.cginc:37-68 (3x3 closest depth); FrustumJitter.cs:128-137, 243, "
+    "301-319 (unjittered frame 0, then Halton_2_3_X16); UnityCG.cginc (TwoTailsGames/Unity-"
+    "Built-in-Shaders@09db4ee6):29 (linear Luminance 0.0396819152, 0.458021790, 0.00609653955)",
+    "hdrp": "Unity-Technologies/Graphics HDRP, TAAQuality Medium (the default): "
+    "TemporalAntiAliasing.shader@003084f5d112 (MEDIUM_QUALITY defines, FragTAA), "
+    "TemporalAntialiasing.hlsl (HistoryBicubic5Tap, VarianceNeighbourhood, DirectClipToAABB, "
+    "SharpenColor, HistoryContrast), HDAdditionalCameraData.cs (sharpen 0.5, history "
+    "sharpening 0.35, anti-flicker 0.5, base blend 0.875), HDRenderPipeline.PostProcess.cs "
+    "PrepareTAAPassData, HDCamera.cs GetJitteredProjectionMatrix (Halton (i+1), i = 0..7), "
+    "Color.hlsl RGBToYCoCg (chroma bias 128/255), RenderPipelineSettings (R11G11B10); "
+    "raster_models/aa/taa/hdrp.py",
+    "hdrp-high": "as hdrp with TAAQuality High: HIGH_QUALITY defines (8 neighbours, "
+    "Blackman-Harris central filter exp(-0.5/0.22 |o + jitter|^2) with the quad swizzle, "
+    "motion-dependent anti-flicker); raster_models/aa/taa/hdrp.py",
+    "filament": "google/filament: Options.h@2fac13e154fb TemporalAntiAliasingOptions (feedback "
+    "0.12, filterWidth 1, AABB box, ACCURATE clipping, HALTON_23_X16, useYCoCg false), "
+    "PostProcessManager.cpp@003e50057136 (halton() i += 409; jitter frameId % 16 - 0.5; "
+    "weights exp(-2.29 |o - jitter|^2); first frame history = the colour buffer), "
+    "taa.mat@63ddbb267ac6 (depth + camera reprojection, 5-tap Catmull-Rom, rounded box, "
+    "clipToBox, c/(1+max c) tone weighting), Options.h RenderQuality (RGB16F buffers); "
+    "raster_models/aa/taa/filament.py",
     "custom": "UE4's values for every part not set",
 }
 
