@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from raster_oracle.raster_models.aa.taa import filament, hdrp, inside
+from raster_oracle.raster_models.aa.taa import filament, hdrp, inside, ue4
 from raster_oracle.raster_models.aa.taa.params import TaaParams, resolve
 
 from raster_oracle import raster_models, scenes
@@ -266,7 +266,8 @@ def test_engine_presets_run_the_transcription_and_parts_run_the_pipeline():
     assert resolve(TaaParams(preset="inside"))["engine"] == "inside"
     assert resolve(TaaParams(preset="filament"))["engine"] == "filament"
     assert resolve(TaaParams(preset="filament", alpha=0.2))["engine"] == "none"
-    assert resolve(TaaParams(preset="ue4"))["engine"] == "none"
+    assert resolve(TaaParams(preset="ue4"))["engine"] == "ue4"
+    assert resolve(TaaParams(preset="custom"))["engine"] == "none"
 
 
 def test_filament_reprojects_by_camera_only_and_inside_by_object_motion():
@@ -474,3 +475,192 @@ def test_hdrp_resolve_is_the_shaders_on_a_hand_built_frame(frame, quality):
 def test_hdrp_jitter_cycles_eight_halton_points_from_index_one():
     np.testing.assert_allclose(hdrp.jitter(0), [0.0, -(1 / 3 - 0.5)], atol=1e-15)
     np.testing.assert_allclose(hdrp.jitter(8), hdrp.jitter(0), atol=0)
+
+
+# ------------------------------------------------------------------ UE4 4.19
+
+
+def _ue_catmull_rom(x):
+    ax = abs(x)
+    if ax > 1.0:
+        return ((-0.5 * ax + 2.5) * ax - 4.0) * ax + 2.0
+    return (1.5 * ax - 2.5) * ax * ax + 1.0
+
+
+def _ue_halton(index, base):  # TemporalHalton / Halton in SceneVisibility
+    result, fraction, i = 0.0, 1.0 / base, index
+    while i > 0:
+        result += (i % base) * fraction
+        i //= base
+        fraction /= base
+    return result
+
+
+def _ue_bicubic(tex, uv):
+    """Common.ush Texture2DSampleBicubic (D3D layout: row 0 at the top), bilinear clamp."""
+    size = np.array([W, H], dtype=np.float64)
+    p = np.array(uv) * size
+    tc = np.floor(p - 0.5) + 0.5
+    f = p - tc
+    f2, f3 = f * f, f * f * f
+    w0 = f2 - 0.5 * (f3 + f)
+    w1 = 1.5 * f3 - 2.5 * f2 + 1
+    w3 = 0.5 * (f3 - f2)
+    w2 = 1 - w0 - w1 - w3
+    weight = [w0, w1 + w2, w3]
+    sample = [(tc - 1) / size, (tc + w2 / weight[1]) / size, (tc + 2) / size]
+    taps = [(1, 0), (0, 1), (1, 1), (2, 1), (1, 2)]
+    out = sum(
+        _tex2d(tex, sample[i][0], sample[j][1]) * weight[i][0] * weight[j][1] for i, j in taps
+    )
+    return out / sum(weight[i][0] * weight[j][1] for i, j in taps)
+
+
+def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev):
+    def rgb_to_ycocg(c):
+        return np.array([c[0] + 2 * c[1] + c[2], 2 * c[0] - 2 * c[2], -c[0] + 2 * c[1] - c[2]])
+
+    def point(tex, i, j):  # SampleLevel with a point clamp sampler at integer offsets
+        return tex[min(max(py + j, 0), H - 1), min(max(px + i, 0), W - 1)]
+
+    # ScreenPos: NDC of the pixel centre, y up
+    screen = np.array([(px + 0.5) / W * 2 - 1, 1 - (py + 0.5) / H * 2])
+    index = (frame + 1) % 8  # OnFrameRenderingSetup increments first
+    u1, u2 = _ue_halton(index + 1, 2), _ue_halton(index + 1, 3)
+    sigma = 0.47
+    in_window = math.exp(-0.5 * (0.5 / sigma) ** 2)
+    r = sigma * math.sqrt(-2.0 * math.log((1.0 - u1) * in_window + u1))
+    jitter = (r * math.cos(2 * math.pi * u2), r * math.sin(2 * math.pi * u2))
+    # device depth stand-in: larger = nearer (inverted Z)
+    device = -depth_tex
+    pos_z = point(device, 0, 0)
+    depths = [
+        point(device, -2, -2),
+        point(device, 2, -2),
+        point(device, -2, 2),
+        point(device, 2, 2),
+    ]
+    depth_offset = [2.0, 2.0]
+    xx = 2.0
+    if depths[0] > depths[1]:
+        xx = -2.0
+    if depths[2] > depths[3]:
+        depth_offset[0] = -2.0
+    dxy, dzw = max(depths[0], depths[1]), max(depths[2], depths[3])
+    if dxy > dzw:
+        depth_offset[1] = -2.0
+        depth_offset[0] = xx
+    velocity_offset = (0, 0)
+    if max(dxy, dzw) > pos_z:
+        velocity_offset = (int(depth_offset[0]), int(depth_offset[1]))
+        pos_z = max(dxy, dzw)
+    cam = camera_prev(-pos_z, px, py)  # the centre's point at that depth, previous frame
+    back_n = screen - np.array([cam[0] / W * 2 - 1, 1 - cam[1] / H * 2])
+    vel_n = point(velocity_tex, *velocity_offset)
+    if vel_n[0] > 0.0:  # DynamicN
+        back_n = vel_n[1:]
+    back_temp = back_n * np.array([W, H])
+    velocity = math.sqrt(back_temp @ back_temp)
+    back_n = screen - back_n
+    off_screen = max(abs(back_n[0]), abs(back_n[1])) >= 1.0
+    back_n = np.clip(back_n, [-1 + 1.0 / W, -1 + 1.0 / H], [1 - 1.0 / W, 1 - 1.0 / H])
+    history_uv = ((back_n[0] + 1) / 2, (1 - back_n[1]) / 2)
+    offsets = [(-1, -1), (0, -1), (1, -1), (-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
+    neighbors = [rgb_to_ycocg(point(src, *o)) for o in offsets]
+    raw = [_ue_catmull_rom(o[0] - jitter[0]) * _ue_catmull_rom(o[1] - jitter[1]) for o in offsets]
+    plus_idx = [1, 3, 4, 5, 7]
+    plus_w = [raw[i] / sum(raw[k] for k in plus_idx) for i in plus_idx]
+    filtered, total = np.zeros(3), 0.0
+    for i, wgt in zip(plus_idx, plus_w, strict=True):
+        sw = wgt * (1.0 / (neighbors[i][0] + 4.0))
+        total += sw
+        filtered = filtered + neighbors[i] * sw
+    filtered = filtered / total
+    test = np.abs(screen) + np.array([2.0 / W, 2.0 / H])
+    if max(test) >= 1.0:
+        filtered = neighbors[4]
+    nmin = np.min([neighbors[i] for i in plus_idx], axis=0)
+    nmax = np.max([neighbors[i] for i in plus_idx], axis=0)
+    hc = _ue_bicubic(hist, history_uv)
+    history_color, history_a = rgb_to_ycocg(hc[:3]), hc[3]
+    dynamic = any(
+        point(velocity_tex, *o)[0] > 0 for o in [(0, -1), (-1, 0), (0, 0), (1, 0), (0, 1)]
+    )
+    if not dynamic and history_a > 0:
+        history_color = filtered
+    luma_min, luma_max, luma_history = nmin[0], nmax[0], history_color[0]
+    history_color = np.clip(history_color, nmin, nmax)
+
+    def saturate_div(a, b):
+        if b == 0:
+            return 1.0 if a > 0 else 0.0
+        return min(max(a / b, 0.0), 1.0)
+
+    blend = 0.04 + (0.2 - 0.04) * min(max(velocity / 40, 0.0), 1.0)
+    blend += 0.8 * saturate_div(0.02 * luma_history, abs(filtered[0] - luma_history))
+    blend *= (luma_min + 0.5) / (luma_max + 0.5)
+    blend = max(blend, saturate_div(0.01 * luma_history, abs(filtered[0] - luma_history)))
+    if off_screen:
+        history_color = filtered
+    blend_a = (1.0 - blend) * (1.0 / (history_color[0] + 4.0))
+    blend_b = blend * (1.0 / (filtered[0] + 4.0))
+    rcp = 1.0 / (blend_a + blend_b)
+    out = history_color * (blend_a * rcp) + filtered * (blend_b * rcp)
+    y, co, cg = out * 0.25
+    rgb = np.maximum(np.array([y + co - cg, y + cg, y - co - cg]), 0.0)
+    return np.append(rgb, 1.0 if point(velocity_tex, 0, 0)[0] > 0 else 0.0), blend
+
+
+def _camera(z, px, py):
+    """A hand-built camera reprojection: a pan plus a depth-dependent parallax."""
+    return (px + 0.5 + 0.7 - 1.2 / z, py + 0.5 - 0.4 + 0.9 / z)
+
+
+def _ue4_transcription(samples, history, mv, depth, dynamic, frame):
+    src = samples.astype(np.float16).astype(np.float64)
+    if history is None:
+        history = np.concatenate([src, np.zeros((H, W, 1))], -1)
+    # the velocity buffer: x > 0 flags a dynamic object (encoded), then BackN in ScreenPos
+    vel = np.zeros((H, W, 3))
+    vel[..., 0] = dynamic
+    vel[..., 1] = -2.0 * mv[..., 0] / W
+    vel[..., 2] = 2.0 * mv[..., 1] / H
+    out = np.zeros((H, W, 4))
+    blend = np.zeros((H, W))
+    for py in range(H):
+        for px in range(W):
+            out[py, px], blend[py, px] = _ue4_pixel(
+                src, history, vel, depth, px, py, frame, _camera
+            )
+    return out.astype(np.float16).astype(np.float64), blend
+
+
+@pytest.mark.parametrize("frame", [0, 4])
+def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame):
+    samples, mv, depth = _frame(7)
+    rng = np.random.default_rng(8)
+    dynamic = rng.random((H, W)) < 0.3
+    depth = depth.copy()
+    depth[0, 0] = np.inf  # sky
+    history = None
+    if frame:
+        history = np.concatenate([rng.random((H, W, 3)) * 2.0, (rng.random((H, W, 1)) < 0.4)], -1)
+        history = history.astype(np.float16).astype(np.float64)
+
+    def camera_prev(z):
+        yy, xx = np.mgrid[0:H, 0:W]
+        return _camera(z, xx, yy)
+
+    out, blend, _ = ue4.step(history, samples, frame, mv, depth, dynamic, camera_prev)
+    expect, t_blend = _ue4_transcription(samples, history, mv, depth, dynamic, frame)
+    assert np.max(np.abs(out - expect)) <= TOL
+    assert np.max(np.abs(blend - t_blend)) <= TOL
+
+
+def test_ue4_jitter_is_the_windowed_gaussian_from_sample_index_one():
+    s = ue4.sample_xy(0)  # index 1: Halton(2) = (0.25, 2/3)
+    r = 0.47 * math.sqrt(-2 * math.log(0.75 * math.exp(-0.5 * (0.5 / 0.47) ** 2) + 0.25))
+    np.testing.assert_allclose(s, [r * math.cos(4 * math.pi / 3), r * math.sin(4 * math.pi / 3)])
+    np.testing.assert_allclose(ue4.jitter(0), -s)
+    np.testing.assert_allclose(ue4.sample_xy(8), s, atol=0)
+    assert ue4.plus_weights(3).sum() == pytest.approx(1.0, abs=1e-15)

@@ -32,7 +32,7 @@ from ....scenes.motion import film_motion
 from ... import params as _params
 from ...result import model_result
 from ..trace import sample_colors
-from . import filament, hdrp, inside
+from . import filament, hdrp, inside, ue4
 from .blend import blend
 from .filters import bilinear, catmull_rom, filter_current, neighbours
 from .jitter import jitter_offsets
@@ -80,21 +80,30 @@ def _velocity(m: dict, h: int, w: int, dilation: str):
     return mv, depth
 
 
-def _camera_reprojection(scene, x, y, m: dict):
-    """Filament's history position: the point at the sample's view depth on the pixel
-    centre's ray, projected by the previous camera (the sky: the ray's direction)."""
+def _camera_reprojection(scene, x, y, depth):
+    """The previous film position of the point at view depth ``depth`` on each pixel
+    centre's ray (camera motion alone; an infinite depth, the sky, is the ray's direction):
+    Filament's reprojection and UE4's camera velocity."""
     cam, pcam = scene.camera, scene.previous().camera
     o, d, tmax = cam.rays(x, y)
-    z = np.asarray(m["depth"], dtype=np.float64)
-    t = (z - cam.view_depth(o)) / (d @ cam.forward)
+    z = np.asarray(depth, dtype=np.float64).ravel()
+    finite = np.isfinite(z)
+    with np.errstate(invalid="ignore"):
+        t = (np.where(finite, z, 0.0) - cam.view_depth(o)) / (d @ cam.forward)
     q = o + d * t[:, None]
     sky = pcam.position + d if cam.kind == "perspective" else o + d * tmax[:, None]
-    film = pcam.project(np.where(m["valid"][:, None], q, sky))
+    film = pcam.project(np.where(finite[:, None], q, sky))
     return film[:, 0].reshape(x.shape), film[:, 1].reshape(x.shape)
 
 
 def _engine_module(engine: str):
-    return {"inside": inside, "filament": filament, "hdrp": hdrp, "hdrp-high": hdrp}[engine]
+    return {
+        "inside": inside,
+        "filament": filament,
+        "hdrp": hdrp,
+        "hdrp-high": hdrp,
+        "ue4": ue4,
+    }[engine]
 
 
 def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
@@ -108,7 +117,23 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
     m = film_motion(scene, x + jit[0], y + jit[1], disocclusion=False)
     depth = np.where(m["valid"], m["depth"], np.inf).reshape(h, w)
     previous = None if state is None else state["history"]
-    if mod is hdrp:
+    if mod is ue4:
+        mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
+        moving = [scene.shape_names.index(n) for n in scene.object_motion]
+        dynamic = (m["valid"] & np.isin(m["shape"], moving)).reshape(h, w)
+        if state is None:
+            mv, dynamic = 0.0 * mv, np.zeros_like(dynamic)
+
+            def camera_prev(_depth):
+                return x, y
+        else:
+
+            def camera_prev(z):
+                return _camera_reprojection(scene, x, y, z)
+
+        out, weight, vel = ue4.step(previous, samples, frame, mv, depth, dynamic, camera_prev)
+        history, out = out, out[..., :3]
+    elif mod is hdrp:
         mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
         mv = mv if state is not None else 0.0 * mv
         quality = "high" if r["engine"] == "hdrp-high" else "medium"
@@ -120,7 +145,7 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
         weight = 1.0 - k
         vel = inside.closest_velocity(mv if state is not None else 0.0 * mv, depth)
     else:
-        hx, hy = (x, y) if state is None else _camera_reprojection(scene, x, y, m)
+        hx, hy = (x, y) if state is None else _camera_reprojection(scene, x, y, depth)
         out, weight = filament.step(previous, samples, frame, hx, hy)
         history = out
         vel = np.stack([hx - x, hy - y], -1)

@@ -20,7 +20,7 @@ __all__ = ["ENGINE_PRESETS", "PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"
 
 #: Presets whose every step is a transcription of the engine's shipped shader
 #: (:mod:`.inside`, :mod:`.filament`); setting any part runs the part-by-part pipeline.
-ENGINE_PRESETS = ("inside", "filament", "hdrp", "hdrp-high")
+ENGINE_PRESETS = ("ue4", "inside", "filament", "hdrp", "hdrp-high")
 
 DILATIONS = ("none", "nearest-depth-3x3")
 REPROJECTIONS = ("motion", "off")
