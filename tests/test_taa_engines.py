@@ -7,6 +7,7 @@ FrustumJitter.cs), google/filament (taa.mat 63ddbb2, PostProcessManager.cpp 003e
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -664,3 +665,51 @@ def test_ue4_jitter_is_the_windowed_gaussian_from_sample_index_one():
     np.testing.assert_allclose(ue4.jitter(0), -s)
     np.testing.assert_allclose(ue4.sample_xy(8), s, atol=0)
     assert ue4.plus_weights(3).sum() == pytest.approx(1.0, abs=1e-15)
+
+
+# ------------------------------------------------------------------ HDR as shipped
+
+#: The hdr-edge scene with its sun raised to 20 (strip radiance 0.9 * 20 * 0.98 / pi = 5.6).
+HDR_IRRADIANCE = 20.0
+
+
+def _bright_hdr_edge():
+    spec = scenes.BUILTIN_SCENES["hdr-edge"]
+
+    def factory(width, height):
+        scene = spec.factory(width, height)
+        scene["sun"]["irradiance"]["value"] = [HDR_IRRADIANCE] * 3
+        return scene
+
+    return dataclasses.replace(spec, name="hdr-edge-bright", factory=factory)
+
+
+def test_hdr_scene_inside_clips_at_one_and_the_tone_weighted_engines_keep_the_peaks():
+    s = scenes.load(_bright_hdr_edge(), width=48, height=27, camera_path="static", n_frames=6)
+    current = raster_models.run("noaa", s).outputs["color"]
+    peak = float(current.max())
+    assert peak > 4.0  # an HDR scene
+    bright = current.max(axis=-1) > 4.0
+    pad = np.pad(bright, 1)
+    interior = np.logical_and.reduce(
+        [
+            pad[1 + dy : 1 + dy + bright.shape[0], 1 + dx : 1 + dx + bright.shape[1]]
+            for dy in (-1, 0, 1)
+            for dx in (-1, 0, 1)
+        ]
+    )
+    assert interior.sum() >= 10
+    out = {
+        p: raster_models.run("taa", s.with_frame(5), preset=p).outputs["color"]
+        for p in ("inside", "filament", "hdrp", "ue4")
+    }
+    # INSIDE: saturate() before the 8-bit history, so the strips read 1 at most
+    assert out["inside"].max() <= 1.0
+    assert np.all(np.abs(out["inside"][interior] - 1.0) < 1e-6)
+    for p in ("filament", "hdrp", "ue4"):
+        o = out[p]
+        assert np.isfinite(o).all() and o.min() >= 0
+        # the tone weighting is undone at the end: a still camera keeps the radiance of
+        # the strips' interiors (within the buffers' rounding and the filters' reach)
+        assert o.max() > 4.0
+        assert np.min(o[interior].max(axis=-1)) > 0.95 * peak
