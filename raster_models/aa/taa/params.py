@@ -1,8 +1,11 @@
 """Parameters of the ``taa`` model and its presets.
 
-Every part can be set on its own; a part left at ``preset`` (strings) or 0 (numbers) takes
-the value of the chosen ``preset``, each value's source named in :data:`PRESET_SOURCES`.
-``preset=custom`` takes UE4's values for the parts left unset.
+A preset named after an engine (``ue4``, ``inside``, ``hdrp``, ``hdrp-high``, ``filament``)
+with no part set runs that engine's transcribed resolve (:mod:`.ue4`, :mod:`.inside`,
+:mod:`.hdrp`, :mod:`.filament`; sources in :data:`PRESET_SOURCES`). Every part can also be
+set on its own: then the part-by-part pipeline runs, each part left at ``preset`` (strings) or
+0 (numbers) taking the preset's value in :data:`PRESETS` (the nearest part of the generic
+pipeline, not the engine's exact step). ``preset=custom`` takes the ``ue4`` part values.
 """
 
 from __future__ import annotations
@@ -82,7 +85,7 @@ PRESETS = {
         reprojection="motion",
         rectify="clip",
         color_space="rgb",
-        neighbourhood="3x3",
+        neighbourhood="rounded",
         gamma=1.0,
         blend="constant",
         alpha=0.12,
@@ -94,11 +97,15 @@ PRESETS["custom"] = dict(PRESETS["ue4"])
 
 #: Where each preset's values come from.
 PRESET_SOURCES = {
-    "ue4": "B. Karis, High Quality Temporal Supersampling, SIGGRAPH 2014; UE 4.x "
-    "SceneRendering.cpp (Halton 2,3 mapped to a windowed Gaussian, sigma 0.47, 8 samples), "
-    "PostProcessTemporalAA.cpp (3x3 exp(-2.29 d^2) input filter), PostProcessTemporalCommon.usf "
-    "(Catmull-Rom history, velocity of the nearest depth in 3x3, rounded YCoCg min/max clamp, "
-    "BlendFinal 0.04 -> 0.2 by velocity and the 0.01 luma-contrast floor, HdrWeight4)",
+    "ue4": "Unreal Engine 4.19 (Kryptexas/UE4-GameWorks-4.19.2@0341e5d5c1c2), main pass at "
+    "r.PostProcessAAQuality 4: PostProcessTemporalAA.cpp (MainTemporalAAPS unless quality 3; "
+    "r.TemporalAACatmullRom 1 plus weights; r.TemporalAACurrentFrameWeight 0.04; PF_FloatRGBA "
+    "history), PostProcessTemporalAA.usf MainTemporalAACommon (AA_FILTERED, AA_BORDER, AA_CROSS "
+    "2, AA_YCOCG, AA_BICUBIC, AA_DYNAMIC_ANTIGHOST, AA_TONE, AA_CLAMP, 5 samples), "
+    "PostProcessTemporalCommon.ush (resolve), Common.ush Texture2DSampleBicubic (5-tap "
+    "Catmull-Rom), SceneVisibility.cpp (8 samples: windowed Box-Muller of Halton(i+1), sigma "
+    "0.47), SceneRendering.h OnFrameRenderingSetup (index incremented before use); "
+    "raster_models/aa/taa/ue4.py",
     "inside": "playdeadgames/temporal@4795aa0007d4 (2017-03-31): TemporalReprojection.cs:34-45 "
     "(MinMax3x3Rounded, unjitterColorSamples, useClipping, useDilation, useOptimizations, "
     "feedback 0.88-0.97), :90-92 + EffectBase.cs:73 (ARGB32 Default: 8-bit sRGB history), "
@@ -126,7 +133,9 @@ PRESET_SOURCES = {
     "taa.mat@63ddbb267ac6 (depth + camera reprojection, 5-tap Catmull-Rom, rounded box, "
     "clipToBox, c/(1+max c) tone weighting), Options.h RenderQuality (RGB16F buffers); "
     "raster_models/aa/taa/filament.py",
-    "custom": "UE4's values for every part not set",
+    "custom": "the part-by-part pipeline with the part values listed under ue4 (Karis 2014's "
+    "description: windowed-Gaussian jitter, 3x3 exp(-2.29 d^2) filter, Catmull-Rom history, "
+    "rounded YCoCg clamp, the 0.04 -> 0.2 velocity blend) for every part not set",
 }
 
 
@@ -146,9 +155,10 @@ class TaaParams:
 
     preset: str = _params.param(
         "ue4",
-        source="UE4 2015: the most copied TAA (Karis 2014)",
-        help="published TAA whose values the parts left at 'preset' take: ue4, inside (Playdead), "
-        "hdrp (Unity), filament, custom (= ue4)",
+        source="UE 4.19's main TAA pass (Karis 2014), the most copied TAA",
+        help="engine TAA as shipped: ue4 (4.19), inside (Playdead), hdrp (Unity, Medium), "
+        "hdrp-high, filament; custom (= ue4's part values); setting any part runs the "
+        "part-by-part pipeline with the preset's part values",
         choices=tuple(PRESETS),
     )
     jitter: str = _params.param(
