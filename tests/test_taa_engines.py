@@ -713,3 +713,26 @@ def test_hdr_scene_inside_clips_at_one_and_the_tone_weighted_engines_keep_the_pe
         # the strips' interiors (within the buffers' rounding and the filters' reach)
         assert o.max() > 4.0
         assert np.min(o[interior].max(axis=-1)) > 0.95 * peak
+
+
+def test_camera_reprojection_of_filament_and_ue4_is_the_film_motion_of_still_geometry():
+    from raster_oracle.scenes.geometry.motion import film_motion
+
+    s = scenes.load("star", width=48, height=27, camera_path="subpixel-pan", n_frames=4)
+    frame = s.with_frame(2)
+    fil = raster_models.run("taa", frame, preset="filament")
+    y, x = np.mgrid[0:27, 0:48].astype(np.float64) + 0.5
+    m = film_motion(frame, x, y, disocclusion=False)
+    truth_x = m["motion_x"].reshape(27, 48)
+    truth_y = m["motion_y"].reshape(27, 48)
+    # the camera pans over still geometry: where the pixel centre and its jittered sample see
+    # the same flat surface at the same depth, Filament's depth + camera reprojection is the
+    # centre's film motion
+    depth = m["depth"].reshape(27, 48)
+    flat = np.abs(np.diff(depth, axis=1, prepend=depth[:, :1])) < 1e-6
+    flat &= np.abs(np.diff(depth, axis=0, prepend=depth[:1])) < 1e-6
+    assert flat.sum() > 100 and np.abs(truth_x).max() > 0.01
+    np.testing.assert_allclose(fil.outputs["velocity_x"][flat], truth_x[flat], atol=1e-4)
+    np.testing.assert_allclose(fil.outputs["velocity_y"][flat], truth_y[flat], atol=1e-4)
+    ue = raster_models.run("taa", frame, preset="ue4")
+    np.testing.assert_allclose(ue.outputs["velocity_x"][flat], truth_x[flat], atol=1e-4)
