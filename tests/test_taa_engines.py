@@ -517,7 +517,7 @@ def _ue_bicubic(tex, uv):
     return out / sum(weight[i][0] * weight[j][1] for i, j in taps)
 
 
-def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev):
+def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, version):
     def rgb_to_ycocg(c):
         return np.array([c[0] + 2 * c[1] + c[2], 2 * c[0] - 2 * c[2], -c[0] + 2 * c[1] - c[2]])
 
@@ -568,7 +568,14 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev):
     history_uv = ((back_n[0] + 1) / 2, (1 - back_n[1]) / 2)
     offsets = [(-1, -1), (0, -1), (1, -1), (-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
     neighbors = [rgb_to_ycocg(point(src, *o)) for o in offsets]
-    raw = [_ue_catmull_rom(o[0] - jitter[0]) * _ue_catmull_rom(o[1] - jitter[1]) for o in offsets]
+    if version == "4.18":  # r.TemporalAACatmullRom 0: normal distribution, sigma 0.47
+        raw = [
+            math.exp(-2.29 * ((o[0] - jitter[0]) ** 2 + (o[1] - jitter[1]) ** 2)) for o in offsets
+        ]
+    else:
+        raw = [
+            _ue_catmull_rom(o[0] - jitter[0]) * _ue_catmull_rom(o[1] - jitter[1]) for o in offsets
+        ]
     plus_idx = [1, 3, 4, 5, 7]
     plus_w = [raw[i] / sum(raw[k] for k in plus_idx) for i in plus_idx]
     filtered, total = np.zeros(3), 0.0
@@ -598,8 +605,9 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev):
         return min(max(a / b, 0.0), 1.0)
 
     blend = 0.04 + (0.2 - 0.04) * min(max(velocity / 40, 0.0), 1.0)
-    blend += 0.8 * saturate_div(0.02 * luma_history, abs(filtered[0] - luma_history))
-    blend *= (luma_min + 0.5) / (luma_max + 0.5)
+    if version != "4.18":  # the anti-flicker block (#if 0 in 4.18.3)
+        blend += 0.8 * saturate_div(0.02 * luma_history, abs(filtered[0] - luma_history))
+        blend *= (luma_min + 0.5) / (luma_max + 0.5)
     blend = max(blend, saturate_div(0.01 * luma_history, abs(filtered[0] - luma_history)))
     if off_screen:
         history_color = filtered
@@ -617,7 +625,7 @@ def _camera(z, px, py):
     return (px + 0.5 + 0.7 - 1.2 / z, py + 0.5 - 0.4 + 0.9 / z)
 
 
-def _ue4_transcription(samples, history, mv, depth, dynamic, frame):
+def _ue4_transcription(samples, history, mv, depth, dynamic, frame, version):
     src = samples.astype(np.float16).astype(np.float64)
     if history is None:
         history = np.concatenate([src, np.zeros((H, W, 1))], -1)
@@ -631,13 +639,14 @@ def _ue4_transcription(samples, history, mv, depth, dynamic, frame):
     for py in range(H):
         for px in range(W):
             out[py, px], blend[py, px] = _ue4_pixel(
-                src, history, vel, depth, px, py, frame, _camera
+                src, history, vel, depth, px, py, frame, _camera, version
             )
     return out.astype(np.float16).astype(np.float64), blend
 
 
+@pytest.mark.parametrize("version", ["4.19", "4.18"])
 @pytest.mark.parametrize("frame", [0, 4])
-def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame):
+def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame, version):
     samples, mv, depth = _frame(7)
     rng = np.random.default_rng(8)
     dynamic = rng.random((H, W)) < 0.3
@@ -652,8 +661,8 @@ def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame):
         yy, xx = np.mgrid[0:H, 0:W]
         return _camera(z, xx, yy)
 
-    out, blend, _ = ue4.step(history, samples, frame, mv, depth, dynamic, camera_prev)
-    expect, t_blend = _ue4_transcription(samples, history, mv, depth, dynamic, frame)
+    out, blend, _ = ue4.step(history, samples, frame, mv, depth, dynamic, camera_prev, version)
+    expect, t_blend = _ue4_transcription(samples, history, mv, depth, dynamic, frame, version)
     assert np.max(np.abs(out - expect)) <= TOL
     assert np.max(np.abs(blend - t_blend)) <= TOL
 

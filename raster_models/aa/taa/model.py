@@ -103,6 +103,7 @@ def _engine_module(engine: str):
         "hdrp": hdrp,
         "hdrp-high": hdrp,
         "ue4": ue4,
+        "ue4-18": ue4,
     }[engine]
 
 
@@ -131,7 +132,10 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
             def camera_prev(z):
                 return _camera_reprojection(scene, x, y, z)
 
-        out, weight, vel = ue4.step(previous, samples, frame, mv, depth, dynamic, camera_prev)
+        version = "4.18" if r["engine"] == "ue4-18" else "4.19"
+        out, weight, vel = ue4.step(
+            previous, samples, frame, mv, depth, dynamic, camera_prev, version
+        )
         history, out = out, out[..., :3]
     elif mod is hdrp:
         mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)

@@ -1,4 +1,14 @@
-"""Unreal Engine 4.19's main temporal AA pass at the default quality (``preset=ue4``).
+"""Unreal Engine 4.19's main temporal AA pass at the default quality (``preset=ue4``), and
+4.18.3's (``preset=ue4-18``).
+
+Which tree is 4.19: the stored repository Kryptexas/UE4-GameWorks-4.19.2 holds several
+engine versions of these files (its PostProcessTemporalCommon.ush at 1d2c1e48bf49 sits next
+to a Build.version of 4.17); the version pinned here (0341e5d5) differs from 4.18.3
+(windystrife/UnrealEngine_NVIDIAGameWorks, Build.version 4.18.3 at 0bd1222b5959;
+PostProcessTemporalAA.cpp at 0f9675ae7119) by exactly two things -- ``r.TemporalAACatmullRom``
+defaults to 1 instead of 0, and the anti-flicker block of the blend (``+0.8 saturate(...)``,
+``x (L_min + 0.5) / (L_max + 0.5)``) is compiled instead of ``#if 0`` -- so it is the later
+one, the repository's 4.19. ``ue4-18`` runs the same transcription with those two undone.
 
 Pinned sources (github.com/Kryptexas/UE4-GameWorks-4.19.2, commit 0341e5d5c1c2, Epic's 4.19
 tree): ``PostProcessTemporalAA.cpp`` (``r.PostProcessAAQuality`` 4 is not 3, so
@@ -79,10 +89,14 @@ def _catmull_rom(x: float) -> float:
     return (1.5 * ax - 2.5) * ax * ax + 1.0
 
 
-def plus_weights(frame: int) -> np.ndarray:
-    """``PlusWeights`` (order of :data:`PLUS`)."""
+def plus_weights(frame: int, version: str = "4.19") -> np.ndarray:
+    """``PlusWeights`` (order of :data:`PLUS`): Catmull-Rom (4.19, r.TemporalAACatmullRom 1)
+    or the Gaussian ``exp(-2.29 d^2)`` (4.18, r.TemporalAACatmullRom 0)."""
     jx, jy = sample_xy(frame)
-    w = np.array([_catmull_rom(dx - jx) * _catmull_rom(dy - jy) for dx, dy in PLUS])
+    if version == "4.18":
+        w = np.array([math.exp(-2.29 * ((dx - jx) ** 2 + (dy - jy) ** 2)) for dx, dy in PLUS])
+    else:
+        w = np.array([_catmull_rom(dx - jx) * _catmull_rom(dy - jy) for dx, dy in PLUS])
     return w / w.sum()
 
 
@@ -132,7 +146,7 @@ def _sat_ratio(num, den):
     return np.clip(np.nan_to_num(q, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
 
 
-def step(history, samples, frame: int, mv, depth, dynamic, camera_prev):
+def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version: str = "4.19"):
     """One frame of the main pass.
 
     ``history``: the previous output ``(H, W, 4)`` (RGB + the dynamic flag) or None on
@@ -160,7 +174,7 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev):
     off = (px <= 0.0) | (px >= w) | (py <= 0.0) | (py >= h)
     px, py = np.clip(px, 0.5, w - 0.5), np.clip(py, 0.5, h - 0.5)
     nb = [to_ycocg(_at(src, xi + dx, yi + dy)) for dx, dy in PLUS]
-    weights = plus_weights(frame)
+    weights = plus_weights(frame, version)
     sw = [wk / (n[..., 0] + 4.0) for wk, n in zip(weights, nb, strict=True)]
     filtered = sum(s[..., None] * n for s, n in zip(sw, nb, strict=True)) / sum(sw)[..., None]
     border = (xi == 0) | (xi == w - 1) | (yi == 0) | (yi == h - 1)
@@ -177,8 +191,9 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev):
     l_cur = filtered[..., 0]
     diff = np.abs(l_cur - l_hist)
     blend = CURRENT_FRAME_WEIGHT + (0.2 - CURRENT_FRAME_WEIGHT) * np.clip(velocity / 40.0, 0, 1)
-    blend = blend + 0.8 * _sat_ratio(0.02 * l_hist, diff)
-    blend = blend * (l_min + 0.5) / (l_max + 0.5)
+    if version != "4.18":  # 4.18.3: this anti-flicker block is under #if 0
+        blend = blend + 0.8 * _sat_ratio(0.02 * l_hist, diff)
+        blend = blend * (l_min + 0.5) / (l_max + 0.5)
     blend = np.maximum(blend, _sat_ratio(0.01 * l_hist, diff))
     hist_c = np.where(off[..., None], filtered, hist_c)
     wa = (1.0 - blend) / (hist_c[..., 0] + 4.0)
