@@ -13,12 +13,22 @@ the previous depth disagrees), rectifies it against the current samples' neighbo
 blends. The state after each frame is kept (keyed by the scene's sequence and the resolved
 parameters) so that scoring frames 0..N-1 in order costs one TAA frame each.
 
-Cost record (the technique's budget at this resolution): ``framebuffer_bytes`` with
-``framebuffer_bytes_by_buffer`` (``color`` RGBA16F current frame, ``depth`` D32F, twice with
-depth rejection, ``velocity`` RG16F, ``history`` 2 x RGBA16F read and written),
-``history_bytes``, ``velocity_bytes``, ``taps_per_pixel`` (current-frame texels + history
-fetches + depth/velocity taps), ``bandwidth_bytes`` (texels read + history and output
-written, per frame), ``samples`` (1 shaded sample a pixel a frame), ``shading_events_mean``.
+An engine preset with no part set (``ue4``, ``ue4-18``, ``inside``, ``hdrp``, ``hdrp-high``,
+``filament``; ``resolved["engine"]``) replaces the part-by-part resolve by that engine's
+transcription (:mod:`.ue4`, :mod:`.inside`, :mod:`.hdrp`, :mod:`.filament`), fed what the
+engine's own passes would hand it: the jittered frame at the engine's jitter, each sample's
+motion (its velocity buffer; UE4 only for moving objects, which write it, and the camera
+reprojection of the pixel centre at a depth elsewhere; Filament the camera reprojection
+alone), view depth; its state is the engine's stored history (8-bit sRGB for INSIDE,
+R11G11B10 for HDRP, half float for UE4 with its dynamic flag and for Filament).
+
+Cost record (the technique's budget at this resolution, from the preset's part values):
+``framebuffer_bytes`` with ``framebuffer_bytes_by_buffer`` (``color`` RGBA16F current frame,
+``depth`` D32F, twice with depth rejection, ``velocity`` RG16F, ``history`` 2 x RGBA16F read
+and written), ``history_bytes``, ``velocity_bytes``, ``taps_per_pixel`` (current-frame
+texels + history fetches + depth/velocity taps), ``bandwidth_bytes`` (texels read + history
+and output written, per frame), ``samples`` (1 shaded sample a pixel a frame),
+``shading_events_mean``.
 """
 
 from __future__ import annotations
