@@ -2,7 +2,11 @@
 Medium, the default; ``preset=hdrp-high``: High).
 
 Pinned sources (github.com/Unity-Technologies/Graphics, package
-``com.unity.render-pipelines.high-definition``; the newest stored copies):
+``com.unity.render-pipelines.high-definition``; the newest stored copies: only the shader's
+commit is known to the source index, the other files are the stored copies that match it --
+the ``.hlsl`` whose ``GetBlendFactor`` takes the shader's ``_BaseBlendFactor`` and which has
+``ModifyBlendWithMotionVectorRejection`` and ``GetUpsampleConfidence``, the C# that sets
+``_TaaPostParameters``/``_TaaPostParameters1`` as the shader reads them):
 ``Runtime/PostProcessing/Shaders/TemporalAntiAliasing.shader`` at 003084f5d112 (tier
 defines: Medium = YCoCg, 5-tap bicubic history, plus-shaped 4 neighbours, variance box,
 no central filter, direct clip, anti-flicker, perceptual space; High adds the 8
