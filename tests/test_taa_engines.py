@@ -443,7 +443,7 @@ def _hdrp_pixel(src, prev, mv_tex, depth, px, py, frame, high):
     blend = max(min(max(0.125 * (1.0 / (1.0 + luma_contrast)), 0.0), 1.0), 0.03)
     final = history + blend * (filtered - history)
     final = final * (1.0 / (1.0 - final[0]))
-    return np.clip(_rgb(final), 0, 65472.0), blend
+    return np.clip(_rgb(final), 0, 65472.0), blend, off_screen
 
 
 def _hdrp_transcription(samples, history, mv, depth, frame, high):
@@ -451,10 +451,13 @@ def _hdrp_transcription(samples, history, mv, depth, frame, high):
     prev = src if history is None else history
     out = np.zeros((H, W, 3))
     blend = np.zeros((H, W))
+    off = np.zeros((H, W), bool)
     for py in range(H):
         for px in range(W):
-            out[py, px], blend[py, px] = _hdrp_pixel(src, prev, mv, depth, px, py, frame, high)
-    return _r11g11b10(out), blend
+            out[py, px], blend[py, px], off[py, px] = _hdrp_pixel(
+                src, prev, mv, depth, px, py, frame, high
+            )
+    return _r11g11b10(out), blend, off
 
 
 @pytest.mark.parametrize("quality", ["medium", "high"])
@@ -466,8 +469,13 @@ def test_hdrp_resolve_is_the_shaders_on_a_hand_built_frame(frame, quality):
         history = _r11g11b10(np.random.default_rng(6).random((H, W, 3)) * 2.0)
     else:
         mv = np.zeros_like(mv)
-    out, blend, _ = hdrp.step(history, samples, frame, mv, depth, quality)
-    expect, t_blend = _hdrp_transcription(samples, history, mv, depth, frame, quality == "high")
+    out, blend, _, off = hdrp.step(history, samples, frame, mv, depth, quality)
+    expect, t_blend, t_off = _hdrp_transcription(
+        samples, history, mv, depth, frame, quality == "high"
+    )
+    assert np.array_equal(off, t_off)
+    if not frame:  # no motion: the outer ring of pixel centres reads as off screen
+        assert off[0].all() and off[-1].all() and off[:, 0].all() and not off[1:-1, 1:-1].any()
     assert np.max(np.abs(out - expect)) <= TOL
     assert np.max(np.abs(blend - t_blend)) <= TOL
     assert blend.min() >= 0.03
@@ -594,7 +602,8 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
     dynamic = any(
         point(velocity_tex, *o)[0] > 0 for o in [(0, -1), (-1, 0), (0, 0), (1, 0), (0, 1)]
     )
-    if not dynamic and history_a > 0:
+    ghost = not dynamic and history_a > 0
+    if ghost:
         history_color = filtered
     luma_min, luma_max, luma_history = nmin[0], nmax[0], history_color[0]
     history_color = np.clip(history_color, nmin, nmax)
@@ -617,7 +626,8 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
     out = history_color * (blend_a * rcp) + filtered * (blend_b * rcp)
     y, co, cg = out * 0.25
     rgb = np.maximum(np.array([y + co - cg, y + cg, y - co - cg]), 0.0)
-    return np.append(rgb, 1.0 if point(velocity_tex, 0, 0)[0] > 0 else 0.0), blend
+    alpha = 1.0 if point(velocity_tex, 0, 0)[0] > 0 else 0.0
+    return np.append(rgb, alpha), blend, off_screen or ghost
 
 
 def _camera(z, px, py):
@@ -636,12 +646,13 @@ def _ue4_transcription(samples, history, mv, depth, dynamic, frame, version):
     vel[..., 2] = 2.0 * mv[..., 1] / H
     out = np.zeros((H, W, 4))
     blend = np.zeros((H, W))
+    dropped = np.zeros((H, W), bool)
     for py in range(H):
         for px in range(W):
-            out[py, px], blend[py, px] = _ue4_pixel(
+            out[py, px], blend[py, px], dropped[py, px] = _ue4_pixel(
                 src, history, vel, depth, px, py, frame, _camera, version
             )
-    return out.astype(np.float16).astype(np.float64), blend
+    return out.astype(np.float16).astype(np.float64), blend, dropped
 
 
 @pytest.mark.parametrize("version", ["4.19", "4.18"])
@@ -661,8 +672,13 @@ def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame, version):
         yy, xx = np.mgrid[0:H, 0:W]
         return _camera(z, xx, yy)
 
-    out, blend, _ = ue4.step(history, samples, frame, mv, depth, dynamic, camera_prev, version)
-    expect, t_blend = _ue4_transcription(samples, history, mv, depth, dynamic, frame, version)
+    out, blend, _, discarded = ue4.step(
+        history, samples, frame, mv, depth, dynamic, camera_prev, version
+    )
+    expect, t_blend, t_dropped = _ue4_transcription(
+        samples, history, mv, depth, dynamic, frame, version
+    )
+    assert np.array_equal(discarded, t_dropped)
     assert np.max(np.abs(out - expect)) <= TOL
     assert np.max(np.abs(blend - t_blend)) <= TOL
 

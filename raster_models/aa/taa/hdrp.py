@@ -186,8 +186,9 @@ def _swizzled(weights, sx, sy):
 def step(history, samples, frame: int, mv, depth, quality: str = "medium"):
     """One frame of the resolve; ``history`` None on frame 0 (the history is reset to the
     input, ``Copy History``). ``mv``: each sample's motion to the previous frame (pixels);
-    ``depth``: view depth (inf sky). Returns ``(output, blend_factor, velocity)`` (the
-    velocity read: the nearest diagonal's)."""
+    ``depth``: view depth (inf sky). Returns ``(output, blend_factor, velocity, discarded)``
+    (the velocity read: the nearest diagonal's; ``discarded``: where the history was replaced
+    by the current colour, ``offScreen``)."""
     h, w = depth.shape
     wide = quality == "high"
     src = r11g11b10(samples)
@@ -251,7 +252,7 @@ def step(history, samples, frame: int, mv, depth, quality: str = "medium"):
     final = hist + blend[..., None] * (filtered - hist)
     final = final * _inv_weight(final)
     out = np.clip(to_rgb(final), 0.0, CLAMP_MAX)
-    return r11g11b10(out), blend, mvc
+    return r11g11b10(out), blend, mvc, off
 
 
 def _direct_clip(hist, lo, hi):

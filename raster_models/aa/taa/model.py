@@ -128,6 +128,7 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
     m = film_motion(scene, x + jit[0], y + jit[1], disocclusion=False)
     depth = np.where(m["valid"], m["depth"], np.inf).reshape(h, w)
     previous = None if state is None else state["history"]
+    discarded = np.zeros((h, w), bool)  # INSIDE and Filament never drop their history
     if mod is ue4:
         mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
         moving = [scene.shape_names.index(n) for n in scene.object_motion]
@@ -143,7 +144,7 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
                 return _camera_reprojection(scene, x, y, z)
 
         version = "4.18" if r["engine"] == "ue4-18" else "4.19"
-        out, weight, vel = ue4.step(
+        out, weight, vel, discarded = ue4.step(
             previous, samples, frame, mv, depth, dynamic, camera_prev, version
         )
         history, out = out, out[..., :3]
@@ -151,7 +152,7 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
         mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
         mv = mv if state is not None else 0.0 * mv
         quality = "high" if r["engine"] == "hdrp-high" else "medium"
-        out, weight, vel = hdrp.step(previous, samples, frame, mv, depth, quality)
+        out, weight, vel, discarded = hdrp.step(previous, samples, frame, mv, depth, quality)
         history = out
     elif mod is inside:
         mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
@@ -163,7 +164,7 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
         out, weight = filament.step(previous, samples, frame, hx, hy)
         history = out
         vel = np.stack([hx - x, hy - y], -1)
-    rejected = np.full((h, w), state is None)
+    rejected = np.full((h, w), state is None) | discarded
     outputs = {
         "color": out.astype(np.float32),
         "current_weight": np.asarray(weight, dtype=np.float32),

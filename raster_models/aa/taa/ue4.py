@@ -155,7 +155,9 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     object is seen (it writes the velocity buffer); ``camera_prev(depth)``: the previous
     film position ``(x, y)`` of each pixel centre's ray point at view depth ``depth``.
 
-    Returns ``(output (H, W, 4), blend, velocity (H, W, 2))`` (the velocity used, pixels).
+    Returns ``(output (H, W, 4), blend, velocity (H, W, 2), discarded)``: the velocity used
+    (pixels) and where the history was replaced by the current colour (off screen or by the
+    dynamic anti-ghosting).
     """
     h, w = depth.shape
     src = half_float(samples)
@@ -203,4 +205,4 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     rgb = np.maximum(np.nan_to_num(to_rgb(out), nan=0.0), 0.0)
     alpha = dynamic.astype(np.float64)
     out = half_float(np.concatenate([rgb, alpha[..., None]], -1))
-    return out, blend, np.stack([back_x, back_y], -1)
+    return out, blend, np.stack([back_x, back_y], -1), off | ghost
