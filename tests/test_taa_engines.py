@@ -322,26 +322,9 @@ def _r11g11b10(img):
     return out
 
 
-def _hdrp_pixel(src, prev, mv_tex, depth, px, py, frame, high):
+def _hd_bicubic(prev, prev_uv):
+    """HistoryBicubic5Tap, sharpening 0.35 (RGB, before the clamp)."""
     size = (W, H)
-    uv = ((px + 0.5) / W, (py + 0.5) / H)
-    quad = (float(px & 1) * 2.0 - 1.0, float(py & 1) * 2.0 - 1.0)  # GetQuadOffset
-
-    def load_depth(i, j):  # out-of-bounds loads read 0 (reversed Z: the far plane)
-        return depth[j, i] if 0 <= i < W and 0 <= j < H else math.inf
-
-    # GetClosestFragmentOffset (COMPARE_DEPTH(a, b) = step(b, a) on reversed Z)
-    q = (int(quad[0]), int(quad[1]))
-    closest = (0, 0, load_depth(px, py))
-    for o in ((-q[0], -q[1]), q, (q[0], -q[1]), (-q[0], q[1])):
-        s = load_depth(px + o[0], py + o[1])
-        if s <= closest[2]:  # nearer or equal in view depth
-            closest = (o[0], o[1], s)
-    mx = min(max(px + closest[0], 0), W - 1)
-    my = min(max(py + closest[1], 0), H - 1)
-    motion = (-mv_tex[my, mx, 0] / W, -mv_tex[my, mx, 1] / H)  # uv: current - previous
-    prev_uv = (uv[0] - motion[0], uv[1] - motion[1])
-    # HistoryBicubic5Tap, sharpening 0.35
     c = 0.35
     sample_pos = np.array(prev_uv) * size
     tc1 = np.floor(sample_pos - 0.5) + 0.5
@@ -362,6 +345,52 @@ def _hdrp_pixel(src, prev, mv_tex, depth, px, py, frame, high):
     ]
     cw = [w12[0] * w0[1], w0[0] * w12[1], w12[0] * w12[1], w3[0] * w12[1], w12[0] * w3[1]]
     history = sum(si * ci for si, ci in zip(s, cw, strict=True)) * (1.0 / sum(cw))
+    return history
+
+
+def _hd_high_weights(frame, px, py):
+    """ComputeWeights + SwizzleFilterWeights: the raw weights and the 8 per neighbour."""
+    i = frame % 8 + 1
+    jit = (_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5)
+    offs = [(0, 0), (0, 1), (1, 0), (-1, 0), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
+    raw = [math.exp((-0.5 / 0.22) * ((o[0] + jit[0]) ** 2 + (o[1] + jit[1]) ** 2)) for o in offs]
+    fp1 = [raw[k] / sum(raw) for k in range(1, 5)]
+    fp2 = [raw[k] / sum(raw) for k in range(5, 9)]
+    sw = ((px & 1) == 0, (py & 1) == 0)
+    if sw[0]:
+        fp1[1], fp1[2] = fp1[2], fp1[1]
+    if sw[1]:
+        fp1[0], fp1[3] = fp1[3], fp1[0]
+    x_, y_, z_, w_ = fp2
+    if all(sw):
+        fp2 = [y_, x_, w_, z_]
+    elif sw[0] and not sw[1]:
+        fp2 = [z_, w_, x_, y_]
+    elif not sw[0] and sw[1]:
+        fp2 = [w_, z_, y_, x_]
+    return raw, fp1 + fp2
+
+
+def _hdrp_pixel(src, prev, mv_tex, depth, px, py, frame, high):
+    size = (W, H)
+    uv = ((px + 0.5) / W, (py + 0.5) / H)
+    quad = (float(px & 1) * 2.0 - 1.0, float(py & 1) * 2.0 - 1.0)  # GetQuadOffset
+
+    def load_depth(i, j):  # out-of-bounds loads read 0 (reversed Z: the far plane)
+        return depth[j, i] if 0 <= i < W and 0 <= j < H else math.inf
+
+    # GetClosestFragmentOffset (COMPARE_DEPTH(a, b) = step(b, a) on reversed Z)
+    q = (int(quad[0]), int(quad[1]))
+    closest = (0, 0, load_depth(px, py))
+    for o in ((-q[0], -q[1]), q, (q[0], -q[1]), (-q[0], q[1])):
+        s = load_depth(px + o[0], py + o[1])
+        if s <= closest[2]:  # nearer or equal in view depth
+            closest = (o[0], o[1], s)
+    mx = min(max(px + closest[0], 0), W - 1)
+    my = min(max(py + closest[1], 0), H - 1)
+    motion = (-mv_tex[my, mx, 0] / W, -mv_tex[my, mx, 1] / H)  # uv: current - previous
+    prev_uv = (uv[0] - motion[0], uv[1] - motion[1])
+    history = _hd_bicubic(prev, prev_uv)
     history = _ycocg(np.clip(history, 0, 65472.0))
     off_screen = any(abs(prev_uv[k] * 2 - 1) >= (1.0 - 1.0 / size[k]) for k in range(2))
     history = history * (1.0 / (history[0] + 1.0))
@@ -383,29 +412,8 @@ def _hdrp_pixel(src, prev, mv_tex, depth, px, py, frame, high):
     central = color * (1.0 / (color[0] + 1.0))
     filtered = central
     if high:
-        i = frame % 8 + 1
-        jit = (_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5)
-        offs = [(0, 0), (0, 1), (1, 0), (-1, 0), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
-        raw = [
-            math.exp((-0.5 / 0.22) * ((o[0] + jit[0]) ** 2 + (o[1] + jit[1]) ** 2)) for o in offs
-        ]
-        fp1 = [raw[k] / sum(raw) for k in range(1, 5)]
-        fp2 = [raw[k] / sum(raw) for k in range(5, 9)]
-        sw = ((px & 1) == 0, (py & 1) == 0)
-        if sw[0]:
-            fp1[1], fp1[2] = fp1[2], fp1[1]
-        if sw[1]:
-            fp1[0], fp1[3] = fp1[3], fp1[0]
-        x_, y_, z_, w_ = fp2
-        if all(sw):
-            fp2 = [y_, x_, w_, z_]
-        elif sw[0] and not sw[1]:
-            fp2 = [z_, w_, x_, y_]
-        elif not sw[0] and sw[1]:
-            fp2 = [w_, z_, y_, x_]
-        filtered = central * (raw[0] / sum(raw)) + sum(
-            n * k for n, k in zip(nb, fp1 + fp2, strict=True)
-        )
+        raw, fp = _hd_high_weights(frame, px, py)
+        filtered = central * (raw[0] / sum(raw)) + sum(n * k for n, k in zip(nb, fp, strict=True))
     if off_screen:
         history = filtered
     color_luma, history_luma = filtered[0], history[0]
