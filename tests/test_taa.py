@@ -283,7 +283,9 @@ def test_the_models_own_velocity_and_rejection_are_scored_against_the_truth():
     assert rec["offscreen"]["frames"][2]["disocclusion_recall"] in (0.0, None)
 
 
-@pytest.mark.parametrize("preset", ["ue4", "ue4-18", "inside", "hdrp", "hdrp-high", "filament"])
+@pytest.mark.parametrize(
+    "preset", ["ue4", "ue4-18", "ue4-20", "inside", "hdrp", "hdrp-high", "filament"]
+)
 def test_every_preset_runs_a_rotating_object_sequence(preset):
     s = scenes.load("spin", width=48, height=27)
     first = raster_models.run("taa", s.with_frame(0), preset=preset)

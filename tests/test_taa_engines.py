@@ -494,7 +494,7 @@ def test_hdrp_jitter_cycles_eight_halton_points_from_index_one():
     np.testing.assert_allclose(hdrp.jitter(8), hdrp.jitter(0), atol=0)
 
 
-# ------------------------------------------------------------------ UE4 4.19
+# ------------------------------------------------------------ UE4 4.18/4.19/4.20
 
 
 def _ue_catmull_rom(x):
@@ -533,7 +533,7 @@ def _ue_bicubic(tex, uv):
     return out / sum(weight[i][0] * weight[j][1] for i, j in taps)
 
 
-def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, version):
+def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, version, cut):
     def rgb_to_ycocg(c):
         return np.array([c[0] + 2 * c[1] + c[2], 2 * c[0] - 2 * c[2], -c[0] + 2 * c[1] - c[2]])
 
@@ -584,7 +584,7 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
     history_uv = ((back_n[0] + 1) / 2, (1 - back_n[1]) / 2)
     offsets = [(-1, -1), (0, -1), (1, -1), (-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1)]
     neighbors = [rgb_to_ycocg(point(src, *o)) for o in offsets]
-    if version == "4.18":  # r.TemporalAACatmullRom 0: normal distribution, sigma 0.47
+    if version in ("4.18", "4.20"):  # r.TemporalAACatmullRom 0: normal distribution
         raw = [
             math.exp(-2.29 * ((o[0] - jitter[0]) ** 2 + (o[1] - jitter[1]) ** 2)) for o in offsets
         ]
@@ -611,7 +611,10 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
         point(velocity_tex, *o)[0] > 0 for o in [(0, -1), (-1, 0), (0, 0), (1, 0), (0, 1)]
     )
     ghost = not dynamic and history_a > 0
-    if ghost:
+    ignore = off_screen  # 4.20.3: IgnoreHistory = OffScreen || TAA_CAMERA_CUT || anti-ghost
+    if version == "4.20":
+        ignore = off_screen or cut or ghost
+    elif ghost:  # 4.18/4.19: HistoryColor = Filtered before the luma and the clamp
         history_color = filtered
     luma_min, luma_max, luma_history = nmin[0], nmax[0], history_color[0]
     history_color = np.clip(history_color, nmin, nmax)
@@ -622,11 +625,13 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
         return min(max(a / b, 0.0), 1.0)
 
     blend = 0.04 + (0.2 - 0.04) * min(max(velocity / 40, 0.0), 1.0)
-    if version != "4.18":  # the anti-flicker block (#if 0 in 4.18.3)
+    if version == "4.19":  # the anti-flicker block (#if 0 in 4.18.3 and 4.20.3)
         blend += 0.8 * saturate_div(0.02 * luma_history, abs(filtered[0] - luma_history))
         blend *= (luma_min + 0.5) / (luma_max + 0.5)
     blend = max(blend, saturate_div(0.01 * luma_history, abs(filtered[0] - luma_history)))
-    if off_screen:
+    if cut:  # BlendFinal = 1.0 under TAA_CAMERA_CUT
+        blend = 1.0
+    if ignore:
         history_color = filtered
     blend_a = (1.0 - blend) * (1.0 / (history_color[0] + 4.0))
     blend_b = blend * (1.0 / (filtered[0] + 4.0))
@@ -635,7 +640,7 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
     y, co, cg = out * 0.25
     rgb = np.maximum(np.array([y + co - cg, y + cg, y - co - cg]), 0.0)
     alpha = 1.0 if point(velocity_tex, 0, 0)[0] > 0 else 0.0
-    return np.append(rgb, alpha), blend, off_screen or ghost
+    return np.append(rgb, alpha), blend, ignore or ghost
 
 
 def _camera(z, px, py):
@@ -645,6 +650,7 @@ def _camera(z, px, py):
 
 def _ue4_transcription(samples, history, mv, depth, dynamic, frame, version):
     src = samples.astype(np.float16).astype(np.float64)
+    cut = history is None and version == "4.20"  # 4.20: no history is a camera cut
     if history is None:
         history = np.concatenate([src, np.zeros((H, W, 1))], -1)
     # the velocity buffer: x > 0 flags a dynamic object (encoded), then BackN in ScreenPos
@@ -658,12 +664,12 @@ def _ue4_transcription(samples, history, mv, depth, dynamic, frame, version):
     for py in range(H):
         for px in range(W):
             out[py, px], blend[py, px], dropped[py, px] = _ue4_pixel(
-                src, history, vel, depth, px, py, frame, _camera, version
+                src, history, vel, depth, px, py, frame, _camera, version, cut
             )
     return out.astype(np.float16).astype(np.float64), blend, dropped
 
 
-@pytest.mark.parametrize("version", ["4.19", "4.18"])
+@pytest.mark.parametrize("version", ["4.19", "4.18", "4.20"])
 @pytest.mark.parametrize("frame", [0, 4])
 def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame, version):
     samples, mv, depth = _frame(7)

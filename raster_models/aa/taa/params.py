@@ -23,7 +23,7 @@ __all__ = ["ENGINE_PRESETS", "PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"
 
 #: Presets whose every step is a transcription of the engine's shipped shader
 #: (:mod:`.inside`, :mod:`.filament`); setting any part runs the part-by-part pipeline.
-ENGINE_PRESETS = ("ue4", "ue4-18", "inside", "filament", "hdrp", "hdrp-high")
+ENGINE_PRESETS = ("ue4", "ue4-18", "ue4-20", "inside", "filament", "hdrp", "hdrp-high")
 
 DILATIONS = ("none", "nearest-depth-3x3")
 REPROJECTIONS = ("motion", "off")
@@ -94,6 +94,7 @@ PRESETS = {
 }
 PRESETS["hdrp-high"] = dict(PRESETS["hdrp"])
 PRESETS["ue4-18"] = dict(PRESETS["ue4"])
+PRESETS["ue4-20"] = dict(PRESETS["ue4"])
 PRESETS["custom"] = dict(PRESETS["ue4"])
 
 #: Where each preset's values come from.
@@ -111,6 +112,10 @@ PRESET_SOURCES = {
     "@0bd1222b5959, PostProcessTemporalCommon.ush @0bd1222b5959 with the anti-flicker block "
     "under #if 0, PostProcessTemporalAA.cpp @0f9675ae7119 with r.TemporalAACatmullRom 0: "
     "Gaussian exp(-2.29 d^2) plus weights); otherwise as ue4; raster_models/aa/taa/ue4.py",
+    "ue4-20": "Unreal Engine 4.20.3 main pass (blackix/blackix@03236bd0c684: Build.version "
+    "4.20.3, PostProcessTemporalAA.usf TAA_PASS_CONFIG 1, not TAA_FAST) with the 4.20-4.22 "
+    "PostProcessTemporalAA.cpp of folgerwang/UnrealEngine@19747897ecf5 (r.TemporalAACatmullRom "
+    "0, HistoryBufferUVMinMax, TAA_CAMERA_CUT without a history); raster_models/aa/taa/ue4.py",
     "inside": "playdeadgames/temporal@4795aa0007d4 (2017-03-31): TemporalReprojection.cs:34-45 "
     "(MinMax3x3Rounded, unjitterColorSamples, useClipping, useDilation, useOptimizations, "
     "feedback 0.88-0.97), :90-92 + EffectBase.cs:73 (ARGB32 Default: 8-bit sRGB history), "
@@ -161,7 +166,7 @@ class TaaParams:
     preset: str = _params.param(
         "ue4",
         source="UE 4.19's main TAA pass (Karis 2014), the most copied TAA",
-        help="engine TAA as shipped: ue4 (4.19), ue4-18 (4.18.3), inside (Playdead), hdrp "
+        help="engine TAA as shipped: ue4 (4.19), ue4-18 (4.18.3), ue4-20 (4.20), inside, hdrp "
         "(Unity, Medium), "
         "hdrp-high, filament; custom (= ue4's part values); setting any part runs the "
         "part-by-part pipeline with the preset's part values",

@@ -1,5 +1,5 @@
-"""Unreal Engine 4.19's main temporal AA pass at the default quality (``preset=ue4``), and
-4.18.3's (``preset=ue4-18``).
+"""Unreal Engine 4.19's main temporal AA pass at the default quality (``preset=ue4``),
+4.18.3's (``preset=ue4-18``) and 4.20's (``preset=ue4-20``).
 
 Which tree is 4.19: the stored repository Kryptexas/UE4-GameWorks-4.19.2 holds several
 engine versions of these files (its PostProcessTemporalCommon.ush at 1d2c1e48bf49 sits next
@@ -8,7 +8,16 @@ to a Build.version of 4.17); the version pinned here (0341e5d5) differs from 4.1
 PostProcessTemporalAA.cpp at 0f9675ae7119) by exactly two things -- ``r.TemporalAACatmullRom``
 defaults to 1 instead of 0, and the anti-flicker block of the blend (``+0.8 saturate(...)``,
 ``x (L_min + 0.5) / (L_max + 0.5)``) is compiled instead of ``#if 0`` -- so it is the later
-one, the repository's 4.19. ``ue4-18`` runs the same transcription with those two undone.
+one, the repository's 4.19 (the clean 4.19.2 tree Andra-Games-Entertainment/Unreal-Engine-4.19.2
+at 591426c2af65 has the same ``r.TemporalAACatmullRom`` 1). ``ue4-18`` runs the same
+transcription with those two undone. ``ue4-20``: 4.20.3's ``PostProcessTemporalAA.usf``
+(blackix/blackix at 03236bd0c684, Build.version 4.20.3, ``TAA_PASS_CONFIG`` 1 Main, not
+``TAA_FAST``) with the C++ of folgerwang/UnrealEngine's ``PostProcessTemporalAA.cpp`` at
+19747897ecf5 (``r.TemporalAACatmullRom`` 0, ``HistoryBufferUVMinMax`` at the outer texel
+centres, ``TAA_CAMERA_CUT`` when no history exists): 4.18's blend and weights, the anti-ghost
+reset folded into ``IgnoreHistory`` (applied after the luma and the clamp) and the first
+frame a camera cut (the filtered current frame, blend 1); its per-tap history-UV clamps give
+the values of 4.19's clamp-to-edge on a full-viewport history.
 
 Pinned sources (github.com/Kryptexas/UE4-GameWorks-4.19.2, commit 0341e5d5c1c2, Epic's 4.19
 tree): ``PostProcessTemporalAA.cpp`` (``r.PostProcessAAQuality`` 4 is not 3, so
@@ -93,7 +102,7 @@ def plus_weights(frame: int, version: str = "4.19") -> np.ndarray:
     """``PlusWeights`` (order of :data:`PLUS`): Catmull-Rom (4.19, r.TemporalAACatmullRom 1)
     or the Gaussian ``exp(-2.29 d^2)`` (4.18, r.TemporalAACatmullRom 0)."""
     jx, jy = sample_xy(frame)
-    if version == "4.18":
+    if version in ("4.18", "4.20"):
         w = np.array([math.exp(-2.29 * ((dx - jx) ** 2 + (dy - jy) ** 2)) for dx, dy in PLUS])
     else:
         w = np.array([_catmull_rom(dx - jx) * _catmull_rom(dy - jy) for dx, dy in PLUS])
@@ -163,6 +172,7 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     src = half_float(samples)
     yi, xi = np.mgrid[0:h, 0:w]
     x, y = xi + 0.5, yi + 0.5
+    camera_cut = history is None and version == "4.20"  # TAA_CAMERA_CUT without a history
     if history is None:
         history = np.concatenate([src, np.zeros((h, w, 1))], -1)
     ox, oy, chosen = closest_offset(depth)
@@ -187,17 +197,21 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     hist_c, hist_a = to_ycocg(hist[..., :3]), hist[..., 3]
     dyn_plus = np.logical_or.reduce([_at(dynamic, xi + dx, yi + dy) for dx, dy in PLUS])
     ghost = ~dyn_plus & (hist_a > 0)
-    hist_c = np.where(ghost[..., None], filtered, hist_c)
+    if version != "4.20":  # 4.18/4.19 replace the history before its luma and clamp
+        hist_c = np.where(ghost[..., None], filtered, hist_c)
     l_min, l_max, l_hist = lo[..., 0], hi[..., 0], hist_c[..., 0]
     hist_c = np.clip(hist_c, lo, hi)
     l_cur = filtered[..., 0]
     diff = np.abs(l_cur - l_hist)
     blend = CURRENT_FRAME_WEIGHT + (0.2 - CURRENT_FRAME_WEIGHT) * np.clip(velocity / 40.0, 0, 1)
-    if version != "4.18":  # 4.18.3: this anti-flicker block is under #if 0
+    if version == "4.19":  # 4.18.3 and 4.20.3: this anti-flicker block is under #if 0
         blend = blend + 0.8 * _sat_ratio(0.02 * l_hist, diff)
         blend = blend * (l_min + 0.5) / (l_max + 0.5)
     blend = np.maximum(blend, _sat_ratio(0.01 * l_hist, diff))
-    hist_c = np.where(off[..., None], filtered, hist_c)
+    ignore = off | (ghost if version == "4.20" else False) | camera_cut
+    if camera_cut:
+        blend = np.ones_like(blend)
+    hist_c = np.where(ignore[..., None], filtered, hist_c)
     wa = (1.0 - blend) / (hist_c[..., 0] + 4.0)
     wb = blend / (filtered[..., 0] + 4.0)
     rcp = 1.0 / (wa + wb)
@@ -205,4 +219,4 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     rgb = np.maximum(np.nan_to_num(to_rgb(out), nan=0.0), 0.0)
     alpha = dynamic.astype(np.float64)
     out = half_float(np.concatenate([rgb, alpha[..., None]], -1))
-    return out, blend, np.stack([back_x, back_y], -1), off | ghost
+    return out, blend, np.stack([back_x, back_y], -1), ignore | ghost
