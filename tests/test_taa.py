@@ -284,7 +284,7 @@ def test_the_models_own_velocity_and_rejection_are_scored_against_the_truth():
 
 
 @pytest.mark.parametrize(
-    "preset", ["ue4", "ue4-18", "ue4-20", "inside", "hdrp", "hdrp-high", "filament"]
+    "preset", ["ue4", "ue4-high", "ue4-18", "ue4-20", "inside", "hdrp", "hdrp-high", "filament"]
 )
 def test_every_preset_runs_a_rotating_object_sequence(preset):
     s = scenes.load("spin", width=48, height=27)

@@ -594,12 +594,14 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
         ]
     plus_idx = [1, 3, 4, 5, 7]
     plus_w = [raw[i] / sum(raw[k] for k in plus_idx) for i in plus_idx]
+    tone = version != "4.19-high"  # MainFastTemporalAA: AA_TONE 0, AA_DYNAMIC_ANTIGHOST 0
     filtered, total = np.zeros(3), 0.0
     for i, wgt in zip(plus_idx, plus_w, strict=True):
-        sw = wgt * (1.0 / (neighbors[i][0] + 4.0))
+        sw = wgt * (1.0 / (neighbors[i][0] + 4.0)) if tone else wgt
         total += sw
         filtered = filtered + neighbors[i] * sw
-    filtered = filtered / total
+    if tone:
+        filtered = filtered / total
     test = np.abs(screen) + np.array([2.0 / W, 2.0 / H])
     if max(test) >= 1.0:
         filtered = neighbors[4]
@@ -610,7 +612,7 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
     dynamic = any(
         point(velocity_tex, *o)[0] > 0 for o in [(0, -1), (-1, 0), (0, 0), (1, 0), (0, 1)]
     )
-    ghost = not dynamic and history_a > 0
+    ghost = not dynamic and history_a > 0 and tone
     ignore = off_screen  # 4.20.3: IgnoreHistory = OffScreen || TAA_CAMERA_CUT || anti-ghost
     if version == "4.20":
         ignore = off_screen or cut or ghost
@@ -625,7 +627,7 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
         return min(max(a / b, 0.0), 1.0)
 
     blend = 0.04 + (0.2 - 0.04) * min(max(velocity / 40, 0.0), 1.0)
-    if version == "4.19":  # the anti-flicker block (#if 0 in 4.18.3 and 4.20.3)
+    if version in ("4.19", "4.19-high"):  # the anti-flicker block (#if 0 in 4.18.3, 4.20.3)
         blend += 0.8 * saturate_div(0.02 * luma_history, abs(filtered[0] - luma_history))
         blend *= (luma_min + 0.5) / (luma_max + 0.5)
     blend = max(blend, saturate_div(0.01 * luma_history, abs(filtered[0] - luma_history)))
@@ -639,7 +641,7 @@ def _ue4_pixel(src, hist, velocity_tex, depth_tex, px, py, frame, camera_prev, v
     out = history_color * (blend_a * rcp) + filtered * (blend_b * rcp)
     y, co, cg = out * 0.25
     rgb = np.maximum(np.array([y + co - cg, y + cg, y - co - cg]), 0.0)
-    alpha = 1.0 if point(velocity_tex, 0, 0)[0] > 0 else 0.0
+    alpha = 1.0 if point(velocity_tex, 0, 0)[0] > 0 and tone else 0.0
     return np.append(rgb, alpha), blend, ignore or ghost
 
 
@@ -669,7 +671,7 @@ def _ue4_transcription(samples, history, mv, depth, dynamic, frame, version):
     return out.astype(np.float16).astype(np.float64), blend, dropped
 
 
-@pytest.mark.parametrize("version", ["4.19", "4.18", "4.20"])
+@pytest.mark.parametrize("version", ["4.19", "4.19-high", "4.18", "4.20"])
 @pytest.mark.parametrize("frame", [0, 4])
 def test_ue4_resolve_is_the_shaders_on_a_hand_built_frame(frame, version):
     samples, mv, depth = _frame(7)

@@ -13,8 +13,8 @@ the previous depth disagrees), rectifies it against the current samples' neighbo
 blends. The state after each frame is kept (keyed by the scene's sequence and the resolved
 parameters) so that scoring frames 0..N-1 in order costs one TAA frame each.
 
-An engine preset with no part set (``ue4``, ``ue4-18``, ``ue4-20``, ``inside``, ``hdrp``,
-``hdrp-high``, ``filament``; ``resolved["engine"]``) replaces the part-by-part resolve by
+An engine preset with no part set (``ue4``, ``ue4-high``, ``ue4-18``, ``ue4-20``, ``inside``,
+``hdrp``, ``hdrp-high``, ``filament``; ``resolved["engine"]``) replaces the part-by-part resolve by
 that engine's transcription (:mod:`.ue4`, :mod:`.inside`, :mod:`.hdrp`, :mod:`.filament`),
 fed what the engine's own passes would hand it: the jittered frame at the engine's jitter,
 each sample's motion (its velocity buffer; UE4 only for moving objects, which write it, and
@@ -115,6 +115,7 @@ def _engine_module(engine: str):
         "ue4": ue4,
         "ue4-18": ue4,
         "ue4-20": ue4,
+        "ue4-high": ue4,
     }[engine]
 
 
@@ -144,7 +145,9 @@ def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
             def camera_prev(z):
                 return _camera_reprojection(scene, x, y, z)
 
-        version = {"ue4-18": "4.18", "ue4-20": "4.20"}.get(r["engine"], "4.19")
+        version = {"ue4-18": "4.18", "ue4-20": "4.20", "ue4-high": "4.19-high"}.get(
+            r["engine"], "4.19"
+        )
         out, weight, vel, discarded = ue4.step(
             previous, samples, frame, mv, depth, dynamic, camera_prev, version
         )

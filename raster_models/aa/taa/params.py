@@ -23,7 +23,16 @@ __all__ = ["ENGINE_PRESETS", "PRESETS", "PRESET_SOURCES", "TaaParams", "resolve"
 
 #: Presets whose every step is a transcription of the engine's shipped shader
 #: (:mod:`.inside`, :mod:`.filament`); setting any part runs the part-by-part pipeline.
-ENGINE_PRESETS = ("ue4", "ue4-18", "ue4-20", "inside", "filament", "hdrp", "hdrp-high")
+ENGINE_PRESETS = (
+    "ue4",
+    "ue4-high",
+    "ue4-18",
+    "ue4-20",
+    "inside",
+    "filament",
+    "hdrp",
+    "hdrp-high",
+)
 
 DILATIONS = ("none", "nearest-depth-3x3")
 REPROJECTIONS = ("motion", "off")
@@ -93,6 +102,7 @@ PRESETS = {
     ),
 }
 PRESETS["hdrp-high"] = dict(PRESETS["hdrp"])
+PRESETS["ue4-high"] = dict(PRESETS["ue4"])
 PRESETS["ue4-18"] = dict(PRESETS["ue4"])
 PRESETS["ue4-20"] = dict(PRESETS["ue4"])
 PRESETS["custom"] = dict(PRESETS["ue4"])
@@ -108,6 +118,11 @@ PRESET_SOURCES = {
     "Catmull-Rom), SceneVisibility.cpp (8 samples: windowed Box-Muller of Halton(i+1), sigma "
     "0.47), SceneRendering.h OnFrameRenderingSetup (index incremented before use); "
     "raster_models/aa/taa/ue4.py",
+    "ue4-high": "Unreal Engine 4.19 (Kryptexas/UE4-GameWorks-4.19.2@0341e5d5c1c2) at "
+    "r.PostProcessAAQuality 3 (BaseScalability.ini@04475707d16b [AntiAliasingQuality@2], High): "
+    "PostProcessTemporalAA.cpp bUseFast = Quality == 3 draws MainFastTemporalAAPS; "
+    "PostProcessTemporalAA.usf MainFastTemporalAACommon (as MainTemporalAACommon without AA_TONE "
+    "and AA_DYNAMIC_ANTIGHOST); otherwise as ue4; raster_models/aa/taa/ue4.py",
     "ue4-18": "Unreal Engine 4.18.3 (windystrife/UnrealEngine_NVIDIAGameWorks: Build.version "
     "@0bd1222b5959, PostProcessTemporalCommon.ush @0bd1222b5959 with the anti-flicker block "
     "under #if 0, PostProcessTemporalAA.cpp @0f9675ae7119 with r.TemporalAACatmullRom 0: "
@@ -166,7 +181,8 @@ class TaaParams:
     preset: str = _params.param(
         "ue4",
         source="UE 4.19's main TAA pass (Karis 2014), the most copied TAA",
-        help="engine TAA as shipped: ue4 (4.19), ue4-18 (4.18.3), ue4-20 (4.20), inside, hdrp "
+        help="engine TAA as shipped: ue4 (4.19, Epic AA quality), ue4-high (4.19, High), "
+        "ue4-18 (4.18.3), ue4-20 (4.20), inside, hdrp "
         "(Unity, Medium), "
         "hdrp-high, filament; custom (= ue4's part values); setting any part runs the "
         "part-by-part pipeline with the preset's part values",

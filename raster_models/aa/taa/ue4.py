@@ -1,5 +1,12 @@
-"""Unreal Engine 4.19's main temporal AA pass at the default quality (``preset=ue4``),
-4.18.3's (``preset=ue4-18``) and 4.20's (``preset=ue4-20``).
+"""Unreal Engine 4.19's main temporal AA pass at ``r.PostProcessAAQuality`` 4 (``preset=ue4``),
+its ``MainFastTemporalAA`` at quality 3 (``preset=ue4-high``), 4.18.3's main pass
+(``preset=ue4-18``) and 4.20's (``preset=ue4-20``).
+
+Quality: ``BaseScalability.ini`` (same repository, 04475707d16b) maps ``sg.AntiAliasingQuality``
+3 (Epic) to ``r.PostProcessAAQuality`` 4 and 2 (High) to 3; ``PostProcessTemporalAA.cpp``
+takes ``bUseFast = Quality == 3``, which draws ``MainFastTemporalAAPS``: the same
+``PostProcessTemporalCommon.ush`` without ``AA_TONE`` (the plus weights alone, no
+``1 / (Y + 4)`` and no renormalization) and without ``AA_DYNAMIC_ANTIGHOST`` (alpha written 0).
 
 Which tree is 4.19: the stored repository Kryptexas/UE4-GameWorks-4.19.2 holds several
 engine versions of these files (its PostProcessTemporalCommon.ush at 1d2c1e48bf49 sits next
@@ -99,8 +106,9 @@ def _catmull_rom(x: float) -> float:
 
 
 def plus_weights(frame: int, version: str = "4.19") -> np.ndarray:
-    """``PlusWeights`` (order of :data:`PLUS`): Catmull-Rom (4.19, r.TemporalAACatmullRom 1)
-    or the Gaussian ``exp(-2.29 d^2)`` (4.18, r.TemporalAACatmullRom 0)."""
+    """``PlusWeights`` (order of :data:`PLUS`): Catmull-Rom (4.19 and its fast pass,
+    r.TemporalAACatmullRom 1) or the Gaussian ``exp(-2.29 d^2)`` (4.18 and 4.20,
+    r.TemporalAACatmullRom 0)."""
     jx, jy = sample_xy(frame)
     if version in ("4.18", "4.20"):
         w = np.array([math.exp(-2.29 * ((dx - jx) ** 2 + (dy - jy) ** 2)) for dx, dy in PLUS])
@@ -159,7 +167,8 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     """One frame of the main pass.
 
     ``history``: the previous output ``(H, W, 4)`` (RGB + the dynamic flag) or None on
-    frame 0 (the current colour with alpha 0 is the history); ``mv``: each sample's motion to
+    frame 0 (``AddTemporalAA``: "No history so use current as history", the scene colour;
+    its alpha taken as 0); ``mv``: each sample's motion to
     the previous frame (pixels); ``depth``: view depth (inf sky); ``dynamic``: where a moving
     object is seen (it writes the velocity buffer); ``camera_prev(depth)``: the previous
     film position ``(x, y)`` of each pixel centre's ray point at view depth ``depth``.
@@ -173,6 +182,7 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     yi, xi = np.mgrid[0:h, 0:w]
     x, y = xi + 0.5, yi + 0.5
     camera_cut = history is None and version == "4.20"  # TAA_CAMERA_CUT without a history
+    fast = version == "4.19-high"  # MainFastTemporalAA: no AA_TONE, no AA_DYNAMIC_ANTIGHOST
     if history is None:
         history = np.concatenate([src, np.zeros((h, w, 1))], -1)
     ox, oy, chosen = closest_offset(depth)
@@ -187,8 +197,12 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     px, py = np.clip(px, 0.5, w - 0.5), np.clip(py, 0.5, h - 0.5)
     nb = [to_ycocg(_at(src, xi + dx, yi + dy)) for dx, dy in PLUS]
     weights = plus_weights(frame, version)
-    sw = [wk / (n[..., 0] + 4.0) for wk, n in zip(weights, nb, strict=True)]
-    filtered = sum(s[..., None] * n for s, n in zip(sw, nb, strict=True)) / sum(sw)[..., None]
+    if fast:  # AA_TONE 0: Filtered = sum(PlusWeights[i] * Neighbor), no division
+        filtered = sum(wk * n for wk, n in zip(weights, nb, strict=True))
+    else:
+        sw = [wk / (n[..., 0] + 4.0) for wk, n in zip(weights, nb, strict=True)]
+        filtered = sum(s[..., None] * n for s, n in zip(sw, nb, strict=True))
+        filtered = filtered / sum(sw)[..., None]
     border = (xi == 0) | (xi == w - 1) | (yi == 0) | (yi == h - 1)
     filtered = np.where(border[..., None], nb[2], filtered)
     lo = np.minimum.reduce(nb)
@@ -196,7 +210,7 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     hist = catmull_rom_5tap(history, px, py)
     hist_c, hist_a = to_ycocg(hist[..., :3]), hist[..., 3]
     dyn_plus = np.logical_or.reduce([_at(dynamic, xi + dx, yi + dy) for dx, dy in PLUS])
-    ghost = ~dyn_plus & (hist_a > 0)
+    ghost = ~dyn_plus & (hist_a > 0) & (not fast)
     if version != "4.20":  # 4.18/4.19 replace the history before its luma and clamp
         hist_c = np.where(ghost[..., None], filtered, hist_c)
     l_min, l_max, l_hist = lo[..., 0], hi[..., 0], hist_c[..., 0]
@@ -204,7 +218,7 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     l_cur = filtered[..., 0]
     diff = np.abs(l_cur - l_hist)
     blend = CURRENT_FRAME_WEIGHT + (0.2 - CURRENT_FRAME_WEIGHT) * np.clip(velocity / 40.0, 0, 1)
-    if version == "4.19":  # 4.18.3 and 4.20.3: this anti-flicker block is under #if 0
+    if version in ("4.19", "4.19-high"):  # under #if 0 in 4.18.3 and 4.20.3
         blend = blend + 0.8 * _sat_ratio(0.02 * l_hist, diff)
         blend = blend * (l_min + 0.5) / (l_max + 0.5)
     blend = np.maximum(blend, _sat_ratio(0.01 * l_hist, diff))
@@ -217,6 +231,6 @@ def step(history, samples, frame: int, mv, depth, dynamic, camera_prev, version:
     rcp = 1.0 / (wa + wb)
     out = hist_c * (wa * rcp)[..., None] + filtered * (wb * rcp)[..., None]
     rgb = np.maximum(np.nan_to_num(to_rgb(out), nan=0.0), 0.0)
-    alpha = dynamic.astype(np.float64)
+    alpha = np.zeros_like(depth) if fast else dynamic.astype(np.float64)
     out = half_float(np.concatenate([rgb, alpha[..., None]], -1))
     return out, blend, np.stack([back_x, back_y], -1), ignore | ghost
