@@ -350,7 +350,7 @@ def _hd_bicubic(prev, prev_uv):
 
 def _hd_high_weights(frame, px, py):
     """ComputeWeights + SwizzleFilterWeights: the raw weights and the 8 per neighbour."""
-    i = frame % 8 + 1
+    i = (frame + 1) % 8 + 1  # HDCamera.Update: ++taaFrameIndex before the jitter is built
     jit = (_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5)
     offs = [(0, 0), (0, 1), (1, 0), (-1, 0), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
     raw = [math.exp((-0.5 / 0.22) * ((o[0] + jit[0]) ** 2 + (o[1] + jit[1]) ** 2)) for o in offs]
@@ -489,8 +489,10 @@ def test_hdrp_resolve_is_the_shaders_on_a_hand_built_frame(frame, quality):
     assert blend.min() >= 0.03
 
 
-def test_hdrp_jitter_cycles_eight_halton_points_from_index_one():
-    np.testing.assert_allclose(hdrp.jitter(0), [0.0, -(1 / 3 - 0.5)], atol=1e-15)
+def test_hdrp_jitter_cycles_eight_halton_points_from_index_two():
+    # the first frame's taaFrameIndex is already 1: Halton(2) = (1/4, 2/3), y up
+    np.testing.assert_allclose(hdrp.jitter(0), [-0.25, -(2 / 3 - 0.5)], atol=1e-15)
+    np.testing.assert_allclose(hdrp.jitter(7), [0.0, -(1 / 3 - 0.5)], atol=1e-15)
     np.testing.assert_allclose(hdrp.jitter(8), hdrp.jitter(0), atol=0)
 
 

@@ -3,30 +3,32 @@ Medium, the default; ``preset=hdrp-high``: High).
 
 Pinned sources (github.com/Unity-Technologies/Graphics, package
 ``com.unity.render-pipelines.high-definition``; the newest stored copies: only the shader's
-commit is known to the source index, the other files are the stored copies that match it --
-the ``.hlsl`` whose ``GetBlendFactor`` takes the shader's ``_BaseBlendFactor`` and which has
+commit is known to the source index, the other files are the stored copies that match it -- the
+``.hlsl`` whose ``GetBlendFactor`` takes the shader's ``_BaseBlendFactor`` and which has
 ``ModifyBlendWithMotionVectorRejection`` and ``GetUpsampleConfidence``, the C# that sets
 ``_TaaPostParameters``/``_TaaPostParameters1`` as the shader reads them):
-``Runtime/PostProcessing/Shaders/TemporalAntiAliasing.shader`` at 003084f5d112 (tier
-defines: Medium = YCoCg, 5-tap bicubic history, plus-shaped 4 neighbours, variance box,
-no central filter, direct clip, anti-flicker, perceptual space; High adds the 8
-neighbours, the Blackman-Harris central filter with its quad swizzle and the
-motion-dependent anti-flicker; ``FragTAA``), ``TemporalAntialiasing.hlsl`` (the stored copy
-whose ``GetBlendFactor`` takes ``baseBlendFactor``: ``HistoryBicubic5Tap``,
-``VarianceNeighbourhood``, ``DirectClipToAABB``, ``SharpenColor``, ``HistoryContrast``,
-``Fetch4`` with ``ClampAndScaleForBilinearWithCustomScale``), ``HDAdditionalCameraData.cs``
+``Runtime/PostProcessing/Shaders/TemporalAntiAliasing.shader`` at 003084f5d112 (tier defines:
+Medium = YCoCg, 5-tap bicubic history, plus-shaped 4 neighbours, variance box, no central
+filter, direct clip, anti-flicker, perceptual space; High adds the 8 neighbours, the
+Blackman-Harris central filter with its quad swizzle and the motion-dependent anti-flicker;
+``FragTAA``), ``TemporalAntialiasing.hlsl`` (the stored copy whose ``GetBlendFactor`` takes
+``baseBlendFactor``: ``HistoryBicubic5Tap``, ``VarianceNeighbourhood``, ``DirectClipToAABB``,
+``SharpenColor``, ``HistoryContrast``, ``Fetch4`` with
+``ClampAndScaleForBilinearWithCustomScale``), ``HDAdditionalCameraData.cs``
 (``taaSharpenStrength`` 0.5, ``TAAQuality`` Medium, ``taaHistorySharpening`` 0.35,
 ``taaAntiFlicker`` 0.5, ``taaMotionVectorRejection`` 0, ``taaAntiHistoryRinging`` false,
 ``taaBaseBlendFactor`` 0.875, ``taaJitterScale`` 1), ``HDRenderPipeline.PostProcess.cs``
 ``PrepareTAAPassData`` (anti-flicker ``lerp(0, 3.5, 0.5)``, contrast for the maximum
 anti-flicker ``0.7 - lerp(0, 0.3, Mathf.SmoothStep(0.5, 1, 0.5))`` = 0.475 (Unity's
-``Mathf.SmoothStep(from, to, t)`` interpolates *between* from and to), base blend
-``1 - 0.875``, ``ComputeWeights`` ``exp(-0.5 / 0.22 |o + jitter|^2)``), ``HDCamera.cs``
-(``GetJitteredProjectionMatrix``: Halton ``(i + 1)`` in bases 2, 3 minus 0.5, ``i`` cycling 0..7;
-the frustum moves by the offset, so the sample of pixel ``c`` lies at ``c + (x, -y)`` in
-y-down pixels), ``Color.hlsl`` (``RGBToYCoCg`` adds ``YCOCG_CHROMA_BIAS`` 128/255 to Co and
-Cg: the perceptual weights scale the biased chroma, as shipped), ``RenderPipelineSettings``
-(``colorBufferFormat`` R11G11B10: the input and history buffers).
+``Mathf.SmoothStep(from, to, t)`` interpolates *between* from and to), base blend ``1 -
+0.875``, ``ComputeWeights`` ``exp(-0.5 / 0.22 |o + jitter|^2)``), ``HDCamera.cs``
+(``GetJitteredProjectionMatrix``: Halton ``(i + 1)`` in bases 2, 3 minus 0.5 with ``i =
+taaFrameIndex``, which ``Update`` increments (modulo 8) before ``UpdateAllViewConstants``
+builds the jittered projection, so frame ``k`` uses ``i = (k + 1) mod 8``; the frustum moves by
+the offset, so the sample of pixel ``c`` lies at ``c + (x, -y)`` in y-down pixels),
+``Color.hlsl`` (``RGBToYCoCg`` adds ``YCOCG_CHROMA_BIAS`` 128/255 to Co and Cg: the perceptual
+weights scale the biased chroma, as shipped), ``RenderPipelineSettings`` (``colorBufferFormat``
+R11G11B10: the input and history buffers).
 
 Per pixel (y-down pixels, ``q`` = the quad offset ``(x & 1) * 2 - 1`` per axis, pointing away
 from the pixel's 2x2-quad partner):
@@ -81,7 +83,7 @@ def jitter(frame: int) -> np.ndarray:
 
 def jitter_unity(frame: int) -> np.ndarray:
     """``taaJitter.xy`` (Unity's y-up pixels)."""
-    i = frame % N_SAMPLES + 1
+    i = (frame + 1) % N_SAMPLES + 1  # taaFrameIndex is incremented in Update before use
     return np.array([halton(i, 2) - 0.5, halton(i, 3) - 0.5])
 
 
