@@ -128,3 +128,12 @@ def test_bench_scale_prints_every_phase(capsys):
     assert all(p["seconds"] > 0 and p["peak_gb"] > 0.01 for p in phases.values())
     assert rec["coverage_exact"]["decision"] == "computed"
     assert main(["bench", "scale", "--sizes", "x"]) == 2
+
+
+def test_the_noise_floor_reference_of_a_skipped_view_says_nothing_new(tmp_path, capsys):
+    """``score`` renders the view twice (the reference and its noise floor): one line."""
+    out = tmp_path / "s"
+    argv = ["score", "meadow:n=300", "--technique", "fxaa", "--exact-budget", "0"]
+    assert main([*argv, "--out", str(out), *SMALL]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "coverage_exact" in line]
+    assert len(err) == 1, err

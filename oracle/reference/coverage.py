@@ -64,6 +64,16 @@ def front_hits(shape, centre: np.ndarray, block: int):
 CROSS_CHECK_Z = 4.0
 
 
+def _say_once(loaded, exc, line: str) -> None:
+    """Print ``line`` on stderr once per view (the noise floor's reference of the same view
+    is refused for the same reason without a second line)."""
+    said = loaded.memo.setdefault("exact_coverage_said", set())
+    view = getattr(exc, "view", None)
+    if view is None or (view, line) not in said:
+        print(line, file=sys.stderr)
+        said.add((view, line))
+
+
 def _no_exact(loaded, record: dict) -> tuple[dict, dict]:
     """The ``coverage_exact`` group claiming nothing exact (``valid`` 0 everywhere: coverage
     is then scored against the Monte Carlo truth, see ``coverage_truth``) and its record."""
@@ -91,19 +101,21 @@ def exact_channels(
         ex = exact_coverage(loaded, centre, **({} if budget is None else {"budget": budget}))
     except OverBudget as exc:
         # too costly for this view: skipped with one line, Monte Carlo truth instead
-        print(
+        _say_once(
+            loaded,
+            exc,
             f"raster-oracle: coverage_exact skipped for {loaded.name!r} frame {loaded.frame}: "
             f"{exc} (--exact-budget); coverage is scored against the Monte Carlo truth",
-            file=sys.stderr,
         )
         decision = {"decision": "skipped: over budget", "budget_seconds": exc.budget}
         return _no_exact(loaded, {**decision, "estimate": exc.estimate})
     except NotExact as exc:
         # geometry float64 cannot clip exactly (coordinates of 1e30): said, not passed off
-        print(
+        _say_once(
+            loaded,
+            exc,
             f"raster-oracle: coverage_exact not exact for {loaded.name!r} frame "
             f"{loaded.frame}: {exc}; coverage is scored against the Monte Carlo truth",
-            file=sys.stderr,
         )
         return _no_exact(loaded, {"decision": f"not exact: {exc}"})
     except shapely.errors.GEOSException as exc:

@@ -632,10 +632,20 @@ def exact_coverage(loaded, centre: np.ndarray, *, budget=None, check=None) -> Ex
     key = (view, hashlib.sha256(centre.tobytes()).hexdigest())
     slot = loaded.memo.get(RESULT_MEMO_KEY)
     if slot is not None and slot[0] == key:
-        return slot[1]
-    out = exact_coverage_of(
-        loaded.camera, scene_triangle_set(loaded), centre, budget=budget, check=check
-    )
+        done = slot[1]
+        over = isinstance(done, OverBudget) and budget is not None
+        if isinstance(done, NotExact) or (over and done.estimate["seconds"] > budget):
+            raise done  # the same view refused again (the noise floor's reference)
+        if not isinstance(done, Exception):
+            return done
+    try:
+        out = exact_coverage_of(
+            loaded.camera, scene_triangle_set(loaded), centre, budget=budget, check=check
+        )
+    except (OverBudget, NotExact) as exc:
+        exc.view = key  # said once per view by the caller
+        loaded.memo[RESULT_MEMO_KEY] = (key, exc)
+        raise
     loaded.memo[RESULT_MEMO_KEY] = (key, out)
     return out
 
