@@ -111,7 +111,9 @@ def test_sigterm_during_exact_coverage(tmp_path):
 
 
 def test_sigterm_during_a_model(tmp_path):
-    argv = _score_argv(tmp_path, "meadow:n=300000", "--technique", "msaa", "--exact-budget", "0")
+    # 100,000 blades: msaa's own Mitsuba scenes are one Embree build each (one C call of
+    # about 1 s under load at this size, 1.7-3 s at 300,000: the floor of the stop latency)
+    argv = _score_argv(tmp_path, "meadow:n=100000", "--technique", "msaa", "--exact-budget", "0")
     rc, seconds, err = _stop_in_phase(tmp_path, "raster_oracle.raster_models:run", argv)
     assert rc == 143, err[-2000:]
     assert seconds <= STOP_S, seconds
