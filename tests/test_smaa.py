@@ -14,11 +14,16 @@ from raster_oracle.raster_models import run as run_model
 from raster_oracle.raster_models.aa.smaa import PRESETS, textures
 from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
-from raster_oracle.raster_models.aa.smaa.model import smaa_1x
+from raster_oracle.raster_models.aa.smaa.model import color_buffer, smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
 from raster_oracle.raster_models.aa.trace import sample_colors
-from raster_oracle.scenes.display import exposure_from_reference, tonemap
+from raster_oracle.scenes.display import (
+    exposure_from_reference,
+    srgb_decode,
+    srgb_encode,
+    tonemap,
+)
 
 from raster_oracle import scenes
 
@@ -205,20 +210,30 @@ def test_resolve_reprojects_with_the_velocity():
     np.testing.assert_allclose(out, a + (shifted - a) * 0.5, atol=FLOAT32_ATOL)
 
 
-def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames():
+@pytest.mark.parametrize("source", ["rgba8-srgb", "float"])
+def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames(source):
+    # 8-bit input (the default): each frame written to an RGBA8 sRGB target and the two
+    # averaged in linear light through the sRGB views, rounded to 1/255; float input: the
+    # frames averaged as stored (gamma)
     scene = scenes.load("star", width=48, height=27)
-    res = run_model("smaa", scene, mode="t2x")
+    res = run_model("smaa", scene, mode="t2x", input=source)
     frames = []
     for offset in ((0.75, 0.75), (0.25, 0.25)):
         col, _ = sample_colors(scene, np.array([offset]))
         frames.append(col["color"].reshape(27, 48, 3))
     exposure = exposure_from_reference((frames[0] + frames[1]) / 2)
-    cfg = resolved(SmaaParams())
+    cfg = resolved(SmaaParams(input=source))
     out = [
-        smaa_1x(tonemap(f, exposure=exposure), cfg, idx)["color"]
+        smaa_1x(color_buffer(tonemap(f, exposure=exposure), cfg), cfg, idx)["color"]
         for f, idx in zip(frames, ((1, 1, 1, 0), (2, 2, 2, 0)), strict=True)
     ]
-    want = out[1] + (out[0] - out[1]) * np.float32(0.5)
+    if source == "float":
+        want = out[1] + (out[0] - out[1]) * np.float32(0.5)
+    else:
+        assert np.array_equal(np.round(out[0] * 255) / 255, out[0])  # an RGBA8 target
+        cur, prev = srgb_decode(out[1]), srgb_decode(out[0])
+        want = srgb_encode(cur + (prev - cur) * np.float32(0.5))
+        want = np.round(np.clip(want, 0, 1) * 255) / 255
     np.testing.assert_allclose(res.outputs["color_display"], want, atol=FLOAT32_ATOL)
     assert not np.array_equal(out[0], out[1])  # the jittered frames differ
 
