@@ -233,7 +233,7 @@ def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames(source):
         assert np.array_equal(np.round(out[0] * 255) / 255, out[0])  # an RGBA8 target
         cur, prev = srgb_decode(out[1]), srgb_decode(out[0])
         want = srgb_encode(cur + (prev - cur) * np.float32(0.5))
-        want = np.round(np.clip(want, 0, 1) * 255) / 255
+        want = np.round(np.clip(want.astype(np.float64), 0, 1) * 255) / 255
     np.testing.assert_allclose(res.outputs["color_display"], want, atol=FLOAT32_ATOL)
     assert not np.array_equal(out[0], out[1])  # the jittered frames differ
 
