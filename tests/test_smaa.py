@@ -264,4 +264,4 @@ def test_modes_run_and_report_costs(tmp_path):
     assert cost["framebuffer_bytes_by_buffer"]["smaa_edges"] == 48 * 27 * 2
     assert cost["framebuffer_bytes_by_buffer"]["smaa_weights"] == 48 * 27 * 4
     assert cost["texture_fetches_per_pixel"] > 0
-    assert "static camera" in rec["diagnostics"]["velocity"]
+    assert "still scene" in rec["diagnostics"]["velocity"]
