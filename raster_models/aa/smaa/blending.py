@@ -20,7 +20,7 @@ import numpy as np
 from ....scenes.display import srgb_decode, srgb_encode
 from ._sampling import SUBTEXEL_BITS, Fetches, bilinear, bilinear_taps
 
-__all__ = ["REPROJECTION_WEIGHT_SCALE", "neighborhood_blend", "resolve"]
+__all__ = ["REPROJECTION_WEIGHT_SCALE", "neighborhood_blend", "resolve", "to_unorm8"]
 
 #: ``SMAA_REPROJECTION_WEIGHT_SCALE`` (SMAA.hlsl default).
 REPROJECTION_WEIGHT_SCALE = 30.0
@@ -28,11 +28,10 @@ REPROJECTION_WEIGHT_SCALE = 30.0
 _NO_BLEND = 1e-5
 
 
-def _unorm8(x) -> np.ndarray:
+def to_unorm8(x) -> np.ndarray:
     """A float written to an 8-bit UNORM channel: clamped to [0, 1], rounded to k/255."""
-    return (np.round(np.clip(np.asarray(x, np.float64), 0.0, 1.0) * 255.0) / 255.0).astype(
-        np.float32
-    )
+    v = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
+    return (np.round(v * 255.0) / 255.0).astype(np.float32)
 
 
 def neighborhood_blend(
@@ -93,7 +92,7 @@ def neighborhood_blend(
     shader = np.array(lin, np.float32, copy=True)
     shader[jy, jx] = mixed
     written = srgb_encode(mixed) if srgb else mixed
-    out[jy, jx] = (_unorm8(written) if unorm8 else written).astype(np.float32)
+    out[jy, jx] = (to_unorm8(written) if unorm8 else written).astype(np.float32)
     res = {
         "color": out,
         "blended": blended,
@@ -118,7 +117,7 @@ def neighborhood_blend(
         v = np.asarray(velocity, np.float64).copy()
         v[jy, jx] = mix(velocity)
         alpha = np.sqrt(5.0 * np.hypot(v[..., 0], v[..., 1]))
-        res["alpha"] = (_unorm8(alpha) if unorm8 else alpha).astype(np.float32)
+        res["alpha"] = (to_unorm8(alpha) if unorm8 else alpha).astype(np.float32)
     if fetches is not None:
         taps = h * w + len(jx)  # one colour fetch per pixel, two where it blends
         fetches.add("blend:weights", 3 * h * w)
@@ -175,5 +174,5 @@ def resolve(
     if srgb:
         out[..., :3] = srgb_encode(out[..., :3])
     if unorm8:
-        out[..., :3] = _unorm8(out[..., :3])
+        out[..., :3] = to_unorm8(out[..., :3])
     return out

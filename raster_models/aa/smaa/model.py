@@ -64,7 +64,7 @@ from .. import msaa as _msaa
 from ..common import package
 from ..trace import sample_colors, trace_samples
 from ._sampling import Fetches
-from .blending import neighborhood_blend, resolve
+from .blending import neighborhood_blend, resolve, to_unorm8
 from .edges import detect_edges
 from .params import INPUT_8BIT, MODES, SmaaParams, resolved
 from .weights import blending_weights
@@ -144,7 +144,7 @@ def color_buffer(display: np.ndarray, cfg: dict) -> np.ndarray:
     d = np.asarray(display, np.float32)
     if cfg["input"] != INPUT_8BIT:
         return d
-    return (np.round(np.clip(d.astype(np.float64), 0.0, 1.0) * 255.0) / 255.0).astype(np.float32)
+    return to_unorm8(d)
 
 
 def _hardware_depth(camera, view_depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -319,7 +319,7 @@ def _combine_samples(outs: list[dict], cfg: dict) -> dict:
         dest = srgb_decode(outs[0]["color"]) if srgb else outs[0]["color"]
         mixed = 0.5 * dest + 0.5 * outs[1]["linear"]
         color = srgb_encode(mixed) if srgb else mixed
-        color = np.round(np.clip(color.astype(np.float64), 0.0, 1.0) * 255.0) / 255.0
+        color = to_unorm8(color)
     else:
         cols = np.stack([o["color"] for o in outs])
         color = srgb_encode(srgb_decode(cols).mean(axis=0)) if srgb else cols.mean(axis=0)

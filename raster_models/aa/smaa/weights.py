@@ -210,6 +210,7 @@ def blending_weights(
     subsample_indices: tuple[int, int, int, int] = (0, 0, 0, 0),
     subtexel_bits: int = SUBTEXEL_BITS,
     fetches: Fetches | None = None,
+    quantize: bool = True,
 ) -> np.ndarray:
     """The blend texture of an edges texture.
 
@@ -225,6 +226,7 @@ def blending_weights(
         diagonal directions), rows of the area texture; zeros for SMAA 1x.
     subtexel_bits : fractional bits of the bilinear weights (0: exact).
     fetches : counter of texture fetches (pass ``weights``).
+    quantize : round to the RGBA8 target's 1/255 (False: the shader's float output).
 
     Returns
     -------
@@ -255,4 +257,6 @@ def blending_weights(
     jy, jx = np.nonzero((tex.edges[..., 0] > 0.0) & ~skip_vertical)
     if len(jx):
         out[jy, jx, 2:] = tex.vertical(jx + 0.5, jy + 0.5, max_search_steps, sub_v, rounding)
+    if not quantize:
+        return out
     return (np.round(np.clip(out, 0.0, 1.0) * 255.0) / 255.0).astype(np.float32)
