@@ -34,7 +34,7 @@ from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 from .engine_metrics import add_engine_gate_metrics, exact_floors
-from .temporal import add_temporal_aa
+from .temporal import add_temporal_aa, add_video_score
 
 __all__ = [
     "COVERAGE_FLOOR_RMS",
@@ -576,6 +576,16 @@ def score(
             exact_frames=exact_frames,
         )
         summary.update(taa)
+        video, video_detail = add_video_score(
+            result,
+            exposure=exposure,
+            ppd=ppd,
+            gate_frames=gate_frames,
+            exact_frames=exact_frames,
+            quiet=quiet,
+        )
+        summary.update(video)
+        taa_detail["video"] = video_detail
     result.record = _record(
         result,
         loaded,

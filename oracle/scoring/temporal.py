@@ -12,10 +12,17 @@ from __future__ import annotations
 import numpy as np
 
 from ... import metrics as M
+from ...metrics import video as V
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 
-__all__ = ["CONVERGENCE_WINDOW", "GHOSTING_WINDOW", "add_temporal_aa", "truth_motion"]
+__all__ = [
+    "CONVERGENCE_WINDOW",
+    "GHOSTING_WINDOW",
+    "add_temporal_aa",
+    "add_video_score",
+    "truth_motion",
+]
 
 #: Frames each frame's error is averaged over before the convergence test: one jitter
 #: sequence of the shortest common length (UE4, HDRP: 8), whose phase the error follows;
@@ -119,3 +126,32 @@ def add_temporal_aa(
         floor = {k: v for k, v in exact.items() if k not in ("convergence_frames", "lag_frames")}
         result.frames[0].noise_floor.update({k: v for k, v in floor.items() if v is not None})
     return out, detail
+
+
+def add_video_score(
+    result, *, exposure: float, ppd: float, gate_frames=None, exact_frames=None, quiet=False
+) -> tuple[dict, dict]:
+    """ColorVideoVDP's JOD of the judged frames (the last ``gate_frames``, else all), both
+    sequences through the one tone mapper; its noise floor joins frame 0's: the JOD of the
+    exact surrogate frames (the seed-to-seed noise of the truth). Without the extra
+    ``raster-oracle[video]``: null, and one line on stderr (unless ``quiet``)."""
+    why = V.unavailable()
+    if why is not None:
+        if not quiet:
+            import sys
+
+            print(why, file=sys.stderr)
+        return {"cvvdp_jod": None}, {"skipped": why}
+    judged = slice(-(gate_frames or len(result.frames)), None)
+
+    def shown(frames) -> np.ndarray:
+        return np.stack([M.tonemap(f, exposure=exposure) for f in frames])[judged]
+
+    refs = shown([f.reference for f in result.frames])
+    jod = V.cvvdp_jod(refs, shown([f.candidate for f in result.frames]), ppd=ppd)
+    detail = {"display": V.DISPLAY, "fps": V.FPS, "ppd": float(ppd), "frames": len(refs)}
+    if exact_frames is not None and result.frames[0].noise_floor is not None:
+        floor = V.cvvdp_jod(refs, shown(list(exact_frames)), ppd=ppd)
+        result.frames[0].noise_floor["cvvdp_jod"] = floor
+        detail["noise_floor"] = floor
+    return {"cvvdp_jod": jod}, detail
