@@ -265,3 +265,46 @@ def test_modes_run_and_report_costs(tmp_path):
     assert cost["framebuffer_bytes_by_buffer"]["smaa_weights"] == 48 * 27 * 4
     assert cost["texture_fetches_per_pixel"] > 0
     assert "still scene" in rec["diagnostics"]["velocity"]
+
+
+def test_t2x_on_a_moving_sequence_reprojects_the_previous_frame_by_its_velocity():
+    # slide's frame 2: the current frame (sub-sample set 1, jitter (0.25, 0.25)) and frame 1
+    # (set 0, jitter (0.75, 0.75)), each SMAA 1x on its 8-bit buffer with its own velocity
+    # buffer (current minus previous position, texture units, RG16F), resolved with the
+    # previous frame fetched at texcoord - velocity
+    from raster_oracle.scenes.motion import film_motion
+
+    w, h = 48, 27
+    scene = scenes.load("slide", width=w, height=h).with_frame(2, n_frames=8)
+    res = run_model("smaa", scene, mode="t2x")
+    assert "film motion" in res.diagnostics["velocity"]
+    frames = [(scene.previous(), (0.75, 0.75), (1, 1, 1, 0)), (scene, (0.25, 0.25), (2, 2, 2, 0))]
+    cols, vels = [], []
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    for sc, off, _ in frames:
+        col, _ = sample_colors(sc, np.array([off]))
+        cols.append(col["color"].reshape(h, w, 3))
+        m = film_motion(sc, x + off[0], y + off[1], disocclusion=False)
+        v = -np.stack([m["motion_x"].reshape(h, w) / w, m["motion_y"].reshape(h, w) / h], -1)
+        vels.append(v.astype(np.float16).astype(np.float64))
+    assert np.abs(vels[1]).max() > 0.5 / w  # something moves by more than half a pixel
+    exposure = exposure_from_reference((cols[0] + cols[1]) / 2)
+    cfg = resolved(SmaaParams(mode="t2x"))
+    outs = [
+        smaa_1x(color_buffer(tonemap(c, exposure=exposure), cfg), cfg, idx, velocity=v)
+        for c, (_, _, idx), v in zip(cols, frames, vels, strict=True)
+    ]
+    want = resolve(
+        outs[1]["color"],
+        outs[0]["color"],
+        alpha_current=outs[1]["alpha"],
+        alpha_previous=outs[0]["alpha"],
+        velocity=vels[1],
+        srgb=True,
+        unorm8=True,
+    )
+    np.testing.assert_array_equal(res.outputs["color_display"], want)
+    # the blending pass packed the velocity into alpha (sqrt(5 |v|), 8-bit)
+    assert outs[1]["alpha"].max() > 0 and np.array_equal(
+        np.round(outs[1]["alpha"] * 255) / 255, outs[1]["alpha"].astype(np.float64)
+    )
