@@ -18,7 +18,7 @@ from raster_oracle.raster_models.aa.smaa.model import color_buffer, smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
 from raster_oracle.raster_models.aa.trace import sample_colors
-from raster_oracle.scenes.display import (
+from raster_oracle.scenes.base.display import (
     exposure_from_reference,
     srgb_decode,
     srgb_encode,
@@ -272,7 +272,7 @@ def test_t2x_on_a_moving_sequence_reprojects_the_previous_frame_by_its_velocity(
     # (set 0, jitter (0.75, 0.75)), each SMAA 1x on its 8-bit buffer with its own velocity
     # buffer (current minus previous position, texture units, RG16F), resolved with the
     # previous frame fetched at texcoord - velocity
-    from raster_oracle.scenes.motion import film_motion
+    from raster_oracle.scenes.geometry.motion import film_motion
 
     w, h = 48, 27
     scene = scenes.load("slide", width=w, height=h).with_frame(2, n_frames=8)

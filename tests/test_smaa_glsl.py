@@ -21,7 +21,7 @@ from raster_oracle.raster_models.aa.smaa.model import _hardware_depth, color_buf
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
 from raster_oracle.raster_models.aa.trace import sample_colors, trace_samples
-from raster_oracle.scenes.display import exposure_from_reference, tonemap
+from raster_oracle.scenes.base.display import exposure_from_reference, tonemap
 
 from raster_oracle import scenes
 
