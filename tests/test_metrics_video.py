@@ -4,6 +4,8 @@ skipped when the extra ``raster-oracle[video]`` is not installed."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from raster_oracle.metrics import catalog
@@ -70,3 +72,33 @@ def test_torchvision_standin_blur_is_the_sampled_gaussian():
     # torchvision: kernel 13 = radius 6 = 2 sigma, reflect padding without edge repeat
     want = gaussian_filter(img, sigma=(0, 0, 3, 3), truncate=2.0, mode="mirror")
     np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+@pytest.mark.parametrize("extra", ["installed", "absent"])
+def test_smaa_t2x_sequence_is_scored_with_ghosting_and_jod(tmp_path, capsys, monkeypatch, extra):
+    # SMAA T2x over `slide` scored like the taa family: the temporal metrics, and JOD with
+    # its noise floor when the extra is installed, else null and one line (a gate on it: 2)
+    from raster_oracle.oracle.cli.app import main
+
+    if extra == "installed" and WHY is not None:
+        pytest.skip(WHY)
+    if extra == "absent":
+        monkeypatch.setattr(V, "unavailable", lambda: V.MISSING)
+    out = tmp_path / "t2x"
+    args = ["score", "slide", "--width", "32", "--height", "18", "--spp", "4", "--frames", "3",
+            "--technique", "smaa", "--set", "mode=t2x", "--out", str(out)]  # fmt: skip
+    code = main([*args, "--fail-below", "cvvdp_jod=1"])
+    err = capsys.readouterr().err
+    if extra == "absent":
+        assert code == 2 and err.count(V.MISSING) >= 1
+        assert main(args) == 0
+    else:
+        assert code == 0
+    rec = json.loads((out / "metrics.json").read_text())
+    for key in ("steady_error", "ghosting_error", "history_error", "flicker_ratio"):
+        assert rec[key] is not None, key
+    if extra == "installed":
+        assert 1.0 < rec["cvvdp_jod"] <= 10.0
+        assert rec["cvvdp_jod"] < rec["noise_floor"]["cvvdp_jod"] <= 10.0
+    else:
+        assert rec["cvvdp_jod"] is None
