@@ -34,7 +34,7 @@ from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 from .engine_metrics import add_engine_gate_metrics, exact_floors
-from .temporal import add_temporal_aa, add_video_score
+from .temporal import add_temporal_aa
 
 __all__ = [
     "COVERAGE_FLOOR_RMS",
@@ -561,7 +561,6 @@ def score(
         )
         floor.update(tf)
         result.frames[0].noise_floor = floor
-    tone = _tone(channel, exposure, flip_mode, flip_range)
     summary = _summary(result, temporal=bool(frames) and n >= 2, gate_frames=gate_frames)
     taa_detail = None
     if frames and n >= 2 and channel == "color":
@@ -574,18 +573,9 @@ def score(
             gate_frames=gate_frames,
             engine_motion=engine,
             exact_frames=exact_frames,
+            display=(exposure, ppd),
         )
         summary.update(taa)
-        video, video_detail = add_video_score(
-            result,
-            exposure=exposure,
-            ppd=ppd,
-            gate_frames=gate_frames,
-            exact_frames=exact_frames,
-            quiet=quiet,
-        )
-        summary.update(video)
-        taa_detail["video"] = video_detail
     result.record = _record(
         result,
         loaded,
@@ -594,7 +584,7 @@ def score(
         summary=summary,
         frames=frames,
         camera_path=camera_path,
-        tone=tone,
+        tone=_tone(channel, exposure, flip_mode, flip_range),
         ppd=ppd,
         spp=spp,
         seed=seed,

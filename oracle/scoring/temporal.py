@@ -105,6 +105,7 @@ def add_temporal_aa(
     gate_frames=None,
     engine_motion=None,
     exact_frames=None,
+    display=None,
 ) -> tuple[dict, dict]:
     """Temporal AA metrics of a colour sequence (``result.frames``' references and
     candidates), to add to the record's summary, and a detail record; the per-pixel flicker
@@ -112,7 +113,8 @@ def add_temporal_aa(
     oracle's convention, disocclusion (H, W) or None)``, or None. ``exact_frames``: the
     exact surrogate of every frame (the noise-floor reference): the same metrics for it join
     frame 0's noise floor (``convergence_frames`` and ``lag_frames`` excepted: counts, not
-    errors)."""
+    errors). ``display``: ``(exposure, ppd)`` of the score's tone mapping: adds
+    :func:`add_video_score` (``cvvdp_jod``; its detail under ``video``)."""
     refs = np.stack([f.reference for f in result.frames]).astype(np.float64)
     cands = np.stack([f.candidate for f in result.frames]).astype(np.float64)
     motion, dis = truth_motion(scenes_k, seed=seed, cache=cache, quiet=quiet)
@@ -125,6 +127,17 @@ def add_temporal_aa(
         exact, _, _ = _taa_values(refs, exact_frames, motion, dis, age, gate_frames)
         floor = {k: v for k, v in exact.items() if k not in ("convergence_frames", "lag_frames")}
         result.frames[0].noise_floor.update({k: v for k, v in floor.items() if v is not None})
+    if display is not None:
+        exposure, ppd = display
+        video, detail["video"] = add_video_score(
+            result,
+            exposure=exposure,
+            ppd=ppd,
+            gate_frames=gate_frames,
+            exact_frames=exact_frames,
+            quiet=quiet,
+        )
+        out.update(video)
     return out, detail
 
 
