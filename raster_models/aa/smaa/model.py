@@ -6,7 +6,11 @@ Each sample image (one sample per pixel at the mode's position) is the oracle's 
 the D3D standard pattern: ``msaa.multisample``, shaded once per primitive at the pixel
 centre), tone-mapped by the project's pipeline (:func:`scenes.base.display.tonemap`, exposure
 from the model's own sample-averaged image, as ``fxaa``) to gamma-encoded values in [0, 1]
-where SMAA's thresholds are defined. SMAA 1x runs its three passes on it
+where SMAA's thresholds are defined, and stored as the engine stores it (``input``:
+``rgba8-srgb``, the demo's ``R8G8B8A8_UNORM_SRGB`` scene target, rounded to 1/255; edge
+detection reads these gamma values, neighbourhood blending reads them decoded to linear
+through the sRGB view and writes an 8-bit sRGB target; ``float``: unquantized, as before
+issue 36). SMAA 1x runs its three passes on it
 (:mod:`.edges`, :mod:`.weights`, :mod:`.blending`) with the sub-sample indices of its mode:
 
 =====  ===================================================  =================================
@@ -23,10 +27,15 @@ s2x    (0.75, 0.75) (1, 1, 1, 0); (0.25, 0.25) (2, 2, 2, 0)  averaged (sRGB targ
 
 The header's jitters assume y up: its T2x jitter (0.25, -0.25) is the D3D 2x sample 0
 (+4/16, +4/16 y down), and 4x's net jitters add the camera jitter (+-0.125, +-0.125) to it.
-T2x and 4x resolve frame 1 (current) with frame 0 (previous). The camera is static here:
-motion vectors (the temporal-AA issue) are not available yet, so the velocity is zero, the
-reprojection weight is 0.5 everywhere and the resolve is the plain average of both frames
-(``diagnostics["velocity"]`` says so).
+T2x and 4x resolve the scene's frame k (current, the table's frame (k + 1) mod 2) with its
+frame k - 1 (previous, frame k mod 2), as the demo's ``runSMAA`` does: the previous frame's
+SMAA output, point-fetched at texcoord - velocity, weighted down where the packed velocity
+lengths differ (``SMAAResolvePS``, ``SMAA_REPROJECTION``). The velocity buffer is what the
+demo's scene pass writes (RG16F, texture units, current minus previous position of the
+surface point under each sample, jitter excluded): the oracle's film motion
+(:func:`scenes.geometry.motion.film_motion`) at the sample, MSAA-resolved for S2x/4x. A
+still scene is its own previous frame: zero velocity, weight 0.5, the plain average
+(``diagnostics["velocity"]`` says which).
 
 Outputs: ``color`` (linear: the radiance the pipeline maps to the displayed image; the
 exact one-sample radiance where SMAA changed nothing and the samples agree), ``color_display``
