@@ -264,7 +264,7 @@ def _run_frames(scene, p, cfg, fetches):
     k = int(getattr(scene, "frame", 0) or 0)
     if temporal:
         cur_spec, prev_spec = frames[(k + 1) % 2], frames[k % 2]
-        scenes_ = [scene.previous() if not _still(scene) else scene, scene]
+        scenes_ = [scene.previous(), scene]  # a still scene is its own previous frame
         specs = [prev_spec, cur_spec]
     else:
         scenes_, specs = [scene], frames
