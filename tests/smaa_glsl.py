@@ -37,6 +37,8 @@ _VS = {
         "out vec2 pixcoord; out vec4 offset[3];",
         "SMAABlendingWeightCalculationVS(texcoord, pixcoord, offset);",
     ),
+    "blend": ("out vec4 offset;", "SMAANeighborhoodBlendingVS(texcoord, offset);"),
+    "resolve": ("", ""),
 }
 _FS = {
     "edges": (
@@ -53,7 +55,21 @@ _FS = {
         "fragColor = SMAABlendingWeightCalculationPS(texcoord, pixcoord, offset, edgesTex, "
         "areaTex, searchTex, subsampleIndices);",
     ),
+    "blend": (
+        "in vec4 offset; uniform sampler2D colorTex; uniform sampler2D blendTex; "
+        "uniform sampler2D velocityTex;",
+        "fragColor = SMAANeighborhoodBlendingPS(texcoord, offset, colorTex, blendTex, "
+        "velocityTex);",
+    ),
+    "resolve": (
+        "uniform sampler2D currentColorTex; uniform sampler2D previousColorTex; "
+        "uniform sampler2D velocityTex;",
+        "fragColor = SMAAResolvePS(texcoord, currentColorTex, previousColorTex, velocityTex);",
+    ),
 }
+# GL_SRGB8_ALPHA8 and GL_FRAMEBUFFER_SRGB: the demo's R8G8B8A8_UNORM_SRGB views
+_SRGB8_ALPHA8 = 0x8C43
+_FRAMEBUFFER_SRGB = 0x8DB9
 
 
 def _float_sampler() -> None:
@@ -136,25 +152,30 @@ class SmaaGL:
         )
         return self.ctx.program(vertex_shader=vs, fragment_shader=fs)
 
-    def _texture(self, data: np.ndarray, *, components: int, dtype: str = "f1"):
+    def _texture(self, data: np.ndarray, *, components: int, dtype: str = "f1", srgb=False):
         h, w = data.shape[:2]
-        tex = self.ctx.texture(
-            (w, h), components, np.ascontiguousarray(data).tobytes(), dtype=dtype
-        )
+        fmt = {"internal_format": _SRGB8_ALPHA8} if srgb else {}
+        raw = np.ascontiguousarray(data).tobytes()
+        tex = self.ctx.texture((w, h), components, raw, dtype=dtype, **fmt)
         tex.filter = (self.mgl.LINEAR, self.mgl.LINEAR)
         tex.repeat_x = tex.repeat_y = False  # clamp to edge
         return tex
 
-    def _run(self, prog, textures: dict, components: int) -> np.ndarray:
-        target = self.ctx.texture((self.w, self.h), components, dtype="f1")
+    def _run(self, prog, textures: dict, components: int, srgb: bool = False) -> np.ndarray:
+        fmt = {"internal_format": _SRGB8_ALPHA8} if srgb else {}
+        target = self.ctx.texture((self.w, self.h), components, dtype="f1", **fmt)
         fbo = self.ctx.framebuffer(color_attachments=[target])
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0)
+        if srgb:  # writes to the sRGB target are encoded (the demo's sRGB render targets)
+            self.ctx.enable_direct(_FRAMEBUFFER_SRGB)
         for unit, (name, tex) in enumerate(textures.items()):
             tex.use(unit)
             prog[name].value = unit
         vao = self.ctx.vertex_array(prog, [(self.vbo, "2f", "in_pos")])
         vao.render(self.mgl.TRIANGLES, vertices=3)
+        if srgb:
+            self.ctx.disable_direct(_FRAMEBUFFER_SRGB)
         data = np.frombuffer(fbo.read(components=components, dtype="f1"), np.uint8)
         for obj in (vao, fbo, target, *textures.values()):
             obj.release()
@@ -192,3 +213,34 @@ class SmaaGL:
         prog = self._program("weights", "weights", {})
         prog["subsampleIndices"].value = tuple(float(s) for s in subsample)
         return self._run(prog, textures, 4)
+
+    def blend(self, color8, weights8, velocity, *, srgb: bool = True) -> np.ndarray:
+        """``SMAANeighborhoodBlendingPS`` (``SMAA_REPROJECTION 1`` for the velocity, as the
+        demo's T2x) on an (H, W, 3) uint8 colour buffer read through its sRGB view, the
+        (H, W, 4) uint8 blend texture and an (H, W, 2) float velocity (texture units, stored
+        RG16F), written to an sRGB RGBA8 target: (H, W, 4) uint8 (alpha: packed velocity);
+        ``srgb=False``: UNORM views and target (blending in gamma space)."""
+        rgba = np.concatenate([color8, np.full(color8.shape[:2] + (1,), 255, np.uint8)], -1)
+        textures = {
+            "colorTex": self._texture(rgba, components=4, srgb=srgb),
+            "blendTex": self._texture(weights8, components=4),
+            "velocityTex": self._texture(np.asarray(velocity, np.float16), components=2,
+                                         dtype="f2"),
+        }  # fmt: skip
+        prog = self._program("blend", "blend", {})
+        return self._run(prog, textures, 4, srgb=srgb)
+
+    def resolve(self, current8: np.ndarray, previous8: np.ndarray, velocity) -> np.ndarray:
+        """``SMAAResolvePS`` (``SMAA_REPROJECTION 1``) on two (H, W, 4) uint8 frames read
+        through sRGB views (the demo's ``previousRT``: ``R8G8B8A8_UNORM_SRGB``; alpha, the
+        packed velocity, is linear) and the (H, W, 2) velocity, written to an sRGB target."""
+        textures = {
+            "currentColorTex": self._texture(current8, components=4, srgb=True),
+            "previousColorTex": self._texture(previous8, components=4, srgb=True),
+            "velocityTex": self._texture(np.asarray(velocity, np.float16), components=2,
+                                         dtype="f2"),
+        }  # fmt: skip
+        for tex in textures.values():  # SMAASamplePoint: the HLSL port's PointSampler
+            tex.filter = (self.mgl.NEAREST, self.mgl.NEAREST)
+        prog = self._program("resolve", "resolve", {})
+        return self._run(prog, textures, 4, srgb=True)

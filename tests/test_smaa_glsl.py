@@ -5,7 +5,9 @@ colour buffer of ``star``, ``city`` and ``pbr-spheres`` at 128x64.
 Edges: equal, texel for texel (luma, colour, depth and predicated luma). Weights: the
 model's passes with exact bilinear weights (``subtexel_bits=0``, what llvmpipe's float
 sampler computes) equal the shader's byte for byte; with the model's default 8-bit
-sub-texel weights (the D3D minimum GPUs implement) within 1/255. Skipped with one line
+sub-texel weights (the D3D minimum GPUs implement) within 1/255. Neighbourhood blending (with
+the velocity packed into alpha) and the temporal resolve through the sRGB views: within 1/255
+(llvmpipe's approximate sRGB conversion), alpha exact. Skipped with one line
 where moderngl or a headless EGL context is missing (``bin/setup.sh --test`` installs both).
 """
 
@@ -16,6 +18,7 @@ import pytest
 import smaa_glsl
 from raster_oracle.raster_models import run as run_model
 from raster_oracle.raster_models.aa.smaa import textures
+from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
 from raster_oracle.raster_models.aa.smaa.model import _hardware_depth, color_buffer, smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
@@ -163,3 +166,69 @@ def test_depth_and_predicated_edges_equal_the_published_shader(frame, gl):
     # the predication input has edges (thresholds 0.12 there, 0.2 elsewhere)
     wide = detect_edges(frame["buffer"], threshold=p["predication_scale"] * p["threshold"])
     assert ours.sum() >= wide.sum()
+
+
+def _blend_inputs(frame):
+    """The frame's blend texture and a velocity buffer of up to a few pixels (RG16F)."""
+    weights = blending_weights(detect_edges(frame["buffer"]))
+    rng = np.random.default_rng(7)
+    vel = (rng.normal(0.0, 2.0, (H, W, 2)) / [W, H]).astype(np.float16).astype(np.float64)
+    return weights, vel
+
+
+def _as_bytes(x) -> np.ndarray:
+    return np.round(np.asarray(x, np.float64) * 255.0).astype(int)
+
+
+def test_neighbourhood_blending_and_velocity_packing_equal_the_published_shader(frame, gl):
+    # SMAA_REPROJECTION's blending pass: colour through the sRGB view into an sRGB target,
+    # the blended velocity packed into alpha. Gamma-space blending (UNORM views) is exact
+    # but for ties; through the sRGB views llvmpipe's own sRGB conversion (decode within
+    # 0.0012, encode off by one code at 7 % of values, measured) leaves 1/255.
+    weights, vel = _blend_inputs(frame)
+    run = gl({"SMAA_REPROJECTION": "1"})
+    w8 = _as_bytes(weights).astype(np.uint8)
+    buf8 = _bytes(frame["buffer"])
+    for srgb in (False, True):
+        theirs = run.blend(buf8, w8, vel, srgb=srgb).astype(int)
+        ours = neighborhood_blend(
+            frame["buffer"], weights, velocity=vel, unorm8=True, srgb=srgb, subtexel_bits=0
+        )
+        d = np.abs(_as_bytes(ours["color"]) - theirs[..., :3])
+        assert d.max() <= 1
+        if not srgb:
+            assert np.count_nonzero(d) <= 0.001 * d.size
+        assert np.array_equal(_as_bytes(ours["alpha"]), theirs[..., 3])
+        assert ours["blended"].sum() > 100
+
+
+def test_temporal_resolve_equals_the_published_shader(frame, gl):
+    # SMAAResolvePS with SMAA_REPROJECTION: both frames through sRGB views (the demo's
+    # previousRT), the previous one point-fetched at texcoord - velocity and weighted by
+    # the packed velocities; within 1/255 (llvmpipe's sRGB conversion)
+    weights, vel = _blend_inputs(frame)
+    run = gl({"SMAA_REPROJECTION": "1"})
+    current = run.blend(_bytes(frame["buffer"]), _as_bytes(weights).astype(np.uint8), vel)
+    previous = np.roll(current, 3, axis=1)
+    theirs = run.resolve(current, previous, vel).astype(int)
+    ours = resolve(
+        current[..., :3] / 255.0,
+        previous[..., :3] / 255.0,
+        alpha_current=current[..., 3] / 255.0,
+        alpha_previous=previous[..., 3] / 255.0,
+        velocity=vel,
+        srgb=True,
+        unorm8=True,
+    )
+    d = np.abs(_as_bytes(ours) - theirs[..., :3])
+    assert d.max() <= 1 and np.count_nonzero(d) <= 0.05 * d.size
+    # the reprojection moved something: the resolve differs from the unreprojected one
+    still = resolve(
+        current[..., :3] / 255.0,
+        previous[..., :3] / 255.0,
+        alpha_current=current[..., 3] / 255.0,
+        alpha_previous=previous[..., 3] / 255.0,
+        srgb=True,
+        unorm8=True,
+    )
+    assert np.abs(_as_bytes(still) - theirs[..., :3]).max() > 1
