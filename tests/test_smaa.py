@@ -263,6 +263,7 @@ def test_modes_run_and_report_costs(tmp_path):
     assert cost["samples"] == 2 and cost["smaa_passes"] == 8
     assert cost["framebuffer_bytes_by_buffer"]["smaa_edges"] == 48 * 27 * 2
     assert cost["framebuffer_bytes_by_buffer"]["smaa_weights"] == 48 * 27 * 4
+    assert cost["framebuffer_bytes_by_buffer"]["smaa_velocity"] == 48 * 27 * 4  # RG16F
     assert cost["texture_fetches_per_pixel"] > 0
     assert "still scene" in rec["diagnostics"]["velocity"]
 

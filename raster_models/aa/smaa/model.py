@@ -356,6 +356,7 @@ def _costs(p, n_pix: int, fetches: Fetches) -> dict:
         buffers["separated"] = 4 * n_pix * n_s  # SMAASeparatePS targets, RGBA8
     if n_f > 1:
         buffers["history"] = 4 * n_pix  # previous frame for the resolve, RGBA8
+        buffers["velocity"] = 4 * n_pix  # the scene pass's velocity target, RG16F
     return {
         "passes": 3 * n_s + (1 if n_s > 1 else 0) + (1 if n_f > 1 else 0),
         "texture_fetches_per_pixel": float(sum(fetch_pp.values())),
