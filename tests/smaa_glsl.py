@@ -55,6 +55,16 @@ _FS = {
         "fragColor = SMAABlendingWeightCalculationPS(texcoord, pixcoord, offset, edgesTex, "
         "areaTex, searchTex, subsampleIndices);",
     ),
+    "ends": (
+        "in vec2 pixcoord; in vec4 offset[3]; uniform sampler2D edgesTex; "
+        "uniform sampler2D searchTex;",
+        "fragColor = vec4("
+        "SMAASearchXLeft(edgesTex, searchTex, offset[0].xy, offset[2].x) * SMAA_RT_METRICS.z,"
+        "SMAASearchXRight(edgesTex, searchTex, offset[0].zw, offset[2].y) * SMAA_RT_METRICS.z,"
+        "SMAASearchYUp(edgesTex, searchTex, offset[1].xy, offset[2].z) * SMAA_RT_METRICS.w,"
+        "SMAASearchYDown(edgesTex, searchTex, offset[1].zw, offset[2].w) * SMAA_RT_METRICS.w)"
+        " - pixcoord.xxyy;",
+    ),
     "blend": (
         "in vec4 offset; uniform sampler2D colorTex; uniform sampler2D blendTex; "
         "uniform sampler2D velocityTex;",
@@ -161,9 +171,9 @@ class SmaaGL:
         tex.repeat_x = tex.repeat_y = False  # clamp to edge
         return tex
 
-    def _run(self, prog, textures: dict, components: int, srgb: bool = False) -> np.ndarray:
+    def _run(self, prog, textures: dict, components: int, srgb=False, dtype="f1") -> np.ndarray:
         fmt = {"internal_format": _SRGB8_ALPHA8} if srgb else {}
-        target = self.ctx.texture((self.w, self.h), components, dtype="f1", **fmt)
+        target = self.ctx.texture((self.w, self.h), components, dtype=dtype, **fmt)
         fbo = self.ctx.framebuffer(color_attachments=[target])
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -176,7 +186,8 @@ class SmaaGL:
         vao.render(self.mgl.TRIANGLES, vertices=3)
         if srgb:
             self.ctx.disable_direct(_FRAMEBUFFER_SRGB)
-        data = np.frombuffer(fbo.read(components=components, dtype="f1"), np.uint8)
+        raw = fbo.read(components=components, dtype=dtype)
+        data = np.frombuffer(raw, np.uint8 if dtype == "f1" else np.float32)
         for obj in (vao, fbo, target, *textures.values()):
             obj.release()
         return data.reshape(self.h, self.w, components).copy()
@@ -213,6 +224,18 @@ class SmaaGL:
         prog = self._program("weights", "weights", {})
         prog["subsampleIndices"].value = tuple(float(s) for s in subsample)
         return self._run(prog, textures, 4)
+
+    def search_ends(self, edges8: np.ndarray, search8: np.ndarray) -> np.ndarray:
+        """The four orthogonal searches of the blending weight pass (``SMAASearchXLeft``,
+        ``XRight``, ``YUp``, ``YDown`` with the pass's own offsets) at every pixel, as
+        distances in pixels from the pixel's centre (before the pass rounds them): (H, W, 4)
+        float32."""
+        textures = {
+            "edgesTex": self._texture(edges8, components=2),
+            "searchTex": self._texture(search8, components=1),
+        }
+        prog = self._program("weights", "ends", {})
+        return self._run(prog, textures, 4, dtype="f4")
 
     def blend(self, color8, weights8, velocity, *, srgb: bool = True) -> np.ndarray:
         """``SMAANeighborhoodBlendingPS`` (``SMAA_REPROJECTION 1`` for the velocity, as the

@@ -168,6 +168,13 @@ def test_depth_and_predicated_edges_equal_the_published_shader(frame, gl):
     assert ours.sum() >= wide.sum()
 
 
+def search_end(edges, pos, across, step, steps, along):
+    """The model's orthogonal search (``weights._Pass.search``) from texel positions ``pos``."""
+    from raster_oracle.raster_models.aa.smaa.weights import _Pass
+
+    return _Pass(edges, 0, None).search(pos, across, step, steps, along=along)
+
+
 def _blend_inputs(frame):
     """The frame's blend texture and a velocity buffer of up to a few pixels (RG16F)."""
     weights = blending_weights(detect_edges(frame["buffer"]))
@@ -232,3 +239,46 @@ def test_temporal_resolve_equals_the_published_shader(frame, gl):
         unorm8=True,
     )
     assert np.abs(_as_bytes(still) - theirs[..., :3]).max() > 1
+
+
+@pytest.mark.parametrize("size", [(128, 64), (96, 54)])
+def test_searches_end_where_the_published_shader_ends_them(gl, size):
+    # the search loops' end condition (docs/models.md): at a power-of-two size every
+    # search ends where the model's does; at 96x54 the shader's float32 coordinates take
+    # one more step (2 px) at a share of the searches that ran all their steps, and a
+    # search that stopped early ends where the model's does (but for llvmpipe's off-centre
+    # sampling: measured 1 of 910 on city)
+    w, h = size
+    scene = scenes.load("city", width=w, height=h)
+    col, _ = sample_colors(scene, np.array([[0.5, 0.5]]))
+    linear = col["color"].reshape(h, w, 3)
+    cfg = resolved(SmaaParams())
+    edges = detect_edges(
+        color_buffer(tonemap(linear, exposure=exposure_from_reference(linear)), cfg)
+    )
+    run = smaa_glsl.SmaaGL(w, h, {})
+    try:
+        ends = run.search_ends((edges * 255).astype(np.uint8), textures.search_texture())
+    finally:
+        run.release()
+    steps = cfg["max_search_steps"]
+    full = extra = other = 0
+    for ch, along in ((0, 1), (2, 0)):
+        jy, jx = np.nonzero(edges[..., 1 if along == 1 else 0] > 0)
+        centre = (jx if along == 1 else jy) + 0.5
+        across = (jy if along == 1 else jx) + 0.5
+        for k, (step, start) in enumerate(((-2.0, -0.25), (2.0, 1.25))):
+            ours = np.round(
+                search_end(edges, centre + start, across - 0.125, step, steps, along) - centre
+            )
+            theirs = np.round(ends[jy, jx, ch + k])
+            ran_all = np.abs(ours) >= 2 * steps - 1
+            one_more = ran_all & (theirs == ours + 2 * np.sign(step))
+            full += ran_all.sum()
+            extra += one_more.sum()
+            other += np.count_nonzero((theirs != ours) & ~one_more)
+    assert full > 20  # city has long lines and lines into the border
+    if w == 128:
+        assert extra == 0 and other == 0
+    else:
+        assert 0 < extra < full and other <= 0.005 * len(jx) * 4
