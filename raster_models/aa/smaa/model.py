@@ -294,6 +294,7 @@ def _run_frames(scene, p, cfg, fetches):
         "events": rendered[-1]["events"],  # the frame rendered for this display
         "valid": np.mean([r["valid"].mean(axis=0) for r in rendered], axis=0),
         "moving": moving,
+        "temporal": temporal,
     }
 
 
@@ -342,6 +343,17 @@ def _combine_samples(outs: list[dict], cfg: dict) -> dict:
         "edges": outs[0]["edges"],
         "weights": outs[0]["weights"],
     }
+
+
+def _velocity_note(fr: dict) -> str:
+    if not fr["temporal"]:
+        return "no temporal resolve in this mode (1x, S2x): no velocity buffer"
+    if fr["moving"]:
+        return (
+            "film motion of the current frame's samples (scenes.geometry.motion), RG16F "
+            "texture units; the resolve reprojects the previous frame by it"
+        )
+    return "still scene: zero motion vectors; reprojection weight 0.5"
 
 
 def _costs(p, n_pix: int, fetches: Fetches) -> dict:
@@ -406,12 +418,7 @@ def run(scene, params: SmaaParams | None = None, **kwargs):
             "settings": cfg,
             "sample_positions": [[list(s[0]) for s in f] for f in MODES[p.mode]],
             "subsample_indices": [[list(s[1]) for s in f] for f in MODES[p.mode]],
-            "velocity": (
-                "film motion of the current frame's samples (scenes.motion), RG16F texture "
-                "units; the resolve reprojects the previous frame by it"
-                if fr["moving"]
-                else "still scene: zero motion vectors; reprojection weight 0.5"
-            ),
+            "velocity": _velocity_note(fr),
             "input": cfg["input"],
             "tone_mapping": {
                 "exposure_stops": fr["exposure"],
