@@ -131,13 +131,14 @@ def cvvdp_jod(
     ImportError
         The extra is not installed (see :func:`unavailable`).
     ValueError
-        The arrays' shapes differ or are not (T, H, W, 3).
+        The arrays' shapes differ or are not (T, H, W, 3) with H, W >= 2 (ColorVideoVDP's
+        pyramid fails on one pixel).
     """
     ref = np.asarray(reference, np.float32)
     cand = np.asarray(candidate, np.float32)
-    if ref.shape != cand.shape or ref.ndim != 4 or ref.shape[-1] != 3:
-        raise ValueError(f"cvvdp_jod: frames must be two (T, H, W, 3) arrays, got {ref.shape}"
-                         f" and {cand.shape}")  # fmt: skip
+    if ref.shape != cand.shape or ref.ndim != 4 or ref.shape[-1] != 3 or min(ref.shape[1:3]) < 2:
+        raise ValueError(f"cvvdp_jod: frames must be two (T, H, W, 3) arrays of at least 2x2 "
+                         f"pixels, got {ref.shape} and {cand.shape}")  # fmt: skip
     torch, pycvvdp = _load()
     key = (float(ppd), ref.shape[1], ref.shape[2])
     if key not in _METRICS:

@@ -47,9 +47,11 @@ def test_identical_sequences_score_ten_and_noise_lowers_it():
     assert 10.0 > jods[0] > jods[1] > jods[2]
 
 
-def test_shape_mismatch_is_a_value_error():
+def test_shape_mismatch_and_single_pixels_are_value_errors():
     with pytest.raises(ValueError, match="cvvdp_jod"):
         V.cvvdp_jod(np.zeros((2, 4, 4, 3)), np.zeros((2, 4, 5, 3)), ppd=40.0)
+    with pytest.raises(ValueError, match="2x2"):  # the package fails on one pixel
+        V.cvvdp_jod(np.zeros((2, 1, 1, 3)), np.zeros((2, 1, 1, 3)), ppd=40.0)
 
 
 def test_torchvision_standin_blur_is_the_sampled_gaussian():

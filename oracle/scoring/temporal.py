@@ -149,6 +149,8 @@ def add_video_score(
     exact surrogate frames (the seed-to-seed noise of the truth). Without the extra
     ``raster-oracle[video]``: null, and one line on stderr (unless ``quiet``)."""
     why = V.unavailable()
+    if why is None and min(result.frames[0].reference.shape[:2]) < 2:
+        why = "cvvdp_jod skipped: ColorVideoVDP needs frames of at least 2x2 pixels"
     if why is not None:
         if not quiet:
             import sys
