@@ -20,9 +20,9 @@ from raster_oracle.raster_models import run as run_model
 from raster_oracle.raster_models.aa.smaa import textures
 from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
-from raster_oracle.raster_models.aa.smaa.model import _hardware_depth, color_buffer, smaa_1x
+from raster_oracle.raster_models.aa.smaa.model import color_buffer, hardware_depth, smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
-from raster_oracle.raster_models.aa.smaa.weights import blending_weights
+from raster_oracle.raster_models.aa.smaa.weights import blending_weights, orthogonal_search
 from raster_oracle.raster_models.aa.trace import sample_colors, trace_samples
 from raster_oracle.scenes.base.display import exposure_from_reference, tonemap
 
@@ -65,7 +65,7 @@ def frame(request):
     cfg = resolved(SmaaParams())
     buf = color_buffer(tonemap(linear, exposure=exposure_from_reference(linear)), cfg)
     tr = trace_samples(scene, np.array([[0.5, 0.5]]), keep=("valid", "depth"))
-    depth = _hardware_depth(scene.camera, tr["depth"][:, 0], tr["valid"][:, 0]).reshape(H, W)
+    depth = hardware_depth(scene.camera, tr["depth"][:, 0], tr["valid"][:, 0]).reshape(H, W)
     return {"scene": scene, "name": request.param, "buffer": buf, "depth": depth, "cfg": cfg}
 
 
@@ -173,13 +173,6 @@ def test_depth_and_predicated_edges_equal_the_published_shader(frame, gl):
     assert ours.sum() >= wide.sum()
 
 
-def search_end(edges, pos, across, step, steps, along):
-    """The model's orthogonal search (``weights._Pass.search``) from texel positions ``pos``."""
-    from raster_oracle.raster_models.aa.smaa.weights import _Pass
-
-    return _Pass(edges, 0, None).search(pos, across, step, steps, along=along)
-
-
 def _blend_inputs(frame):
     """The frame's blend texture and a velocity buffer of up to a few pixels (RG16F)."""
     weights = blending_weights(detect_edges(frame["buffer"]))
@@ -274,7 +267,8 @@ def test_searches_end_where_the_published_shader_ends_them(gl, size):
         across = (jy if along == 1 else jx) + 0.5
         for k, (step, start) in enumerate(((-2.0, -0.25), (2.0, 1.25))):
             ours = np.round(
-                search_end(edges, centre + start, across - 0.125, step, steps, along) - centre
+                orthogonal_search(edges, centre + start, across - 0.125, step, steps, along)
+                - centre
             )
             theirs = np.round(ends[jy, jx, ch + k])
             ran_all = np.abs(ours) >= 2 * steps - 1

@@ -78,7 +78,7 @@ from .edges import detect_edges
 from .params import INPUT_8BIT, MODES, SmaaParams, resolved
 from .weights import blending_weights
 
-__all__ = ["NAME", "color_buffer", "run", "smaa_1x"]
+__all__ = ["NAME", "color_buffer", "hardware_depth", "run", "smaa_1x"]
 
 NAME = "smaa"
 
@@ -156,7 +156,7 @@ def color_buffer(display: np.ndarray, cfg: dict) -> np.ndarray:
     return to_unorm8(d)
 
 
-def _hardware_depth(camera, view_depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def hardware_depth(camera, view_depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Direct3D depth-buffer values in [0, 1] (near 0, far 1, sky cleared to 1)."""
     n, f = camera.near, camera.far
     d = np.maximum(view_depth.astype(np.float64), n)
@@ -217,7 +217,7 @@ def _render(scene, frame_spec, need_depth: bool, want_velocity: bool) -> dict:
     depth = None
     if need_depth:
         depth = [
-            _hardware_depth(scene.camera, tr["depth"][:, i], tr["valid"][:, i]).reshape(h, w)
+            hardware_depth(scene.camera, tr["depth"][:, i], tr["valid"][:, i]).reshape(h, w)
             for i in range(len(offsets))
         ]
     return {

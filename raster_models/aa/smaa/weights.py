@@ -22,7 +22,7 @@ import numpy as np
 from ._sampling import SUBTEXEL_BITS, Fetches, bilinear
 from .textures import area_texture, search_texture
 
-__all__ = ["blending_weights"]
+__all__ = ["blending_weights", "orthogonal_search"]
 
 # SMAA.hlsl's non-configurable constants, in texels of each texture
 AREATEX_MAX_DISTANCE = 16
@@ -199,6 +199,16 @@ class _Pass:
             cc[g[:, 3] >= 0.9, 1] = 0.0
             weights[go] += self.area_diag(g[:, :2], cc, sub4)[:, ::-1]
         return weights
+
+
+def orthogonal_search(edges, pos, across, step: float, steps: int, along: int, *, bits=0):
+    """One orthogonal search of :func:`blending_weights` (``SMAASearchXLeft`` etc.) on the
+    edges texture ``edges`` from texel positions ``pos`` (the pass's start offsets included)
+    at ``across`` on the other axis: the corrected end coordinate in texels. ``step`` is
+    -2 or +2, ``along`` 1 for horizontal searches (reading G), 0 for vertical (R)."""
+    tex = _Pass(edges, bits, None)
+    p = np.asarray(pos, np.float64)
+    return tex.search(p, np.asarray(across, np.float64), step, steps, along)
 
 
 def blending_weights(
