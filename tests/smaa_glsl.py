@@ -88,7 +88,9 @@ def _float_sampler() -> None:
     quarter texel gives 191/255, not 0.75), which GPUs do not do and which moves SMAA's
     corner-rounding factors; its "SoA" path filters in float. Read when the driver loads,
     so set before the first context."""
-    os.environ.setdefault("GALLIVM_PERF", "no_aos_sampling")
+    flags = [f for f in os.environ.get("GALLIVM_PERF", "").split(",") if f]
+    if "no_aos_sampling" not in flags:
+        os.environ["GALLIVM_PERF"] = ",".join([*flags, "no_aos_sampling"])
 
 
 def unavailable() -> str | None:
