@@ -157,7 +157,7 @@ def cmd_score(args) -> int:
     from ..scoring.gates import load_baseline
     from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
-    from ..scoring.score import ScoreError
+    from ..scoring.result import ScoreError
     from .score_inputs import candidate_inputs
 
     gates = parse_all_gates(args)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ... import metrics as M
 from ..reference.exr import read_exr
-from .score import ScoreResult
+from .result import ScoreResult
 
 __all__ = ["diagnose_result"]
 

@@ -26,12 +26,14 @@ import numpy as np
 
 from ... import metrics as M
 from ...metrics import engine_gates as G
+from ...metrics.catalog import KINDS
 from ..reference.exr import read_exr
 
 __all__ = ["ENGINE_CHANNELS", "ENGINE_GATE_KEYS", "add_engine_gate_metrics", "exact_floors"]
 
-#: The channels an engine writes (a model's front-most coverage is not one).
-ENGINE_CHANNELS = ("visibility", "color", "coverage")
+#: The channels an engine writes (a model's front-most coverage is not one): the metric
+#: catalogue's kinds.
+ENGINE_CHANNELS = KINDS
 
 _FRACTIONS = tuple(
     f"unreal_{level}_{which}_error"
@@ -40,6 +42,14 @@ _FRACTIONS = tuple(
 )
 #: The metric keys this module adds.
 ENGINE_GATE_KEYS = (*_FRACTIONS, "unity_average_delta_e", "edge_aware_error_fraction")
+
+
+def _applies(channel: str) -> bool:
+    """The engine-gate pass runs on an engine's channels whose kind the metric catalogue
+    declares one of :data:`ENGINE_GATE_KEYS` for."""
+    return channel in ENGINE_CHANNELS and any(
+        channel in M.CATALOG[k].kinds for k in ENGINE_GATE_KEYS
+    )
 
 
 def _display(image: np.ndarray, channel: str, exposure) -> np.ndarray:
@@ -61,7 +71,7 @@ def _values(ref, cand, se, *, channel, exposure, mask) -> dict:
         counts[f"unreal_{level}_local_error"] = block
     unity = G.unity_delta_e(r, c)
     out["unity_average_delta_e"] = unity["average"]
-    if channel != "color":
+    if channel in M.CATALOG["edge_aware_error_fraction"].kinds:
         edge = G.edge_aware_error(ref, cand, reference_stderr=se, mask=mask)
         out["edge_aware_error_fraction"] = edge["fraction"]
         counts["edge_aware_error_fraction"] = int(mask.sum()) if mask is not None else h * w
@@ -79,7 +89,7 @@ def exact_floors(reference, exact, reference_channels: dict, *, channel, exposur
     ``reference`` (the noise floors before the fractions' binomial bound; Unity's: the mean
     delta E, see the module docstring). Empty for channels other than visibility, color
     and coverage."""
-    if channel not in ENGINE_CHANNELS:
+    if not _applies(channel):
         return {}
     se = _stderr(reference_channels, channel)
     if mask is not None:  # a shadow mask is judged on the receivers, as the candidate is
@@ -94,7 +104,7 @@ def add_engine_gate_metrics(result, *, channel, exposure) -> None:
     raise each fraction's noise floor (the exact surrogate's, from :func:`exact_floors`) to
     at least its binomial bound (channels visibility, color and coverage: what an engine
     writes)."""
-    if channel not in ENGINE_CHANNELS:
+    if not _applies(channel):
         return
     per_frame, counts = [], {}
     for k, frame in enumerate(result.frames):

@@ -19,7 +19,7 @@ from pathlib import Path
 from ...scenes.files import atomic_write_json
 from .gates import FOLDER_SCHEMA
 from .options import ScoreOptions
-from .score import ScoreError
+from .result import ScoreError
 
 __all__ = ["FolderCase", "FolderEntry", "FolderRun", "discover", "score_folder"]
 

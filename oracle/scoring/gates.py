@@ -37,7 +37,7 @@ from pathlib import Path
 
 from ...metrics import catalog
 from ...scenes.files import atomic_write_bytes
-from .score import ScoreError, metric_limit
+from .result import ScoreError, metric_limit
 
 __all__ = [
     "FOLDER_SCHEMA",

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 
 from ... import metrics as M
-from .score import ScoreError
+from .result import ScoreError
 
 __all__ = ["VISIBILITY_CONVENTIONS", "ScoreOptions"]
 

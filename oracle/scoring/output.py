@@ -17,8 +17,9 @@ from ... import raster_models, reports
 from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ...scenes.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
+from .channels import METRIC_KEYS
 from .gates import Gate, Verdict
-from .score import METRIC_KEYS, ScoreResult
+from .result import ScoreResult
 
 __all__ = [
     "MAP_STYLES",

@@ -27,7 +27,8 @@ from .gates import (
 from .layout import CandidateLayout, candidate_layout, read_candidate
 from .options import ScoreOptions
 from .output import write_score_folder
-from .score import ScoreError, score
+from .result import ScoreError
+from .score import score
 from .technique import score_model, technique_channels
 
 __all__ = ["FRAME_PATTERN", "candidate_name", "file_candidate", "frame_file", "score_to_folder"]

@@ -15,7 +15,33 @@ from ... import metrics as M
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 
-__all__ = ["CONVERGENCE_WINDOW", "GHOSTING_WINDOW", "add_temporal_aa", "truth_motion"]
+__all__ = [
+    "CONVERGENCE_WINDOW",
+    "GHOSTING_WINDOW",
+    "MOTION_KEYS",
+    "TEMPORAL_AA_KEYS",
+    "add_temporal_aa",
+    "truth_motion",
+]
+
+#: The temporal AA metrics of a sequence (:func:`add_temporal_aa`); the pass runs on the
+#: channels the metric catalogue declares them for.
+TEMPORAL_AA_KEYS = (
+    "steady_error",
+    "convergence_frames",
+    "ghosting_error",
+    "history_error",
+    "lag_frames",
+    "flicker_ratio",
+)
+#: The motion-vector metrics of an engine's velocity buffer.
+MOTION_KEYS = (
+    "motion_epe_mean",
+    "motion_epe_p99",
+    "motion_epe_over_half",
+    "disocclusion_recall",
+    "disocclusion_precision",
+)
 
 #: Frames each frame's error is averaged over before the convergence test: one jitter
 #: sequence of the shortest common length (UE4, HDRP: 8), whose phase the error follows;
@@ -40,13 +66,7 @@ def truth_motion(scenes_k, *, seed: int, cache, quiet: bool):
 
 def _velocity(result, motion, dis, engine: list) -> dict:
     """Per-frame and mean end-point errors of the candidate's motion vectors."""
-    keys = (
-        "motion_epe_mean",
-        "motion_epe_p99",
-        "motion_epe_over_half",
-        "disocclusion_recall",
-        "disocclusion_precision",
-    )
+    keys = MOTION_KEYS
     per = []
     for k, (frame, given) in enumerate(zip(result.frames, engine, strict=True)):
         mv, cand_dis = given
