@@ -295,15 +295,28 @@ def within_noise(key: str, value: float, floor: float) -> bool:
     return error_of(key, value) <= error_of(key, floor)
 
 
-def regressed(key: str, value: float, floor: float, previous: float, previous_floor: float) -> bool:
+def regressed(
+    key: str,
+    value: float,
+    floor: float,
+    previous: float,
+    previous_floor: float,
+    *,
+    tolerance: float = 0.0,
+    relative: bool = False,
+) -> bool:
     """True when ``value`` is worse than ``previous`` (a baseline run's value) by more than
-    both runs' noise floors combined: ``error(value) - error(previous) > error(floor) +
-    error(previous_floor)``. Never for an ``info`` metric or a non-finite number."""
+    both runs' noise floors combined and a ``tolerance``: ``error(value) - error(previous) >
+    error(floor) + error(previous_floor) + t``, with ``t = tolerance`` (in the metric's error
+    units) or, ``relative``, ``t = tolerance * error(previous)``. Never for an ``info``
+    metric or a non-finite number."""
     if metric(key).direction == "info" or not _finite(value, floor, previous, previous_floor):
         return False
     worse = error_of(key, value) - error_of(key, previous)
+    allowed = tolerance * abs(error_of(key, previous)) if relative else tolerance
     # a floor is a noise magnitude: a signed metric's floor below 0 counts as none
-    return worse > max(error_of(key, floor), 0.0) + max(error_of(key, previous_floor), 0.0)
+    floors = max(error_of(key, floor), 0.0) + max(error_of(key, previous_floor), 0.0)
+    return worse > floors + allowed
 
 
 def _finite(*values) -> bool:

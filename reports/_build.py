@@ -116,7 +116,8 @@ def build_report(
     ]
     cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
     styles = sorted({m["style"] for case in records for m in case["error_maps"]})
-    statuses = [case["status"] for case in records]
+    # a multi-frame case's frames are shown as cases of their own, but counted as its parts
+    statuses = [case["status"] for case in records if case.get("frame") is None]
     return {
         "schema": REPORT_SCHEMA,
         "title": title,
@@ -129,7 +130,8 @@ def build_report(
         },
         "cost_names": cost_names,
         "summary": {
-            "n_cases": len(records),
+            "n_cases": len(statuses),
+            "n_frames": sum(case.get("frame") is not None for case in records),
             "n_pass": statuses.count("pass"),
             "n_fail": statuses.count("fail"),
             "n_unchecked": statuses.count("unchecked"),

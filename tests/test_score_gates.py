@@ -285,6 +285,8 @@ def test_junit_file_has_one_case_per_gate_with_numbers(tmp_path, capsys, cands):
         *gates,
         "--baseline",
         str(first),
+        "--baseline-metrics",
+        "all",
         "--junit",
         str(junit),
         out="noisy",
@@ -414,6 +416,7 @@ def test_score_folder_gates_baseline_and_junit_per_scene(tmp_path, capsys):
     # a worse run against the first: a failed gate and regressions, scene by scene
     j2 = tmp_path / "worse.xml"
     gate = ["--fail-above", "visibility_mae=0", "--baseline", str(first), "--junit", str(j2)]
+    gate += ["--baseline-metrics", "all"]
     out = tmp_path / "worse"
     rc = main(["score-folder", str(tmp_path / "noisy"), *base, *gate, "--out", str(out)])
     captured = capsys.readouterr()

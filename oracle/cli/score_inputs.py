@@ -25,37 +25,13 @@ def candidate_size(path: str | Path) -> tuple[int, int] | None:
         return None
 
 
-def _check_size(path: str, loaded) -> None:
-    size = candidate_size(path)
-    if size is None or size == (loaded.width, loaded.height):
-        return
-    w, h = size
-    from ...scenes.inputs import nearest_export
-
-    found = nearest_export(Path(path), size)
-    export = (
-        f"score the export folder {found} that wrote it"
-        if found
-        else ("score the export folder that wrote it (`score EXPORT_DIR`)")
-    )
-    raise A.CliError(
-        f"candidate is {w}x{h}, the reference is {loaded.width}x{loaded.height} "
-        f"({Path(path).name}): pass --width {w} --height {h}, or {export}"
-    )
-
-
 def resolve_layout(pattern: str, *, channel: str | None, kind: str | None, loaded):
     """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
     ``channel`` / ``kind``, printed as one line, after checking its size against
-    ``loaded``'s."""
-    from ..scoring.layout import candidate_layout
-    from ..scoring.request import frame_file
+    ``loaded``'s (the library's :func:`oracle.scoring.folder_cases.resolve_layout`)."""
+    from ..scoring.folder_cases import resolve_layout as resolve
 
-    first = frame_file(pattern, 0)
-    layout = candidate_layout(first, channel=channel, kind=kind)
-    _check_size(first, loaded)
-    print(layout.message(Path(first).name), flush=True)
-    return layout
+    return resolve(pattern, channel=channel, kind=kind, loaded=loaded)
 
 
 def candidate_inputs(args, loaded):

@@ -73,8 +73,10 @@ def _values(ref, cand, se, *, channel, exposure, mask) -> dict:
     out["unity_average_delta_e"] = unity["average"]
     if channel in M.CATALOG["edge_aware_error_fraction"].kinds:
         edge = G.edge_aware_error(ref, cand, reference_stderr=se, mask=mask)
-        out["edge_aware_error_fraction"] = edge["fraction"]
-        counts["edge_aware_error_fraction"] = int(mask.sum()) if mask is not None else h * w
+        n = int(mask.sum()) if mask is not None else h * w
+        # no receiver in view: nothing to judge (null, as the shadow metrics are)
+        out["edge_aware_error_fraction"] = edge["fraction"] if n else None
+        counts["edge_aware_error_fraction"] = n
     return out, counts, unity
 
 
@@ -106,22 +108,29 @@ def add_engine_gate_metrics(result, *, channel, exposure) -> None:
     writes)."""
     if not _applies(channel):
         return
-    per_frame, counts = [], {}
+    per_frame, counts = [], []
     for k, frame in enumerate(result.frames):
         mask = frame.receivers
         cand = frame.candidate if mask is None else np.where(mask, frame.candidate, frame.reference)
         se = _stderr(read_exr(result.reference_folders[k] / "reference.exr"), channel)
-        values, counts, _ = _values(
+        values, count, _ = _values(
             frame.reference, cand, se, channel=channel, exposure=exposure, mask=mask
         )
         frame.metrics.update(values)
         per_frame.append(values)
+        counts.append(count)
     record = result.record
+    totals = {}
     for key in per_frame[0]:
-        record[key] = float(np.mean([v[key] for v in per_frame]))
+        vals = [v[key] for v in per_frame if v[key] is not None]
+        record[key] = float(np.mean(vals)) if vals else None
+        if key in counts[0]:
+            totals[key] = sum(c[key] for c in counts)
     floors = record.get("noise_floor")
     if floors is None:
         return
-    n_frames = len(result.frames)
-    for key, n in counts.items():
-        floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(record[key], n * n_frames))
+    for key, n in totals.items():
+        if record[key] is None or n == 0:  # no pixel counted (no receiver in view)
+            floors.pop(key, None)
+            continue
+        floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(record[key], n))

@@ -183,6 +183,7 @@ def _frame_cases(result: ScoreResult, *, name: str, scene: str, technique, param
                 error_maps=maps,
                 technique=technique,
                 params=params,
+                frame=k,
             )
         )
     return cases
