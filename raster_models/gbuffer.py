@@ -1,6 +1,7 @@
 """The depth prepass / G-buffer a shadow technique shades: one sample at every pixel centre.
 
-Built on :func:`scenes.raycast.trace_film_dr` (the oracle's own primary-ray path), evaluating
+Built on :func:`scenes.backend.raycast.trace_film_dr` (the oracle's own primary-ray path),
+evaluating
 only what a shadow technique reads, plus the screen-space derivatives of the visible
 position, ``dP/dx`` and ``dP/dy`` (world units per pixel), computed exactly on the tangent
 plane of the visible surface (ray differentials): what a GPU's ``ddx/ddy`` of the
@@ -16,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scenes import backend
-from ..scenes.raycast import CHUNK, trace_film_dr
-from ..scenes.shading import receiver_mask
+from ..scenes.backend.raycast import CHUNK, trace_film_dr
+from ..scenes.shading.phong import receiver_mask
 from .drjit import numpy_view
 
 __all__ = ["GBuffer", "points_gbuffer", "plane_derivatives", "trace_gbuffer"]

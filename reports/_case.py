@@ -225,7 +225,6 @@ def make_case(
     viewer: Mapping | None = None,
     checks: Sequence[Mapping] | None = None,
     diagnoses: Sequence[str] | None = None,
-    frame: int | None = None,
 ) -> dict:
     """Compute everything the report shows about one case and return it as a JSON-safe dict.
 
@@ -283,9 +282,6 @@ def make_case(
         "kind" ("gate" | "baseline"), "metric", "passed", "line", ...}``: a failed one fails
         the case and is listed first on the page, with the same name and line as the exit
         code's verdict, JUnit and ``metrics.json``.
-    frame : int, optional
-        The frame of a multi-frame case this case shows (the report counts it as a part of
-        that case, not as a case).
 
     Returns
     -------
@@ -370,5 +366,4 @@ def make_case(
         ),
         "exr_links": _exr_links(exr_links),
         "viewer": viewer,
-        "frame": None if frame is None else int(frame),
     }

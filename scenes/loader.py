@@ -18,15 +18,15 @@ from xml.etree import ElementTree
 import numpy as np
 
 from . import backend
-from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
-from .camera_file import CameraFileError, load_camera_file
-from .gltf import GltfError, gltf_scene
+from .catalogue.builtin import BUILTIN_SCENES, BuiltinScene
+from .formats.camera_file import CameraFileError, load_camera_file
+from .formats.gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
 from .lights import Light
 from .object_paths import check_motion, object_transform
 from .paths import CAMERA_PATHS, path_camera
-from .shading import Specular
+from .shading.phong import Specular
 
 __all__ = ["LoadedScene", "SceneError", "load", "scene_names"]
 
@@ -68,8 +68,9 @@ class LoadedScene:
     light_path: str | None = None
     base_lights: list[Light] = field(default_factory=list)
     mesh_data: dict = field(default_factory=dict, repr=False)
-    #: glTF materials (:class:`scenes.gltf_materials.PbrMaterials`): the scene is shaded with
-    #: the glTF BRDF of :mod:`scenes.pbr`; None: the Lambert/Blinn-Phong of scenes.shading.
+    #: glTF materials (:class:`scenes.formats.gltf_materials.PbrMaterials`): the scene is
+    #: shaded with the glTF BRDF of :mod:`scenes.shading.pbr`; None: the Lambert/Blinn-Phong
+    #: of scenes.shading.phong.
     pbr: object = field(default=None, repr=False, compare=False)
     #: Per-scene memo caches of derived data (shape tables, occluder triangles, tie groups),
     #: keyed by their owner's name. A declared field, so ``dataclasses.replace`` carries it:
@@ -200,7 +201,7 @@ class LoadedScene:
     def shading_model(self) -> str:
         """The shading model of the colour truth (recorded in provenance)."""
         if self.pbr is not None:
-            from .pbr import SHADING_MODEL
+            from .shading.pbr import SHADING_MODEL
 
             return SHADING_MODEL
         if self.specular.ks > 0.0:
@@ -251,7 +252,7 @@ def _to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
         if isinstance(value, dict) and value.get("type") == "ro_mesh":
             v = np.asarray(value["vertices"], dtype=np.float32)
             f = np.asarray(value["faces"], dtype=np.uint32)
-            # optional per-vertex data (glTF meshes, scenes.gltf): normals, uv, tangents
+            # optional per-vertex data (glTF meshes, scenes.formats.gltf): normals, uv, tangents
             nrm, uv, tan = (value.get(k) for k in ("normals", "texcoords", "tangents"))
             mesh = mi.Mesh(
                 key,
@@ -431,7 +432,8 @@ def load(
     Parameters
     ----------
     scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
-        A :class:`scenes.builtin.BuiltinScene` (e.g. a built-in scene's factory wrapped by a
+        A :class:`scenes.catalogue.builtin.BuiltinScene` (e.g. a built-in scene's factory
+        wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
     light : index of the light to use among the scene's punctual lights.
@@ -439,13 +441,13 @@ def load(
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
         that of ``frame`` (frame 0 is the scene's own light).
-    camera_file : a camera sequence file (:mod:`scenes.camera_file`): frames follow its
+    camera_file : a camera sequence file (:mod:`scenes.formats.camera_file`): frames follow its
         cameras (camera path ``file``).
 
     Objects of a scene with object paths (:mod:`scenes.object_paths`) are placed for
     ``frame``; such a scene's frames keep the camera still unless a camera path is named.
     camera : glTF scenes: index of the document's camera to view through (default: the
-        scene's first camera node); see :mod:`scenes.gltf`.
+        scene's first camera node); see :mod:`scenes.formats.gltf`.
 
     Raises
     ------
@@ -458,7 +460,7 @@ def load(
     mi = backend.mitsuba()
     name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
-    try:  # a glTF file or built-in glTF scene (scenes.gltf), else None
+    try:  # a glTF file or built-in glTF scene (scenes.formats.gltf), else None
         gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
     except GltfError as exc:
         raise SceneError(str(exc)) from None
@@ -476,7 +478,7 @@ def load(
         raw = spec.factory(w, h)
         digest = hashlib.sha256(b"builtin:" + name.encode())
         _hash_obj(digest, raw)
-        # a scene-wide Blinn-Phong lobe (scenes.aa_scenes' glossy); hashed above with the rest
+        # a scene-wide Blinn-Phong lobe (the catalogue's glossy); hashed above with the rest
         specular = Specular(**raw.pop("ro_specular", {}))
         motion, scene_dict = _motion_of(raw, name), dict(raw)
         try:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ... import metrics as M
 from ...metrics.aliasing import coverage_metrics
-from ...scenes.shading import receiver_mask
+from ...scenes.shading.phong import receiver_mask
 
 __all__ = [
     "CHANNEL_KIND",

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ...scenes import SceneError
-from ...scenes.inputs import named_input
+from ...scenes.formats.inputs import named_input
 from .candidates import TRANSFERS
 from .gates import Gate, GateError, parse_gates
 from .options import VISIBILITY_CONVENTIONS

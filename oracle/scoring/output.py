@@ -14,8 +14,8 @@ import numpy as np
 
 from ... import metrics as M
 from ... import raster_models, reports
-from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
-from ...scenes.records import jsonable, package_versions
+from ...scenes.base.files import atomic_copy, atomic_write_bytes, atomic_write_json
+from ...scenes.base.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
 from .channels import METRIC_KEYS
 from .gates import Gate, Verdict
@@ -172,20 +172,20 @@ def _frame_cases(result: ScoreResult, *, name: str, scene: str, technique, param
             for key, data in frame.maps.items()
         }
         values = {k2: v for k2, v in frame.metrics.items() if k2 in METRIC_KEYS and v is not None}
-        cases.append(
-            reports.make_case(
-                name=f"{name} frame {k}",
-                scene=scene,
-                reference=_display(result, frame.reference),
-                candidate=_display(result, frame.candidate),
-                kind="color" if result.record["channel"] == "color" else "visibility",
-                metrics=values,
-                error_maps=maps,
-                technique=technique,
-                params=params,
-                frame=k,
-            )
+        case = reports.make_case(
+            name=f"{name} frame {k}",
+            scene=scene,
+            reference=_display(result, frame.reference),
+            candidate=_display(result, frame.candidate),
+            kind="color" if result.record["channel"] == "color" else "visibility",
+            metrics=values,
+            error_maps=maps,
+            technique=technique,
+            params=params,
         )
+        # a frame of a multi-frame case: shown after it, not counted as a case of its own
+        case["frame"] = k
+        cases.append(case)
     return cases
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ... import metrics as M
-from ...scenes.records import provenance
+from ...scenes.backend import provenance
 from ..errors import InputError
 from .channels import METRIC_KEYS, REFERENCE_GROUPS
 

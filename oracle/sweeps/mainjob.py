@@ -33,7 +33,7 @@ from ...reports.sections import (
     extremes_section,
     failed_section,
 )
-from ...scenes.files import atomic_write_bytes, atomic_write_json
+from ...scenes.base.files import atomic_write_bytes, atomic_write_json
 from ..errors import one_line
 from ..phases import Phases, maybe_phase
 from ..studies.aa_memory import memory_report

@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import backend
-from .gltf_materials import surface_dr
-from .pbr import shade_gltf
-from .shading import facing, receiver_mask, shade
+from .. import backend
+from ..formats.gltf_materials import surface_dr
+from ..shading.pbr import shade_gltf
+from ..shading.phong import facing, receiver_mask, shade
 
 __all__ = ["CHUNK", "intersect", "occluded", "shape_table", "trace_film", "trace_film_dr"]
 
@@ -192,7 +192,9 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     scene = loaded.mi_scene
     light = loaded.light
     ray = camera_rays_dr(camera, x, y)
-    pbr = loaded.pbr  # glTF scenes: materials of scenes.gltf_materials, BRDF of scenes.pbr
+    pbr = (
+        loaded.pbr
+    )  # glTF scenes: materials of scenes.formats.gltf_materials, BRDF of scenes.shading.pbr
     flags = primary_flags(mi)
     if pbr is not None and pbr.has_normal_textures:
         flags = mi.RayFlags.All  # dp/du: the normal texture's fallback tangent
