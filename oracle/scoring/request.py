@@ -223,7 +223,7 @@ def score_to_folder(
         from the file when unambiguous); for files also an EXR channel or layer name.
     options : :class:`oracle.scoring.options.ScoreOptions` (reference spp and seed, frames
         and camera path, FLIP options, platform, the candidate mask's convention, the PNG
-        transfer, the technique the engine claims to implement).
+        transfer).
     layout : for files, what to read (:func:`oracle.scoring.layout.candidate_layout`; None:
         resolved here from frame 0's file and ``channel``).
     gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``)
@@ -249,8 +249,8 @@ def score_to_folder(
     opts = dict(o.score_kwargs(), cache=cache)
     cost, notes = None, []
     if technique is not None:
-        if o.transfer is not None or o.expect is not None:
-            raise ScoreError("--transfer and --expect apply to --candidate, not to --technique")
+        if o.transfer is not None:
+            raise ScoreError("--transfer applies to --candidate, not to --technique")
         params = dict(params or {})
         kinds = technique_channels(technique)
         gates, notes = applicable_gates(check.pop("gates"), kinds=kinds)
