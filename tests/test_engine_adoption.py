@@ -225,10 +225,10 @@ def _manifest(path, scenes_, exports):
 
 
 def test_manifest_baseline_missing_case_intended_change_grouped(engine_files, tmp_path, capsys):
-    """A baseline of 3 scenes x 2 layers; this run lacks one scene and one layer changed on
-    purpose (colour 1.5x, the shadow 2 px over: 20 metrics move): by default only the gated metric is compared
-    (one regression line); with every metric, one grouped REGRESSION row for that case;
-    the missing scene is named, and fails with --baseline-strict."""
+    """A baseline of 3 scenes x 2 layers; this run lacks one scene and the plate changed on
+    purpose (colour 1.5x, the shadow 2 px over: 20 metrics move): by default only the gated
+    metric is compared; with every metric, one grouped REGRESSION row per case with its
+    count; the missing scene is named, and fails with --baseline-strict."""
     root, refs = engine_files
     images = root / "images"
     first = tmp_path / "first"
