@@ -285,3 +285,15 @@ def test_manifest_baseline_missing_case_intended_change_grouped(engine_files, tm
             case.pop(key, None)
             api["scenes"][name].pop(key, None)
         assert api["scenes"][name] == case, name
+
+
+def test_help_and_docs_say_what_the_commands_do(capsys):
+    """9: --frames names no default path (score refuses without one), the cache variable
+    that works is documented, score's SCENE list names glTF files and exports."""
+    from pathlib import Path
+
+    assert main(["score", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "default dolly" not in text and "--transfer" in text and "--baseline-strict" in text
+    cli = (Path(__file__).parent.parent / "docs" / "cli.md").read_text()
+    assert "RASTER_ORACLE_CACHE_DIR" in cli and "for\na glTF scene, `scene.glb`" in cli
