@@ -458,8 +458,63 @@ def load(
     _check_size(width, height)
     _check_sequence(light_path, camera_path, camera_file, frame, n_frames)
     mi = backend.mitsuba()
-    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
+    src = _open(mi, scene, meshes, width=width, height=height, camera=camera)
+    mi_scene, name, digest, gl = src.mi_scene, src.name, src.digest, src.gltf
+    sensors = mi_scene.sensors()
+    if not sensors:
+        raise SceneError(f"scene {name!r} has no sensor (camera)")
+    cam = _camera_from_sensor(mi, sensors[0], width, height)
+    if width and height:
+        cam = cam.with_resolution(width, height)
+    digest.update(f"res:{cam.width}x{cam.height}".encode())
+    lights = _lights_of(mi, mi_scene, name, gl, light)
+    loaded = LoadedScene(
+        name=name,
+        source=src.source,
+        description=src.description,
+        mi_scene=mi_scene,
+        camera=cam,
+        base_camera=cam,
+        lights=lights,
+        light_index=int(light),
+        shape_names=[s.id() for s in mi_scene.shapes()],
+        content_hash=digest.hexdigest(),
+        specular=src.specular,
+        mesh_data=meshes,
+        object_motion=src.motion,
+        scene_dict=src.scene_dict,
+        pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
+    )
+    loaded = _placed(loaded, camera_file, camera_path, int(frame), int(n_frames))
+    if light_path is not None:
+        try:
+            check_light_path(light_path, loaded.light)
+        except ValueError as exc:
+            raise SceneError(f"scene {name!r}: {exc}") from None
+        loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
+    return loaded
+
+
+@dataclass
+class _Source:
+    """What :func:`_open` read: the Mitsuba scene and the record :func:`load` keeps of it."""
+
+    mi_scene: object
+    name: str
+    digest: object  # hashlib sha256, still open: the film size is added by load()
+    source: str
+    description: str
+    specular: Specular
+    motion: dict
+    scene_dict: dict | None
+    gltf: object = None  # scenes.formats.gltf's scene record for glTF input, else None
+
+
+def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
+    """The Mitsuba scene of a glTF file or built-in glTF scene, a built-in scene or a Mitsuba
+    XML file; the meshes given to Mitsuba are kept in ``meshes``."""
+    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     try:  # a glTF file or built-in glTF scene (scenes.formats.gltf), else None
         gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
     except GltfError as exc:
@@ -507,13 +562,14 @@ def load(
         specular = Specular()
         motion, scene_dict = {}, None
         name = path.stem
-    sensors = mi_scene.sensors()
-    if not sensors:
-        raise SceneError(f"scene {name!r} has no sensor (camera)")
-    cam = _camera_from_sensor(mi, sensors[0], width, height)
-    if width and height:
-        cam = cam.with_resolution(width, height)
-    digest.update(f"res:{cam.width}x{cam.height}".encode())
+    return _Source(
+        mi_scene, name, digest, source, description, specular, motion, scene_dict, gltf=gl
+    )
+
+
+def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
+    """The scene's usable lights (glTF: with the KHR_lights_punctual attenuation);
+    :class:`SceneError` when there is none or ``light`` is out of range."""
     emitters = mi_scene.emitters()
     lights = []
     for i, e in enumerate(emitters):
@@ -532,31 +588,7 @@ def load(
             f"light index {light} out of range: scene {name!r} has {len(lights)} usable "
             f"light(s) (0..{len(lights) - 1})"
         )
-    loaded = LoadedScene(
-        name=name,
-        source=source,
-        description=description,
-        mi_scene=mi_scene,
-        camera=cam,
-        base_camera=cam,
-        lights=lights,
-        light_index=int(light),
-        shape_names=[s.id() for s in mi_scene.shapes()],
-        content_hash=digest.hexdigest(),
-        specular=specular,
-        mesh_data=meshes,
-        object_motion=motion,
-        scene_dict=scene_dict,
-        pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
-    )
-    loaded = _placed(loaded, camera_file, camera_path, int(frame), int(n_frames))
-    if light_path is not None:
-        try:
-            check_light_path(light_path, loaded.light)
-        except ValueError as exc:
-            raise SceneError(f"scene {name!r}: {exc}") from None
-        loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
-    return loaded
+    return lights
 
 
 def _check_sequence(light_path, camera_path, camera_file, frame, n_frames) -> None:

@@ -1,8 +1,8 @@
 """Ground-truth rendering: supersampled visibility, coverage and a box-filtered shaded image.
 
 Sub-pixel samples are stratified: ``spp = m * n`` with ``m >= n`` as close as possible, one
-jittered sample per cell of an ``m x n`` grid over the pixel, jitter from a PCG32 seeded by a
-TEA hash of (pixel, sample, seed), so results do not depend on chunking.
+jittered sample per cell of an ``m x n`` grid over the pixel, jitter from a 6-round 32-bit TEA
+hash of (pixel, sample, seed) (:func:`sample_jitter`), so results do not depend on chunking.
 Every cell is used, so the estimate is unbiased for any ``spp`` (a prime ``spp`` stratifies
 along x only).
 

@@ -53,7 +53,7 @@ def _render_into(
         "adaptive": settings.adaptive,
         "settings": settings.key_record(),
         "filter": "box (uniform over the pixel square)",
-        "sampling": "stratified jittered grid, PCG32 per (pixel, sample)",
+        "sampling": "stratified jittered grid, 6-round TEA hash per (pixel, sample, seed)",
         "variant": info.variant,
         "libllvm": info.libllvm,
         "device": machine["device"],

@@ -12,8 +12,9 @@
 - ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
   (``raster-oracle reference out/scene.xml``) and compared with the original,
-- ``export.json``: what it was exported for: the scene, size, light, camera path, frame and
-  frame count, light path (``scenes.formats.inputs`` reads it back: scoring an export uses them),
+- ``export.json``: what it was exported for: the scene, size and light, and a pointer to the
+  sequence in ``camera.json`` (``scenes.formats.inputs`` reads both back: scoring an export
+  uses them),
 - ``cameras/frame_NNN.json``: with a camera path, every frame's ``camera.json`` (what an
   engine renders the path's frames from).
 
@@ -183,18 +184,15 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
 
 def _write_export_record(tmp: Path, loaded) -> None:
     """``export.json`` (see the module docstring) and, along a camera path, every frame's
-    camera."""
-    moving = loaded.camera_path is not None or loaded.light_path is not None
+    camera. The sequence is recorded once, in ``camera.json``'s ``sequence``; ``export.json``
+    points at it (``scenes.formats.inputs.read_export_record`` reads both)."""
     record = {
-        "schema": "raster-oracle/export/1",
+        "schema": "raster-oracle/export/2",
         "scene": loaded.name,
         "width": loaded.width,
         "height": loaded.height,
         "light": loaded.light_index,
-        "camera_path": loaded.camera_path,
-        "light_path": loaded.light_path,
-        "frame": loaded.frame if moving else 0,
-        "n_frames": loaded.n_frames if moving else None,
+        "sequence": "camera.json#/sequence",
     }
     (tmp / "export.json").write_text(json.dumps(record, indent=2))
     if loaded.camera_path is None:
