@@ -125,7 +125,8 @@ def baseline_options(args):
 
 
 def add_transfer_args(p) -> None:
-    """``--transfer``: how a PNG's colour is decoded."""
+    """``--transfer`` (how a PNG's colour is decoded) and ``--expect`` (the technique the
+    engine claims to implement, scored for conformance)."""
     p.add_argument(
         "--transfer",
         choices=["srgb", "gamma2.2", "linear"],
@@ -133,6 +134,14 @@ def add_transfer_args(p) -> None:
         help="how an 8/16-bit PNG candidate's colour is made linear (default srgb; "
         "gamma2.2: a pure 2.2 power, as pyrender and many GL samples write; linear: as is); "
         "recorded in metrics.json",
+    )
+    p.add_argument(
+        "--expect",
+        default=None,
+        metavar="TECHNIQUE:KEY=V,...",
+        help="what the engine claims to implement (a technique and its --set keys, e.g. "
+        "shadow-map:resolution=2048,filter=pcf,pcf_size=3): its model runs too, and the "
+        "candidate is scored against it (conformance_* metrics, gateable)",
     )
 
 

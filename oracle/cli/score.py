@@ -191,6 +191,7 @@ def cmd_score(args) -> int:
         visibility=args.visibility,
         gate_frames=args.gate_frames,
         transfer=args.transfer,
+        expect=args.expect,
         motion=None
         if args.candidate_motion is None
         else {

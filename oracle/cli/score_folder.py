@@ -87,6 +87,7 @@ def cmd_score_folder(args) -> int:
         "seed": args.seed,
         "flip_mode": args.flip_mode,
         "transfer": args.transfer,
+        "expect": args.expect,
         "channel": args.channel,
         "kind": args.kind,
         "camera_path": args.camera_path,

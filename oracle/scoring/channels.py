@@ -20,6 +20,7 @@ import numpy as np
 
 from ... import metrics as M
 from ...metrics.aliasing import coverage_metrics
+from ...metrics.catalog import RECORD_KEYS
 from ...scenes.shading.phong import receiver_mask
 
 __all__ = [
@@ -39,7 +40,7 @@ __all__ = [
 
 #: Every metric key of ``metrics.json`` (None where it does not apply to the channel), in
 #: the order of the metric catalogue (:mod:`metrics.catalog`: direction, unit, applicability).
-METRIC_KEYS = tuple(M.CATALOG)
+METRIC_KEYS = RECORD_KEYS
 _SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
 #: Reference channel groups each scored channel reads.
 REFERENCE_GROUPS = {

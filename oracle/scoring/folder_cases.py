@@ -67,7 +67,7 @@ def resolve_layout(pattern: str, *, channel, kind, loaded, log=print):
 class FolderOptions(dict):
     """Options of a folder run given by the caller (command line or API), each None where
     the manifest (or the default) decides: ``spp``, ``seed``, ``flip_mode``, ``transfer``,
-    ``channel``, ``kind``, ``camera_path``, ``visibility``, ``exports``;
+    ``expect``, ``channel``, ``kind``, ``camera_path``, ``visibility``, ``exports``;
     ``quiet`` and ``platform``."""
 
     def pick(self, key, manifest_value=None, default=None):
@@ -126,6 +126,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
             camera_path=camera_path,
             visibility=fo.get("visibility") or "1-is-lit",
             transfer=fo.get("transfer"),
+            expect=fo.get("expect"),
         )
         case = FolderCase(entry.name, entry.name, loaded, entry.pattern, channel, layout, options)
         cases.append(replace(case, gates=tuple(gates), error=error))
@@ -163,6 +164,7 @@ def _manifest(root: Path, path, fo: FolderOptions, gates, log) -> list[FolderCas
             camera_path=camera_path,
             visibility=mc.visibility,
             transfer=fo.pick("transfer", mc.transfer),
+            expect=fo.pick("expect", mc.expect),
         )
         case = FolderCase(mc.name, mc.scene_key, loaded, pattern, mc.channel, None, options)
         case = replace(case, gates=tuple(gates) + mc.gates, baseline=mc.baseline)

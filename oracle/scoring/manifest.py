@@ -24,7 +24,8 @@ gates, frames and camera path.
     channels = { shadow = {} }
 
 Also at every level: ``transfer`` (``srgb``, ``gamma2.2``, ``linear``: how a PNG's colour
-is decoded), ``baseline_metrics`` (a list, or ``"all"``) and
+is decoded), ``expect`` (``"shadow-map:resolution=2048,filter=pcf"``: the technique the
+engine claims, scored for conformance), ``baseline_metrics`` (a list, or ``"all"``) and
 ``baseline_tolerance`` (``{ flip_mean = 0.005, ssim = "1%" }``: absolute, or relative to
 the baseline's error).
 
@@ -58,6 +59,7 @@ _COMMON = {
     "seed",
     "flip_mode",
     "transfer",
+    "expect",
     "baseline_metrics",
     "baseline_tolerance",
 }
@@ -70,6 +72,7 @@ _CHANNEL_KEYS = {
     "profiles",
     "visibility",
     "transfer",
+    "expect",
     "baseline_metrics",
     "baseline_tolerance",
 }
@@ -95,6 +98,7 @@ class ManifestCase:
     visibility: str
     gates: tuple[Gate, ...]
     transfer: str | None = None
+    expect: str | None = None
     #: ``{"metrics": keys, "all" or None, "tolerances": metric -> (t, relative)}``
     baseline: dict | None = None
 
@@ -262,6 +266,7 @@ def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCas
                 visibility=_text(visibility, f"{cwhere}.visibility", VISIBILITY_CONVENTIONS),
                 gates=_merge(ctx["gates"], scene_gates, _gates(ctable, cwhere)),
                 transfer=_opt(cmerged, "transfer", _text, f"{cwhere}.transfer", TRANSFERS),
+                expect=_opt(cmerged, "expect", _text, f"{cwhere}.expect"),
                 baseline=_merge_baseline(
                     ctx["baseline"], _baseline(table, where), _baseline(ctable, cwhere)
                 ),

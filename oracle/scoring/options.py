@@ -39,6 +39,9 @@ class ScoreOptions:
         reference's motion (candidates only).
     transfer : how an 8/16-bit PNG candidate's colour is decoded to linear: ``srgb``,
         ``gamma2.2`` or ``linear`` (None: ``srgb``; an EXR is linear and takes none).
+    expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
+        scored too, and the candidate against it (``conformance_*`` metrics;
+        :mod:`oracle.scoring.conformance`).
     """
 
     spp: int = 64
@@ -53,6 +56,7 @@ class ScoreOptions:
     gate_frames: int | None = None
     motion: dict | None = None
     transfer: str | None = None
+    expect: str | None = None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of

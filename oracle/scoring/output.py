@@ -40,6 +40,7 @@ MAP_STYLES = {
     "neg_log10_p": ("magma", (0.0, 10.0)),
     # temporal AA (oracle.scoring.temporal): added change per frame, motion-vector error in px
     "flicker": ("magma", (0.0, 0.1)),
+    "conformance_error": ("signed", (-1.0, 1.0)),
     "motion_epe": ("magma", (0.0, 2.0)),
 }
 

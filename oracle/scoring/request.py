@@ -15,7 +15,8 @@ import numpy as np
 
 from ...scenes.formats.inputs import read_export_record
 from .candidates import load_motion
-from .diagnosis import diagnose_result
+from .conformance import CONFORMANCE_KEYS, add_conformance, parse_expect
+from .diagnosis import diagnose_result, explain_colour
 from .gates import (
     BaselineOptions,
     Gate,
@@ -141,6 +142,12 @@ def _score_files(loaded, candidate, *, channel, layout, o, opts, check):
     transfer = _transfer(candidate, layout, o.transfer)
     gates, notes = applicable_gates(check.pop("gates"), kinds=(layout.kind,))
     _check_before_rendering(kinds=(layout.kind,), gates=gates, **check)
+    if o.expect is not None:
+        parse_expect(o.expect, kind=layout.kind)  # a bad claim fails before rendering
+    else:
+        asked = [g.metric for g in gates if g.metric in CONFORMANCE_KEYS]
+        if asked:
+            raise ScoreError(f"{asked[0]} is scored against --expect TECHNIQUE:...; give one")
     read = file_candidate(
         candidate,
         channel=channel,
@@ -152,6 +159,15 @@ def _score_files(loaded, candidate, *, channel, layout, o, opts, check):
     )
     _check_candidates(read, loaded, o.frames, o.camera_path)
     result = score(loaded, channel=layout.kind, candidate_frames=read, **opts)
+    if o.expect is not None:
+        n = o.frames or 1
+        scenes_k = [
+            loaded.with_frame(k, path=o.camera_path, n_frames=n) if o.frames else loaded
+            for k in range(n)
+        ]
+        add_conformance(
+            result, scenes_k, o.expect, kind=layout.kind, ppd=o.ppd, gate_frames=o.gate_frames
+        )
     result.record["candidate_layout"] = {
         "kind": layout.kind,
         "channels": list(layout.names),
@@ -165,7 +181,7 @@ def _score_files(loaded, candidate, *, channel, layout, o, opts, check):
     return result, gates, notes
 
 
-def _notes(result, candidate) -> list[str]:
+def _notes(result, candidate, names=None) -> list[str]:
     """The diagnoses of an engine's image (flipped, encoded twice, shifted: a model's output
     is what the technique computes, not a file to diagnose) into the record, and the notes
     they and the receivers' count make."""
@@ -177,6 +193,9 @@ def _notes(result, candidate) -> list[str]:
         if found["likely"]:
             result.record["diagnoses"].append(found["likely"])
         result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
+        if result.record["channel"] == "color" and names is not None:
+            found = explain_colour(result, names)
+            result.record["diagnoses"] += [{"transform": None, "message": n} for n in found]
         notes += [d["message"] for d in result.record["diagnoses"]]
     outside = result.record.get("outside_receivers") or {}
     if outside.get("differing"):
@@ -223,7 +242,7 @@ def score_to_folder(
         from the file when unambiguous); for files also an EXR channel or layer name.
     options : :class:`oracle.scoring.options.ScoreOptions` (reference spp and seed, frames
         and camera path, FLIP options, platform, the candidate mask's convention, the PNG
-        transfer).
+        transfer, the technique the engine claims: ``expect``).
     layout : for files, what to read (:func:`oracle.scoring.layout.candidate_layout`; None:
         resolved here from frame 0's file and ``channel``).
     gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``)
@@ -249,8 +268,8 @@ def score_to_folder(
     opts = dict(o.score_kwargs(), cache=cache)
     cost, notes = None, []
     if technique is not None:
-        if o.transfer is not None:
-            raise ScoreError("--transfer applies to --candidate, not to --technique")
+        if o.transfer is not None or o.expect is not None:
+            raise ScoreError("--transfer and --expect apply to --candidate, not to --technique")
         params = dict(params or {})
         kinds = technique_channels(technique)
         gates, notes = applicable_gates(check.pop("gates"), kinds=kinds)
@@ -275,7 +294,7 @@ def score_to_folder(
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = o.platform
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
-    verdict.add(notes=notes + _notes(result, candidate))
+    verdict.add(notes=notes + _notes(result, candidate, list(loaded.shape_names)))
     if baseline is not None:
         bo = baseline_options or BaselineOptions.gated(gates)
         against = compare_baseline(result.record, baseline, source=baseline_source, options=bo)
