@@ -32,8 +32,12 @@ __all__ = [
     "material_rows",
 ]
 
-#: Undoing a cause explains the error when at most this fraction of it is left ...
-EXPLAINED = 0.35
+#: Undoing a cause explains the error when at most this fraction of it is left (an
+#: engine's image keeps its own error once the cause is undone) ...
+EXPLAINED = 0.6
+#: ... or it falls within this many noise floors; of several, those leaving at most this
+#: many times the best one's error are named (best first).
+NEAR_BEST = 1.25
 #: ... or it falls within this many noise floors.
 NEAR_FLOOR = 3.0
 #: A gain within this relative distance of pi or 1/pi is named as such.
@@ -178,6 +182,8 @@ def colour_causes(ref, cand, ids, *, noise_floor: float = 0.0, names=None) -> di
         for k, v in sorted(tried.items(), key=lambda kv: kv[1])
         if large and (v <= EXPLAINED * err or (noise_floor > 0 and v <= NEAR_FLOOR * noise_floor))
     ]
+    if causes:
+        causes = [c for c in causes if c["error"] <= NEAR_BEST * causes[0]["error"]]
     if any(c["cause"] == "global gain" for c in causes):  # one gain explains it: say so once
         causes = [c for c in causes if c["cause"] != "per-material gain"]
     return {

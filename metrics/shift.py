@@ -36,19 +36,26 @@ def apply_shift(image, dx: float, dy: float) -> np.ndarray:
     return ndimage.shift(a, shift, order=1, mode="nearest")
 
 
-def subpixel_shift(reference, candidate, *, mask=None, iterations: int = 8) -> dict:
+def subpixel_shift(
+    reference, candidate, *, mask=None, iterations: int = 12, smooth: float = 1.0
+) -> dict:
     """The translation ``d = (dx, dy)`` with ``candidate(x) ~ reference(x - d)``.
 
     Parameters
     ----------
     reference, candidate : ``(H, W)`` or ``(H, W, C)`` (averaged over channels).
     mask : ``(H, W)`` bool: the pixels that count (None: all).
+    smooth : both images are blurred with a Gaussian of this many pixels first, so hard
+        (aliased, binary) edges have the smooth profile the linearisation needs.
 
     Returns ``{"dx", "dy", "magnitude", "pixels"}`` (``pixels``: the edge pixels the estimate
     rests on; 0 and a zero shift when the reference has no edge).
     """
     r = _grey(reference)
     c = _grey(candidate)
+    if smooth > 0:
+        r = ndimage.gaussian_filter(r, smooth, mode="nearest")
+        c = ndimage.gaussian_filter(c, smooth, mode="nearest")
     keep = np.ones(r.shape, bool) if mask is None else np.asarray(mask, bool)
     d = np.zeros(2)
     n = 0

@@ -26,7 +26,10 @@ from ... import raster_models
 from ...metrics.shift import subpixel_shift
 from .result import ScoreError
 
-__all__ = ["CONFORMANCE_KEYS", "add_conformance", "parse_expect"]
+__all__ = ["CONFORMANCE_KEYS", "MIN_DISPLACEMENT_PX", "add_conformance", "parse_expect"]
+
+#: Edges displaced by less than this many pixels are not named.
+MIN_DISPLACEMENT_PX = 0.25
 
 #: The metric keys conformance adds (the catalogue's ``on_request`` metrics).
 CONFORMANCE_KEYS = (
@@ -74,10 +77,14 @@ def _frame_values(model, cand, ref, *, kind, receivers, ppd, exposure) -> dict:
     return out
 
 
-def add_conformance(result, scenes_k, expect: str, *, kind: str, ppd: float, gate_frames=None):
+def add_conformance(
+    result, scenes_k, expect: str, *, kind: str, ppd: float, gate_frames=None
+) -> list[str]:
     """Run the claimed technique's model on every frame scene of ``scenes_k`` and add the
     conformance metrics to each frame's metrics and (their mean over the judged frames) to
-    the record, with ``conformance`` (technique, params, per-frame shift ``[dx, dy]``)."""
+    the record, with ``conformance`` (technique, params, per-frame shift ``[dx, dy]``).
+    Returns a note naming the displacement when the edges moved by
+    :data:`MIN_DISPLACEMENT_PX` or more."""
     technique, params = parse_expect(expect, kind=kind)
     exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops")
     per_frame = []
@@ -116,3 +123,12 @@ def add_conformance(result, scenes_k, expect: str, *, kind: str, ppd: float, gat
         "params": res.params,
         "shift_px": [v["conformance_shift"] for v in per_frame],
     }
+    dx, dy = np.mean([v["conformance_shift"] for v in judged], axis=0)
+    if np.hypot(dx, dy) < MIN_DISPLACEMENT_PX:
+        return []
+    return [
+        f"conformance: the candidate's edges are displaced by ({dx:+.2f}, {dy:+.2f}) px from "
+        f"{technique}'s model (misclassified "
+        f"{result.record.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
+        "a filter or lookup that reads the map off by a texel, or another projection"
+    ]

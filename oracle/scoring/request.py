@@ -165,7 +165,7 @@ def _score_files(loaded, candidate, *, channel, layout, o, opts, check):
             loaded.with_frame(k, path=o.camera_path, n_frames=n) if o.frames else loaded
             for k in range(n)
         ]
-        add_conformance(
+        notes += add_conformance(
             result, scenes_k, o.expect, kind=layout.kind, ppd=o.ppd, gate_frames=o.gate_frames
         )
     result.record["candidate_layout"] = {

@@ -126,8 +126,8 @@ def metric_limit(
     metric, value = metric.strip(), value.strip()
     if not sep:
         raise error(f"{option} expects METRIC{separator}VALUE, got {text!r}")
-    if metric not in METRIC_KEYS:
-        raise error(f"{option}: unknown metric {metric!r}; choose from {', '.join(METRIC_KEYS)}")
+    if metric not in M.CATALOG:
+        raise error(f"{option}: unknown metric {metric!r}; choose from {', '.join(M.CATALOG)}")
     try:
         limit = float(value)
     except ValueError:
