@@ -250,8 +250,9 @@ def render(
     The faults of a real renderer (pyrender on Mesa, issue 37), each a keyword: ``pcf``
     (an n x n bilinear PCF on a scene-fit D3D shadow map, :func:`light_box_map`, instead of
     the nearest texel with a world-space ``bias``) with ``pcf_offset`` texels (``(1, 1)``:
-    the map read one texel over) and its ``depth_bias`` (D3D depth units); ``diffuse="fresnel"``: the diffuse weighted by ``1 -
-    F(v.h)`` (Schlick, F0 0.04, as metallic-roughness shaders do) instead of Lambert;
+    the map read one texel over) and its ``depth_bias`` (D3D depth units);
+    ``diffuse="fresnel"``: the diffuse weighted by ``1 - F(v.h)`` (Schlick, F0 0.04, as
+    metallic-roughness shaders do) instead of Lambert;
     ``color_scale``: every radiance times it (``math.pi``: a BRDF without its 1/pi)."""
     scene = load_export(folder)
     cam, light = scene["camera"], scene["light"]
