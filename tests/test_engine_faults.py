@@ -69,7 +69,8 @@ def test_pcf_offset_fails_conformance_and_the_corrected_renderer_passes(plate, t
     assert rc == 0
     assert good["conformance_misclassified_fraction"] == 0.0
     assert good["conformance_edge_displacement_px"] < 0.05
-    # the truth metrics show the 3x3 PCF's own soft edge: not a conformance failure
+    # the truth metrics show the 3x3 PCF's own soft edge: not a conformance failure (item 8:
+    # an intended filter is gated on conformance, not on its distance from a hard shadow)
     assert good["edge_band_mae"] > 0.05
     capsys.readouterr()
     rc, bad = _score(
