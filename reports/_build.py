@@ -144,6 +144,8 @@ def build_report(
                 for c in case.get("checks", [])
                 if not c["passed"]
             ],
+            # the verdict table: each failed gate, and a case's regressions as one row
+            "failed_rows": _failed_rows(records),
             "n_checks": sum(len(case.get("checks", [])) for case in records),
             "errors": _errors(errors),
             "diagnoses": [
@@ -156,6 +158,35 @@ def build_report(
         "colorbars": {style: _images.colorbar_uri(style) for style in styles},
         "cases": records,
     }
+
+
+def _failed_rows(records) -> list[dict]:
+    """The verdict table's rows: every failed gate, then per case its regressions grouped in
+    one row (their count and metrics), so one intended change is one row, not one a metric."""
+    rows = []
+    for case in records:
+        failed = [c for c in case.get("checks", []) if not c["passed"]]
+        where = {"case_id": case["id"], "case": case["name"], "scene": case["scene"]}
+        rows += [{**where, **c} for c in failed if c["kind"] != "baseline"]
+        regressions = [c for c in failed if c["kind"] == "baseline"]
+        if regressions:
+            names = ", ".join(c["metric"] for c in regressions[:6])
+            more = f" and {len(regressions) - 6} more" if len(regressions) > 6 else ""
+            rows.append(
+                {
+                    **where,
+                    "name": f"{len(regressions)} regression(s): {names}{more}",
+                    "kind": "baseline",
+                    "metric": None,
+                    "count": len(regressions),
+                    "value": None,
+                    "limit": None,
+                    "previous": None,
+                    "noise_floor": None,
+                    "previous_noise_floor": None,
+                }
+            )
+    return rows
 
 
 def read_cases(path: str | os.PathLike, *, relative_to: str | os.PathLike) -> list[dict]:

@@ -264,6 +264,13 @@ def test_manifest_baseline_missing_case_intended_change_grouped(engine_files, tm
     assert [r.split(":")[0] for r in rows] == ["plate/shadow", "plate/msaa"]
     for row in rows:
         assert f"({len(moved[row.split(':')[0].split('/')[1]])} of " in row
+    # the report's first screen too: one row per case holding its regressions and count
+    summary = json.loads((tmp_path / "every" / "report.json").read_text())["summary"]
+    grouped = [r for r in summary["failed_rows"] if r["kind"] == "baseline"]
+    assert [(r["case"], r["count"]) for r in grouped] == [
+        ("plate/shadow", len(moved["shadow"])),
+        ("plate/msaa", len(moved["msaa"])),
+    ]
     # tolerances (relative, absolute) take those metrics off; strict: the missing cases fail
     tol = ["--baseline-metrics", "all", "--baseline-tolerance", "flip_mean=5000%"]
     tol += ["--baseline-tolerance", "delta_e2000_mean=10"]
