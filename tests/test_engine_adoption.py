@@ -304,3 +304,55 @@ def test_help_and_docs_say_what_the_commands_do(capsys):
     assert "default dolly" not in text and "--transfer" in text and "--baseline-strict" in text
     cli = (Path(__file__).parent.parent / "docs" / "cli.md").read_text()
     assert "RASTER_ORACLE_CACHE_DIR" in cli and "for\na glTF scene, `scene.glb`" in cli
+
+
+# 7: a sub-pixel shift of a mask's edges is named ------------------------------------------
+
+
+def test_subpixel_shift_of_a_shadow_mask_is_named(engine_files, tmp_path, capsys):
+    """A shadow mask moved by 0.6 px (no whole-pixel shift explains it) is named with its
+    shift estimated; the unmoved mask gets no such note."""
+    from raster_oracle.metrics.shift import apply_shift
+
+    root, refs = engine_files
+    vis = refs["plate"]["visibility"].astype(np.float64)
+    write_exr(tmp_path / "moved.exr", {"Y": apply_shift(vis, 0.6, 0.0).astype(np.float32)})
+    argv = ["score", str(root / "exports" / "plate"), "--candidate", str(tmp_path / "moved.exr")]
+    assert main([*argv, "--spp", "16", "--quiet", "--out", str(tmp_path / "o")]) == 0
+    rec = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    (note,) = [d["message"] for d in rec["diagnoses"] if "edges shifted by" in d["message"]]
+    dx = float(note.split("edges shifted by (")[1].split(",")[0])
+    assert abs(dx - 0.6) < 0.15 and "sub-pixel" in note
+    assert "edges shifted by" in capsys.readouterr().out
+
+
+def test_manifest_reads_transfer_expect_and_baseline_keys(tmp_path):
+    from raster_oracle.oracle.scoring.manifest import ManifestError, read_manifest
+
+    path = tmp_path / "ci.toml"
+    path.write_text(
+        '[defaults]\ntransfer = "gamma2.2"\nbaseline_metrics = ["flip_mean", "ssim"]\n'
+        'baseline_tolerance = { flip_mean = "5%", ssim = 0.001 }\n'
+        '[scenes.plate.channels.shadow]\nexpect = "shadow-map:resolution=256"\n'
+        'baseline_metrics = "all"\n'
+    )
+    (case,) = read_manifest(path).cases
+    assert case.transfer == "gamma2.2" and case.expect == "shadow-map:resolution=256"
+    assert case.baseline == {
+        "metrics": "all",
+        "tolerances": {"flip_mean": (0.05, True), "ssim": (0.001, False)},
+    }
+    for bad, key in (
+        ('transfer = "gamma2.4"', "[scenes.plate].channels.shadow.transfer"),
+        ('baseline_tolerance = { flip_mean = "x%" }', "[defaults].baseline_tolerance"),
+        ('baseline_metrics = ["nope"]', "[defaults].baseline_metrics"),
+    ):
+        where = "[scenes.plate.channels.shadow]\n" if "transfer" in bad else ""
+        text = (
+            f"[defaults]\n{bad}\n[scenes.plate.channels.shadow]\n"
+            if not where
+            else (f"[scenes.plate.channels.shadow]\n{bad}\n")
+        )
+        path.write_text(text)
+        with pytest.raises(ManifestError, match=key.replace("[", r"\[").replace("]", r"\]")):
+            read_manifest(path)

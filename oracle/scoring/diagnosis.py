@@ -14,7 +14,12 @@ from __future__ import annotations
 import numpy as np
 
 from ... import metrics as M
-from ...metrics.colour_causes import colour_causes, material_gain_corrected, material_rows
+from ...metrics.colour_causes import (
+    EXPLAINED,
+    colour_causes,
+    material_gain_corrected,
+    material_rows,
+)
 from ...metrics.diagnose import REMOVED_FRACTION
 from ...metrics.shift import apply_shift, subpixel_shift
 from ..reference.exr import read_exr
@@ -70,7 +75,8 @@ def diagnose_result(result: ScoreResult) -> dict:
 
 def _mask_shift(frame, error: float) -> list[str]:
     """A mask's edges moved by a fraction of a pixel (a shadow map read one texel over, a
-    half-pixel offset): the shift estimated, named when undoing it removes most of the error."""
+    half-pixel offset): the shift estimated, named when undoing it leaves at most
+    :data:`metrics.colour_causes.EXPLAINED` of the error."""
     mask = frame.receivers
     shift = subpixel_shift(frame.reference, frame.candidate, mask=mask)
     if shift["magnitude"] < MIN_SHIFT_PX:
@@ -78,7 +84,7 @@ def _mask_shift(frame, error: float) -> list[str]:
     back = apply_shift(frame.candidate, -shift["dx"], -shift["dy"])
     d = np.abs(back - frame.reference)
     left = float(d[mask].mean() if mask is not None else d.mean())
-    if left > 0.5 * error:
+    if left > EXPLAINED * error:
         return []
     return [
         f"likely cause: edges shifted by ({shift['dx']:+.2f}, {shift['dy']:+.2f}) px "
