@@ -314,6 +314,8 @@ def score_image(
     cache=True,
     quiet: bool = True,
     visibility: str = "1-is-lit",
+    transfer: str | None = None,
+    expect: str | None = None,
 ) -> dict:
     """Score an engine's image against the reference of ``scene`` (``raster-oracle score
     --candidate``); returns the ``metrics.json`` record as a dict.
@@ -334,6 +336,10 @@ def score_image(
     cache : True (the default cache folder), False (no cache) or a cache folder.
     visibility : what a shadow mask's 1 means, ``"1-is-lit"`` (the default) or
         ``"1-is-shadowed"`` (``--visibility``).
+    transfer : how a PNG file's colour is made linear: ``"srgb"`` (default), ``"gamma2.2"``
+        or ``"linear"`` (``--transfer``).
+    expect : the technique the engine claims, ``"shadow-map:resolution=2048,filter=pcf"``
+        (``--expect``): adds the ``conformance_*`` metrics.
 
     Gate the record with :func:`check`.
     """
@@ -357,7 +363,13 @@ def score_image(
         frame_list=frame_list,
         load=dict(width=width, height=height),
         opts=dict(
-            spp=spp, seed=seed, frames=frames, camera_path=camera_path, visibility=visibility
+            spp=spp,
+            seed=seed,
+            frames=frames,
+            camera_path=camera_path,
+            visibility=visibility,
+            transfer=transfer,
+            expect=expect,
         ),
         flip_mode=flip_mode,
         ppd=ppd,

@@ -356,3 +356,21 @@ def test_manifest_reads_transfer_expect_and_baseline_keys(tmp_path):
         path.write_text(text)
         with pytest.raises(ManifestError, match=key.replace("[", r"\[").replace("]", r"\]")):
             read_manifest(path)
+
+
+def test_api_score_image_takes_transfer_and_expect(engine_files, tmp_path):
+    from PIL import Image
+
+    root, refs = engine_files
+    rgb = np.clip(_rgb(refs["plate"]), 0, 1) ** (1 / 2.2)
+    png = tmp_path / "c.png"
+    Image.fromarray(np.round(rgb * 255).astype(np.uint8), mode="RGB").save(png)
+    scene = root / "exports" / "plate"
+    rec = raster_oracle.score_image(scene, png, spp=4, transfer="gamma2.2")
+    assert rec["candidate_layout"]["transfer"] == "gamma2.2"
+    mask = refs["plate"]["visibility"]
+    rec = raster_oracle.score_image(scene, mask, spp=4, expect="shadow-map:resolution=256")
+    assert rec["conformance"]["technique"] == "shadow-map"
+    assert rec["conformance_misclassified_fraction"] is not None
+    with pytest.raises(raster_oracle.InputError, match="--expect"):
+        raster_oracle.score_image(scene, mask, spp=4, expect="no-such-technique")
