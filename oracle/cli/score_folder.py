@@ -5,10 +5,14 @@ Without a manifest every scene of ``ROOT`` (:func:`oracle.scoring.folder.discove
 checked first (scene found, candidate layout unambiguous, size right). With one, each
 scene's channels are its cases (:mod:`oracle.scoring.manifest`); a case whose file or layer
 is missing is an error of its own (a JUnit ``<error>`` case) while the others are scored.
-The library's :func:`oracle.scoring.folder.score_folder` scores the cases into
-``OUT/<case>/``, ``OUT/metrics.json`` and ``OUT/report.html``. The gates are judged on every
-case, a ``--baseline`` case by case, and ``--junit`` holds one test case per case x check.
-Exit 1 when a case fails a check, regresses or could not be scored.
+The library builds and scores the cases (:func:`oracle.scoring.folder_cases.run_folder`,
+the same function ``raster_oracle.score_folder`` calls) into ``OUT/<case>/``,
+``OUT/metrics.json`` and ``OUT/report.html``; this command parses the options and prints the
+first screen: per case its gates, its regressions grouped in one row, its notes, then the
+baseline's missing and new cases. The gates are judged on every case, a ``--baseline`` case
+by case, and ``--junit`` holds one test case per case x check. Exit 1 when a case fails a
+check, regresses or could not be scored (or, with ``--baseline-strict``, is missing from the
+baseline or from this run).
 """
 
 from __future__ import annotations
