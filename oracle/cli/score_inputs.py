@@ -6,23 +6,9 @@ Kept apart from the option block of :mod:`oracle.cli.score` so that both stay sh
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from . import args as A
 
-__all__ = ["candidate_inputs", "candidate_size", "resolve_layout"]
-
-
-def candidate_size(path: str | Path) -> tuple[int, int] | None:
-    """``(width, height)`` of a candidate EXR or PNG (None when it cannot be read: the read
-    itself then reports the problem)."""
-    from ..scoring.layout import candidate_format
-
-    path = Path(path)
-    try:
-        return candidate_format(path).size(path)
-    except Exception:  # unreadable: the candidate reader says why, in one line
-        return None
+__all__ = ["candidate_inputs", "resolve_layout"]
 
 
 def resolve_layout(pattern: str, *, channel: str | None, kind: str | None, loaded):
