@@ -1,5 +1,4 @@
-"""What ``score`` reads: the candidate's layout (printed), its size against the scene's, and
-the export folder a candidate was rendered from.
+"""What ``score`` reads: the candidate's layout (printed) and its size against the scene's.
 
 Kept apart from the option block of :mod:`oracle.cli.score` so that both stay short.
 """
@@ -8,21 +7,15 @@ from __future__ import annotations
 
 from . import args as A
 
-__all__ = ["candidate_inputs", "resolve_layout"]
-
-
-def resolve_layout(pattern: str, *, channel: str | None, kind: str | None, loaded):
-    """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
-    ``channel`` / ``kind``, printed as one line, after checking its size against
-    ``loaded``'s (the library's :func:`oracle.scoring.folder_cases.resolve_layout`)."""
-    from ..scoring.folder_cases import resolve_layout as resolve
-
-    return resolve(pattern, channel=channel, kind=kind, loaded=loaded)
+__all__ = ["candidate_inputs"]
 
 
 def candidate_inputs(args, loaded):
-    """:func:`resolve_layout` of ``--candidate`` with ``--channel`` / ``--kind``; None for a
-    technique."""
+    """The layout of ``--candidate`` with ``--channel`` / ``--kind``, resolved once by the
+    library (:func:`oracle.scoring.folder_cases.resolve_layout`: printed, its size checked
+    against the scene's); None for a technique."""
+    from ..scoring.folder_cases import resolve_layout
+
     if args.candidate is None:
         if args.kind is not None:
             raise A.CliError("--kind applies to --candidate files, not to --technique")
