@@ -123,3 +123,9 @@ def test_colour_faults_are_named(plate, tmp_path):
     assert all(0.85 < r["mean_ratio"] < 1.0 for r in rows if r["pixels"] > 50)
     assert fresnel["gain_corrected"]["flip_mean"] < fresnel["flip_mean"]
     assert pi["gain_corrected"]["flip_mean"] < 0.5 * pi["flip_mean"]
+    # the report's first screen: the cause, the worst shapes, the gain-corrected metrics
+    (case, *_) = json.loads((tmp_path / "pi_exr" / "report.json").read_text())["cases"]
+    shown = case["diagnoses"]
+    assert shown[0].startswith("colour: a global gain of x3.1")
+    assert any(s.startswith("shape ") for s in shown)
+    assert any(s.startswith("after the best per-material gain: FLIP") for s in shown)

@@ -93,11 +93,13 @@ def _mask_shift(frame, error: float) -> list[str]:
     ]
 
 
-def explain_colour(result: ScoreResult, names=None) -> list[str]:
+def explain_colour(result: ScoreResult, names=None) -> tuple[list[str], list[str]]:
     """Per-shape rows, the gaps that explain the colour error and the metrics after the best
     per-material gain, into the record (``materials``, ``colour_causes``,
-    ``gain_corrected``) for frame 0; returns the messages (the causes, then the worst rows
-    when the error is large)."""
+    ``gain_corrected``) for frame 0. Returns ``(causes, details)``: a message per gap that
+    explains the error (diagnoses), and the worst rows and the gain-corrected metrics when
+    the error is large or explained (``colour_causes["details"]``: printed and shown on the
+    report's first screen)."""
     frame = result.frames[0]
     ch = read_exr(result.reference_folders[0] / "reference.exr")
     ids = np.asarray(ch["id"]).astype(np.int64)
@@ -114,11 +116,12 @@ def explain_colour(result: ScoreResult, names=None) -> list[str]:
         "delta_e2000_mean": float(M.delta_e2000(ref, fixed, exposure=exposure)),
         "gains": {str(k): v for k, v in found["material_gains"].items()},
     }
-    messages = [f"colour: {c['message']}" for c in found["causes"]]
+    causes = [f"colour: {c['message']}" for c in found["causes"]]
+    details = []
     large = (result.record.get("diagnosis") or {}).get("error", 0.0) > 5.0 * max(floor, 1e-6)
-    if large or messages:
+    if large or causes:
         for row in rows[:SHOWN_ROWS]:
-            messages.append(
+            details.append(
                 f"shape {row['name'] or row['id']}: {row['pixels']} px, candidate/reference "
                 f"{row['mean_ratio']:.4g}, FLIP {row['flip_mean']:.4g}"
                 if row["mean_ratio"] is not None and row["flip_mean"] is not None
@@ -126,8 +129,9 @@ def explain_colour(result: ScoreResult, names=None) -> list[str]:
             )
     if found["causes"] and found["causes"][0]["error"] <= REMOVED_FRACTION * found["error"]:
         g = result.record["gain_corrected"]
-        messages.append(
+        details.append(
             f"after the best per-material gain: FLIP {g['flip_mean']:.4g} (raw "
             f"{result.record.get('flip_mean') or 0:.4g}), dE2000 {g['delta_e2000_mean']:.4g}"
         )
-    return messages
+    found["details"] = details
+    return causes, details

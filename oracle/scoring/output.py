@@ -151,7 +151,9 @@ def _case(
         },
         viewer=_viewer(result, maps),
         checks=[c.as_record() for c in checks],
-        diagnoses=[d["message"] for d in result.record.get("diagnoses") or []],
+        # the likely causes, then an engine colour's worst shapes and gain-corrected metrics
+        diagnoses=[d["message"] for d in result.record.get("diagnoses") or []]
+        + list((result.record.get("colour_causes") or {}).get("details") or []),
     )
 
 

@@ -193,10 +193,11 @@ def _notes(result, candidate, names=None) -> list[str]:
         if found["likely"]:
             result.record["diagnoses"].append(found["likely"])
         result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
+        details = []
         if result.record["channel"] == "color" and names is not None:
-            found = explain_colour(result, names)
-            result.record["diagnoses"] += [{"transform": None, "message": n} for n in found]
-        notes += [d["message"] for d in result.record["diagnoses"]]
+            causes, details = explain_colour(result, names)
+            result.record["diagnoses"] += [{"transform": None, "message": n} for n in causes]
+        notes += [d["message"] for d in result.record["diagnoses"]] + details
     outside = result.record.get("outside_receivers") or {}
     if outside.get("differing"):
         notes.append(
