@@ -162,14 +162,16 @@ def build_report(
 
 def _failed_rows(records) -> list[dict]:
     """The verdict table's rows: every failed gate, then per case its regressions grouped in
-    one row (their count and metrics), so one intended change is one row, not one a metric."""
+    one row (their count and metrics; a single one as it is), so one intended change is one
+    row, not one a metric."""
     rows = []
     for case in records:
         failed = [c for c in case.get("checks", []) if not c["passed"]]
         where = {"case_id": case["id"], "case": case["name"], "scene": case["scene"]}
-        rows += [{**where, **c} for c in failed if c["kind"] != "baseline"]
         regressions = [c for c in failed if c["kind"] == "baseline"]
-        if regressions:
+        alone = len(regressions) < 2  # one regression keeps its own row (values, floors)
+        rows += [{**where, **c} for c in failed if c["kind"] != "baseline" or alone]
+        if not alone:
             names = ", ".join(c["metric"] for c in regressions[:6])
             more = f" and {len(regressions) - 6} more" if len(regressions) > 6 else ""
             rows.append(
