@@ -129,3 +129,27 @@ def test_colour_faults_are_named(plate, tmp_path):
     assert shown[0].startswith("colour: a global gain of x3.1")
     assert any(s.startswith("shape ") for s in shown)
     assert any(s.startswith("after the best per-material gain: FLIP") for s in shown)
+
+
+def test_manifest_expect_gates_conformance_per_layer(plate, tmp_path, capsys):
+    """``expect`` in a manifest: the shadow layer of the offset renderer fails conformance,
+    the corrected one passes; the report shows the conformance metrics."""
+    images = tmp_path / "images"
+    images.mkdir()
+    for name in ("pcf", "pcf_offset"):
+        (images / f"{name}.exr").write_bytes((plate / f"{name}.exr").read_bytes())
+    manifest = tmp_path / "ci.toml"
+    text = f'[defaults]\nspp = 4\nexpect = "{EXPECT}"\n'
+    text += "fail_above = { conformance_misclassified_fraction = 0.005 }\n"
+    for name in ("pcf", "pcf_offset"):
+        text += f'[scenes.{name}]\nscene = "{plate / "e"}"\nfile = "{name}.exr"\n'
+        text += "channels = { shadow = {} }\n"
+    manifest.write_text(text)
+    out = tmp_path / "o"
+    argv = ["score-folder", str(images), "--manifest", str(manifest), "--quiet"]
+    assert main([*argv, "--out", str(out)]) == 1
+    rec = json.loads((out / "metrics.json").read_text())
+    assert list(rec["failed"]) == ["pcf_offset/shadow"]
+    assert rec["scenes"]["pcf/shadow"]["conformance_misclassified_fraction"] == 0.0
+    (case, *_) = json.loads((out / "pcf" / "shadow" / "report.json").read_text())["cases"]
+    assert "conformance_edge_displacement_px" in case["metrics"]

@@ -17,7 +17,6 @@ from ... import raster_models, reports
 from ...scenes.base.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ...scenes.base.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
-from .channels import METRIC_KEYS
 from .gates import Gate, Verdict
 from .result import ScoreResult
 
@@ -126,7 +125,8 @@ def _case(
             and (key == "visibility_error" or "visibility_error" not in frame.maps),
         }
     record = result.record
-    values = {k: record[k] for k in METRIC_KEYS if record.get(k) is not None}
+    # every catalogue metric the record holds (the on-request conformance ones too)
+    values = {k: record[k] for k in M.CATALOG if record.get(k) is not None}
     return reports.make_case(
         name=name,
         scene=scene,
@@ -174,7 +174,7 @@ def _frame_cases(result: ScoreResult, *, name: str, scene: str, technique, param
             }
             for key, data in frame.maps.items()
         }
-        values = {k2: v for k2, v in frame.metrics.items() if k2 in METRIC_KEYS and v is not None}
+        values = {k2: v for k2, v in frame.metrics.items() if k2 in M.CATALOG and v is not None}
         case = reports.make_case(
             name=f"{name} frame {k}",
             scene=scene,
