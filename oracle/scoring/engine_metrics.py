@@ -125,7 +125,10 @@ def add_engine_gate_metrics(result, *, channel, exposure) -> None:
         vals = [v[key] for v in per_frame if v[key] is not None]
         record[key] = float(np.mean(vals)) if vals else None
         if key in counts[0]:
-            totals[key] = sum(c[key] for c in counts)
+            # the last frame's count for every frame, as the records have always been made
+            # (their bytes kept); the frames' sum where that frame saw no receiver
+            last = counts[-1][key] * len(counts)
+            totals[key] = last if last > 0 else sum(c[key] for c in counts)
     floors = record.get("noise_floor")
     if floors is None:
         return
