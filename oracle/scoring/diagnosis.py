@@ -86,9 +86,10 @@ def _mask_shift(frame, error: float) -> list[str]:
     left = float(d[mask].mean() if mask is not None else d.mean())
     if left > EXPLAINED * error:
         return []
+    size = "sub-pixel" if shift["magnitude"] < 1.0 else "more than a pixel"
     return [
         f"likely cause: edges shifted by ({shift['dx']:+.2f}, {shift['dy']:+.2f}) px "
-        f"({shift['magnitude']:.2f} px, sub-pixel): undone, the mean |error| drops from "
+        f"({shift['magnitude']:.2f} px, {size}): undone, the mean |error| drops from "
         f"{error:.4g} to {left:.4g} (a shadow map read one texel over, a half-pixel offset)"
     ]
 

@@ -190,13 +190,17 @@ def _notes(result, candidate, names=None) -> list[str]:
     if candidate is not None:
         found = diagnose_result(result)
         result.record["diagnosis"] = {k: found[k] for k in ("error", "noise_floor", "tried")}
+        causes, details = [], []
+        if result.record["channel"] == "color" and names is not None:
+            causes, details = explain_colour(result, names)
+            best = result.record["colour_causes"]["causes"]
+            # a gain read as a transfer curve: the cause that leaves less error is the one named
+            if found["likely"] and best and best[0]["error"] < found["likely"]["error"]:
+                found["likely"] = None
         if found["likely"]:
             result.record["diagnoses"].append(found["likely"])
         result.record["diagnoses"] += [{"transform": None, "message": n} for n in found["notes"]]
-        details = []
-        if result.record["channel"] == "color" and names is not None:
-            causes, details = explain_colour(result, names)
-            result.record["diagnoses"] += [{"transform": None, "message": n} for n in causes]
+        result.record["diagnoses"] += [{"transform": None, "message": n} for n in causes]
         notes += [d["message"] for d in result.record["diagnoses"]] + details
     outside = result.record.get("outside_receivers") or {}
     if outside.get("differing"):
