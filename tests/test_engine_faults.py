@@ -109,7 +109,8 @@ def test_colour_faults_are_named(plate, tmp_path):
     # colour x pi: one global gain, named as pi
     assert _causes(pi)[0] == "global gain"
     assert "colour x pi" in pi["colour_causes"]["causes"][0]["message"]
-    assert any("colour x pi" in d["message"] for d in pi["diagnoses"])
+    assert "colour x pi" in pi["diagnoses"][0]["message"]
+    assert not any("sRGB-encoded" in d["message"] for d in pi["diagnoses"] + fresnel["diagnoses"])
     # a Fresnel-weighted diffuse: a gain of a few per cent down, per material at least
     assert {"global gain", "per-material gain"} & set(_causes(fresnel))
     assert 0.9 < fresnel["colour_causes"]["gain"] < 0.99
