@@ -246,14 +246,21 @@ def test_manifest_baseline_missing_case_intended_change_grouped(engine_files, tm
     m_two = _manifest(tmp_path / "two.toml", ("plate", "spot"), root / "exports")
     run = ["score-folder", str(changed), "--quiet", "--manifest", str(m_two)]
     run += ["--baseline", str(first)]
-    # the default: the gated metric (ssim) alone; the missing scene is named, exit 0
+    # the unchanged images without the third scene: it is named, and fails only when strict
+    same = ["score-folder", str(images), "--quiet", "--manifest", str(m_two)]
+    same += ["--baseline", str(first)]
+    assert main([*same, "--out", str(tmp_path / "same")]) == 0
+    assert "missing from this run: stripes/shadow, stripes/msaa" in capsys.readouterr().out
+    assert main([*same, "--baseline-strict", "--out", str(tmp_path / "same-strict")]) == 1
+    capsys.readouterr()
+    # the intended change, on the gated metric (ssim) alone: one check per case, exit 1
     rc = main([*run, "--out", str(tmp_path / "gated")])
     out = capsys.readouterr().out
     rec = json.loads((tmp_path / "gated" / "metrics.json").read_text())
     assert rec["baseline"]["missing"] == ["stripes/shadow", "stripes/msaa"]
     assert "missing from this run: stripes/shadow, stripes/msaa" in out
     n_gated = sum(c["kind"] == "baseline" for c in rec["scenes"]["plate/msaa"]["gates"])
-    assert n_gated == 1
+    assert rc == 1 and n_gated == 1
     # every metric: one grouped row for the changed case, its count
     rc = main([*run, "--baseline-metrics", "all", "--out", str(tmp_path / "every")])
     out = capsys.readouterr().out
