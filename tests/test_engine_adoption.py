@@ -154,7 +154,7 @@ def test_bad_manifest_gate_names_its_key(engine_files, tmp_path, capsys):
     argv = ["score-folder", str(root / "images"), "--manifest", str(manifest)]
     assert main([*argv, "--quiet", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert "[scenes.plate].channels.msaa.fail_above misclassified_fraction" in err
+    assert "case plate/msaa: [scenes.plate].channels.msaa.fail_above misclassified_fraction" in err
 
 
 def test_report_counts_cases_not_frames_and_shows_ssim_floor_digits():

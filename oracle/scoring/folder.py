@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...scenes.base.files import atomic_write_json
+from ..errors import InputError
 from .gates import FOLDER_SCHEMA
 from .options import ScoreOptions
 from .result import ScoreError
@@ -195,20 +196,23 @@ def score_folder(
             continue
         baseline = (baselines or {}).get(case.name)
         folder = out / case.name
-        verdict = score_to_folder(
-            case.loaded,
-            out=folder,
-            candidate=case.pattern,
-            channel=case.channel,
-            options=case.options,
-            cache=cache,
-            gates=list(case.gates),
-            baseline=baseline,
-            baseline_source=f"{baseline_source} scene {case.name}",
-            layout=case.layout,
-            name=case.name,
-            baseline_options=case_baseline_options(case, baseline_options),
-        )
+        try:
+            verdict = score_to_folder(
+                case.loaded,
+                out=folder,
+                candidate=case.pattern,
+                channel=case.channel,
+                options=case.options,
+                cache=cache,
+                gates=list(case.gates),
+                baseline=baseline,
+                baseline_source=f"{baseline_source} scene {case.name}",
+                layout=case.layout,
+                name=case.name,
+                baseline_options=case_baseline_options(case, baseline_options),
+            )
+        except InputError as exc:  # a gate, option or file that does not fit this case: named
+            raise type(exc)(f"case {case.name}: {exc}") from None
         verdict.scene = case.name
         if baselines is not None and baseline is None:
             from .gates import Check
