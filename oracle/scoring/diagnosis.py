@@ -29,6 +29,8 @@ __all__ = ["diagnose_result", "explain_colour"]
 
 #: Sub-pixel shifts of a mask's edges below this many pixels are not named.
 MIN_SHIFT_PX = 0.2
+#: Material gains within this of 1 are no gain (:mod:`metrics.colour_causes`).
+NO_GAIN = 0.01
 #: Rows of the per-shape table named on the report's first screen.
 SHOWN_ROWS = 3
 
@@ -109,12 +111,18 @@ def explain_colour(result: ScoreResult, names=None) -> tuple[list[str], list[str
     floor = (result.record.get("diagnosis") or {}).get("noise_floor") or 0.0
     found = colour_causes(ref, cand, ids, noise_floor=floor, names=names)
     exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
-    fixed = material_gain_corrected(ref, cand, ids).astype(np.float32)
     result.record["materials"] = rows
     result.record["colour_causes"] = found
+    gains = [g for g in found["material_gains"].values() if g is not None]
+    if any(abs(g - 1.0) > NO_GAIN for g in gains):
+        fixed = material_gain_corrected(ref, cand, ids).astype(np.float32)
+        flip = float(M.flip(ref, fixed, mode="LDR", exposure=exposure))
+        de = float(M.delta_e2000(ref, fixed, exposure=exposure))
+    else:  # no material off by a gain: the raw values (FLIP is a case's costliest metric)
+        flip, de = result.record.get("flip_mean"), result.record.get("delta_e2000_mean")
     result.record["gain_corrected"] = {
-        "flip_mean": float(M.flip(ref, fixed, mode="LDR", exposure=exposure)),
-        "delta_e2000_mean": float(M.delta_e2000(ref, fixed, exposure=exposure)),
+        "flip_mean": flip,
+        "delta_e2000_mean": de,
         "gains": {str(k): v for k, v in found["material_gains"].items()},
     }
     causes = [f"colour: {c['message']}" for c in found["causes"]]
