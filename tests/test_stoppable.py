@@ -124,7 +124,7 @@ def test_sigterm_during_a_model(tmp_path):
 def test_sigterm_during_the_metrics(tmp_path):
     argv = _score_argv(tmp_path, "meadow:n=20000", "--technique", "fxaa", "--exact-budget", "0")
     rc, seconds, err = _stop_in_phase(
-        tmp_path, "raster_oracle.oracle.scoring.score:_metrics_for", argv
+        tmp_path, "raster_oracle.oracle.scoring.score:metrics_for", argv
     )
     assert rc == 143, err[-2000:]
     assert seconds <= STOP_S, seconds
