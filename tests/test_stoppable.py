@@ -34,6 +34,8 @@ setattr(mod, name, wrapped)
 from raster_oracle.oracle.cli import main
 sys.exit(main(argv))
 """
+#: Process ids of the children started here.
+_CHILDREN: set[int] = set()
 #: Seconds the phase runs before the signal, and the most the exit may take after it.
 SETTLE_S = 0.5
 STOP_S = 2.0
@@ -52,6 +54,7 @@ def _stop_in_phase(tmp_path: Path, target: str, argv: list[str]) -> tuple[int, f
         env=env,
         start_new_session=True,
     )
+    _CHILDREN.add(proc.pid)
     try:
         t0 = time.monotonic()
         while not marker.exists():
@@ -93,11 +96,32 @@ def _score_argv(tmp_path, scene: str, *extra) -> list[str]:
 
 
 def _cache_intact(cache: Path) -> None:
-    """No scratch or half-written entry left in the reference cache."""
-    if not cache.exists():
-        return
-    left = [p for p in cache.rglob("*") if ".tmp" in p.name or "scratch" in p.name]
-    assert not left, left
+    """No temporary (half-written) entry left in the reference cache (``.KEY.PID@host.*``
+    folders, oracle.reference.cache.temp_prefix), every entry whole (its checksums written
+    last), and no scratch folder of a stopped command in the temporary folder."""
+    if cache.exists():
+        assert not list(cache.glob("*/.*")), list(cache.glob("*/.*"))
+        for entry in cache.glob("*/*"):
+            if entry.is_dir():
+                assert (entry / "checksums.json").is_file(), entry
+    assert not _left_scratch(), _left_scratch()
+
+
+def _left_scratch() -> list:
+    import tempfile
+
+    from raster_oracle.oracle.reference.cache import SCRATCH_PREFIX
+
+    return [p for p in Path(tempfile.gettempdir()).glob(f"{SCRATCH_PREFIX}*") if _dead_child(p)]
+
+
+def _dead_child(path: Path) -> bool:
+    """A scratch folder of one of this test's children (which are all gone by now)."""
+    try:
+        pid = int(path.name.split("-")[3])
+    except (IndexError, ValueError):
+        return False
+    return pid in _CHILDREN
 
 
 def test_sigterm_during_exact_coverage(tmp_path):
@@ -111,9 +135,9 @@ def test_sigterm_during_exact_coverage(tmp_path):
 
 
 def test_sigterm_during_a_model(tmp_path):
-    # 100,000 blades: msaa's own Mitsuba scenes are one Embree build each (one C call of
-    # about 1 s under load at this size, 1.7-3 s at 300,000: the floor of the stop latency)
-    argv = _score_argv(tmp_path, "meadow:n=100000", "--technique", "msaa", "--exact-budget", "0")
+    # 50,000 blades: msaa's own Mitsuba scenes are one Embree build each (one C call of
+    # under 1 s under load at this size, 1.7-3 s at 300,000: the floor of the stop latency)
+    argv = _score_argv(tmp_path, "meadow:n=50000", "--technique", "msaa", "--exact-budget", "0")
     rc, seconds, err = _stop_in_phase(tmp_path, "raster_oracle.raster_models:run", argv)
     assert rc == 143, err[-2000:]
     assert seconds <= STOP_S, seconds
