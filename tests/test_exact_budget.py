@@ -62,7 +62,7 @@ def test_reference_skips_exact_coverage_over_budget_with_one_line(tmp_path, caps
     assert main(["reference", "meadow:n=300", "--out", str(out2), *SMALL]) == 0
     record = json.loads((out2 / "reference.json").read_text())["coverage_exact"]
     assert record["decision"] == "computed" and record["budget_seconds"] == EXACT_BUDGET_S
-    assert record["method"] == "layered" and record["valid_fraction"] == 1.0
+    assert record["method"] == "polygons" and record["valid_fraction"] == 1.0  # small: as before
 
 
 def test_score_over_budget_uses_the_monte_carlo_truth(tmp_path):

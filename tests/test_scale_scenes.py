@@ -112,6 +112,7 @@ def test_layered_boundaries_match_the_polygon_path(name, monkeypatch):
     from raster_oracle.oracle.reference.coverage import centre_shapes
     from raster_oracle.scenes.geometry import exact_coverage as ec
 
+    monkeypatch.setattr(ec, "LAYERED_ABOVE_S", 0.0)  # the layered path even when small
     loaded = scenes.load(name, width=64, height=36)
     centre = centre_shapes(loaded)
     tset = ec.scene_triangle_set(loaded)
@@ -126,10 +127,13 @@ def test_layered_boundaries_match_the_polygon_path(name, monkeypatch):
     assert 0.0 < fast.coverage.mean() <= 1.0
 
 
-def test_interpenetrating_shapes_take_the_polygon_path():
+def test_interpenetrating_shapes_take_the_polygon_path(monkeypatch):
     """Two quads of two shapes crossing each other have no depth order: the polygon path
     splits them along their intersection."""
     from raster_oracle.scenes.camera import Camera
+    from raster_oracle.scenes.geometry import exact_coverage as ec
+
+    monkeypatch.setattr(ec, "LAYERED_ABOVE_S", 0.0)
     from raster_oracle.scenes.geometry.exact_coverage import TriangleSet, exact_coverage_of
 
     m = np.eye(4)

@@ -116,12 +116,15 @@ def _run(args) -> int:
         from ..reference.render import set_exact_budget
 
         set_exact_budget(getattr(args, "exact_budget", None))  # None: the documented default
-        if args.command != "doctor":
-            from ..certify import certified_select
+        try:
+            if args.command != "doctor":
+                from ..certify import certified_select
 
-            # a backend is used only after its self-check passed on this machine
-            certified_select(args.backend, trust=args.trust_backend)
-        return COMMANDS[args.command](args)
+                # a backend is used only after its self-check passed on this machine
+                certified_select(args.backend, trust=args.trust_backend)
+            return COMMANDS[args.command](args)
+        finally:
+            set_exact_budget(None)  # the command's budget ends with it (main() in a library)
 
 
 def main(argv: list[str] | None = None) -> int:

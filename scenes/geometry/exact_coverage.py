@@ -101,6 +101,9 @@ SHAPE_TREES = 64
 COST_PER_TRIANGLE = 3e-5
 COST_PER_PAIR_LAYERED = 1.5e-6
 COST_PER_PAIR_POLYGONS = 6e-6
+#: The layered path is tried when the polygon path's estimate exceeds this many seconds
+#: (below it the polygon path runs: small scenes keep their channels bit for bit).
+LAYERED_ABOVE_S = 5.0
 #: Cells across the film of the grid :func:`estimate_cost` counts candidate pairs on (a
 #: fixed number, so that the estimate does not grow with the resolution); polygons covering
 #: more than ``BIG_CELLS`` cells are counted against every other polygon.
@@ -669,7 +672,8 @@ def exact_coverage_of(
     ``budget``: seconds of estimated work (:func:`estimate_cost`) allowed; over it,
     :class:`OverBudget` is raised before the work (before each path's own work).
 
-    Where the shapes have one depth order wherever they overlap (no interpenetration or tie
+    Where the polygon path would cost more than :data:`LAYERED_ABOVE_S` by the estimate and
+    the shapes have one depth order wherever they overlap (no interpenetration or tie
     between shapes, no curved shape) the visible boundaries come from
     :mod:`scenes.geometry.coverage_edges` (``stats["method"] == "layered"``: work in
     proportion to the overlapping pairs, no polygon booleans); otherwise each triangle's
@@ -694,12 +698,15 @@ def exact_coverage_of(
         return _empty_view(cam, centre, est, t0)
     polys, tri_idx = _project(cam, tset.tris)
     polys, tri_idx = _tile(polys, tri_idx, w, h)
-    fast = _layered(cam, polys, tri_idx, tset, centre, off, check)
+    poly_s = COST_PER_TRIANGLE * est["triangles"] + COST_PER_PAIR_POLYGONS * est["pairs"]
+    # the layered path where it pays; below, the polygon path (the bytes of before)
+    fast = None
+    if poly_s > LAYERED_ABOVE_S:
+        fast = _layered(cam, polys, tri_idx, tset, centre, off, check)
     if fast is not None:
         fast.stats.update(estimate=est, seconds=time.perf_counter() - t0)
         return fast
-    est = dict(est, path="polygons")
-    est["seconds"] = COST_PER_TRIANGLE * est["triangles"] + COST_PER_PAIR_POLYGONS * est["pairs"]
+    est = dict(est, path="polygons", seconds=poly_s)
     if budget is not None and est["seconds"] > budget:
         raise OverBudget(est, budget)
     back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
