@@ -23,9 +23,9 @@ import math
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
-from raster_oracle.scenes import meshes
-from raster_oracle.scenes.builtin import BuiltinScene
-from raster_oracle.scenes.factories import diffuse, ground, mesh, sensor
+from raster_oracle.scenes.catalogue import meshes
+from raster_oracle.scenes.catalogue.builtin import BuiltinScene
+from raster_oracle.scenes.catalogue.factories import diffuse, ground, mesh, sensor
 
 from raster_oracle import scenes
 

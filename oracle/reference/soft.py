@@ -37,8 +37,8 @@ from __future__ import annotations
 import math
 
 from ...scenes import backend
-from ...scenes.raycast import occluded_segment_dr
-from ...scenes.shading import shade
+from ...scenes.backend.raycast import occluded_segment_dr
+from ...scenes.shading.phong import shade
 
 __all__ = ["LIGHT_GRID", "LIGHT_SAMPLES", "light_samples", "soft_samples"]
 
@@ -122,7 +122,7 @@ def _reduce(dr, values):
 
 
 def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> dict:
-    """Per camera sample of ``res`` (:func:`scenes.raycast.trace_film_dr` with ``keep_si``,
+    """Per camera sample of ``res`` (:func:`scenes.backend.raycast.trace_film_dr` with ``keep_si``,
     and ``albedo`` with ``color``) under ``loaded``'s area light: ``soft`` and ``fraction``
     (Dr.Jit Float), ``light_rays`` (the shadow rays cast, Float) and, with ``color``, the
     area-lit ``color`` (Color3f). ``pix``, ``sample``: the camera samples' pixel and sample
