@@ -115,6 +115,16 @@ def _sphere_samples(mi, dr, light, p, u, v):
     return wl, dist, dr.select(outside, 1.0, 0.0), measure
 
 
+def _light_shape(loaded):
+    """The Mitsuba shape of ``loaded``'s area light (named by its id, :mod:`scenes.loader`),
+    or None."""
+    light = loaded.light
+    for sh in loaded.mi_scene.shapes():
+        if sh.is_emitter() and sh.id() == light.name:
+            return sh
+    return None
+
+
 def _reduce(dr, values):
     """Sum of each camera sample's ``LIGHT_SAMPLES`` consecutive values (symbolic: the
     widened arrays are never stored)."""
@@ -148,7 +158,9 @@ def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> di
     wl, dist, w, measure = sampler(mi, dr, light, p, u, v)
     cos_r = dr.dot(n, wl)
     reach = receiver & (cos_r > 0.0) & (w > 0.0)
-    blocked = occluded_segment_dr(loaded.mi_scene, p, ng, shape, wl, dist, reach)
+    blocked = occluded_segment_dr(
+        loaded.mi_scene, p, ng, shape, wl, dist, reach, light_shape=_light_shape(loaded)
+    )
     lit = reach & ~blocked
     weight = dr.select(reach, cos_r * w, 0.0)
     num = _reduce(dr, dr.select(lit, weight, 0.0))

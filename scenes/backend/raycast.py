@@ -170,15 +170,17 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     return blocked
 
 
-def occluded_segment_dr(scene, p, ng, shape, wl, dist, active):
+def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None):
     """True where the segment from surface points ``p`` (geometric normal ``ng``, hit shape
     ``shape``) along unit directions ``wl`` to the points ``p + wl * dist`` (on an area
     light) is blocked (Dr.Jit).
 
     The rays of :func:`occluded_from_dr` towards arbitrary end points: the same origin offset
     and the same skipping of spurious hits on the ray's own analytic shape; each ray ends just
-    short of its end point (measured from its offset origin), so the light's own surface
-    never blocks it.
+    short of its end point (measured from its offset origin). With ``light_shape`` (the
+    light's own Mitsuba shape) every ray finds its closest hit, and a hit on the light ends it
+    unblocked: near a sphere light's silhouette the end point's rounding error exceeds any
+    margin (the ray grazes the sphere), so a margin alone would let the light shadow itself.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -195,14 +197,20 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active):
         return mi.Ray3f(origin, to / length, length * (1.0 - 1e-5), 0.0, mi.Color0f())
 
     ray = ray_from(p)
-    if not _has_analytic_shapes(scene):
+    if light_shape is None and not _has_analytic_shapes(scene):
         return scene.ray_test(ray, active)
     pending = active & ~mesh & (dr.dot(ng, wl) > 0.0)
+    if light_shape is not None:
+        pending = active
+        light_ptr = mi.ShapePtr(light_shape)
     blocked = scene.ray_test(ray, active & ~pending)
     for _ in range(SELF_HIT_ROUNDS):
         si = scene.ray_intersect(ray, mi.RayFlags.Minimal, False, pending)
         hit = pending & si.is_valid()
-        own = hit & (si.shape == shape)
+        if light_shape is not None:
+            hit &= si.shape != light_ptr
+        # a spurious hit on the ray's own analytic shape, leaving it outwards
+        own = hit & (si.shape == shape) & ~mesh & (dr.dot(ng, wl) > 0.0)
         blocked |= hit & ~own
         pending = own
         ray = ray_from(dr.select(own, si.p, p))
