@@ -301,3 +301,32 @@ def test_adaptive_sampling_refines_the_penumbrae():
     assert ad["achieved_max_stderr_near_features"] < 1.5 * settings.target_stderr
     se = ch["soft_visibility_stderr"][penumbra]
     assert np.median(se) <= settings.target_stderr
+
+
+def test_the_area_light_reference_traces_one_scene_per_kernel():
+    from raster_oracle.scenes import backend
+    from raster_oracle.scenes.backend import kernels
+
+    if not backend.active().variant.startswith("llvm"):
+        pytest.skip("the audit reads the LLVM backend's IR")
+    loaded = scenes.load("soft-contact", width=32, height=18)
+    with kernels.audit() as seen:
+        render_reference(loaded, ReferenceSettings(spp=2, channels=("soft", "color")), quiet=True)
+    assert seen.scenes and seen.worst == 1
+
+
+def test_converge_measures_the_soft_channels_under_an_area_light():
+    from raster_oracle.oracle.studies.converge import run_converge
+    from raster_oracle.reports.sections import converge_section
+
+    data = run_converge("soft-contact", width=40, height=24, max_spp=16, truth_spp=64)
+    assert data["channels"] == ["visibility", "coverage", "soft_visibility", "light_fraction"]
+    rms = [r["soft_visibility"]["rms"] for r in data["ladder"]]
+    assert rms[-1] < 0.5 * rms[0]
+    for r in data["ladder"]:
+        # the reported standard error bounds the true error
+        assert r["light_fraction"]["rms"] <= r["light_fraction"]["stderr_rms"]
+    assert data["fit"]["soft_visibility"]["true_rms"]["slope"] < -0.4
+    assert "soft_visibility" in converge_section(data)["rows"][0]
+    plate = run_converge("plate", width=16, height=9, max_spp=4, truth_spp=16, adaptive=False)
+    assert "soft_visibility" not in plate["ladder"][0]
