@@ -497,7 +497,8 @@ def load(
         wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
-    light : index of the light to use among the scene's punctual lights.
+    light : index of the light to use among the scene's lights (punctual ones first, then
+        area lights, each in the scene's order).
     camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
@@ -645,6 +646,9 @@ def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
             lights.append(lt)
     if gl is not None:
         lights = gl.lights(lights)
+    # area lights after the punctual ones: a scene's punctual lights keep the indices they
+    # had before area lights were read
+    lights = [lt for lt in lights if not lt.is_area] + [lt for lt in lights if lt.is_area]
     if not lights:
         kinds = ", ".join(_emitter_kind(e) for e in emitters) or "none"
         raise SceneError(

@@ -131,6 +131,12 @@ def test_an_area_light_on_a_mesh_is_ignored_beside_a_usable_light(tmp_path):
     assert [lt.kind for lt in loaded.lights] == ["directional"]
 
 
+def test_punctual_lights_keep_their_indices_before_area_lights(tmp_path):
+    sun = '<emitter type="directional"><vector name="direction" value="0,-1,0"/></emitter>'
+    loaded = scenes.load(_xml(tmp_path, SPHERE + sun + RECT))
+    assert [lt.area for lt in loaded.lights] == ["", "sphere", "rectangle"]
+
+
 def test_light_paths_refuse_area_lights():
     with pytest.raises(SceneError, match="moves punctual lights.*rectangle area light"):
         scenes.load("soft-contact", width=32, height=18, light_path="moving-point", frame=1)
