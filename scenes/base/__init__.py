@@ -1,0 +1,1 @@
+"""Pure helpers every layer may use (nothing of the project, never Mitsuba)."""
