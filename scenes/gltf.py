@@ -487,7 +487,8 @@ def _primitive_mesh(d: _Doc, prim, world: np.ndarray, label: str) -> dict:
     d.count("vertices", len(pos))
     if pos.shape[1] != 3:
         d.fail(f"{label} POSITION is not VEC3")
-    v = pos @ world[:3, :3].T + world[:3, 3]
+    with np.errstate(all="ignore"):  # inf/NaN positions: refused just below
+        v = pos @ world[:3, :3].T + world[:3, 3]
     if not np.isfinite(v).all() or (len(v) and np.abs(v).max() > LIMITS["coordinate"]):
         d.fail(f"{label} has vertices that are not finite or beyond {LIMITS['coordinate']:g}")
     if prim.indices is not None:
@@ -606,6 +607,67 @@ def _light_entry(d: _Doc, index: int, world: np.ndarray) -> tuple[dict, dict]:
     d.fail(f"KHR_lights_punctual light {index} has unknown type {kind!r}")
 
 
+#: Integer fields of the arrays that address bytes, checked in the JSON (pygltflib would
+#: coerce 4.5 or "12"); node transforms are checked to be lists of JSON numbers alike.
+_INTEGER_FIELDS = {
+    "accessors": ("bufferView", "byteOffset", "componentType", "count"),
+    "bufferViews": ("buffer", "byteOffset", "byteLength", "byteStride"),
+    "buffers": ("byteLength",),
+    "images": ("bufferView",),
+    "nodes": ("mesh", "camera", "skin"),
+}
+
+
+def _check_integers(doc, label: str) -> None:
+    """The fields of :data:`_INTEGER_FIELDS` are JSON integers where given, node transforms
+    lists of JSON numbers."""
+    if not isinstance(doc, dict):
+        raise GltfError(f"{label}: the glTF JSON must be an object")
+    for array, fields in _INTEGER_FIELDS.items():
+        items = doc.get(array, [])
+        if not isinstance(items, list):
+            raise GltfError(f"{label}: {array} must be a list")
+        for i, item in enumerate(items):
+            if not isinstance(item, dict):
+                raise GltfError(f"{label}: {array}[{i}] must be an object")
+            for f in fields:
+                v = item.get(f)
+                if v is not None and (isinstance(v, bool) or not isinstance(v, int)):
+                    raise GltfError(f"{label}: {array}[{i}].{f} must be an integer, got {v!r}")
+    asset = doc.get("asset")
+    if not isinstance(asset, dict) or not isinstance(asset.get("version"), str):
+        raise GltfError(f"{label}: no asset.version (a glTF 2.0 file has one)")
+    for i, node in enumerate(doc.get("nodes", [])):
+        for f in ("matrix", "rotation", "scale", "translation"):
+            if not _all(node.get(f), (int, float)):
+                raise GltfError(f"{label}: nodes[{i}].{f} must be a list of numbers")
+        if not _all(node.get("children"), (int,)):
+            raise GltfError(f"{label}: nodes[{i}].children must be a list of node indices")
+    for i, scene in enumerate(_list(doc.get("scenes"))):
+        if not isinstance(scene, dict) or not _all(scene.get("nodes"), (int,)):
+            raise GltfError(f"{label}: scenes[{i}].nodes must be a list of node indices")
+    for i, cam in enumerate(_list(doc.get("cameras"))):
+        for kind in ("perspective", "orthographic"):
+            fields = cam.get(kind) if isinstance(cam, dict) else None
+            if fields is not None and not (
+                isinstance(fields, dict) and _all(list(fields.values()), (int, float, dict))
+            ):
+                raise GltfError(f"{label}: cameras[{i}].{kind} fields must be numbers")
+
+
+def _list(value) -> list:
+    return value if isinstance(value, list) else []
+
+
+def _all(value, types: tuple) -> bool:
+    """None, or a list of JSON values of ``types`` (booleans are no numbers)."""
+    if value is None:
+        return True
+    return isinstance(value, list) and all(
+        isinstance(c, types) and not isinstance(c, bool) for c in value
+    )
+
+
 def _check_container(data: bytes, label: str) -> None:
     """A GLB's header and chunk lengths (version 2, lengths within the file), or a glTF
     JSON's syntax (strict JSON, bounded nesting), before pygltflib sees the bytes."""
@@ -614,7 +676,7 @@ def _check_container(data: bytes, label: str) -> None:
             text = data.decode("utf-8")
         except UnicodeDecodeError:
             raise GltfError(f"{label}: neither a GLB nor UTF-8 glTF JSON") from None
-        loads_json(text, what=label, error=GltfError)
+        _check_integers(loads_json(text, what=label, error=GltfError), label)
         return
     if len(data) < 20:
         raise GltfError(f"{label}: GLB shorter than its 12-byte header and a chunk")
@@ -634,7 +696,8 @@ def _check_container(data: bytes, label: str) -> None:
         if kind == 0x4E4F534A:  # JSON
             chunk = data[at + 8 : at + 8 + size]
             try:
-                loads_json(chunk.decode("utf-8"), what=f"{label} JSON chunk", error=GltfError)
+                text = chunk.decode("utf-8")
+                _check_integers(loads_json(text, what=f"{label} JSON", error=GltfError), label)
             except UnicodeDecodeError:
                 raise GltfError(f"{label}: GLB JSON chunk is not UTF-8") from None
         at += 8 + size
