@@ -29,7 +29,6 @@ JUnit ``<testcase>`` each (classname: the scene, name: ``visibility_mae <= 0.02`
 
 from __future__ import annotations
 
-import json
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -293,15 +292,11 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
     return checks
 
 
-def _read_record(path, where: str):
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GateError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
-    try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise GateError(f"{where} is not JSON ({exc})") from None
+def _read_record(path):
+    """A record file read as untrusted input (a bounded regular file of strict JSON)."""
+    from ...scenes.base.untrusted import read_json
+
+    return read_json(path, what="--baseline", error=GateError)
 
 
 def _check_record(record, where: str) -> dict:
@@ -333,7 +328,7 @@ def load_baseline(path) -> dict:
     where = f"--baseline {path}"
     if path.is_dir():
         path = path / "metrics.json"
-    return _check_record(_read_record(path, where), where)
+    return _check_record(_read_record(path), where)
 
 
 def load_folder_baseline(path) -> dict[str, dict]:
@@ -344,7 +339,7 @@ def load_folder_baseline(path) -> dict[str, dict]:
     where = f"--baseline {path}"
     if path.is_dir():
         path = path / "metrics.json"
-    record = _read_record(path, where)
+    record = _read_record(path)
     if not isinstance(record, dict) or record.get("schema") != FOLDER_SCHEMA:
         found = record.get("schema") if isinstance(record, dict) else type(record).__name__
         raise GateError(

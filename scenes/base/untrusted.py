@@ -63,7 +63,7 @@ def regular_file(path, *, what: str = "file", error=None) -> os.stat_result:
     try:
         st = os.stat(path)
     except FileNotFoundError:
-        _fail(error, f"{what} {path}: not found")
+        _fail(error, f"{what} {path}: cannot read it (not found)")
     except OSError as exc:
         _fail(error, f"{what} {path}: cannot be read ({type(exc).__name__})")
     if not stat.S_ISREG(st.st_mode):
@@ -150,7 +150,7 @@ def loads_json(text: str, *, what: str, nesting: int = LIMITS["nesting"], error=
     except RecursionError:
         _fail(error, f"{what}: nested deeper than {nesting} levels")
     except ValueError as exc:
-        _fail(error, f"{what}: not readable JSON ({exc})")
+        _fail(error, f"{what} is not JSON ({exc})")
     if json_depth(value, nesting) > nesting:
         _fail(error, f"{what}: nested deeper than {nesting} levels")
     return value
