@@ -271,10 +271,16 @@ def _summary_rows(path) -> list[tuple[str, str]]:
     """(scene, check) of the failed-check table of a Markdown summary."""
     rows = []
     for line in path.read_text().splitlines():
-        m = re.match(r"^\| (\S+) \| `([^`]+)` \|", line)
-        if m:
-            rows.append((m.group(1), m.group(2)))
+        m = re.match(r"^\| ((?:\\.|[^\\|])+?) \| ((?:\\.|[^\\|])+?) \|", line)
+        if m and m.group(1) not in ("scene", "---"):
+            rows.append((_unescape(m.group(1)), _unescape(m.group(2))))
     return rows
+
+
+def _unescape(text: str) -> str:
+    """Markdown-escaped user text back (backslash escapes, ``&lt; &gt; &amp;``)."""
+    text = re.sub(r"\\(.)", r"\1", text)
+    return text.replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
 
 
 def test_ci_manifest_run_names_one_failure_everywhere_and_accept_makes_it_pass(

@@ -514,8 +514,20 @@ def junit_xml(verdicts) -> bytes:
         case = ET.SubElement(suite, "testcase", {"classname": scene, "name": name})
         error = ET.SubElement(case, "error", {"message": message, "type": "input"})
         error.text = message
+    _xml_safe(root)
     ET.indent(root)
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
+
+
+def _xml_safe(root) -> None:
+    """Every attribute and text of ``root`` with only the characters XML allows (user text:
+    scene and check names, messages; a NUL or an escape character would make it unreadable)."""
+    from ...scenes.base.untrusted import xml_text
+
+    for el in root.iter():
+        el.attrib.update({k: xml_text(v) for k, v in el.attrib.items()})
+        if el.text is not None:
+            el.text = xml_text(el.text)
 
 
 def write_junit(path, verdicts) -> None:

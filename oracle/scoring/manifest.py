@@ -225,7 +225,9 @@ def check_frame_pattern(pattern: str, where: str, *, error=None) -> str:
 
 def _relative_file(text: str, where: str) -> str:
     """``file``: a path relative to ROOT that stays inside it (lexically)."""
-    if "\x00" in text or text.startswith(("/", "~")) or ".." in Path(text).parts:
+    if _NOT_IN_NAME.search(text.replace("/", "")) or text.startswith(("/", "~")):
+        raise ManifestError(f"{where}: {text!r} must be a path inside ROOT (no control characters)")
+    if ".." in Path(text).parts:
         raise ManifestError(f"{where}: {text!r} must be a path inside ROOT (no '/', '~', '..')")
     return check_frame_pattern(text, where)
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...scenes.base.untrusted import escape_markdown
 from ...scenes.files import atomic_write_bytes
 
 __all__ = ["summary_markdown", "write_summary_md"]
@@ -20,8 +21,10 @@ def _num(value) -> str:
 
 
 def _cell(text: str) -> str:
-    """Table-cell text: pipes and newlines cannot break the table."""
-    return str(text).replace("|", "\\|").replace("\n", " ")
+    """User text (scene, check and file names, messages) in Markdown: every Markdown and
+    HTML special escaped, control characters written out, one line (no table, link, image,
+    tag or code span can come from it)."""
+    return escape_markdown(text)
 
 
 def summary_markdown(verdicts, *, records=None, report=None) -> str:
@@ -50,12 +53,12 @@ def summary_markdown(verdicts, *, records=None, report=None) -> str:
             against = c.limit if c.kind == "gate" else c.previous
             floors = _num(c.floor) + (f" / {_num(c.previous_floor)}" if c.kind != "gate" else "")
             lines.append(
-                f"| {_cell(scene)} | `{_cell(c.name)}` | {_num(c.value)} | {_num(against)} "
+                f"| {_cell(scene)} | {_cell(c.name)} | {_num(c.value)} | {_num(against)} "
                 f"| {floors} |"
             )
         lines.append("")
     for scene, name, message in errors:
-        lines.append(f"- **{_cell(scene)}** `{_cell(name)}`: {_cell(message)}")
+        lines.append(f"- **{_cell(scene)}** {_cell(name)}: {_cell(message)}")
     if errors:
         lines.append("")
     for rec in records or []:
@@ -65,10 +68,10 @@ def summary_markdown(verdicts, *, records=None, report=None) -> str:
     passed = [c for _, c in checks if c.passed]
     if passed:
         lines += ["", f"<details><summary>{len(passed)} passing checks</summary>", ""]
-        lines += [f"- `{_cell(c.line)}`" for c in passed]
+        lines += [f"- {_cell(c.line)}" for c in passed]
         lines += ["", "</details>"]
     if report is not None:
-        lines += ["", f"Report: `{report}`"]
+        lines += ["", f"Report: {_cell(report)}"]
     return "\n".join(lines).rstrip() + "\n"
 
 
