@@ -225,10 +225,12 @@ def check_frame_pattern(pattern: str, where: str, *, error=None) -> str:
 
 def _relative_file(text: str, where: str) -> str:
     """``file``: a path relative to ROOT that stays inside it (lexically)."""
-    if _NOT_IN_NAME.search(text.replace("/", "")) or text.startswith(("/", "~")):
-        raise ManifestError(f"{where}: {text!r} must be a path inside ROOT (no control characters)")
-    if ".." in Path(text).parts:
-        raise ManifestError(f"{where}: {text!r} must be a path inside ROOT (no '/', '~', '..')")
+    bad = _NOT_IN_NAME.search(text.replace("/", "")) or text.startswith(("/", "~"))
+    if bad or ".." in Path(text).parts:
+        raise ManifestError(
+            f"{where}: {text!r} must be a relative path inside ROOT (no leading '/' or '~', "
+            "no '..', no backslash or control character)"
+        )
     return check_frame_pattern(text, where)
 
 
