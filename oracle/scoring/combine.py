@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from ... import reports
+from ...scenes.base.untrusted import read_json
 from .score import ScoreError
 
 __all__ = ["combine_reports"]
@@ -40,10 +41,9 @@ def combine_reports(folders: list[Path], out: Path, *, title: str, errors=None) 
         js = Path(folder) / "report.json"
         if not js.is_file():
             raise ScoreError(f"{folder} is not a score folder (no report.json)")
-        try:
-            data = json.loads(js.read_text())
-        except ValueError as exc:
-            raise ScoreError(f"{js} is not valid JSON: {exc}") from None
+        data = read_json(js, what="score folder report", error=ScoreError)
+        if not isinstance(data, dict):
+            raise ScoreError(f"{js} is not a score folder's report record")
         cases.extend(reports.read_cases(js, relative_to=out.parent.resolve()))
         provs.append(data.get("provenance", {}))
         scenes.append(str(data.get("provenance", {}).get("scene", "?")))
