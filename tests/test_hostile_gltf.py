@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from raster_oracle.scenes.gltf import LIMITS, GltfError, gltf_input
+from raster_oracle.scenes.formats.gltf import LIMITS, GltfError, gltf_input
 
 #: Every in-process case ends within this many seconds (a hang is a failure, not a wait).
 CASE_SECONDS = 20.0

@@ -37,7 +37,7 @@ from raster_oracle.oracle.scoring.summary import summary_markdown
 from raster_oracle.scenes import backend
 from raster_oracle.scenes.base import untrusted as U
 from raster_oracle.scenes.camera import Camera
-from raster_oracle.scenes.camera_file import CameraFileError, load_camera_file
+from raster_oracle.scenes.formats.camera_file import CameraFileError, load_camera_file
 
 CASE_SECONDS = 20.0
 

@@ -33,9 +33,9 @@ import time
 from pathlib import Path
 
 from ...scenes import backend
+from ...scenes.base.files import atomic_write_json
+from ...scenes.base.records import package_versions
 from ...scenes.base.untrusted import UntrustedError, read_json
-from ...scenes.files import atomic_write_json
-from ...scenes.records import package_versions
 from ..errors import InputError
 from ..reference.cache import default_cache_dir
 

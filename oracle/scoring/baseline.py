@@ -29,8 +29,8 @@ import tempfile
 from datetime import UTC, datetime
 from pathlib import Path
 
+from ...scenes.base.files import atomic_write_bytes, atomic_write_json
 from ...scenes.base.untrusted import LIMITS, loads_json, read_bounded
-from ...scenes.files import atomic_write_bytes, atomic_write_json
 from .gates import FOLDER_SCHEMA, METRICS_SCHEMA, GateError
 
 __all__ = [

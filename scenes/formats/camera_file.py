@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .base.untrusted import read_json
-from .camera import Camera
+from ..base.untrusted import read_json
+from ..camera import Camera
 
 __all__ = ["MAX_CONDITION", "MAX_ENTRY", "MAX_FRAMES", "CameraFileError", "load_camera_file"]
 

@@ -4,8 +4,8 @@
 Mitsuba scene dictionary (triangle meshes in world space with their normals, ``TEXCOORD_0``
 and tangents, the camera as a Mitsuba sensor, the lights as Mitsuba emitters) that
 :mod:`scenes.loader` loads as it loads a built-in scene, the glTF materials
-(:class:`scenes.gltf_materials.PbrMaterials`) and the KHR_lights_punctual attenuation of every
-light. What is read:
+(:class:`scenes.formats.gltf_materials.PbrMaterials`) and the KHR_lights_punctual attenuation
+of every light. What is read:
 
 - the scene's node hierarchy (``matrix`` or TRS, composed parent first) and its meshes'
   ``TRIANGLES`` primitives (indexed or not); positions are transformed in float64 and stored
@@ -55,9 +55,9 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from .base.untrusted import LIMITS as FILE_LIMITS
-from .base.untrusted import contained, loads_json, read_bounded
-from .factories import diffuse, look_at
+from ..base.untrusted import LIMITS as FILE_LIMITS
+from ..base.untrusted import contained, loads_json, read_bounded
+from ..catalogue.factories import diffuse, look_at
 from .gltf_materials import PbrMaterial, PbrMaterials, Texture, srgb_to_linear
 
 __all__ = ["GLTF_SUFFIXES", "GltfError", "GltfInput", "gltf_input", "gltf_scene", "is_gltf"]
@@ -829,7 +829,7 @@ def _scene_input(d: _Doc, data: bytes, scene, *, width, height, camera, name) ->
         aspect = _number(d, aspect, f"camera {cam_index} aspectRatio", 0.0, 1e9, open_lo=True)
     film = (gl_cam.extras or {}).get("film_size") if isinstance(gl_cam.extras, dict) else None
     top = LIMITS["film_pixels"]
-    if film and not (width or height):  # an export's size (scenes.gltf_write's extras)
+    if film and not (width or height):  # an export's size (scenes.formats.gltf_write's extras)
         if not isinstance(film, list) or len(film) != 2:
             d.fail(f"camera {cam_index} extras film_size must be [width, height]")
         width, height = (_int(d, v, f"camera {cam_index} film_size", 1, top) for v in film)
