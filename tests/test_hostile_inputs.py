@@ -707,3 +707,50 @@ def test_escape_helpers_closed_form():
     assert U.escape_html('<a href="x">') == "&lt;a href=&quot;x&quot;&gt;"
     assert U.xml_text("a\x00b\x1fc\ud800d") == "a\\x00b\\x1fc\\ud800d"
     assert U.terminal("a\nb\x1b") == "a\\nb\\x1b"
+
+
+# --- run folders and stores: export folders, the reference cache ------------------------------
+
+
+def _odd(path: Path, kind: str) -> None:
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "folder":
+        path.mkdir()
+    else:
+        path.symlink_to("/dev/zero")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder", "zero-device"])
+def test_an_export_record_that_is_no_regular_file_is_refused(tmp_path, kind):
+    from raster_oracle.scenes import SceneError
+    from raster_oracle.scenes.formats.inputs import resolve_input
+
+    folder = tmp_path / "export"
+    folder.mkdir()
+    (folder / "scene.xml").write_text("<scene/>")
+    (folder / "camera.json").write_text("{}")
+    _odd(folder / "export.json", kind)
+    t0 = time.monotonic()
+    with pytest.raises(SceneError) as info:
+        resolve_input(str(folder))
+    assert time.monotonic() - t0 < CASE_SECONDS
+    _one_line(info)
+
+
+@pytest.mark.parametrize("odd", ["checksums.json", "reference.exr"])
+@pytest.mark.parametrize("kind", ["fifo", "zero-device"])
+def test_a_cache_entry_holding_a_fifo_or_device_is_corrupted_not_a_hang(tmp_path, odd, kind):
+    from raster_oracle.oracle.reference.cache import FILES, ReferenceCache
+
+    cache = ReferenceCache(tmp_path / "cache")
+    key = "ab" + "0" * 62
+    folder = cache.entry(key)
+    folder.mkdir(parents=True)
+    for name in (*FILES, "checksums.json"):
+        if name != odd:
+            (folder / name).write_text("{}")
+    _odd(folder / odd, kind)
+    t0 = time.monotonic()
+    assert cache.lookup(key) == (None, "corrupted")
+    assert time.monotonic() - t0 < CASE_SECONDS
