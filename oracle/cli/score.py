@@ -110,7 +110,7 @@ def _check_frame_pattern(pattern: str | None) -> None:
 
     if pattern is None or not FRAME_PATTERN.search(pattern):
         return
-    check_frame_pattern(pattern, "--candidate pattern", error=A.CliError)
+    check_frame_pattern(pattern, "--candidate", error=A.CliError)
 
 
 def _camera_path(args, loaded) -> str | None:

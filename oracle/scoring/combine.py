@@ -42,8 +42,6 @@ def combine_reports(folders: list[Path], out: Path, *, title: str, errors=None) 
         if not js.is_file():
             raise ScoreError(f"{folder} is not a score folder (no report.json)")
         data = read_json(js, what="score folder report", error=ScoreError)
-        if not isinstance(data, dict):
-            raise ScoreError(f"{js} is not a score folder's report record")
         cases.extend(reports.read_cases(js, relative_to=out.parent.resolve()))
         provs.append(data.get("provenance", {}))
         scenes.append(str(data.get("provenance", {}).get("scene", "?")))

@@ -207,18 +207,22 @@ def check_frame_pattern(pattern: str, where: str, *, error=None) -> str:
     try:
         fields = list(string.Formatter().parse(pattern))
     except ValueError as exc:
-        raise error(f"{where}: {pattern!r} is not a file pattern ({exc})") from None
+        raise error(f"{where}: pattern {pattern!r} is not valid ({exc})") from None
     for _, name, spec, conversion in fields:
         if name is None:
             continue
         if name != "frame" or conversion is not None or "{" in (spec or ""):
-            raise error(f"{where}: {pattern!r} may hold only the field {{frame}}, not {{{name}}}")
+            name += f"!{conversion}" if conversion else ""
+            raise error(
+                f"{where}: pattern {pattern!r} is not valid: its only field may be {{frame}}"
+                f", not {{{name}}} (write a literal brace as {{{{ or }}}})"
+            )
         m = _FRAME_SPEC.fullmatch(spec or "")
         width = int(re.sub(r"\D", "", spec) or 0) if m else MAX_FRAME_WIDTH + 1
         if not m or width > MAX_FRAME_WIDTH:
             raise error(
-                f"{where}: {{frame:{spec}}} in {pattern!r}: use {{frame}} or {{frame:0Nd}} "
-                f"(N <= {MAX_FRAME_WIDTH})"
+                f"{where}: pattern {pattern!r} is not valid: use {{frame}} or {{frame:0Nd}} "
+                f"(N <= {MAX_FRAME_WIDTH}), not {{frame:{spec}}}"
             )
     return pattern
 
