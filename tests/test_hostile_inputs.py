@@ -754,3 +754,20 @@ def test_a_cache_entry_holding_a_fifo_or_device_is_corrupted_not_a_hang(tmp_path
     t0 = time.monotonic()
     assert cache.lookup(key) == (None, "corrupted")
     assert time.monotonic() - t0 < CASE_SECONDS
+
+
+@pytest.mark.parametrize("case", ["passed-string", "fifo"])
+def test_the_cli_reruns_the_check_on_a_bad_cached_verdict(tmp_path, case):
+    """``raster-oracle scenes`` with a malformed cached verdict (or a FIFO in its place):
+    exit 0, the battery run again, a well-formed verdict cached; never a traceback."""
+    cache = tmp_path / "cache"
+    variant = backend.active().variant
+    path = _plant(cache, PLANTED[case])
+    env = {k: v for k, v in os.environ.items() if k != "RASTER_ORACLE_TRUST_BACKEND"}
+    env |= {"RASTER_ORACLE_CACHE": str(cache), "RASTER_ORACLE_BACKEND": variant}
+    cmd = [sys.executable, "-m", "raster_oracle.oracle.cli", "scenes"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr and "checking backend" in r.stderr
+    cached = json.loads(path.read_text())
+    assert V.valid_verdict(cached, V.machine_key(variant)) and cached["passed"] is True
