@@ -461,8 +461,11 @@ def _material(d: _Doc, index: int | None, textures: _Textures) -> PbrMaterial:
 
 
 def _attribute(d: _Doc, index, n: int, width: int, what: str) -> np.ndarray:
-    """A vertex attribute: ``n`` rows of ``width`` finite values (float64)."""
+    """A vertex attribute: ``n`` rows of ``width`` finite values (float64); an empty NORMAL
+    or TEXCOORD_0 (the project's own exports write one for a mesh without) stays empty."""
     a = d.accessor(index).astype(np.float64)
+    if a.shape == (0, width) and width != 4:
+        return a
     if a.shape != (n, width) or not np.isfinite(a).all():
         d.fail(f"{what} must be {n} finite rows of {width} (got {a.shape[0]}x{a.shape[1]})")
     return a
