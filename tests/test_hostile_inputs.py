@@ -370,7 +370,20 @@ def _odd_platform_link(base, tmp_path):
     (base / "ci").symlink_to(tmp_path / "elsewhere2", target_is_directory=True)
 
 
+def _odd_lock_link(base, tmp_path):
+    (tmp_path / "victim").write_text("keep")
+    (base / "default" / ".accept.lock").unlink(missing_ok=True)
+    (base / "default" / ".accept.lock").symlink_to(tmp_path / "victim")
+
+
+def _odd_lock_fifo(base, tmp_path):
+    (base / "default" / ".accept.lock").unlink(missing_ok=True)
+    os.mkfifo(base / "default" / ".accept.lock")
+
+
 ODD_BASELINES = {
+    "lock-link": _odd_lock_link,
+    "lock-fifo": _odd_lock_fifo,
     "previous-link-out": _odd_previous_link_out,
     "previous-link-file": _odd_previous_link_file,
     "previous-dangling": _odd_previous_dangling,

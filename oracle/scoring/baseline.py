@@ -140,8 +140,17 @@ def _locked(folder: Path):
     except ImportError:  # pragma: no cover - not POSIX
         yield
         return
-    fd = os.open(folder / ".accept.lock", os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o666)
+    flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
     try:
+        fd = os.open(folder / ".accept.lock", flags, 0o666)
+    except OSError as exc:
+        raise GateError(
+            f"baseline accept: cannot take the lock {folder / '.accept.lock'} "
+            f"({type(exc).__name__}; a link or an odd file there is never followed)"
+        ) from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise GateError(f"baseline accept: {folder / '.accept.lock'} is not a regular file")
         fcntl.flock(fd, fcntl.LOCK_EX)
         yield
     finally:
