@@ -80,6 +80,7 @@ _GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
 LIMITS = {
     "file_bytes": FILE_LIMITS["gltf_bytes"],  # the file and each external buffer or image
     "nodes": 10_000,  # nodes of the document
+    "arrays": 100_000,  # entries of any other top-level array (meshes, accessors, ...)
     "depth": 64,  # node hierarchy depth
     "instances": 2_000,  # mesh primitives placed in the scene (node x primitive)
     "vertices": 4_000_000,  # vertices of all placed primitives
@@ -640,6 +641,7 @@ def _check_integers(doc, label: str) -> None:
     asset = doc.get("asset")
     if not isinstance(asset, dict) or not isinstance(asset.get("version"), str):
         raise GltfError(f"{label}: no asset.version (a glTF 2.0 file has one)")
+    _check_sizes(doc, label)
     for i, node in enumerate(doc.get("nodes", [])):
         for f in ("matrix", "rotation", "scale", "translation"):
             if not _all(node.get(f), (int, float)):
@@ -656,6 +658,29 @@ def _check_integers(doc, label: str) -> None:
                 isinstance(fields, dict) and _all(list(fields.values()), (int, float, dict))
             ):
                 raise GltfError(f"{label}: cameras[{i}].{kind} fields must be numbers")
+
+
+def _check_sizes(doc: dict, label: str) -> None:
+    """Array lengths and the node hierarchy's depth, on the raw JSON (before pygltflib spends
+    seconds on 20,000 nodes): at most :data:`LIMITS` ``nodes`` nodes and ``arrays`` entries
+    in any other top-level array, children ``depth`` deep (cycles are found later)."""
+    for key, items in doc.items():
+        top = LIMITS["nodes"] if key == "nodes" else LIMITS["arrays"]
+        if isinstance(items, list) and len(items) > top:
+            raise GltfError(f"{label}: {len(items):,} {key}, over the limit of {top:,}")
+    nodes = _list(doc.get("nodes"))
+    depth = [0] * len(nodes)
+    children = [n.get("children") or [] if isinstance(n, dict) else [] for n in nodes]
+    has_parent = {c for kids in children for c in kids if isinstance(c, int)}
+    stack = [(i, 1) for i in range(len(nodes)) if i not in has_parent]
+    while stack:
+        i, level = stack.pop()
+        if not (isinstance(i, int) and 0 <= i < len(nodes)) or depth[i] >= level:
+            continue  # bad indices and cycles: named when the hierarchy is walked
+        if level > LIMITS["depth"]:
+            raise GltfError(f"{label}: node hierarchy deeper than {LIMITS['depth']} (the limit)")
+        depth[i] = level
+        stack.extend((c, level + 1) for c in children[i])
 
 
 def _list(value) -> list:
