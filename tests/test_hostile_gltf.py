@@ -251,6 +251,14 @@ def test_malformed_glb_is_refused(tmp_path, case):
     _refused(path)
 
 
+def test_a_textured_document_is_read(tmp_path):
+    """The texture helper's document loads as it is (its edits above are the refusals')."""
+    doc = copy.deepcopy(_doc())
+    _textured(doc)
+    gl = gltf_input(_write(tmp_path, doc))
+    assert len(gl.textures) == 1 and gl.textures[0].image.shape[:2] == (2, 2)
+
+
 def test_a_valid_glb_is_read(tmp_path):
     path = tmp_path / "scene.glb"
     path.write_bytes(_glb(_glb_doc(), _mesh_bytes()))
@@ -401,10 +409,35 @@ FIELD_CASES = {
         d, {"extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": -3}}}
     ),
     "material-missing": _set("meshes.0.primitives.0.material", 4),
+    "material-negative": lambda d: (
+        _material(d, {}) or _set("meshes.0.primitives.0.material", -1)(d)
+    ),
+    "texture-negative": lambda d: _textured(d, texture=-1),
+    "texture-missing": lambda d: _textured(d, texture=5),
+    "image-source-negative": lambda d: _textured(d, source=-1),
+    "sampler-negative": lambda d: _textured(d, sampler=-1),
+    "sampler-wrap-mixed": lambda d: _textured(d, sampler=0, wrap=(33071, 10497)),
+    "texcoord-1": lambda d: _textured(d, texcoord=1),
     # the asset
     "version-1": _set("asset.version", "1.0"),
     "no-asset": _drop("asset"),
 }
+
+
+def _textured(doc: dict, *, texture=0, source=0, sampler=None, wrap=None, texcoord=0) -> None:
+    """A base colour texture (a 2x2 PNG inline) with the given indices."""
+    import io
+
+    from PIL import Image
+
+    png = io.BytesIO()
+    Image.new("RGB", (2, 2), (200, 100, 50)).save(png, format="PNG")
+    doc["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png.getvalue()).decode()}]
+    doc["textures"] = [{"source": source} | ({"sampler": sampler} if sampler is not None else {})]
+    if wrap is not None:
+        doc["samplers"] = [{"wrapS": wrap[0], "wrapT": wrap[1]}]
+    info = {"index": texture} | ({"texCoord": texcoord} if texcoord else {})
+    _material(doc, {"pbrMetallicRoughness": {"baseColorTexture": info}})
 
 
 def _material(doc: dict, material: dict) -> None:

@@ -401,12 +401,12 @@ class _Textures:
             d.fail(f"{what} uses extension {', '.join(sorted(info.extensions))} (not supported)")
         key = (info.index, srgb)
         if key not in self.index:
-            tex = d.doc.textures[info.index]
+            tex = d.doc.textures[_index(d, info.index, d.doc.textures, f"{what} texture")]
             if tex.source is None:
                 d.fail(f"texture {info.index} has no image source")
             wrap, nearest = "repeat", False
             if tex.sampler is not None:
-                smp = d.doc.samplers[tex.sampler]
+                smp = d.doc.samplers[_index(d, tex.sampler, d.doc.samplers, "sampler")]
                 ws, wt = smp.wrapS or 10497, smp.wrapT or 10497
                 if ws != wt or ws not in _WRAP:
                     d.fail(
@@ -425,7 +425,7 @@ class _Textures:
 def _material(d: _Doc, index: int | None, textures: _Textures) -> PbrMaterial:
     if index is None:
         return PbrMaterial(name="default")
-    mat = d.doc.materials[index]
+    mat = d.doc.materials[_index(d, index, d.doc.materials, "material")]
     label = f"material {index} ({mat.name or 'unnamed'})"
     if (mat.alphaMode or "OPAQUE") != "OPAQUE":
         d.fail(f"{label} has alphaMode {mat.alphaMode}; only OPAQUE is supported")
