@@ -105,7 +105,7 @@ def add_parsers(sub) -> None:
 def _check_frame_pattern(pattern: str | None) -> None:
     """A ``--candidate`` pattern with a ``{frame}`` field is a ``str.format`` pattern: it may
     hold ``{frame}`` fields only, with an integer format (a name without one is literal)."""
-    from ..scoring.manifest import check_frame_pattern
+    from ..scoring.out_names import check_frame_pattern
     from ..scoring.request import FRAME_PATTERN
 
     if pattern is None or not FRAME_PATTERN.search(pattern):

@@ -125,7 +125,7 @@ def case_folder(out: Path, name: str) -> Path:
     """The folder of case ``name`` (``scene`` or ``scene/channel``) under ``out``: each part
     a plain folder name (:func:`oracle.scoring.manifest.check_out_name`), so no case writes
     outside ``out`` or over the run's own files (:class:`ScoreError` otherwise)."""
-    from .manifest import check_out_name
+    from .out_names import check_out_name
 
     parts = str(name).split("/")
     if len(parts) > 2:

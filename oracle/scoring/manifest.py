@@ -26,11 +26,9 @@ gates, frames and camera path.
 Every key is checked (an unknown key, a wrong type or an unknown metric is a
 :class:`ManifestError` naming it, before anything is scored). The manifest is untrusted
 input (:mod:`scenes.base.untrusted`): a regular file of at most :data:`LIMITS` ``bytes``,
-tables and arrays at most ``nesting`` deep, at most ``cases`` scored cases; scene and channel
-keys name folders under ``--out`` (one folder name: no separator, NUL or control character,
-not ``.``/``..`` nor a name the run writes itself, :data:`RESERVED`); ``file`` stays inside
-ROOT (no absolute path, no ``..``) and its only field is ``{frame}`` with an integer
-format of at most :data:`MAX_FRAME_WIDTH` digits; ``spp`` is at most :data:`MAX_SPP` (the
+tables and arrays at most ``nesting`` deep, at most ``cases`` scored cases; scene and
+channel keys name one folder each under ``--out``, ``file`` stays inside ROOT with
+``{frame}`` its only field (:mod:`.out_names`); ``spp`` is at most :data:`MAX_SPP` (the
 command line's limit), ``frames`` at most :data:`MAX_FRAMES`. Gates add up from
 ``[defaults]`` to the scene to the channel; a later limit of the same metric and direction
 replaces an earlier one.
@@ -38,8 +36,6 @@ replaces an earlier one.
 
 from __future__ import annotations
 
-import re
-import string
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,18 +46,15 @@ from ...scenes.base.untrusted import json_depth, read_text
 from ...scenes.formats.inputs import named_input
 from .gates import Gate, GateError, parse_gates
 from .options import VISIBILITY_CONVENTIONS
+from .out_names import check_out_name, relative_file
 
 __all__ = [
     "LIMITS",
     "MAX_FRAMES",
-    "MAX_FRAME_WIDTH",
     "MAX_SPP",
-    "RESERVED",
     "Manifest",
     "ManifestCase",
     "ManifestError",
-    "check_frame_pattern",
-    "check_out_name",
     "read_manifest",
 ]
 
@@ -71,12 +64,6 @@ LIMITS = {"bytes": FILE_LIMITS["manifest_bytes"], "nesting": 16, "cases": 1000}
 MAX_SPP = 2**20
 #: Largest ``frames``.
 MAX_FRAMES = 10_000
-#: Widest ``{frame:0Nd}`` of a file pattern.
-MAX_FRAME_WIDTH = 12
-#: Names a run writes at the top of ``--out`` (a scene key cannot be one of them).
-RESERVED = ("metrics.json", "report.html", "report.json", "summary.md", "junit.xml")
-_NOT_IN_NAME = re.compile(r"[/\\\x00-\x1f\x7f-\x9f]")
-_FRAME_SPEC = re.compile(r"0?[1-9]?[0-9]?d?")
 
 _COMMON = {
     "fail_above",
@@ -184,58 +171,8 @@ def _merge(*levels: list[Gate]) -> tuple[Gate, ...]:
     return tuple(merged.values())
 
 
-def check_out_name(name, where: str, *, error=None) -> str:
-    """A scene or channel key that names a folder under ``--out``: one folder name (no
-    separator, NUL or control character; not ``.``, ``..`` nor one of :data:`RESERVED`, in
-    any case; at most 128 characters)."""
-    error = error or ManifestError
-    bad = not isinstance(name, str) or name in ("", ".", "..") or len(name) > 128
-    if bad or _NOT_IN_NAME.search(name):
-        raise error(
-            f"{where}: key {name!r} names a folder under --out: one folder name of at most "
-            "128 characters, no '/', '\\', NUL or control characters, not '.' or '..'"
-        )
-    if name.lower() in RESERVED:
-        raise error(f"{where}: key {name!r} is a file the run writes itself")
-    return name
-
-
-def check_frame_pattern(pattern: str, where: str, *, error=None) -> str:
-    """A candidate file pattern: its only replacement field is ``{frame}`` (with at most a
-    zero-padded integer width of :data:`MAX_FRAME_WIDTH`); ``{{``/``}}`` are literal braces."""
-    error = error or ManifestError
-    try:
-        fields = list(string.Formatter().parse(pattern))
-    except ValueError as exc:
-        raise error(f"{where}: pattern {pattern!r} is not valid ({exc})") from None
-    for _, name, spec, conversion in fields:
-        if name is None:
-            continue
-        if name != "frame" or conversion is not None or "{" in (spec or ""):
-            name += f"!{conversion}" if conversion else ""
-            raise error(
-                f"{where}: pattern {pattern!r} is not valid: its only field may be {{frame}}"
-                f", not {{{name}}} (write a literal brace as {{{{ or }}}})"
-            )
-        m = _FRAME_SPEC.fullmatch(spec or "")
-        width = int(re.sub(r"\D", "", spec) or 0) if m else MAX_FRAME_WIDTH + 1
-        if not m or width > MAX_FRAME_WIDTH:
-            raise error(
-                f"{where}: pattern {pattern!r} is not valid: use {{frame}} or {{frame:0Nd}} "
-                f"(N <= {MAX_FRAME_WIDTH}), not {{frame:{spec}}}"
-            )
-    return pattern
-
-
 def _relative_file(text: str, where: str) -> str:
-    """``file``: a path relative to ROOT that stays inside it (lexically)."""
-    bad = _NOT_IN_NAME.search(text.replace("/", "")) or text.startswith(("/", "~"))
-    if bad or ".." in Path(text).parts:
-        raise ManifestError(
-            f"{where}: {text!r} must be a relative path inside ROOT (no leading '/' or '~', "
-            "no '..', no backslash or control character)"
-        )
-    return check_frame_pattern(text, where)
+    return relative_file(text, where, error=ManifestError)
 
 
 def _scene_ref(table: dict, key: str, where: str, *, base: Path, exports: Path | None) -> str:
@@ -256,7 +193,7 @@ def _opt(table: dict, key: str, check, *args, **kw):
 
 def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCase]:
     where = f"[scenes.{key}]"
-    check_out_name(key, "[scenes]")
+    check_out_name(key, "[scenes]", error=ManifestError)
     table = _table(table, where)
     _keys(table, _SCENE_KEYS, where)
     for k in ("spp", "seed", "flip_mode"):
@@ -272,7 +209,7 @@ def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCas
     for channel, ctable in _table(table.get("channels", {None: {}}), f"{where}.channels").items():
         cwhere = f"{where}.channels.{channel}"
         if channel is not None:
-            check_out_name(channel, f"{where}.channels")
+            check_out_name(channel, f"{where}.channels", error=ManifestError)
         ctable = _table(ctable, cwhere)
         _keys(ctable, _CHANNEL_KEYS, cwhere)
         visibility = ctable.get("visibility", merged.get("visibility", "1-is-lit"))
