@@ -768,3 +768,83 @@ def test_the_cli_reruns_the_check_on_a_bad_cached_verdict(tmp_path, case):
     assert "Traceback" not in r.stderr and "checking backend" in r.stderr
     cached = json.loads(path.read_text())
     assert V.valid_verdict(cached, V.machine_key(variant)) and cached["passed"] is True
+
+
+# --- the pure helpers -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "value", [float("nan"), float("inf"), -float("inf"), "1", None, True, [1], 10**400, 2e9]
+)
+def test_check_number_refuses(value):
+    with pytest.raises(U.UntrustedError) as info:
+        U.check_number(value, what="field x", lo=-1e9, hi=1e9)
+    assert "field x" in _one_line(info)
+
+
+@pytest.mark.parametrize("value", [1.5, "3", None, True, -1, 11])
+def test_check_int_refuses(value):
+    with pytest.raises(U.UntrustedError):
+        U.check_int(value, what="n", lo=0, hi=10)
+
+
+def test_checks_keep_good_values():
+    assert U.check_number(3, what="x", lo=0, hi=5) == 3.0
+    assert U.check_int(7, what="n", lo=0, hi=10) == 7
+    assert U.check_finite([1, 2.5], what="v") == [1.0, 2.5]
+    with pytest.raises(U.UntrustedError):
+        U.check_finite([1, float("nan")], what="v")
+
+
+@pytest.mark.parametrize(
+    "relative",
+    ["../x", "a/../../x", "/etc/passwd", "~/x", "file:x", "C:x", "a\\b", "a\x00b", "", "s/.."],
+)
+def test_contained_refuses(tmp_path, relative):
+    with pytest.raises(U.UntrustedError):
+        U.contained(tmp_path, relative, what="uri")
+
+
+def test_contained_follows_links_only_inside(tmp_path):
+    (tmp_path / "inside").mkdir()
+    (tmp_path / "inside" / "f").write_text("x")
+    (tmp_path / "inside" / "ok").symlink_to(tmp_path / "inside" / "f")
+    (tmp_path / "inside" / "out").symlink_to(tmp_path)
+    assert U.contained(tmp_path / "inside", "ok", what="u") == tmp_path / "inside" / "f"
+    (tmp_path / "secret").write_text("s")
+    with pytest.raises(U.UntrustedError, match="outside"):
+        U.contained(tmp_path / "inside", "out/secret", what="u")
+    # a link out that comes back in stays inside
+    assert U.contained(tmp_path / "inside", "out/inside/f", what="u") == tmp_path / "inside" / "f"
+
+
+@pytest.mark.parametrize("text", ["", ".", "..", "a/b", "a\\b", "a\nb", "a\x00"])
+def test_safe_component_refuses(text):
+    with pytest.raises(U.UntrustedError):
+        U.safe_component(text, what="name")
+
+
+def test_safe_component_replaces_odd_characters():
+    assert U.safe_component("a b<c>", what="name") == "a_b_c_"
+
+
+def test_read_bounded_limit_and_kinds(tmp_path):
+    f = tmp_path / "f"
+    f.write_bytes(b"x" * 10)
+    assert U.read_bounded(f, limit=10) == b"x" * 10
+    with pytest.raises(U.UntrustedError, match="over the limit"):
+        U.read_bounded(f, limit=9)
+    os.mkfifo(tmp_path / "p")
+    with pytest.raises(U.UntrustedError, match="FIFO"):
+        bounded(U.read_bounded, tmp_path / "p", limit=10)
+    with pytest.raises(U.UntrustedError, match="character device"):
+        U.read_bounded("/dev/zero", limit=10)
+
+
+def test_json_depth_is_iterative():
+    deep: list = []
+    node = deep
+    for _ in range(200_000):
+        node.append([])
+        node = node[0]
+    assert U.json_depth(deep, 64) == 65  # counted up to the limit + 1, no recursion
