@@ -246,8 +246,9 @@ def test_a_hostile_camera_file_is_refused_with_one_line(tmp_path, case):
 
 @pytest.mark.parametrize(
     "content",
-    [b'{"frames": [{"to_world": NaN}]}', b"[" * 100_000, b"\xff\xfe", b"", b"{"],
-    ids=["nan", "deep", "not-utf8", "empty", "truncated"],
+    [b'{"frames": [{"to_world": NaN}]}', b'{"frames": [1e400]}', b"[" * 100_000]
+    + [b"\xff\xfe", b"", b"{"],
+    ids=["nan", "1e400", "deep", "not-utf8", "empty", "truncated"],
 )
 def test_a_camera_file_that_is_not_strict_json_is_refused(tmp_path, content):
     path = tmp_path / "cameras.json"

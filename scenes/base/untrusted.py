@@ -143,10 +143,18 @@ def _no_constant(name: str):
     raise ValueError(f"{name} is not a JSON number")
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # 1e400 overflows to inf
+        raise ValueError(f"{text[:40]} is beyond a float's range")
+    return value
+
+
 def loads_json(text: str, *, what: str, nesting: int = LIMITS["nesting"], error=None):
-    """Parse JSON text strictly: no NaN/Infinity, nesting at most ``nesting`` deep."""
+    """Parse JSON text strictly: no NaN/Infinity, no number beyond a float's range (``1e400``),
+    nesting at most ``nesting`` deep."""
     try:
-        value = json.loads(text, parse_constant=_no_constant)
+        value = json.loads(text, parse_constant=_no_constant, parse_float=_finite_float)
     except RecursionError:
         _fail(error, f"{what}: nested deeper than {nesting} levels")
     except ValueError as exc:
