@@ -326,6 +326,13 @@ FIELD_CASES = {
     "node-child-self": _set("nodes.0.children", [0]),
     "node-child-missing": _set("nodes.0.children", [99]),
     "node-children-string": _set("nodes.0.children", "1"),
+    "node-children-number": _set("nodes.0.children", 5),
+    "node-children-object": _set("nodes.0.children", {"a": 1}),
+    "node-not-object": _set("nodes.0", 7),
+    "nodes-not-list": _set("nodes", {"0": {}}),
+    "scenes-not-list": _set("scenes", 3),
+    "asset-version-number": _set("asset.version", 2.0),
+    "document-list": lambda d: (d.clear(), d.update({"asset": [1]})),
     "scene-index-out": _set("scene", 4),
     "scene-nodes-string": _set("scenes.0.nodes", "012"),
     # geometry
@@ -554,3 +561,51 @@ def test_export_never_copies_bytes_from_outside_the_folder(tmp_path, case):
     written = [p for p in written if "outside" not in p.parts]
     assert not any(SECRET[:16] in p.read_bytes() for p in written)
     assert not out.exists() or not any(out.iterdir())
+
+
+# --- any field of any type: a refusal or a scene, never another exception --------------------
+
+
+def _paths(node, prefix=()):
+    """Every path (keys and indices) into the JSON document."""
+    out = [prefix] if prefix else []
+    items = (
+        node.items()
+        if isinstance(node, dict)
+        else enumerate(node)
+        if isinstance(node, list)
+        else ()
+    )
+    for k, v in items:
+        out += _paths(v, (*prefix, k))
+    return out
+
+
+HOSTILE_VALUES = [None, -1, 0, 2**63, 1e300, -1e300, "x", "", [], [1], {}, {"a": 1}, True, 0.5]
+
+
+def test_every_field_of_every_type_is_refused_or_read(tmp_path):
+    """Each path of the base document set to each hostile value (about 1,200 documents):
+    :func:`gltf_input` reads it or refuses it with a GltfError; no other exception escapes."""
+    base = _doc()
+    paths = [p for p in _paths(base) if p[0] != "asset"]
+    folder = tmp_path / "scene"
+    (folder).mkdir()
+    (folder / "mesh.bin").write_bytes(_mesh_bytes())
+    escaped = []
+    for path in paths:
+        for value in HOSTILE_VALUES:
+            doc = copy.deepcopy(base)
+            node = doc
+            for k in path[:-1]:
+                node = node[k]
+            node[path[-1]] = value
+            target = folder / "scene.gltf"
+            target.write_text(json.dumps(doc))
+            try:
+                bounded(gltf_input, target)
+            except GltfError as exc:
+                assert "\n" not in str(exc)
+            except Exception as exc:  # the failure this test looks for
+                escaped.append(f"{path}={value!r}: {type(exc).__name__}: {exc}")
+    assert not escaped, "\n".join(escaped[:20])

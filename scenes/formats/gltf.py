@@ -670,7 +670,7 @@ def _check_sizes(doc: dict, label: str) -> None:
             raise GltfError(f"{label}: {len(items):,} {key}, over the limit of {top:,}")
     nodes = _list(doc.get("nodes"))
     depth = [0] * len(nodes)
-    children = [n.get("children") or [] if isinstance(n, dict) else [] for n in nodes]
+    children = [_list(n.get("children")) if isinstance(n, dict) else [] for n in nodes]
     has_parent = {c for kids in children for c in kids if isinstance(c, int)}
     stack = [(i, 1) for i in range(len(nodes)) if i not in has_parent]
     while stack:
