@@ -849,3 +849,77 @@ def test_json_depth_is_iterative():
         node.append([])
         node = node[0]
     assert U.json_depth(deep, 64) == 65  # counted up to the limit + 1, no recursion
+
+
+# --- sweeps: every field set to every hostile value, a refusal or a result, nothing else ------
+
+SWEEP_VALUES = [None, -1, 0, 2**63, 1e300, "x", "", [], [1], {}, {"a": 1}, True, 0.5]
+
+
+def _paths(node, prefix=()):
+    out = [prefix] if prefix else []
+    if isinstance(node, dict):
+        items = node.items()
+    elif isinstance(node, list):
+        items = enumerate(node)
+    else:
+        items = ()
+    for k, v in items:
+        out += _paths(v, (*prefix, k))
+    return out
+
+
+def _variants(base):
+    for path in _paths(base):
+        for value in SWEEP_VALUES:
+            doc = json.loads(json.dumps(base))
+            node = doc
+            for k in path[:-1]:
+                node = node[k]
+            node[path[-1]] = value
+            yield path, value, doc
+
+
+def test_every_camera_file_field_of_every_type_is_refused_or_read(tmp_path):
+    base = {"frames": [_frame()["frames"][0], {"world_to_view": EYE, "fov_y_deg": 40.0}]}
+    path, escaped = tmp_path / "cameras.json", []
+    for where, value, doc in _variants(base):
+        path.write_text(json.dumps(doc))
+        try:
+            bounded(load_camera_file, path, BASE)
+        except CameraFileError as exc:
+            assert "\n" not in str(exc)
+        except Exception as exc:  # the failure this test looks for
+            escaped.append(f"{where}={value!r}: {type(exc).__name__}: {exc}")
+    assert not escaped, "\n".join(escaped[:20])
+
+
+def test_every_verdict_field_of_every_type_is_judged_without_an_exception():
+    base = GOOD | {"passed": False, "failed": ["b"], "checks": [CHECK_OK, CHECK_BAD]}
+    judged = [V.valid_verdict(doc, KEY) for _, _, doc in _variants(base)]
+    assert len(judged) > 150 and not all(judged)
+
+
+MANIFEST_VALUES = ["1", "-1", "1e300", "true", "[]", "{}", '"../x"', "nan", "inf", '"{0}"']
+MANIFEST_VALUES += ['"x"', '["a"]', "{ a = 1 }", '"metrics.json"', "2097152", '"a\\u0000b"']
+MANIFEST_KEYS = {
+    "defaults": ["spp", "seed", "flip_mode", "profiles", "visibility", "camera_path", "exports"],
+    "scenes.plate": ["scene", "file", "frames", "camera_path", "visibility", "channels"],
+    "scenes.plate.channels.shadow": ["kind", "visibility", "fail_above", "fail_below"],
+}
+
+
+def test_every_manifest_field_of_every_type_is_refused_or_read(tmp_path):
+    path, escaped = tmp_path / "ci.toml", []
+    for table, keys in MANIFEST_KEYS.items():
+        for key in keys:
+            for value in MANIFEST_VALUES:
+                other = "" if table == "scenes.plate" else "[scenes.plate]\n"
+                path.write_text(f"{other}[{table}]\n{key} = {value}\n")
+                try:
+                    bounded(M.read_manifest, path)
+                except M.ManifestError as exc:
+                    assert "\n" not in str(exc)
+                except Exception as exc:  # the failure this test looks for
+                    escaped.append(f"[{table}] {key} = {value}: {type(exc).__name__}: {exc}")
+    assert not escaped, "\n".join(escaped[:20])
