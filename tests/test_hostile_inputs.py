@@ -923,3 +923,30 @@ def test_every_manifest_field_of_every_type_is_refused_or_read(tmp_path):
                 except Exception as exc:  # the failure this test looks for
                     escaped.append(f"[{table}] {key} = {value}: {type(exc).__name__}: {exc}")
     assert not escaped, "\n".join(escaped[:20])
+
+
+def test_every_baseline_record_field_of_every_type_is_refused_or_compared(tmp_path):
+    """A previous run's metrics.json with each field set to each hostile value: read and
+    compared with this run's record, or refused (GateError); never another exception."""
+    from raster_oracle.oracle.scoring.gates import compare_baseline
+
+    record = {
+        "schema": METRICS_SCHEMA,
+        "channel": "visibility",
+        "kind": "visibility",
+        "reference": {"scene": {"name": "plate", "resolution": [64, 36], "light_index": 0}},
+        "frames": None,
+        "noise_floor": {"mae": 0.01},
+        "mae": 0.1,
+        "platform": None,
+    }
+    path, escaped = tmp_path / "metrics.json", []
+    for where, value, doc in _variants(record):
+        path.write_text(json.dumps(doc))
+        try:
+            compare_baseline(record, bounded(load_baseline, path))
+        except GateError as exc:
+            assert "\n" not in str(exc)
+        except Exception as exc:  # the failure this test looks for
+            escaped.append(f"{where}={value!r}: {type(exc).__name__}: {exc}")
+    assert not escaped, "\n".join(escaped[:20])

@@ -307,7 +307,8 @@ def _check_record(record, where: str) -> dict:
             f"{where} is not a raster-oracle metrics.json (schema {found!r}, "
             f"expected {METRICS_SCHEMA!r}){hint if found == FOLDER_SCHEMA else ''}"
         )
-    scene = (record.get("reference") or {}).get("scene")
+    reference = record.get("reference")
+    scene = reference.get("scene") if isinstance(reference, dict) else None
     if not isinstance(scene, dict) or not isinstance(record.get("channel"), str):
         raise GateError(f"{where} is a metrics record without its scene or channel")
     size = scene.get("resolution")
