@@ -23,7 +23,7 @@ from raster_oracle.oracle.certify import verdict as V
 from raster_oracle.oracle.cli.args import MAX_SPP
 from raster_oracle.oracle.scoring import manifest as M
 from raster_oracle.oracle.scoring.baseline import accept_baseline, resolve_baseline
-from raster_oracle.oracle.scoring.folder import FolderCase, case_folder, score_folder
+from raster_oracle.oracle.scoring.folder import FolderCase, score_folder
 from raster_oracle.oracle.scoring.gates import (
     METRICS_SCHEMA,
     Check,
@@ -32,6 +32,7 @@ from raster_oracle.oracle.scoring.gates import (
     junit_xml,
     load_baseline,
 )
+from raster_oracle.oracle.scoring.out_names import case_folder
 from raster_oracle.oracle.scoring.score import ScoreError
 from raster_oracle.oracle.scoring.summary import summary_markdown
 from raster_oracle.scenes import backend
@@ -161,7 +162,7 @@ def test_score_folder_refuses_a_case_folder_outside_out(tmp_path, name):
 
 
 def test_a_case_folder_is_under_out(tmp_path):
-    assert case_folder(tmp_path, "plate/shadow") == tmp_path / "plate" / "shadow"
+    assert case_folder(tmp_path, "plate/shadow", error=ScoreError) == tmp_path / "plate" / "shadow"
 
 
 def _cli(*args, env_extra=None, timeout=180):

@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from ...scenes.base.untrusted import terminal
 from . import args as A
 from .gate_args import (
     add_gate_args,
@@ -124,7 +123,7 @@ def _discovered_cases(args, gates) -> list:
         except MissingChannelError as exc:
             if args.channel is None:
                 raise
-            print(terminal(f"{entry.name}: error: {exc}"))
+            print(f"{entry.name}: error: {exc}")
             error = str(exc)
         camera_path = args.camera_path or loaded.camera_path
         if entry.frames and camera_path is None:
@@ -192,7 +191,7 @@ def _manifest_cases(args, gates) -> list:
             layout = resolve_layout(pattern, channel=mc.channel, kind=mc.kind, loaded=loaded)
             case = replace(case, layout=layout)
         except CandidateError as exc:
-            print(terminal(f"{mc.name}: error: {exc}"))
+            print(f"{mc.name}: error: {exc}")
             case = replace(case, error=str(exc))
         cases.append(case)
     return cases

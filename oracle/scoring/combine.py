@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 
 from ... import reports
-from ...scenes.base.untrusted import read_json
 from .score import ScoreError
 
 __all__ = ["combine_reports"]
@@ -33,6 +32,8 @@ def combine_reports(folders: list[Path], out: Path, *, title: str, errors=None) 
     ScoreError
         ``out`` is a folder, a folder is not a score folder or its ``report.json`` is not JSON.
     """
+    from ...scenes.base.untrusted import read_json
+
     out = Path(out)
     if out.exists() and out.is_dir():
         raise ScoreError(f"--out {out} is a folder; give the report file to write")

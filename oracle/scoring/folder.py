@@ -21,7 +21,7 @@ from .gates import FOLDER_SCHEMA
 from .options import ScoreOptions
 from .score import ScoreError
 
-__all__ = ["FolderCase", "FolderEntry", "FolderRun", "case_folder", "discover", "score_folder"]
+__all__ = ["FolderCase", "FolderEntry", "FolderRun", "discover", "score_folder"]
 
 _IMAGE = (".exr", ".png")
 _FRAME = re.compile(r"^frame_(\d+)\.(exr|png)$", re.IGNORECASE)
@@ -121,20 +121,6 @@ class FolderRun:
         return 1 if any(v.failed or v.errors for v in self.verdicts) else 0
 
 
-def case_folder(out: Path, name: str) -> Path:
-    """The folder of case ``name`` (``scene`` or ``scene/channel``) under ``out``: each part
-    a plain folder name (:func:`oracle.scoring.manifest.check_out_name`), so no case writes
-    outside ``out`` or over the run's own files (:class:`ScoreError` otherwise)."""
-    from .out_names import check_out_name
-
-    parts = str(name).split("/")
-    if len(parts) > 2:
-        raise ScoreError(f"score-folder: case {name!r} has more than scene/channel")
-    for part in parts:
-        check_out_name(part, f"score-folder case {name!r}", error=ScoreError)
-    return Path(out).joinpath(*parts)
-
-
 def score_folder(
     cases,
     *,
@@ -155,11 +141,12 @@ def score_folder(
     """
     from .combine import combine_reports
     from .gates import Verdict
+    from .out_names import case_folder
     from .request import score_to_folder
 
     out = Path(out)
-    for case in cases:
-        case_folder(out, case.name)
+    for case in cases:  # every case's folder a folder name under out, before anything is written
+        case_folder(out, case.name, error=ScoreError)
     combined = {"schema": FOLDER_SCHEMA, "root": root, "scenes": {}, "failed": {}, "errors": {}}
     run = FolderRun(record=combined)
     scored = []
@@ -170,7 +157,7 @@ def score_folder(
             run.verdicts.append(verdict)
             continue
         baseline = (baselines or {}).get(case.name)
-        folder = case_folder(out, case.name)
+        folder = case_folder(out, case.name, error=ScoreError)
         verdict = score_to_folder(
             case.loaded,
             out=folder,

@@ -13,6 +13,7 @@ from pathlib import Path
 __all__ = [
     "MAX_FRAME_WIDTH",
     "RESERVED",
+    "case_folder",
     "check_frame_pattern",
     "check_out_name",
     "relative_file",
@@ -76,3 +77,15 @@ def relative_file(text: str, where: str, *, error) -> str:
             "no '..', no backslash or control character)"
         )
     return check_frame_pattern(text, where, error=error)
+
+
+def case_folder(out, name: str, *, error) -> Path:
+    """The folder of a score-folder case ``name`` (``scene`` or ``scene/channel``) under
+    ``out``: each part one folder name (:func:`check_out_name`), so no case writes outside
+    ``out`` or over the run's own files."""
+    parts = str(name).split("/")
+    if len(parts) > 2:
+        raise error(f"score-folder: case {name!r} has more than scene/channel")
+    for part in parts:
+        check_out_name(part, f"score-folder case {name!r}", error=error)
+    return Path(out).joinpath(*parts)
