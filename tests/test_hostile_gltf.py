@@ -609,3 +609,19 @@ def test_every_field_of_every_type_is_refused_or_read(tmp_path):
             except Exception as exc:  # the failure this test looks for
                 escaped.append(f"{path}={value!r}: {type(exc).__name__}: {exc}")
     assert not escaped, "\n".join(escaped[:20])
+
+
+def test_a_huge_texture_is_one_line_at_the_command_line(tmp_path):
+    """12000 x 12000 pixels: Pillow's own bomb warning is not a second line."""
+    from PIL import Image
+
+    folder = tmp_path / "scene"
+    doc = _doc()
+    doc["images"] = [{"uri": "big.png"}]
+    doc["textures"] = [{"source": 0}]
+    _material(doc, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}})
+    path = _write(folder, doc)
+    Image.new("L", (12000, 12000)).save(folder / "big.png")
+    r = _cli("export", path, "--out", tmp_path / "out")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "limit" in r.stderr
+    assert not (tmp_path / "out").exists()

@@ -372,14 +372,20 @@ def _image(d: _Doc, index: int) -> np.ndarray:
         data = d.view_bytes(_index(d, img.bufferView, d.doc.bufferViews, "buffer view"))[0]
     else:
         d.fail(f"image {index} has neither uri nor bufferView")
+    limit = LIMITS["image_pixels"]
     try:
-        with Image.open(io.BytesIO(data)) as im:
-            w, h = im.size
-            if w * h > LIMITS["image_pixels"]:
-                d.fail(f"image {index} is {w}x{h}, over the limit of {LIMITS['image_pixels']:,} px")
-            rgb = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
+        with warnings.catch_warnings():
+            # Pillow's own bomb warning (over 89 Mpx) is a refusal here, not a stray line
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            with Image.open(io.BytesIO(data)) as im:
+                w, h = im.size
+                if w * h > limit:
+                    d.fail(f"image {index} is {w}x{h}, over the limit of {limit:,} pixels")
+                rgb = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
     except GltfError:
         raise
+    except (Image.DecompressionBombWarning, Image.DecompressionBombError):
+        d.fail(f"image {index} is over the limit of {limit:,} pixels")
     except Exception as exc:  # Pillow raises many types for undecodable data
         d.fail(f"image {index} cannot be decoded: {exc}")
     return rgb
