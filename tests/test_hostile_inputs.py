@@ -951,3 +951,17 @@ def test_every_baseline_record_field_of_every_type_is_refused_or_compared(tmp_pa
         except Exception as exc:  # the failure this test looks for
             escaped.append(f"{where}={value!r}: {type(exc).__name__}: {exc}")
     assert not escaped, "\n".join(escaped[:20])
+
+
+@pytest.mark.parametrize("text", HOSTILE, ids=range(len(HOSTILE)))
+def test_printed_verdicts_carry_no_control_characters(text, capsys):
+    from raster_oracle.oracle.cli.gate_args import print_verdict
+
+    verdict = _verdict(text).add(notes=[f"note {text}"])
+    print_verdict(verdict, baseline=f"base {text}", prefix=f"{text}: ")
+    out = capsys.readouterr()
+    for stream in (out.out, out.err):
+        lines = stream.splitlines()
+        assert lines and not any(
+            ord(c) < 32 and c != "\t" or 0x7F <= ord(c) <= 0x9F for line in lines for c in line
+        )
