@@ -204,9 +204,10 @@ def reference(
     Parameters
     ----------
     scene : a name, XML file, export folder or loaded scene (see :func:`load_scene`).
-    channels : channel groups (``visibility``, ``coverage``, ``color``, ``edge``, ``id``,
-        ``depth``, ``position``, ``normal``, ``albedo``, ``tangent32``); default: all but
-        ``tangent32``.
+    channels : channel groups (``visibility``, ``coverage``, ``coverage_exact``, ``color``,
+        ``edge``, ``id``, ``depth``, ``position``, ``normal``, ``albedo``, and the opt-in
+        ``tangent32``, ``motion`` and ``soft``: ``soft_visibility`` and ``light_fraction``
+        under an area light); default: all but the opt-in ones.
     cache : True (the default cache folder), False (no cache) or a cache folder.
     """
     from .oracle.reference.render import ALL_CHANNELS, ReferenceSettings

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -23,7 +24,7 @@ from .catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 from .formats.camera_file import CameraFileError, load_camera_file
 from .formats.gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
-from .lights import Light
+from .lights import AREA_SHAPES, Light
 from .object_paths import check_motion, object_transform
 from .paths import CAMERA_PATHS, path_camera
 from .shading.phong import Specular
@@ -403,7 +404,67 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
             beam_width=float(np.ravel(p["beam_width"])[0]),
             name=name,
         )
+    if kind == "AreaLight":
+        return _area_light(mi, emitter, rgb("radiance.value"), name)
     return None
+
+
+#: Relative tolerance of an area light's shape checks (orthogonal axes, round disk, sphere).
+_AREA_TOLERANCE = 1e-4
+
+
+def _area_light(mi, emitter, radiance, name: str) -> Light | None:
+    """An area light (:mod:`scenes.lights`) from a Mitsuba ``area`` emitter on a rectangle,
+    disk or sphere; None on any other shape (not a usable light, as other emitters);
+    :class:`SceneError` for a sheared rectangle, an elliptical disk or a non-uniformly scaled
+    sphere."""
+    shape = emitter.get_shape()
+    name = shape.id() or name  # the shape's id names the light (its emitter has none of its own)
+    kind = shape.class_name().lower()
+    if kind not in AREA_SHAPES:
+        return None
+    m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    u, v, w, centre = m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3]
+    lu, lv, lw = (float(np.linalg.norm(a)) for a in (u, v, w))
+    tol = _AREA_TOLERANCE * max(lu, lv, 1e-30)
+    if not (np.isfinite(m).all() and lu > 0 and lv > 0 and abs(float(u @ v)) <= tol * max(lu, lv)):
+        raise SceneError(
+            f"area light {name!r}: its {kind}'s to_world must scale and rotate without shear "
+            "(orthogonal, non-zero axes)"
+        )
+    rgb = np.asarray(radiance, dtype=np.float64)
+    if kind == "sphere":
+        if abs(lu - lv) > tol or abs(lu - lw) > tol:
+            raise SceneError(f"area light {name!r}: a sphere light must be scaled uniformly")
+        r = lu
+        return Light(
+            "point",
+            tuple(float(c) for c in rgb * math.pi * r * r),
+            position=tuple(float(c) for c in centre),
+            name=name,
+            area="sphere",
+            radius=r,
+            radiance=tuple(float(c) for c in rgb),
+        )
+    # Mitsuba's planar shapes face the transformed local +Z normal (the inverse transpose)
+    n = np.linalg.inv(m[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
+    n = n / np.linalg.norm(n)
+    if float(np.cross(u, v) @ n) < 0.0:  # a mirroring to_world: keep u x v along the normal
+        v = -v
+    if kind == "disk" and abs(lu - lv) > tol:
+        raise SceneError(f"area light {name!r}: a disk light must be round (equal axes)")
+    area = 4.0 * lu * lv if kind == "rectangle" else math.pi * lu * lu
+    return Light(
+        "point",
+        tuple(float(c) for c in rgb * area),
+        direction=tuple(float(c) for c in n),
+        position=tuple(float(c) for c in centre),
+        name=name,
+        area=kind,
+        axes=(tuple(float(c) for c in u), tuple(float(c) for c in v)),
+        radius=lu if kind == "disk" else 0.0,
+        radiance=tuple(float(c) for c in rgb),
+    )
 
 
 def _check_size(width, height) -> None:
@@ -437,7 +498,8 @@ def load(
         built-in scene's factory wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
-    light : index of the light to use among the scene's punctual lights.
+    light : index of the light to use among the scene's lights (punctual ones first, then
+        area lights, each in the scene's order).
     camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
@@ -568,6 +630,12 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
     )
 
 
+def _emitter_kind(emitter) -> str:
+    """An emitter's class for messages (an area light with its shape's)."""
+    shape = emitter.get_shape() if emitter.class_name() == "AreaLight" else None
+    return emitter.class_name() + (f" on a {shape.class_name()}" if shape is not None else "")
+
+
 def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
     """The scene's usable lights (glTF: with the KHR_lights_punctual attenuation);
     :class:`SceneError` when there is none or ``light`` is out of range."""
@@ -579,10 +647,14 @@ def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
             lights.append(lt)
     if gl is not None:
         lights = gl.lights(lights)
+    # area lights after the punctual ones: a scene's punctual lights keep the indices they
+    # had before area lights were read
+    lights = [lt for lt in lights if not lt.is_area] + [lt for lt in lights if lt.is_area]
     if not lights:
-        kinds = ", ".join(e.class_name() for e in emitters) or "none"
+        kinds = ", ".join(_emitter_kind(e) for e in emitters) or "none"
         raise SceneError(
-            f"scene {name!r} has no usable light (directional, point or spot); found: {kinds}"
+            f"scene {name!r} has no usable light (directional, point, spot or an area light "
+            f"on a rectangle, disk or sphere); found: {kinds}"
         )
     if not 0 <= int(light) < len(lights):
         raise SceneError(

@@ -28,7 +28,14 @@ from ..formats.gltf_materials import surface_dr
 from ..shading.pbr import shade_gltf
 from ..shading.phong import facing, receiver_mask, shade
 
-__all__ = ["CHUNK", "intersect", "shape_table", "trace_film", "trace_film_dr"]
+__all__ = [
+    "CHUNK",
+    "intersect",
+    "occluded_segment_dr",
+    "shape_table",
+    "trace_film",
+    "trace_film_dr",
+]
 
 #: Rays per Dr.Jit launch in the NumPy-level helpers (bounded memory: ~0.5 GiB a launch).
 CHUNK = 1 << 21
@@ -115,7 +122,9 @@ def shadow_ray_dr(light, p, ng, wl, offset=SHADOW_OFFSET):
         return mi.Ray3f(origin, wl)
     to = mi.Point3f(*[float(c) for c in light.position]) - origin
     dist = dr.norm(to)
-    return mi.Ray3f(origin, to / dist, dist * (1.0 - 1e-5), 0.0, mi.Color0f())
+    # a sphere light's centre lies inside it: the ray stops at its surface (shadow_end)
+    end = dist - light.shadow_end if light.shadow_end else dist
+    return mi.Ray3f(origin, to / dist, end * (1.0 - 1e-5), 0.0, mi.Color0f())
 
 
 #: Rounds of "skip a spurious hit on the ray's own analytic shape" (one is enough in practice:
@@ -161,6 +170,64 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     return blocked
 
 
+def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None, recheck=None):
+    """True where the segment from surface points ``p`` (geometric normal ``ng``, hit shape
+    ``shape``) along unit directions ``wl`` to the points ``p + wl * dist`` (on an area
+    light) is blocked (Dr.Jit).
+
+    The rays of :func:`occluded_from_dr` towards arbitrary end points: the same origin offset
+    and the same skipping of spurious hits on the ray's own analytic shape; each ray ends just
+    short of its end point (measured from its offset origin). With ``light_shape`` (the
+    light's own Mitsuba shape), the blocked rays of ``recheck`` (all rays when None) find
+    their closest hit again and a hit on the light ends them unblocked: near a sphere light's
+    silhouette the end point's rounding error exceeds any margin (the ray grazes the sphere),
+    so a margin alone would let the light shadow itself. The rays that need closest hits run
+    in a symbolic loop (one intersection for most, a second after a spurious hit), not
+    :data:`SELF_HIT_ROUNDS` unrolled intersections of every ray (which tripled the cost of an
+    area light's samples).
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    mesh = shape.is_mesh()
+    offset = dr.select(mesh, SHADOW_OFFSET_MESH, SHADOW_OFFSET)
+    target = p + wl * dist
+    side = dr.select(dr.dot(ng, wl) >= 0.0, 1.0, -1.0)
+    outward = ~mesh & (dr.dot(ng, wl) > 0.0)
+
+    def ray_from(q):
+        origin = q + ng * (side * _normal_scale(q, ng) * offset)
+        to = target - origin
+        length = dr.norm(to)
+        return mi.Ray3f(origin, to / length, length * (1.0 - 1e-5), 0.0, mi.Color0f())
+
+    if light_shape is None and not _has_analytic_shapes(scene):
+        return scene.ray_test(ray_from(p), active)
+    pending = active & outward
+    blocked = scene.ray_test(ray_from(p), active & ~pending)
+    if light_shape is not None:  # blocked, perhaps by the light itself: look again
+        light_ptr = mi.ShapePtr(light_shape)
+        again = mi.Bool(blocked) if recheck is None else blocked & recheck
+        blocked = blocked & ~again  # not in place: ``again`` may share its storage
+        pending = pending | again
+
+    def body(q, blocked, pending, rounds):
+        si = scene.ray_intersect(ray_from(q), mi.RayFlags.Minimal, False, pending)
+        hit = pending & si.is_valid()
+        if light_shape is not None:
+            hit &= si.shape != light_ptr
+        own = hit & (si.shape == shape) & outward  # a spurious hit on its own analytic shape
+        return dr.select(own, si.p, q), blocked | (hit & ~own), own, rounds + 1
+
+    _, blocked, _, _ = dr.while_loop(
+        state=(mi.Point3f(p), blocked, pending, dr.zeros(mi.UInt32, dr.width(pending))),
+        cond=lambda q, blocked, pending, rounds: pending & (rounds < SELF_HIT_ROUNDS),
+        body=body,
+        labels=("q", "blocked", "pending", "rounds"),
+    )
+    return blocked
+
+
 def shadow_occluded_dr(scene, light, si, wl, active):
     """True where the light is blocked from the surface interaction ``si`` (Dr.Jit): see
     :func:`occluded_from_dr`."""
@@ -175,7 +242,9 @@ def primary_flags(mi):
     return mi.RayFlags.UV | mi.RayFlags.ShadingFrame
 
 
-def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool = True):
+def trace_film_dr(
+    loaded, x, y, *, color: bool = True, camera=None, albedo: bool = True, keep_si: bool = False
+):
     """Trace primary and shadow rays through film positions (Dr.Jit ``Float`` pixels).
 
     Returns a dict of Dr.Jit arrays: ``valid`` (hit geometry), ``lit`` (sees the light; True
@@ -184,6 +253,8 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     ``position``, ``normal`` (facing the viewer), ``albedo`` (unless ``albedo`` and
     ``color`` are both False: tracing the BSDF call costs Python time on every launch even
     when nothing reads it) and, with ``color``, ``color`` (shaded linear RGB, 0 for sky).
+    With ``keep_si``, also ``si`` (the primary hits' ``SurfaceInteraction3f``) and ``to_eye``
+    (what an area light's samples start from, :mod:`oracle.reference.soft`).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -229,6 +300,8 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
         "cos_l": cos_l,
         "shadow_tested": candidate,
     }
+    if keep_si:
+        out["si"], out["to_eye"] = si, to_eye
     if pbr is not None and (albedo or color):
         mat = surface_dr(pbr, si, shape_index, n, to_eye, valid)
         out["albedo"] = dr.select(valid, mat["base_color"], 0.0)

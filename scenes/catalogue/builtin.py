@@ -14,7 +14,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from . import aa_scenes, moving_scenes, pbr_scenes, scale_scenes, shadow_scenes
+from . import aa_scenes, moving_scenes, pbr_scenes, scale_scenes, shadow_scenes, soft_scenes
 
 __all__ = [
     "BUILTIN_SCENES",
@@ -109,6 +109,11 @@ BUILTIN_SCENES.update(
 # Scenes with moving objects (slide, spin): see scenes.catalogue.moving_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in moving_scenes.MOVING_SCENES.items()}
+)
+
+# Soft-shadow scenes (soft-contact: an area light; stacked-casters): see .soft_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
 )
 
 # Scenes of real size, their size a parameter (meadow:n=1000000): see scenes.catalogue.scale_scenes.
