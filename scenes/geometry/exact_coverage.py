@@ -648,7 +648,7 @@ def exact_coverage(loaded, centre: np.ndarray, *, budget=None, check=None) -> Ex
     except (OverBudget, NotExact) as exc:
         exc.view = key  # said once per view by the caller
         loaded.memo[RESULT_MEMO_KEY] = (key, exc)
-        raise
+        raise exc.with_traceback(None) from None  # the memo keeps no frames alive
     loaded.memo[RESULT_MEMO_KEY] = (key, out)
     return out
 
