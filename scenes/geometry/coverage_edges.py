@@ -29,15 +29,15 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["POLY_CHUNK", "ROW_CHUNK", "convex_arrays", "visible_segments"]
+__all__ = ["POLY_CHUNK", "convex_arrays", "visible_segments"]
 
 #: Polygons whose edges are resolved per pass (their candidate pairs are queried together).
 POLY_CHUNK = 512
-#: Rows (an edge against a candidate polygon) per NumPy pass of the clipping.
-ROW_CHUNK = 131_072
 #: Distance (px) within which two edges count as collinear, and relative parallelism.
 COLLINEAR_PX = 1e-10
 PARALLEL_REL = 1e-12
+#: The compiled row clipper, once :func:`_kernel` has built it.
+_CLIP = None
 
 
 def convex_arrays(polys) -> tuple[np.ndarray, np.ndarray]:
@@ -91,35 +91,70 @@ def _half_planes(v, count):
     return ux, uy, c
 
 
-def _clip_rows(p0, d, hp, bb, same_layer_earlier):
-    """Parameter intervals of the segments ``p0 + s d`` (``s`` in [0, 1]) whose left and
-    right sides lie inside polygon ``bb`` (half-planes ``hp``): ``(l_lo, l_hi, r_lo,
-    r_hi)``, NaN where empty."""
-    ux, uy, c = (x[bb] for x in hp)
-    d0 = ux * p0[:, 1, None] - uy * p0[:, 0, None] - c
-    slope = ux * d[:, 1, None] - uy * d[:, 0, None]
-    dlen = np.hypot(d[:, 0], d[:, 1])[:, None]
-    parallel = np.abs(slope) <= PARALLEL_REL * dlen
-    collinear = parallel & (np.abs(d0) <= COLLINEAR_PX)
-    same_dir = (ux * d[:, 0, None] + uy * d[:, 1, None]) > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = -d0 / slope
-    lo = np.where(~parallel & (slope > 0), t, -np.inf).max(axis=1)
-    hi = np.where(~parallel & (slope < 0), t, np.inf).min(axis=1)
-    out_par = parallel & ~collinear & (d0 <= 0)
-    # collinear: the left side is inside when both run the same way, the right side when
-    # they run opposite ways; same-way twins of one layer: the earlier polygon keeps it
-    left_out = np.any((collinear & ~same_dir) | out_par, axis=1)
-    right_out = np.any((collinear & same_dir & ~same_layer_earlier[:, None]) | out_par, axis=1)
-    lo, hi = np.clip(lo, 0.0, 1.0), np.clip(hi, 0.0, 1.0)
-    some = hi > lo
-    left, right = some & ~left_out, some & ~right_out
-    return (
-        np.where(left, lo, np.nan),
-        np.where(left, hi, np.nan),
-        np.where(right, lo, np.nan),
-        np.where(right, hi, np.nan),
-    )
+def _kernel():
+    """The compiled row clipper (numba, compiled once and cached on disk)."""
+    global _CLIP
+    if _CLIP is None:
+        import numba
+
+        _CLIP = numba.njit(cache=True, nogil=True)(_clip_pairs)
+    return _CLIP
+
+
+def _clip_pairs(a, b, count, first_edge, e, hp, box, layer, out_i, out_f):
+    """Rows (an edge of ``a[p]``, polygon ``b[p]``) of :func:`_clip_rows`, one at a time,
+    compiled: the same operations in the same order (identical bits), rows whose edge box
+    misses ``b``'s box or whose intervals are both empty left out. ``e``: per edge
+    ``(x0, y0, x1, y1)``; ``hp``: ``(3, N, K)`` half-planes. Writes per kept row the edge
+    and ``b`` to ``out_i`` and ``(l_lo, l_hi, r_lo, r_hi)`` to ``out_f`` (NaN where empty);
+    returns the number of rows kept."""
+    n = 0
+    for p in range(a.shape[0]):
+        pa, pb = a[p], b[p]
+        la, lb = layer[pa], layer[pb]
+        earlier = la == lb and pb < pa
+        for k in range(count[pa]):
+            g = first_edge[pa] + k
+            x0, y0, x1, y1 = e[g, 0], e[g, 1], e[g, 2], e[g, 3]
+            if (
+                min(x0, x1) > box[pb, 2]
+                or max(x0, x1) < box[pb, 0]
+                or min(y0, y1) > box[pb, 3]
+                or max(y0, y1) < box[pb, 1]
+            ):
+                continue
+            dx, dy = x1 - x0, y1 - y0
+            dlen = np.hypot(dx, dy)
+            lo, hi = -np.inf, np.inf
+            left_out, right_out = False, False
+            for j in range(count[pb]):
+                ux, uy, c = hp[0, pb, j], hp[1, pb, j], hp[2, pb, j]
+                d0 = ux * y0 - uy * x0 - c
+                slope = ux * dy - uy * dx
+                parallel = abs(slope) <= PARALLEL_REL * dlen
+                if parallel:
+                    if abs(d0) <= COLLINEAR_PX:
+                        if ux * dx + uy * dy > 0:
+                            right_out = right_out or not earlier
+                        else:
+                            left_out = True
+                    elif d0 <= 0:
+                        left_out, right_out = True, True
+                else:
+                    t = -d0 / slope
+                    if slope > 0:
+                        lo = max(lo, t)
+                    elif slope < 0:
+                        hi = min(hi, t)
+            lo, hi = min(max(lo, 0.0), 1.0), min(max(hi, 0.0), 1.0)
+            if hi > lo and not (left_out and right_out):
+                out_i[n, 0], out_i[n, 1] = g, pb
+                out_f[n, 0] = np.nan if left_out else lo
+                out_f[n, 1] = np.nan if left_out else hi
+                out_f[n, 2] = np.nan if right_out else lo
+                out_f[n, 3] = np.nan if right_out else hi
+                n += 1
+    return n
 
 
 def _segments_of(a, b=None, *, b_in=False):
@@ -134,7 +169,10 @@ def _segments_of(a, b=None, *, b_in=False):
     pos = np.concatenate([alo, ahi, blo, bhi])
     da = np.concatenate([np.ones(na), -np.ones(na), np.zeros(2 * nb)])
     db = np.concatenate([np.zeros(2 * na), np.ones(nb), -np.ones(nb)])
-    order = np.lexsort((pos, g))
+    # lexsort((pos, g)) as two stable sorts (the same order; a radix sort on small groups)
+    order = np.argsort(pos, kind="stable")
+    small = np.int16 if len(g) and g.max() < 2**15 else np.int64
+    order = order[np.argsort(g[order].astype(small), kind="stable")]
     g, pos = g[order], pos[order]
     ca, cb = np.cumsum(da[order]), np.cumsum(db[order])
     nxt_same = np.concatenate([g[1:] == g[:-1], [False]])
@@ -155,11 +193,14 @@ def visible_segments(v, count, layer, tag, pairs, *, check=None):
     p0, p1, owner = _edges(v, count)
     first_edge = np.cumsum(count) - count
     layer_tag = dict(zip(layer.tolist(), tag.tolist(), strict=True))  # one shape a layer
-    hp = _half_planes(v, count)
+    hp = np.ascontiguousarray(np.stack(_half_planes(v, count)))  # (3, N, K)
+    e = np.ascontiguousarray(np.concatenate([p0, p1], axis=1))  # (E, 4)
+    count, first_edge = count.astype(np.int64), first_edge.astype(np.int64)
+    layer = np.asarray(layer, np.int64)
     lo_xy = np.where(np.arange(v.shape[1])[None, :, None] < count[:, None, None], v, np.inf)
     hi_xy = np.where(np.arange(v.shape[1])[None, :, None] < count[:, None, None], v, -np.inf)
     box = np.concatenate([lo_xy.min(axis=1), hi_xy.max(axis=1)], axis=1)  # (N, 4)
-    geo = (p0, p1, owner, first_edge, hp, box, count, layer, tag, layer_tag)
+    geo = (p0, p1, owner, first_edge, e, hp, box, count, layer, tag, layer_tag)
     out = []
     n = len(count)
     for start in range(0, n, POLY_CHUNK):
@@ -177,33 +218,15 @@ def visible_segments(v, count, layer, tag, pairs, *, check=None):
 def _chunk(a, b, idx, geo):
     """:func:`visible_segments` for the edges of the polygons ``idx`` (candidates ``b`` of
     each ``a``)."""
-    p0, p1, owner, first_edge, hp, box, count, layer, tag, layer_tag = geo
-    # one row per (edge of a, polygon b) whose bounding boxes overlap
-    ca = count[a]
-    row_pair = np.repeat(np.arange(len(a)), ca)
-    k = np.arange(len(row_pair)) - np.repeat(np.cumsum(ca) - ca, ca)
-    edge = first_edge[a[row_pair]] + k
-    bb = b[row_pair]
-    e0, e1 = p0[edge], p1[edge]
-    bx = box[bb]
-    near = (
-        (np.minimum(e0[:, 0], e1[:, 0]) <= bx[:, 2])
-        & (np.maximum(e0[:, 0], e1[:, 0]) >= bx[:, 0])
-        & (np.minimum(e0[:, 1], e1[:, 1]) <= bx[:, 3])
-        & (np.maximum(e0[:, 1], e1[:, 1]) >= bx[:, 1])
-    )
-    edge, bb, e0, e1 = edge[near], bb[near], e0[near], e1[near]
+    p0, p1, owner, first_edge, e, hp, box, count, layer, tag, layer_tag = geo
+    # one row per (edge of a, polygon b) whose boxes overlap and whose clip is not empty
+    rows = int(count[a].sum())
+    out_i, out_f = np.empty((rows, 2), np.int64), np.empty((rows, 4))
+    a, b = np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64)
+    m = _kernel()(a, b, count, first_edge, e, hp, box, layer, out_i, out_f)
+    edge, bb = out_i[:m, 0], out_i[:m, 1]
+    l_lo, l_hi, r_lo, r_hi = out_f[:m].T
     la, lb = layer[owner[edge]], layer[bb]
-    earlier = (lb == la) & (bb < owner[edge])
-    l_lo, l_hi, r_lo, r_hi = (np.full(len(edge), np.nan) for _ in range(4))
-    kb = count[bb]
-    for k in np.unique(kb):  # rows by the candidate's vertex count: no padding work
-        rows = np.flatnonzero(kb == k)
-        hp_k = tuple(x[:, :k] for x in hp)
-        for lo in range(0, len(rows), ROW_CHUNK):
-            r = rows[lo : lo + ROW_CHUNK]
-            out = _clip_rows(e0[r], e1[r] - e0[r], hp_k, bb[r], earlier[r])
-            l_lo[r], l_hi[r], r_lo[r], r_hi[r] = out
     # edges of this chunk, numbered locally
     e_first = first_edge[idx[0]]
     e_all = np.arange(e_first, first_edge[idx[-1]] + count[idx[-1]])
