@@ -91,6 +91,20 @@ def _half_planes(v, count):
     return ux, uy, c
 
 
+def _z_order(v, count):
+    """The polygons sorted by the Z-order (Morton) code of their first vertex on a
+    1024 x 1024 grid over their extent."""
+    if len(v) == 0:
+        return np.zeros(0, np.int64)
+    xy = v[:, 0, :]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    q = ((xy - lo) / np.maximum(hi - lo, 1e-9) * 1023).astype(np.int64)
+    code = np.zeros(len(q), np.int64)
+    for bit in range(10):  # a loop over bits
+        code |= ((q[:, 0] >> bit) & 1) << (2 * bit) | ((q[:, 1] >> bit) & 1) << (2 * bit + 1)
+    return np.argsort(code, kind="stable")
+
+
 def _kernel():
     """The compiled row clipper (numba, compiled once and cached on disk)."""
     global _CLIP
@@ -101,37 +115,48 @@ def _kernel():
     return _CLIP
 
 
-def _clip_pairs(a, b, count, first_edge, e, hp, box, layer, out_i, out_f):
-    """Rows (an edge of ``a[p]``, polygon ``b[p]``) of :func:`_clip_rows`, one at a time,
-    compiled: the same operations in the same order (identical bits), rows whose edge box
-    misses ``b``'s box or whose intervals are both empty left out. ``e``: per edge
-    ``(x0, y0, x1, y1)``; ``hp``: ``(3, N, K)`` half-planes. Writes per kept row the edge
-    and ``b`` to ``out_i`` and ``(l_lo, l_hi, r_lo, r_hi)`` to ``out_f`` (NaN where empty);
-    returns the number of rows kept."""
+def _clip_pairs(a, b, count, first_edge, e, poly, layer, number, out_i, out_f):
+    """The rows (an edge of ``a[p]``, polygon ``b[p]``) of the clipping, one at a time: the
+    parameter intervals of the edge whose left and right sides lie inside ``b[p]`` (the
+    operations and their order of the NumPy version this replaced, so the same bits). Rows
+    whose edge box misses the polygon's box, or whose intervals are both empty, are left out.
+
+    e : per edge ``(x0, y0, x1, y1)``.
+    poly : per polygon its box ``(x0, y0, x1, y1)``, then ``(ux, uy, c)`` of each half-plane
+        (:func:`_half_planes`): one row, so one polygon's data share cache lines.
+    number : the polygons' numbers in the caller's order (of two twins the later yields).
+    out_i, out_f : per kept row ``(edge, b)`` and ``(l_lo, l_hi, r_lo, r_hi)`` (NaN where
+        empty). Returns the number of rows kept.
+    """
     n = 0
     for p in range(a.shape[0]):
         pa, pb = a[p], b[p]
         la, lb = layer[pa], layer[pb]
-        earlier = la == lb and pb < pa
+        earlier = la == lb and number[pb] < number[pa]
         for k in range(count[pa]):
             g = first_edge[pa] + k
             x0, y0, x1, y1 = e[g, 0], e[g, 1], e[g, 2], e[g, 3]
             if (
-                min(x0, x1) > box[pb, 2]
-                or max(x0, x1) < box[pb, 0]
-                or min(y0, y1) > box[pb, 3]
-                or max(y0, y1) < box[pb, 1]
+                min(x0, x1) > poly[pb, 2]
+                or max(x0, x1) < poly[pb, 0]
+                or min(y0, y1) > poly[pb, 3]
+                or max(y0, y1) < poly[pb, 1]
             ):
                 continue
             dx, dy = x1 - x0, y1 - y0
-            dlen = np.hypot(dx, dy)
+            dlen = -1.0  # hypot(dx, dy), computed where a slope is near the bound
+            bound = PARALLEL_REL * (abs(dx) + abs(dy))  # >= PARALLEL_REL * hypot(dx, dy)
             lo, hi = -np.inf, np.inf
             left_out, right_out = False, False
             for j in range(count[pb]):
-                ux, uy, c = hp[0, pb, j], hp[1, pb, j], hp[2, pb, j]
+                ux, uy, c = poly[pb, 4 + 3 * j], poly[pb, 5 + 3 * j], poly[pb, 6 + 3 * j]
                 d0 = ux * y0 - uy * x0 - c
                 slope = ux * dy - uy * dx
-                parallel = abs(slope) <= PARALLEL_REL * dlen
+                parallel = False
+                if abs(slope) <= bound:
+                    if dlen < 0.0:
+                        dlen = np.hypot(dx, dy)
+                    parallel = abs(slope) <= PARALLEL_REL * dlen
                 if parallel:
                     if abs(d0) <= COLLINEAR_PX:
                         if ux * dx + uy * dy > 0:
@@ -146,6 +171,8 @@ def _clip_pairs(a, b, count, first_edge, e, hp, box, layer, out_i, out_f):
                         lo = max(lo, t)
                     elif slope < 0:
                         hi = min(hi, t)
+                    if min(max(hi, 0.0), 1.0) <= min(max(lo, 0.0), 1.0):
+                        break  # empty whatever the other lines say
             lo, hi = min(max(lo, 0.0), 1.0), min(max(hi, 0.0), 1.0)
             if hi > lo and not (left_out and right_out):
                 out_i[n, 0], out_i[n, 1] = g, pb
@@ -169,8 +196,8 @@ def _segments_of(a, b=None, *, b_in=False):
     pos = np.concatenate([alo, ahi, blo, bhi])
     da = np.concatenate([np.ones(na), -np.ones(na), np.zeros(2 * nb)])
     db = np.concatenate([np.zeros(2 * na), np.ones(nb), -np.ones(nb)])
-    # lexsort((pos, g)) as two stable sorts (the same order; a radix sort on small groups)
-    order = np.argsort(pos, kind="stable")
+    # sorted by group, then position (the group's sort: a radix sort on small integers)
+    order = np.argsort(pos)  # the order of equal positions changes no count between them
     small = np.int16 if len(g) and g.max() < 2**15 else np.int64
     order = order[np.argsort(g[order].astype(small), kind="stable")]
     g, pos = g[order], pos[order]
@@ -190,25 +217,31 @@ def visible_segments(v, count, layer, tag, pairs, *, check=None):
         boxes overlapping) of each polygon ``a`` in ``idx``, ``a != b``, both ways.
     check : called between chunks (lets a signal handler run).
     """
+    # polygons renumbered along a Z curve: a chunk's candidates are near each other in memory
+    order = _z_order(v, count)
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    v, count, layer, tag = v[order], count[order], np.asarray(layer)[order], tag[order]
     p0, p1, owner = _edges(v, count)
     first_edge = np.cumsum(count) - count
     layer_tag = dict(zip(layer.tolist(), tag.tolist(), strict=True))  # one shape a layer
-    hp = np.ascontiguousarray(np.stack(_half_planes(v, count)))  # (3, N, K)
     e = np.ascontiguousarray(np.concatenate([p0, p1], axis=1))  # (E, 4)
     count, first_edge = count.astype(np.int64), first_edge.astype(np.int64)
     layer = np.asarray(layer, np.int64)
     lo_xy = np.where(np.arange(v.shape[1])[None, :, None] < count[:, None, None], v, np.inf)
     hi_xy = np.where(np.arange(v.shape[1])[None, :, None] < count[:, None, None], v, -np.inf)
-    box = np.concatenate([lo_xy.min(axis=1), hi_xy.max(axis=1)], axis=1)  # (N, 4)
-    geo = (p0, p1, owner, first_edge, e, hp, box, count, layer, tag, layer_tag)
+    box = [lo_xy.min(axis=1), hi_xy.max(axis=1)]
+    hp = np.stack(_half_planes(v, count), axis=-1).reshape(len(count), -1)  # (N, 3K)
+    poly = np.ascontiguousarray(np.concatenate([*box, hp], axis=1))
+    geo = (p0, p1, owner, first_edge, e, poly, count, layer, tag, layer_tag, order)
     out = []
     n = len(count)
     for start in range(0, n, POLY_CHUNK):
         if check is not None:
             check()
         idx = np.arange(start, min(n, start + POLY_CHUNK))
-        a, b = pairs(idx)
-        out.append(_chunk(a, b, idx, geo))
+        a, b = pairs(order[idx])
+        out.append(_chunk(inv[a], inv[b], idx, geo))
     if not out:
         z = np.zeros(0)
         return z, z, z, z, np.zeros(0, np.int64)
@@ -218,12 +251,12 @@ def visible_segments(v, count, layer, tag, pairs, *, check=None):
 def _chunk(a, b, idx, geo):
     """:func:`visible_segments` for the edges of the polygons ``idx`` (candidates ``b`` of
     each ``a``)."""
-    p0, p1, owner, first_edge, e, hp, box, count, layer, tag, layer_tag = geo
+    p0, p1, owner, first_edge, e, poly, count, layer, tag, layer_tag, order = geo
     # one row per (edge of a, polygon b) whose boxes overlap and whose clip is not empty
     rows = int(count[a].sum())
     out_i, out_f = np.empty((rows, 2), np.int64), np.empty((rows, 4))
     a, b = np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64)
-    m = _kernel()(a, b, count, first_edge, e, hp, box, layer, out_i, out_f)
+    m = _kernel()(a, b, count, first_edge, e, poly, layer, order, out_i, out_f)
     edge, bb = out_i[:m, 0], out_i[:m, 1]
     l_lo, l_hi, r_lo, r_hi = out_f[:m].T
     la, lb = layer[owner[edge]], layer[bb]
