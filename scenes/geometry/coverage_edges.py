@@ -29,15 +29,15 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["POLY_CHUNK", "convex_arrays", "visible_segments"]
+__all__ = ["POLY_CHUNK", "convex_arrays", "convex_overlaps", "visible_segments"]
 
 #: Polygons whose edges are resolved per pass (their candidate pairs are queried together).
 POLY_CHUNK = 512
 #: Distance (px) within which two edges count as collinear, and relative parallelism.
 COLLINEAR_PX = 1e-10
 PARALLEL_REL = 1e-12
-#: The compiled row clipper, once :func:`_kernel` has built it.
-_CLIP = None
+#: The compiled passes, once :func:`_kernel` has built them.
+_COMPILED: dict = {}
 
 
 def convex_arrays(polys) -> tuple[np.ndarray, np.ndarray]:
@@ -105,14 +105,18 @@ def _z_order(v, count):
     return np.argsort(code, kind="stable")
 
 
-def _kernel():
-    """The compiled row clipper (numba, compiled once and cached on disk)."""
-    global _CLIP
-    if _CLIP is None:
+def _kernel(name: str = "clip"):
+    """A compiled pass (numba, compiled once and cached on disk): ``"clip"``
+    (:func:`_clip_pairs`), ``"segments"`` (:func:`_segment_events`) or ``"overlap"``
+    (:func:`_overlap_pairs`)."""
+    if not _COMPILED:
         import numba
 
-        _CLIP = numba.njit(cache=True, nogil=True)(_clip_pairs)
-    return _CLIP
+        jit = numba.njit(cache=True, nogil=True)
+        _COMPILED.update(
+            clip=jit(_clip_pairs), segments=jit(_segment_events), overlap=jit(_overlap_pairs)
+        )
+    return _COMPILED[name]
 
 
 def _clip_pairs(a, b, count, first_edge, e, poly, layer, number, out_i, out_f):
@@ -184,29 +188,65 @@ def _clip_pairs(a, b, count, first_edge, e, poly, layer, number, out_i, out_f):
     return n
 
 
-def _segments_of(a, b=None, *, b_in=False):
+def _segments_of(a, b=None, *, b_in=False, groups=None):
     """Per group, the elementary intervals where the union of the intervals ``a`` holds and
     that of ``b`` does not (``b_in``: does); ``a``, ``b`` and the result are
-    ``(group, lo, hi)``. Exact: events sorted per group, running counts (each group's events
-    sum to zero)."""
+    ``(group, lo, hi)``, groups ``0 .. groups - 1`` (default: one more than the largest).
+    Exact: events sorted per group, running counts (:func:`_segment_events`); the result is
+    sorted by group, then position."""
+    z = np.zeros(0)
     ga, alo, ahi = a
-    gb, blo, bhi = b if b is not None else (np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
-    na, nb = len(ga), len(gb)
-    g = np.concatenate([ga, ga, gb, gb]).astype(np.int64)
-    pos = np.concatenate([alo, ahi, blo, bhi])
-    da = np.concatenate([np.ones(na), -np.ones(na), np.zeros(2 * nb)])
-    db = np.concatenate([np.zeros(2 * na), np.ones(nb), -np.ones(nb)])
-    # sorted by group, then position (the group's sort: a radix sort on small integers)
-    order = np.argsort(pos)  # the order of equal positions changes no count between them
-    small = np.int16 if len(g) and g.max() < 2**15 else np.int64
-    order = order[np.argsort(g[order].astype(small), kind="stable")]
-    g, pos = g[order], pos[order]
-    ca, cb = np.cumsum(da[order]), np.cumsum(db[order])
-    nxt_same = np.concatenate([g[1:] == g[:-1], [False]])
-    pos_next = np.concatenate([pos[1:], [0.0]])
-    want = (ca > 0.5) & ((cb > 0.5) if b_in else (cb < 0.5))
-    keep = nxt_same & want & (pos_next > pos)
-    return g[keep], pos[keep], pos_next[keep]
+    gb, blo, bhi = b if b is not None else (np.zeros(0, np.int64), z, z)
+    ga, gb = np.ascontiguousarray(ga, np.int64), np.ascontiguousarray(gb, np.int64)
+    if groups is None:
+        groups = int(max(ga.max(initial=-1), gb.max(initial=-1))) + 1
+    n = 2 * (len(ga) + len(gb))
+    out_g, out_x = np.empty(n, np.int64), np.empty((n, 2))
+    f = [np.ascontiguousarray(x, np.float64) for x in (alo, ahi, blo, bhi)]
+    m = _kernel("segments")(ga, f[0], f[1], gb, f[2], f[3], bool(b_in), groups, out_g, out_x)
+    return out_g[:m], out_x[:m, 0].copy(), out_x[:m, 1].copy()
+
+
+def _segment_events(ga, alo, ahi, gb, blo, bhi, b_in, groups, out_g, out_x):
+    """:func:`_segments_of`, compiled: the interval ends as events (+1 / -1 for ``a`` and for
+    ``b``) put in their groups by a counting sort, sorted by position within a group, and
+    swept with running counts; a piece between consecutive distinct positions is kept where
+    ``a``'s count is positive and ``b``'s is zero (``b_in``: positive). The order of equal
+    positions changes no count between distinct ones. Returns the number of pieces."""
+    start = np.zeros(groups + 1, np.int64)
+    for i in range(ga.shape[0]):
+        start[ga[i] + 1] += 2
+    for i in range(gb.shape[0]):
+        start[gb[i] + 1] += 2
+    for k in range(groups):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    n = start[groups]
+    pos, da, db = np.empty(n), np.zeros(n, np.int64), np.zeros(n, np.int64)
+    for i in range(ga.shape[0]):
+        k = fill[ga[i]]
+        pos[k], pos[k + 1], da[k], da[k + 1] = alo[i], ahi[i], 1, -1
+        fill[ga[i]] = k + 2
+    for i in range(gb.shape[0]):
+        k = fill[gb[i]]
+        pos[k], pos[k + 1], db[k], db[k + 1] = blo[i], bhi[i], 1, -1
+        fill[gb[i]] = k + 2
+    m = 0
+    for grp in range(groups):
+        s0, s1 = start[grp], start[grp + 1]
+        if s1 == s0:
+            continue
+        o = np.argsort(pos[s0:s1]) + s0
+        ca, cb = 0, 0
+        for q in range(s1 - s0 - 1):
+            i, j = o[q], o[q + 1]
+            ca += da[i]
+            cb += db[i]
+            want = ca > 0 and (cb > 0 if b_in else cb <= 0)
+            if want and pos[j] > pos[i]:
+                out_g[m], out_x[m, 0], out_x[m, 1] = grp, pos[i], pos[j]
+                m += 1
+    return m
 
 
 def visible_segments(v, count, layer, tag, pairs, *, check=None):
@@ -256,7 +296,7 @@ def _chunk(a, b, idx, geo):
     rows = int(count[a].sum())
     out_i, out_f = np.empty((rows, 2), np.int64), np.empty((rows, 4))
     a, b = np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64)
-    m = _kernel()(a, b, count, first_edge, e, poly, layer, order, out_i, out_f)
+    m = _kernel("clip")(a, b, count, first_edge, e, poly, layer, order, out_i, out_f)
     edge, bb = out_i[:m, 0], out_i[:m, 1]
     l_lo, l_hi, r_lo, r_hi = out_f[:m].T
     la, lb = layer[owner[edge]], layer[bb]
@@ -271,7 +311,8 @@ def _chunk(a, b, idx, geo):
     drop_lo = np.concatenate([l_lo[lh], r_lo[rh]])
     drop_hi = np.concatenate([l_hi[lh], r_hi[rh]])
     ne = len(e_all)
-    g, lo, hi = _segments_of((np.arange(ne), np.zeros(ne), np.ones(ne)), (drop_g, drop_lo, drop_hi))
+    full = (np.arange(ne), np.zeros(ne), np.ones(ne))
+    g, lo, hi = _segments_of(full, (drop_g, drop_lo, drop_hi), groups=ne)
     segs = [_emit(g + e_first, lo, hi, p0, p1, tag[owner[g + e_first]], reverse=False)]
     del l_lo, l_hi
     # the far side: the nearest farther layer covering the right side of what is left
@@ -282,11 +323,11 @@ def _chunk(a, b, idx, geo):
         for m in np.unique(fl):  # a loop over layers present, not over triangles
             sel = fl == m
             cover = (fg[sel], flo[sel], fhi[sel])
-            hit = _segments_of(remaining, cover, b_in=True)
+            hit = _segments_of(remaining, cover, b_in=True, groups=ne)
             if len(hit[0]):
                 t = np.full(len(hit[0]), layer_tag[m])
                 segs.append(_emit(hit[0] + e_first, hit[1], hit[2], p0, p1, t, reverse=True))
-            remaining = _segments_of(remaining, cover)
+            remaining = _segments_of(remaining, cover, groups=ne)
             if not len(remaining[0]):
                 break
     return tuple(np.concatenate(parts) for parts in zip(*segs, strict=True))
@@ -303,3 +344,57 @@ def _emit(edge, lo, hi, p0, p1, t, *, reverse):
     if reverse:
         a, b = b, a
     return a[:, 0], a[:, 1], b[:, 0], b[:, 1], np.asarray(t, np.int64)
+
+
+def convex_overlaps(v, count, a, b):
+    """The overlaps of the convex polygons ``a[p]`` and ``b[p]`` (:func:`convex_arrays`):
+    their vertices ``(M, 2)``, the pair each belongs to ``(M,)`` and each pair's area
+    ``(P,)`` (``a[p]`` clipped by the half-planes of ``b[p]``, Sutherland-Hodgman)."""
+    hp = np.stack(_half_planes(v, count), axis=-1).reshape(len(count), -1)
+    a, b = np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64)
+    cap = int((count[a] + count[b]).sum())
+    xy, owner, area = np.empty((cap, 2)), np.empty(cap, np.int64), np.empty(len(a))
+    v = np.ascontiguousarray(v, np.float64)
+    k = v.shape[1]
+    work = np.empty((2, 2 * k + 2, 2))
+    m = _kernel("overlap")(a, b, np.asarray(count, np.int64), v, hp, xy, owner, area, work)
+    return xy[:m], owner[:m], area
+
+
+def _overlap_pairs(a, b, count, v, hp, xy, owner, area, work):
+    """:func:`convex_overlaps`, compiled: per pair the polygon ``a`` clipped in turn by each
+    half-plane of ``b`` (kept where the signed distance is >= 0), into ``work``; writes the
+    vertices and areas, returns the number of vertices."""
+    m = 0
+    for p in range(a.shape[0]):
+        pa, pb = a[p], b[p]
+        n = count[pa]
+        cur = 0
+        for i in range(n):
+            work[0, i, 0], work[0, i, 1] = v[pa, i, 0], v[pa, i, 1]
+        for j in range(count[pb]):
+            ux, uy, c = hp[pb, 3 * j], hp[pb, 3 * j + 1], hp[pb, 3 * j + 2]
+            nxt, k = 1 - cur, 0
+            for i in range(n):
+                x0, y0 = work[cur, i, 0], work[cur, i, 1]
+                i1 = i + 1 if i + 1 < n else 0
+                x1, y1 = work[cur, i1, 0], work[cur, i1, 1]
+                d0, d1 = ux * y0 - uy * x0 - c, ux * y1 - uy * x1 - c
+                if d0 >= 0:
+                    work[nxt, k, 0], work[nxt, k, 1] = x0, y0
+                    k += 1
+                if (d0 >= 0) != (d1 >= 0):
+                    t = d0 / (d0 - d1)
+                    work[nxt, k, 0], work[nxt, k, 1] = x0 + t * (x1 - x0), y0 + t * (y1 - y0)
+                    k += 1
+            cur, n = nxt, k
+            if n == 0:
+                break
+        s = 0.0
+        for i in range(n):
+            i1 = i + 1 if i + 1 < n else 0
+            s += work[cur, i, 0] * work[cur, i1, 1] - work[cur, i1, 0] * work[cur, i, 1]
+            xy[m, 0], xy[m, 1], owner[m] = work[cur, i, 0], work[cur, i, 1], p
+            m += 1
+        area[p] = 0.5 * abs(s)
+    return m

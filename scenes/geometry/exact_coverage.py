@@ -44,7 +44,7 @@ import shapely
 
 from .. import backend
 from ..catalogue import meshes as _meshes
-from .coverage_edges import convex_arrays, visible_segments
+from .coverage_edges import convex_arrays, convex_overlaps, visible_segments
 from .pixel_area import (
     edge_pieces,
     pixel_area,
@@ -71,6 +71,10 @@ AREA_MIN = 1e-12
 #: rounding of planes from float32 vertices is about 1e-16; contact lines (a box on the
 #: ground) meet at zero and must not read as interpenetration.
 DEPTH_REL_TOL = 1e-9
+#: Overlap area (px^2) above which the layered path takes an overlap's vertices from compiled
+#: convex clipping instead of the polygon boolean (below: touching edges, where rounding
+#: could leave a sliver the boolean does not have).
+OVERLAP_SURE = 1e-6
 #: A pixel is invalid where a not-exact region covers more than this area of it (px^2).
 INVALID_AREA = 1e-12
 #: Tessellation of curved shapes: segments around (spheres: and half as many from pole to
@@ -359,14 +363,22 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     return back, occluder, (a[bad], b[bad], over[bad])
 
 
-def _pair_order(camera, polys, tri_idx, tset, a, b):
+def _pair_order(camera, polys, tri_idx, tset, a, b, convex=None):
     """Depth order of the candidate pairs ``(a, b)`` whose overlap has an area:
     ``(a, b, overlap, a_front, b_front, cross, bad)`` (``cross``: planar triangles that
-    interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`)."""
-    over = _chunked(shapely.intersection, polys[a], polys[b])
-    big = shapely.area(over) > AREA_MIN
-    a, b, over = a[big], b[big], over[big]
-    xy, owner = shapely.get_coordinates(over, return_index=True)
+    interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`).
+
+    ``convex``: :func:`convex_arrays` of ``polys``; given, the vertices of overlaps of more
+    than :data:`OVERLAP_SURE` px^2 come from :func:`convex_overlaps` (compiled, no polygon
+    boolean; the same points up to rounding) and ``overlap`` is None."""
+    if convex is None:
+        over = _chunked(shapely.intersection, polys[a], polys[b])
+        big = shapely.area(over) > AREA_MIN
+        a, b, over = a[big], b[big], over[big]
+        xy, owner = shapely.get_coordinates(over, return_index=True)
+    else:
+        xy, owner, big = _overlap_vertices(convex, polys, a, b)
+        a, b, over = a[big], b[big], None
     n, c = _planes(tset.tris[tri_idx])
     ta, tb = a[owner], b[owner]
     qa = _nearness(camera, xy[:, 0], xy[:, 1], n[ta], c[ta])
@@ -396,6 +408,25 @@ def _pair_order(camera, polys, tri_idx, tset, a, b):
     cross = (hi > 0) & (lo < 0) & (slack[a] == 0) & (slack[b] == 0)
     bad &= ~cross
     return a, b, over, a_front, b_front, cross, bad
+
+
+def _overlap_vertices(convex, polys, a, b):
+    """The vertices ``(M, 2)`` of the overlaps of the pairs ``(a, b)`` that have an area,
+    the pair each belongs to (numbered among those) and which pairs have one: compiled
+    convex clipping where the overlap is sure (over :data:`OVERLAP_SURE`); the polygon
+    boolean, as :func:`_pair_order` has it, for the touching, thin or disjoint rest."""
+    xy, owner, area = convex_overlaps(*convex, a, b)
+    sure = area > OVERLAP_SURE
+    doubt = np.flatnonzero(~sure)
+    over = _chunked(shapely.intersection, polys[a[doubt]], polys[b[doubt]])
+    big = sure.copy()
+    big[doubt] = shapely.area(over) > AREA_MIN
+    xy_d, own_d = shapely.get_coordinates(over, return_index=True)
+    keep = sure[owner]
+    xy = np.concatenate([xy[keep], xy_d])
+    owner = np.concatenate([owner[keep], doubt[own_d]])
+    keep = big[owner]
+    return xy[keep], (np.cumsum(big) - 1)[owner[keep]], big
 
 
 def _chunked(fn, *arrays):
@@ -826,7 +857,9 @@ def _layered(cam, polys, tri_idx, tset, centre, off, check):
     if len(polys) == 0 or np.any(tset.slack[tri_idx] > 0):
         return None
     a, b = _cross_shape_pairs(polys, shape, check)
-    a, b, _, a_front, b_front, cross, bad = _pair_order(cam, polys, tri_idx, tset, a, b)
+    v, count = convex_arrays(polys)
+    order = _pair_order(cam, polys, tri_idx, tset, a, b, convex=(v, count))
+    a, b, _, a_front, b_front, cross, bad = order
     if bad.any() or cross.any():
         return None
     front = np.concatenate([shape[a[a_front]], shape[b[b_front]]])
@@ -836,7 +869,6 @@ def _layered(cam, polys, tri_idx, tset, centre, off, check):
     if rank is None:
         return None
     layer = np.array([rank[s] for s in ids.tolist()])[np.searchsorted(ids, shape)]
-    v, count = convex_arrays(polys)
     tree = shapely.STRtree(polys)
 
     def pairs(idx):
