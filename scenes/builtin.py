@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from . import aa_scenes, moving_scenes, pbr_scenes, shadow_scenes
+from . import aa_scenes, moving_scenes, pbr_scenes, shadow_scenes, soft_scenes
 
 __all__ = ["BUILTIN_SCENES", "BuiltinScene", "DEFAULT_SCENES"]
 
@@ -81,6 +81,11 @@ BUILTIN_SCENES.update(
 # Scenes with moving objects (slide, spin): see scenes.moving_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in moving_scenes.MOVING_SCENES.items()}
+)
+
+# Soft-shadow scenes (soft-contact: an area light; stacked-casters): see scenes.soft_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
 )
 
 #: The scenes the main job runs by default.

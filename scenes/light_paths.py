@@ -70,6 +70,11 @@ def check_light_path(path: str, light: Light) -> None:
     if path not in LIGHT_PATHS:
         raise ValueError(f"unknown light path {path!r}; choose one of {', '.join(LIGHT_PATHS)}")
     kinds = LIGHT_PATH_KINDS[path]
+    if light.is_area:  # its emitter shape is part of the scene's geometry and cannot move
+        raise ValueError(
+            f"light path {path} moves punctual lights; the scene's light is a {light.area} "
+            "area light"
+        )
     if light.kind not in kinds:
         raise ValueError(
             f"light path {path} needs a {' or '.join(kinds)} light; the scene's light is a "

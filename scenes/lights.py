@@ -1,4 +1,5 @@
-"""Punctual lights: directional, point and spot, as read from a Mitsuba scene.
+"""Lights: punctual (directional, point, spot) and area (rectangle, disk, sphere), as read
+from a Mitsuba scene.
 
 Radiometry follows Mitsuba's emitters so that the shading model agrees with Mitsuba's own
 ``direct`` integrator:
@@ -16,6 +17,33 @@ units, as the Khronos sample renderer does), the spot's smooth cone attenuation
 ``o = -cos(outer) s`` (``beam_width`` = inner, ``cutoff_angle`` = outer cone angle), and, where
 ``range > 0``, the window the extension recommends: ``clamp(1 - (d / range)^4, 0, 1) / d^2``.
 
+**Area lights** (a Mitsuba ``area`` emitter on a ``rectangle``, ``disk`` or ``sphere`` shape)
+have ``area`` set to the shape's name; the emitter's ``radiance`` is uniform over the surface
+(rectangle and disk: one-sided, emitting on the side of ``direction``; sphere: outwards). The
+interface the models read:
+
+- ``area``: ``"rectangle"``, ``"disk"`` or ``"sphere"`` (``""``: a punctual light);
+- ``position``: the centre; ``direction``: the unit normal of the emitting side (rectangle,
+  disk; ``(0, -1, 0)`` for a sphere, which has none);
+- ``axes``: the two world-space half-extent vectors ``(u, v)`` spanning the rectangle
+  (``centre + s u + t v``, ``s, t in [-1, 1]``; ``|u|``, ``|v|`` are the half width and half
+  height, ``u x v`` is along ``direction``), or a disk's two radius vectors; :attr:`frame`
+  gives the unit ``(tangent, bitangent, normal)``, :attr:`extent` the full ``(width,
+  height)`` (a disk's or sphere's diameter twice);
+- ``radius``: disk and sphere radius (0 for a rectangle);
+- ``radiance``: RGB emitted radiance (W/m^2/sr);
+- :attr:`surface_area` (the emitting area: ``4 |u| |v|``, ``pi r^2``, ``4 pi r^2``) and
+  :meth:`area_point` (points on a rectangle or disk from unit-square samples).
+
+For everything that treats lights as punctual (the hard ``visibility`` channel, the shading
+of the shadow-map models, light paths' kinds) an area light is its **punctual proxy**: a
+``point`` light at its centre (``kind == "point"``) whose intensity ``color`` is the area
+light's on-axis far-field intensity, ``radiance x area`` (rectangle: ``radiance * 4 |u|
+|v|``, disk ``radiance * pi r^2``; sphere ``radiance * pi r^2``, isotropic). A shadow ray to
+a sphere light's centre stops at its surface (:attr:`shadow_end`). The reference's soft
+channels (``soft_visibility``, ``light_fraction``) and its shaded colour integrate over the
+true surface instead (:mod:`oracle.reference.soft`).
+
 Every function works on NumPy ``(N, 3)`` arrays and on Dr.Jit ``Vector3f`` alike.
 """
 
@@ -28,7 +56,10 @@ import numpy as np
 
 from . import _ops
 
-__all__ = ["Light"]
+__all__ = ["AREA_SHAPES", "Light"]
+
+#: Shapes an area light can have (the Mitsuba shape of its ``area`` emitter).
+AREA_SHAPES = ("rectangle", "disk", "sphere")
 
 
 @dataclass(frozen=True)
@@ -45,6 +76,8 @@ class Light:
         outer and inner cone angles of a glTF spot).
     model : ``"mitsuba"`` (Mitsuba's emitters) or ``"gltf"`` (KHR_lights_punctual).
     range : glTF point/spot range (0: unbounded).
+    area : ``""`` (punctual) or the area light's shape (:data:`AREA_SHAPES`); see the
+        module docstring for the area fields ``axes``, ``radius`` and ``radiance``.
     """
 
     kind: str
@@ -57,10 +90,80 @@ class Light:
     extra: dict = field(default_factory=dict, compare=False)
     model: str = "mitsuba"
     range: float = 0.0
+    area: str = ""
+    axes: tuple = ()
+    radius: float = 0.0
+    radiance: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def is_directional(self) -> bool:
         return self.kind == "directional"
+
+    @property
+    def is_area(self) -> bool:
+        """True for an area light (rectangle, disk or sphere)."""
+        return bool(self.area)
+
+    @property
+    def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit ``(tangent, bitangent, normal)`` of a rectangle or disk light (tangent along
+        ``axes[0]``, normal = ``direction``, the emitting side); world axes for a sphere."""
+        if self.area in ("rectangle", "disk"):
+            n = np.asarray(self.direction, dtype=np.float64)
+            t = np.asarray(self.axes[0], dtype=np.float64)
+            t = t / np.linalg.norm(t)
+            return t, np.cross(n, t), n
+        return np.eye(3)[0], np.eye(3)[2], np.asarray(self.direction, dtype=np.float64)
+
+    @property
+    def half_size(self) -> tuple[float, float]:
+        """Half width and half height (along ``frame``'s tangent and bitangent); a disk's or
+        sphere's radius twice; ``(0, 0)`` for a punctual light."""
+        if self.area == "rectangle":
+            return tuple(float(np.linalg.norm(a)) for a in self.axes)
+        return (float(self.radius), float(self.radius))
+
+    @property
+    def extent(self) -> tuple[float, float]:
+        """Full ``(width, height)`` of the light (diameter twice for a disk or sphere)."""
+        a, b = self.half_size
+        return (2.0 * a, 2.0 * b)
+
+    @property
+    def surface_area(self) -> float:
+        """The emitting area (0 for a punctual light)."""
+        a, b = self.half_size
+        if self.area == "rectangle":
+            return 4.0 * a * b
+        if self.area == "disk":
+            return math.pi * a * a
+        if self.area == "sphere":
+            return 4.0 * math.pi * a * a
+        return 0.0
+
+    @property
+    def shadow_end(self) -> float:
+        """How far short of ``position`` a shadow ray to the light stops: a sphere light's
+        radius (its centre is inside it), else 0."""
+        return float(self.radius) if self.area == "sphere" else 0.0
+
+    def area_point(self, u, v):
+        """Points on a rectangle or disk light from unit-square samples ``u, v`` (NumPy
+        arrays or Dr.Jit ``Float``): uniform in area (the disk through Shirley and Chiu's
+        concentric map). Returns ``(N, 3)`` NumPy or a Dr.Jit ``Point3f``."""
+        if self.area not in ("rectangle", "disk"):
+            raise ValueError(f"area_point needs a rectangle or disk light, not {self.area!r}")
+        s, t = u * 2.0 - 1.0, v * 2.0 - 1.0
+        if self.area == "disk":
+            s, t = _concentric(s, t)
+        c = np.asarray(self.position, dtype=np.float64)
+        a0 = np.asarray(self.axes[0], dtype=np.float64)
+        a1 = np.asarray(self.axes[1], dtype=np.float64)
+        if _ops.is_np(s):
+            return c + s[..., None] * a0 + t[..., None] * a1
+        import mitsuba as mi
+
+        return mi.Point3f(*(float(c[i]) + s * float(a0[i]) + t * float(a1[i]) for i in range(3)))
 
     def to_light(self, points):
         """Unit direction from each point towards the light and the distance to it.
@@ -111,6 +214,34 @@ class Light:
             return self.falloff(wl) * window / (dist * dist)
         return self.falloff(wl) / (dist * dist)
 
+    def area_json(self) -> dict:
+        """The area record of ``lights.json`` (see :meth:`to_json`)."""
+        t, b, n = self.frame
+        out = {
+            "shape": self.area,
+            "centre": list(self.position),
+            "radiance": list(self.radiance),
+            "units": "radiance W/m^2/sr",
+            "surface_area": self.surface_area,
+        }
+        if self.area in ("rectangle", "disk"):
+            out["normal"] = list(self.direction)
+            out["tangent"] = [float(c) for c in t]
+            out["bitangent"] = [float(c) for c in b]
+            out["emits"] = "one-sided, towards +normal"
+        else:
+            out["emits"] = "outwards, uniform"
+        if self.area == "rectangle":
+            out["half_axes"] = [[float(c) for c in a] for a in self.axes]
+            out["size"] = list(self.extent)
+        else:
+            out["radius"] = self.radius
+        out["proxy"] = (
+            "kind/position/color: a point light at the centre with the on-axis intensity "
+            "radiance x area (sphere: radiance x pi r^2)"
+        )
+        return out
+
     def to_json(self) -> dict:
         out = {"kind": self.kind, "name": self.name, "color": list(self.color)}
         if self.kind in ("directional", "spot"):
@@ -137,4 +268,29 @@ class Light:
                 out["distance_falloff"] = (
                     "clamp(1 - (d / range)^4, 0, 1) / d^2" if self.range else "1 / d^2"
                 )
+        if self.is_area:
+            out["area"] = self.area_json()
         return out
+
+
+def _concentric(s, t):
+    """Shirley and Chiu's concentric map of ``[-1, 1]^2`` onto the unit disk (uniform in
+    area, NumPy or Dr.Jit)."""
+    if _ops.is_np(s):
+        s, t = np.asarray(s, dtype=np.float64), np.asarray(t, dtype=np.float64)
+        first = np.abs(s) > np.abs(t)
+        r = np.where(first, s, t)
+        safe_s = np.where(s == 0.0, 1.0, s)
+        safe_t = np.where(t == 0.0, 1.0, t)
+        phi = np.where(first, (math.pi / 4) * t / safe_s, math.pi / 2 - (math.pi / 4) * s / safe_t)
+        phi = np.where((s == 0.0) & (t == 0.0), 0.0, phi)
+        return r * np.cos(phi), r * np.sin(phi)
+    import drjit as dr
+
+    first = dr.abs(s) > dr.abs(t)
+    r = dr.select(first, s, t)
+    safe_s = dr.select(s == 0.0, 1.0, s)
+    safe_t = dr.select(t == 0.0, 1.0, t)
+    phi = dr.select(first, (math.pi / 4) * t / safe_s, math.pi / 2 - (math.pi / 4) * s / safe_t)
+    phi = dr.select((s == 0.0) & (t == 0.0), 0.0, phi)
+    return r * dr.cos(phi), r * dr.sin(phi)

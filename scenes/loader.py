@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -23,7 +24,7 @@ from .camera import Camera
 from .camera_file import CameraFileError, load_camera_file
 from .gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
-from .lights import Light
+from .lights import AREA_SHAPES, Light
 from .object_paths import check_motion, object_transform
 from .paths import CAMERA_PATHS, path_camera
 from .shading import Specular
@@ -402,7 +403,69 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
             beam_width=float(np.ravel(p["beam_width"])[0]),
             name=name,
         )
+    if kind == "AreaLight":
+        return _area_light(mi, emitter, rgb("radiance.value"), name)
     return None
+
+
+#: Relative tolerance of an area light's shape checks (orthogonal axes, round disk, sphere).
+_AREA_TOLERANCE = 1e-4
+
+
+def _area_light(mi, emitter, radiance, name: str) -> Light:
+    """An area light (:mod:`scenes.lights`) from a Mitsuba ``area`` emitter on a rectangle,
+    disk or sphere; :class:`SceneError` for any other shape, a sheared rectangle, an
+    elliptical disk or a non-uniformly scaled sphere."""
+    shape = emitter.get_shape()
+    name = shape.id() or name  # the shape's id names the light (its emitter has none of its own)
+    kind = shape.class_name().lower()
+    if kind not in AREA_SHAPES:
+        raise SceneError(
+            f"area light {name!r} is on a {shape.class_name()} shape; only "
+            f"{', '.join(AREA_SHAPES)} area lights are supported"
+        )
+    m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+    u, v, w, centre = m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3]
+    lu, lv, lw = (float(np.linalg.norm(a)) for a in (u, v, w))
+    tol = _AREA_TOLERANCE * max(lu, lv, 1e-30)
+    if not (np.isfinite(m).all() and lu > 0 and lv > 0 and abs(float(u @ v)) <= tol * max(lu, lv)):
+        raise SceneError(
+            f"area light {name!r}: its {kind}'s to_world must scale and rotate without shear "
+            "(orthogonal, non-zero axes)"
+        )
+    rgb = np.asarray(radiance, dtype=np.float64)
+    if kind == "sphere":
+        if abs(lu - lv) > tol or abs(lu - lw) > tol:
+            raise SceneError(f"area light {name!r}: a sphere light must be scaled uniformly")
+        r = lu
+        return Light(
+            "point",
+            tuple(float(c) for c in rgb * math.pi * r * r),
+            position=tuple(float(c) for c in centre),
+            name=name,
+            area="sphere",
+            radius=r,
+            radiance=tuple(float(c) for c in rgb),
+        )
+    # Mitsuba's planar shapes face the transformed local +Z normal (the inverse transpose)
+    n = np.linalg.inv(m[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
+    n = n / np.linalg.norm(n)
+    if float(np.cross(u, v) @ n) < 0.0:  # a mirroring to_world: keep u x v along the normal
+        v = -v
+    if kind == "disk" and abs(lu - lv) > tol:
+        raise SceneError(f"area light {name!r}: a disk light must be round (equal axes)")
+    area = 4.0 * lu * lv if kind == "rectangle" else math.pi * lu * lu
+    return Light(
+        "point",
+        tuple(float(c) for c in rgb * area),
+        direction=tuple(float(c) for c in n),
+        position=tuple(float(c) for c in centre),
+        name=name,
+        area=kind,
+        axes=(tuple(float(c) for c in u), tuple(float(c) for c in v)),
+        radius=lu if kind == "disk" else 0.0,
+        radiance=tuple(float(c) for c in rgb),
+    )
 
 
 def _check_size(width, height) -> None:
@@ -523,7 +586,8 @@ def load(
     if not lights:
         kinds = ", ".join(e.class_name() for e in emitters) or "none"
         raise SceneError(
-            f"scene {name!r} has no usable light (directional, point or spot); found: {kinds}"
+            f"scene {name!r} has no usable light (directional, point, spot or an area light "
+            f"on a rectangle, disk or sphere); found: {kinds}"
         )
     if not 0 <= int(light) < len(lights):
         raise SceneError(
