@@ -5,7 +5,10 @@ Three steps per receiver (Fernando 2005; NVIDIA's sample code in Bavoil 2008):
 1. **Blocker search**: point-sample the map at ``blocker_samples`` disk taps over a region
    scaled by the light's size, ``search = L_uv (z_r - n) / z_r`` (similar triangles: the part
    of the near plane through which the light can see the receiver), and average the depths
-   of the taps nearer to the light than the receiver. No blocker: lit (visibility 1).
+   of the taps nearer to the light than the receiver. No blocker: lit (visibility 1). ``n``
+   is the depth of the nearest caster in the map (NVIDIA's ``NEAR_PLANE``, which its demo
+   sets at the casters by hand): with a map's own near plane, often a thousandth of its far
+   plane, the region would cover the whole map.
 2. **Penumbra estimate** (parallel planes): ``w = (z_r - z_b) L / z_b`` at the receiver,
    i.e. a filter radius ``(z_r - z_b) / z_b * L_uv * n / z_r`` in map coordinates.
 3. **Filter**: ``filter_samples`` hardware-PCF taps on a disk of that radius.
@@ -139,14 +142,16 @@ def _ortho_scale(proj, light_angle_deg: float) -> float:
     return 2.0 * math.tan(math.radians(light_angle_deg) / 2.0) / width
 
 
-def search_radius_uv(proj, z_r, *, light_size: float, light_angle: float) -> np.ndarray:
-    """Blocker-search radius in map coordinates at receiver depths ``z_r`` (linear)."""
+def search_radius_uv(proj, z_r, *, light_size: float, light_angle: float, near=None):
+    """Blocker-search radius in map coordinates at receiver depths ``z_r`` (linear);
+    ``near``: the depth the search reaches back to (default the map's near plane)."""
     z_r = np.asarray(z_r, dtype=np.float64)
     if proj.kind == "persp":
-        tan_half, near, _ = (float(x) for x in proj.extent)
-        size_uv = light_size / (2.0 * near * tan_half)
-        return size_uv * np.maximum(z_r - near, 0.0) / z_r
-    z0 = float(proj.extent[4])
+        tan_half, n, _ = (float(x) for x in proj.extent)
+        n = n if near is None else max(float(near), n)
+        size_uv = light_size / (2.0 * n * tan_half)
+        return size_uv * np.maximum(z_r - n, 0.0) / z_r
+    z0 = float(proj.extent[4]) if near is None else max(float(near), float(proj.extent[4]))
     return np.maximum(z_r - z0, 0.0) * _ortho_scale(proj, light_angle)
 
 
@@ -213,7 +218,10 @@ def pcss_lookup(data, proj, u, v, z, ref, params, rotation=None):
     ref = np.broadcast_to(np.asarray(ref, dtype=np.float64), u.shape)
     z_r = linear_depth(proj, np.clip(ref, 0.0, 1.0))
     size = {"light_size": params.light_size, "light_angle": params.light_angle}
-    search = params.radius_scale * search_radius_uv(proj, z_r, **size)
+    # The search reaches back to the nearest caster in the map (NVIDIA's NEAR_PLANE, which
+    # its demo places at the casters by hand; a map's own near plane can be far nearer).
+    near = float(linear_depth(proj, np.min(data.depth))) if data.depth.size else None
+    search = params.radius_scale * search_radius_uv(proj, z_r, near=near, **size)
     blockers = disk(params.disk, params.blocker_samples)
     z_b, count = blocker_search(
         data.depth, proj, u, v, ref, search, blockers, rotation, address=params.address_mode
