@@ -8,13 +8,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
-from raster_oracle import raster_models, scenes
 from raster_oracle.raster_models.light_frame import Projection, make_frame
 from raster_oracle.raster_models.shadowmaps import msm_filter, pcss_filter
 from raster_oracle.raster_models.shadowmaps.filters import upload_texels
 from raster_oracle.raster_models.shadowmaps.pcss import PRESETS, PcssParams, resolved
 from raster_oracle.raster_models.shadowmaps.records import MapData
+
+from raster_oracle import raster_models, scenes
 
 
 # ------------------------------------------------------------------ PCSS: closed forms
@@ -96,7 +96,11 @@ def test_fibonacci_disk_is_hdrp_table():
     d = pcss_filter.disk("fibonacci", 16)
     radius = np.sqrt((np.arange(16) + 0.5) / 16)
     assert np.allclose(np.hypot(d[:, 0], d[:, 1]), radius, atol=1e-12)
-    table = [(1.0, 0.0), (-0.7373688780783197, 0.6754902942615238), (0.08742572471695988, -0.9961710408648278)]
+    table = [
+        (1.0, 0.0),
+        (-0.7373688780783197, 0.6754902942615238),
+        (0.08742572471695988, -0.9961710408648278),
+    ]
     for i, (x, y) in enumerate(table):
         assert d[i] / radius[i] == pytest.approx([x, y], abs=1e-12)
 
@@ -144,7 +148,9 @@ def test_two_depth_distribution_is_reconstructed_where_vsm_bleeds():
     # 70 %, one behind both is in full shadow. Four moments determine two points exactly.
     w, d1, d2 = 0.3, 0.3, 0.6
     z = np.array([0.45, 0.5, 0.59, 0.7, 0.9])
-    b = w * msm_filter.raw_moments(np.full(5, d1)) + (1 - w) * msm_filter.raw_moments(np.full(5, d2))
+    b = w * msm_filter.raw_moments(np.full(5, d1)) + (1 - w) * msm_filter.raw_moments(
+        np.full(5, d2)
+    )
     truth = np.array([0.7, 0.7, 0.7, 0.0, 0.0])
     exact = 1.0 - msm_filter.hamburger_4msm(b, z, 0.0)
     assert np.allclose(exact, truth, atol=1e-9)
