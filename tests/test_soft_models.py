@@ -88,6 +88,11 @@ def test_pcss_blocker_search_finds_the_flat_blocker_depth():
     assert radius[0] == pytest.approx((10 - 4) / 4 * 1.0 / (2 * 10 * 1.0), rel=1e-5)
     assert 0.0 < vis[1] < 1.0  # the edge: partly lit
     assert vis[2] == 1.0 and zb[2] == 0.0 and radius[2] == 0.0
+    est = pcss_filter.estimates(proj, z - 1e-6, radius, zb, 1.0)
+    # Parallel planes: (10 - 4) x 1 m / 4 = 1.5 m of penumbra, 6 m from blocker to receiver.
+    assert est["penumbra_width"][0] == pytest.approx(1.5, rel=1e-4)
+    assert est["blocker_distance"][0] == pytest.approx(6.0, rel=1e-4)
+    assert est["penumbra_width"][2] == 0.0
 
 
 def test_fibonacci_disk_is_hdrp_table():
@@ -196,6 +201,8 @@ def test_pcss_on_the_area_light_softens_and_keeps_hard_umbrae(contact):
     assert soft.diagnostics["pcss"]["light_size"] == pytest.approx(1.0)
     assert soft.diagnostics["area_map"]["tan_half"] > 0
     assert soft.cost["texture_lookups_per_pixel"] == pytest.approx(32.0)
+    width = soft.outputs["penumbra_width"]
+    assert width.shape == vs.shape and width.max() > 0 and np.all(width >= 0)
 
 
 def test_msm_runs_and_counts_its_moment_memory(contact):

@@ -52,7 +52,9 @@ __all__ = [
     "DISKS",
     "POISSON_16",
     "blocker_search",
+    "ESTIMATES",
     "disk",
+    "estimates",
     "interleaved_gradient_noise",
     "linear_depth",
     "pcss_lookup",
@@ -167,6 +169,26 @@ def penumbra_radius_uv(proj, z_r, z_b, *, light_size: float, light_angle: float)
         ratio = (z_r - z_b) / np.maximum(z_b, 1e-300)
         return ratio * size_uv * near / z_r
     return (z_r - z_b) * _ortho_scale(proj, light_angle)
+
+
+#: The per-receiver estimates :func:`estimates` returns (the model's extra outputs).
+ESTIMATES = ("penumbra_width", "blocker_distance")
+
+
+def estimates(proj, ref, radius_uv, z_b, radius_scale: float) -> dict:
+    """PCSS's estimates in world units at the receivers: ``penumbra_width`` (the parallel-
+    plane width ``(z_r - z_b) L / z_b``, or ``(z_r - z_b) 2 tan(theta/2)``, i.e. the filter
+    radius before ``radius_scale``, at the receiver's depth) and ``blocker_distance``
+    (``z_r - z_b`` along the light's axis); 0 where no blocker was found."""
+    z_r = linear_depth(proj, np.clip(np.asarray(ref, dtype=np.float64), 0.0, 1.0))
+    found = np.asarray(z_b) > 0
+    if proj.kind == "persp":
+        per_uv = 2.0 * z_r * float(proj.extent[0])
+    else:
+        per_uv = np.full(z_r.shape, float(proj.extent[1] - proj.extent[0]))
+    scale = 1.0 / radius_scale if radius_scale > 0 else 0.0
+    width = np.where(found, np.asarray(radius_uv) * scale * per_uv, 0.0)
+    return {"penumbra_width": width, "blocker_distance": np.where(found, z_r - z_b, 0.0)}
 
 
 def _rotated(offsets: np.ndarray, rotation):

@@ -112,10 +112,11 @@ def _receiver_plane(j3: np.ndarray):
     return bu, bv
 
 
-def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=None):
+def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=None, extras=None):
     """Visibility of receivers from one map (the filter of ``params``); ``ref``: a compare
     reference replacing ``z - bias`` (perspective linear-depth bias); ``proj``: the map's
-    projection (PCSS converts depths to linear distances with it)."""
+    projection (PCSS converts depths to linear distances with it); ``extras``: a dict PCSS
+    fills with its per-receiver penumbra estimate (:func:`pcss_filter.estimates`)."""
     kind = params.filter
     if kind in _filters.MOMENT_FILTERS:
         return _filters.moment_lookup(
@@ -155,7 +156,10 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
     if kind == "hw_pcf":
         return _filters.compare_bilinear(tex, u, v, ref, **common)
     if kind == "pcss":
-        return _pcss.pcss_lookup(data, proj, u, v, z, ref, params, rotation)[0]
+        vis, radius, z_b = _pcss.pcss_lookup(data, proj, u, v, z, ref, params, rotation)
+        if extras is not None:
+            extras.update(_pcss.estimates(proj, ref, radius, z_b, params.radius_scale))
+        return vis
     if kind == "pcf":
         return _filters.pcf_grid(tex, u, v, ref, params.pcf_size, plane=plane, **common)
     return _filters.pcf_poisson(
@@ -172,13 +176,14 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
     )
 
 
-def _lookup_subset(params, data, geo, mask, rotation):
+def _lookup_subset(params, data, geo, mask, rotation, extras=None):
     """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
     u, v = geo["u"][mask], geo["v"][mask]
-    return _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=geo.get("proj"))
+    proj = geo.get("proj")
+    return _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
 
 
 def _smoothstep(e0, e1, x):
@@ -261,6 +266,8 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     cascade[valid_idx] = sel
     receiver = gbuf.receiver
     rotation_all = _rotations(gbuf, params)
+    # PCSS's penumbra estimate per receiver (world units; 0 where no blocker was found)
+    pcss_out = {k: np.zeros(n) for k in _pcss.ESTIMATES} if params.filter == "pcss" else {}
     per_lookup = _lookups_per_pixel(params)
     stats = []
     for i, part in enumerate(setup.partitions):
@@ -281,7 +288,10 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         rmask = receiver[pix]
         if len(rec) and data is not None:
             rot = rotation_all[rec] if rotation_all is not None else None
-            vis[rec] = _lookup_subset(params, data, geo, rmask, rot)
+            extras = {} if pcss_out else None
+            vis[rec] = _lookup_subset(params, data, geo, rmask, rot, extras)
+            for key, img in pcss_out.items():
+                img[rec] = extras[key]
             uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
             lookups[rec] = per_lookup
         tpp_rec = geo["tpp"][rmask]  # = tpp[pix][rmask], gathered once
@@ -324,6 +334,7 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         "resolution_error": gbuf.image(err),
         "uncovered": gbuf.image(uncovered),
     }
+    outputs.update({k: gbuf.image(img) for k, img in pcss_out.items()})
     n_rec = int(receiver.sum())
     summary = {
         "partitions": stats,
