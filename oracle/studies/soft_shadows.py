@@ -1,0 +1,146 @@
+"""Soft-shadow measurements (issue 38): PCSS against the area-light truth, its contact
+hardening, and light bleeding of filtered shadow maps.
+
+- :func:`soft_scores`: error of a visibility image against the reference's ``soft_visibility``
+  and ``light_fraction`` on receivers (MAE, RMSE, and the same in the reference's penumbra),
+  with the reference's own noise floor (the mean per-pixel standard error of the channel).
+- :func:`contact_hardening`: PCSS's penumbra width estimate (its ``penumbra_width`` output)
+  against the geometric width at each receiver whose ray to the light's centre meets a
+  caster, ``L t / (D - t)`` (``t`` the receiver-caster distance along that ray, ``D`` the
+  receiver-light distance, ``L`` the light's size; ``2 t tan(theta / 2)`` for a sun), binned
+  by the receiver-caster distance.
+- :func:`umbra_bleeding`: light leaked into the hard reference's umbra (receivers with
+  visibility 0): its mean and the fraction of umbra receivers above 0.1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "DISTANCE_BINS",
+    "caster_distance",
+    "contact_hardening",
+    "soft_scores",
+    "umbra_bleeding",
+]
+
+#: Receiver-caster distance bins of the contact-hardening table (scene units).
+DISTANCE_BINS = (0.0, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
+
+#: Reference visibility below which a receiver is in the umbra; leaked light above this.
+UMBRA, LEAK = 0.0, 0.1
+
+
+def soft_scores(ref_ch: dict, vis, receivers, channels=("soft_visibility", "light_fraction")):
+    """Per channel: ``mae``, ``rmse``, ``penumbra_mae`` (receivers whose reference value is in
+    (0.02, 0.98)), ``noise_floor`` (mean standard error of the reference on the receivers)
+    and ``pixels``; a channel the reference lacks is skipped."""
+    vis = np.asarray(vis, dtype=np.float64)
+    rec = np.asarray(receivers, dtype=bool)
+    out = {}
+    for ch in channels:
+        if ch not in ref_ch:
+            continue
+        ref = np.asarray(ref_ch[ch], dtype=np.float64)
+        se = np.asarray(ref_ch.get(f"{ch}_stderr", np.zeros_like(ref)), dtype=np.float64)
+        err = (vis - ref)[rec]
+        pen = rec & (ref > 0.02) & (ref < 0.98)
+        out[ch] = {
+            "mae": float(np.abs(err).mean()) if err.size else 0.0,
+            "rmse": float(np.sqrt(np.mean(err**2))) if err.size else 0.0,
+            "penumbra_mae": float(np.abs(vis - ref)[pen].mean()) if pen.any() else 0.0,
+            "noise_floor": float(se[rec].mean()) if rec.any() else 0.0,
+            "pixels": int(rec.sum()),
+            "penumbra_pixels": int(pen.sum()),
+        }
+    return out
+
+
+def umbra_bleeding(ref_visibility, vis, receivers) -> dict:
+    """Light in the hard reference's umbra: ``mean`` visibility there, ``leak_fraction`` of
+    umbra receivers above 0.1, ``umbra_pixels``."""
+    ref = np.asarray(ref_visibility, dtype=np.float64)
+    umbra = np.asarray(receivers, dtype=bool) & (ref <= UMBRA)
+    v = np.asarray(vis, dtype=np.float64)[umbra]
+    return {
+        "mean": float(v.mean()) if v.size else 0.0,
+        "leak_fraction": float(np.mean(v > LEAK)) if v.size else 0.0,
+        "umbra_pixels": int(umbra.sum()),
+    }
+
+
+def caster_distance(loaded, position, normal):
+    """Distance from each receiver to the first caster on its ray to the light's centre
+    (``inf`` where none) and the distance to the light (``inf`` for a sun), NumPy ``(N,)``."""
+    from ...scenes.raycast import intersect
+
+    light = loaded.light
+    p = np.asarray(position, dtype=np.float64)
+    n = np.asarray(normal, dtype=np.float64)
+    if light.is_directional:
+        d = np.broadcast_to(-np.asarray(light.direction, dtype=np.float64), p.shape)
+    else:
+        d = np.asarray(light.position, dtype=np.float64) - p
+        d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+    side = np.where(np.sum(n * d, axis=1) >= 0, 1.0, -1.0)
+    scale = 1.0 + np.sum(np.abs(n) * np.abs(p), axis=1)
+    origin = p + n * (side * scale * 1e-4)[:, None]
+    if light.is_directional:
+        far = np.full(len(p), np.inf)
+        tmax = None
+    else:
+        # from the offset origin, stopping short of the light (its own shape is in the scene)
+        to = np.asarray(light.position, dtype=np.float64) - origin
+        far = np.linalg.norm(to, axis=1)
+        d = to / np.maximum(far, 1e-300)[:, None]
+        tmax = np.maximum((far - light.shadow_end) * (1.0 - 1e-3), 0.0)
+    hit = intersect(loaded, origin, d, tmax=tmax)
+    t = np.where(hit["valid"], hit["t"].astype(np.float64), np.inf)
+    return t, far
+
+
+def contact_hardening(loaded, result, *, bins=DISTANCE_BINS) -> dict:
+    """PCSS's penumbra width estimate against the geometric width, binned by the
+    receiver-caster distance (see the module docstring). ``result``: a ``pcss`` model result
+    on ``loaded``. Rows: ``lo``, ``hi``, ``pixels``, ``true_width`` (mean), ``abs_error``
+    (mean ``|estimate - true|``), ``rel_error`` (``abs_error / true_width``), ``missed``
+    (fraction of those receivers where the blocker search found no blocker)."""
+    from ...raster_models.gbuffer import trace_gbuffer
+
+    pcss = result.diagnostics["pcss"]
+    gbuf = trace_gbuffer(loaded)
+    rec = gbuf.receiver
+    est = np.asarray(result.outputs["penumbra_width"], dtype=np.float64).ravel()[rec]
+    t, far = caster_distance(loaded, gbuf.position[rec], gbuf.normal[rec])
+    light = loaded.light
+    occluded = np.isfinite(t)
+    if light.is_directional:
+        true = 2.0 * t * math.tan(math.radians(pcss["light_angle"]) / 2.0)
+    else:
+        true = pcss["light_size"] * t / np.maximum(far - t, 1e-12)
+    rows = []
+    for lo, hi in zip(bins[:-1], bins[1:], strict=True):
+        sel = occluded & (t >= lo) & (t < hi)
+        if not sel.any():
+            rows.append({"lo": lo, "hi": hi, "pixels": 0})
+            continue
+        err = np.abs(est[sel] - true[sel])
+        tw = float(true[sel].mean())
+        rows.append(
+            {
+                "lo": lo,
+                "hi": hi,
+                "pixels": int(sel.sum()),
+                "true_width": tw,
+                "abs_error": float(err.mean()),
+                "abs_error_stderr": float(err.std(ddof=1) / math.sqrt(err.size))
+                if err.size > 1
+                else 0.0,
+                "rel_error": float(err.mean() / tw) if tw > 0 else None,
+                "missed": float(np.mean(est[sel] <= 0.0)),
+            }
+        )
+    return {"bins": rows, "occluded_receivers": int(occluded.sum()), **pcss}
