@@ -210,3 +210,22 @@ def test_msm_runs_and_counts_its_moment_memory(contact):
     assert res.cost["shadow_map_bytes"] > 6 * 128 * 128 * 4  # depth plus 4 x 16-bit moments
     v = res.outputs["visibility"]
     assert np.all((v >= 0) & (v <= 1))
+
+
+def test_linear_moment_depth_inverts_the_hyperbolic_depth():
+    proj = _persp(tan_half=1.0, near=0.5, far=20.0)
+    tau = np.array([0.5, 5.0, 12.75, 20.0])
+    got = msm_filter.moment_depth(proj, _hyper(proj, tau), "linear")
+    assert got == pytest.approx((tau - 0.5) / 19.5, abs=1e-9)
+    assert np.array_equal(msm_filter.moment_depth(proj, [0.3], "stored"), [0.3])
+
+
+def test_msm_on_a_spot_light_needs_linear_depth_at_16_bits():
+    # Hyperbolic depths crowd into the top of [0, 1], under 16-bit quantization: most
+    # receivers are falsely shadowed; the linear depth restores the hard map's shadows.
+    loaded = scenes.load("spot", width=48, height=27)
+    hard = raster_models.run("shadow-map", loaded, resolution=256).outputs["visibility"]
+    stored = raster_models.run("msm", loaded, resolution=256).outputs["visibility"]
+    linear = raster_models.run("msm", loaded, resolution=256, moment_depth="linear")
+    assert abs(linear.outputs["visibility"].mean() - hard.mean()) < 0.02
+    assert stored.mean() < hard.mean() - 0.1

@@ -20,7 +20,7 @@ from .. import params as _params
 from ..gbuffer import trace_gbuffer
 from ..params import param
 from .engine import execute
-from .msm_filter import MSM_FORMATS
+from .msm_filter import DEPTHS, MSM_FORMATS
 from .shadow_map import LIGHTS, ShadowMapParams, build
 
 __all__ = ["LIGHTS", "NAME", "MsmParams", "run"]
@@ -43,6 +43,13 @@ class MsmParams(ShadowMapParams):
         source="Peters and Klein 2015: 64 bits a texel, 16-bit optimized quantization",
         help="moment storage: unorm16 (optimized quantization) or float32",
         choices=MSM_FORMATS,
+    )
+    moment_depth: str = param(
+        "stored",
+        source="Peters and Klein 2015 (the map's depth in [0, 1])",
+        help="depth the moments are taken of: stored (the map's; hyperbolic for spot and "
+        "point maps) or linear (light-view distance between near and far)",
+        choices=DEPTHS,
     )
     moment_bias: float = param(
         3e-5,

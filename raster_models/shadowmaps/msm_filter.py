@@ -30,6 +30,7 @@ from scipy import ndimage
 from . import filters as _filters
 
 __all__ = [
+    "DEPTHS",
     "DECODE_16",
     "ENCODE_16",
     "ENCODE_OFFSET",
@@ -72,6 +73,10 @@ DECODE_16 = np.array(
 #: Offset added to the first quantized moment (HDRP line 63).
 ENCODE_OFFSET = 0.035955884801
 
+#: Depth the moments are taken of: the map's stored depth, or linear light-view distance
+#: normalized between the near and far planes (the same for orthographic maps).
+DEPTHS = ("stored", "linear")
+
 #: Levels of a 16-bit UNORM channel.
 UNORM16 = 65535.0
 
@@ -109,6 +114,21 @@ def msm_texture(depth_map: np.ndarray, blur_size: int, fmt: str) -> np.ndarray:
         return m.astype(np.float32)
     q = np.clip(encode16(m), 0.0, 1.0)
     return (np.round(q * UNORM16) / UNORM16).astype(np.float32)
+
+
+def moment_depth(proj, depth, kind: str) -> np.ndarray:
+    """The depth moments are taken of: ``depth`` itself (``stored``), or for a perspective
+    map with ``linear``, ``(tau - near) / (far - near)`` of its light-view distance ``tau``
+    (hyperbolic depth crowds most of a scene into the top 1 % of [0, 1], below the 16-bit
+    quantization's resolution)."""
+    d = np.asarray(depth, dtype=np.float64)
+    if kind == "stored" or proj is None or proj.kind != "persp":
+        return d
+    _, near, far = (float(x) for x in proj.extent)
+    a, b = far / (far - near), far * near / (far - near)
+    with np.errstate(divide="ignore"):
+        tau = b / np.maximum(a - d, 1e-300)
+    return np.clip((tau - near) / (far - near), 0.0, 1.0)
 
 
 def hamburger_4msm(b: np.ndarray, z, moment_bias: float) -> np.ndarray:

@@ -187,7 +187,8 @@ def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
             _add_moments(data, part, params, setup)
             data.texels = None
         elif params.filter == "msm":
-            data.moments = _msm.msm_texture(data.depth, params.blur_size, params.msm_format)
+            depth = _msm.moment_depth(part.projection, data.depth, params.moment_depth)
+            data.moments = _msm.msm_texture(depth, params.blur_size, params.msm_format)
             data.texels = None
         elif data.texels is None:
             data.texels = _filters.upload_texels(data.depth)

@@ -143,7 +143,7 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
             data.moments,
             u,
             v,
-            ref,
+            _msm.moment_depth(proj, np.clip(ref, 0.0, 1.0), params.moment_depth),
             fmt=params.msm_format,
             moment_bias=params.moment_bias,
             bleed_reduction=params.light_bleeding_reduction,
