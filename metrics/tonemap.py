@@ -1,20 +1,20 @@
 """The one tone-mapping pipeline applied to reference and candidate before any LDR metric.
 
-The display transform itself lives in :mod:`scenes.display` (techniques that run in display
+The display transform itself lives in :mod:`scenes.base.display` (techniques that run in display
 space, FXAA and SMAA, use it too); this module re-exports it for the metrics, with the
 metrics' error class: every invalid input raises :class:`MetricError` with the message of
-:class:`scenes.display.DisplayError`.
+:class:`scenes.base.display.DisplayError`.
 
 Pipeline (the same for both images, with one exposure taken from the reference): drop alpha,
 clamp negative radiance to 0, scale by ``2**exposure``, tone map (``"aces"``, ``"reinhard"``
-or ``"clip"``), clip to [0, 1], sRGB-encode. See :mod:`scenes.display` for each step.
+or ``"clip"``), clip to [0, 1], sRGB-encode. See :mod:`scenes.base.display` for each step.
 """
 
 from __future__ import annotations
 
 import functools
 
-from ..scenes import display as _display
+from ..scenes.base import display as _display
 from .validate import MetricError
 
 __all__ = [

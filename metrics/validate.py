@@ -12,16 +12,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..scenes.base.arrays import check_array
+
 __all__ = ["MetricError", "check_image", "check_images", "check_mask"]
 
 
 class MetricError(ValueError):
     """Invalid input to a metric: wrong shape, empty, NaN/inf, negative, bad option."""
-
-
-def _describe_ndim(ndim: Sequence[int]) -> str:
-    names = [f"{n}-D" for n in sorted(ndim)]
-    return names[0] if len(names) == 1 else " or ".join([", ".join(names[:-1]), names[-1]])
 
 
 def check_image(
@@ -61,39 +58,15 @@ def check_image(
         When ``a`` is not numeric, has the wrong number of dimensions, is empty, holds NaN
         or inf (the counts are given), or breaks the sign/upper-bound requirements.
     """
-    arr = np.asarray(a)
-    if arr.dtype.kind not in "biuf":
-        raise MetricError(f"{name} must be a real numeric array, got dtype {arr.dtype}")
-    if arr.ndim not in tuple(ndim):
-        raise MetricError(
-            f"{name} must be a {_describe_ndim(ndim)} array, got shape {tuple(arr.shape)}"
-        )
-    if arr.size == 0:
-        raise MetricError(f"{name} must not be empty, got shape {tuple(arr.shape)}")
-    arr = arr.astype(dtype, copy=False)
-    finite = np.isfinite(arr)
-    if not finite.all():
-        n_nan = int(np.isnan(arr).sum())
-        n_inf = int(arr.size - finite.sum() - n_nan)
-        raise MetricError(
-            f"{name} must be finite, got {n_nan} NaN and {n_inf} inf values "
-            f"(of {arr.size}, shape {tuple(arr.shape)})"
-        )
-    if not allow_negative:
-        n_neg = int((arr < 0).sum())
-        if n_neg:
-            raise MetricError(
-                f"{name} must be non-negative, got {n_neg} negative values "
-                f"(minimum {float(arr.min()):.6g})"
-            )
-    if max_value is not None:
-        n_big = int((arr > max_value).sum())
-        if n_big:
-            raise MetricError(
-                f"{name} must be at most {max_value:g}, got {n_big} larger values "
-                f"(maximum {float(arr.max()):.6g})"
-            )
-    return arr
+    return check_array(
+        name,
+        a,
+        error=MetricError,
+        ndim=ndim,
+        allow_negative=allow_negative,
+        max_value=max_value,
+        dtype=dtype,
+    )
 
 
 def check_images(

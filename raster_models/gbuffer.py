@@ -1,6 +1,7 @@
 """The depth prepass / G-buffer a shadow technique shades: one sample at every pixel centre.
 
-Built on :func:`scenes.raycast.trace_film_dr` (the oracle's own primary-ray path), evaluating
+Built on :func:`scenes.backend.raycast.trace_film_dr` (the oracle's own primary-ray path),
+evaluating
 only what a shadow technique reads, plus the screen-space derivatives of the visible
 position, ``dP/dx`` and ``dP/dy`` (world units per pixel), computed exactly on the tangent
 plane of the visible surface (ray differentials): what a GPU's ``ddx/ddy`` of the
@@ -16,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scenes import backend
-from ..scenes.raycast import CHUNK, trace_film_dr
-from ..scenes.shading import receiver_mask
+from ..scenes.backend.raycast import CHUNK, trace_film_dr
+from ..scenes.shading.phong import receiver_mask
 from .drjit import numpy_view
 
 __all__ = ["GBuffer", "points_gbuffer", "plane_derivatives", "trace_gbuffer"]
@@ -128,6 +129,40 @@ def _vec(mi, a):
     return mi.Vector3f(*(dr.opaque(mi.Float, float(a[k])) for k in range(3)))
 
 
+def _surface_derivatives_dr(mi, camera, x, y, p, n, valid) -> list:
+    """dP/dx and dP/dy (Dr.Jit vectors, 0 at invalid pixels) of the visible surface's plane
+    at film points ``(x, y)``: the camera ray's derivatives intersected with the plane of
+    the hit ``p`` with normal ``n``."""
+    import drjit as dr
+
+    dd_x, dd_y, do_x, do_y = camera.film_derivatives()
+    (ox, oy, oz), (dx, dy, dz) = camera.local_ray(x, y)
+    o_l = mi.Vector3f(ox, oy, oz)
+    d_l = mi.Vector3f(dx, dy, dz)
+    m = np.asarray(camera.to_world, dtype=np.float64)
+    rot = m[:3, :3]
+    r = [[dr.opaque(mi.Float, float(rot[i, j])) for j in range(3)] for i in range(3)]
+
+    def to_world(v, r=r):
+        return mi.Vector3f(
+            r[0][0] * v.x + r[0][1] * v.y + r[0][2] * v.z,
+            r[1][0] * v.x + r[1][1] * v.y + r[1][2] * v.z,
+            r[2][0] * v.x + r[2][1] * v.y + r[2][2] * v.z,
+        )
+
+    d = to_world(d_l)
+    o = to_world(o_l) + _vec(mi, m[:3, 3])
+    nd = dr.dot(n, d)
+    nd = dr.select(dr.abs(nd) > 1e-12, nd, 1e-12)
+    tau = dr.dot(n, p - o) / nd
+    derivs = []
+    for do, dd in ((do_x, dd_x), (do_y, dd_y)):
+        do_v, dd_v = _vec(mi, do), _vec(mi, dd)
+        dtau = -(dr.dot(n, do_v) + tau * dr.dot(n, dd_v)) / nd
+        derivs.append(dr.select(valid, do_v + d * dtau + dd_v * tau, mi.Vector3f(0.0)))
+    return derivs
+
+
 def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
     """G-buffer of ``camera`` (default: the scene's) at every pixel centre."""
     mi = backend.mitsuba()
@@ -136,9 +171,6 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
     camera = camera or scene.camera
     w, h = camera.width, camera.height
     n_pix = w * h
-    m = np.asarray(camera.to_world, dtype=np.float64)
-    rot = m[:3, :3]
-    dd_x, dd_y, do_x, do_y = camera.film_derivatives()
     # float32 values (as a GPU G-buffer) widened to float64 inside the kernel; invalid pixels 0.
     # One launch (up to CHUNK pixels, 1080p included): its evaluated 1-D arrays become the
     # G-buffer's (NumPy views); (N, 3) fields and several launches are copied.
@@ -162,28 +194,7 @@ def trace_gbuffer(scene, camera=None, *, with_lit: bool = False) -> GBuffer:
         valid = res["valid"]
         p = res["position"]
         n = res["normal"]
-        (ox, oy, oz), (dx, dy, dz) = camera.local_ray(x, y)
-        o_l = mi.Vector3f(ox, oy, oz)
-        d_l = mi.Vector3f(dx, dy, dz)
-        r = [[dr.opaque(mi.Float, float(rot[i, j])) for j in range(3)] for i in range(3)]
-
-        def to_world(v, r=r):
-            return mi.Vector3f(
-                r[0][0] * v.x + r[0][1] * v.y + r[0][2] * v.z,
-                r[1][0] * v.x + r[1][1] * v.y + r[1][2] * v.z,
-                r[2][0] * v.x + r[2][1] * v.y + r[2][2] * v.z,
-            )
-
-        d = to_world(d_l)
-        o = to_world(o_l) + _vec(mi, m[:3, 3])
-        nd = dr.dot(n, d)
-        nd = dr.select(dr.abs(nd) > 1e-12, nd, 1e-12)
-        tau = dr.dot(n, p - o) / nd
-        derivs = []
-        for do, dd in ((do_x, dd_x), (do_y, dd_y)):
-            do_v, dd_v = _vec(mi, do), _vec(mi, dd)
-            dtau = -(dr.dot(n, do_v) + tau * dr.dot(n, dd_v)) / nd
-            derivs.append(dr.select(valid, do_v + d * dtau + dd_v * tau, mi.Vector3f(0.0)))
+        derivs = _surface_derivatives_dr(mi, camera, x, y, p, n, valid)
         wl, _ = scene.light.to_light(p)
         f64 = mi.Float64
 

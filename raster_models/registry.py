@@ -113,8 +113,9 @@ FAMILIES: dict[str, Family] = {
 class Technique:
     """A registered technique: its parameter dataclass and entry point.
 
-    ``family``: ``shadow`` (visibility outputs, scored on receivers) or ``aa`` (colour and
-    coverage outputs, scored against the reference image)."""
+    ``family``: a key of :data:`FAMILIES`: ``shadow`` (visibility outputs, scored on
+    receivers), ``aa`` (colour and coverage outputs, scored against the reference image) or
+    ``taa`` (colour over a frame sequence, with the temporal metrics)."""
 
     name: str
     description: str

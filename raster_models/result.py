@@ -5,7 +5,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..scenes.records import jsonable, provenance
+from ..scenes.backend import provenance
+from ..scenes.base.records import jsonable
 
 __all__ = ["ModelResult", "model_result"]
 
@@ -48,7 +49,7 @@ def model_result(
     """The result of a model run that started at ``t0`` (``time.perf_counter()``).
 
     The diagnostics get the scene's provenance (``scene``) and the packages' (``provenance``)
-    as their last keys and are cleaned to JSON values (:func:`scenes.records.jsonable`);
+    as their last keys and are cleaned to JSON values (:func:`scenes.base.records.jsonable`);
     ``cost`` and ``params`` (a plain record, see :func:`raster_models.params.as_dict`) are
     kept as given.
     """

@@ -108,7 +108,7 @@ def load_scene(
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
     """
     from . import scenes
-    from .scenes.inputs import load_input
+    from .scenes.formats.inputs import load_input
 
     if isinstance(scene, scenes.LoadedScene):
         given = (width, height, light, camera_path, light_path, camera)
@@ -231,7 +231,7 @@ def export(scene, out, *, width: int | None = None, height: int | None = None) -
     """Write ``scene`` for an engine to render (``raster-oracle export``): ``meshes/*.ply``,
     ``camera.json``, ``lights.json``, ``materials.json`` and a ``scene.xml`` that loads the
     export back (pass the folder to :func:`score_image`). Returns the export's summary."""
-    from .scenes.export import export as export_scene
+    from .scenes.formats.export import export as export_scene
 
     loaded = load_scene(scene, width=width, height=height)
     with _library():

@@ -325,12 +325,6 @@ def make_case(
         factor=_images.downscale_factor((height, width), max_size=max_size),
         max_bytes=max_bytes,
     )
-    checks = check_checks(checks)
-    failing = _failing(metrics, thresholds)
-    failed_checks = [c for c in checks if not c["passed"]]
-    failing += [c["metric"] for c in failed_checks if c["metric"] not in failing]
-    directions = {k: d for k, d in check_directions(directions).items() if k in metrics}
-    within_noise = _within_noise(metrics, noise_floor, directions)
     return {
         "schema": CASE_SCHEMA,
         "name": name,
@@ -347,17 +341,7 @@ def make_case(
             "height": -(-height // factor),
             "bytes": size,
         },
-        "metrics": metrics,
-        "thresholds": thresholds,
-        "noise_floor": noise_floor,
-        "cost": check_cost(cost),
-        "failing": failing,
-        "within_noise": within_noise,
-        "directions": directions,
-        "status": "unchecked"
-        if not thresholds and not checks
-        else ("fail" if failing or failed_checks else "pass"),
-        "checks": checks,
+        **_judgement(metrics, thresholds, noise_floor, cost, directions, check_checks(checks)),
         "diagnoses": check_texts("diagnoses", diagnoses),
         "images": images,
         "error_maps": _map_records(maps, heatmaps),
@@ -366,4 +350,29 @@ def make_case(
         ),
         "exr_links": _exr_links(exr_links),
         "viewer": viewer,
+    }
+
+
+def _judgement(metrics, thresholds, noise_floor, cost, directions, checks) -> dict:
+    """The case record's verdict fields: its metrics, thresholds, noise floor and cost, the failing
+    metrics (thresholds and failed checks), which metrics lie within the noise floor, and the
+    status (``"unchecked"`` without thresholds or checks, else ``"pass"`` or ``"fail"``)."""
+    failing = _failing(metrics, thresholds)
+    failed_checks = [c for c in checks if not c["passed"]]
+    failing += [c["metric"] for c in failed_checks if c["metric"] not in failing]
+    directions = {k: d for k, d in check_directions(directions).items() if k in metrics}
+    if not thresholds and not checks:
+        status = "unchecked"
+    else:
+        status = "fail" if failing or failed_checks else "pass"
+    return {
+        "metrics": metrics,
+        "thresholds": thresholds,
+        "noise_floor": noise_floor,
+        "cost": check_cost(cost),
+        "failing": failing,
+        "within_noise": _within_noise(metrics, noise_floor, directions),
+        "directions": directions,
+        "status": status,
+        "checks": checks,
     }

@@ -25,7 +25,7 @@ from numbers import Real
 
 import numpy as np
 
-from ..scenes.records import encode_float, jsonable
+from ..scenes.base.records import encode_float, jsonable
 
 __all__ = [
     "KINDS",
@@ -235,7 +235,7 @@ def check_cost(value: object) -> dict[str, int | float] | None:
 
 
 def to_jsonable(value: object, name: str) -> object:
-    """A plain record (params, provenance) as JSON values: :func:`scenes.records.jsonable`
+    """A plain record (params, provenance) as JSON values: :func:`scenes.base.records.jsonable`
     (NumPy scalars to numbers, tuples and arrays to lists, paths to strings, non-finite
     floats to ``"nan"``/``"inf"``/``"-inf"``), with ``name`` in the error message."""
     try:

@@ -7,7 +7,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
-from ..scenes.files import atomic_write_bytes
+from ..scenes.base.files import atomic_write_bytes
 from ._build import REPORT_SCHEMA
 from ._env import environment
 from ._validate import check_report_urls

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scenes.files import atomic_write_bytes
+from ..scenes.base.files import atomic_write_bytes
 from ._tradeoff import pareto_front
 from .sections.overview import overview_record
 from .sections.page import render_sweep_page, summary_viewer_cases

@@ -19,15 +19,15 @@ from xml.etree import ElementTree
 import numpy as np
 
 from . import backend
-from .builtin import BUILTIN_SCENES, BuiltinScene
 from .camera import Camera
-from .camera_file import CameraFileError, load_camera_file
-from .gltf import GltfError, gltf_scene
+from .catalogue.builtin import BUILTIN_SCENES, BuiltinScene
+from .formats.camera_file import CameraFileError, load_camera_file
+from .formats.gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
 from .lights import AREA_SHAPES, Light
 from .object_paths import check_motion, object_transform
 from .paths import CAMERA_PATHS, path_camera
-from .shading import Specular
+from .shading.phong import Specular
 
 __all__ = ["LoadedScene", "SceneError", "load", "scene_names"]
 
@@ -69,8 +69,9 @@ class LoadedScene:
     light_path: str | None = None
     base_lights: list[Light] = field(default_factory=list)
     mesh_data: dict = field(default_factory=dict, repr=False)
-    #: glTF materials (:class:`scenes.gltf_materials.PbrMaterials`): the scene is shaded with
-    #: the glTF BRDF of :mod:`scenes.pbr`; None: the Lambert/Blinn-Phong of scenes.shading.
+    #: glTF materials (:class:`scenes.formats.gltf_materials.PbrMaterials`): the scene is
+    #: shaded with the glTF BRDF of :mod:`scenes.shading.pbr`; None: the Lambert/Blinn-Phong
+    #: of scenes.shading.phong.
     pbr: object = field(default=None, repr=False, compare=False)
     #: Per-scene memo caches of derived data (shape tables, occluder triangles, tie groups),
     #: keyed by their owner's name. A declared field, so ``dataclasses.replace`` carries it:
@@ -201,7 +202,7 @@ class LoadedScene:
     def shading_model(self) -> str:
         """The shading model of the colour truth (recorded in provenance)."""
         if self.pbr is not None:
-            from .pbr import SHADING_MODEL
+            from .shading.pbr import SHADING_MODEL
 
             return SHADING_MODEL
         if self.specular.ks > 0.0:
@@ -252,7 +253,7 @@ def _to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
         if isinstance(value, dict) and value.get("type") == "ro_mesh":
             v = np.asarray(value["vertices"], dtype=np.float32)
             f = np.asarray(value["faces"], dtype=np.uint32)
-            # optional per-vertex data (glTF meshes, scenes.gltf): normals, uv, tangents
+            # optional per-vertex data (glTF meshes, scenes.formats.gltf): normals, uv, tangents
             nrm, uv, tan = (value.get(k) for k in ("normals", "texcoords", "tangents"))
             mesh = mi.Mesh(
                 key,
@@ -494,7 +495,8 @@ def load(
     Parameters
     ----------
     scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
-        A :class:`scenes.builtin.BuiltinScene` (e.g. a built-in scene's factory wrapped by a
+        A :class:`scenes.catalogue.builtin.BuiltinScene` (e.g. a built-in scene's factory
+        wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
     light : index of the light to use among the scene's punctual lights.
@@ -502,13 +504,13 @@ def load(
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
         that of ``frame`` (frame 0 is the scene's own light).
-    camera_file : a camera sequence file (:mod:`scenes.camera_file`): frames follow its
+    camera_file : a camera sequence file (:mod:`scenes.formats.camera_file`): frames follow its
         cameras (camera path ``file``).
 
     Objects of a scene with object paths (:mod:`scenes.object_paths`) are placed for
     ``frame``; such a scene's frames keep the camera still unless a camera path is named.
     camera : glTF scenes: index of the document's camera to view through (default: the
-        scene's first camera node); see :mod:`scenes.gltf`.
+        scene's first camera node); see :mod:`scenes.formats.gltf`.
 
     Raises
     ------
@@ -519,9 +521,64 @@ def load(
     _check_size(width, height)
     _check_sequence(light_path, camera_path, camera_file, frame, n_frames)
     mi = backend.mitsuba()
-    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
     meshes: dict = {}
-    try:  # a glTF file or built-in glTF scene (scenes.gltf), else None
+    src = _open(mi, scene, meshes, width=width, height=height, camera=camera)
+    mi_scene, name, digest, gl = src.mi_scene, src.name, src.digest, src.gltf
+    sensors = mi_scene.sensors()
+    if not sensors:
+        raise SceneError(f"scene {name!r} has no sensor (camera)")
+    cam = _camera_from_sensor(mi, sensors[0], width, height)
+    if width and height:
+        cam = cam.with_resolution(width, height)
+    digest.update(f"res:{cam.width}x{cam.height}".encode())
+    lights = _lights_of(mi, mi_scene, name, gl, light)
+    loaded = LoadedScene(
+        name=name,
+        source=src.source,
+        description=src.description,
+        mi_scene=mi_scene,
+        camera=cam,
+        base_camera=cam,
+        lights=lights,
+        light_index=int(light),
+        shape_names=[s.id() for s in mi_scene.shapes()],
+        content_hash=digest.hexdigest(),
+        specular=src.specular,
+        mesh_data=meshes,
+        object_motion=src.motion,
+        scene_dict=src.scene_dict,
+        pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
+    )
+    loaded = _placed(loaded, camera_file, camera_path, int(frame), int(n_frames))
+    if light_path is not None:
+        try:
+            check_light_path(light_path, loaded.light)
+        except ValueError as exc:
+            raise SceneError(f"scene {name!r}: {exc}") from None
+        loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
+    return loaded
+
+
+@dataclass
+class _Source:
+    """What :func:`_open` read: the Mitsuba scene and the record :func:`load` keeps of it."""
+
+    mi_scene: object
+    name: str
+    digest: object  # hashlib sha256, still open: the film size is added by load()
+    source: str
+    description: str
+    specular: Specular
+    motion: dict
+    scene_dict: dict | None
+    gltf: object = None  # scenes.formats.gltf's scene record for glTF input, else None
+
+
+def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
+    """The Mitsuba scene of a glTF file or built-in glTF scene, a built-in scene or a Mitsuba
+    XML file; the meshes given to Mitsuba are kept in ``meshes``."""
+    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
+    try:  # a glTF file or built-in glTF scene (scenes.formats.gltf), else None
         gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
     except GltfError as exc:
         raise SceneError(str(exc)) from None
@@ -539,7 +596,7 @@ def load(
         raw = spec.factory(w, h)
         digest = hashlib.sha256(b"builtin:" + name.encode())
         _hash_obj(digest, raw)
-        # a scene-wide Blinn-Phong lobe (scenes.aa_scenes' glossy); hashed above with the rest
+        # a scene-wide Blinn-Phong lobe (the catalogue's glossy); hashed above with the rest
         specular = Specular(**raw.pop("ro_specular", {}))
         motion, scene_dict = _motion_of(raw, name), dict(raw)
         try:
@@ -568,13 +625,14 @@ def load(
         specular = Specular()
         motion, scene_dict = {}, None
         name = path.stem
-    sensors = mi_scene.sensors()
-    if not sensors:
-        raise SceneError(f"scene {name!r} has no sensor (camera)")
-    cam = _camera_from_sensor(mi, sensors[0], width, height)
-    if width and height:
-        cam = cam.with_resolution(width, height)
-    digest.update(f"res:{cam.width}x{cam.height}".encode())
+    return _Source(
+        mi_scene, name, digest, source, description, specular, motion, scene_dict, gltf=gl
+    )
+
+
+def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
+    """The scene's usable lights (glTF: with the KHR_lights_punctual attenuation);
+    :class:`SceneError` when there is none or ``light`` is out of range."""
     emitters = mi_scene.emitters()
     lights = []
     for i, e in enumerate(emitters):
@@ -594,31 +652,7 @@ def load(
             f"light index {light} out of range: scene {name!r} has {len(lights)} usable "
             f"light(s) (0..{len(lights) - 1})"
         )
-    loaded = LoadedScene(
-        name=name,
-        source=source,
-        description=description,
-        mi_scene=mi_scene,
-        camera=cam,
-        base_camera=cam,
-        lights=lights,
-        light_index=int(light),
-        shape_names=[s.id() for s in mi_scene.shapes()],
-        content_hash=digest.hexdigest(),
-        specular=specular,
-        mesh_data=meshes,
-        object_motion=motion,
-        scene_dict=scene_dict,
-        pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
-    )
-    loaded = _placed(loaded, camera_file, camera_path, int(frame), int(n_frames))
-    if light_path is not None:
-        try:
-            check_light_path(light_path, loaded.light)
-        except ValueError as exc:
-            raise SceneError(f"scene {name!r}: {exc}") from None
-        loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
-    return loaded
+    return lights
 
 
 def _check_sequence(light_path, camera_path, camera_file, frame, n_frames) -> None:

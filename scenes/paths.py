@@ -76,7 +76,7 @@ def path_camera(base: Camera, path: str, frame: int, n_frames: int, *, scene=Non
 
 def _centre_distance(base: Camera, scene) -> float | None:
     """Distance along the view axis to the geometry at the image centre (None: sky)."""
-    from .raycast import intersect
+    from .backend.raycast import intersect
 
     o, d, tmax = base.rays(np.array([base.width / 2]), np.array([base.height / 2]))
     hit = intersect(scene, o, d, tmax=tmax)

@@ -22,7 +22,7 @@ from raster_oracle.raster_models.aa.fragments import (
     shading_positions,
 )
 from raster_oracle.raster_models.aa.trace import fragment_attributes, shade_points
-from raster_oracle.scenes.raycast import trace_film
+from raster_oracle.scenes.backend.raycast import trace_film
 
 #: Pixels per grouping chunk (keeps the ``(P, N, N)`` comparison cache-sized).
 GROUP_CHUNK = 1 << 15
@@ -119,7 +119,7 @@ def cluster(valid, depth, normal, k: int, threshold: float, depth_weight: float,
 
 def sample_points(scene, x, y) -> dict:
     """The surface points the rays through film positions ``x``, ``y`` meet (the oracle's
-    :func:`scenes.raycast.trace_film`): ``valid``, ``position``, ``normal``, ``geo_normal``
+    :func:`scenes.backend.raycast.trace_film`): ``valid``, ``position``, ``normal``, ``geo_normal``
     (the shading normal: the test scenes are flat-shaded meshes), view ``depth``."""
     g = trace_film(scene, x, y)
     return {

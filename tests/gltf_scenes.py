@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 from engine_raster import gltf_brdf as spec_brdf  # noqa: F401 (the tests' BRDF, re-exported)
-from raster_oracle.scenes import meshes
-from raster_oracle.scenes.gltf_write import (
+from raster_oracle.scenes.catalogue import meshes
+from raster_oracle.scenes.formats.gltf_write import (
     GltfCamera,
     GltfLight,
     GltfMesh,
@@ -40,7 +40,7 @@ def plate_twin(loaded_plate, materials: list[dict] | None = None) -> bytes:
     scene (glTF axes), the same sun direction (unnormalized, as the built-in gives it);
     ``materials``: the ground's and the plate's (default: rough dielectrics of the built-in's
     albedos)."""
-    from raster_oracle.scenes import shadow_scenes
+    from raster_oracle.scenes.catalogue import shadow_scenes
 
     cam = loaded_plate.camera
     raw = shadow_scenes.plate(cam.width, cam.height)

@@ -15,7 +15,7 @@ import pytest
 from raster_oracle.raster_models.aa import samples
 from raster_oracle.raster_models.aa.agaa import kernels
 from raster_oracle.scenes import backend
-from raster_oracle.scenes.builtin import BuiltinScene
+from raster_oracle.scenes.catalogue.builtin import BuiltinScene
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

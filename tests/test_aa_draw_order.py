@@ -13,8 +13,8 @@ from raster_oracle.raster_models.aa import msaa, owners, samples, trace
 from raster_oracle.raster_models.aa.acaa import groups, plane
 from raster_oracle.raster_models.aa.fragments import Fragments
 from raster_oracle.scenes import backend
-from raster_oracle.scenes.builtin import BuiltinScene
-from raster_oracle.scenes.raycast import camera_rays_dr
+from raster_oracle.scenes.backend.raycast import camera_rays_dr
+from raster_oracle.scenes.catalogue.builtin import BuiltinScene
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

@@ -15,8 +15,8 @@ from raster_oracle.oracle.reference.render import ReferenceSettings
 from raster_oracle.oracle.reference.store import get_reference
 from raster_oracle.oracle.scoring.score import COVERAGE_FLOOR_RMS
 from raster_oracle.raster_models.aa import resolve, samples
-from raster_oracle.scenes.builtin import BuiltinScene
-from raster_oracle.scenes.factories import mesh, sensor, sun
+from raster_oracle.scenes.catalogue.builtin import BuiltinScene
+from raster_oracle.scenes.catalogue.factories import mesh, sensor, sun
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes
@@ -124,8 +124,8 @@ def _squares(seed: int = 5):
 
 
 def _squares_scene(width, height):
-    from raster_oracle.scenes import meshes
-    from raster_oracle.scenes.aa_scenes import ortho_camera
+    from raster_oracle.scenes.catalogue import meshes
+    from raster_oracle.scenes.catalogue.aa_scenes import ortho_camera
 
     squares = meshes.merge([meshes.quad(q) for q in _squares()])
     return {

@@ -15,7 +15,7 @@ from raster_oracle.raster_models.aa import pixel_dr, samples, trace
 from raster_oracle.raster_models.aa.acaa.blend import rgba8_accumulate
 from raster_oracle.raster_models.aa.agaa.pixels import cluster_pixels
 from raster_oracle.scenes import backend
-from raster_oracle.scenes.raycast import trace_film
+from raster_oracle.scenes.backend.raycast import trace_film
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

@@ -15,7 +15,7 @@ from raster_oracle.raster_models.aa.acaa import blend, groups, ties
 from raster_oracle.raster_models.aa.acaa import model as acaa
 from raster_oracle.raster_models.aa.acaa import trace as acaa_trace
 from raster_oracle.scenes import backend
-from raster_oracle.scenes.raycast import shape_table
+from raster_oracle.scenes.backend.raycast import shape_table
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

@@ -29,7 +29,8 @@ def test_ranking_orders_by_coverage_edge_error_and_marks_the_floor(tmp_path):
         store.put(_row("e", "agaa", {}, 0.01, 0.01))  # not a ranked technique
         store.put(_row("f", "noaa", {}, 0.3, 0.01, scene="plate"))  # no SMAA there
         store.put(_row("g", "smaa", {"preset": "ultra"}, 0.1, 0.01, status="failed"))
-    data = aa_ranking(db)
+    with SweepStore(db, readonly=True) as store:
+        data = aa_ranking(store.rows())
     (table,) = data["scenes"]
     rows = table["rows"]
     assert [r["label"] for r in rows] == [
@@ -45,7 +46,7 @@ def test_ranking_orders_by_coverage_edge_error_and_marks_the_floor(tmp_path):
     assert "not separated" in html and "0.185 (floor 0.01)" in html
 
 
-def test_no_store_gives_an_empty_ranking(tmp_path):
-    data = aa_ranking(tmp_path / "missing.db")
+def test_no_rows_give_an_empty_ranking():
+    data = aa_ranking([])
     assert data["scenes"] == []
     assert "No SMAA case" in render_section(aa_ranking_section(data))

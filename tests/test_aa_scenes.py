@@ -1,4 +1,4 @@
-"""The anti-aliasing scenes (scenes.aa_scenes): each loads, renders, and has its property.
+"""The anti-aliasing scenes (scenes.catalogue.aa_scenes): each loads, renders, and has its property.
 
 The properties are measured, not assumed: the decal ties exactly and the reference sees one
 colour (the closed-form Lambert value) across it; the stripes alternate at their pixel
@@ -16,9 +16,10 @@ import math
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
-from raster_oracle.scenes import aa_scenes, raycast
-from raster_oracle.scenes.builtin import BUILTIN_SCENES, DEFAULT_SCENES
-from raster_oracle.scenes.shading import Specular
+from raster_oracle.scenes.backend import raycast
+from raster_oracle.scenes.catalogue import aa_scenes
+from raster_oracle.scenes.catalogue.builtin import BUILTIN_SCENES, DEFAULT_SCENES
+from raster_oracle.scenes.shading.phong import Specular
 
 from raster_oracle import scenes
 
@@ -38,7 +39,7 @@ STANDARD_8X = np.array(
         (0.9375, 0.0625),
     ]
 )
-#: Sun irradiance of the scenes that use scenes.builtin._sun's default.
+#: Sun irradiance of the scenes that use scenes.catalogue.builtin._sun's default.
 SUN_E = 3.0
 #: float32 radiance against float64 closed forms (a few ulps of values below 1).
 TOL = 1e-5
@@ -284,7 +285,7 @@ def test_hdr_edge_dynamic_range_exceeds_100_to_1():
 def test_export_writes_the_specular_lobe(tmp_path):
     import json
 
-    from raster_oracle.scenes.export import export
+    from raster_oracle.scenes.formats.export import export
 
     s = scenes.load("decal", width=48, height=27)
     export(s, tmp_path / "plain")

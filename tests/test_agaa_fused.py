@@ -9,7 +9,7 @@ import pytest
 from raster_oracle.raster_models.aa import samples, trace
 from raster_oracle.raster_models.aa.agaa import kernels, pixels
 from raster_oracle.scenes import backend
-from raster_oracle.scenes.raycast import shape_table
+from raster_oracle.scenes.backend.raycast import shape_table
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

@@ -17,6 +17,8 @@ import numpy as np
 import pytest
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.reference.exr import read_exr, write_exr
+from raster_oracle.scenes import SceneError
+from raster_oracle.scenes.formats.inputs import read_export_record
 
 SIZE = ["--width", "48", "--height", "27"]
 SPP = ["--spp", "16"]
@@ -277,7 +279,7 @@ def test_mask_off_receivers_only_scores_like_the_exact_one(tmp_path, capsys):
     a mask exact on the receivers and flipped everywhere else scores exactly as the exact
     mask (FLIP, SSIM, PSNR and the Z-test used to see those pixels); they are counted."""
     from raster_oracle.oracle.scoring.score import reference_receivers
-    from raster_oracle.scenes.inputs import load_input
+    from raster_oracle.scenes.formats.inputs import load_input
 
     args = ["reference", "spot", *SIZE, *SPP, "--quiet", "--out", str(tmp_path / "ref")]
     assert main(args) == 0
@@ -339,7 +341,10 @@ def test_exports_record_their_path_and_frames_need_one(tmp_path, capsys, cands):
     export = tmp_path / "pan"
     args = ["export", "plate", *SIZE, "--camera-path", "subpixel-pan", "--frames", "2"]
     assert main([*args, "--out", str(export)]) == 0
-    rec = json.loads((export / "export.json").read_text())
+    raw = json.loads((export / "export.json").read_text())
+    # the sequence is recorded once (camera.json), export.json points at it
+    assert raw["sequence"] == "camera.json#/sequence" and "camera_path" not in raw
+    rec = read_export_record(export)
     assert rec["camera_path"] == "subpixel-pan" and rec["frame"] == 0 and rec["n_frames"] == 2
     assert (rec["width"], rec["height"]) == (48, 27)
     cams = [json.loads((export / "cameras" / f"frame_{k:03d}.json").read_text()) for k in (0, 1)]
@@ -538,3 +543,23 @@ def test_which_gate_catches_a_one_pixel_shift(tmp_path, capsys):
         "unreal_high_local_error <= 0.1",
     }
     assert 0.003 < m["misclassified_fraction"] < 0.01  # the old README gate passes it
+
+
+def test_an_export_record_of_schema_1_still_reads(tmp_path):
+    """Exports of earlier releases held the sequence in export.json itself (schema 1)."""
+    rec = {
+        "schema": "raster-oracle/export/1",
+        "scene": "plate",
+        "width": 48,
+        "height": 27,
+        "light": 0,
+        "camera_path": "dolly",
+        "light_path": None,
+        "frame": 0,
+        "n_frames": 4,
+    }
+    (tmp_path / "export.json").write_text(json.dumps(rec))
+    assert read_export_record(tmp_path) == rec
+    (tmp_path / "export.json").write_text(json.dumps({**rec, "schema": "raster-oracle/export/9"}))
+    with pytest.raises(SceneError, match="not an export record"):
+        read_export_record(tmp_path)

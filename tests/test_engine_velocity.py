@@ -13,7 +13,7 @@ from raster_oracle.metrics import from_oracle_motion, to_oracle_motion
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.scoring.gates import Gate, evaluate_gates
 from raster_oracle.oracle.scoring.score import score
-from raster_oracle.scenes.export import export
+from raster_oracle.scenes.formats.export import export
 
 from raster_oracle import scenes
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
-from raster_oracle.scenes.builtin import BUILTIN_SCENES
 from raster_oracle.scenes.camera import Camera
-from raster_oracle.scenes.exact_coverage import TriangleSet, exact_coverage_of
-from raster_oracle.scenes.pixel_area import edge_pieces, pixel_area, tagged_pixel_area
+from raster_oracle.scenes.catalogue.builtin import BUILTIN_SCENES
+from raster_oracle.scenes.geometry.exact_coverage import TriangleSet, exact_coverage_of
+from raster_oracle.scenes.geometry.pixel_area import edge_pieces, pixel_area, tagged_pixel_area
 
 #: Relative accuracy the issue asks of a triangle's summed coverage (float64 rounding of the
 #: per-cell terms is about 1e-15 of the film size).
@@ -253,7 +253,7 @@ def test_failed_polygon_operation_claims_nothing_exact(monkeypatch):
     """A polygon operation failing on degenerate input leaves every pixel not exact and the
     reason in the provenance, never a partial channel passed off as exact."""
     from raster_oracle.oracle.reference import coverage as ref_coverage
-    from raster_oracle.scenes import exact_coverage as ec
+    from raster_oracle.scenes.geometry import exact_coverage as ec
     from raster_oracle.scenes.loader import load
 
     def fail(loaded, centre):

@@ -5,7 +5,7 @@ A translation ``t`` of the film moves the world point seen at film ``f`` to ``f 
 model's sample at ``x + s_k`` sees the point the untranslated camera shows at ``x + s_k - t``.
 For ``t`` uniform over ``[0, 1)^2`` its expected coverage is the exact coverage of the box
 ``[x + s_k - 1, x + s_k)``: the exact channel on the pixel grid offset by ``s_k - 1``
-(:func:`scenes.exact_coverage.exact_coverage_of`), averaged over the pattern's samples.
+(:func:`scenes.geometry.exact_coverage.exact_coverage_of`), averaged over the pattern's samples.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from raster_oracle.metrics.stats import binomial_stderr_floor
 from raster_oracle.raster_models import registry
-from raster_oracle.scenes.exact_coverage import exact_coverage_of, scene_triangle_set
+from raster_oracle.scenes.geometry.exact_coverage import exact_coverage_of, scene_triangle_set
 from raster_oracle.scenes.loader import load
 
 #: Translations per model: a 4 x 4 jittered grid over the pixel (stratified, so the plain
@@ -94,8 +94,8 @@ def test_straight_edge_error_against_the_exact_channel():
 
     from raster_oracle.oracle.reference.coverage import centre_shapes
     from raster_oracle.oracle.scoring.score import COVERAGE_FLOOR_RMS
-    from raster_oracle.scenes.builtin import BuiltinScene
-    from raster_oracle.scenes.exact_coverage import exact_coverage
+    from raster_oracle.scenes.catalogue.builtin import BuiltinScene
+    from raster_oracle.scenes.geometry.exact_coverage import exact_coverage
 
     from raster_oracle import scenes
     from tests._geometry import polygon_coverage

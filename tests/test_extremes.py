@@ -94,13 +94,13 @@ def test_documented_failures_show(matrix):
 def _raw(name, w=32, h=18):
     import copy
 
-    from raster_oracle.scenes.builtin import BUILTIN_SCENES
+    from raster_oracle.scenes.catalogue.builtin import BUILTIN_SCENES
 
     return X.EXTREMES[name].transform(copy.deepcopy(BUILTIN_SCENES["plate"].factory(w, h)), w, h)
 
 
 def test_transformations_closed_form():
-    from raster_oracle.scenes.builtin import BUILTIN_SCENES
+    from raster_oracle.scenes.catalogue.builtin import BUILTIN_SCENES
 
     base = BUILTIN_SCENES["plate"].factory(32, 18)
     far = _raw("far_1e5")

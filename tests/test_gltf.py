@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from gltf_scenes import flat_plane, pbr_material, plate_twin, spec_brdf
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
-from raster_oracle.scenes.gltf_write import GltfLight, light_matrix
-from raster_oracle.scenes.raycast import trace_film
+from raster_oracle.scenes.backend.raycast import trace_film
+from raster_oracle.scenes.formats.gltf_write import GltfLight, light_matrix
 
 from raster_oracle import scenes
 
@@ -184,7 +184,7 @@ def test_textures_and_normal_texture_match_the_spec_by_hand(tmp_path, tangent, b
     ``B = w (n x T)`` with one (+Z and w = -1: B = -X). Seen from below (a back face, lit
     from below) the normal, tangent and bitangent all flip, as in the sample renderer: the
     bent normal is the front one negated."""
-    from raster_oracle.scenes.gltf_write import png_bytes
+    from raster_oracle.scenes.formats.gltf_write import png_bytes
 
     texel = {  # 8-bit values as the PNGs store them
         "base": np.array([200, 100, 50]) / 255,

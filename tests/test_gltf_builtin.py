@@ -13,8 +13,8 @@ import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.oracle.sweeps.mainjob import default_spec
 from raster_oracle.raster_models.registry import family_of, run
-from raster_oracle.scenes.export import export
-from raster_oracle.scenes.raycast import trace_film
+from raster_oracle.scenes.backend.raycast import trace_film
+from raster_oracle.scenes.formats.export import export
 
 from raster_oracle import scenes
 
@@ -50,7 +50,7 @@ def test_sphere_grid_materials_and_lights():
     assert min(ground.base_color_texture, ground.metallic_roughness_texture) >= 0
     assert ground.normal_texture >= 0 and pbr.has_normal_textures
     assert sum(any(m.emissive) for m in pbr.materials) == 1
-    assert "scenes.pbr" not in loaded.shading_model and "gltf" in loaded.shading_model
+    assert "scenes.shading.pbr" not in loaded.shading_model and "gltf" in loaded.shading_model
 
 
 @pytest.mark.parametrize("light", [0, 1])

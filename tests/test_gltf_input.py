@@ -16,7 +16,7 @@ import pygltflib
 import pytest
 from gltf_scenes import flat_plane, pbr_material
 from raster_oracle.oracle.cli import main
-from raster_oracle.scenes.gltf_write import (
+from raster_oracle.scenes.formats.gltf_write import (
     GltfCamera,
     GltfLight,
     GltfMesh,

@@ -16,7 +16,7 @@ from raster_oracle.raster_models.izb import geometry, kernel, lists
 from raster_oracle.raster_models.izb import model as izb
 from raster_oracle.raster_models.izb.kernel import DeadPairs, PairTester
 from raster_oracle.raster_models.izb.lists import Joins, build_lists, late_pairs
-from raster_oracle.scenes.tangent32 import TANGENT_POINTS_32, tangent_offsets
+from raster_oracle.scenes.geometry.tangent32 import TANGENT_POINTS_32, tangent_offsets
 from scipy import ndimage
 from test_models_xml import box, ground, quad, write_scene
 

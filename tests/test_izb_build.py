@@ -9,7 +9,7 @@ import pytest
 from raster_oracle.raster_models.izb import build
 from raster_oracle.raster_models.izb.build import Ortho32Build, grid, texel
 from raster_oracle.raster_models.izb.lists import build_lists
-from raster_oracle.scenes.tangent32 import tangent_offsets
+from raster_oracle.scenes.geometry.tangent32 import tangent_offsets
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

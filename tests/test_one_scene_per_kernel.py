@@ -3,7 +3,7 @@
 On CUDA, OptiX disables a trace of a second scene in one kernel and returns no hits: ACAA
 traced its tie-group scenes and then the whole scene's shadow rays in one kernel, and
 stripes came out fully lit. The LLVM backend traces both, so the audit reads the kernels'
-IR instead (:mod:`raster_oracle.scenes.kernels`): every kernel of every model and of the
+IR instead (:mod:`raster_oracle.scenes.backend.kernels`): every kernel of every model and of the
 oracle traces at most one scene.
 """
 
@@ -12,7 +12,8 @@ from __future__ import annotations
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.raster_models.errors import ModelError
-from raster_oracle.scenes import backend, kernels
+from raster_oracle.scenes import backend
+from raster_oracle.scenes.backend import kernels
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

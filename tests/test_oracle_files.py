@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from raster_oracle.oracle.errors import InputError, one_line
-from raster_oracle.scenes.files import (
+from raster_oracle.scenes.base.files import (
     atomic_copy,
     atomic_write,
     atomic_write_bytes,
     atomic_write_json,
 )
-from raster_oracle.scenes.records import jsonable, package_versions
+from raster_oracle.scenes.base.records import jsonable, package_versions
 
 
 def test_jsonable_converts_numpy_tuples_paths_and_non_finite_floats():

@@ -210,7 +210,7 @@ def test_exposure_ignores_black_sky_and_shadow():
 def _convex_shapes_scene(width, height):
     """A cylinder (open tube) and a sphere in the sky under a sun: closed form, nothing can
     shadow the outer light-facing side of either."""
-    from raster_oracle.scenes.factories import sensor, sun
+    from raster_oracle.scenes.catalogue.factories import sensor, sun
 
     return {
         "type": "scene",
@@ -237,8 +237,8 @@ def _convex_shapes_scene(width, height):
 def test_lit_side_of_convex_analytic_shapes_is_never_self_shadowed():
     """The cylinder's own intersection error exceeds the ray offset (30 % of its lit side read
     as shadowed before the self-hit skip); the outward lit side must be lit everywhere."""
-    from raster_oracle.scenes.builtin import BuiltinScene
-    from raster_oracle.scenes.raycast import camera_rays_dr, trace_film_dr
+    from raster_oracle.scenes.backend.raycast import camera_rays_dr, trace_film_dr
+    from raster_oracle.scenes.catalogue.builtin import BuiltinScene
 
     mi = backend.mitsuba()
     import drjit as dr

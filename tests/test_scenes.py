@@ -10,7 +10,7 @@ from raster_oracle.metrics.stats import binomial_stderr_floor
 from raster_oracle.oracle.cli.app import main
 from raster_oracle.oracle.reference.exr import read_exr
 from raster_oracle.oracle.reference.render import ReferenceSettings, grid_shape, render_reference
-from raster_oracle.scenes import raycast
+from raster_oracle.scenes.backend import raycast
 
 from raster_oracle import scenes
 

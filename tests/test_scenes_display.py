@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from raster_oracle.metrics import MetricError
 from raster_oracle.metrics import tonemap as metric_tonemap
-from raster_oracle.scenes import display
+from raster_oracle.scenes.base import display
 
 
 def test_display_error_is_a_value_error_naming_the_parameter():

@@ -12,7 +12,7 @@ from raster_oracle.oracle.certify import CHECKS
 from raster_oracle.oracle.certify import verdict as V
 from raster_oracle.oracle.cli import main
 from raster_oracle.scenes import backend
-from raster_oracle.scenes.records import provenance
+from raster_oracle.scenes.backend import provenance
 
 from tests._faults import FAULTS
 

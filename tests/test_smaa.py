@@ -18,7 +18,7 @@ from raster_oracle.raster_models.aa.smaa.model import smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
 from raster_oracle.raster_models.aa.trace import sample_colors
-from raster_oracle.scenes.display import exposure_from_reference, tonemap
+from raster_oracle.scenes.base.display import exposure_from_reference, tonemap
 
 from raster_oracle import scenes
 

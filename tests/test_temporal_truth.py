@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
-from raster_oracle.scenes.moving_scenes import SLIDE_PX_PER_FRAME
+from raster_oracle.scenes.catalogue.moving_scenes import SLIDE_PX_PER_FRAME
 from raster_oracle.scenes.object_paths import object_transform
 
 from raster_oracle import scenes
@@ -136,7 +136,7 @@ def test_bad_camera_file_is_one_line(tmp_path):
 
 
 def test_export_records_the_frame_of_its_sequence(tmp_path):
-    from raster_oracle.scenes.export import export
+    from raster_oracle.scenes.formats.export import export
 
     loaded = scenes.load("slide", width=64, height=36, frame=3, n_frames=8)
     export(loaded, tmp_path / "e")

@@ -24,8 +24,8 @@ import numpy as np
 
 from ... import raster_models as rm
 from ... import scenes
-from ...scenes.builtin import BuiltinScene
-from ...scenes.raycast import trace_film
+from ...scenes.backend.raycast import trace_film
+from ...scenes.catalogue.builtin import BuiltinScene
 from ..reference.render import ReferenceSettings, render_reference
 from . import geometry as G
 

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from ...scenes import meshes
-from ...scenes.factories import ground, look_at, mesh, sensor, sun
+from ...scenes.catalogue import meshes
+from ...scenes.catalogue.factories import ground, look_at, mesh, sensor, sun
 
 __all__ = [
     "MARGIN",

@@ -26,8 +26,8 @@ import time
 from pathlib import Path
 
 from ...scenes import backend
-from ...scenes.files import atomic_write_json
-from ...scenes.records import package_versions
+from ...scenes.base.files import atomic_write_json
+from ...scenes.base.records import package_versions
 from ..errors import InputError
 from ..reference.cache import default_cache_dir
 

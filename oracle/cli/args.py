@@ -222,9 +222,9 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
 
 def load_scene(args):
     """The scene of ``add_scene_args`` options (its frame of a camera or light path), as
-    :func:`scenes.inputs.load_input` resolves it: an ``export`` folder (or its
+    :func:`scenes.formats.inputs.load_input` resolves it: an ``export`` folder (or its
     ``scene.xml``) is loaded at its exported size with its light, named after its folder."""
-    from ...scenes.inputs import load_input
+    from ...scenes.formats.inputs import load_input
 
     loaded = load_input(
         args.scene,

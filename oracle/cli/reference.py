@@ -42,7 +42,7 @@ def add_parsers(sub) -> None:
 
 def cmd_doctor(args) -> int:
     from ...scenes import backend
-    from ...scenes.records import package_versions
+    from ...scenes.base.records import package_versions
 
     if args.check:
         return _doctor_check(args)
@@ -121,7 +121,7 @@ def cmd_reference(args) -> int:
 
 
 def cmd_export(args) -> int:
-    from ...scenes.export import export
+    from ...scenes.formats.export import export
 
     A.check_out(args.out)
     loaded = A.load_scene(args)

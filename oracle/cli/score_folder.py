@@ -73,7 +73,7 @@ def add_parser(sub) -> None:
 
 
 def _scene_of(entry, exports: Path | None):
-    from ...scenes.inputs import load_input, named_input
+    from ...scenes.formats.inputs import load_input, named_input
 
     return load_input(named_input(entry.name, exports=exports), n_frames=entry.frames or 8)
 
@@ -156,7 +156,7 @@ def _discovered_cases(args, gates) -> list:
 def _manifest_cases(args, gates) -> list:
     """The cases of ``--manifest``: a bad manifest, scene or option is exit 2; a missing
     file or layer is that case's own error."""
-    from ...scenes.inputs import load_input
+    from ...scenes.formats.inputs import load_input
     from ..scoring.candidates import CandidateError
     from ..scoring.folder import FolderCase
     from ..scoring.manifest import read_manifest

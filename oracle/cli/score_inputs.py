@@ -30,7 +30,7 @@ def _check_size(path: str, loaded) -> None:
     if size is None or size == (loaded.width, loaded.height):
         return
     w, h = size
-    from ...scenes.inputs import nearest_export
+    from ...scenes.formats.inputs import nearest_export
 
     found = nearest_export(Path(path), size)
     export = (

@@ -13,7 +13,7 @@ The centre's shape is traced once per pixel (exact, no noise), so each sample is
 trial: the estimate's standard error is the binomial one, floored as ``coverage``'s is.
 
 The ``coverage_exact`` group holds the same two quantities without noise for triangle scenes
-(:mod:`scenes.exact_coverage`), and :func:`exact_channels` cross-checks the sampled ones
+(:mod:`scenes.geometry.exact_coverage`), and :func:`exact_channels` cross-checks the sampled ones
 against it in every reference's provenance.
 """
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...scenes import backend
-from ...scenes.raycast import trace_film_dr
+from ...scenes.backend.raycast import trace_film_dr
 
 __all__ = ["CROSS_CHECK_Z", "centre_shapes", "exact_channels", "front_hits"]
 
@@ -63,14 +63,14 @@ CROSS_CHECK_Z = 4.0
 
 
 def exact_channels(loaded, centre: np.ndarray | None, sampled: dict) -> tuple[dict, dict]:
-    """The ``coverage_exact`` group of ``loaded`` (:mod:`scenes.exact_coverage`) and its
+    """The ``coverage_exact`` group of ``loaded`` (:mod:`scenes.geometry.exact_coverage`) and its
     provenance record; with the Monte Carlo channels in ``sampled`` (``coverage`` and
     ``front_coverage`` with their standard errors), the record holds the z-scores of their
     difference from the exact channels on the valid pixels (mean, RMS, largest, fraction
     beyond :data:`CROSS_CHECK_Z`): a sampling bug shows up in every reference."""
     import shapely
 
-    from ...scenes.exact_coverage import exact_coverage
+    from ...scenes.geometry.exact_coverage import exact_coverage
 
     if centre is None:
         centre = centre_shapes(loaded)

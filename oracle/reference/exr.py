@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...scenes.files import atomic_write
+from ...scenes.base.files import atomic_write
 from ..errors import InputError
 
 __all__ = ["ExrError", "read_exr", "write_exr"]

@@ -5,7 +5,8 @@ position in frame ``k - 1``'s image of the surface point seen through the centre
 centre (x right, y down; object paths and camera/light paths are defined for frame -1, so
 frame 0 has motion too); ``disocclusion`` (0 or 1): 1 where that point was hidden from frame
 ``k - 1``'s camera or outside its image. A scene without camera path, light path or moving
-objects has zero motion and no disocclusion. The geometry is :func:`scenes.motion.film_motion`;
+objects has zero motion and no disocclusion. The geometry is
+:func:`scenes.geometry.motion.film_motion`;
 docs/conventions.md converts it to Unreal's, Unity's and a UV-space convention.
 """
 
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...scenes.motion import film_motion
+from ...scenes.geometry.motion import film_motion
 
 __all__ = ["motion_channels"]
 

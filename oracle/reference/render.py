@@ -1,8 +1,8 @@
 """Ground-truth rendering: supersampled visibility, coverage and a box-filtered shaded image.
 
 Sub-pixel samples are stratified: ``spp = m * n`` with ``m >= n`` as close as possible, one
-jittered sample per cell of an ``m x n`` grid over the pixel, jitter from a PCG32 seeded by a
-TEA hash of (pixel, sample, seed), so results do not depend on chunking.
+jittered sample per cell of an ``m x n`` grid over the pixel, jitter from a 6-round 32-bit TEA
+hash of (pixel, sample, seed) (:func:`sample_jitter`), so results do not depend on chunking.
 Every cell is used, so the estimate is unbiased for any ``spp`` (a prime ``spp`` stratifies
 along x only).
 
@@ -41,7 +41,7 @@ import numpy as np
 from ...metrics.stats import binomial_stderr_floor
 from ...raster_models.drjit import numpy_view
 from ...scenes import backend
-from ...scenes.raycast import trace_film_dr
+from ...scenes.backend.raycast import trace_film_dr
 from ..errors import InputError
 from ..phases import maybe_phase
 from .coverage import centre_shapes, exact_channels, front_hits
@@ -68,7 +68,7 @@ __all__ = [
 CHANNEL_GROUPS = {
     "visibility": ["visibility", "visibility_stderr"],
     "coverage": ["coverage", "coverage_stderr", "front_coverage", "front_coverage_stderr"],
-    # analytic, noise-free coverage of triangle scenes (scenes.exact_coverage)
+    # analytic, noise-free coverage of triangle scenes (scenes.geometry.exact_coverage)
     "coverage_exact": ["coverage_exact", "front_coverage_exact", "coverage_exact_valid"],
     "color": [
         "color.R",
@@ -591,7 +591,7 @@ def _centre_channels(loaded, groups: set[str], progress) -> dict[str, np.ndarray
 def _tangent32_channel(loaded) -> np.ndarray:
     """Lit fraction of the 32 FTIZB points on the tangent plane at each pixel centre.
 
-    The points ``P + a dP/dx + b dP/dy`` (:data:`scenes.tangent32.TANGENT_POINTS_32`, the
+    The points ``P + a dP/dx + b dP/dy`` (:data:`scenes.geometry.tangent32.TANGENT_POINTS_32`, the
     table the ``izb`` model uses) of the surface seen through the pixel centre, each with the
     oracle's exact shadow ray (offset along the centre's normal as for a surface point of the
     same shape); N.L and the spot cone are evaluated per point with the centre's normal. Sky
@@ -600,9 +600,9 @@ def _tangent32_channel(loaded) -> np.ndarray:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from ...scenes.raycast import camera_rays_dr, occluded_from_dr
-    from ...scenes.shading import facing, receiver_mask
-    from ...scenes.tangent32 import tangent_derivatives_dr, tangent_offsets
+    from ...scenes.backend.raycast import camera_rays_dr, occluded_from_dr
+    from ...scenes.geometry.tangent32 import tangent_derivatives_dr, tangent_offsets
+    from ...scenes.shading.phong import facing, receiver_mask
 
     w, h = loaded.width, loaded.height
     npix = w * h

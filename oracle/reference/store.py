@@ -8,8 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...scenes import backend
-from ...scenes.files import atomic_copy, atomic_write_json
-from ...scenes.records import package_versions, provenance
+from ...scenes.backend import provenance
+from ...scenes.base.files import atomic_copy, atomic_write_json
+from ...scenes.base.records import package_versions
 from .cache import ORACLE_VERSION, ReferenceCache, reference_key, scratch_dir
 from .exr import read_exr, write_exr
 from .render import ReferenceSettings, render_reference
@@ -52,7 +53,7 @@ def _render_into(
         "adaptive": settings.adaptive,
         "settings": settings.key_record(),
         "filter": "box (uniform over the pixel square)",
-        "sampling": "stratified jittered grid, PCG32 per (pixel, sample)",
+        "sampling": "stratified jittered grid, 6-round TEA hash per (pixel, sample, seed)",
         "variant": info.variant,
         "libllvm": info.libllvm,
         "device": machine["device"],

@@ -18,7 +18,7 @@ import shutil
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ...scenes.files import atomic_copy, atomic_write_json
+from ...scenes.base.files import atomic_copy, atomic_write_json
 from .gates import FOLDER_SCHEMA, METRICS_SCHEMA, GateError
 
 __all__ = [

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import png
 
+from ...scenes.base.arrays import nonfinite_counts
 from ..errors import InputError, InputWarning
 from ..reference.exr import ExrError, read_exr
 
@@ -173,13 +174,11 @@ def _exact(value) -> str:
 
 
 def _check_values(path: Path, image: np.ndarray, channel: str) -> np.ndarray:
-    finite = np.isfinite(image)
-    if not finite.all():
-        n_nan = int(np.isnan(image).sum())
-        n_inf = int(image.size - finite.sum() - n_nan)
+    counts = nonfinite_counts(image)
+    if counts is not None:
         raise CandidateError(
-            f"candidate {path.name} channel {channel!r} has {n_nan} NaN and {n_inf} inf "
-            f"values (of {image.size})"
+            f"candidate {path.name} channel {channel!r} has {counts[0]} NaN and {counts[1]} "
+            f"inf values (of {image.size})"
         )
     if channel in ("visibility", "coverage"):
         low, high = 0.0, 1.0

@@ -16,7 +16,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ...scenes.files import atomic_write_json
+from ...scenes.base.files import atomic_write_json
 from .gates import FOLDER_SCHEMA
 from .options import ScoreOptions
 from .score import ScoreError

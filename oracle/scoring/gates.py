@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...metrics import catalog
-from ...scenes.files import atomic_write_bytes
+from ...scenes.base.files import atomic_write_bytes
 from .score import ScoreError, metric_limit
 
 __all__ = [

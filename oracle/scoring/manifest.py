@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...scenes import SceneError
-from ...scenes.inputs import named_input
+from ...scenes.formats.inputs import named_input
 from .gates import Gate, GateError, parse_gates
 from .options import VISIBILITY_CONVENTIONS
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from ... import raster_models
-from ...scenes.files import atomic_write_json
-from ...scenes.records import jsonable
+from ...scenes.base.files import atomic_write_json
+from ...scenes.base.records import jsonable
 from ..reference.exr import write_exr
 
 __all__ = ["output_channels", "run_model_to_folder"]

@@ -14,8 +14,8 @@ import numpy as np
 
 from ... import metrics as M
 from ... import raster_models, reports
-from ...scenes.files import atomic_copy, atomic_write_bytes, atomic_write_json
-from ...scenes.records import jsonable, package_versions
+from ...scenes.base.files import atomic_copy, atomic_write_bytes, atomic_write_json
+from ...scenes.base.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
 from .gates import Gate, Verdict
 from .score import METRIC_KEYS, ScoreResult

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...scenes.inputs import read_export_record
+from ...scenes.formats.inputs import read_export_record
 from .candidates import load_motion
 from .diagnosis import diagnose_result
 from .gates import (

@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ... import metrics as M
-from ...scenes.records import provenance
-from ...scenes.shading import receiver_mask
+from ...scenes.backend import provenance
+from ...scenes.shading.phong import receiver_mask
 from ..errors import InputError
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
@@ -125,7 +125,7 @@ class ScoreResult:
 
 
 def reference_receivers(ch: dict, light) -> np.ndarray:
-    """Receivers of a reference (:func:`scenes.shading.receiver_mask` at the pixel centres):
+    """Receivers of a reference (:func:`scenes.shading.phong.receiver_mask` at the pixel centres):
     ``(H, W)`` bool from its ``id``, ``normal`` and ``position`` channels."""
     valid = ch["id"] >= 0
     n = np.stack([ch[f"normal.{c}"] for c in "XYZ"], -1).astype(np.float64)

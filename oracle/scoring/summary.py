@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...scenes.files import atomic_write_bytes
+from ...scenes.base.files import atomic_write_bytes
 
 __all__ = ["summary_markdown", "write_summary_md"]
 

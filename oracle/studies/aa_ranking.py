@@ -2,7 +2,8 @@
 modes next to no AA, FXAA, MSAA and SSAA, ranked by coverage edge error (then colour edge
 error), each figure with the reference's own noise floor.
 
-Data come from the sweep's store (the rows the default sweep wrote); nothing is rendered.
+Data come from the sweep's rows (the main job reads them from its store and passes them in);
+nothing is rendered.
 Two neighbours in the ranking whose coverage edge errors differ by less than the larger of
 their noise floors are marked as not separated: the reference cannot tell them apart.
 
@@ -14,9 +15,7 @@ Antialiasing, Computer Graphics Forum 31(2) 2012, doi:10.1111/j.1467-8659.2012.0
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from ..sweeps.store import SweepStore
+from collections.abc import Iterable
 
 __all__ = ["LABEL_PARAMS", "RANKED_METRICS", "RANKED_TECHNIQUES", "aa_ranking"]
 
@@ -72,19 +71,15 @@ def _rank(entries: list[dict]) -> list[dict]:
     return out
 
 
-def aa_ranking(db: str | Path, *, techniques=RANKED_TECHNIQUES) -> dict:
-    """The ranking record of the sweep store ``db``: one table per scene that has an
-    ``smaa`` row, its finished rows of ``techniques`` ranked (see the module docstring).
+def aa_ranking(rows: Iterable[dict], *, techniques=RANKED_TECHNIQUES) -> dict:
+    """The ranking record of a sweep's ``rows`` (as its store gives them): one table per scene
+    that has an ``smaa`` row, its finished rows of ``techniques`` ranked (see the module
+    docstring).
 
     Returns ``{"schema", "metrics", "scenes": [{"scene", "resolution", "rows": [...]}]}``;
     each row: ``label``, ``technique``, ``metrics``, ``floors``, ``framebuffer_bytes``,
-    ``rank``, ``separated``. A missing store gives no scenes.
+    ``rank``, ``separated``. No rows give no scenes.
     """
-    db = Path(db)
-    rows = []
-    if db.is_file():
-        with SweepStore(db, readonly=True) as store:
-            rows = store.rows()
     done = [r for r in rows if r.get("status") == "done" and r.get("technique") in techniques]
     scenes = []
     for scene in dict.fromkeys(r["scene"] for r in done if r["technique"] == "smaa"):

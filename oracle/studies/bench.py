@@ -33,7 +33,7 @@ def _bare_loop(loaded, spp: int, seed: int) -> tuple[float, int]:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from ...scenes.raycast import camera_rays_dr, shadow_ray_dr
+    from ...scenes.backend.raycast import camera_rays_dr, shadow_ray_dr
     from ..reference.render import grid_shape, sample_jitter, samples_per_chunk
 
     w, h = loaded.width, loaded.height

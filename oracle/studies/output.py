@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ...reports.sections import render_study_page, study_page
-from ...scenes.files import atomic_write_bytes
+from ...scenes.base.files import atomic_write_bytes
 
 __all__ = ["write_study"]
 

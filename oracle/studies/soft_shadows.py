@@ -75,7 +75,7 @@ def umbra_bleeding(ref_visibility, vis, receivers) -> dict:
 def caster_distance(loaded, position, normal):
     """Distance from each receiver to the first caster on its ray to the light's centre
     (``inf`` where none) and the distance to the light (``inf`` for a sun), NumPy ``(N,)``."""
-    from ...scenes.raycast import intersect
+    from ...scenes.backend.raycast import intersect
 
     light = loaded.light
     p = np.asarray(position, dtype=np.float64)

@@ -33,13 +33,14 @@ from ...reports.sections import (
     extremes_section,
     failed_section,
 )
-from ...scenes.files import atomic_write_bytes, atomic_write_json
+from ...scenes.base.files import atomic_write_bytes, atomic_write_json
 from ..errors import one_line
 from ..phases import Phases, maybe_phase
 from ..studies.aa_memory import memory_report
 from ..studies.aa_ranking import aa_ranking
 from ..studies.claims.run import run_claims
 from ..studies.extremes.run import run_extremes
+from .store import SweepStore
 
 __all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main", "run_sections", "timing_record"]
 
@@ -60,7 +61,11 @@ def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
 
 
 def _aa_ranking(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
-    return aa_ranking(out / "sweep.db")
+    db, rows = out / "sweep.db", []
+    if db.is_file():
+        with SweepStore(db, readonly=True) as store:
+            rows = store.rows()
+    return aa_ranking(rows)
 
 
 #: The report's sections after the sweep, in page order: ``(kind, id, title, study,

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ... import raster_models
-from ...scenes.records import package_versions
+from ...scenes.base.records import package_versions
 from ..errors import InputError, one_line
 from ..reference.cache import ORACLE_VERSION, ReferenceCache
 from ..reference.render import ReferenceSettings

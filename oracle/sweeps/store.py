@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 
 from ...reports.viewer import check_viewer
-from ...scenes.records import jsonable
+from ...scenes.base.records import jsonable
 from ..errors import InputError
 
 __all__ = [

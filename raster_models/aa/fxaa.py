@@ -4,17 +4,17 @@ gamma-encoded one-sample image, as engines run it.
 The 1x image is ``noaa``'s (:mod:`.noaa`: one sample at each pixel centre, the oracle's
 shading and exact shadow rays). FXAA runs after tone mapping on the display image, where its
 thresholds are defined (fractions of a [0, 1] luma): the linear HDR image goes through the
-project's one tone-mapping pipeline (:func:`scenes.display.tonemap`: exposure, ``tone_mapper``
+project's one tone-mapping pipeline (:func:`scenes.base.display.tonemap`: exposure, ``tone_mapper``
 (ACES by default, the scoring's), clip to [0, 1], sRGB encoding), with the exposure that maps
 the image's own log-average luminance over lit pixels to ``exposure_key`` (Reinhard's
-auto-exposure, :func:`scenes.display.exposure_from_reference` applied to the model's image:
+auto-exposure, :func:`scenes.base.display.exposure_from_reference` applied to the model's image:
 an engine sees its own frame, not the reference). FXAA then filters the gamma-encoded LDR
 image with its luma ``dot(rgb, (0.299, 0.587, 0.114))`` of the encoded values in alpha (FXAA
 3.11's gamma-space set-up, ``encoding="gamma"``); every value it blends lies in [0, 1].
 
 Outputs: ``color_display``, FXAA's output (display-encoded LDR sRGB, what reaches the screen),
 ``fxaa_input`` its input, and ``color``, the linear radiance that the tone-mapping pipeline
-maps to ``color_display`` (:func:`scenes.display.tonemap_inverse` at the same exposure and
+maps to ``color_display`` (:func:`scenes.base.display.tonemap_inverse` at the same exposure and
 curve; pixels FXAA leaves alone keep their exact radiance). Scoring tone-maps ``color`` and
 the reference with one pipeline, the reference's exposure and the ACES curve
 (``tone_mapping`` in ``metrics.json``), so the scored candidate is FXAA's display output
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...scenes.display import TONE_MAPPERS, exposure_from_reference, tonemap, tonemap_inverse
+from ...scenes.base.display import TONE_MAPPERS, exposure_from_reference, tonemap, tonemap_inverse
 from .. import params as _params
 from .common import package
 from .fxaa_filter import FXAA_PRESETS, fxaa
@@ -92,7 +92,7 @@ class FxaaParams:
     )
     tone_mapper: str = _params.param(
         "aces",
-        source="scenes.display: the project's one pipeline (ACES, the scoring's curve)",
+        source="scenes.base.display: the project's one pipeline (ACES, the scoring's curve)",
         help="tone-mapping curve before FXAA: aces, reinhard or clip",
         choices=TONE_MAPPERS,
     )

@@ -1,7 +1,7 @@
 """No anti-aliasing (``noaa``): one sample at each pixel centre, shaded where it lies.
 
 The baseline of the anti-aliasing family: :mod:`.ssaa` with one sample at ``(0.5, 0.5)``
-(the oracle's per-sample path, :func:`scenes.raycast.trace_film_dr`: shading at the hit,
+(the oracle's per-sample path, :func:`scenes.backend.raycast.trace_film_dr`: shading at the hit,
 exact shadow ray), so aliasing is the only error it adds to the reference.
 
 References

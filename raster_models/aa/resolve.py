@@ -35,7 +35,6 @@ __all__ = [
     "FILTERS",
     "LUMA_WEIGHTS",
     "box_from_fragments",
-    "filter_radius",
     "filter_weight",
     "resolve",
 ]
@@ -54,11 +53,6 @@ _RADIUS = {
     "mitchell": 2.0,
     "catmull-rom": 2.0,
 }
-
-
-def filter_radius(name: str) -> float:
-    """Support radius of ``name`` in pixels."""
-    return _RADIUS[name]
 
 
 def _cubic(x, b, c):

@@ -2,7 +2,7 @@
 
 ``ssaa`` traces and shades each of ``N`` sub-samples per pixel (standard multisample
 positions or an ordered grid) with the oracle's own per-sample path
-(:func:`scenes.raycast.trace_film_dr`: shading at the hit, exact shadow ray) and resolves
+(:func:`scenes.backend.raycast.trace_film_dr`: shading at the hit, exact shadow ray) and resolves
 them; with many samples it converges to the oracle's box-filtered reference.
 :func:`supersample` is also ``noaa``'s frame (:mod:`.noaa`: one sample at the pixel centre).
 

@@ -1,7 +1,7 @@
 """Ray work of the anti-aliasing models: sample G-buffers, fragment attributes, shading.
 
 Three Dr.Jit kernels, each chunked (at most :data:`CHUNK` rays a launch), on the scene's own
-intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engine"):
+intersection engine (``scenes.backend.raycast``; ARCHITECTURE.md "One intersection engine"):
 
 - :func:`trace_samples`: one primary ray through every sub-sample position of every pixel
   (the depth prepass of MSAA/ACAA/AGAA): hit or sky, shape and primitive, view depth and,
@@ -12,8 +12,8 @@ intersection engine (``scenes.raycast``; ARCHITECTURE.md "One intersection engin
   and the surface parameters extrapolated linearly from the sample's hit (``uv``, shading
   normal), as a rasterizer's attribute interpolation does beyond a triangle's edge; the
   albedo is evaluated at the extrapolated ``uv``;
-- :func:`shade_points`: the oracle's shading (:func:`scenes.shading.shade`) at those points,
-  with an exact shadow ray from each (:func:`scenes.raycast.shadow_ray_dr`, the oracle's own
+- :func:`shade_points`: the oracle's shading (:func:`scenes.shading.phong.shade`) at those points,
+  with an exact shadow ray from each (:func:`scenes.backend.raycast.shadow_ray_dr`, the oracle's own
   offsets) or with a given visibility, and optionally an unnormalized (filtered) normal:
   diffuse with the normal's length as a factor (the linear average of Lambert terms) and the
   specular exponent scaled by Toksvig's factor.
@@ -22,7 +22,7 @@ Values are float32 (Mitsuba's ``Float``), as a GPU computes them. The Dr.Jit sid
 (:func:`prepass_dr`, :func:`attributes_dr`, :func:`shade_dr`) is also callable on Dr.Jit
 arrays, for models that chain them without NumPy round trips (:mod:`.agaa.kernels`,
 :mod:`.acaa.trace`). ``target`` (a sub-scene) and ``scene.mi_scene`` are different Mitsuba
-scenes: evaluate what one traced (``scenes.kernels.evaluate_trace``) before the other
+scenes: evaluate what one traced (``scenes.backend.kernels.evaluate_trace``) before the other
 traces (one scene per kernel; OptiX silently disables the second trace).
 """
 
@@ -33,16 +33,16 @@ import math
 import numpy as np
 
 from ...scenes import backend
-from ...scenes.gltf_materials import surface_dr
-from ...scenes.pbr import shade_gltf
-from ...scenes.raycast import (
+from ...scenes.backend.raycast import (
     SHADOW_OFFSET,
     SHADOW_OFFSET_MESH,
     camera_rays_dr,
     shadow_ray_dr,
     shape_table,
 )
-from ...scenes.shading import facing, receiver_mask, shade
+from ...scenes.formats.gltf_materials import surface_dr
+from ...scenes.shading.pbr import shade_gltf
+from ...scenes.shading.phong import facing, receiver_mask, shade
 from ..drjit import aligned, numpy_view
 from . import pixel_dr as _pixel_dr
 
@@ -175,7 +175,7 @@ def trace_samples(
 def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, frag_offset=0):
     """One launch of the prepass on the Dr.Jit side: ``n`` lanes a pixel, pixel ``i`` of the
     launch being ``pix[i]`` (UInt32, row-major); ``ox``, ``oy`` the sample offsets (Float);
-    ``target`` the Mitsuba scene intersected, ``table`` :func:`scenes.raycast.shape_table`.
+    ``target`` the Mitsuba scene intersected, ``table`` :func:`scenes.backend.raycast.shape_table`.
 
     Returns ``(valid, depth, prim, shape, nrm, extra)``: Dr.Jit arrays as described in
     :func:`trace_samples` (``nrm`` None unless ``normals``), ``extra`` the per-pixel results
@@ -329,7 +329,9 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
     si.uv = si.uv + mi.Point2f(du, dv)
     si.p = xc
     pbr_vals = {}
-    if scene.pbr is not None:  # glTF material at the extrapolated uv (scenes.gltf_materials)
+    if (
+        scene.pbr is not None
+    ):  # glTF material at the extrapolated uv (scenes.formats.gltf_materials)
         shape = dr.gather(
             mi.Int32, shape_table(mi, dr, scene), dr.reinterpret_array(mi.UInt32, si.shape)
         )
@@ -359,7 +361,7 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
 
 
 def shade_points(scene, attrs: dict, *, visibility=None, filtered_normal: bool = False):
-    """Shade surface points with the oracle's model (:func:`scenes.shading.shade`).
+    """Shade surface points with the oracle's model (:func:`scenes.shading.phong.shade`).
 
     Parameters
     ----------
@@ -448,7 +450,7 @@ def shade_dr(
     radiance (0 where not ``valid``) and the lanes given a shadow test (unevaluated).
 
     On a glTF scene, ``material`` ((metallic, roughness, 0), Vector3f) and ``emissive``
-    (Color3f) select the glTF BRDF (:func:`scenes.pbr.shade_gltf`) with ``albedo`` as the
+    (Color3f) select the glTF BRDF (:func:`scenes.shading.pbr.shade_gltf`) with ``albedo`` as the
     base colour; a filtered normal is then used normalized (its length scales the result,
     the linear average of the fragments' cosine terms where they all face the light)."""
     mi = backend.mitsuba()
@@ -509,14 +511,14 @@ def shade_dr(
 
 def sample_visibility_dr(scene, x, y):
     """The oracle's light visibility at the surface each sample ray meets (film positions
-    ``x``, ``y``: Dr.Jit Float pixels): :func:`scenes.raycast.trace_film_dr`'s ``lit`` on
+    ``x``, ``y``: Dr.Jit Float pixels): :func:`scenes.backend.raycast.trace_film_dr`'s ``lit`` on
     the hit itself (its own point, shading normal and mesh shadow offset), 0 on sky.
     Returns ``(visibility, tested)``: Float in {0, 1} and the Bool lanes given a shadow
     ray (unevaluated)."""
     mi = backend.mitsuba()
     import drjit as dr
 
-    from ...scenes.raycast import trace_film_dr
+    from ...scenes.backend.raycast import trace_film_dr
 
     res = trace_film_dr(scene, x, y, color=False, albedo=False)
     vis = dr.select(res["valid"] & res["lit"], mi.Float(1.0), mi.Float(0.0))
@@ -545,7 +547,7 @@ def sample_points_dr(scene, x, y) -> dict:
 
 def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
     """Every sample shaded where it lies (supersampling): the oracle's own
-    :func:`scenes.raycast.trace_film_dr` at each sub-sample position.
+    :func:`scenes.backend.raycast.trace_film_dr` at each sub-sample position.
 
     Returns ``({"valid": (P, N), "shape": (P, N), "color": (P, N, 3)}, shadow_rays)``;
     ``color`` is a view of planar ``(3, P, N)`` storage (the layout Dr.Jit hands over: no
@@ -554,7 +556,7 @@ def sample_colors(scene, offsets: np.ndarray) -> tuple[dict, int]:
     mi = backend.mitsuba()
     import drjit as dr
 
-    from ...scenes.raycast import trace_film_dr
+    from ...scenes.backend.raycast import trace_film_dr
 
     cam = scene.camera
     w = cam.width

@@ -57,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...scenes.records import jsonable
+from ...scenes.base.records import jsonable
 from .. import params as _params
 from ..errors import ModelError
 from ..gbuffer import trace_gbuffer

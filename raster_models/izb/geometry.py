@@ -71,13 +71,13 @@ EDGE_ON = 1e-9
 
 def scene_triangles(scene) -> np.ndarray:
     """World-space triangles ``(T, 3, 3)`` float64 of every shape of the scene, in the
-    scene's shape order (analytic shapes tessellated as :func:`scenes.export.shape_mesh`
+    scene's shape order (analytic shapes tessellated as :func:`scenes.formats.export.shape_mesh`
     does). Kept in ``scene.memo["izb_triangles"]`` (geometry only: shared by every camera
     and light of the scene)."""
     tris = scene.memo.get(MEMO_KEY)
     if tris is None:
         from ...scenes import backend
-        from ...scenes.export import shape_mesh
+        from ...scenes.formats.export import shape_mesh
 
         mi = backend.mitsuba()
         parts, first, rule = [], [], []

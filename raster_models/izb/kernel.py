@@ -10,7 +10,7 @@ by the epsilon or by the rounding of the G-buffer position), OR-ed into the rece
 
 Plane values are computed in one fixed order, ``((n0 p0 + n1 p1) + n2 p2) + c`` and
 ``(base + da a) + db b``, in float64 without fused multiply-adds: every product is rounded
-explicitly (:func:`scenes.kernels.product_rounder`), since ``ptxas`` contracts a
+explicitly (:func:`scenes.backend.kernels.product_rounder`), since ``ptxas`` contracts a
 multiply and an add on CUDA (IZB on a spot light disagreed with the oracle's centre ray and
 tangent-plane reference on an H200, within the float rounding of these planes).
 ``tests/_izb_reference.py`` holds a NumPy version of the same tests, the reference
@@ -44,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...scenes.kernels import product_rounder
+from ...scenes.backend.kernels import product_rounder
 from .geometry import chunks_by_total
 
 __all__ = [

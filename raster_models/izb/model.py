@@ -6,7 +6,7 @@
    light's position along its axis): one node per (texel, receiver),
    lists sorted by texel (:mod:`.lists`). ``samples=1``: the pixel-centre point.
    ``samples=32``: the 32 fixed points ``P + a dP/dx + b dP/dy`` of the pixel's footprint on
-   the tangent plane (:data:`scenes.tangent32.TANGENT_POINTS_32`); the receiver is inserted
+   the tangent plane (:data:`scenes.geometry.tangent32.TANGENT_POINTS_32`); the receiver is inserted
    in each texel one of its points falls in (orthographic grids: :mod:`.build`).
 2. Traverse: every occluder triangle of the scene is conservatively rasterized over the grid
    (:mod:`.geometry`); each fragment walks its texel's list and tests the node's
@@ -48,7 +48,7 @@ the public code for lists over 1024 nodes, point lights (six grids). Spot lights
 occluders crossing the light's plane are rasterized over the whole grid; with 32 samples
 each point's N.L and cone test are its own (the oracle's reference does the same), so a
 pixel whose centre is outside the cone may still be partly lit. Analytic shapes (spheres,
-cylinders) are tessellated as :func:`scenes.export.shape_mesh` does, so their shadows
+cylinders) are tessellated as :func:`scenes.formats.export.shape_mesh` does, so their shadows
 differ from the oracle's by the tessellation.
 
 References

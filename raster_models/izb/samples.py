@@ -5,7 +5,7 @@ A receiver is a G-buffer pixel a light reaches: valid and N.L > 0 (``gbuf.receiv
 under a spot light with 32 samples, a valid pixel with at least one of its 32 tangent-plane
 points facing the light inside the cone (each point's N.L and cone test are its own, as in
 the oracle's tangent-plane reference). Its samples are the pixel centre (1 sample) or the
-32 points ``P + a dP/dx + b dP/dy`` (:data:`scenes.tangent32.TANGENT_POINTS_32`).
+32 points ``P + a dP/dx + b dP/dy`` (:data:`scenes.geometry.tangent32.TANGENT_POINTS_32`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...scenes.tangent32 import tangent_offsets
+from ...scenes.geometry.tangent32 import tangent_offsets
 from .. import splits as _splits
 from .lists import FULL_MASK
 

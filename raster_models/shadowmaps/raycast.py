@@ -5,7 +5,7 @@ texel's ray: casting that ray gives the same answer (ARCHITECTURE.md, "One inter
 engine, two ways of sampling"). The rays of a map form an affine grid
 (:meth:`Projection.grid_rays`), so they are built directly as Dr.Jit arrays from the texel
 index, in float64 and rounded once to the engine's float32, instead of being shipped from
-NumPy: for a 2048^2 map this is ~15x faster than :func:`scenes.raycast.intersect`, which is
+NumPy: for a 2048^2 map this is ~15x faster than :func:`scenes.backend.raycast.intersect`, which is
 what makes 4 x 2048^2 maps at 1080p fit the benchmark budget. The scene, its Mitsuba variant
 and the intersection engine are still the ones :mod:`scenes` loaded.
 """

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ....reports.sections import claims_section
-from ....scenes.records import jsonable
+from ....scenes.base.records import jsonable
 from ...errors import one_line
 from ..output import write_study
 from .aa import ACAA_EQUAL, ACAA_HALF, AGAA_COMPARABLE, AGAA_SAVING, _acaa, _agaa, _coherent

@@ -80,7 +80,7 @@ CELL_CAPS = {"resolution": CELL_MAP, "directions": 256}
 def load_extreme(extreme: Extreme, *, width: int, height: int, base: str = BASE_SCENE):
     """The base scene transformed by ``extreme`` (a :class:`scenes.LoadedScene`)."""
     from .... import scenes
-    from ....scenes.builtin import BUILTIN_SCENES, BuiltinScene
+    from ....scenes.catalogue.builtin import BUILTIN_SCENES, BuiltinScene
 
     spec = BUILTIN_SCENES[base]
     if extreme.transform is None:

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from ....scenes import backend
-from ....scenes.kernels import evaluate_trace
-from ....scenes.raycast import camera_rays_dr, shape_table
+from ....scenes.backend.kernels import evaluate_trace
+from ....scenes.backend.raycast import camera_rays_dr, shape_table
 from .. import pixel_dr as _pixel_dr
 from .. import trace as _trace
 from ..trace import (

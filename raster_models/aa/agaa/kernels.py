@@ -32,7 +32,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ....scenes import backend
-from ....scenes.raycast import shape_table
+from ....scenes.backend.raycast import shape_table
 from .. import pixel_dr as _pixel_dr
 from .. import trace as _trace
 from . import pixels as _agaa_pixels

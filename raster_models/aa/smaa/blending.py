@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ....scenes.display import srgb_decode, srgb_encode
+from ....scenes.base.display import srgb_decode, srgb_encode
 from ._sampling import SUBTEXEL_BITS, Fetches, bilinear, bilinear_taps
 
 __all__ = ["REPROJECTION_WEIGHT_SCALE", "neighborhood_blend", "resolve"]

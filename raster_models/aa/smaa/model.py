@@ -4,7 +4,7 @@ space like ``fxaa`` (:mod:`..fxaa`).
 Each sample image (one sample per pixel at the mode's position) is the oracle's shading
 (one sample at a jittered position: ``trace.sample_colors``; the two samples of 2x MSAA with
 the D3D standard pattern: ``msaa.multisample``, shaded once per primitive at the pixel
-centre), tone-mapped by the project's pipeline (:func:`scenes.display.tonemap`, exposure
+centre), tone-mapped by the project's pipeline (:func:`scenes.base.display.tonemap`, exposure
 from the model's own sample-averaged image, as ``fxaa``) to gamma-encoded values in [0, 1]
 where SMAA's thresholds are defined. SMAA 1x runs its three passes on it
 (:mod:`.edges`, :mod:`.weights`, :mod:`.blending`) with the sub-sample indices of its mode:
@@ -52,7 +52,7 @@ import time
 
 import numpy as np
 
-from ....scenes.display import (
+from ....scenes.base.display import (
     exposure_from_reference,
     srgb_decode,
     srgb_encode,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ....scenes.display import TONE_MAPPERS
+from ....scenes.base.display import TONE_MAPPERS
 from ... import params as _params
 from ...errors import ModelError
 
@@ -145,7 +145,7 @@ class SmaaParams:
     )
     tone_mapper: str = _params.param(
         "aces",
-        source="scenes.display: the project's one pipeline (ACES, the scoring's curve)",
+        source="scenes.base.display: the project's one pipeline (ACES, the scoring's curve)",
         help="tone-mapping curve before SMAA: aces, reinhard or clip",
         choices=TONE_MAPPERS,
     )

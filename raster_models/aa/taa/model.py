@@ -6,7 +6,7 @@ a scene without any is its own sequence of still frames) is the result of runnin
 from frame 0 to ``k``: each frame renders its G-buffer and colour at the jittered sample of
 every pixel (the oracle's shading and exact shadow ray, as ``noaa``), computes its velocity
 buffer from that G-buffer (the sample's surface point carried back along its object path and
-projected by the previous camera: :func:`scenes.motion.film_motion`, what an engine's
+projected by the previous camera: :func:`scenes.geometry.motion.film_motion`, what an engine's
 velocity pass writes), optionally dilated to the nearest-depth 3x3 neighbour's, reads the
 previous output there (bilinear or Catmull-Rom), rejects it off screen (and optionally where
 the previous depth disagrees), rectifies it against the current samples' neighbourhood and
@@ -28,7 +28,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from ....scenes.motion import film_motion
+from ....scenes.geometry.motion import film_motion
 from ... import params as _params
 from ...result import model_result
 from ..trace import sample_colors

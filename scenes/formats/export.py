@@ -11,13 +11,14 @@
 - ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
   (``raster-oracle reference out/scene.xml``) and compared with the original,
-- ``export.json``: what it was exported for: the scene, size, light, camera path, frame and
-  frame count, light path (``scenes.inputs`` reads it back: scoring an export uses them),
+- ``export.json``: what it was exported for: the scene, size and light, and a pointer to the
+  sequence in ``camera.json`` (``scenes.formats.inputs`` reads both back: scoring an export
+  uses them),
 - ``cameras/frame_NNN.json``: with a camera path, every frame's ``camera.json`` (what an
   engine renders the path's frames from).
 
 A glTF scene (``loaded.pbr``) writes ``scene.glb`` instead of ``scene.xml`` (its meshes,
-camera, KHR lights and metallic-roughness materials: :mod:`scenes.gltf_export`), and its
+camera, KHR lights and metallic-roughness materials: :mod:`scenes.formats.gltf_export`), and its
 ``materials.json`` records the glTF material of every shape.
 """
 
@@ -32,8 +33,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from . import backend
-from . import meshes as _meshes
+from .. import backend
+from ..catalogue import meshes as _meshes
 
 __all__ = ["EXPORT_SCENE_FILES", "export", "export_scene_file", "shape_mesh"]
 
@@ -182,18 +183,15 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
 
 def _write_export_record(tmp: Path, loaded) -> None:
     """``export.json`` (see the module docstring) and, along a camera path, every frame's
-    camera."""
-    moving = loaded.camera_path is not None or loaded.light_path is not None
+    camera. The sequence is recorded once, in ``camera.json``'s ``sequence``; ``export.json``
+    points at it (``scenes.formats.inputs.read_export_record`` reads both)."""
     record = {
-        "schema": "raster-oracle/export/1",
+        "schema": "raster-oracle/export/2",
         "scene": loaded.name,
         "width": loaded.width,
         "height": loaded.height,
         "light": loaded.light_index,
-        "camera_path": loaded.camera_path,
-        "light_path": loaded.light_path,
-        "frame": loaded.frame if moving else 0,
-        "n_frames": loaded.n_frames if moving else None,
+        "sequence": "camera.json#/sequence",
     }
     (tmp / "export.json").write_text(json.dumps(record, indent=2))
     if loaded.camera_path is None:
@@ -258,12 +256,14 @@ def export(loaded, out_dir: str | Path) -> dict:
             lights["lights"] = light_records(loaded)
         (tmp / "lights.json").write_text(json.dumps(lights, indent=2))
         materials = {
-            "model": "two-sided diffuse (see scenes.shading)",
+            "model": "two-sided diffuse (see scenes.shading.phong)",
             # the scene-wide Blinn-Phong lobe (ks 0: none; the glossy scene has one)
             "specular": loaded.specular.to_json(),
             "shapes": summary["shapes"],
         }
-        if loaded.pbr is not None:  # a glTF scene: its materials and a GLB (scenes.gltf_export)
+        if (
+            loaded.pbr is not None
+        ):  # a glTF scene: its materials and a GLB (scenes.formats.gltf_export)
             from .gltf_export import materials_record, scene_glb
 
             materials = materials_record(loaded, summary["shapes"])

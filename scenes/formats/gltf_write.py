@@ -4,7 +4,7 @@ tests' glTF twins of built-in scenes and ``export`` of a glTF scene.
 :func:`glb_bytes` takes a camera, KHR_lights_punctual lights, triangle meshes (world space or
 with a node matrix), glTF material dictionaries and PNG images, and returns the GLB bytes
 (pygltflib writes the container). Node order is camera, lights, meshes (the order
-:mod:`scenes.gltf` reads them back in).
+:mod:`scenes.formats.gltf` reads them back in).
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 Every factory takes the film size and returns a plain dictionary for ``mitsuba.load_dict``;
 custom triangle meshes appear as ``{"type": "ro_mesh", "vertices": (V, 3), "faces": (F, 3)}``
 entries that :mod:`scenes.loader` turns into Mitsuba meshes. World up is +Y. All materials are
-two-sided diffuse (see :mod:`scenes.shading`); a top-level ``"ro_specular"`` entry (used by
-:mod:`scenes.aa_scenes`' glossy scene) switches on the shared Blinn-Phong lobe.
+two-sided diffuse (see :mod:`scenes.shading.phong`); a top-level ``"ro_specular"`` entry (used by
+:mod:`scenes.catalogue.aa_scenes`' glossy scene) switches on the shared Blinn-Phong lobe.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ class BuiltinScene:
     width: int = 160
     height: int = 90
     #: ``"mitsuba"``: the factory returns a Mitsuba dictionary; ``"gltf"``: GLB bytes
-    #: (read by :mod:`scenes.gltf`, shaded with the glTF BRDF).
+    #: (read by :mod:`scenes.formats.gltf`, shaded with the glTF BRDF).
     kind: str = "mitsuba"
 
 
@@ -65,12 +65,12 @@ BUILTIN_SCENES: dict[str, BuiltinScene] = {
     ]
 }
 
-# The anti-aliasing scenes (decal, stripes, glossy, foliage, hdr-edge): see scenes.aa_scenes.
+# The anti-aliasing scenes (decal, stripes, glossy, foliage, hdr-edge): see .aa_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in aa_scenes.AA_SCENES.items()}
 )
 
-# The glTF scenes (pbr-spheres, pbr-foliage): GLB bytes, see scenes.pbr_scenes.
+# The glTF scenes (pbr-spheres, pbr-foliage): GLB bytes, see scenes.catalogue.pbr_scenes.
 BUILTIN_SCENES.update(
     {
         n: BuiltinScene(n, f, d, w, h, kind="gltf")
@@ -78,12 +78,12 @@ BUILTIN_SCENES.update(
     }
 )
 
-# Scenes with moving objects (slide, spin): see scenes.moving_scenes.
+# Scenes with moving objects (slide, spin): see scenes.catalogue.moving_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in moving_scenes.MOVING_SCENES.items()}
 )
 
-# Soft-shadow scenes (soft-contact: an area light; stacked-casters): see scenes.soft_scenes.
+# Soft-shadow scenes (soft-contact: an area light; stacked-casters): see scenes.catalogue.soft_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
 )

@@ -4,8 +4,8 @@
 Mitsuba scene dictionary (triangle meshes in world space with their normals, ``TEXCOORD_0``
 and tangents, the camera as a Mitsuba sensor, the lights as Mitsuba emitters) that
 :mod:`scenes.loader` loads as it loads a built-in scene, the glTF materials
-(:class:`scenes.gltf_materials.PbrMaterials`) and the KHR_lights_punctual attenuation of every
-light. What is read:
+(:class:`scenes.formats.gltf_materials.PbrMaterials`) and the KHR_lights_punctual attenuation
+of every light. What is read:
 
 - the scene's node hierarchy (``matrix`` or TRS, composed parent first) and its meshes'
   ``TRIANGLES`` primitives (indexed or not); positions are transformed in float64 and stored
@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .factories import diffuse, look_at
+from ..catalogue.factories import diffuse, look_at
 from .gltf_materials import PbrMaterial, PbrMaterials, Texture, srgb_to_linear
 
 __all__ = ["GLTF_SUFFIXES", "GltfError", "GltfInput", "gltf_input", "gltf_scene", "is_gltf"]
@@ -542,7 +542,7 @@ def _scene_input(d: _Doc, data: bytes, scene, *, width, height, camera, name) ->
     gl_cam = doc.cameras[cam_index]
     aspect = getattr(gl_cam.perspective, "aspectRatio", None)
     film = (gl_cam.extras or {}).get("film_size") if isinstance(gl_cam.extras, dict) else None
-    if film and not (width or height):  # an export's size (scenes.gltf_write's extras)
+    if film and not (width or height):  # an export's size (scenes.formats.gltf_write's extras)
         width, height = int(film[0]), int(film[1])
     w = int(width or DEFAULT_WIDTH)
     h = int(height or (round(w / aspect) if aspect and not width else DEFAULT_HEIGHT))

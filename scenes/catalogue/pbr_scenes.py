@@ -1,6 +1,7 @@
-"""Built-in glTF scenes, written by the project's own code (:mod:`scenes.gltf_write`) and
-read back through the glTF loader (:mod:`scenes.gltf`), so the default sweep and the main job
-exercise the glTF path and the glTF BRDF (:mod:`scenes.pbr`):
+"""Built-in glTF scenes, written by the project's own code (:mod:`scenes.formats.gltf_write`)
+and read back through the glTF loader (:mod:`scenes.formats.gltf`), so the default sweep and
+the main job
+exercise the glTF path and the glTF BRDF (:mod:`scenes.shading.pbr`):
 
 - ``pbr-spheres``: a 3 x 4 grid of tessellated spheres (metallic 0, 0.5 and 1 by row,
   roughness 0.1 to 1 by column, one emissive) on a textured ground (sRGB checker base colour,
@@ -20,7 +21,14 @@ import math
 
 import numpy as np
 
-from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
+from ..formats.gltf_write import (
+    GltfCamera,
+    GltfLight,
+    GltfMesh,
+    glb_bytes,
+    light_matrix,
+    png_bytes,
+)
 
 __all__ = ["PBR_SCENES", "pbr_foliage", "pbr_spheres", "uv_sphere"]
 

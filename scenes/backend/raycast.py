@@ -7,7 +7,7 @@ Two levels:
   the shaded colour. Shadow rays are unbounded for directional lights and end at the light
   for point and spot lights (never Mitsuba's emitter sampling, whose directional emitters
   trust the scene's bounding box).
-- :func:`trace_film`, :func:`intersect` and :func:`occluded` take and return NumPy arrays,
+- :func:`trace_film` and :func:`intersect` take and return NumPy arrays,
   chunked so memory stays bounded; models use these to sample where a technique samples
   (MSAA sample positions, shadow-map texel centres from the light, ...).
 
@@ -23,12 +23,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import backend
-from .gltf_materials import surface_dr
-from .pbr import shade_gltf
-from .shading import facing, receiver_mask, shade
+from .. import backend
+from ..formats.gltf_materials import surface_dr
+from ..shading.pbr import shade_gltf
+from ..shading.phong import facing, receiver_mask, shade
 
-__all__ = ["CHUNK", "intersect", "occluded", "shape_table", "trace_film", "trace_film_dr"]
+__all__ = ["CHUNK", "intersect", "shape_table", "trace_film", "trace_film_dr"]
 
 #: Rays per Dr.Jit launch in the NumPy-level helpers (bounded memory: ~0.5 GiB a launch).
 CHUNK = 1 << 21
@@ -115,9 +115,7 @@ def shadow_ray_dr(light, p, ng, wl, offset=SHADOW_OFFSET):
         return mi.Ray3f(origin, wl)
     to = mi.Point3f(*[float(c) for c in light.position]) - origin
     dist = dr.norm(to)
-    # a sphere light's centre lies inside it: the ray stops at its surface (shadow_end)
-    end = dist - light.shadow_end if light.shadow_end else dist
-    return mi.Ray3f(origin, to / dist, end * (1.0 - 1e-5), 0.0, mi.Color0f())
+    return mi.Ray3f(origin, to / dist, dist * (1.0 - 1e-5), 0.0, mi.Color0f())
 
 
 #: Rounds of "skip a spurious hit on the ray's own analytic shape" (one is enough in practice:
@@ -194,7 +192,9 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     scene = loaded.mi_scene
     light = loaded.light
     ray = camera_rays_dr(camera, x, y)
-    pbr = loaded.pbr  # glTF scenes: materials of scenes.gltf_materials, BRDF of scenes.pbr
+    pbr = (
+        loaded.pbr
+    )  # glTF scenes: materials of scenes.formats.gltf_materials, BRDF of scenes.shading.pbr
     flags = primary_flags(mi)
     if pbr is not None and pbr.has_normal_textures:
         flags = mi.RayFlags.All  # dp/du: the normal texture's fallback tangent
@@ -323,34 +323,3 @@ def intersect(loaded, origins: np.ndarray, directions: np.ndarray, *, tmax=None)
         out["normal"].append(np.array(si.n).T)
         out["shape"].append(np.array(shape))
     return {k: np.concatenate(v) if v else np.zeros(0) for k, v in out.items()}
-
-
-def occluded(loaded, points: np.ndarray, normals: np.ndarray | None = None):
-    """True where the segment from ``points`` towards the chosen light is blocked (NumPy).
-
-    Rays start at the points offset along ``normals`` (if given) by a relative epsilon; they
-    are unbounded for a directional light and end at the light otherwise.
-    """
-    mi = backend.mitsuba()
-    light = loaded.light
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    wl, dist = light.to_light(p)
-    if normals is not None:
-        nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-        eps = SHADOW_OFFSET * (1.0 + np.sum(np.abs(nrm) * np.abs(p), axis=-1))
-        side = np.sign(np.sum(nrm * wl, axis=-1))[:, None]
-        p = p + nrm * side * eps[:, None]
-    else:
-        eps = SHADOW_OFFSET * (1.0 + np.max(np.abs(p), axis=-1))
-        p = p + wl * eps[:, None]
-    tmax = np.where(np.isfinite(dist), (dist - light.shadow_end) * (1 - 1e-5), np.inf)
-    out = []
-    for start in range(0, len(p), CHUNK):
-        sl = slice(start, start + CHUNK)
-        ray = mi.Ray3f(
-            mi.Point3f(*(mi.Float(p[sl, i].astype(np.float32)) for i in range(3))),
-            mi.Vector3f(*(mi.Float(wl[sl, i].astype(np.float32)) for i in range(3))),
-        )
-        ray.maxt = mi.Float(np.ascontiguousarray(tmax[sl].astype(np.float32)))
-        out.append(np.array(loaded.mi_scene.ray_test(ray)))
-    return np.concatenate(out) if out else np.zeros(0, dtype=bool)

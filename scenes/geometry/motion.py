@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .raycast import intersect, trace_film
+from ..backend.raycast import intersect, trace_film
 
 __all__ = ["HIDDEN_ABS", "HIDDEN_REL", "film_motion", "previous_points"]
 

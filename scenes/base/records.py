@@ -5,8 +5,10 @@ One rule for each, shared by the oracle, the models and the reports:
 - :func:`jsonable`: NumPy scalars and arrays become Python numbers and lists, tuples and sets
   become lists, paths become strings, dictionary keys become strings and non-finite floats
   become the strings ``"nan"``, ``"inf"`` and ``"-inf"`` (JSON has no literal for them).
-- :func:`package_versions` and :func:`provenance`: the Python and package versions and the
-  backend a result was computed with.
+- :func:`package_versions`: the Python and package versions a result was computed with (the
+  backend's part of the provenance record is :func:`scenes.backend.provenance`).
+
+Pure: imports nothing of the project and never Mitsuba.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from importlib import metadata
 
 import numpy as np
 
-__all__ = ["encode_float", "PACKAGES", "jsonable", "package_versions", "provenance"]
+__all__ = ["encode_float", "PACKAGES", "jsonable", "package_versions"]
 
 #: Packages whose versions every result records (distribution names).
 PACKAGES = (
@@ -98,21 +100,3 @@ def package_versions() -> dict[str, str | None]:
     """``{"python": ..., name: version}`` of every package in :data:`PACKAGES` (None when one
     is not installed); a new dict each call."""
     return dict(_installed())
-
-
-def provenance() -> dict:
-    """The backend (Mitsuba variant, libLLVM), the machine it runs on, its self-check
-    verdict and the package versions in use: ``{"backend", "libllvm", "device",
-    "self_check", "versions"}``. ``device``: ``{"kind": "gpu", "name", "driver",
-    "cuda_driver"}`` or ``{"kind": "cpu", "name", "cores"}``; ``self_check``: ``{"status":
-    "passed" | "failed" | "trusted" | "not run", "failed": [check names], ...}``."""
-    from . import backend
-
-    info = backend.active()
-    return {
-        "backend": info.variant,
-        "libllvm": info.libllvm,
-        "device": backend.device_info(info.variant),
-        "self_check": backend.self_check() or {"status": "not run", "failed": []},
-        "versions": package_versions(),
-    }

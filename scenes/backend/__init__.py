@@ -25,6 +25,8 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..base.records import package_versions
+
 __all__ = [
     "BackendError",
     "BackendInfo",
@@ -40,6 +42,7 @@ __all__ = [
     "keep_freed_memory",
     "llvm_version_of",
     "mitsuba",
+    "provenance",
     "select",
     "self_check",
     "set_self_check",
@@ -368,3 +371,19 @@ def device_info(variant: str | None = None) -> dict:
     if variant.startswith("cuda"):
         return _cuda_device()
     return {"kind": "cpu", "name": _cpu_name(), "cores": os.cpu_count()}
+
+
+def provenance() -> dict:
+    """The backend (Mitsuba variant, libLLVM), the machine it runs on, its self-check
+    verdict and the package versions in use: ``{"backend", "libllvm", "device",
+    "self_check", "versions"}``. ``device``: ``{"kind": "gpu", "name", "driver",
+    "cuda_driver"}`` or ``{"kind": "cpu", "name", "cores"}``; ``self_check``: ``{"status":
+    "passed" | "failed" | "trusted" | "not run", "failed": [check names], ...}``."""
+    info = active()
+    return {
+        "backend": info.variant,
+        "libllvm": info.libllvm,
+        "device": device_info(info.variant),
+        "self_check": self_check() or {"status": "not run", "failed": []},
+        "versions": package_versions(),
+    }

@@ -32,7 +32,7 @@ irradiance_scale` times its colour; for a glTF light the KHR_lights_punctual att
 measure zero under a punctual light) so no NaN is ever produced.
 
 Every function works on NumPy arrays (``(N, 3)`` vectors, ``(N,)`` scalars) and on Dr.Jit
-``Vector3f``/``Float`` alike, as :mod:`scenes.shading` does.
+``Vector3f``/``Float`` alike, as :mod:`scenes.shading.phong` does.
 
 References
 ----------
@@ -46,8 +46,8 @@ import math
 
 import numpy as np
 
-from . import _ops
-from .lights import Light
+from .. import _ops
+from ..lights import Light
 
 __all__ = ["DIELECTRIC_F0", "SHADING_MODEL", "gltf_brdf", "shade_gltf"]
 

@@ -2,7 +2,7 @@
 
 A :class:`PbrMaterials` table holds every material of a glTF scene and the shape -> material
 map (shape index as in ``LoadedScene.shape_names``). :meth:`PbrMaterials.evaluate_dr` gives,
-at surface hits (Dr.Jit arrays), the parameters the BRDF of :mod:`scenes.pbr` takes:
+at surface hits (Dr.Jit arrays), the parameters the BRDF of :mod:`scenes.shading.pbr` takes:
 
 - base colour: ``baseColorFactor`` times the base colour texture (sRGB decoded to linear
   before filtering, as a GPU's sRGB formats do);

@@ -26,8 +26,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from . import _ops
-from .lights import Light
+from .. import _ops
+from ..lights import Light
 
 __all__ = ["Specular", "facing", "receiver_mask", "shade"]
 

@@ -14,12 +14,13 @@ import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..loader import LoadedScene, SceneError, load
 from .export import EXPORT_SCENE_FILES, export_scene_file
-from .loader import LoadedScene, SceneError, load
 
 __all__ = [
     "EXPORT_RECORD",
     "EXPORT_SCHEMA",
+    "EXPORT_SCHEMAS",
     "SCENE_FILE_SUFFIXES",
     "SceneInput",
     "load_input",
@@ -34,8 +35,10 @@ __all__ = [
 SCENE_FILE_SUFFIXES = {".xml": "Mitsuba XML", ".gltf": "glTF 2.0", ".glb": "glTF 2.0 binary"}
 #: The file of an export folder that records what it was exported for.
 EXPORT_RECORD = "export.json"
-#: ``schema`` of :data:`EXPORT_RECORD`.
-EXPORT_SCHEMA = "raster-oracle/export/1"
+#: ``schema`` of :data:`EXPORT_RECORD`: version 2 points at ``camera.json``'s ``sequence``;
+#: version 1 (exports of earlier releases) held the sequence fields itself.
+EXPORT_SCHEMA = "raster-oracle/export/2"
+EXPORT_SCHEMAS = ("raster-oracle/export/1", EXPORT_SCHEMA)
 
 
 @dataclass(frozen=True)
@@ -44,9 +47,9 @@ class SceneInput:
 
     ``scene``: what :func:`scenes.load` takes (a built-in name or a file); ``folder``: the
     export folder (None: not an export); ``light``: the export's chosen light; ``name``: the
-    name records use (an export's folder name); ``export``: its ``export.json`` record
-    (``width``, ``height``, ``camera_path``, ``frame``, ``n_frames``, ``light_path``; None for
-    an export written before it existed)."""
+    name records use (an export's folder name); ``export``: its ``export.json`` record with
+    the sequence fields of its ``camera.json`` (``width``, ``height``, ``camera_path``,
+    ``frame``, ``n_frames``, ``light_path``; None for an export written before it existed)."""
 
     scene: str
     folder: Path | None = None
@@ -65,9 +68,28 @@ def read_export_record(folder: Path) -> dict | None:
         record = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise SceneError(f"{path} is not readable JSON ({type(exc).__name__})") from None
-    if not isinstance(record, dict) or record.get("schema") != EXPORT_SCHEMA:
+    if not isinstance(record, dict) or record.get("schema") not in EXPORT_SCHEMAS:
         raise SceneError(f"{path} is not an export record (schema {EXPORT_SCHEMA!r})")
+    if record["schema"] == EXPORT_SCHEMA:
+        record = {**record, **_sequence_fields(Path(folder) / "camera.json")}
     return record
+
+
+def _sequence_fields(path: Path) -> dict:
+    """``camera_path``, ``light_path``, ``frame`` and ``n_frames`` of an export from its
+    ``camera.json``'s ``sequence`` (frame 0 and no count when neither path moves)."""
+    try:
+        seq = json.loads(path.read_text(encoding="utf-8"))["sequence"]
+        camera_path, light_path = seq["camera_path"], seq["light_path"]
+        moving = camera_path is not None or light_path is not None
+        return {
+            "camera_path": camera_path,
+            "light_path": light_path,
+            "frame": int(seq["frame"]) if moving else 0,
+            "n_frames": int(seq["n_frames"]) if moving else None,
+        }
+    except (OSError, ValueError, KeyError, TypeError):
+        raise SceneError(f"{path} has no readable sequence record") from None
 
 
 def _chosen_light(folder: Path) -> int | None:
@@ -149,7 +171,7 @@ def named_input(name: str, *, exports=None) -> str:
     """The scene a name stands for in a folder of engine images: the export folder
     ``exports/name`` when it is one, else the built-in scene ``name``; :class:`SceneError`
     naming the built-in scenes otherwise."""
-    from .builtin import BUILTIN_SCENES
+    from ..catalogue.builtin import BUILTIN_SCENES
 
     if exports is not None and export_scene_file(Path(exports) / name) is not None:
         return str(Path(exports) / name)

@@ -56,7 +56,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
 
 def atomic_write_json(path: str | os.PathLike, record, *, sort_keys: bool = False) -> None:
-    """Write ``record`` as indented JSON (through :func:`scenes.records.jsonable`) atomically."""
+    """Write ``record`` as indented JSON (through :func:`.records.jsonable`) atomically."""
     text = json.dumps(jsonable(record), indent=2, sort_keys=sort_keys, allow_nan=False)
     atomic_write_bytes(path, text.encode())
 

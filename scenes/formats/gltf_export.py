@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from . import backend
+from .. import backend
 from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
 
 __all__ = ["light_records", "materials_record", "scene_glb"]
@@ -30,8 +30,8 @@ def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
 
 def materials_record(loaded, shapes: dict) -> dict:
     """``materials.json`` of a glTF scene: the shading model and, per shape, its material
-    (factors and texture indices of :class:`scenes.gltf_materials.PbrMaterial`)."""
-    from .pbr import SHADING_MODEL
+    (factors and texture indices of :class:`scenes.formats.gltf_materials.PbrMaterial`)."""
+    from ..shading.pbr import SHADING_MODEL
 
     pbr = loaded.pbr
     out = {}

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .arrays import check_array
+
 __all__ = [
     "LUMINANCE_WEIGHTS",
     "TONE_MAPPERS",
@@ -56,29 +58,7 @@ _LOG_AVERAGE_DELTA = 1e-4
 def _check_image(name: str, a, *, allow_negative: bool = True) -> np.ndarray:
     """``a`` as a float64 (H, W) or (H, W, C) array; :class:`DisplayError` naming ``name``
     when it is not numeric, 2-D or 3-D, non-empty, finite (and non-negative if asked)."""
-    arr = np.asarray(a)
-    if arr.dtype.kind not in "biuf":
-        raise DisplayError(f"{name} must be a real numeric array, got dtype {arr.dtype}")
-    if arr.ndim not in (2, 3):
-        raise DisplayError(f"{name} must be a 2-D or 3-D array, got shape {tuple(arr.shape)}")
-    if arr.size == 0:
-        raise DisplayError(f"{name} must not be empty, got shape {tuple(arr.shape)}")
-    arr = arr.astype(np.float64, copy=False)
-    finite = np.isfinite(arr)
-    if not finite.all():
-        n_nan = int(np.isnan(arr).sum())
-        n_inf = int(arr.size - finite.sum() - n_nan)
-        raise DisplayError(
-            f"{name} must be finite, got {n_nan} NaN and {n_inf} inf values "
-            f"(of {arr.size}, shape {tuple(arr.shape)})"
-        )
-    n_neg = 0 if allow_negative else int((arr < 0).sum())
-    if n_neg:
-        raise DisplayError(
-            f"{name} must be non-negative, got {n_neg} negative values "
-            f"(minimum {float(arr.min()):.6g})"
-        )
-    return arr
+    return check_array(name, a, error=DisplayError, allow_negative=allow_negative)
 
 
 def _rgb(image: np.ndarray, name: str) -> np.ndarray:

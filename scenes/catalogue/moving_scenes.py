@@ -102,7 +102,7 @@ def spin(width: int, height: int) -> dict:
     }
 
 
-#: name -> (factory, description, width, height), as :data:`scenes.aa_scenes.AA_SCENES`.
+#: name -> (factory, description, width, height), as :data:`scenes.catalogue.aa_scenes.AA_SCENES`.
 MOVING_SCENES = {
     "slide": (
         slide,

@@ -54,7 +54,7 @@ def tangent_derivatives_dr(camera, x, y, p, n):
     differentiated (what a GPU's ``ddx``/``ddy`` of the interpolated position gives on a
     planar triangle). ``x, y``: Dr.Jit ``Float`` film positions in pixels.
     """
-    from . import backend
+    from .. import backend
 
     mi = backend.mitsuba()
     import drjit as dr

@@ -10,7 +10,7 @@ sign of difference over the convex overlap is decided by the overlap's vertices 
 orthographic camera: ``s`` itself). Each triangle's visible region is its projection less the
 union of the triangles in front of it (shapely 2, vectorised over all triangles and pairs);
 visible regions are disjoint, and their exact areas inside each pixel
-(:mod:`scenes.pixel_area`) give
+(:mod:`scenes.geometry.pixel_area`) give
 
 - ``coverage_exact``: the area fraction of the pixel covered by any geometry;
 - ``front_coverage_exact``: the area fraction whose nearest surface belongs to the shape seen
@@ -42,8 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from . import backend
-from . import meshes as _meshes
+from .. import backend
+from ..catalogue import meshes as _meshes
 from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area, touched_pixels
 
 __all__ = [
@@ -102,7 +102,7 @@ class TriangleSet:
 
 def _curved_mesh(mi, shape, n: int):
     """Inscribed tessellation ``(verts, faces, chord_error)`` of a sphere, cylinder or disk."""
-    from .export import _tessellate_sphere
+    from ..formats.export import _tessellate_sphere
 
     kind = shape.class_name()
     m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
@@ -174,7 +174,7 @@ def scene_triangle_set(loaded) -> TriangleSet:
     cached = memo.get(key)
     if cached is not None:
         return cached
-    from .export import shape_mesh
+    from ..formats.export import shape_mesh
 
     parts, shape_of, slack = [], [], []
     for i, sh in enumerate(loaded.mi_scene.shapes()):  # a loop over shapes, not triangles

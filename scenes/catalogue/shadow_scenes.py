@@ -1,7 +1,7 @@
 """Built-in shadow scenes: plate, city, thin, star, curved, spot and point.
 
 Each is a factory ``factory(width, height) -> dict`` returning a Mitsuba scene dictionary made
-with :mod:`scenes.factories`; :mod:`scenes.builtin` catalogues them.
+with :mod:`scenes.catalogue.factories`; :mod:`scenes.catalogue.builtin` catalogues them.
 """
 
 from __future__ import annotations

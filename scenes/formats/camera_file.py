@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Camera
+from ..camera import Camera
 
 __all__ = ["CameraFileError", "load_camera_file"]
 

@@ -1,6 +1,7 @@
 """Built-in anti-aliasing scenes: decal, stripes, glossy, foliage and hdr-edge.
 
-Each is a dictionary factory like those of :mod:`scenes.builtin` (``factory(width, height)``)
+Each is a dictionary factory like those of :mod:`scenes.catalogue.builtin`
+(``factory(width, height)``)
 built to stress one weakness of an anti-aliasing technique (see ``TECHNIQUES.md``, "Test
 content that stresses these"):
 
@@ -14,7 +15,7 @@ content that stresses these"):
   separately and loses the correlation.
 - ``glossy``: a grid of small glossy beads and a large glossy sphere lit so that every bead
   carries a highlight smaller than a pixel: specular aliasing inside surfaces (Toksvig).
-  The scene switches on the shared normalized Blinn-Phong lobe of :mod:`scenes.shading`
+  The scene switches on the shared normalized Blinn-Phong lobe of :mod:`scenes.shading.phong`
   (``ks`` = :data:`GLOSSY_KS`, exponent :data:`GLOSSY_SHININESS`) for every surface, which the
   oracle's ``color`` channel and the models' shading both use (``LoadedScene.specular``).
 - ``foliage``: four layers of thin grass blades (0.2-0.6 px wide) at several depths before a
@@ -26,7 +27,7 @@ content that stresses these"):
   resolves differ most here.
 
 A factory may add the top-level key ``"ro_specular"`` (the keyword arguments of
-:class:`scenes.shading.Specular`); :func:`scenes.loader.load` takes it out of the dictionary
+:class:`scenes.shading.phong.Specular`); :func:`scenes.loader.load` takes it out of the dictionary
 (after hashing it into the scene's content hash) and sets ``LoadedScene.specular``.
 """
 
@@ -271,7 +272,7 @@ def hdr_edge(width: int, height: int) -> dict:
 
 
 #: name -> (factory, description, default width, default height), registered by
-#: :mod:`scenes.builtin` in ``BUILTIN_SCENES`` (not in the main job's default scenes).
+#: :mod:`scenes.catalogue.builtin` in ``BUILTIN_SCENES`` (not in the main job's default scenes).
 AA_SCENES = {
     "decal": (
         decal,

@@ -75,7 +75,7 @@ def audit():
     """
     import drjit as dr
 
-    from . import backend
+    from .. import backend
 
     result = KernelAudit()
     was = dr.flag(dr.JitFlag.KernelHistory)
