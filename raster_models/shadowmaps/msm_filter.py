@@ -19,7 +19,9 @@ four moments allow, from a three-point distribution).
 References
 ----------
 .. [1] C. Peters, R. Klein, "Moment Shadow Mapping", I3D 2015. DOI: 10.1145/2699276.2699277
-.. [2] Unity Technologies, HDRP 7.1.6 ``ShadowMoments.hlsl`` (lines cited above).
+.. [2] Unity Technologies, HDRP 7.1.6 ``Runtime/Lighting/Shadow/ShadowMoments.hlsl`` (lines
+   cited above), as vendored in diegoossa/unity-com.unity.render-pipelines.high-definition at
+   5262f14 (no local edits in that file).
 """
 
 from __future__ import annotations
