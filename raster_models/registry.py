@@ -190,7 +190,7 @@ TECHNIQUES: dict[str, Technique] = {
                 "doi:10.1145/1187112.1187153",
                 "L. Bavoil, Integrating Realistic Soft Shadows into Your Game Engine, NVIDIA "
                 "whitepaper, 2008",
-                "Unity Technologies, HDRP 7.1.6 HDPCSS.hlsl / HDShadowSampling.hlsl",
+                "Unity Technologies, HDRP 10.10.1 HDPCSS.hlsl / HDShadowSampling.hlsl",
             ),
             pcss.PcssParams,
             pcss.run,

@@ -96,7 +96,7 @@ def test_pcss_blocker_search_finds_the_flat_blocker_depth():
 
 
 def test_fibonacci_disk_is_hdrp_table():
-    # HDRP 7.1.6 HDPCSS.hlsl lines 23-25: fibonacciSpiralDirection[0..2]; radius
+    # HDRP 10.10.1 HDPCSS.hlsl lines 23-25: fibonacciSpiralDirection[0..2]; radius
     # sqrt(i / N + 0.5 / N) (line 91).
     d = pcss_filter.disk("fibonacci", 16)
     radius = np.sqrt((np.arange(16) + 0.5) / 16)

@@ -6,12 +6,12 @@ four moments allow, from a three-point distribution).
   blurred (``blur_size`` texels), stored either as float32 or in 16-bit UNORM after the
   paper's optimized quantization: ``q = M b + (0.035955884801, 0, 0, 0)`` (section 4, with
   the inverse applied after the bilinear fetch). The matrices are those of the paper as
-  transcribed in Unity HDRP 7.1.6 ``Runtime/Lighting/Shadow/ShadowMoments.hlsl`` lines
-  53-77 (``ShadowMoments_Encode16MSM`` / ``Decode16MSM``).
+  transcribed in Unity HDRP 10.10.1 ``Runtime/Lighting/Shadow/ShadowMoments.hlsl`` lines
+  55-67 and 70-79 (``ShadowMoments_Encode16MSM`` / ``Decode16MSM``).
 - Moment bias: ``b' = (1 - alpha) b + alpha (0.5, 0.5, 0.5, 0.5)`` before the solve (the
   rounding errors of the quantization otherwise make the Hankel matrix indefinite).
-- Hamburger 4MSM (paper, algorithm 3; HDRP ``ShadowMoments_SolveMSM`` lines 80-111 and
-  ``SolveDelta3MSM`` lines 113-123): a Cholesky solve of the Hankel system for the
+- Hamburger 4MSM (paper, algorithm 3; HDRP ``ShadowMoments_SolveMSM`` lines 82-113 and
+  ``SolveDelta3MSM`` lines 115-125): a Cholesky solve of the Hankel system for the
   quadratic whose roots ``z2 <= z3`` complete the support ``{z_r, z2, z3}``; the shadow
   intensity is the weight of the support points nearer than the receiver.
 - Light-bleeding reduction (HDRP ``lightLeakBias``): ``linstep(bias, 1, visibility)``.
@@ -19,9 +19,9 @@ four moments allow, from a three-point distribution).
 References
 ----------
 .. [1] C. Peters, R. Klein, "Moment Shadow Mapping", I3D 2015. DOI: 10.1145/2699276.2699277
-.. [2] Unity Technologies, HDRP 7.1.6 ``Runtime/Lighting/Shadow/ShadowMoments.hlsl`` (lines
-   cited above), as vendored in diegoossa/unity-com.unity.render-pipelines.high-definition at
-   5262f14 (no local edits in that file).
+.. [2] Unity Technologies, HDRP 10.10.1 ``Runtime/Lighting/Shadow/ShadowMoments.hlsl`` (lines
+   cited above); published package mirror needle-mirror/com.unity.render-pipelines.high-
+   definition, commit 6328cc84.
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ __all__ = [
 MSM_FORMATS = ("unorm16", "float32")
 
 #: The paper's quantization matrix, applied as ``q = b @ ENCODE_16`` (HDRP's
-#: ``mul(moments, mat)``, ShadowMoments.hlsl lines 57-60).
+#: ``mul(moments, mat)``, HDRP 10.10.1 ShadowMoments.hlsl lines 59-62).
 ENCODE_16 = np.array(
     [
         [-2.07224649, 13.7948857237, 0.105877704, 9.7924062118],
@@ -61,7 +61,7 @@ ENCODE_16 = np.array(
     dtype=np.float64,
 )
 
-#: Its inverse as published (HDRP lines 71-74), applied as ``b = (q - offset) @ DECODE_16``.
+#: Its inverse as published (HDRP lines 73-76), applied as ``b = (q - offset) @ DECODE_16``.
 DECODE_16 = np.array(
     [
         [0.2227744146, 0.1549679261, 0.1451988946, 0.163127443],
@@ -72,7 +72,7 @@ DECODE_16 = np.array(
     dtype=np.float64,
 )
 
-#: Offset added to the first quantized moment (HDRP line 63).
+#: Offset added to the first quantized moment (HDRP line 65).
 ENCODE_OFFSET = 0.035955884801
 
 #: Depth the moments are taken of: the map's stored depth, or linear light-view distance

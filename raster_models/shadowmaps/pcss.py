@@ -5,20 +5,22 @@ it (:mod:`.pcss_filter`). Two published configurations (``preset``):
 
 - ``nvidia``: Fernando 2005 as in NVIDIA's sample (Bavoil 2008): 16 blocker-search and 16
   PCF samples on the 16-point Poisson disk, no rotation, no minimum filter.
-- ``hdrp``: Unity HDRP's PCSS: Fibonacci spiral disk (``HDPCSS.hlsl``), 24 blocker-search and
-  16 filter samples (the light's defaults ``m_BlockerSampleCount = 24`` and
-  ``m_FilterSampleCount = 16`` of ``HDAdditionalLightData.cs`` in Unity-Technologies/Graphics;
-  HDRP 7.1.6 shipped 2 and 4, lines 957 and 975), a minimum filter radius of
-  ``m_MinFilterSize * 0.001`` = 1e-4 in map coordinates (7.1.6 lines 993 and 1917), and the
-  disk rotated per pixel by interleaved gradient noise (``SampleShadow_PCSS``, frame 0).
-  HDRP maps a light's shape radius to its "softness" through a quartic fitted at 512^2
-  (HDAdditionalLightData.cs lines 1887-1894); the model uses the physical light size for
-  both presets instead, so that they differ only in their sampling.
+- ``hdrp``: Unity HDRP 10.10.1's PCSS: Fibonacci spiral disk (``HDPCSS.hlsl`` 21-94), 24
+  blocker-search and 16 filter samples (the light's defaults ``m_BlockerSampleCount = 24``
+  and ``m_FilterSampleCount = 16``, ``HDAdditionalLightData.cs`` lines 1134 and 1152), a
+  minimum filter radius of ``m_MinFilterSize * 0.001`` = 1e-4 in map coordinates (lines 1170
+  and 2376), and the disk rotated per pixel by interleaved gradient noise
+  (``HDShadowSampling.hlsl`` 297-298, frame 0). HDRP maps a light's shape radius to its
+  "softness" through a quartic fitted at 512^2 (``HDAdditionalLightData.cs`` 2349) and
+  scales it by a fitted curve of the blocker distance (``HDShadowSampling.hlsl`` 316-327);
+  the model uses the physical light size for both presets instead, so that they differ only
+  in their sampling. Sources: the published package mirror needle-mirror/
+  com.unity.render-pipelines.high-definition at 6328cc84.
 
 The light's size: ``light_size`` (world units, perspective maps) or, when 0, the scene's
 area light (its diameter: the larger side of a rectangle, a disk's or sphere's diameter),
 else NVIDIA's ``LIGHT_WORLD_SIZE`` 0.5; directional lights use ``light_angle`` (degrees,
-HDRP's default angular diameter 0.5, HDAdditionalLightData.cs 7.1.6 line 600).
+HDRP's default angular diameter 0.5, HDRP 10.10.1 HDAdditionalLightData.cs line 716).
 """
 
 from __future__ import annotations
@@ -76,33 +78,38 @@ class PcssParams(ShadowMapParams):
     )
     blocker_samples: int = param(
         0,
-        source="NVIDIA BLOCKER_SEARCH_NUM_SAMPLES 16; HDRP m_BlockerSampleCount 24",
+        source="NVIDIA BLOCKER_SEARCH_NUM_SAMPLES 16; HDRP 10.10.1 m_BlockerSampleCount 24 "
+        "(HDAdditionalLightData.cs:1134)",
         help="blocker-search taps (0 = the preset's)",
         lo=0,
         hi=64,
     )
     filter_samples: int = param(
         0,
-        source="NVIDIA PCF_NUM_SAMPLES 16; HDRP m_FilterSampleCount 16",
+        source="NVIDIA PCF_NUM_SAMPLES 16; HDRP 10.10.1 m_FilterSampleCount 16 "
+        "(HDAdditionalLightData.cs:1152)",
         help="PCF taps over the penumbra disk (0 = the preset's)",
         lo=0,
         hi=64,
     )
     disk: str = param(
         "preset",
-        source="NVIDIA poissonDisk[16]; HDRP fibonacciSpiralDirection[64]",
+        source="NVIDIA poissonDisk[16]; HDRP 10.10.1 fibonacciSpiralDirection[64] "
+        "(HDPCSS.hlsl:21-87)",
         help="tap pattern: preset, poisson16 or fibonacci",
         choices=("preset", *DISKS),
     )
     rotation: str = param(
         "preset",
-        source="NVIDIA: none; HDRP: InterleavedGradientNoise(posSS, frame) * 2 pi",
+        source="NVIDIA: none; HDRP 10.10.1: InterleavedGradientNoise(posSS, frame) * 2 pi "
+        "(HDShadowSampling.hlsl:297)",
         help="per-pixel disk rotation: preset, none or ign (interleaved gradient noise)",
         choices=("preset", "none", "ign"),
     )
     min_filter_uv: float = param(
         -1.0,
-        source="HDRP m_MinFilterSize 0.1 x 0.001 (map coordinates); NVIDIA none",
+        source="HDRP 10.10.1 m_MinFilterSize 0.1 x 0.001 (HDAdditionalLightData.cs:1170, "
+        "2376; map coordinates); NVIDIA none",
         help="smallest PCF radius in map coordinates where a blocker was found (-1 = the preset's)",
         lo=-1.0,
         hi=1.0,
@@ -116,7 +123,7 @@ class PcssParams(ShadowMapParams):
     )
     light_angle: float = param(
         0.5,
-        source="Unity HDRP 7.1.6 HDAdditionalLightData m_AngularDiameter 0.5 (degrees)",
+        source="Unity HDRP 10.10.1 m_AngularDiameter 0.5 degrees (HDAdditionalLightData.cs:716)",
         help="angular diameter of a directional light in degrees",
         lo=0.0,
         hi=90.0,

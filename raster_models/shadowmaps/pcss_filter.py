@@ -35,10 +35,12 @@ References
 .. [2] L. Bavoil, "Integrating Realistic Soft Shadows into Your Game Engine", NVIDIA
    whitepaper WP-03780-001, 2008 (the PCSS sample: 16 blocker and 16 PCF samples, Poisson
    disk).
-.. [3] Unity Technologies, HDRP 7.1.6 ``Runtime/Lighting/Shadow/HDPCSS.hlsl`` lines 3, 21-87,
-   89-94, 113-178 (Fibonacci spiral disk, blocker search, PCSS filter); line numbers of the
-   package as vendored in diegoossa/unity-com.unity.render-pipelines.high-definition at
-   5262f14 (its own edits are marked ``custom-begin``; none in the cited lines).
+.. [3] Unity Technologies, HDRP 10.10.1 ``Runtime/Lighting/Shadow/HDPCSS.hlsl``: line 3
+   (``DISK_SAMPLE_COUNT 64``), 21-87 (``fibonacciSpiralDirection``), 89-94 (sample radius),
+   106-130 (``BlockerSearch``), 132-166 (``PCSS``); ``HDShadowSampling.hlsl`` 289-339
+   (``SampleShadow_PCSS``: IGN rotation 297-298, minimum radius 333, lit without a blocker
+   338). Published package mirror needle-mirror/com.unity.render-pipelines.high-definition,
+   commit 6328cc84.
 """
 
 from __future__ import annotations
@@ -90,7 +92,8 @@ POISSON_16 = np.array(
 #: Disk patterns the filter knows.
 DISKS = ("poisson16", "fibonacci")
 
-#: HDRP's ``DISK_SAMPLE_COUNT`` (HDPCSS.hlsl line 3): taps beyond it are never read.
+#: HDRP's ``DISK_SAMPLE_COUNT`` (HDRP 10.10.1 HDPCSS.hlsl line 3): taps beyond it are never
+#: read.
 FIBONACCI_MAX = 64
 
 
