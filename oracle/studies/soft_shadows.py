@@ -11,6 +11,8 @@ hardening, and light bleeding of filtered shadow maps.
   by the receiver-caster distance.
 - :func:`umbra_bleeding`: light leaked into the hard reference's umbra (receivers with
   visibility 0): its mean and the fraction of umbra receivers above 0.1.
+- :func:`soft_ranking`: PCSS at the engines' presets against PCF at fixed widths, ranked by
+  their error against the area-light truth, with the noise floor.
 """
 
 from __future__ import annotations
@@ -21,8 +23,10 @@ import numpy as np
 
 __all__ = [
     "DISTANCE_BINS",
+    "RANKED",
     "caster_distance",
     "contact_hardening",
+    "soft_ranking",
     "soft_scores",
     "umbra_bleeding",
 ]
@@ -144,3 +148,51 @@ def contact_hardening(loaded, result, *, bins=DISTANCE_BINS) -> dict:
             }
         )
     return {"bins": rows, "occluded_receivers": int(occluded.sum()), **pcss}
+
+
+#: Configurations :func:`soft_ranking` compares: PCSS at the engines' presets against PCF of
+#: fixed widths (N x N taps, Poisson discs) and the hard 2x2 hardware PCF.
+RANKED = (
+    ("pcss (nvidia)", "pcss", {"preset": "nvidia"}),
+    ("pcss (hdrp)", "pcss", {"preset": "hdrp"}),
+    ("pcss (nvidia, radius_scale=0.5)", "pcss", {"preset": "nvidia", "radius_scale": 0.5}),
+    ("hw_pcf 2x2", "shadow-map", {"filter": "hw_pcf"}),
+    ("pcf 5x5", "shadow-map", {"filter": "pcf", "pcf_size": 5}),
+    ("pcf 9x9", "shadow-map", {"filter": "pcf", "pcf_size": 9}),
+    ("pcf 15x15", "shadow-map", {"filter": "pcf", "pcf_size": 15}),
+    ("poisson 16 taps, 16 texels", "shadow-map", {"filter": "poisson", "filter_size": 16.0}),
+    ("poisson 16 taps, 48 texels", "shadow-map", {"filter": "poisson", "filter_size": 48.0}),
+)
+
+
+def soft_ranking(loaded, ref_ch: dict, *, resolution: int = 2048, run=None, configs=RANKED):
+    """Every configuration of ``configs`` on ``loaded``, scored against the reference's
+    ``soft_visibility`` and ``light_fraction`` (:func:`soft_scores`), ranked by the MAE
+    against ``light_fraction`` (what PCSS estimates). A neighbour whose MAE differs by less
+    than the larger noise floor is marked ``separated: False``. ``run(technique, loaded,
+    **params)``: the model runner (default ``raster_models.run``)."""
+    from ... import raster_models
+    from ..scoring.score import reference_receivers
+
+    run = run or raster_models.run
+    rec = reference_receivers(ref_ch, loaded.light)
+    rows = []
+    for label, tech, params in configs:
+        res = run(tech, loaded, resolution=resolution, **params)
+        scores = soft_scores(ref_ch, res.outputs["visibility"], rec)
+        rows.append(
+            {
+                "label": label,
+                "technique": tech,
+                "params": params,
+                "lookups": res.cost.get("texture_lookups_per_pixel"),
+                **scores,
+            }
+        )
+    key = "light_fraction" if all("light_fraction" in r for r in rows) else "soft_visibility"
+    rows.sort(key=lambda r: r.get(key, {}).get("mae", math.inf))
+    for a, b in zip(rows, rows[1:], strict=False):
+        fa, fb = a.get(key, {}), b.get(key, {})
+        floor = max(fa.get("noise_floor", 0.0), fb.get("noise_floor", 0.0))
+        b["separated"] = abs(fb.get("mae", 0.0) - fa.get("mae", 0.0)) >= floor
+    return {"ranked_by": f"{key} mae", "rows": rows}
