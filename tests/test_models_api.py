@@ -106,7 +106,7 @@ def test_run_rejects_bad_values_and_lights(plate):
     with pytest.raises(rm.ModelError, match="resolution must be an integer"):
         rm.run("csm", plate, resolution="big")
     with pytest.raises(rm.ModelError, match="unknown technique"):
-        rm.run("pcss", plate)
+        rm.run("vssm", plate)
     spot = scenes.load("spot", **SMALL)
     for technique in ("csm", "sdsm"):
         with pytest.raises(rm.ModelError, match="directional light.*spot light"):

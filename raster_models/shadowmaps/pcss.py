@@ -26,23 +26,15 @@ HDRP's default angular diameter 0.5, HDRP 10.10.1 HDAdditionalLightData.cs line 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from dataclasses import dataclass
 
-import numpy as np
-
 from .. import params as _params
 from ..gbuffer import trace_gbuffer
-from ..light_frame import Projection, make_frame
 from ..params import param
 from .engine import execute
 from .pcss_filter import DISKS
-from .records import Partition, Setup
 from .shadow_map import LIGHTS, ShadowMapParams, build
-
-#: Widest half-angle of an area light's map: tan(80 degrees).
-MAX_TAN_HALF = math.tan(math.radians(80.0))
 
 __all__ = ["LIGHTS", "NAME", "PRESETS", "PcssParams", "light_size_of", "resolved", "run"]
 
@@ -163,41 +155,13 @@ def resolved(p: PcssParams, light) -> PcssParams:
     )
 
 
-def build_area(scene, gbuf, p: PcssParams) -> Setup | None:
-    """One perspective map along a rectangle or disk light's normal (as an engine shadows a
-    one-sided area light), its field of view fit to the visible points in front of the
-    light (half-angle at most 80 degrees); ``None`` for other lights (``shadow-map``'s
-    placement: a cube for a sphere light's point proxy)."""
-    light = scene.light
-    if getattr(light, "area", "") not in ("rectangle", "disk"):
-        return None
-    tangent, _, normal = light.frame
-    origin = np.asarray(light.position, dtype=np.float64)
-    frame = make_frame(normal, [("light_tangent", tangent)], origin)
-    d = gbuf.position[gbuf.valid] - origin
-    depth = d @ frame.z
-    front = depth > 1e-9
-    lateral = np.maximum(np.abs(d[front] @ frame.x), np.abs(d[front] @ frame.y))
-    tan_half = float(np.max(lateral / depth[front])) * 1.01 if front.any() else 1.0
-    tan_half = min(max(tan_half, 1e-3), MAX_TAN_HALF)
-    lo, hi = scene.bounds()
-    corners = np.array(
-        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-    )
-    far = max(float(np.max((corners - origin) @ frame.z)), 1e-6) * (1.0 + 1e-4)
-    near = p.light_near if p.light_near > 0 else 1e-3 * far
-    proj = Projection("persp", frame, (tan_half, near, far), p.resolution, p.matrix_precision)
-    diag = {"light": light.to_json(), "area_map": {"tan_half": tan_half, "near": near}}
-    return Setup([Partition(proj)], selection="single", diagnostics=diag)
-
-
 def run(scene, params: PcssParams | None = None, **kwargs):
     """Run ``pcss`` on a loaded scene; see :func:`raster_models.run`."""
     t0 = time.perf_counter()
     p = params or _params.make(NAME, PcssParams, kwargs)
     used = resolved(p, scene.light)
     gbuf = trace_gbuffer(scene)
-    setup = build_area(scene, gbuf, used) or build(scene, gbuf, used)
+    setup = build(scene, gbuf, used)
     setup.diagnostics["pcss"] = {
         k: getattr(used, k)
         for k in ("blocker_samples", "filter_samples", "disk", "rotation", "min_filter_uv")
