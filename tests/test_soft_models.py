@@ -231,3 +231,13 @@ def test_msm_on_a_spot_light_needs_linear_depth_at_16_bits():
     linear = raster_models.run("msm", loaded, resolution=256, moment_depth="linear")
     assert abs(linear.outputs["visibility"].mean() - hard.mean()) < 0.02
     assert stored.mean() < hard.mean() - 0.1
+
+
+def test_msm_moment_bias_follows_the_format(contact):
+    from raster_oracle.raster_models.shadowmaps.msm import FORMAT_BIAS
+
+    assert FORMAT_BIAS == {"unorm16": 6e-5, "float32": 3e-6}
+    res = raster_models.run("msm", contact, resolution=64, msm_format="float32")
+    assert res.diagnostics["moment_bias"] == 3e-6 and res.params["moment_bias"] == -1.0
+    res = raster_models.run("msm", contact, resolution=64, moment_bias=1e-4)
+    assert res.diagnostics["moment_bias"] == 1e-4
