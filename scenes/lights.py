@@ -142,6 +142,14 @@ class Light:
         return 0.0
 
     @property
+    def proxy_area(self) -> float:
+        """The area that turns ``radiance`` into the proxy's intensity ``color``: the surface
+        area of a rectangle or disk, a sphere's cross-section ``pi r^2`` (0: punctual)."""
+        if self.area == "sphere":
+            return math.pi * float(self.radius) ** 2
+        return self.surface_area
+
+    @property
     def shadow_end(self) -> float:
         """How far short of ``position`` a shadow ray to the light stops: a sphere light's
         radius (its centre is inside it), else 0."""

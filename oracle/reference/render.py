@@ -46,6 +46,7 @@ from ..errors import InputError
 from ..phases import maybe_phase
 from .coverage import centre_shapes, exact_channels, front_hits
 from .motion import motion_channels
+from .soft import light_samples, soft_samples
 
 __all__ = [
     "ALL_CHANNELS",
@@ -88,9 +89,17 @@ CHANNEL_GROUPS = {
     # temporal truth (oracle.reference.motion): pixels to the previous frame, and 1 where the
     # point was hidden from the previous frame's camera or outside its image
     "motion": ["motion.X", "motion.Y", "disocclusion"],
+    # area-light truth (oracle.reference.soft): the unoccluded fraction of the irradiance and
+    # of the light's area; a punctual light's are its visibility
+    "soft": [
+        "soft_visibility",
+        "soft_visibility_stderr",
+        "light_fraction",
+        "light_fraction_stderr",
+    ],
 }
 #: Groups rendered only when asked for (``--channels ...,tangent32``), never by default.
-OPTIONAL_GROUPS = ("tangent32", "motion")
+OPTIONAL_GROUPS = ("tangent32", "motion", "soft")
 ALL_CHANNELS = tuple(g for g in CHANNEL_GROUPS if g not in OPTIONAL_GROUPS)
 _CENTRE_GROUPS = {"id", "depth", "position", "normal", "albedo"}
 #: Samples per Dr.Jit launch: bounds a launch's working set whatever the resolution and spp
@@ -222,7 +231,7 @@ def estimate_memory(
     groups = set(channels)
     pixels = int(width) * int(height)
     color = "color" in groups
-    sampled = groups & {"visibility", "coverage", "color", "edge"}
+    sampled = groups & {"visibility", "coverage", "color", "edge", "soft"}
     spp_max = int(max_spp if max_spp is not None else spp)
     launch = min(pixels * spp_max, SAMPLES_PER_CHUNK) if sampled else min(pixels, SAMPLES_PER_CHUNK)
     if "tangent32" in groups:
@@ -255,8 +264,9 @@ class _Accum:
     npix: int
     color: bool
     #: which per-sample quantities are summed: "vis", "cov", "shape", "front" (with
-    #: ``centre``; colour: ``color``); the others are empty (a colour-only reference skips
-    #: their outputs, reductions and buffers)
+    #: ``centre``; colour: ``color``), "soft" (soft visibility and light fraction with their
+    #: squares); the others are empty (a colour-only reference skips their outputs,
+    #: reductions and buffers)
     track: frozenset = frozenset({"vis", "cov", "shape"})
     n: np.ndarray = field(init=False)
     vis: np.ndarray = field(init=False)
@@ -268,6 +278,10 @@ class _Accum:
     rgb2: np.ndarray | None = field(init=False)
     smin: np.ndarray = field(init=False)
     smax: np.ndarray = field(init=False)
+    soft: np.ndarray = field(init=False)
+    soft2: np.ndarray = field(init=False)
+    frac: np.ndarray = field(init=False)
+    frac2: np.ndarray = field(init=False)
     #: :class:`oracle.phases.Phases` of a profiled render (None: no profiling, no syncs)
     phases: object = None
 
@@ -284,6 +298,8 @@ class _Accum:
         self.rgb2 = np.zeros((3, self.npix)) if self.color else None
         self.smin = np.full(size("shape"), np.iinfo(np.int32).max, dtype=np.int64)
         self.smax = np.full(size("shape"), np.iinfo(np.int32).min, dtype=np.int64)
+        for name in ("soft", "soft2", "frac", "frac2"):
+            setattr(self, name, np.zeros(size("soft")))
 
     def stderr(self, s, s2, n):
         """``sqrt(s^2 / N)`` from the sums ``s``, ``s2`` of ``n`` samples (0 where n <= 1);
@@ -311,6 +327,14 @@ class _Accum:
             self.stderr(self.front, self.front, self.n), binomial_stderr_floor(self.n)
         )
 
+    def soft_stderr(self, s, s2):
+        """Standard error of a soft channel's mean (sample values in [0, 1]): the sample
+        one; where every sample is 0 or every one is 1 (no variance to estimate), the
+        binomial floor, as visibility's (a feature all samples missed is not excluded)."""
+        se = self.stderr(s, s2, self.n)
+        alike = (s == 0.0) | (s == self.n)
+        return np.where(alike, np.maximum(se, binomial_stderr_floor(self.n)), se)
+
     def rgb_stderr(self):
         """``(3, npix)``."""
         return self.stderr(self.rgb, self.rgb2, self.n)
@@ -321,6 +345,9 @@ class _Accum:
         parts = [(self.vis - self.vis**2 / n) / (n - 1), (self.cov - self.cov**2 / n) / (n - 1)]
         if self.color:
             parts.append(np.max((self.rgb2 - self.rgb**2 / n) / (n - 1), 0))
+        if "soft" in self.track:
+            parts.append((self.soft2 - self.soft**2 / n) / (n - 1))
+            parts.append((self.frac2 - self.frac**2 / n) / (n - 1))
         return np.maximum(np.max(parts, axis=0), 0.0)
 
 
@@ -431,7 +458,9 @@ def _pass(
 
     A launch holds at most ``launch`` (default :data:`SAMPLES_PER_CHUNK`) samples: several
     pixels' samples, or, when one pixel has more, a block of one pixel's samples at a time,
-    so memory is bounded for any ``spp``.
+    so memory is bounded for any ``spp``. Under an area light (colour or soft channels) each
+    camera sample casts :func:`oracle.reference.soft.light_samples` shadow rays and a launch
+    holds that many times fewer camera samples.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -439,6 +468,8 @@ def _pass(
     width = loaded.width
     m, n = grid_shape(spp)
     launch = launch or samples_per_chunk()
+    if _area_sampled(loaded, acc):
+        launch = max(1, launch // light_samples(loaded.light))
     block = min(spp, launch)
     per_chunk = max(1, launch // block)
     bits = max(1, int(offset + spp - 1).bit_length())
@@ -466,19 +497,41 @@ def _pass(
             x = mi.Float(pix % width) + u
             y = mi.Float(pix // width) + v
             primary += count
-            shadow += _accumulate(loaded, acc, chunk, x, y, bsz)
+            shadow += _accumulate(loaded, acc, chunk, x, y, bsz, keys=(pix, s + offset, seed))
             if progress is not None:
                 progress.update(count)
     return primary, shadow
 
 
-def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int) -> int:
+def _area_sampled(loaded, acc: _Accum) -> bool:
+    """Whether the samples integrate over an area light (its colour or soft channels)."""
+    return loaded.light.is_area and (acc.color or "soft" in acc.track)
+
+
+def _accumulate(loaded, acc: _Accum, chunk: np.ndarray, x, y, block: int, keys=None) -> int:
     """Trace the samples ``(x, y)`` (``block`` consecutive ones per pixel of ``chunk``) and
-    add their sums to ``acc``; returns the shadow rays cast."""
+    add their sums to ``acc``; returns the shadow rays cast. ``keys``: the samples' ``(pixel,
+    sample index, seed)``, which seed an area light's samples (:mod:`.soft`)."""
     with maybe_phase(acc.phases, "record"):  # Python: recording the kernel's operations
-        res = trace_film_dr(loaded, x, y, color=acc.color, albedo=False)
+        if _area_sampled(loaded, acc):
+            res = _area_trace(loaded, acc, x, y, keys)
+        else:
+            res = trace_film_dr(loaded, x, y, color=acc.color, albedo=False)
         sums = _sample_sums(acc, res, chunk, block)
     return _reduce_and_add(acc, res, sums, chunk, block)
+
+
+def _area_trace(loaded, acc: _Accum, x, y, keys) -> dict:
+    """:func:`trace_film_dr` with the area light's samples (:func:`.soft.soft_samples`):
+    its soft values and area-lit colour replace the punctual proxy's colour."""
+    import drjit as dr
+
+    res = trace_film_dr(loaded, x, y, color=False, albedo=acc.color, keep_si=True)
+    # the light samples gather the primary hits: trace them in a kernel of their own
+    dr.eval(res["si"], res["valid"], res["normal"], res["to_eye"], res.get("albedo"))
+    pix, sample, seed = keys
+    res.update(soft_samples(loaded, res, pix, sample, jitter_key(pix, seed), color=acc.color))
+    return res
 
 
 def _sample_sums(acc: _Accum, res: dict, chunk, block: int) -> dict:
@@ -498,6 +551,14 @@ def _sample_sums(acc: _Accum, res: dict, chunk, block: int) -> dict:
         sums["rgb2"] = (res["color"] * res["color"], dr.ReduceOp.Add)
     if "front" in acc.track:
         sums["front"] = (front_hits(res["shape"], acc.centre[chunk], block), dr.ReduceOp.Add)
+    if "soft" in acc.track:
+        # a punctual light's soft values are its visibility
+        soft = res.get("soft", dr.select(res["lit"], 1.0, 0.0))
+        frac = res.get("fraction", soft)
+        sums["soft"], sums["soft2"] = (soft, dr.ReduceOp.Add), (soft * soft, dr.ReduceOp.Add)
+        sums["frac"], sums["frac2"] = (frac, dr.ReduceOp.Add), (frac * frac, dr.ReduceOp.Add)
+    if "light_rays" in res:
+        sums["light_rays"] = (res["light_rays"], dr.ReduceOp.Add)
     return sums
 
 
@@ -522,11 +583,13 @@ def _reduce_and_add(acc: _Accum, res: dict, sums: dict, chunk, block: int) -> in
             for k, v in outs.items()
         }
         shadow_tested = int(shadow_count[0])
+        if "light_rays" in host:  # an area light's shadow rays, not its proxy's
+            shadow_tested += int(round(float(host.pop("light_rays").sum())))
     with maybe_phase(ph, "accumulate"):
         if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
             chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
         acc.n[chunk] += block
-        for k in ("vis", "cov", "front"):
+        for k in ("vis", "cov", "front", "soft", "soft2", "frac", "frac2"):
             if k in host:
                 getattr(acc, k)[chunk] += host[k]
         for k in ("rgb", "rgb2"):
@@ -677,7 +740,11 @@ def feature_mask(acc: _Accum, width: int, height: int) -> np.ndarray:
     own = (acc.smin != acc.smax) | ((acc.vis > 0) & (acc.vis < acc.n))
     own |= (acc.cov > 0) & (acc.cov < acc.n)
     # what the pixel's samples agree on: shape range and whether any sample was lit/covered
-    state = np.stack([acc.smin, acc.smax, acc.vis > 0, acc.cov > 0], axis=1).reshape(*shape, 4)
+    parts = [acc.smin, acc.smax, acc.vis > 0, acc.cov > 0]
+    if "soft" in acc.track:  # a penumbra: soft values other than all 0 or all 1
+        own |= (acc.soft > 0) & (acc.soft < acc.n)
+        parts += [acc.soft > 0, acc.soft < acc.n]
+    state = np.stack(parts, axis=1).reshape(*shape, len(parts))
     edge = own.reshape(shape) | _differs_from_neighbour(state)
     return _dilate(edge).ravel()
 
@@ -709,10 +776,17 @@ def _refine_mask(acc: _Accum, settings: ReferenceSettings, width: int, height: i
     se = np.maximum(binary_stderr(acc.vis, acc.n), binary_stderr(acc.cov, acc.n))
     if "front" in acc.track:
         se = np.maximum(se, binary_stderr(acc.front, acc.n))
+    if "soft" in acc.track:  # penumbra values are not binary: their sample standard error
+        se = np.maximum(se, _soft_se(acc))
     want = feature_mask(acc, width, height) & (se > settings.target_stderr)
     if acc.color:
         want |= acc.rgb_stderr().max(axis=0) > settings.target_stderr
     return want & (acc.n < settings.max_spp)
+
+
+def _soft_se(acc: _Accum) -> np.ndarray:
+    """Larger standard error of the two soft channels (:meth:`_Accum.soft_stderr`)."""
+    return np.maximum(acc.soft_stderr(acc.soft, acc.soft2), acc.soft_stderr(acc.frac, acc.frac2))
 
 
 def _refine(loaded, acc: _Accum, settings: ReferenceSettings, passes: list, progress, launch):
@@ -783,7 +857,7 @@ def render_reference(
             f"only {_amount(have)} is available"
         )
     groups = set(settings.channels)
-    sampled = groups & {"visibility", "coverage", "color", "edge"}
+    sampled = groups & {"visibility", "coverage", "color", "edge", "soft"}
     npix = w * h
     color = "color" in groups
     track = {"vis", "cov", "shape"}
@@ -800,6 +874,8 @@ def render_reference(
     centre = centre_shapes(loaded) if "coverage" in groups else None
     if centre is not None:
         track.add("front")
+    if "soft" in groups:
+        track.add("soft")
     acc = _Accum(npix, color, centre=centre, track=frozenset(track), phases=phases)
     t0 = time.perf_counter()
     progress = None
@@ -851,6 +927,8 @@ def render_reference(
     with maybe_phase(phases, "finish"):
         channels = _finish(acc, groups, centre, w, h)
     stats = _stats(settings, acc, channels, primary, shadow, wall, passes, (w, h), sampled)
+    if loaded.light.is_area and (color or "soft" in groups):
+        stats["light_samples_per_sample"] = light_samples(loaded.light)
     if "coverage_exact" in groups:
         with maybe_phase(phases, "coverage_exact"):
             exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
@@ -881,6 +959,11 @@ def _finish(acc: _Accum, groups: set, centre: dict, w: int, h: int) -> dict[str,
             channels[f"color.{c}"] = img(mean[i])
         for i, c in enumerate("RGB"):
             channels[f"color_stderr.{c}"] = img(se[i])
+    if "soft" in groups:
+        channels["soft_visibility"] = img(acc.soft / acc.n)
+        channels["soft_visibility_stderr"] = img(acc.soft_stderr(acc.soft, acc.soft2))
+        channels["light_fraction"] = img(acc.frac / acc.n)
+        channels["light_fraction_stderr"] = img(acc.soft_stderr(acc.frac, acc.frac2))
     if "edge" in groups:
         mixed = (acc.vis > 0) & (acc.vis < acc.n)
         channels["edge"] = img((acc.smin != acc.smax) | mixed)
@@ -904,7 +987,12 @@ def _stats(settings, acc, channels, primary, shadow, wall, passes, size, sampled
             "spp = 1: no variance can be estimated; visibility/coverage stderr is the binomial "
             "floor, colour stderr is 0"
         )
-    for name in ("visibility_stderr", "coverage_stderr"):
+    for name in (
+        "visibility_stderr",
+        "coverage_stderr",
+        "soft_visibility_stderr",
+        "light_fraction_stderr",
+    ):
         if name in channels:
             stats[f"{name}_mean"] = float(channels[name].mean())
             stats[f"{name}_max"] = float(channels[name].max())
@@ -930,6 +1018,8 @@ def _adaptive_stats(settings: ReferenceSettings, acc: _Accum, width: int, height
     se = np.maximum(acc.vis_stderr(), acc.cov_stderr())
     if acc.color:
         se = np.maximum(se, acc.rgb_stderr().max(axis=0))
+    if "soft" in acc.track:
+        se = np.maximum(se, _soft_se(acc))
     near = feature_mask(acc, width, height)
     near_se = float(se[near].max()) if near.any() else 0.0
     var = acc.sample_variance()

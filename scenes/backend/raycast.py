@@ -28,7 +28,14 @@ from ..formats.gltf_materials import surface_dr
 from ..shading.pbr import shade_gltf
 from ..shading.phong import facing, receiver_mask, shade
 
-__all__ = ["CHUNK", "intersect", "shape_table", "trace_film", "trace_film_dr"]
+__all__ = [
+    "CHUNK",
+    "intersect",
+    "occluded_segment_dr",
+    "shape_table",
+    "trace_film",
+    "trace_film_dr",
+]
 
 #: Rays per Dr.Jit launch in the NumPy-level helpers (bounded memory: ~0.5 GiB a launch).
 CHUNK = 1 << 21
@@ -161,6 +168,45 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     return blocked
 
 
+def occluded_segment_dr(scene, p, ng, shape, wl, dist, active):
+    """True where the segment from surface points ``p`` (geometric normal ``ng``, hit shape
+    ``shape``) along unit directions ``wl`` to the points ``p + wl * dist`` (on an area
+    light) is blocked (Dr.Jit).
+
+    The rays of :func:`occluded_from_dr` towards arbitrary end points: the same origin offset
+    and the same skipping of spurious hits on the ray's own analytic shape; each ray ends just
+    short of its end point (measured from its offset origin), so the light's own surface
+    never blocks it.
+    """
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    mesh = shape.is_mesh()
+    offset = dr.select(mesh, SHADOW_OFFSET_MESH, SHADOW_OFFSET)
+    target = p + wl * dist
+    side = dr.select(dr.dot(ng, wl) >= 0.0, 1.0, -1.0)
+
+    def ray_from(q):
+        origin = q + ng * (side * _normal_scale(q, ng) * offset)
+        to = target - origin
+        length = dr.norm(to)
+        return mi.Ray3f(origin, to / length, length * (1.0 - 1e-5), 0.0, mi.Color0f())
+
+    ray = ray_from(p)
+    if not _has_analytic_shapes(scene):
+        return scene.ray_test(ray, active)
+    pending = active & ~mesh & (dr.dot(ng, wl) > 0.0)
+    blocked = scene.ray_test(ray, active & ~pending)
+    for _ in range(SELF_HIT_ROUNDS):
+        si = scene.ray_intersect(ray, mi.RayFlags.Minimal, False, pending)
+        hit = pending & si.is_valid()
+        own = hit & (si.shape == shape)
+        blocked |= hit & ~own
+        pending = own
+        ray = ray_from(dr.select(own, si.p, p))
+    return blocked
+
+
 def shadow_occluded_dr(scene, light, si, wl, active):
     """True where the light is blocked from the surface interaction ``si`` (Dr.Jit): see
     :func:`occluded_from_dr`."""
@@ -175,7 +221,9 @@ def primary_flags(mi):
     return mi.RayFlags.UV | mi.RayFlags.ShadingFrame
 
 
-def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool = True):
+def trace_film_dr(
+    loaded, x, y, *, color: bool = True, camera=None, albedo: bool = True, keep_si: bool = False
+):
     """Trace primary and shadow rays through film positions (Dr.Jit ``Float`` pixels).
 
     Returns a dict of Dr.Jit arrays: ``valid`` (hit geometry), ``lit`` (sees the light; True
@@ -184,6 +232,8 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
     ``position``, ``normal`` (facing the viewer), ``albedo`` (unless ``albedo`` and
     ``color`` are both False: tracing the BSDF call costs Python time on every launch even
     when nothing reads it) and, with ``color``, ``color`` (shaded linear RGB, 0 for sky).
+    With ``keep_si``, also ``si`` (the primary hits' ``SurfaceInteraction3f``) and ``to_eye``
+    (what an area light's samples start from, :mod:`oracle.reference.soft`).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -229,6 +279,8 @@ def trace_film_dr(loaded, x, y, *, color: bool = True, camera=None, albedo: bool
         "cos_l": cos_l,
         "shadow_tested": candidate,
     }
+    if keep_si:
+        out["si"], out["to_eye"] = si, to_eye
     if pbr is not None and (albedo or color):
         mat = surface_dr(pbr, si, shape_index, n, to_eye, valid)
         out["albedo"] = dr.select(valid, mat["base_color"], 0.0)
