@@ -105,6 +105,16 @@ FAMILIES: dict[str, Family] = {
             temporal=True,
             group="aa",
         ),
+        Family(
+            "soft",
+            "soft shadows",
+            ("soft_visibility", "light_fraction"),
+            ("visibility_mae", "edge_band_mae"),
+            ("memory_bytes", "texture_lookups_per_pixel"),
+            "shadow_map_bytes",
+            extremes_scene="plate",
+            extremes_metric="misclassified_fraction",
+        ),
     )
 }
 
@@ -195,7 +205,7 @@ TECHNIQUES: dict[str, Technique] = {
             pcss.PcssParams,
             pcss.run,
             pcss.LIGHTS,
-            front="soft shadow maps",
+            "soft",
         ),
         Technique(
             "msm",

@@ -36,7 +36,16 @@ from .engine import execute
 from .pcss_filter import DISKS
 from .shadow_map import LIGHTS, ShadowMapParams, build
 
-__all__ = ["LIGHTS", "NAME", "PRESETS", "PcssParams", "light_size_of", "resolved", "run"]
+__all__ = [
+    "LIGHTS",
+    "NAME",
+    "PRESETS",
+    "SOFT_OUTPUTS",
+    "PcssParams",
+    "light_size_of",
+    "resolved",
+    "run",
+]
 
 NAME = "pcss"
 
@@ -46,6 +55,10 @@ PRESETS = {
     "nvidia": (16, 16, "poisson16", 0.0, "none"),
     "hdrp": (24, 16, "fibonacci", 1e-4, "ign"),
 }
+
+#: Outputs scored against the area-light truth (the ``soft`` family's channels), each the
+#: ``visibility`` image.
+SOFT_OUTPUTS = ("soft_visibility", "light_fraction")
 
 #: NVIDIA's sample: ``#define LIGHT_WORLD_SIZE .5`` (Bavoil 2008).
 NVIDIA_LIGHT_WORLD_SIZE = 0.5
@@ -166,4 +179,9 @@ def run(scene, params: PcssParams | None = None, **kwargs):
         k: getattr(used, k)
         for k in ("blocker_samples", "filter_samples", "disk", "rotation", "min_filter_uv")
     } | {"light_size": used.light_size, "light_angle": used.light_angle}
-    return execute(NAME, scene, gbuf, setup, used, _params.as_dict(p), t0)
+    res = execute(NAME, scene, gbuf, setup, used, _params.as_dict(p), t0)
+    # the soft family's channels: PCSS's one estimate is both the irradiance-weighted shadow
+    # factor an engine multiplies and the unoccluded area fraction it approximates
+    for channel in SOFT_OUTPUTS:
+        res.outputs[channel] = res.outputs["visibility"]
+    return res
