@@ -241,3 +241,37 @@ def test_msm_moment_bias_follows_the_format(contact):
     assert res.diagnostics["moment_bias"] == 3e-6 and res.params["moment_bias"] == -1.0
     res = raster_models.run("msm", contact, resolution=64, moment_bias=1e-4)
     assert res.diagnostics["moment_bias"] == 1e-4
+
+
+# ------------------------------------------------------------------ scoring (soft truth)
+def test_soft_scores_closed_form():
+    from raster_oracle.oracle.studies.soft_shadows import soft_scores
+
+    ref = np.array([[0.0, 0.5, 1.0, 0.25]])
+    ref2 = np.array([[0.0, 0.6, 1.0, 0.25]])
+    rec = np.array([[True, True, True, False]])
+    chans = {"light_fraction": ref, "light_fraction_stderr": np.full_like(ref, 0.1)}
+    got = soft_scores(chans, [[0.1, 0.5, 1.0, 0.0]], rec, ref2_ch={"light_fraction": ref2})
+    lf = got["light_fraction"]
+    assert lf["mae"] == pytest.approx(0.1 / 3) and lf["penumbra_mae"] == 0.0
+    assert lf["noise_floor"] == pytest.approx(0.1 / math.sqrt(2) / 3)
+    assert lf["penumbra_pixels"] == 1 and lf["pixels"] == 3
+    assert "soft_visibility" not in got
+    # without a second reference the floor is the mean standard error
+    assert soft_scores(chans, ref, rec)["light_fraction"]["noise_floor"] == pytest.approx(0.1)
+
+
+def test_pcss_is_scored_against_the_area_light_truth(tmp_path):
+    from raster_oracle.oracle.reference.cache import ReferenceCache
+    from raster_oracle.oracle.scoring.technique import score_model
+
+    loaded = scenes.load("soft-contact", width=32, height=18)
+    cache = ReferenceCache(tmp_path)
+    kw = dict(spp=4, seed=0, cache=cache, quiet=True)
+    res = score_model(loaded, "pcss", {"resolution": 256}, **kw)
+    rec = res.record
+    assert rec["channel"] == "soft_visibility"
+    assert 0.0 <= rec["visibility_mae"] < 0.1 and rec["noise_floor"]["visibility_mae"] >= 0
+    lf = score_model(loaded, "pcss", {"resolution": 256}, channel="light_fraction", **kw)
+    assert lf.record["channel"] == "light_fraction"
+    assert lf.record["visibility_mae"] == pytest.approx(rec["visibility_mae"], abs=0.02)

@@ -3,7 +3,7 @@ hardening, and light bleeding of filtered shadow maps.
 
 - :func:`soft_scores`: error of a visibility image against the reference's ``soft_visibility``
   and ``light_fraction`` on receivers (MAE, RMSE, and the same in the reference's penumbra),
-  with the reference's own noise floor (the mean per-pixel standard error of the channel).
+  with the reference's own noise floor (what an exact candidate scores against it).
 - :func:`contact_hardening`: PCSS's penumbra width estimate (its ``penumbra_width`` output)
   against the geometric width at each receiver whose ray to the light's centre meets a
   caster, ``L t / (D - t)`` (``t`` the receiver-caster distance along that ray, ``D`` the
@@ -38,10 +38,15 @@ DISTANCE_BINS = (0.0, 0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
 UMBRA, LEAK = 0.0, 0.1
 
 
-def soft_scores(ref_ch: dict, vis, receivers, channels=("soft_visibility", "light_fraction")):
+def soft_scores(
+    ref_ch: dict, vis, receivers, channels=("soft_visibility", "light_fraction"), ref2_ch=None
+):
     """Per channel: ``mae``, ``rmse``, ``penumbra_mae`` (receivers whose reference value is in
-    (0.02, 0.98)), ``noise_floor`` (mean standard error of the reference on the receivers)
-    and ``pixels``; a channel the reference lacks is skipped."""
+    (0.02, 0.98)), ``pixels``, ``penumbra_pixels`` and the noise floors ``noise_floor`` and
+    ``penumbra_noise_floor``: what an exact candidate scores, ``mean |B - A| / sqrt(2)`` with
+    ``B`` the independently seeded reference ``ref2_ch`` (the scoring's exact surrogate),
+    else the mean standard error of the reference (an upper bound: the truth's standard
+    error has a floor where every sample agreed). A channel the reference lacks is skipped."""
     vis = np.asarray(vis, dtype=np.float64)
     rec = np.asarray(receivers, dtype=bool)
     out = {}
@@ -49,14 +54,18 @@ def soft_scores(ref_ch: dict, vis, receivers, channels=("soft_visibility", "ligh
         if ch not in ref_ch:
             continue
         ref = np.asarray(ref_ch[ch], dtype=np.float64)
-        se = np.asarray(ref_ch.get(f"{ch}_stderr", np.zeros_like(ref)), dtype=np.float64)
-        err = (vis - ref)[rec]
+        if ref2_ch is not None and ch in ref2_ch:
+            noise = np.abs(np.asarray(ref2_ch[ch], dtype=np.float64) - ref) / math.sqrt(2.0)
+        else:
+            noise = np.asarray(ref_ch.get(f"{ch}_stderr", np.zeros_like(ref)), dtype=np.float64)
+        err = np.abs(vis - ref)
         pen = rec & (ref > 0.02) & (ref < 0.98)
         out[ch] = {
-            "mae": float(np.abs(err).mean()) if err.size else 0.0,
-            "rmse": float(np.sqrt(np.mean(err**2))) if err.size else 0.0,
-            "penumbra_mae": float(np.abs(vis - ref)[pen].mean()) if pen.any() else 0.0,
-            "noise_floor": float(se[rec].mean()) if rec.any() else 0.0,
+            "mae": float(err[rec].mean()) if rec.any() else 0.0,
+            "rmse": float(np.sqrt(np.mean(err[rec] ** 2))) if rec.any() else 0.0,
+            "penumbra_mae": float(err[pen].mean()) if pen.any() else 0.0,
+            "noise_floor": float(noise[rec].mean()) if rec.any() else 0.0,
+            "penumbra_noise_floor": float(noise[pen].mean()) if pen.any() else 0.0,
             "pixels": int(rec.sum()),
             "penumbra_pixels": int(pen.sum()),
         }
@@ -165,12 +174,15 @@ RANKED = (
 )
 
 
-def soft_ranking(loaded, ref_ch: dict, *, resolution: int = 2048, run=None, configs=RANKED):
+def soft_ranking(
+    loaded, ref_ch: dict, *, ref2_ch=None, resolution: int = 2048, run=None, configs=RANKED
+):
     """Every configuration of ``configs`` on ``loaded``, scored against the reference's
     ``soft_visibility`` and ``light_fraction`` (:func:`soft_scores`), ranked by the MAE
     against ``light_fraction`` (what PCSS estimates). A neighbour whose MAE differs by less
     than the larger noise floor is marked ``separated: False``. ``run(technique, loaded,
-    **params)``: the model runner (default ``raster_models.run``)."""
+    **params)``: the model runner (default ``raster_models.run``); ``ref2_ch``: the
+    independently seeded reference of the noise floors (:func:`soft_scores`)."""
     from ... import raster_models
     from ..scoring.score import reference_receivers
 
@@ -179,7 +191,7 @@ def soft_ranking(loaded, ref_ch: dict, *, resolution: int = 2048, run=None, conf
     rows = []
     for label, tech, params in configs:
         res = run(tech, loaded, resolution=resolution, **params)
-        scores = soft_scores(ref_ch, res.outputs["visibility"], rec)
+        scores = soft_scores(ref_ch, res.outputs["visibility"], rec, ref2_ch=ref2_ch)
         rows.append(
             {
                 "label": label,
