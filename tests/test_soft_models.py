@@ -275,3 +275,18 @@ def test_pcss_is_scored_against_the_area_light_truth(tmp_path):
     lf = score_model(loaded, "pcss", {"resolution": 256}, channel="light_fraction", **kw)
     assert lf.record["channel"] == "light_fraction"
     assert lf.record["visibility_mae"] == pytest.approx(rec["visibility_mae"], abs=0.02)
+
+
+def test_contact_hardening_and_its_claim():
+    from raster_oracle.oracle.studies.claims.run import NOT, PARTLY, REPRODUCED, run_claims
+
+    data = run_claims(None, only=["pcss-penumbra-error-grows"], size=(64, 36))
+    (row,) = data["claims"]
+    assert row["verdict"] in (REPRODUCED, PARTLY, NOT), row.get("note")
+    assert {c["preset"] for c in row["cases"]} == {"nvidia", "hdrp"}
+    for c in row["cases"]:
+        assert c["lo"] < c["hi"] and c["pixels"] >= 10
+        assert c["true_width"] > 0 and c["abs_error"] >= 0 and 0 <= c["missed"] <= 1
+    # under the flat plate (2-4 m from the ground) the estimate is the geometry's
+    far = [c for c in row["cases"] if c["lo"] == 2.0]
+    assert far and all(c["rel_error"] < 0.1 for c in far)
