@@ -22,11 +22,18 @@ import math
 import numpy as np
 
 __all__ = [
+    "BLEED_BLURS",
+    "BLEED_FILTERS",
+    "BLEED_SCENES",
     "DISTANCE_BINS",
+    "MAP_RESOLUTION",
     "RANKED",
+    "SCHEMA",
     "caster_distance",
     "contact_hardening",
+    "run_soft_shadows",
     "soft_ranking",
+    "soft_report",
     "soft_scores",
     "umbra_bleeding",
 ]
@@ -208,3 +215,109 @@ def soft_ranking(
         floor = max(fa.get("noise_floor", 0.0), fb.get("noise_floor", 0.0))
         b["separated"] = abs(fb.get("mae", 0.0) - fa.get("mae", 0.0)) >= floor
     return {"ranked_by": f"{key} mae", "rows": rows}
+
+
+#: Moment filters of the bleeding table: (label, technique, parameters).
+BLEED_FILTERS = (
+    ("VSM", "shadow-map", {"filter": "vsm"}),
+    ("EVSM2", "shadow-map", {"filter": "evsm2"}),
+    ("EVSM4", "shadow-map", {"filter": "evsm4"}),
+    ("MSM 16-bit", "msm", {}),
+    ("MSM float32", "msm", {"msm_format": "float32"}),
+)
+#: Scenes and moment blurs of the bleeding table.
+BLEED_SCENES = ("stacked-casters", "plate")
+BLEED_BLURS = (1, 5, 9)
+#: Shadow-map resolution of every model run of the study.
+MAP_RESOLUTION = 2048
+
+SCHEMA = "raster-oracle.studies.soft-shadows/1"
+
+
+def _bleeding(ctx, *, size) -> dict:
+    from ... import metrics as M
+    from ... import raster_models, scenes
+    from ..scoring.score import reference_receivers
+
+    rows, floors = [], {}
+    for name in BLEED_SCENES:
+        loaded = scenes.load(name, width=size[0], height=size[1])
+        ref = ctx(loaded, ("visibility", "id", "normal", "position"), 0)
+        ref2 = ctx(loaded, ("visibility", "id", "normal", "position"), 1)
+        rec = reference_receivers(ref, loaded.light)
+        floors[name] = float(np.abs(ref["visibility"] - ref2["visibility"])[rec].mean()) / (
+            math.sqrt(2.0)
+        )
+        for blur in BLEED_BLURS:
+            for label, tech, params in BLEED_FILTERS:
+                res = raster_models.run(
+                    tech, loaded, resolution=MAP_RESOLUTION, blur_size=blur, **params
+                )
+                vis = np.clip(np.asarray(res.outputs["visibility"], np.float32), 0.0, 1.0)
+                sm = M.shadow_metrics(ref["visibility"], vis, receivers=rec)
+                rows.append(
+                    {
+                        "scene": name,
+                        "blur": blur,
+                        "filter": label,
+                        **umbra_bleeding(ref["visibility"], vis, rec),
+                        "misclassified": sm["misclassified_fraction"],
+                        "visibility_mae": sm["visibility_mae"],
+                        "bytes": res.cost["shadow_map_bytes"],
+                    }
+                )
+    return {"scenes": list(BLEED_SCENES), "rows": rows, "visibility_mae_floor": floors}
+
+
+def soft_report(*, cache=None, quick: bool = True, quiet: bool = True, size=None) -> dict:
+    """The study's record: PCSS against fixed-width PCF on ``soft-contact`` (the area-light
+    truth), PCSS's contact hardening there, and the light bleeding of VSM, EVSM and MSM on
+    ``stacked-casters`` and the plate. ``quick``: 160x90 px at 16 spp (the main job),
+    otherwise 320x180 at 32; ``size`` overrides the film size (tests)."""
+    from ... import raster_models, scenes
+    from ..reference.render import ReferenceSettings, render_reference
+    from ..reference.store import get_reference
+
+    w, h, spp = (160, 90, 16) if quick else (320, 180, 32)
+    if size is not None:
+        w, h = (int(v) for v in size)
+
+    def reference(loaded, groups, seed):
+        settings = ReferenceSettings(spp=spp, seed=seed, channels=tuple(groups)).validate()
+        if cache is None:
+            return render_reference(loaded, settings, quiet=True)[0]
+        return get_reference(loaded, settings, cache=cache, quiet=quiet).channels()
+
+    contact = scenes.load("soft-contact", width=w, height=h)
+    groups = ("soft", "edge", "id", "normal", "position")
+    ref, ref2 = reference(contact, groups, 0), reference(contact, groups, 1)
+    ranking = soft_ranking(contact, ref, ref2_ch=ref2, resolution=MAP_RESOLUTION)
+    hardening = {
+        preset: contact_hardening(
+            contact, raster_models.run("pcss", contact, resolution=MAP_RESOLUTION, preset=preset)
+        )
+        for preset in ("nvidia", "hdrp")
+    }
+    return {
+        "schema": SCHEMA,
+        "quick": quick,
+        "resolution": [w, h],
+        "reference_spp": spp,
+        "map_resolution": MAP_RESOLUTION,
+        "ranking": {"scene": "soft-contact", **ranking},
+        "contact_hardening": {"scene": "soft-contact", "presets": hardening},
+        "bleeding": _bleeding(reference, size=(w, h)),
+    }
+
+
+def run_soft_shadows(out, *, cache=None, quiet: bool = True, quick: bool = True, size=None):
+    """:func:`soft_report`, written as ``out/soft_shadows.json`` and ``.html`` when ``out``
+    is given; returns the record."""
+    from ...reports.sections import soft_shadows_section
+    from .output import write_study
+
+    data = soft_report(cache=cache, quick=quick, quiet=quiet, size=size)
+    if out is not None:
+        section = soft_shadows_section(data)
+        write_study(out, name="soft_shadows", data=data, section=section, title="Soft shadows")
+    return data
