@@ -290,3 +290,54 @@ def test_contact_hardening_and_its_claim():
     # under the flat plate (2-4 m from the ground) the estimate is the geometry's
     far = [c for c in row["cases"] if c["lo"] == 2.0]
     assert far and all(c["rel_error"] < 0.1 for c in far)
+
+
+def test_soft_shadows_section_renders_its_three_tables():
+    from raster_oracle.reports.sections import render_section, soft_shadows_section
+
+    score = {"mae": 0.01, "penumbra_mae": 0.1, "noise_floor": 0.001, "penumbra_noise_floor": 0.01}
+    row = {"lookups": 32.0, "light_fraction": score, "soft_visibility": score}
+    bleed = {"mean": 0.02, "leak_fraction": 0.05, "misclassified": 0.001}
+    data = {
+        "resolution": [32, 18],
+        "reference_spp": 4,
+        "map_resolution": 2048,
+        "ranking": {
+            "scene": "soft-contact",
+            "ranked_by": "light_fraction mae",
+            "rows": [{"label": "pcss <a>", **row}, {"label": "pcf 5x5", "separated": True, **row}],
+        },
+        "contact_hardening": {
+            "presets": {
+                "nvidia": {
+                    "bins": [
+                        {"lo": 0.0, "hi": 0.1, "pixels": 0},
+                        {
+                            "lo": 2.0,
+                            "hi": 4.0,
+                            "pixels": 12,
+                            "true_width": 0.6,
+                            "abs_error": 0.02,
+                            "abs_error_stderr": 0.004,
+                            "rel_error": 0.03,
+                            "missed": 0.0,
+                        },
+                    ]
+                }
+            }
+        },
+        "bleeding": {
+            "visibility_mae_floor": {"plate": 0.001},
+            "rows": [
+                {"scene": "plate", "blur": b, "filter": f, **bleed}
+                for b in (1, 5)
+                for f in ("VSM", "MSM 16-bit")
+            ],
+        },
+    }
+    section = soft_shadows_section(data)
+    assert section["filters"] == ["VSM", "MSM 16-bit"] and len(section["bleeding"]) == 2
+    html = render_section(section)
+    assert "pcss &lt;a&gt;" in html and "pcss <a>" not in html  # user text is escaped
+    assert "Contact hardening" in html and "Light bleeding of moment shadow maps" in html
+    assert html.count("<tr>") >= 2 + 1 + 1 + 2
