@@ -103,7 +103,7 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert [(c["id"], c["quick"], c["out"]) for c in calls] == [
         ("claims", True, out),
         ("extremes", True, out),
-        ("soft_shadows", True, None),
+        ("soft_shadows", True, out),
     ]
     html = (out / "report.html").read_text()
     assert "Claims of the seed documents" in html and "Numerical extremes" in html
@@ -161,8 +161,11 @@ def test_report_json_holds_every_section_record(tmp_path, sections):
         "extremes",
         "aa-memory",
         "aa-ranking",
+        "soft-shadows",
     ]
     assert not any(s["failed"] for s in report["sections"])
+    soft = found["soft_shadows"]["data"]
+    assert soft == json.loads((out / "soft_shadows.json").read_text())
     # each holds its study's record, as the study wrote it beside the report
     claims = found["claims"]["data"]
     assert claims == json.loads((out / "claims.json").read_text())
@@ -199,6 +202,7 @@ def test_a_failing_section_is_in_the_report_and_the_exit_code(tmp_path, capsys, 
         "extremes",
         "aa-memory",
         "aa-ranking",
+        "soft-shadows",
     ]
 
 

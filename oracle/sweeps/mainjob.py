@@ -61,7 +61,7 @@ def _extremes(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
 
 
 def _soft_shadows(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
-    return run_soft_shadows(None, cache=cache, quiet=quiet, quick=quick)
+    return run_soft_shadows(out, cache=cache, quiet=quiet, quick=quick)
 
 
 def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
