@@ -413,18 +413,16 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
 _AREA_TOLERANCE = 1e-4
 
 
-def _area_light(mi, emitter, radiance, name: str) -> Light:
+def _area_light(mi, emitter, radiance, name: str) -> Light | None:
     """An area light (:mod:`scenes.lights`) from a Mitsuba ``area`` emitter on a rectangle,
-    disk or sphere; :class:`SceneError` for any other shape, a sheared rectangle, an
-    elliptical disk or a non-uniformly scaled sphere."""
+    disk or sphere; None on any other shape (not a usable light, as other emitters);
+    :class:`SceneError` for a sheared rectangle, an elliptical disk or a non-uniformly scaled
+    sphere."""
     shape = emitter.get_shape()
     name = shape.id() or name  # the shape's id names the light (its emitter has none of its own)
     kind = shape.class_name().lower()
     if kind not in AREA_SHAPES:
-        raise SceneError(
-            f"area light {name!r} is on a {shape.class_name()} shape; only "
-            f"{', '.join(AREA_SHAPES)} area lights are supported"
-        )
+        return None
     m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
     u, v, w, centre = m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3]
     lu, lv, lw = (float(np.linalg.norm(a)) for a in (u, v, w))
@@ -499,7 +497,8 @@ def load(
         wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
-    light : index of the light to use among the scene's punctual lights.
+    light : index of the light to use among the scene's lights (punctual ones first, then
+        area lights, each in the scene's order).
     camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
         frame of it to view (frame 0 is the scene's own camera).
     light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
@@ -630,6 +629,12 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
     )
 
 
+def _emitter_kind(emitter) -> str:
+    """An emitter's class for messages (an area light with its shape's)."""
+    shape = emitter.get_shape() if emitter.class_name() == "AreaLight" else None
+    return emitter.class_name() + (f" on a {shape.class_name()}" if shape is not None else "")
+
+
 def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
     """The scene's usable lights (glTF: with the KHR_lights_punctual attenuation);
     :class:`SceneError` when there is none or ``light`` is out of range."""
@@ -641,8 +646,11 @@ def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
             lights.append(lt)
     if gl is not None:
         lights = gl.lights(lights)
+    # area lights after the punctual ones: a scene's punctual lights keep the indices they
+    # had before area lights were read
+    lights = [lt for lt in lights if not lt.is_area] + [lt for lt in lights if lt.is_area]
     if not lights:
-        kinds = ", ".join(e.class_name() for e in emitters) or "none"
+        kinds = ", ".join(_emitter_kind(e) for e in emitters) or "none"
         raise SceneError(
             f"scene {name!r} has no usable light (directional, point, spot or an area light "
             f"on a rectangle, disk or sphere); found: {kinds}"

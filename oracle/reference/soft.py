@@ -50,6 +50,9 @@ LIGHT_SAMPLES = LIGHT_GRID * LIGHT_GRID
 LIGHT_SALT = 0x5BD1E995
 #: ... and the per-camera-sample grid shift's (:func:`_unit_square`).
 SHIFT_SALT = 0x27D4EB2F
+#: Sphere-light rays whose chord through the sphere is shorter than this many radii graze it:
+#: a blocked one is traced again ignoring the light (:func:`_sphere_samples`).
+GRAZING_CHORD = 0.2
 #: TEA rounds of the light samples' hash (as the film jitter's, :data:`render.JITTER_ROUNDS`).
 LIGHT_ROUNDS = 6
 
@@ -88,13 +91,15 @@ def _planar_samples(mi, dr, light, p, u, v):
     wl = to / dist
     nl = [float(c) for c in light.direction]
     cos_e = -(wl.x * nl[0] + wl.y * nl[1] + wl.z * nl[2])
-    return wl, dist, dr.maximum(cos_e, 0.0) / (dist * dist), light.surface_area
+    return wl, dist, dr.maximum(cos_e, 0.0) / (dist * dist), light.surface_area, None
 
 
 def _sphere_samples(mi, dr, light, p, u, v):
     """Sphere: directions uniform in the cone the sphere subtends from ``p``, the distance to
-    its near surface, weight 1 (uniform solid angle) and the measure (the cone's solid angle;
-    0 inside the sphere)."""
+    its near surface, weight 1 (uniform solid angle), the measure (the cone's solid angle;
+    0 inside the sphere) and the rays grazing it (chord half-length under
+    :data:`GRAZING_CHORD` radii), whose end points' rounding error may exceed the shadow
+    ray's margin."""
     c = mi.Point3f(*[float(t) for t in light.position])
     r = float(light.radius)
     to = c - p
@@ -110,9 +115,22 @@ def _sphere_samples(mi, dr, light, p, u, v):
     phi = (2.0 * math.pi) * v
     t1, t2 = mi.coordinate_system(axis)
     wl = axis * cos_t + (t1 * dr.cos(phi) + t2 * dr.sin(phi)) * sin_t
-    dist = d * cos_t - dr.sqrt(dr.maximum(r * r - d2 * sin_t * sin_t, 0.0))
+    half_chord = dr.sqrt(dr.maximum(r * r - d2 * sin_t * sin_t, 0.0))
+    # the near root without cancellation: t_near * t_far = d^2 - r^2
+    dist = dr.maximum(d2 - r * r, 0.0) / (d * cos_t + half_chord)
     measure = (2.0 * math.pi) * one_minus
-    return wl, dist, dr.select(outside, 1.0, 0.0), measure
+    grazing = half_chord < GRAZING_CHORD * r
+    return wl, dist, dr.select(outside, 1.0, 0.0), measure, grazing
+
+
+def _light_shape(loaded):
+    """The Mitsuba shape of ``loaded``'s area light (named by its id, :mod:`scenes.loader`),
+    or None."""
+    light = loaded.light
+    for sh in loaded.mi_scene.shapes():
+        if sh.is_emitter() and sh.id() == light.name:
+            return sh
+    return None
 
 
 def _reduce(dr, values):
@@ -145,10 +163,21 @@ def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> di
     receiver = g(res["valid"]) & ~shape.is_emitter()
     u, v = _unit_square(mi, dr, g(seed_key), g(mi.UInt32(sample)), k)
     sampler = _sphere_samples if light.area == "sphere" else _planar_samples
-    wl, dist, w, measure = sampler(mi, dr, light, p, u, v)
+    wl, dist, w, measure, grazing = sampler(mi, dr, light, p, u, v)
     cos_r = dr.dot(n, wl)
     reach = receiver & (cos_r > 0.0) & (w > 0.0)
-    blocked = occluded_segment_dr(loaded.mi_scene, p, ng, shape, wl, dist, reach)
+    # a sphere's grazing rays may meet the sphere before their end: checked again
+    blocked = occluded_segment_dr(
+        loaded.mi_scene,
+        p,
+        ng,
+        shape,
+        wl,
+        dist,
+        reach,
+        light_shape=_light_shape(loaded) if grazing is not None else None,
+        recheck=grazing,
+    )
     lit = reach & ~blocked
     weight = dr.select(reach, cos_r * w, 0.0)
     num = _reduce(dr, dr.select(lit, weight, 0.0))
@@ -162,19 +191,41 @@ def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> di
         "light_rays": _reduce(dr, dr.select(reach, 1.0, 0.0)),
     }
     if color:
-        if loaded.pbr is not None:
-            raise ValueError("area lights are not supported on glTF scenes")
-        scale = w * (measure / (LIGHT_SAMPLES * light.proxy_area))
-        rgb = shade(
-            albedo=g(res["albedo"]),
-            normal=n,
-            to_light=wl,
-            to_eye=g(res["to_eye"]),
-            irradiance_scale=scale,
-            visibility=dr.select(lit, 1.0, 0.0),
-            light=light,
-            specular=loaded.specular,
-        )
-        emitted = si.emitter(loaded.mi_scene).eval(si, valid)
-        out["color"] = dr.select(valid, _reduce(dr, rgb) + emitted, 0.0)
+        out["color"] = _colour(loaded, res, g, lit, weight, measure, (n, wl, w))
     return out
+
+
+def _colour(loaded, res: dict, g, lit, weight, measure, geometry):
+    """The area-lit colour of each camera sample: the shading model of
+    :mod:`scenes.shading.phong` over its light samples, plus the radiance of emitter surfaces
+    it sees. A diffuse model (no specular lobe) has one BRDF value per camera sample, so the
+    colour is ``albedo / pi x radiance x`` the lit weighted sum (a third of the cost of
+    shading every light sample)."""
+    mi = backend.mitsuba()
+    import drjit as dr
+
+    light = loaded.light
+    if loaded.pbr is not None:
+        raise ValueError("area lights are not supported on glTF scenes")
+    si, valid = res["si"], res["valid"]
+    if loaded.specular.ks > 0.0:
+        n, wl, w = geometry
+        rgb = _reduce(
+            dr,
+            shade(
+                albedo=g(res["albedo"]),
+                normal=n,
+                to_light=wl,
+                to_eye=g(res["to_eye"]),
+                irradiance_scale=w * (measure / (LIGHT_SAMPLES * light.proxy_area)),
+                visibility=dr.select(lit, 1.0, 0.0),
+                light=light,
+                specular=loaded.specular,
+            ),
+        )
+    else:
+        lit_sum = _reduce(dr, dr.select(lit, weight * measure, 0.0))
+        scale = lit_sum * (1.0 / (math.pi * LIGHT_SAMPLES))
+        rgb = res["albedo"] * mi.Color3f(*light.radiance) * scale
+    emitted = si.emitter(loaded.mi_scene).eval(si, valid)
+    return dr.select(valid, rgb + emitted, 0.0)

@@ -16,6 +16,10 @@ as ``spp^-3/4``, faster than the ``spp^-1/2`` of independent samples. The report
 error uses the sample variance as if samples were independent, so it falls as ``spp^-1/2``:
 it bounds the true error from above, increasingly conservatively.
 
+Under an area light the ``soft`` group is rendered and compared as well (``soft_visibility``
+and ``light_fraction``: :mod:`oracle.reference.soft`): its cost per camera sample is 16 shadow
+rays, and its error lives in penumbrae, smooth functions sampled by stratified light samples.
+
 References
 ----------
 .. [1] D. P. Mitchell, "Consequences of Stratified Sampling in Graphics", SIGGRAPH 1996,
@@ -40,6 +44,7 @@ __all__ = [
     "CONVERGE_CHANNELS",
     "ConvergeError",
     "JITTER_EDGE_SLOPE",
+    "SOFT_CHANNELS",
     "fit_power_law",
     "run_converge",
     "spp_for_target",
@@ -48,6 +53,8 @@ __all__ = [
 
 #: Channels rendered and compared.
 CONVERGE_CHANNELS = ("visibility", "coverage")
+#: ... and, under an area light, these too (the ``soft`` group).
+SOFT_CHANNELS = ("soft_visibility", "light_fraction")
 #: Slope of the RMS error of jittered stratified sampling where the error lives on straight
 #: edges: variance O(N^-1.5) (Mitchell 1996), so RMS error O(N^-0.75).
 JITTER_EDGE_SLOPE = -0.75
@@ -106,9 +113,15 @@ def spp_for_target(spp, error, target: float) -> int | None:
     return best
 
 
+def _groups(loaded) -> tuple[str, ...]:
+    """The channel groups rendered: :data:`CONVERGE_CHANNELS`, plus ``soft`` under an area
+    light."""
+    return CONVERGE_CHANNELS + (("soft",) if loaded.light.is_area else ())
+
+
 def _errors(ch: dict, truth: dict) -> dict:
     out = {}
-    for c in CONVERGE_CHANNELS:
+    for c in CONVERGE_CHANNELS + tuple(c for c in SOFT_CHANNELS if c in truth):
         d = ch[c].astype(np.float64) - truth[c].astype(np.float64)
         se = ch[f"{c}_stderr"].astype(np.float64)
         both = np.sqrt(se * se + truth[f"{c}_stderr"].astype(np.float64) ** 2)
@@ -141,7 +154,7 @@ def _render_ladder(loaded, ladder_spp: list[int], truth: dict, *, seed: int, say
 
     ladder = []
     for spp in ladder_spp:
-        settings = ReferenceSettings(spp=spp, seed=seed, channels=CONVERGE_CHANNELS)
+        settings = ReferenceSettings(spp=spp, seed=seed, channels=_groups(loaded))
         ch, st = render_reference(loaded, settings, quiet=True)
         rec = {
             "spp": spp,
@@ -168,7 +181,7 @@ def _render_adaptive(loaded, truth: dict, *, target: float, max_spp: int, seed: 
         target_stderr=target,
         max_spp=max_spp,
         seed=seed,
-        channels=CONVERGE_CHANNELS,
+        channels=_groups(loaded),
     )
     ch, st = render_reference(loaded, settings, quiet=True)
     npix = loaded.width * loaded.height
@@ -197,7 +210,8 @@ def _fit_ladder(ladder: list[dict], truth_spp: int) -> dict:
             "reported_stderr_rms": fit_power_law(spp, [r[c]["stderr_rms"] for r in use]),
             "spp_range": [use[0]["spp"], use[-1]["spp"]] if use else None,
         }
-        for c in CONVERGE_CHANNELS
+        for c in CONVERGE_CHANNELS + SOFT_CHANNELS
+        if c in ladder[0]
     }
 
 
@@ -270,7 +284,7 @@ def run_converge(
     say = echo or (lambda *_: None)
     t0 = time.perf_counter()
     truth_settings = ReferenceSettings(
-        spp=truth_spp, seed=seed + TRUTH_SEED_OFFSET, channels=CONVERGE_CHANNELS
+        spp=truth_spp, seed=seed + TRUTH_SEED_OFFSET, channels=_groups(loaded)
     )
     truth, tstats = render_reference(loaded, truth_settings, quiet=quiet)
     say(f"converge {loaded.name}: truth {truth_spp} spp ({tstats['wall_seconds']:.1f} s)")
@@ -286,7 +300,7 @@ def run_converge(
         "schema": "raster-oracle.studies.converge/1",
         "scene": loaded.provenance(),
         "resolution": [loaded.width, loaded.height],
-        "channels": list(CONVERGE_CHANNELS),
+        "channels": list(CONVERGE_CHANNELS) + [c for c in SOFT_CHANNELS if loaded.light.is_area],
         "seed": seed,
         "truth": {
             "spp": truth_spp,

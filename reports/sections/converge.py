@@ -30,6 +30,11 @@ def _series(data: Mapping) -> list[dict]:
         {"name": "visibility true max", "x": spp, "y": [v["max"] for v in vis]},
         {"name": "coverage true RMS", "x": spp, "y": [r["coverage"]["rms"] for r in ladder]},
     ]
+    for c, short in (("soft_visibility", "soft vis"), ("light_fraction", "light fraction")):
+        if c in ladder[0]:  # an area light's soft channels
+            series.append(
+                {"name": f"{short} true RMS", "x": spp, "y": [r[c]["rms"] for r in ladder]}
+            )
     adaptive = data.get("adaptive")
     if adaptive:
         series.append(
@@ -55,6 +60,7 @@ def _series(data: Mapping) -> list[dict]:
 def _rows(data: Mapping) -> list[dict]:
     """The ladder table: one row per spp, then adaptive sampling."""
     keys = ("visibility", "coverage", "rays", "seconds")
+    keys += tuple(c for c in ("soft_visibility", "light_fraction") if c in data["ladder"][0])
     rows = [{"label": str(r["spp"]), **{k: r[k] for k in keys}} for r in data["ladder"]]
     adaptive = data.get("adaptive")
     if adaptive:

@@ -168,15 +168,21 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     return blocked
 
 
-def occluded_segment_dr(scene, p, ng, shape, wl, dist, active):
+def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None, recheck=None):
     """True where the segment from surface points ``p`` (geometric normal ``ng``, hit shape
     ``shape``) along unit directions ``wl`` to the points ``p + wl * dist`` (on an area
     light) is blocked (Dr.Jit).
 
     The rays of :func:`occluded_from_dr` towards arbitrary end points: the same origin offset
     and the same skipping of spurious hits on the ray's own analytic shape; each ray ends just
-    short of its end point (measured from its offset origin), so the light's own surface
-    never blocks it.
+    short of its end point (measured from its offset origin). With ``light_shape`` (the
+    light's own Mitsuba shape), the blocked rays of ``recheck`` (all rays when None) find
+    their closest hit again and a hit on the light ends them unblocked: near a sphere light's
+    silhouette the end point's rounding error exceeds any margin (the ray grazes the sphere),
+    so a margin alone would let the light shadow itself. The rays that need closest hits run
+    in a symbolic loop (one intersection for most, a second after a spurious hit), not
+    :data:`SELF_HIT_ROUNDS` unrolled intersections of every ray (which tripled the cost of an
+    area light's samples).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -185,6 +191,7 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active):
     offset = dr.select(mesh, SHADOW_OFFSET_MESH, SHADOW_OFFSET)
     target = p + wl * dist
     side = dr.select(dr.dot(ng, wl) >= 0.0, 1.0, -1.0)
+    outward = ~mesh & (dr.dot(ng, wl) > 0.0)
 
     def ray_from(q):
         origin = q + ng * (side * _normal_scale(q, ng) * offset)
@@ -192,18 +199,30 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active):
         length = dr.norm(to)
         return mi.Ray3f(origin, to / length, length * (1.0 - 1e-5), 0.0, mi.Color0f())
 
-    ray = ray_from(p)
-    if not _has_analytic_shapes(scene):
-        return scene.ray_test(ray, active)
-    pending = active & ~mesh & (dr.dot(ng, wl) > 0.0)
-    blocked = scene.ray_test(ray, active & ~pending)
-    for _ in range(SELF_HIT_ROUNDS):
-        si = scene.ray_intersect(ray, mi.RayFlags.Minimal, False, pending)
+    if light_shape is None and not _has_analytic_shapes(scene):
+        return scene.ray_test(ray_from(p), active)
+    pending = active & outward
+    blocked = scene.ray_test(ray_from(p), active & ~pending)
+    if light_shape is not None:  # blocked, perhaps by the light itself: look again
+        light_ptr = mi.ShapePtr(light_shape)
+        again = blocked if recheck is None else blocked & recheck
+        blocked &= ~again
+        pending |= again
+
+    def body(q, blocked, pending, rounds):
+        si = scene.ray_intersect(ray_from(q), mi.RayFlags.Minimal, False, pending)
         hit = pending & si.is_valid()
-        own = hit & (si.shape == shape)
-        blocked |= hit & ~own
-        pending = own
-        ray = ray_from(dr.select(own, si.p, p))
+        if light_shape is not None:
+            hit &= si.shape != light_ptr
+        own = hit & (si.shape == shape) & outward  # a spurious hit on its own analytic shape
+        return dr.select(own, si.p, q), blocked | (hit & ~own), own, rounds + 1
+
+    _, blocked, _, _ = dr.while_loop(
+        state=(mi.Point3f(p), blocked, pending, dr.zeros(mi.UInt32, dr.width(pending))),
+        cond=lambda q, blocked, pending, rounds: pending & (rounds < SELF_HIT_ROUNDS),
+        body=body,
+        labels=("q", "blocked", "pending", "rounds"),
+    )
     return blocked
 
 

@@ -83,8 +83,7 @@ BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in moving_scenes.MOVING_SCENES.items()}
 )
 
-# Soft-shadow scenes (soft-contact: an area light; stacked-casters): see
-# scenes.catalogue.soft_scenes.
+# Soft-shadow scenes (soft-contact: an area light; stacked-casters): see .soft_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
 )

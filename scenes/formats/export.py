@@ -7,7 +7,8 @@
 - ``camera.json``: world-to-view and projection matrices in the OpenGL and Direct3D
   conventions, fov, resolution, near/far and the pixel-centre convention, and ``sequence``:
   the path, frame and object transforms this export was made for,
-- ``lights.json``: every usable light with its radiometric quantity,
+- ``lights.json``: every usable light with its radiometric quantity (an area light with its
+  shape, size, orientation and radiance: :meth:`scenes.lights.Light.area_json`),
 - ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
   (``raster-oracle reference out/scene.xml``) and compared with the original,
@@ -35,6 +36,7 @@ import numpy as np
 
 from .. import backend
 from ..catalogue import meshes as _meshes
+from ..lights import AREA_SHAPES
 
 __all__ = ["EXPORT_SCENE_FILES", "export", "export_scene_file", "shape_mesh"]
 
@@ -123,7 +125,29 @@ def _floats(values) -> str:
     return " ".join(repr(float(v)) for v in np.ravel(values))
 
 
-def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
+def _area_light_xml(lt, i: int, albedo) -> str:
+    """A Mitsuba shape with an ``area`` emitter for area light ``lt`` (:mod:`scenes.lights`):
+    a rectangle or disk whose ``to_world`` columns are its half axes, unit normal and centre,
+    or a sphere."""
+    bsdf = f'<bsdf type="diffuse"><rgb name="reflectance" value="{_floats(albedo)}"/></bsdf>'
+    radiance = _floats(lt.radiance)
+    emitter = f'<emitter type="area"><rgb name="radiance" value="{radiance}"/></emitter>'
+    if lt.area == "sphere":
+        geometry = (
+            f'<point name="center" value="{_floats(lt.position)}"/>'
+            f'<float name="radius" value="{float(lt.radius)!r}"/>'
+        )
+    else:
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1] = lt.axes
+        m[:3, 2], m[:3, 3] = lt.direction, lt.position
+        geometry = f'<transform name="to_world"><matrix value="{_floats(m)}"/></transform>'
+    return f'  <shape type="{lt.area}" id="light_{i}">{geometry}{bsdf}{emitter}</shape>'
+
+
+def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]], area_shapes=()) -> str:
+    """The export's ``scene.xml``; ``area_shapes``: names of the shapes that carry an area
+    light, written with their emitter instead of as PLY meshes."""
     cam = loaded.camera
     lines = ['<scene version="3.0.0">']
     kind = cam.kind
@@ -142,9 +166,12 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
     lines.append('      <rfilter type="box"/>')
     lines.append('      <string name="component_format" value="float32"/>')
     lines.append("    </film>\n  </sensor>")
+    albedos = {name: albedo for name, _, albedo in shapes}
     for i, lt in enumerate(loaded.lights):
         rgb = _floats(lt.color)
-        if lt.kind == "directional":
+        if lt.is_area:
+            lines.append(_area_light_xml(lt, i, albedos.get(lt.name, [0.0, 0.0, 0.0])))
+        elif lt.kind == "directional":
             lines.append(
                 f'  <emitter type="directional" id="light_{i}">'
                 f'<vector name="direction" value="{_floats(lt.direction)}"/>'
@@ -169,6 +196,8 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]]) -> str:
                 f'<float name="beam_width" value="{lt.beam_width!r}"/></emitter>'
             )
     for name, rel, albedo in shapes:
+        if name in area_shapes:
+            continue
         lines.append(
             f'  <shape type="ply" id={quoteattr(name)}>'
             f'<string name="filename" value={quoteattr(rel)}/>'
@@ -229,7 +258,7 @@ def export(loaded, out_dir: str | Path) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     try:
         (tmp / "meshes").mkdir()
-        shapes, summary = [], {"shapes": {}}
+        shapes, summary, area_shapes = [], {"shapes": {}}, set()
         for idx, sh in enumerate(loaded.mi_scene.shapes()):
             name = loaded.shape_names[idx] or f"shape_{idx}"
             safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
@@ -245,6 +274,9 @@ def export(loaded, out_dir: str | Path) -> dict:
                 "id": idx,
                 "source_type": sh.class_name(),
             }
+            if sh.is_emitter() and sh.class_name().lower() in AREA_SHAPES:
+                summary["shapes"][name]["area_light"] = True  # lights.json describes it
+                area_shapes.add(name)
         camera = loaded.camera.to_json()
         # the frame of the sequence this export was made for (engines render the same frame)
         camera["sequence"] = _sequence(loaded)
@@ -269,7 +301,7 @@ def export(loaded, out_dir: str | Path) -> dict:
             materials = materials_record(loaded, summary["shapes"])
             (tmp / "scene.glb").write_bytes(scene_glb(loaded))
         else:
-            (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes))
+            (tmp / "scene.xml").write_text(_scene_xml(loaded, shapes, area_shapes))
         (tmp / "materials.json").write_text(json.dumps(materials, indent=2))
         _write_export_record(tmp, loaded)
         summary["scene"] = loaded.provenance()
