@@ -122,7 +122,9 @@ def shadow_ray_dr(light, p, ng, wl, offset=SHADOW_OFFSET):
         return mi.Ray3f(origin, wl)
     to = mi.Point3f(*[float(c) for c in light.position]) - origin
     dist = dr.norm(to)
-    return mi.Ray3f(origin, to / dist, dist * (1.0 - 1e-5), 0.0, mi.Color0f())
+    # a sphere light's centre lies inside it: the ray stops at its surface (shadow_end)
+    end = dist - light.shadow_end if light.shadow_end else dist
+    return mi.Ray3f(origin, to / dist, end * (1.0 - 1e-5), 0.0, mi.Color0f())
 
 
 #: Rounds of "skip a spurious hit on the ray's own analytic shape" (one is enough in practice:
