@@ -27,6 +27,8 @@ __all__ = [
     "BLEED_SCENES",
     "DISTANCE_BINS",
     "MAP_RESOLUTION",
+    "QUICK_BLEED_BLURS",
+    "QUICK_MAP_RESOLUTION",
     "RANKED",
     "SCHEMA",
     "caster_distance",
@@ -230,11 +232,14 @@ BLEED_SCENES = ("stacked-casters", "plate")
 BLEED_BLURS = (1, 5, 9)
 #: Shadow-map resolution of every model run of the study.
 MAP_RESOLUTION = 2048
+#: The quick form's (the main job's: about a minute on 2 loaded cores): smaller maps, fewer
+#: blurs.
+QUICK_MAP_RESOLUTION, QUICK_BLEED_BLURS = 1024, (1, 5)
 
 SCHEMA = "raster-oracle.studies.soft-shadows/1"
 
 
-def _bleeding(ctx, *, size) -> dict:
+def _bleeding(ctx, *, size, resolution: int, blurs) -> dict:
     from ... import metrics as M
     from ... import raster_models, scenes
     from ..scoring.score import reference_receivers
@@ -248,10 +253,10 @@ def _bleeding(ctx, *, size) -> dict:
         floors[name] = float(np.abs(ref["visibility"] - ref2["visibility"])[rec].mean()) / (
             math.sqrt(2.0)
         )
-        for blur in BLEED_BLURS:
+        for blur in blurs:
             for label, tech, params in BLEED_FILTERS:
                 res = raster_models.run(
-                    tech, loaded, resolution=MAP_RESOLUTION, blur_size=blur, **params
+                    tech, loaded, resolution=resolution, blur_size=blur, **params
                 )
                 vis = np.clip(np.asarray(res.outputs["visibility"], np.float32), 0.0, 1.0)
                 sm = M.shadow_metrics(ref["visibility"], vis, receivers=rec)
@@ -272,13 +277,16 @@ def _bleeding(ctx, *, size) -> dict:
 def soft_report(*, cache=None, quick: bool = True, quiet: bool = True, size=None) -> dict:
     """The study's record: PCSS against fixed-width PCF on ``soft-contact`` (the area-light
     truth), PCSS's contact hardening there, and the light bleeding of VSM, EVSM and MSM on
-    ``stacked-casters`` and the plate. ``quick``: 160x90 px at 16 spp (the main job),
-    otherwise 320x180 at 32; ``size`` overrides the film size (tests)."""
+    ``stacked-casters`` and the plate. ``quick``: 160x90 px at 16 spp, 1024^2 maps, blurs 1
+    and 5 (the main job), otherwise 320x180 at 32, 2048^2 maps, blurs 1, 5 and 9; ``size``
+    overrides the film size (tests)."""
     from ... import raster_models, scenes
     from ..reference.render import ReferenceSettings, render_reference
     from ..reference.store import get_reference
 
     w, h, spp = (160, 90, 16) if quick else (320, 180, 32)
+    maps = QUICK_MAP_RESOLUTION if quick else MAP_RESOLUTION
+    blurs = QUICK_BLEED_BLURS if quick else BLEED_BLURS
     if size is not None:
         w, h = (int(v) for v in size)
 
@@ -291,10 +299,10 @@ def soft_report(*, cache=None, quick: bool = True, quiet: bool = True, size=None
     contact = scenes.load("soft-contact", width=w, height=h)
     groups = ("soft", "edge", "id", "normal", "position")
     ref, ref2 = reference(contact, groups, 0), reference(contact, groups, 1)
-    ranking = soft_ranking(contact, ref, ref2_ch=ref2, resolution=MAP_RESOLUTION)
+    ranking = soft_ranking(contact, ref, ref2_ch=ref2, resolution=maps)
     hardening = {
         preset: contact_hardening(
-            contact, raster_models.run("pcss", contact, resolution=MAP_RESOLUTION, preset=preset)
+            contact, raster_models.run("pcss", contact, resolution=maps, preset=preset)
         )
         for preset in ("nvidia", "hdrp")
     }
@@ -303,10 +311,10 @@ def soft_report(*, cache=None, quick: bool = True, quiet: bool = True, size=None
         "quick": quick,
         "resolution": [w, h],
         "reference_spp": spp,
-        "map_resolution": MAP_RESOLUTION,
+        "map_resolution": maps,
         "ranking": {"scene": "soft-contact", **ranking},
         "contact_hardening": {"scene": "soft-contact", "presets": hardening},
-        "bleeding": _bleeding(reference, size=(w, h)),
+        "bleeding": _bleeding(reference, size=(w, h), resolution=maps, blurs=blurs),
     }
 
 
