@@ -1,12 +1,16 @@
 """Temporal anti-aliasing (``taa``): jitter, current-frame filter, history sampling,
 reprojection with the model's own motion vectors, neighbourhood rectification, history blend
-and rejection, with presets for UE4 (2015), Playdead INSIDE, Unity HDRP and Filament.
+and rejection; the engine presets are transcriptions of the engines' shipped shaders.
 
-Modules: :mod:`.jitter` (Halton 2,3, UE4's Gaussian mapping), :mod:`.filters` (3x3
-``exp(-2.29 d^2)`` or box; bilinear or Catmull-Rom history), :mod:`.rectify` (clamp, AABB clip,
-variance clip; RGB or YCoCg; 3x3, plus, rounded), :mod:`.blend` (constant, UE4 luma-contrast,
-INSIDE feedback), :mod:`.params` (parameters and presets with their sources), :mod:`.model`
-(the frame loop and the cost record).
+Engine resolves (one frame each, vectorized; sources pinned in their docstrings):
+:mod:`.ue4` (UE 4.19 main pass), :mod:`.inside` (playdeadgames/temporal), :mod:`.hdrp` (Unity
+HDRP, TAAQuality Medium and High), :mod:`.filament` (Filament ``taa.mat``), with
+:mod:`.hardware` (8-bit sRGB, half-float and R11G11B10 storage, the 5-tap Catmull-Rom).
+The part-by-part pipeline: :mod:`.jitter` (Halton 2,3, UE4's Gaussian mapping),
+:mod:`.filters` (3x3 ``exp(-2.29 d^2)`` or box; bilinear or Catmull-Rom history),
+:mod:`.rectify` (clamp, AABB clip, variance clip; RGB or YCoCg; 3x3, plus, rounded),
+:mod:`.blend` (constant, UE4 luma-contrast, INSIDE feedback), :mod:`.params` (parameters and
+presets with their sources), :mod:`.model` (the frame loop and the cost record).
 
 References
 ----------

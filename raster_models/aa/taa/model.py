@@ -13,12 +13,22 @@ the previous depth disagrees), rectifies it against the current samples' neighbo
 blends. The state after each frame is kept (keyed by the scene's sequence and the resolved
 parameters) so that scoring frames 0..N-1 in order costs one TAA frame each.
 
-Cost record (the technique's budget at this resolution): ``framebuffer_bytes`` with
-``framebuffer_bytes_by_buffer`` (``color`` RGBA16F current frame, ``depth`` D32F, twice with
-depth rejection, ``velocity`` RG16F, ``history`` 2 x RGBA16F read and written),
-``history_bytes``, ``velocity_bytes``, ``taps_per_pixel`` (current-frame texels + history
-fetches + depth/velocity taps), ``bandwidth_bytes`` (texels read + history and output
-written, per frame), ``samples`` (1 shaded sample a pixel a frame), ``shading_events_mean``.
+An engine preset with no part set (``ue4``, ``ue4-high``, ``ue4-18``, ``ue4-20``, ``inside``,
+``hdrp``, ``hdrp-high``, ``filament``; ``resolved["engine"]``) replaces the part-by-part resolve by
+that engine's transcription (:mod:`.ue4`, :mod:`.inside`, :mod:`.hdrp`, :mod:`.filament`),
+fed what the engine's own passes would hand it: the jittered frame at the engine's jitter,
+each sample's motion (its velocity buffer; UE4 only for moving objects, which write it, and
+the camera reprojection of the pixel centre at a depth elsewhere; Filament the camera
+reprojection alone), view depth; its state is the engine's stored history (8-bit sRGB for
+INSIDE, R11G11B10 for HDRP, half float for UE4 with its dynamic flag and for Filament).
+
+Cost record (the technique's budget at this resolution, from the preset's part values):
+``framebuffer_bytes`` with ``framebuffer_bytes_by_buffer`` (``color`` RGBA16F current frame,
+``depth`` D32F, twice with depth rejection, ``velocity`` RG16F, ``history`` 2 x RGBA16F read
+and written), ``history_bytes``, ``velocity_bytes``, ``taps_per_pixel`` (current-frame
+texels + history fetches + depth/velocity taps), ``bandwidth_bytes`` (texels read + history
+and output written, per frame), ``samples`` (1 shaded sample a pixel a frame),
+``shading_events_mean``.
 """
 
 from __future__ import annotations
@@ -32,6 +42,7 @@ from ....scenes.geometry.motion import film_motion
 from ... import params as _params
 from ...result import model_result
 from ..trace import sample_colors
+from . import filament, hdrp, inside, ue4
 from .blend import blend
 from .filters import bilinear, catmull_rom, filter_current, neighbours
 from .jitter import jitter_offsets
@@ -77,6 +88,95 @@ def _velocity(m: dict, h: int, w: int, dilation: str):
     nearest = np.argmin(neighbours(depth[..., None])[..., 0], axis=0)
     mv = np.take_along_axis(neighbours(mv), nearest[None, ..., None], axis=0)[0]
     return mv, depth
+
+
+def _camera_reprojection(scene, x, y, depth):
+    """The previous film position of the point at view depth ``depth`` on each pixel
+    centre's ray (camera motion alone; an infinite depth, the sky, is the ray's direction):
+    Filament's reprojection and UE4's camera velocity."""
+    cam, pcam = scene.camera, scene.previous().camera
+    o, d, tmax = cam.rays(x, y)
+    z = np.asarray(depth, dtype=np.float64).ravel()
+    finite = np.isfinite(z)
+    with np.errstate(invalid="ignore"):
+        t = (np.where(finite, z, 0.0) - cam.view_depth(o)) / (d @ cam.forward)
+    q = o + d * t[:, None]
+    sky = pcam.position + d if cam.kind == "perspective" else o + d * tmax[:, None]
+    film = pcam.project(np.where(finite[:, None], q, sky))
+    return film[:, 0].reshape(x.shape), film[:, 1].reshape(x.shape)
+
+
+def _engine_module(engine: str):
+    return {
+        "inside": inside,
+        "filament": filament,
+        "hdrp": hdrp,
+        "hdrp-high": hdrp,
+        "ue4": ue4,
+        "ue4-18": ue4,
+        "ue4-20": ue4,
+        "ue4-high": ue4,
+    }[engine]
+
+
+def _engine_step(scene, state, r: dict, frame: int) -> tuple[dict, dict]:
+    """One frame of an engine's transcribed resolve (``r["engine"]``: inside, filament)."""
+    h, w = scene.height, scene.width
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64) + 0.5
+    mod = _engine_module(r["engine"])
+    jit = mod.jitter(frame)
+    res, rays = sample_colors(scene, np.array([[0.5 + jit[0], 0.5 + jit[1]]]))
+    samples = res["color"].reshape(h, w, 3).astype(np.float64)
+    m = film_motion(scene, x + jit[0], y + jit[1], disocclusion=False)
+    depth = np.where(m["valid"], m["depth"], np.inf).reshape(h, w)
+    previous = None if state is None else state["history"]
+    discarded = np.zeros((h, w), bool)  # INSIDE and Filament never drop their history
+    if mod is ue4:
+        mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
+        moving = [scene.shape_names.index(n) for n in scene.object_motion]
+        dynamic = (m["valid"] & np.isin(m["shape"], moving)).reshape(h, w)
+        if state is None:
+            mv, dynamic = 0.0 * mv, np.zeros_like(dynamic)
+
+            def camera_prev(_depth):
+                return x, y
+        else:
+
+            def camera_prev(z):
+                return _camera_reprojection(scene, x, y, z)
+
+        version = {"ue4-18": "4.18", "ue4-20": "4.20", "ue4-high": "4.19-high"}.get(
+            r["engine"], "4.19"
+        )
+        out, weight, vel, discarded = ue4.step(
+            previous, samples, frame, mv, depth, dynamic, camera_prev, version
+        )
+        history, out = out, out[..., :3]
+    elif mod is hdrp:
+        mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
+        mv = mv if state is not None else 0.0 * mv
+        quality = "high" if r["engine"] == "hdrp-high" else "medium"
+        out, weight, vel, discarded = hdrp.step(previous, samples, frame, mv, depth, quality)
+        history = out
+    elif mod is inside:
+        mv = np.stack([m["motion_x"], m["motion_y"]], -1).reshape(h, w, 2)
+        out, history, k = inside.step(previous, samples, jit, mv, depth)
+        weight = 1.0 - k
+        vel = inside.closest_velocity(mv if state is not None else 0.0 * mv, depth)
+    else:
+        hx, hy = (x, y) if state is None else _camera_reprojection(scene, x, y, depth)
+        out, weight = filament.step(previous, samples, frame, hx, hy)
+        history = out
+        vel = np.stack([hx - x, hy - y], -1)
+    rejected = np.full((h, w), state is None) | discarded
+    outputs = {
+        "color": out.astype(np.float32),
+        "current_weight": np.asarray(weight, dtype=np.float32),
+        "rejected": rejected.astype(np.float32),
+        "velocity_x": vel[..., 0].astype(np.float32),
+        "velocity_y": vel[..., 1].astype(np.float32),
+    }
+    return {"history": history, "depth": depth, "rays": rays}, outputs
 
 
 def _step(scene, state, r: dict, jitter: np.ndarray) -> tuple[dict, dict]:
@@ -170,7 +270,11 @@ def run(scene, params: TaaParams | None = None, **kwargs):
     t0 = time.perf_counter()
     p = params or _params.make(NAME, TaaParams, kwargs)
     r = resolve(p)
-    offsets = jitter_offsets(r["jitter"], r["samples"] or 1)
+    if r["engine"] != "none":
+        mod = _engine_module(r["engine"])
+        offsets = np.array([mod.jitter(i) for i in range(mod.N_SAMPLES + 1)])
+    else:
+        offsets = jitter_offsets(r["jitter"], r["samples"] or 1)
     key = _sequence_key(scene, r)
     k = int(scene.frame)
     start, state, outputs = 0, None, None
@@ -179,7 +283,10 @@ def run(scene, params: TaaParams | None = None, **kwargs):
         start = done + 1
     rays = 0
     for j in range(start, k + 1):
-        state, outputs = _step(_frame(scene, j), state, r, offsets[j % len(offsets)])
+        if r["engine"] != "none":
+            state, outputs = _engine_step(_frame(scene, j), state, r, j)
+        else:
+            state, outputs = _step(_frame(scene, j), state, r, offsets[j % len(offsets)])
         rays += state["rays"]
     _STATES[key] = (k, state, outputs)
     _STATES.move_to_end(key)
