@@ -14,7 +14,10 @@ and end-point error), :mod:`metrics.stats` (Z-test, noise floor),
 """
 
 from .aliasing import (
+    COVERAGE_FLOOR_RMS,
+    COVERAGE_KEYS,
     coverage_error,
+    coverage_metrics,
     edge_interior_error,
     edges_from_id,
     half_plane_square_area,
@@ -50,7 +53,7 @@ from .stats import (
     noise_floor,
     z_test,
 )
-from .temporal import flicker, temporal_error
+from .temporal import added_flicker, flicker, temporal_error
 from .tonemap import (
     exposure_from_reference,
     luminance,
@@ -62,6 +65,10 @@ from .validate import MetricError
 
 __all__ = [
     "CATALOG",
+    "COVERAGE_FLOOR_RMS",
+    "COVERAGE_KEYS",
+    "added_flicker",
+    "coverage_metrics",
     "DEFAULT_PPD",
     "SHADOW_KEYS",
     "MetricError",

@@ -12,6 +12,9 @@ import numpy as np
 from .validate import MetricError, check_image, check_images, check_mask
 
 __all__ = [
+    "COVERAGE_FLOOR_RMS",
+    "COVERAGE_KEYS",
+    "coverage_metrics",
     "coverage_error",
     "edge_interior_error",
     "edges_from_id",
@@ -270,4 +273,46 @@ def straight_edge_error_floor(sample_positions, *, n_edges: int = 200_000, seed:
         "rms_stderr": rms_stderr,
         "n_edges": int(n_edges),
         "seed": seed,
+    }
+
+
+#: RMS coverage error of a box-resolved N-sample standard pattern on one straight edge
+#: (TECHNIQUES.md table; :func:`straight_edge_error_floor` reproduces it).
+COVERAGE_FLOOR_RMS = {1: 0.250, 2: 0.159, 4: 0.092, 8: 0.057, 16: 0.044}
+#: The keys :func:`coverage_metrics` returns (anti-aliasing techniques, or an engine's MSAA
+#: coverage mask).
+COVERAGE_KEYS = (
+    "coverage_mae",
+    "coverage_rmse",
+    "coverage_bias",
+    "coverage_edge_rmse",
+    "coverage_interior_mae",
+    "coverage_floor_rms",
+    "coverage_edge_rmse_over_floor",
+)
+
+
+def coverage_metrics(ref, cand, *, edge, aa_samples) -> dict:
+    """Coverage error overall, on edge and interior pixels, and against the N-sample floor.
+
+    Edge pixels: ``edge`` (bool ``(H, W)``) or fractional reference coverage. The floor is
+    the RMS error of N box-resolved standard samples on one straight edge
+    (:data:`COVERAGE_FLOOR_RMS`); ``coverage_edge_rmse_over_floor`` near 1 means the
+    technique is as good as its pattern allows (above 1 also where an edge pixel holds more
+    than one edge, or the reference's own noise adds to the error).
+    """
+    edge = edge | ((ref > 0) & (ref < 1))
+    every = coverage_error(ref, cand)
+    on_edge = coverage_error(ref, cand, mask=edge)
+    inside = coverage_error(ref, cand, mask=~edge)
+    floor = COVERAGE_FLOOR_RMS.get(int(aa_samples)) if aa_samples else None
+    ratio = on_edge["rmse"] / floor if floor and on_edge["count"] else None
+    return {
+        "coverage_mae": every["mae"],
+        "coverage_rmse": every["rmse"],
+        "coverage_bias": every["bias"],
+        "coverage_edge_rmse": on_edge["rmse"] if on_edge["count"] else None,
+        "coverage_interior_mae": inside["mae"] if inside["count"] else None,
+        "coverage_floor_rms": floor,
+        "coverage_edge_rmse_over_floor": ratio,
     }

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 __all__ = [
     "CATALOG",
     "DIRECTIONS",
+    "RECORD_KEYS",
     "KINDS",
     "Metric",
     "error_of",
@@ -64,6 +65,8 @@ class Metric:
     kinds: tuple[str, ...]
     min_frames: int = 1
     meaning: str = ""
+    #: written only when asked for (``--expect``): not a key of every record
+    on_request: bool = False
 
     @property
     def better(self) -> str:
@@ -77,8 +80,8 @@ class Metric:
         }[self.direction]
 
 
-def _m(key, direction, unit, kinds, meaning, min_frames=1) -> Metric:
-    return Metric(key, direction, unit, tuple(kinds), min_frames, meaning)
+def _m(key, direction, unit, kinds, meaning, min_frames=1, on_request=False) -> Metric:
+    return Metric(key, direction, unit, tuple(kinds), min_frames, meaning, on_request)
 
 
 _ENTRIES = (
@@ -237,6 +240,33 @@ _ENTRIES = (
         "pixels beyond 3 standard errors (+ 0.25 px of edge position where the truth is "
         "fractional)",
     ),
+    # conformance to the technique the engine claims (--expect): the candidate against the
+    # oracle's model of it (oracle.scoring.conformance)
+    _m(
+        "conformance_misclassified_fraction",
+        "lower",
+        "fraction of receivers",
+        _VIS,
+        "receivers lit in the candidate and shadowed in the claimed technique's model, or the "
+        "reverse",
+        on_request=True,
+    ),
+    _m(
+        "conformance_edge_displacement_px",
+        "lower",
+        "pixels",
+        _ALL,
+        "sub-pixel shift of the candidate's edges against the claimed technique's model",
+        on_request=True,
+    ),
+    _m(
+        "conformance_flip_mean",
+        "lower",
+        "FLIP (0..1)",
+        _ALL,
+        "mean FLIP difference between the candidate and the claimed technique's model",
+        on_request=True,
+    ),
     _m("coverage_mae", "lower", "coverage (0..1)", _COV, "mean |coverage error|"),
     _m("coverage_rmse", "lower", "coverage (0..1)", _COV, "RMS coverage error"),
     _m("coverage_bias", "zero", "coverage (-1..1)", _COV, "mean signed coverage error"),
@@ -260,6 +290,9 @@ _ENTRIES = (
 
 #: Metric key -> :class:`Metric`, in ``metrics.json`` order.
 CATALOG: dict[str, Metric] = {m.key: m for m in _ENTRIES}
+#: The keys every ``metrics.json`` record holds (null where they do not apply); the
+#: ``on_request`` ones join a record only when asked for.
+RECORD_KEYS = tuple(k for k, m in CATALOG.items() if not m.on_request)
 
 
 def metric(key: str) -> Metric:
@@ -295,15 +328,28 @@ def within_noise(key: str, value: float, floor: float) -> bool:
     return error_of(key, value) <= error_of(key, floor)
 
 
-def regressed(key: str, value: float, floor: float, previous: float, previous_floor: float) -> bool:
+def regressed(
+    key: str,
+    value: float,
+    floor: float,
+    previous: float,
+    previous_floor: float,
+    *,
+    tolerance: float = 0.0,
+    relative: bool = False,
+) -> bool:
     """True when ``value`` is worse than ``previous`` (a baseline run's value) by more than
-    both runs' noise floors combined: ``error(value) - error(previous) > error(floor) +
-    error(previous_floor)``. Never for an ``info`` metric or a non-finite number."""
+    both runs' noise floors combined and a ``tolerance``: ``error(value) - error(previous) >
+    error(floor) + error(previous_floor) + t``, with ``t = tolerance`` (in the metric's error
+    units) or, ``relative``, ``t = tolerance * error(previous)``. Never for an ``info``
+    metric or a non-finite number."""
     if metric(key).direction == "info" or not _finite(value, floor, previous, previous_floor):
         return False
     worse = error_of(key, value) - error_of(key, previous)
+    allowed = tolerance * abs(error_of(key, previous)) if relative else tolerance
     # a floor is a noise magnitude: a signed metric's floor below 0 counts as none
-    return worse > max(error_of(key, floor), 0.0) + max(error_of(key, previous_floor), 0.0)
+    floors = max(error_of(key, floor), 0.0) + max(error_of(key, previous_floor), 0.0)
+    return worse > floors + allowed
 
 
 def _finite(*values) -> bool:

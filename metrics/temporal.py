@@ -10,7 +10,7 @@ import numpy as np
 
 from .validate import MetricError, check_images, check_mask
 
-__all__ = ["flicker", "temporal_error"]
+__all__ = ["added_flicker", "flicker", "temporal_error"]
 
 
 def _sequences(reference_frames, candidate_frames, mask):
@@ -86,3 +86,21 @@ def temporal_error(reference_frames, candidate_frames, *, mask=None) -> float:
     """
     ref, cand, sel = _sequences(reference_frames, candidate_frames, mask)
     return _mean_abs_change(cand - ref, sel)
+
+
+def added_flicker(reference_frames, candidate_frames) -> float:
+    """Flicker the candidate adds, non-negative: ``mean(max(0, |c[t+1] - c[t]| -
+    |r[t+1] - r[t]|))`` over frame pairs, pixels and channels.
+
+    :func:`flicker` subtracts the two means, so a candidate that is steadier than the
+    reference in one region cancels flicker elsewhere and the value can be negative. Here the
+    reference's own change is subtracted per pixel and only the excess counts: 0 when the
+    candidate never changes more than the reference, and a smoothed-away change is not
+    credited against a crawling edge.
+    """
+    ref = np.asarray(reference_frames, dtype=np.float64)
+    cand = np.asarray(candidate_frames, dtype=np.float64)
+    if ref.shape != cand.shape or ref.shape[0] < 2:
+        raise MetricError(f"flicker needs two equal sequences of >= 2 frames, got {ref.shape}")
+    excess = np.abs(np.diff(cand, axis=0)) - np.abs(np.diff(ref, axis=0))
+    return float(np.maximum(excess, 0.0).mean())

@@ -1,8 +1,9 @@
 """raster-oracle: ground truth for real-time shadows and anti-aliasing.
 
-``raster_oracle.reference``, ``score_image``, ``score_technique``, ``run_model``, ``check``,
-``write_junit``, ``export`` and ``load_scene`` are the Python API (:mod:`raster_oracle.api`,
-documented in ``docs/python-api.md``); errors are :class:`InputError` and :class:`ModelError`.
+``raster_oracle.reference``, ``score_image``, ``score_folder``, ``score_technique``,
+``run_model``, ``check``, ``write_junit``, ``export`` and ``load_scene`` are the Python API
+(:mod:`raster_oracle.api`, documented in ``docs/python-api.md``); errors are
+:class:`InputError` and :class:`ModelError`.
 
 The installed import package. Its subpackages are the repository's top-level folders:
 ``raster_oracle.oracle`` (references, scoring, sweeps, studies, CLI),
@@ -35,6 +36,7 @@ _API = (
     "load_scene",
     "reference",
     "run_model",
+    "score_folder",
     "score_image",
     "score_technique",
     "techniques",

@@ -39,6 +39,7 @@ __all__ = [
     "load_scene",
     "reference",
     "run_model",
+    "score_folder",
     "score_image",
     "score_technique",
     "techniques",
@@ -203,9 +204,10 @@ def reference(
     Parameters
     ----------
     scene : a name, XML file, export folder or loaded scene (see :func:`load_scene`).
-    channels : channel groups (``visibility``, ``coverage``, ``color``, ``edge``, ``id``,
-        ``depth``, ``position``, ``normal``, ``albedo``, ``tangent32``); default: all but
-        ``tangent32``.
+    channels : channel groups (``visibility``, ``coverage``, ``coverage_exact``, ``color``,
+        ``edge``, ``id``, ``depth``, ``position``, ``normal``, ``albedo``, and the opt-in
+        ``tangent32``, ``motion`` and ``soft``: ``soft_visibility`` and ``light_fraction``
+        under an area light); default: all but the opt-in ones.
     cache : True (the default cache folder), False (no cache) or a cache folder.
     """
     from .oracle.reference.render import ALL_CHANNELS, ReferenceSettings
@@ -313,6 +315,8 @@ def score_image(
     cache=True,
     quiet: bool = True,
     visibility: str = "1-is-lit",
+    transfer: str | None = None,
+    expect: str | None = None,
 ) -> dict:
     """Score an engine's image against the reference of ``scene`` (``raster-oracle score
     --candidate``); returns the ``metrics.json`` record as a dict.
@@ -333,6 +337,10 @@ def score_image(
     cache : True (the default cache folder), False (no cache) or a cache folder.
     visibility : what a shadow mask's 1 means, ``"1-is-lit"`` (the default) or
         ``"1-is-shadowed"`` (``--visibility``).
+    transfer : how a PNG file's colour is made linear: ``"srgb"`` (default), ``"gamma2.2"``
+        or ``"linear"`` (``--transfer``).
+    expect : the technique the engine claims, ``"shadow-map:resolution=2048,filter=pcf"``
+        (``--expect``): adds the ``conformance_*`` metrics.
 
     Gate the record with :func:`check`.
     """
@@ -356,7 +364,13 @@ def score_image(
         frame_list=frame_list,
         load=dict(width=width, height=height),
         opts=dict(
-            spp=spp, seed=seed, frames=frames, camera_path=camera_path, visibility=visibility
+            spp=spp,
+            seed=seed,
+            frames=frames,
+            camera_path=camera_path,
+            visibility=visibility,
+            transfer=transfer,
+            expect=expect,
         ),
         flip_mode=flip_mode,
         ppd=ppd,
@@ -425,10 +439,96 @@ def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, q
             options = ScoreOptions(
                 **opts, quiet=quiet, flip_mode=flip_mode, ppd=ppd or M.DEFAULT_PPD
             )
-            score_to_folder(
-                loaded, out=folder, **what, options=options, cache=_cache(cache), thresholds={}
-            )
+            score_to_folder(loaded, out=folder, **what, options=options, cache=_cache(cache))
         return json.loads((folder / "metrics.json").read_text())
+
+
+def score_folder(
+    root,
+    *,
+    out,
+    manifest=None,
+    exports=None,
+    channel: str | None = None,
+    kind: str | None = None,
+    camera_path: str | None = None,
+    visibility: str | None = None,
+    spp: int | None = None,
+    seed: int | None = None,
+    flip_mode: str | None = None,
+    transfer: str | None = None,
+    expect: str | None = None,
+    fail_above: dict[str, float] | None = None,
+    fail_below: dict[str, float] | None = None,
+    profiles: Sequence[str] = (),
+    baseline=None,
+    baseline_metrics: Sequence[str] | str | None = None,
+    baseline_tolerance: dict | None = None,
+    baseline_strict: bool = False,
+    platform: str | None = None,
+    cache=True,
+    quiet: bool = True,
+) -> dict:
+    """Score a folder of engine images as ``raster-oracle score-folder ROOT`` does (the same
+    library function, :func:`oracle.scoring.folder_cases.run_folder`): ``ROOT``'s layout, or
+    the CI manifest ``manifest``; every case into ``out/<case>/``, the combined record into
+    ``out/metrics.json`` and ``out/report.html``.
+
+    Options are the command line's (``None``: the manifest's, else the default).
+    ``fail_above`` / ``fail_below``: ``{metric: limit}``; ``profiles``: gate profiles;
+    ``baseline``: a previous folder run's ``metrics.json``, its folder or a baseline folder;
+    ``baseline_metrics``: the metrics it compares (a list, ``"all"``; None: the gated ones);
+    ``baseline_tolerance``: ``{metric: 0.01 or "5%"}``; ``baseline_strict``: a case missing
+    or new fails.
+
+    Returns the combined record (``scenes``: case -> its ``metrics.json`` record,
+    ``failed``, ``errors``, ``baseline``, ``exit_code``); bad input raises
+    :class:`InputError` before anything is scored.
+    """
+    from .oracle.scoring.engine_gates import profile_gates
+    from .oracle.scoring.folder_cases import run_folder
+    from .oracle.scoring.gates import (
+        BaselineOptions,
+        GateError,
+        limit_texts,
+        parse_baseline_metrics,
+        parse_gates,
+        parse_tolerance,
+    )
+
+    gates = profile_gates(profiles, error=GateError)
+    gates += parse_gates(limit_texts(fail_above, "<="), limit_texts(fail_below, ">="))
+    gates = list({(g.metric, g.op): g for g in gates}.values())
+    keys = [baseline_metrics] if isinstance(baseline_metrics, str) else baseline_metrics
+    tolerances = dict(parse_tolerance(f"{k}={v}") for k, v in (baseline_tolerance or {}).items())
+    bo = BaselineOptions(parse_baseline_metrics(keys), tolerances, bool(baseline_strict))
+    options = dict(
+        spp=spp,
+        seed=seed,
+        flip_mode=flip_mode,
+        transfer=transfer,
+        expect=expect,
+        channel=channel,
+        kind=kind,
+        camera_path=camera_path,
+        visibility=visibility,
+        exports=None if exports is None else Path(exports),
+        quiet=quiet,
+        platform=platform,
+    )
+    with _library():
+        _, run = run_folder(
+            Path(root),
+            out=Path(out),
+            manifest=manifest,
+            options=options,
+            gates=gates,
+            baseline=baseline,
+            baseline_options=bo,
+            cache=_cache(cache),
+            log=None,
+        )
+    return json.loads((Path(out) / "metrics.json").read_text())
 
 
 def check(

@@ -116,7 +116,8 @@ def build_report(
     ]
     cost_names = list(dict.fromkeys(k for case in records for k in (case["cost"] or {})))
     styles = sorted({m["style"] for case in records for m in case["error_maps"]})
-    statuses = [case["status"] for case in records]
+    # a multi-frame case's frames are shown as cases of their own, but counted as its parts
+    statuses = [case["status"] for case in records if case.get("frame") is None]
     return {
         "schema": REPORT_SCHEMA,
         "title": title,
@@ -129,7 +130,8 @@ def build_report(
         },
         "cost_names": cost_names,
         "summary": {
-            "n_cases": len(records),
+            "n_cases": len(statuses),
+            "n_frames": sum(case.get("frame") is not None for case in records),
             "n_pass": statuses.count("pass"),
             "n_fail": statuses.count("fail"),
             "n_unchecked": statuses.count("unchecked"),
@@ -142,6 +144,8 @@ def build_report(
                 for c in case.get("checks", [])
                 if not c["passed"]
             ],
+            # the verdict table: each failed gate, and a case's regressions as one row
+            "failed_rows": _failed_rows(records),
             "n_checks": sum(len(case.get("checks", [])) for case in records),
             "errors": _errors(errors),
             "diagnoses": [
@@ -154,6 +158,37 @@ def build_report(
         "colorbars": {style: _images.colorbar_uri(style) for style in styles},
         "cases": records,
     }
+
+
+def _failed_rows(records) -> list[dict]:
+    """The verdict table's rows: every failed gate, then per case its regressions grouped in
+    one row (their count and metrics; a single one as it is), so one intended change is one
+    row, not one a metric."""
+    rows = []
+    for case in records:
+        failed = [c for c in case.get("checks", []) if not c["passed"]]
+        where = {"case_id": case["id"], "case": case["name"], "scene": case["scene"]}
+        regressions = [c for c in failed if c["kind"] == "baseline"]
+        alone = len(regressions) < 2  # one regression keeps its own row (values, floors)
+        rows += [{**where, **c} for c in failed if c["kind"] != "baseline" or alone]
+        if not alone:
+            names = ", ".join(c["metric"] for c in regressions[:6])
+            more = f" and {len(regressions) - 6} more" if len(regressions) > 6 else ""
+            rows.append(
+                {
+                    **where,
+                    "name": f"{len(regressions)} regression(s): {names}{more}",
+                    "kind": "baseline",
+                    "metric": None,
+                    "count": len(regressions),
+                    "value": None,
+                    "limit": None,
+                    "previous": None,
+                    "noise_floor": None,
+                    "previous_noise_floor": None,
+                }
+            )
+    return rows
 
 
 def read_cases(path: str | os.PathLike, *, relative_to: str | os.PathLike) -> list[dict]:

@@ -65,7 +65,12 @@ def fmt_number(value: object) -> str:
         return _NONFINITE_TEXT["nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")]
     if value == 0.0:
         return "0"
-    return f"{value:.4g}".replace("-", "−")
+    text = f"{value:.4g}"
+    for digits in (6, 9):  # an SSIM of 0.99996 is not 1: more digits until told apart
+        if abs(value) >= 10 or float(text) != round(float(text)) or float(text) == value:
+            break
+        text = f"{value:.{digits}g}"
+    return text.replace("-", "−")
 
 
 def fmt_bytes(value: float) -> str:

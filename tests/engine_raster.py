@@ -171,6 +171,65 @@ def shadow_map(tris: np.ndarray, to_light: np.ndarray, *, size: int):
     return depth_of
 
 
+def light_box_map(tris: np.ndarray, direction, *, size: int, depth_bias: float = 0.005):
+    """A shadow map as a D3D engine with a scene-fit orthographic light builds it: a LookAt
+    frame along the light's travel ``direction`` with world +Y up (x = up x forward, y =
+    forward x x), the light-space box of the 8 corners of the scene's world AABB (padded by
+    1e-4 of its size), D3D depth in [0, 1] over the box, ``size`` x ``size`` texels rasterized
+    at their centres (empty texels at depth 1). Returns ``lookup(points, pcf, offset)``:
+    each point's visibility with ``pcf`` x ``pcf`` bilinear comparison taps one texel apart
+    centred on it (D3D ``SampleCmp``, reference ``depth - depth_bias <= stored``, addresses
+    clamped), every tap moved by ``offset`` texels (a renderer that reads its map one texel
+    over passes ``(1, 1)``)."""
+    f = np.asarray(direction, dtype=np.float64)
+    f = f / np.linalg.norm(f)
+    x = np.cross([0.0, 1.0, 0.0], f)
+    x /= np.linalg.norm(x)
+    basis = np.stack([x, np.cross(f, x), f])
+    flat = tris.reshape(-1, 3)
+    lo, hi = flat.min(0), flat.max(0)
+    corners = np.array(
+        [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])]
+    )
+    lc = corners @ basis.T
+    bmin, bmax = lc.min(0), lc.max(0)
+    pad = 1e-4 * np.maximum(bmax - bmin, 1e-9)
+    bmin, bmax = bmin - pad, bmax + pad
+    ls = tris @ basis.T
+    uv = (ls[..., :2] - bmin[:2]) / (bmax[:2] - bmin[:2])
+    depth = (ls[..., 2] - bmin[2]) / (bmax[2] - bmin[2])
+    clip = np.concatenate([uv * 2.0 - 1.0, np.ones(uv.shape[:2] + (1,))], -1)
+    centres = (np.stack(np.mgrid[0:size, 0:size][::-1], -1).reshape(-1, 2) + 0.5) / size
+    _, _, stored = rasterize(clip, centres * 2.0 - 1.0, depth=depth)
+    stored = np.where(np.isfinite(stored), stored, 1.0).reshape(size, size)
+
+    def lookup(points, pcf: int = 1, offset=(0.0, 0.0)):
+        q = points @ basis.T
+        u = (q[:, 0] - bmin[0]) / (bmax[0] - bmin[0]) * size
+        v = (q[:, 1] - bmin[1]) / (bmax[1] - bmin[1]) * size
+        ref = np.clip((q[:, 2] - bmin[2]) / (bmax[2] - bmin[2]), 0.0, 1.0) - depth_bias
+        taps = np.arange(pcf) - (pcf - 1) / 2.0
+        acc = np.zeros(len(points))
+        for ty in taps:
+            for tx in taps:
+                su = u + tx + offset[0] - 0.5
+                sv = v + ty + offset[1] - 0.5
+                i0, j0 = np.floor(su).astype(np.int64), np.floor(sv).astype(np.int64)
+                fu, fv = su - i0, sv - j0
+                for di, dj, w in (
+                    (0, 0, (1 - fu) * (1 - fv)),
+                    (1, 0, fu * (1 - fv)),
+                    (0, 1, (1 - fu) * fv),
+                    (1, 1, fu * fv),
+                ):
+                    i = np.clip(i0 + di, 0, size - 1)
+                    j = np.clip(j0 + dj, 0, size - 1)
+                    acc += w * (ref <= stored[j, i])
+        return acc / float(pcf * pcf)
+
+    return lookup
+
+
 def render(
     folder,
     *,
@@ -178,10 +237,23 @@ def render(
     bias: float = 0.05,
     samples: int | None = None,
     alpha_of=lambda r: r * r,
+    pcf: int | None = None,
+    pcf_offset=(0.0, 0.0),
+    diffuse: str = "lambert",
+    color_scale: float = 1.0,
+    depth_bias: float = 0.005,
 ) -> dict:
     """Render an export folder: ``shadow`` and ``coverage`` ``(H, W)``, ``color``
     ``(H, W, 3)``, all float32 (see the module docstring). ``samples``: an n x n grid a
-    pixel (default the 4x pattern); ``alpha_of``: the glTF roughness remapping."""
+    pixel (default the 4x pattern); ``alpha_of``: the glTF roughness remapping.
+
+    The faults of a real renderer (pyrender on Mesa, issue 37), each a keyword: ``pcf``
+    (an n x n bilinear PCF on a scene-fit D3D shadow map, :func:`light_box_map`, instead of
+    the nearest texel with a world-space ``bias``) with ``pcf_offset`` texels (``(1, 1)``:
+    the map read one texel over) and its ``depth_bias`` (D3D depth units);
+    ``diffuse="fresnel"``: the diffuse weighted by ``1 - F(v.h)`` (Schlick, F0 0.04, as
+    metallic-roughness shaders do) instead of Lambert;
+    ``color_scale``: every radiance times it (``math.pi``: a BRDF without its 1/pi)."""
     scene = load_export(folder)
     cam, light = scene["camera"], scene["light"]
     if light["kind"] != "directional":
@@ -206,20 +278,30 @@ def render(
     direction = np.asarray(light["direction"], dtype=np.float64)
     to_light = -direction / np.linalg.norm(direction)
     cos_l = normal @ to_light
-    depth_of = shadow_map(tris, to_light, size=shadow_map_size)
-    map_depth, own_depth = depth_of(pos)
-    lit = (own_depth <= map_depth + bias) & (cos_l > 0)
-    vis = np.where(hit, lit, True).astype(np.float64)
+    if pcf is None:
+        depth_of = shadow_map(tris, to_light, size=shadow_map_size)
+        map_depth, own_depth = depth_of(pos)
+        lit = ((own_depth <= map_depth + bias) & (cos_l > 0)).astype(np.float64)
+    else:
+        lookup = light_box_map(tris, direction, size=shadow_map_size, depth_bias=depth_bias)
+        lit = lookup(pos, pcf, pcf_offset) * (cos_l > 0)
+    vis = np.where(hit, lit, 1.0).astype(np.float64)
     irradiance = np.asarray(light["color"])[None] * (np.maximum(cos_l, 0) * vis)[:, None]
     if scene["pbr"] is None:
         rgb = albedo[t] / math.pi * irradiance
+        if diffuse == "fresnel":
+            to_eye_u = to_eye / np.linalg.norm(to_eye, axis=-1, keepdims=True)
+            h = to_eye_u + to_light
+            h /= np.linalg.norm(h, axis=-1, keepdims=True)
+            vh = np.clip(np.sum(to_eye_u * h, -1), 0.0, 1.0)
+            rgb = rgb * (1.0 - (0.04 + 0.96 * (1.0 - vh) ** 5))[:, None]
     else:
         m = scene["pbr"][t]
         to_eye_u = to_eye / np.linalg.norm(to_eye, axis=-1, keepdims=True)
         lv = np.broadcast_to(to_light, normal.shape)
         f = gltf_brdf(albedo[t], m[:, 0], m[:, 1], normal, lv, to_eye_u, alpha_of=alpha_of)
         rgb = f * irradiance + m[:, 2:5]
-    rgb = np.where(hit[:, None], rgb, 0.0)
+    rgb = np.where(hit[:, None], rgb, 0.0) * color_scale
     n = len(pattern)
     return {
         "shadow": vis.reshape(height, width, n).mean(-1).astype(np.float32),
@@ -248,6 +330,19 @@ def write_engine_exr(path, images: dict) -> None:
     chans = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
     with OpenEXR.File(header, chans) as f:
         f.write(str(path))
+
+
+def write_rgb_png(path, color: np.ndarray, *, gamma: float | None = None) -> None:
+    """An 8-bit RGB PNG of linear ``color``: sRGB-encoded, or with a pure ``gamma`` power
+    (pyrender and many GL samples write ``x ** (1 / 2.2)``)."""
+    from PIL import Image
+
+    c = np.clip(np.asarray(color, dtype=np.float64), 0.0, 1.0)
+    if gamma is None:
+        enc = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    else:
+        enc = c ** (1.0 / gamma)
+    Image.fromarray(np.round(enc * 255).astype(np.uint8), mode="RGB").save(path)
 
 
 def write_grey_png(path, image: np.ndarray) -> None:

@@ -264,6 +264,20 @@ def test_sphere_light_colour_matches_its_closed_form():
     assert np.all(ch["soft_visibility"] == 1.0) and np.all(ch["light_fraction"] == 1.0)
 
 
+def test_an_unnamed_sphere_light_does_not_shadow_itself(tmp_path):
+    """Rays near a sphere light's silhouette graze it: their end points' rounding exceeds the
+    shadow ray's margin, so the light's own shape is found (by geometry: this one has no id)
+    and ignored; over a bare plane both soft channels are then exactly 1."""
+    body = (
+        '<shape type="sphere"><point name="center" x="0" y="6.5" z="2"/>'
+        '<float name="radius" value="0.4"/><emitter type="area"/></shape>'
+    )
+    loaded = scenes.load(_xml(tmp_path, body))
+    assert loaded.light.area == "sphere" and loaded.light.name == "emitter_0"
+    ch, _ = render_reference(loaded, ReferenceSettings(spp=8, channels=("soft",)), quiet=True)
+    assert np.all(ch["light_fraction"] == 1.0) and np.all(ch["soft_visibility"] == 1.0)
+
+
 def test_a_punctual_lights_soft_channels_are_its_visibility():
     loaded = scenes.load("plate", width=48, height=27)
     ch, stats = render_reference(

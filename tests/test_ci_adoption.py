@@ -70,6 +70,7 @@ def test_one_verdict_for_gates_and_regressions(tmp_path, capsys, cands):
     assert rc == 0
     junit = tmp_path / "j.xml"
     extra = ["--baseline", str(first), "--junit", str(junit), "--fail-below", "ssim=0.1"]
+    extra += ["--baseline-metrics", "all"]
     rc, out, text, err = _score(tmp_path, capsys, cands["noisy_vis"], *vis, *extra, out="worse")
     m = json.loads((out / "metrics.json").read_text())
     assert rc == 1 and m["exit_code"] == 1

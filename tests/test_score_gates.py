@@ -55,7 +55,8 @@ def _metrics(out):
 
 
 def test_catalog_declares_every_scored_metric():
-    assert tuple(catalog.CATALOG) == METRIC_KEYS
+    assert tuple(k for k, m in catalog.CATALOG.items() if not m.on_request) == METRIC_KEYS
+    assert all(k.startswith("conformance_") for k in set(catalog.CATALOG) - set(METRIC_KEYS))
     for m in catalog.CATALOG.values():
         assert m.direction in catalog.DIRECTIONS and m.unit
         assert m.kinds and set(m.kinds) <= set(catalog.KINDS)
@@ -285,6 +286,8 @@ def test_junit_file_has_one_case_per_gate_with_numbers(tmp_path, capsys, cands):
         *gates,
         "--baseline",
         str(first),
+        "--baseline-metrics",
+        "all",
         "--junit",
         str(junit),
         out="noisy",
@@ -414,6 +417,7 @@ def test_score_folder_gates_baseline_and_junit_per_scene(tmp_path, capsys):
     # a worse run against the first: a failed gate and regressions, scene by scene
     j2 = tmp_path / "worse.xml"
     gate = ["--fail-above", "visibility_mae=0", "--baseline", str(first), "--junit", str(j2)]
+    gate += ["--baseline-metrics", "all"]
     out = tmp_path / "worse"
     rc = main(["score-folder", str(tmp_path / "noisy"), *base, *gate, "--out", str(out)])
     captured = capsys.readouterr()

@@ -11,7 +11,11 @@ circular segment). So
 - ``soft_visibility``: the irradiance of the visible polygon over that of the whole light,
   both by Lambert's polygon formula (the disk's arc as a 2048-gon: relative error ~1e-6).
 
-Both are averaged over each pixel's footprint (16 x 16 film points per pixel, their ground
+Under a sphere light (radius 0.4, centre 1.5 up) the visible directions are a cap (the cone
+the sphere subtends) cut by the plane through the point and the edge: ``light_fraction`` (the
+cap's visible share, uniform in solid angle) is the area of a spherical cap segment.
+
+All are averaged over each pixel's footprint (16 x 16 film points per pixel, their ground
 points from the camera's float64 rays) and compared with the reference on the penumbra's
 pixels.
 """
@@ -29,8 +33,8 @@ from raster_oracle.scenes.catalogue.factories import diffuse, ground, mesh, sens
 
 from raster_oracle import scenes
 
-#: Light height, occluder height, rectangle half sizes (x, z), disk radius.
-H, HO, A, B, R = 1.5, 0.5, 0.6, 0.35, 0.6
+#: Light height, occluder height, rectangle half sizes (x, z), disk radius, sphere radius.
+H, HO, A, B, R, RS = 1.5, 0.5, 0.6, 0.35, 0.6, 0.4
 RADIANCE = 5.0
 W, HT, SPP = 128, 64, 64
 #: Film points per pixel side for the closed forms' pixel averages.
@@ -49,8 +53,10 @@ def _scene(light: str):
         if light == "rectangle":
             m[:3, 0] *= A
             m[:3, 1] *= B
-        else:
+        elif light == "disk":
             m[:3, :2] *= R
+        else:
+            m[:3, :3] = np.eye(3) * RS
         return {
             "type": "scene",
             "camera": sensor(
@@ -216,3 +222,48 @@ def test_the_two_channels_differ_where_the_weights_do(case):
     assert apart.sum() > (200 if name == "rectangle" else 0)
     measured = (ch["soft_visibility"] - ch["light_fraction"])[apart]
     assert np.mean(np.sign(measured) == np.sign(gap[apart])) > 0.95
+
+
+def _cap_segment(alpha, beta):
+    """Solid angle of the part of a spherical cap (angular radius ``alpha``) beyond a great
+    circle at angular distance ``0 <= beta <= alpha`` from its centre:
+    ``2 acos(sin b / sin a) - 2 cos a acos(tan b / tan a)`` (half the cap at ``b = 0``)."""
+    sa = np.clip(np.sin(beta) / np.sin(alpha), -1, 1)
+    ta = np.clip(np.tan(beta) / np.tan(alpha), -1, 1)
+    return 2 * np.arccos(sa) - 2 * np.cos(alpha) * np.arccos(ta)
+
+
+def _sphere_fraction(pts):
+    """Visible share of the sphere's cone: directions ``d`` with ``d . (HO, x, 0) >= 0`` pass
+    the occluder's height at ``x >= 0``; the cone's axis lies ``beta`` from that plane."""
+    p = pts.reshape(-1, 3)
+    to = np.array([0.0, H, 0.0]) - p
+    d = np.linalg.norm(to, axis=-1)
+    alpha = np.arcsin(RS / d)
+    nv = np.stack([np.full(len(p), HO), p[:, 0], np.zeros(len(p))], -1)
+    nv /= np.linalg.norm(nv, axis=-1, keepdims=True)
+    beta = np.arcsin(np.clip(np.sum(to / d[:, None] * nv, -1), -1, 1))
+    cap = 2 * math.pi * (1 - np.cos(alpha))
+    part = _cap_segment(alpha, np.minimum(np.abs(beta), alpha))
+    frac = np.where(beta >= 0, 1 - part / cap, part / cap)
+    return frac.reshape(pts.shape[:-1])
+
+
+def test_sphere_light_fraction_matches_the_cap_segment():
+    loaded = _scene("sphere")
+    assert loaded.light.area == "sphere"
+    frac = _sphere_fraction(_ground_points(loaded)).mean(axis=-1)
+    settings = ReferenceSettings(spp=SPP, channels=("soft",))
+    ch, _ = render_reference(loaded, settings, quiet=True)
+    penumbra = (frac > 1e-3) & (frac < 1 - 1e-3)
+    assert penumbra.sum() > 0.3 * W * HT
+    err = ch["light_fraction"].astype(np.float64) - frac
+    z = np.abs(err[penumbra]) / ch["light_fraction_stderr"][penumbra]
+    # 99.92 % here; the few beyond are tail pixels (true fraction ~0.01: a sliver of the cap
+    # at its rim) where 2 of ~11 expected lit light samples make the sample standard error
+    # too small, so this extra case (not the issue's bar) gets a looser 99.8 %
+    assert np.mean(z <= 4.0) >= 0.998, np.sort(z)[-10:]
+    assert np.median(ch["light_fraction_stderr"][penumbra]) < 0.03
+    # the irradiance share differs (cosine weighting) but is a share too
+    soft = ch["soft_visibility"][penumbra]
+    assert np.all((soft >= 0) & (soft <= 1))

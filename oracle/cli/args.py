@@ -161,7 +161,8 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
         type=positive_int,
         default=None,
         help="frames in the camera path (default 8); for `score`: score that many frames of "
-        "the path (default dolly) and add the temporal metrics",
+        "the path (--camera-path, or the one an export records: required) and add the "
+        "temporal metrics",
     )
 
 

@@ -15,7 +15,9 @@ from . import args as A
 
 __all__ = [
     "add_gate_args",
+    "add_transfer_args",
     "add_visibility_arg",
+    "baseline_options",
     "check_junit",
     "check_output_file",
     "parse_all_gates",
@@ -55,6 +57,28 @@ def add_gate_args(p, *, baseline_help: str) -> None:
         "--baseline", type=A.path, default=None, metavar="METRICS_JSON", help=baseline_help
     )
     p.add_argument(
+        "--baseline-metrics",
+        action="append",
+        default=[],
+        metavar="M1,M2",
+        help="the metrics --baseline compares (repeatable, comma-separated; `all`: every "
+        "scored metric; default: the gated metrics, every metric when nothing is gated)",
+    )
+    p.add_argument(
+        "--baseline-tolerance",
+        action="append",
+        default=[],
+        metavar="METRIC=T",
+        help="a regression must also exceed T (the metric's error units) or T%% of the "
+        "baseline's error (METRIC=5%%) beyond both noise floors (repeatable)",
+    )
+    p.add_argument(
+        "--baseline-strict",
+        action="store_true",
+        help="score-folder: a case of the baseline missing from this run, or new in it, "
+        "fails (default: named in a note)",
+    )
+    p.add_argument(
         "--junit",
         type=A.path,
         default=None,
@@ -88,6 +112,37 @@ def parse_all_gates(args) -> list:
     gates = profile_gates(args.gate_profile, error=GateError)
     gates += parse_gates(args.fail_above, args.fail_below)
     return list({(g.metric, g.op): g for g in gates}.values())
+
+
+def baseline_options(args):
+    """:class:`BaselineOptions` of ``--baseline-metrics``, ``--baseline-tolerance`` and
+    ``--baseline-strict`` (metrics None: the gated ones, decided per case)."""
+    from ..scoring.gates import BaselineOptions, parse_baseline_metrics, parse_tolerance
+
+    tolerances = dict(parse_tolerance(t) for t in args.baseline_tolerance)
+    metrics = parse_baseline_metrics(args.baseline_metrics)
+    return BaselineOptions(metrics, tolerances, bool(getattr(args, "baseline_strict", False)))
+
+
+def add_transfer_args(p) -> None:
+    """``--transfer`` (how a PNG's colour is decoded) and ``--expect`` (the technique the
+    engine claims to implement, scored for conformance)."""
+    p.add_argument(
+        "--transfer",
+        choices=["srgb", "gamma2.2", "linear"],
+        default=None,
+        help="how an 8/16-bit PNG candidate's colour is made linear (default srgb; "
+        "gamma2.2: a pure 2.2 power, as pyrender and many GL samples write; linear: as is); "
+        "recorded in metrics.json",
+    )
+    p.add_argument(
+        "--expect",
+        default=None,
+        metavar="TECHNIQUE:KEY=V,...",
+        help="what the engine claims to implement (a technique and its --set keys, e.g. "
+        "shadow-map:resolution=2048,filter=pcf,pcf_size=3): its model runs too, and the "
+        "candidate is scored against it (conformance_* metrics, gateable)",
+    )
 
 
 def add_visibility_arg(p) -> None:
@@ -146,19 +201,35 @@ def write_outputs(args, verdicts, *, records=None, report=None) -> None:
         print(f"summary: {args.summary_md}")
 
 
-def print_verdict(verdict, *, baseline=None, prefix: str = "") -> None:
+def print_verdict(verdict, *, baseline=None, prefix: str = "", grouped: bool = False) -> None:
     """Print the gate lines (``PASS``/``FAIL``), the regressions, a one-line baseline summary
-    (when ``baseline`` names one) and the notes, each line after ``prefix``."""
+    (when ``baseline`` names one) and the notes, each line after ``prefix``. ``grouped``
+    (a folder run's first screen): the regressions and the summary as one line, their count
+    and first metrics."""
+    compared = [c for c in verdict.checks if c.kind == "baseline" and c.metric != "case"]
+    regressions = [c for c in compared if not c.passed]
     for check in verdict.checks:
-        if check.kind == "gate" or not check.passed:
+        if check.kind == "gate" or (not check.passed and not (grouped and check in compared)):
             print(f"{prefix}{check.line}")
-    if baseline is not None:
-        n = sum(c.kind == "baseline" for c in verdict.checks)
-        bad = sum(c.kind == "baseline" and not c.passed for c in verdict.checks)
-        print(f"{prefix}baseline {baseline}: {n} metrics compared, {bad} regressed")
+    if baseline is not None and grouped and regressions:
+        shown = ", ".join(c.metric for c in regressions[:5])
+        more = f" and {len(regressions) - 5} more" if len(regressions) > 5 else ""
+        print(
+            f"{prefix}REGRESSION {shown}{more} ({len(regressions)} of {len(compared)} "
+            f"compared metrics, baseline {baseline})"
+        )
+    elif baseline is not None:
+        print(
+            f"{prefix}baseline {baseline}: {len(compared)} metrics compared, "
+            f"{len(regressions)} regressed"
+        )
     for note in verdict.notes:
         print(f"{prefix}{note}")
     for _name, message in verdict.errors:
         print(f"raster-oracle: {prefix}error: {message}", file=sys.stderr)
-    if verdict.failed:
-        print(f"raster-oracle: {prefix}failed: {', '.join(verdict.failed)}", file=sys.stderr)
+    failed = list(verdict.failed)
+    if grouped and regressions:
+        failed = [c.name for c in verdict.failed_checks if c not in regressions]
+        failed.append(f"{len(regressions)} regression(s)")
+    if failed:
+        print(f"raster-oracle: {prefix}failed: {', '.join(failed)}", file=sys.stderr)

@@ -9,7 +9,9 @@ from . import args as A
 from . import baseline_cmd, score_folder
 from .gate_args import (
     add_gate_args,
+    add_transfer_args,
     add_visibility_arg,
+    baseline_options,
     check_junit,
     parse_all_gates,
     print_verdict,
@@ -48,6 +50,7 @@ def add_parsers(sub) -> None:
         help="what a --channel layer or channel holds (default: from its name and contents)",
     )
     add_visibility_arg(p)
+    add_transfer_args(p)
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
@@ -157,7 +160,7 @@ def cmd_score(args) -> int:
     from ..scoring.gates import load_baseline
     from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
-    from ..scoring.score import ScoreError
+    from ..scoring.result import ScoreError
     from .score_inputs import candidate_inputs
 
     gates = parse_all_gates(args)
@@ -187,6 +190,8 @@ def cmd_score(args) -> int:
         platform=platform,
         visibility=args.visibility,
         gate_frames=args.gate_frames,
+        transfer=args.transfer,
+        expect=args.expect,
         motion=None
         if args.candidate_motion is None
         else {
@@ -208,6 +213,7 @@ def cmd_score(args) -> int:
         baseline=baseline,
         baseline_source=str(args.baseline),
         layout=layout,
+        baseline_options=baseline_options(args).for_gates(gates),
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)

@@ -872,10 +872,8 @@ def render_reference(
             if groups & set(gs)
         }
     centre = centre_shapes(loaded) if "coverage" in groups else None
-    if centre is not None:
-        track.add("front")
-    if "soft" in groups:
-        track.add("soft")
+    track |= {"front"} if centre is not None else set()
+    track |= {"soft"} & groups
     acc = _Accum(npix, color, centre=centre, track=frozenset(track), phases=phases)
     t0 = time.perf_counter()
     progress = None
@@ -927,13 +925,24 @@ def render_reference(
     with maybe_phase(phases, "finish"):
         channels = _finish(acc, groups, centre, w, h)
     stats = _stats(settings, acc, channels, primary, shadow, wall, passes, (w, h), sampled)
-    if loaded.light.is_area and (color or "soft" in groups):
-        stats["light_samples_per_sample"] = light_samples(loaded.light)
+    stats.update(_area_stats(loaded, acc))
     if "coverage_exact" in groups:
         with maybe_phase(phases, "coverage_exact"):
             exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
         channels.update(exact)
     return channels, stats
+
+
+def _area_stats(loaded, acc: _Accum) -> dict:
+    """How an area light was sampled (nothing for a punctual light, or when neither colour
+    nor the soft channels integrate over it)."""
+    if not _area_sampled(loaded, acc):
+        return {}
+    return {
+        "light_samples_per_sample": light_samples(loaded.light),
+        "light_sampling": f"{loaded.light.area} area light: a jittered 4x4 grid per camera "
+        "sample, shifted toroidally per camera sample (oracle.reference.soft)",
+    }
 
 
 def _finish(acc: _Accum, groups: set, centre: dict, w: int, h: int) -> dict[str, np.ndarray]:

@@ -50,9 +50,6 @@ LIGHT_SAMPLES = LIGHT_GRID * LIGHT_GRID
 LIGHT_SALT = 0x5BD1E995
 #: ... and the per-camera-sample grid shift's (:func:`_unit_square`).
 SHIFT_SALT = 0x27D4EB2F
-#: Sphere-light rays whose chord through the sphere is shorter than this many radii graze it:
-#: a blocked one is traced again ignoring the light (:func:`_sphere_samples`).
-GRAZING_CHORD = 0.2
 #: TEA rounds of the light samples' hash (as the film jitter's, :data:`render.JITTER_ROUNDS`).
 LIGHT_ROUNDS = 6
 
@@ -91,15 +88,13 @@ def _planar_samples(mi, dr, light, p, u, v):
     wl = to / dist
     nl = [float(c) for c in light.direction]
     cos_e = -(wl.x * nl[0] + wl.y * nl[1] + wl.z * nl[2])
-    return wl, dist, dr.maximum(cos_e, 0.0) / (dist * dist), light.surface_area, None
+    return wl, dist, dr.maximum(cos_e, 0.0) / (dist * dist), light.surface_area
 
 
 def _sphere_samples(mi, dr, light, p, u, v):
     """Sphere: directions uniform in the cone the sphere subtends from ``p``, the distance to
-    its near surface, weight 1 (uniform solid angle), the measure (the cone's solid angle;
-    0 inside the sphere) and the rays grazing it (chord half-length under
-    :data:`GRAZING_CHORD` radii), whose end points' rounding error may exceed the shadow
-    ray's margin."""
+    its near surface, weight 1 (uniform solid angle) and the measure (the cone's solid angle;
+    0 inside the sphere)."""
     c = mi.Point3f(*[float(t) for t in light.position])
     r = float(light.radius)
     to = c - p
@@ -119,16 +114,23 @@ def _sphere_samples(mi, dr, light, p, u, v):
     # the near root without cancellation: t_near * t_far = d^2 - r^2
     dist = dr.maximum(d2 - r * r, 0.0) / (d * cos_t + half_chord)
     measure = (2.0 * math.pi) * one_minus
-    grazing = half_chord < GRAZING_CHORD * r
-    return wl, dist, dr.select(outside, 1.0, 0.0), measure, grazing
+    return wl, dist, dr.select(outside, 1.0, 0.0), measure
 
 
 def _light_shape(loaded):
-    """The Mitsuba shape of ``loaded``'s area light (named by its id, :mod:`scenes.loader`),
-    or None."""
+    """The Mitsuba shape of ``loaded``'s area light: the emitter shape of its kind whose
+    bounding box is centred on the light (shapes need not have ids), or None."""
+    import numpy as np
+
     light = loaded.light
+    centre = np.asarray(light.position, dtype=np.float64)
+    tol = 1e-4 * (1.0 + float(np.abs(centre).max()) + light.radius)
     for sh in loaded.mi_scene.shapes():
-        if sh.is_emitter() and sh.id() == light.name:
+        if not (sh.is_emitter() and sh.class_name().lower() == light.area):
+            continue
+        bb = sh.bbox()
+        mid = 0.5 * (np.array(bb.min, dtype=np.float64) + np.array(bb.max, dtype=np.float64))
+        if float(np.abs(mid.ravel()[:3] - centre).max()) <= tol:
             return sh
     return None
 
@@ -163,20 +165,14 @@ def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> di
     receiver = g(res["valid"]) & ~shape.is_emitter()
     u, v = _unit_square(mi, dr, g(seed_key), g(mi.UInt32(sample)), k)
     sampler = _sphere_samples if light.area == "sphere" else _planar_samples
-    wl, dist, w, measure, grazing = sampler(mi, dr, light, p, u, v)
+    wl, dist, w, measure = sampler(mi, dr, light, p, u, v)
     cos_r = dr.dot(n, wl)
     reach = receiver & (cos_r > 0.0) & (w > 0.0)
-    # a sphere's grazing rays may meet the sphere before their end: checked again
+    # a ray may meet the light before its end (Mitsuba's float32 intersections of a sphere
+    # light's rim or of a planar light seen at a grazing angle err by more than any margin):
+    # blocked rays are traced again, ignoring the light
     blocked = occluded_segment_dr(
-        loaded.mi_scene,
-        p,
-        ng,
-        shape,
-        wl,
-        dist,
-        reach,
-        light_shape=_light_shape(loaded) if grazing is not None else None,
-        recheck=grazing,
+        loaded.mi_scene, p, ng, shape, wl, dist, reach, light_shape=_light_shape(loaded)
     )
     lit = reach & ~blocked
     weight = dr.select(reach, cos_r * w, 0.0)

@@ -42,6 +42,8 @@ __all__ = [
     "load_candidate",
     "load_motion",
     "png_is_grey",
+    "TRANSFERS",
+    "decode_transfer",
 ]
 
 #: How far grey data (visibility, coverage) may leave [0, 1] and still be clamped into it:
@@ -54,6 +56,8 @@ RADIANCE_EPSILON = 1e-4
 
 _RGB = ("R", "G", "B")
 _ALPHA = ("A",)
+#: How an 8/16-bit PNG's colour is decoded to linear radiance (``--transfer``).
+TRANSFERS = ("srgb", "gamma2.2", "linear")
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 # PNG colour types (PNG spec, table 11.1) that carry colour: truecolour and truecolour+alpha.
 _PNG_COLOUR_TYPES = (2, 6)
@@ -77,6 +81,7 @@ def load_candidate(
     *,
     channel: str = "color",
     expected_shape: tuple[int, int] | None = None,
+    transfer: str = "srgb",
 ) -> np.ndarray:
     """Read one channel (or RGB group) of an engine's image as float32.
 
@@ -94,6 +99,10 @@ def load_candidate(
         Any other name: an EXR channel of that exact name, else a layer ``<name>.R/G/B``.
     expected_shape : (int, int) or None, keyword-only
         The reference's ``(H, W)``; a candidate of another size is an error.
+    transfer : str, keyword-only
+        How a PNG's colour is decoded to linear (:data:`TRANSFERS`): ``srgb`` (the sRGB
+        curve, default), ``gamma2.2`` (a pure 2.2 power, what many GL samples write) or
+        ``linear`` (the values as they are).
 
     Returns
     -------
@@ -118,7 +127,7 @@ def load_candidate(
     if suffix == ".exr":
         image = _load_exr(path, channel)
     elif suffix == ".png":
-        image = _load_png(path, channel)
+        image = _load_png(path, channel, transfer)
     else:
         raise CandidateError(
             f"unknown candidate file extension {path.suffix or '(none)'!r} for {path.name}; "
@@ -365,7 +374,20 @@ def _png_header(path: Path) -> tuple[int, int]:
     return bit_depth, colour_type
 
 
-def _load_png(path: Path, channel: str) -> np.ndarray:
+def decode_transfer(values: np.ndarray, transfer: str) -> np.ndarray:
+    """Encoded display values in [0, 1] -> linear, by ``transfer`` (:data:`TRANSFERS`)."""
+    from ...metrics.tonemap import srgb_decode
+
+    if transfer == "srgb":
+        return srgb_decode(values)
+    if transfer == "gamma2.2":
+        return np.power(np.clip(values, 0.0, 1.0), np.float32(2.2))
+    if transfer == "linear":
+        return values
+    raise CandidateError(f"transfer must be one of {', '.join(TRANSFERS)}, got {transfer!r}")
+
+
+def _load_png(path: Path, channel: str, transfer: str = "srgb") -> np.ndarray:
     from PIL import Image
 
     if channel not in ("color", "visibility"):
@@ -391,11 +413,9 @@ def _load_png(path: Path, channel: str) -> np.ndarray:
     values = pixels.astype(np.float32) / np.float32(scale)
     if channel == "visibility":
         return _png_visibility(path, values)
-    from ...metrics.tonemap import srgb_decode
-
     if values.ndim == 2:
         values = np.repeat(values[..., None], 3, axis=-1)
-    return np.ascontiguousarray(srgb_decode(values), dtype=np.float32)
+    return np.ascontiguousarray(decode_transfer(values, transfer), dtype=np.float32)
 
 
 def _png16_colour(path: Path) -> tuple[np.ndarray, float]:

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from ... import reports
-from .score import ScoreError
+from .result import ScoreError
 
 __all__ = ["combine_reports"]
 

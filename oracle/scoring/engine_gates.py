@@ -11,6 +11,8 @@ Profiles (the published defaults of each tool):
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from ...metrics import engine_gates as G
 from .gates import Gate
 
@@ -39,12 +41,15 @@ GATE_PROFILES = {
 }
 
 
-def profile_gates(names, *, error=ValueError) -> list[Gate]:
-    """The gates of the named profiles, in order; ``error`` naming the valid profiles for an
-    unknown one."""
+def profile_gates(names, *, error=ValueError, origin: str = "--gate-profile") -> list[Gate]:
+    """The gates of the named profiles, in order, each ``optional`` (skipped on a candidate
+    kind its metric does not apply to) and named ``f"{origin} {name}"`` in messages;
+    ``error`` naming the valid profiles for an unknown one."""
     gates = []
     for name in names or ():
         if name not in GATE_PROFILES:
-            raise error(f"--gate-profile {name!r}: choose from {', '.join(GATE_PROFILES)}")
-        gates.extend(GATE_PROFILES[name])
+            raise error(f"{origin} {name!r}: choose from {', '.join(GATE_PROFILES)}")
+        gates.extend(
+            replace(g, origin=f"{origin} {name}", optional=True) for g in GATE_PROFILES[name]
+        )
     return gates

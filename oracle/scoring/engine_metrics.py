@@ -26,12 +26,14 @@ import numpy as np
 
 from ... import metrics as M
 from ...metrics import engine_gates as G
+from ...metrics.catalog import KINDS
 from ..reference.exr import read_exr
 
 __all__ = ["ENGINE_CHANNELS", "ENGINE_GATE_KEYS", "add_engine_gate_metrics", "exact_floors"]
 
-#: The channels an engine writes (a model's front-most coverage is not one).
-ENGINE_CHANNELS = ("visibility", "color", "coverage")
+#: The channels an engine writes (a model's front-most coverage is not one): the metric
+#: catalogue's kinds.
+ENGINE_CHANNELS = KINDS
 
 _FRACTIONS = tuple(
     f"unreal_{level}_{which}_error"
@@ -40,6 +42,14 @@ _FRACTIONS = tuple(
 )
 #: The metric keys this module adds.
 ENGINE_GATE_KEYS = (*_FRACTIONS, "unity_average_delta_e", "edge_aware_error_fraction")
+
+
+def _applies(channel: str) -> bool:
+    """The engine-gate pass runs on an engine's channels whose kind the metric catalogue
+    declares one of :data:`ENGINE_GATE_KEYS` for."""
+    return channel in ENGINE_CHANNELS and any(
+        channel in M.CATALOG[k].kinds for k in ENGINE_GATE_KEYS
+    )
 
 
 def _display(image: np.ndarray, channel: str, exposure) -> np.ndarray:
@@ -61,10 +71,12 @@ def _values(ref, cand, se, *, channel, exposure, mask) -> dict:
         counts[f"unreal_{level}_local_error"] = block
     unity = G.unity_delta_e(r, c)
     out["unity_average_delta_e"] = unity["average"]
-    if channel != "color":
+    if channel in M.CATALOG["edge_aware_error_fraction"].kinds:
         edge = G.edge_aware_error(ref, cand, reference_stderr=se, mask=mask)
-        out["edge_aware_error_fraction"] = edge["fraction"]
-        counts["edge_aware_error_fraction"] = int(mask.sum()) if mask is not None else h * w
+        n = int(mask.sum()) if mask is not None else h * w
+        # no receiver in view: nothing to judge (null, as the shadow metrics are)
+        out["edge_aware_error_fraction"] = edge["fraction"] if n else None
+        counts["edge_aware_error_fraction"] = n
     return out, counts, unity
 
 
@@ -79,7 +91,7 @@ def exact_floors(reference, exact, reference_channels: dict, *, channel, exposur
     ``reference`` (the noise floors before the fractions' binomial bound; Unity's: the mean
     delta E, see the module docstring). Empty for channels other than visibility, color
     and coverage."""
-    if channel not in ENGINE_CHANNELS:
+    if not _applies(channel):
         return {}
     se = _stderr(reference_channels, channel)
     if mask is not None:  # a shadow mask is judged on the receivers, as the candidate is
@@ -94,24 +106,34 @@ def add_engine_gate_metrics(result, *, channel, exposure) -> None:
     raise each fraction's noise floor (the exact surrogate's, from :func:`exact_floors`) to
     at least its binomial bound (channels visibility, color and coverage: what an engine
     writes)."""
-    if channel not in ENGINE_CHANNELS:
+    if not _applies(channel):
         return
-    per_frame, counts = [], {}
+    per_frame, counts = [], []
     for k, frame in enumerate(result.frames):
         mask = frame.receivers
         cand = frame.candidate if mask is None else np.where(mask, frame.candidate, frame.reference)
         se = _stderr(read_exr(result.reference_folders[k] / "reference.exr"), channel)
-        values, counts, _ = _values(
+        values, count, _ = _values(
             frame.reference, cand, se, channel=channel, exposure=exposure, mask=mask
         )
         frame.metrics.update(values)
         per_frame.append(values)
+        counts.append(count)
     record = result.record
+    totals = {}
     for key in per_frame[0]:
-        record[key] = float(np.mean([v[key] for v in per_frame]))
+        vals = [v[key] for v in per_frame if v[key] is not None]
+        record[key] = float(np.mean(vals)) if vals else None
+        if key in counts[0]:
+            # the last frame's count for every frame, as the records have always been made
+            # (their bytes kept); the frames' sum where that frame saw no receiver
+            last = counts[-1][key] * len(counts)
+            totals[key] = last if last > 0 else sum(c[key] for c in counts)
     floors = record.get("noise_floor")
     if floors is None:
         return
-    n_frames = len(result.frames)
-    for key, n in counts.items():
-        floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(record[key], n * n_frames))
+    for key, n in totals.items():
+        if record[key] is None or n == 0:  # no pixel counted (no receiver in view)
+            floors.pop(key, None)
+            continue
+        floors[key] = max(floors.get(key) or 0.0, M.fraction_floor(record[key], n))

@@ -17,9 +17,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...scenes.base.files import atomic_write_json
+from ..errors import InputError
 from .gates import FOLDER_SCHEMA
 from .options import ScoreOptions
-from .score import ScoreError
+from .result import ScoreError
 
 __all__ = ["FolderCase", "FolderEntry", "FolderRun", "discover", "score_folder"]
 
@@ -106,6 +107,8 @@ class FolderCase:
     options: ScoreOptions = field(default_factory=ScoreOptions)
     gates: tuple = ()
     error: str | None = None
+    #: the manifest's baseline metrics and tolerances (``metrics``, ``tolerances``) or None
+    baseline: dict | None = None
 
 
 @dataclass
@@ -121,6 +124,39 @@ class FolderRun:
         return 1 if any(v.failed or v.errors for v in self.verdicts) else 0
 
 
+def case_baseline_options(case: FolderCase, given):
+    """A case's baseline options: the caller's, else the manifest's, with the case's gated
+    metrics where neither names the metrics."""
+    from .gates import BaselineOptions
+
+    mine = case.baseline or {}
+    if given is None:  # the API without baseline options: the manifest's, else the default
+        given = BaselineOptions(mine.get("metrics"), dict(mine.get("tolerances") or {}))
+    elif mine:
+        tolerances = {**(mine.get("tolerances") or {}), **given.tolerances}
+        metrics = given.metrics if given.metrics is not None else mine.get("metrics")
+        given = BaselineOptions(metrics, tolerances, given.strict)
+    return given.for_gates(case.gates)
+
+
+def _missing_and_new(cases, baselines, source: str, strict: bool):
+    """Cases of the baseline missing from this run and cases new in it: a note each, or
+    with ``strict`` a failing check each (and an error verdict for a missing one)."""
+    from .gates import Check, Verdict
+
+    names = [c.name for c in cases]
+    missing = [k for k in baselines if k not in names]
+    new = [n for n in names if n not in baselines]
+    extra = []
+    for name in missing:
+        line = f"{'FAIL' if strict else 'NOTE'} baseline case {name}: in {source}, not in this run"
+        v = Verdict(scene=name)
+        v.add([Check(f"baseline case {name}", "case", False, line, "baseline")] if strict else ())
+        v.add(notes=[] if strict else [line])
+        extra.append(v)
+    return missing, new, extra
+
+
 def score_folder(
     cases,
     *,
@@ -128,16 +164,20 @@ def score_folder(
     cache=None,
     baselines: dict | None = None,
     baseline_source: str = "baseline",
+    baseline_options=None,
     root: str = "",
     title: str = "engine images",
 ) -> FolderRun:
     """Score every case into ``out/<name>/``, then write ``out/metrics.json`` (schema
     ``raster-oracle/score-folder/1``: every case's record under ``scenes``, ``failed`` case
-    -> failed check names, ``errors`` case -> message, ``exit_code``) and ``out/report.html``.
+    -> failed check names, ``errors`` case -> message, ``baseline`` the missing and new
+    cases, ``exit_code``) and ``out/report.html``.
 
     A case with ``error`` is not scored: its verdict holds the error (JUnit ``<error>``).
-    ``baselines``: case name -> a previous run's record of it (a case without one gets a
-    note).
+    ``baselines``: case name -> a previous run's record of it; ``baseline_options``
+    (:class:`oracle.scoring.gates.BaselineOptions`, None: each case's manifest's or the
+    default): the metrics compared and their tolerances, and ``strict``: a case of the
+    baseline missing from this run, or new in it, fails (else a note names it).
     """
     from .combine import combine_reports
     from .gates import Verdict
@@ -146,6 +186,7 @@ def score_folder(
     out = Path(out)
     combined = {"schema": FOLDER_SCHEMA, "root": root, "scenes": {}, "failed": {}, "errors": {}}
     run = FolderRun(record=combined)
+    strict = bool(baseline_options is not None and baseline_options.strict)
     scored = []
     for case in cases:
         if case.error is not None:
@@ -155,22 +196,33 @@ def score_folder(
             continue
         baseline = (baselines or {}).get(case.name)
         folder = out / case.name
-        verdict = score_to_folder(
-            case.loaded,
-            out=folder,
-            candidate=case.pattern,
-            channel=case.channel,
-            options=case.options,
-            cache=cache,
-            gates=list(case.gates),
-            baseline=baseline,
-            baseline_source=f"{baseline_source} scene {case.name}",
-            layout=case.layout,
-            name=case.name,
-        )
+        try:
+            verdict = score_to_folder(
+                case.loaded,
+                out=folder,
+                candidate=case.pattern,
+                channel=case.channel,
+                options=case.options,
+                cache=cache,
+                gates=list(case.gates),
+                baseline=baseline,
+                baseline_source=f"{baseline_source} scene {case.name}",
+                layout=case.layout,
+                name=case.name,
+                baseline_options=case_baseline_options(case, baseline_options),
+            )
+        except InputError as exc:  # a gate, option or file that does not fit this case: named
+            raise type(exc)(f"case {case.name}: {exc}") from None
         verdict.scene = case.name
         if baselines is not None and baseline is None:
-            verdict.add(notes=[f"baseline: no scene {case.name} in {baseline_source}"])
+            from .gates import Check
+
+            line = f"baseline: new case {case.name}, not in {baseline_source}"
+            line = f"{'FAIL' if strict else 'NOTE'} {line}"
+            if strict:
+                verdict.add([Check(f"baseline case {case.name}", "case", False, line, "baseline")])
+            else:
+                verdict.add(notes=[line])
         run.verdicts.append(verdict)
         record = json.loads((folder / "metrics.json").read_text())
         record["folder"] = case.name
@@ -178,6 +230,14 @@ def score_folder(
         if verdict.failed:
             combined["failed"][case.name] = list(verdict.failed)
         scored.append(folder)
+    if baselines is not None:
+        missing, new, extra = _missing_and_new(cases, baselines, baseline_source, strict)
+        combined["baseline"] = {"source": baseline_source, "missing": missing, "new": new}
+        combined["baseline"]["strict"] = strict
+        run.verdicts.extend(extra)
+        for v in extra:
+            if v.failed:
+                combined["failed"][v.scene] = list(v.failed)
     combined["exit_code"] = run.exit_code
     combined["platform"] = next((c.options.platform for c in cases), None)
     errors = [

@@ -32,28 +32,33 @@ from __future__ import annotations
 import json
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...metrics import catalog
 from ...scenes.base.files import atomic_write_bytes
-from .score import ScoreError, metric_limit
+from .result import ScoreError, metric_limit
 
 __all__ = [
+    "BaselineOptions",
     "FOLDER_SCHEMA",
     "METRICS_SCHEMA",
     "Check",
     "Gate",
     "GateError",
     "Verdict",
+    "applicable_gates",
     "check_applicable",
     "check_baseline_scene",
     "compare_baseline",
     "evaluate_gates",
     "judge",
+    "limit_texts",
     "junit_xml",
     "load_baseline",
     "load_folder_baseline",
+    "parse_baseline_metrics",
+    "parse_tolerance",
     "parse_gates",
     "scored_kinds",
     "write_junit",
@@ -78,10 +83,21 @@ class Gate:
     metric: str
     op: str
     limit: float
+    #: where the gate was asked for, for messages (``--gate-profile edge-aware``,
+    #: ``[scenes.plate.channels.shadow].fail_above``); None: ``--fail-above``/``--fail-below``
+    origin: str | None = field(default=None, compare=False)
+    #: a gate of a profile: skipped (with a note) on a candidate kind its metric does not
+    #: apply to, since a profile is a bundle applied to what it fits
+    optional: bool = field(default=False, compare=False)
 
     @property
     def option(self) -> str:
         return _OPTION[self.op]
+
+    @property
+    def where(self) -> str:
+        """How messages name the gate's source: its origin, else its option."""
+        return self.origin or self.option
 
     @property
     def name(self) -> str:
@@ -233,6 +249,22 @@ def scored_kinds(record: dict) -> tuple[str, ...]:
     return tuple(kinds)
 
 
+def applicable_gates(gates, *, kinds) -> tuple[list, list[str]]:
+    """``gates`` without the profile gates (``optional``) whose metric does not apply to the
+    candidate ``kinds``, and a note naming each one left out."""
+    kept, notes = [], []
+    for g in gates:
+        m = catalog.CATALOG[g.metric]
+        if g.optional and not set(m.kinds) & set(kinds):
+            notes.append(
+                f"{g.where}: {g.metric} applies to {' and '.join(m.kinds)} candidates, not "
+                f"{' and '.join(kinds)}: not judged"
+            )
+            continue
+        kept.append(g)
+    return kept, notes
+
+
 def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
     """:class:`GateError` for a gate whose metric does not apply to the candidate ``kinds``
     (None: not known yet, not checked) or to ``frames`` frames."""
@@ -240,13 +272,13 @@ def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
         m = catalog.CATALOG[g.metric]
         if kinds is not None and not set(m.kinds) & set(kinds):
             raise GateError(
-                f"{g.option} {g.metric}: {g.metric} applies to {' and '.join(m.kinds)} "
+                f"{g.where} {g.metric}: {g.metric} applies to {' and '.join(m.kinds)} "
                 f"candidates; this run scores {' and '.join(kinds)} "
                 "(--channel says what a candidate file holds)"
             )
         if frames < m.min_frames:
             raise GateError(
-                f"{g.option} {g.metric}: {g.metric} needs at least {m.min_frames} frames; "
+                f"{g.where} {g.metric}: {g.metric} needs at least {m.min_frames} frames; "
                 f"this run scores {frames} (use --frames {m.min_frames} or more)"
             )
 
@@ -279,7 +311,7 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
     floors = record.get("noise_floor") or {}
     checks = []
     for g in gates:
-        value = _value(record, g.metric, f"{g.option} {g.metric}")
+        value = _value(record, g.metric, f"{g.where} {g.metric}")
         passed = value <= g.limit if g.op == "<=" else value >= g.limit
         shown = g.op if passed else {"<=": ">", ">=": "<"}[g.op]
         floor = floors.get(g.metric)
@@ -405,11 +437,98 @@ def check_baseline_scene(
     _check_same_run(mine, theirs, source)
 
 
-def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") -> Verdict:
+@dataclass(frozen=True)
+class BaselineOptions:
+    """What a baseline comparison compares and allows.
+
+    ``metrics``: the metric keys compared; ``"all"``: every scored metric with a noise floor
+    in both runs; None: the default, the gated metrics (:meth:`for_gates`; all when none is
+    gated). ``tolerances``: metric -> ``(t, relative)``: a regression must be worse by
+    more than both floors plus ``t`` (error units) or ``t`` times the baseline's error.
+    ``strict``: a case missing from this run or new in it (``score-folder``) fails.
+    """
+
+    metrics: tuple[str, ...] | str | None = None
+    tolerances: dict = field(default_factory=dict)
+    strict: bool = False
+
+    @classmethod
+    def gated(cls, gates, **kw) -> BaselineOptions:
+        """The default: the gated metrics (every metric when no gate is given)."""
+        return cls(**kw).for_gates(gates)
+
+    def for_gates(self, gates) -> BaselineOptions:
+        """These options, with the gated metrics where ``metrics`` was left to the default
+        (a manifest's cases differ in their gates)."""
+        if self.metrics is not None:
+            return self
+        keys = tuple(dict.fromkeys(g.metric for g in gates or ()))
+        return BaselineOptions(keys or "all", dict(self.tolerances), self.strict)
+
+
+def parse_tolerance(text: str, *, option: str = "--baseline-tolerance") -> tuple[str, tuple]:
+    """``"flip_mean=0.01"`` -> ``("flip_mean", (0.01, False))``; ``"flip_mean=5%"`` ->
+    ``("flip_mean", (0.05, True))``: a non-negative absolute or relative tolerance."""
+    key, sep, value = str(text).partition("=")
+    key, value = key.strip(), value.strip()
+    relative = value.endswith("%")
+    number = value[:-1].strip() if relative else value
+    if not sep:
+        raise GateError(f"{option} expects METRIC=VALUE or METRIC=PERCENT%, got {text!r}")
+    if key not in catalog.CATALOG:
+        raise GateError(
+            f"{option}: unknown metric {key!r}; choose from {', '.join(catalog.CATALOG)}"
+        )
+    try:
+        t = float(number)
+    except ValueError:
+        raise GateError(
+            f"{option} {key}: expected a number or a percentage, got {value!r}"
+        ) from None
+    if not math.isfinite(t) or t < 0:
+        raise GateError(f"{option} {key}: expected a finite number >= 0, got {value!r}")
+    return key, (t / 100.0 if relative else t, relative)
+
+
+def parse_baseline_metrics(texts, *, option: str = "--baseline-metrics") -> tuple | None:
+    """``["flip_mean,ssim", "misclassified_fraction"]`` -> the metric keys (``all``:
+    ``"all"``, every metric; none given: None, the default); unknown or ``info`` metrics are
+    :class:`GateError`."""
+    keys = [k.strip() for t in texts or () for k in str(t).split(",") if k.strip()]
+    if not keys:
+        return None
+    if keys == ["all"]:
+        return "all"
+    for key in keys:
+        if key not in catalog.CATALOG:
+            raise GateError(
+                f"{option}: unknown metric {key!r}; choose from all, {', '.join(catalog.CATALOG)}"
+            )
+        if catalog.CATALOG[key].direction == "info":
+            raise GateError(f"{option} {key}: {key} is {catalog.CATALOG[key].better}")
+    return tuple(dict.fromkeys(keys))
+
+
+def _tolerance_text(tol) -> str:
+    if not tol or not tol[0]:
+        return ""
+    t, relative = tol
+    return f", tolerance {_limit(t * 100)}%" if relative else f", tolerance {_limit(t)}"
+
+
+def compare_baseline(
+    record: dict,
+    baseline: dict,
+    *,
+    source: str = "baseline",
+    options: BaselineOptions | None = None,
+) -> Verdict:
     """Compare this run's ``record`` with a previous run's; returns a verdict holding one
-    check per metric with a noise floor in both (a regression fails it), and a note naming
-    the metrics left out. :class:`GateError` when the runs are not of one scene, resolution,
-    light, candidate kind and frame count."""
+    check per compared metric (``options.metrics``; None: every one) with a noise floor in
+    both (a regression, worse by more than both floors and the metric's tolerance, fails
+    it), and a note naming the metrics left out. :class:`GateError` when the runs are not of
+    one scene, resolution, light, candidate kind and frame count."""
+    options = options or BaselineOptions()
     mine = _identity(record)
     _check_same_run(mine, _identity(baseline), source)
     verdict = Verdict(scene=str(mine["scene"]))
@@ -417,6 +536,8 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
     old_floors = baseline.get("noise_floor") or {}
     skipped: list[str] = []
     for key, m in catalog.CATALOG.items():
+        if options.metrics not in (None, "all") and key not in options.metrics:
+            continue
         a, b = _number(baseline.get(key)), _number(record.get(key))
         if m.direction == "info" or a is None or b is None:
             continue
@@ -424,10 +545,13 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
         if not all(v is not None and math.isfinite(v) for v in (a, b, fa, fb)):
             skipped.append(key)
             continue
-        bad = catalog.regressed(key, b, fb, a, fa)
+        tol = options.tolerances.get(key)
+        t, rel = tol or (0.0, False)
+        bad = catalog.regressed(key, b, fb, a, fa, tolerance=t, relative=rel)
         line = (
             f"{'REGRESSION' if bad else 'PASS baseline'} {key} {_num(b, a)} "
-            f"(noise floor {_num(fb)}) vs baseline {_num(a, b)} (noise floor {_num(fa)})"
+            f"(noise floor {_num(fb)}) vs baseline {_num(a, b)} (noise floor {_num(fa)}"
+            f"{_tolerance_text(tol)})"
         )
         check = Check(f"baseline {key}", key, not bad, line, "baseline", b, None, fb, a, fa)
         verdict.add([check])
@@ -437,7 +561,7 @@ def compare_baseline(record: dict, baseline: dict, *, source: str = "baseline") 
     return verdict
 
 
-def _texts(limits, op: str) -> list[str]:
+def limit_texts(limits, op: str) -> list[str]:
     """``{"ssim": 0.9}`` or ``["ssim=0.9"]`` -> ``["ssim=0.9"]`` (as the CLI takes them)."""
     if limits is None:
         return []
@@ -462,13 +586,15 @@ def judge(record: dict, *, fail_above=None, fail_below=None, baseline=None) -> V
     regressed; ``lines``). Raises :class:`GateError` for a gate that cannot be judged or a
     baseline of another run (the CLI's exit 2).
     """
-    gates = parse_gates(_texts(fail_above, "<="), _texts(fail_below, ">="))
+    gates = parse_gates(limit_texts(fail_above, "<="), limit_texts(fail_below, ">="))
     scene = ((record.get("reference") or {}).get("scene") or {}).get("name", "?")
     verdict = Verdict(scene=str(scene), checks=evaluate_gates(gates, record))
     if baseline is not None:
         source = "baseline" if isinstance(baseline, dict) else str(baseline)
         previous = baseline if isinstance(baseline, dict) else load_baseline(baseline)
-        against = compare_baseline(record, previous, source=source)
+        against = compare_baseline(
+            record, previous, source=source, options=BaselineOptions.gated(gates)
+        )
         verdict.add(against.checks, against.notes)
     return verdict
 

@@ -264,22 +264,24 @@ def read_candidate(
     layout: CandidateLayout,
     *,
     expected_shape: tuple[int, int] | None = None,
+    transfer: str = "srgb",
 ) -> np.ndarray:
     """Read ``path`` as ``layout`` says: ``(H, W, 3)`` linear colour or ``(H, W)`` data in
     [0, 1]; the same checks as :func:`oracle.scoring.candidates.load_candidate` (size,
-    finite values, range) by kind."""
+    finite values, range) by kind. ``transfer``: how a PNG's colour is decoded
+    (:data:`oracle.scoring.candidates.TRANSFERS`; EXR colour is linear already)."""
     path = Path(path)
-    image = candidate_format(path).read(path, layout, expected_shape)
+    image = candidate_format(path).read(path, layout, expected_shape, transfer)
     return np.ascontiguousarray(image, dtype=np.float32)
 
 
-def _png_read(path: Path, layout: CandidateLayout, expected_shape) -> np.ndarray:
-    """A PNG is read whole: colour sRGB-decoded, grey kinds as data."""
+def _png_read(path: Path, layout: CandidateLayout, expected_shape, transfer) -> np.ndarray:
+    """A PNG is read whole: colour decoded by ``transfer``, grey kinds as data."""
     read = "color" if layout.kind == "color" else "visibility"
-    return load_candidate(path, channel=read, expected_shape=expected_shape)
+    return load_candidate(path, channel=read, expected_shape=expected_shape, transfer=transfer)
 
 
-def _exr_read(path: Path, layout: CandidateLayout, expected_shape) -> np.ndarray:
+def _exr_read(path: Path, layout: CandidateLayout, expected_shape, transfer) -> np.ndarray:
     """The channels ``layout`` names, shaped and checked by kind."""
     try:
         chans = read_exr(path)

@@ -23,6 +23,12 @@ gates, frames and camera path.
     camera_path = "subpixel-pan"    # needed with frames (unless the export records one)
     channels = { shadow = {} }
 
+Also at every level: ``transfer`` (``srgb``, ``gamma2.2``, ``linear``: how a PNG's colour
+is decoded), ``expect`` (``"shadow-map:resolution=2048,filter=pcf"``: the technique the
+engine claims, scored for conformance), ``baseline_metrics`` (a list, or ``"all"``) and
+``baseline_tolerance`` (``{ flip_mean = 0.005, ssim = "1%" }``: absolute, or relative to
+the baseline's error).
+
 Every key is checked (an unknown key, a wrong type or an unknown metric is a
 :class:`ManifestError` naming it, before anything is scored). Gates add up from
 ``[defaults]`` to the scene to the channel; a later limit of the same metric and direction
@@ -32,11 +38,12 @@ replaces an earlier one.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ...scenes import SceneError
 from ...scenes.formats.inputs import named_input
+from .candidates import TRANSFERS
 from .gates import Gate, GateError, parse_gates
 from .options import VISIBILITY_CONVENTIONS
 
@@ -51,10 +58,24 @@ _COMMON = {
     "spp",
     "seed",
     "flip_mode",
+    "transfer",
+    "expect",
+    "baseline_metrics",
+    "baseline_tolerance",
 }
 _DEFAULT_KEYS = _COMMON | {"exports"}
 _SCENE_KEYS = _COMMON | {"scene", "file", "frames", "channels"}
-_CHANNEL_KEYS = {"kind", "fail_above", "fail_below", "profiles", "visibility"}
+_CHANNEL_KEYS = {
+    "kind",
+    "fail_above",
+    "fail_below",
+    "profiles",
+    "visibility",
+    "transfer",
+    "expect",
+    "baseline_metrics",
+    "baseline_tolerance",
+}
 _KINDS = ("visibility", "color", "coverage")
 
 
@@ -76,6 +97,10 @@ class ManifestCase:
     camera_path: str | None
     visibility: str
     gates: tuple[Gate, ...]
+    transfer: str | None = None
+    expect: str | None = None
+    #: ``{"metrics": keys, "all" or None, "tolerances": metric -> (t, relative)}``
+    baseline: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -132,10 +157,56 @@ def _gates(table: dict, where: str) -> list[Gate]:
     from .engine_gates import profile_gates
 
     try:
-        gates = profile_gates(profiles, error=ManifestError)
-        return gates + parse_gates(texts["--fail-above"], texts["--fail-below"])
+        gates = profile_gates(profiles, error=ManifestError, origin=f"{where}.profiles")
+        limits = parse_gates(texts["--fail-above"], texts["--fail-below"])
     except GateError as exc:
         raise ManifestError(f"{where}: {exc}") from None
+    key = {"<=": "fail_above", ">=": "fail_below"}
+    return gates + [replace(g, origin=f"{where}.{key[g.op]}") for g in limits]
+
+
+def _baseline(table: dict, where: str) -> dict:
+    """``baseline_metrics`` (a list of keys or ``"all"``) and ``baseline_tolerance`` (metric
+    -> a number or a percentage string such as ``"5%"``) of one level."""
+    from .gates import parse_baseline_metrics, parse_tolerance
+
+    out = {}
+    try:
+        if "baseline_metrics" in table:
+            keys = table["baseline_metrics"]
+            if not (
+                keys == "all" or isinstance(keys, list) and all(isinstance(k, str) for k in keys)
+            ):
+                raise ManifestError(f'{where}.baseline_metrics must be a list of metrics or "all"')
+            out["metrics"] = parse_baseline_metrics(
+                [keys] if keys == "all" else keys, option=f"{where}.baseline_metrics"
+            )
+        if "baseline_tolerance" in table:
+            tols = _table(table["baseline_tolerance"], f"{where}.baseline_tolerance")
+            for k, v in tols.items():
+                if isinstance(v, bool) or not isinstance(v, int | float | str):
+                    raise ManifestError(
+                        f"{where}.baseline_tolerance.{k} must be a number or a percentage"
+                    )
+            out["tolerances"] = dict(
+                parse_tolerance(f"{k}={v}", option=f"{where}.baseline_tolerance")
+                for k, v in tols.items()
+            )
+    except GateError as exc:
+        if isinstance(exc, ManifestError):
+            raise
+        raise ManifestError(str(exc)) from None
+    return out
+
+
+def _merge_baseline(*levels: dict) -> dict | None:
+    merged: dict = {}
+    for level in levels:
+        if "metrics" in level:
+            merged["metrics"] = level["metrics"]
+        if "tolerances" in level:
+            merged["tolerances"] = {**merged.get("tolerances", {}), **level["tolerances"]}
+    return merged or None
 
 
 def _merge(*levels: list[Gate]) -> tuple[Gate, ...]:
@@ -181,6 +252,7 @@ def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCas
         ctable = _table(ctable, cwhere)
         _keys(ctable, _CHANNEL_KEYS, cwhere)
         visibility = ctable.get("visibility", merged.get("visibility", "1-is-lit"))
+        cmerged = {**merged, **ctable}
         cases.append(
             ManifestCase(
                 name=key if channel is None else f"{key}/{channel}",
@@ -193,6 +265,11 @@ def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCas
                 camera_path=camera,
                 visibility=_text(visibility, f"{cwhere}.visibility", VISIBILITY_CONVENTIONS),
                 gates=_merge(ctx["gates"], scene_gates, _gates(ctable, cwhere)),
+                transfer=_opt(cmerged, "transfer", _text, f"{cwhere}.transfer", TRANSFERS),
+                expect=_opt(cmerged, "expect", _text, f"{cwhere}.expect"),
+                baseline=_merge_baseline(
+                    ctx["baseline"], _baseline(table, where), _baseline(ctable, cwhere)
+                ),
             )
         )
     return cases
@@ -220,6 +297,7 @@ def read_manifest(path) -> Manifest:
         "base": base,
         "exports": base / exports if exports else None,
         "gates": _gates(defaults, "[defaults]"),
+        "baseline": _baseline(defaults, "[defaults]"),
     }
     cases = [c for key, table in scenes.items() for c in _scene_cases(key, table, defaults, ctx)]
     return Manifest(

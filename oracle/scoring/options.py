@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 
 from ... import metrics as M
-from .score import ScoreError
+from .result import ScoreError
 
 __all__ = ["VISIBILITY_CONVENTIONS", "ScoreOptions"]
 
@@ -37,6 +37,11 @@ class ScoreOptions:
     motion : an engine's motion-vector layer (``layer``, ``convention``, optional
         ``disocclusion``; :func:`oracle.scoring.request.file_candidate`), scored against the
         reference's motion (candidates only).
+    transfer : how an 8/16-bit PNG candidate's colour is decoded to linear: ``srgb``,
+        ``gamma2.2`` or ``linear`` (None: ``srgb``; an EXR is linear and takes none).
+    expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
+        scored too, and the candidate against it (``conformance_*`` metrics;
+        :mod:`oracle.scoring.conformance`).
     """
 
     spp: int = 64
@@ -50,6 +55,8 @@ class ScoreOptions:
     visibility: str = "1-is-lit"
     gate_frames: int | None = None
     motion: dict | None = None
+    transfer: str | None = None
+    expect: str | None = None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
@@ -61,6 +68,12 @@ class ScoreOptions:
             )
         if str(self.flip_mode).upper() not in ("LDR", "HDR"):
             raise ScoreError(f"flip mode must be LDR or HDR, got {self.flip_mode!r}")
+        from .candidates import TRANSFERS
+
+        if self.transfer is not None and self.transfer not in TRANSFERS:
+            raise ScoreError(
+                f"--transfer must be one of {', '.join(TRANSFERS)}, got {self.transfer!r}"
+            )
         frames = self.frames if self.frames and self.frames > 1 else None
         return replace(self, frames=frames, flip_mode=str(self.flip_mode).upper())
 

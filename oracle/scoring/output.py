@@ -18,7 +18,7 @@ from ...scenes.base.files import atomic_copy, atomic_write_bytes, atomic_write_j
 from ...scenes.base.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
 from .gates import Gate, Verdict
-from .score import METRIC_KEYS, ScoreResult
+from .result import ScoreResult
 
 __all__ = [
     "MAP_STYLES",
@@ -39,6 +39,7 @@ MAP_STYLES = {
     "neg_log10_p": ("magma", (0.0, 10.0)),
     # temporal AA (oracle.scoring.temporal): added change per frame, motion-vector error in px
     "flicker": ("magma", (0.0, 0.1)),
+    "conformance_error": ("signed", (-1.0, 1.0)),
     "motion_epe": ("magma", (0.0, 2.0)),
 }
 
@@ -124,7 +125,8 @@ def _case(
             and (key == "visibility_error" or "visibility_error" not in frame.maps),
         }
     record = result.record
-    values = {k: record[k] for k in METRIC_KEYS if record.get(k) is not None}
+    # every catalogue metric the record holds (the on-request conformance ones too)
+    values = {k: record[k] for k in M.CATALOG if record.get(k) is not None}
     return reports.make_case(
         name=name,
         scene=scene,
@@ -149,7 +151,9 @@ def _case(
         },
         viewer=_viewer(result, maps),
         checks=[c.as_record() for c in checks],
-        diagnoses=[d["message"] for d in result.record.get("diagnoses") or []],
+        # the likely causes, then an engine colour's worst shapes and gain-corrected metrics
+        diagnoses=[d["message"] for d in result.record.get("diagnoses") or []]
+        + list((result.record.get("colour_causes") or {}).get("details") or []),
     )
 
 
@@ -170,20 +174,21 @@ def _frame_cases(result: ScoreResult, *, name: str, scene: str, technique, param
             }
             for key, data in frame.maps.items()
         }
-        values = {k2: v for k2, v in frame.metrics.items() if k2 in METRIC_KEYS and v is not None}
-        cases.append(
-            reports.make_case(
-                name=f"{name} frame {k}",
-                scene=scene,
-                reference=_display(result, frame.reference),
-                candidate=_display(result, frame.candidate),
-                kind="color" if result.record["channel"] == "color" else "visibility",
-                metrics=values,
-                error_maps=maps,
-                technique=technique,
-                params=params,
-            )
+        values = {k2: v for k2, v in frame.metrics.items() if k2 in M.CATALOG and v is not None}
+        case = reports.make_case(
+            name=f"{name} frame {k}",
+            scene=scene,
+            reference=_display(result, frame.reference),
+            candidate=_display(result, frame.candidate),
+            kind="color" if result.record["channel"] == "color" else "visibility",
+            metrics=values,
+            error_maps=maps,
+            technique=technique,
+            params=params,
         )
+        # a frame of a multi-frame case: shown after it, not counted as a case of its own
+        case["frame"] = k
+        cases.append(case)
     return cases
 
 

@@ -16,7 +16,9 @@ import numpy as np
 
 from ... import metrics as M
 from ... import raster_models
-from .score import COVERAGE_KEYS, ScoreError, ScoreResult, score
+from ...metrics.aliasing import COVERAGE_KEYS
+from .result import ScoreError, ScoreResult
+from .score import score
 
 __all__ = ["model_candidate", "score_model", "technique_channels"]
 

@@ -15,7 +15,33 @@ from ... import metrics as M
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 
-__all__ = ["CONVERGENCE_WINDOW", "GHOSTING_WINDOW", "add_temporal_aa", "truth_motion"]
+__all__ = [
+    "CONVERGENCE_WINDOW",
+    "GHOSTING_WINDOW",
+    "MOTION_KEYS",
+    "TEMPORAL_AA_KEYS",
+    "add_temporal_aa",
+    "truth_motion",
+]
+
+#: The temporal AA metrics of a sequence (:func:`add_temporal_aa`); the pass runs on the
+#: channels the metric catalogue declares them for.
+TEMPORAL_AA_KEYS = (
+    "steady_error",
+    "convergence_frames",
+    "ghosting_error",
+    "history_error",
+    "lag_frames",
+    "flicker_ratio",
+)
+#: The motion-vector metrics of an engine's velocity buffer.
+MOTION_KEYS = (
+    "motion_epe_mean",
+    "motion_epe_p99",
+    "motion_epe_over_half",
+    "disocclusion_recall",
+    "disocclusion_precision",
+)
 
 #: Frames each frame's error is averaged over before the convergence test: one jitter
 #: sequence of the shortest common length (UE4, HDRP: 8), whose phase the error follows;
@@ -38,15 +64,11 @@ def truth_motion(scenes_k, *, seed: int, cache, quiet: bool):
     return np.stack(motion).astype(np.float64), np.stack(dis) > 0.5
 
 
-def _velocity(result, motion, dis, engine: list) -> dict:
-    """Per-frame and mean end-point errors of the candidate's motion vectors."""
-    keys = (
-        "motion_epe_mean",
-        "motion_epe_p99",
-        "motion_epe_over_half",
-        "disocclusion_recall",
-        "disocclusion_precision",
-    )
+def _velocity(result, motion, dis, engine: list, gate_frames=None) -> dict:
+    """Per-frame end-point errors of the candidate's motion vectors, and their mean over
+    the judged frames (the last ``gate_frames``, else all: warm-up is not judged, as for
+    every other per-frame metric)."""
+    keys = MOTION_KEYS
     per = []
     for k, (frame, given) in enumerate(zip(result.frames, engine, strict=True)):
         mv, cand_dis = given
@@ -56,8 +78,9 @@ def _velocity(result, motion, dis, engine: list) -> dict:
             frame.maps["motion_epe"] = e.pop("epe")
         per.append(e)
     out = {}
+    judged = per[-(gate_frames or len(per)) :]
     for key in keys:
-        vals = [e[key] for e in per if e.get(key) is not None]
+        vals = [e[key] for e in judged if e.get(key) is not None]
         out[key] = float(np.mean(vals)) if vals else None
     return out
 
@@ -113,7 +136,7 @@ def add_temporal_aa(
     out, detail, _ = _taa_values(refs, cands, motion, dis, age, gate_frames)
     result.frames[0].maps["flicker"] = M.flicker_map(refs, cands)
     if engine_motion is not None and any(m is not None for m, _ in engine_motion):
-        out.update(_velocity(result, motion, dis, engine_motion))
+        out.update(_velocity(result, motion, dis, engine_motion, gate_frames))
     if exact_frames is not None and result.frames[0].noise_floor is not None:
         exact, _, _ = _taa_values(refs, exact_frames, motion, dis, age, gate_frames)
         floor = {k: v for k, v in exact.items() if k not in ("convergence_frames", "lag_frames")}

@@ -32,7 +32,7 @@ from ..errors import InputError, one_line
 from ..reference.cache import ORACLE_VERSION, ReferenceCache
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
-from ..scoring.score import METRIC_KEYS, REFERENCE_GROUPS
+from ..scoring.channels import METRIC_KEYS, REFERENCE_GROUPS
 from ..scoring.technique import score_model, technique_channels
 from .spec import Case, Expansion
 from .store import SweepStore, case_key

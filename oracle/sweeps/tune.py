@@ -30,7 +30,7 @@ from ...metrics.catalog import CATALOG
 from ...raster_models import params
 from ...scenes import backend
 from ..errors import InputError
-from ..scoring.score import metric_limit
+from ..scoring.result import metric_limit
 from .run import run_case, store_row, sweep_keys
 from .spec import Case
 from .store import SweepStore

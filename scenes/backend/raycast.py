@@ -207,9 +207,9 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None,
     blocked = scene.ray_test(ray_from(p), active & ~pending)
     if light_shape is not None:  # blocked, perhaps by the light itself: look again
         light_ptr = mi.ShapePtr(light_shape)
-        again = blocked if recheck is None else blocked & recheck
-        blocked &= ~again
-        pending |= again
+        again = mi.Bool(blocked) if recheck is None else blocked & recheck
+        blocked = blocked & ~again  # not in place: ``again`` may share its storage
+        pending = pending | again
 
     def body(q, blocked, pending, rounds):
         si = scene.ray_intersect(ray_from(q), mi.RayFlags.Minimal, False, pending)

@@ -6,7 +6,8 @@
   and cylinders are tessellated finely: 512 x 256 and 512 segments),
 - ``camera.json``: world-to-view and projection matrices in the OpenGL and Direct3D
   conventions, fov, resolution, near/far and the pixel-centre convention, and ``sequence``:
-  the path, frame and object transforms this export was made for,
+  the path, frame and object transforms this export was made for, and ``previous``: the
+  camera of the frame before (frame -1 for frame 0), for the engine's motion vectors,
 - ``lights.json``: every usable light with its radiometric quantity (an area light with its
   shape, size, orientation and radiance: :meth:`scenes.lights.Light.area_json`),
 - ``materials.json``: the diffuse albedo of every shape and the scene-wide specular lobe,
@@ -229,7 +230,15 @@ def _write_export_record(tmp: Path, loaded) -> None:
     for k in range(loaded.n_frames):
         at = loaded.with_frame(k, path=loaded.camera_path, n_frames=loaded.n_frames)
         cam = {**at.camera.to_json(), "sequence": _sequence(at)}
+        cam["previous"] = _previous_camera(at)
         (tmp / "cameras" / f"frame_{k:03d}.json").write_text(json.dumps(cam, indent=2))
+
+
+def _previous_camera(loaded) -> dict:
+    """The camera of the frame before ``loaded``'s (frame -1 for frame 0: the paths are
+    defined there, and the reference's motion of frame 0 is against it), what an engine's
+    velocity buffer of this frame is computed with."""
+    return loaded.previous().camera.to_json()
 
 
 def _sequence(loaded) -> dict:
@@ -280,6 +289,7 @@ def export(loaded, out_dir: str | Path) -> dict:
         camera = loaded.camera.to_json()
         # the frame of the sequence this export was made for (engines render the same frame)
         camera["sequence"] = _sequence(loaded)
+        camera["previous"] = _previous_camera(loaded)
         (tmp / "camera.json").write_text(json.dumps(camera, indent=2))
         lights = {"chosen": loaded.light_index, "lights": [lt.to_json() for lt in loaded.lights]}
         if loaded.pbr is not None:  # with each light's glTF node matrix

@@ -84,7 +84,7 @@ class ClaimContext:
     def shadow_error(self, loaded, result) -> dict:
         """Shadow metrics of a model result against the oracle (receivers only)."""
         from .... import metrics as M
-        from ...scoring.score import reference_receivers
+        from ...scoring.channels import reference_receivers
 
         ref = self.reference(loaded)
         rec = reference_receivers(ref, loaded.light)

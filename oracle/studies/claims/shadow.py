@@ -65,7 +65,7 @@ def _sdsm_vs_pssm(ctx: ClaimContext) -> dict:
 
 def _temporal_pairs(ctx, loaded_frames, technique, params) -> list[float]:
     """Mean |e[t+1] - e[t]| of each consecutive frame pair (e = model - oracle, receivers)."""
-    from ...scoring.score import reference_receivers
+    from ...scoring.channels import reference_receivers
 
     errs, masks = [], []
     for loaded in loaded_frames:

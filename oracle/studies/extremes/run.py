@@ -164,7 +164,7 @@ def _finite_result(res) -> bool:
 
 def _error(family: str, res, ref: dict, loaded) -> tuple[str, float, dict]:
     from .... import metrics as M
-    from ...scoring.score import reference_receivers
+    from ...scoring.channels import reference_receivers
 
     if family != "shadow" and "coverage" in res.outputs:
         d = np.asarray(res.outputs["coverage"], np.float64) - ref["coverage"]

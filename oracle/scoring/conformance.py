@@ -1,0 +1,134 @@
+"""Conformance to the technique an engine claims to implement (``score --expect``).
+
+``--expect shadow-map:resolution=2048,filter=pcf,pcf_size=3`` names a registered technique
+and its ``--set`` keys. Its model (:mod:`raster_models`) runs on every scored frame, and the
+engine's image is scored against the model's output beside the truth:
+
+- ``conformance_misclassified_fraction`` (shadow masks): receivers lit in one and shadowed
+  in the other (threshold 0.5), as ``misclassified_fraction`` is against the truth;
+- ``conformance_edge_displacement_px``: the sub-pixel shift of the candidate's edges from
+  the model's (:func:`metrics.shift.subpixel_shift`), in pixels;
+- ``conformance_flip_mean``: FLIP of the candidate against the model's image (shadow masks
+  and coverage as displayed data; colour through the shared tone mapper).
+
+A correct implementation of the claimed technique scores near 0 on all three while the truth
+metrics show the technique's inherent error (a 3x3 PCF's soft edge against a hard shadow);
+an implementation that reads its shadow map one texel over is displaced. The model is
+deterministic: these metrics have no noise floor (a baseline does not compare them).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import metrics as M
+from ... import raster_models
+from ...metrics.shift import subpixel_shift
+from .result import ScoreError
+
+__all__ = ["CONFORMANCE_KEYS", "MIN_DISPLACEMENT_PX", "add_conformance", "parse_expect"]
+
+#: Edges displaced by less than this many pixels are not named.
+MIN_DISPLACEMENT_PX = 0.25
+
+#: The metric keys conformance adds (the catalogue's ``on_request`` metrics).
+CONFORMANCE_KEYS = (
+    "conformance_misclassified_fraction",
+    "conformance_edge_displacement_px",
+    "conformance_flip_mean",
+)
+
+
+def parse_expect(text: str, *, kind: str | None = None) -> tuple[str, dict]:
+    """``"shadow-map:resolution=2048,filter=pcf"`` -> ``("shadow-map", {parsed params})``;
+    a :class:`ScoreError` for a malformed text, an unknown technique or parameter, or a
+    technique that does not produce the candidate's ``kind``."""
+    technique, _, rest = str(text).partition(":")
+    technique = technique.strip()
+    if not technique:
+        raise ScoreError(f"--expect expects TECHNIQUE[:KEY=VALUE,...], got {text!r}")
+    pairs = [p.strip() for p in rest.split(",") if p.strip()]
+    try:
+        params = raster_models.parse_params(technique, pairs)
+        produced = raster_models.family(technique).channels
+    except raster_models.ModelError as exc:
+        raise ScoreError(f"--expect {text}: {exc}") from None
+    if kind is not None and kind not in produced:
+        raise ScoreError(
+            f"--expect {technique} produces {', '.join(produced)}; this candidate is {kind}"
+        )
+    return technique, params
+
+
+def _frame_values(model, cand, ref, *, kind, receivers, ppd, exposure) -> dict:
+    out = {}
+    mask = receivers
+    if kind == "visibility":
+        sm = M.shadow_metrics(model, cand, receivers=receivers, full=False)
+        out["conformance_misclassified_fraction"] = sm["misclassified_fraction"]
+    shift = subpixel_shift(model, cand, mask=mask)
+    out["conformance_edge_displacement_px"] = shift["magnitude"]
+    out["conformance_shift"] = [shift["dx"], shift["dy"]]
+    if kind == "color":
+        out["conformance_flip_mean"] = M.flip(model, cand, mode="LDR", ppd=ppd, exposure=exposure)
+    else:
+        lin = dict(tone_mapper="clip", exposure=0.0)
+        out["conformance_flip_mean"] = M.flip(model, cand, mode="LDR", ppd=ppd, **lin)
+    return out
+
+
+def add_conformance(
+    result, scenes_k, expect: str, *, kind: str, ppd: float, gate_frames=None
+) -> list[str]:
+    """Run the claimed technique's model on every frame scene of ``scenes_k`` and add the
+    conformance metrics to each frame's metrics and (their mean over the judged frames) to
+    the record, with ``conformance`` (technique, params, per-frame shift ``[dx, dy]``).
+    Returns a note naming the displacement when the edges moved by
+    :data:`MIN_DISPLACEMENT_PX` or more."""
+    technique, params = parse_expect(expect, kind=kind)
+    exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops")
+    per_frame = []
+    for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
+        res = raster_models.run(technique, frame_scene, **params)
+        model = np.asarray(res.outputs[kind], dtype=np.float32)
+        cand = frame.candidate
+        if frame.receivers is not None:  # a mask is judged on the receivers, as the truth
+            model = np.where(frame.receivers, model, frame.reference).astype(np.float32)
+            cand = np.where(frame.receivers, cand, frame.reference).astype(np.float32)
+        values = _frame_values(
+            model,
+            cand,
+            frame.reference,
+            kind=kind,
+            receivers=frame.receivers,
+            ppd=ppd,
+            exposure=exposure,
+        )
+        frame.maps["conformance_error"] = (
+            np.asarray(cand, np.float64) - np.asarray(model, np.float64)
+        ).astype(np.float32)
+        if frame.maps["conformance_error"].ndim == 3:
+            frame.maps["conformance_error"] = frame.maps["conformance_error"].mean(-1)
+        frame.metrics.update({k: values.get(k) for k in CONFORMANCE_KEYS})
+        per_frame.append(values)
+    judged = per_frame[-(gate_frames or len(per_frame)) :]
+    for key in CONFORMANCE_KEYS:
+        vals = [v[key] for v in judged if v.get(key) is not None]
+        result.record[key] = float(np.mean(vals)) if vals else None
+    if result.record.get("frames"):
+        for rec, frame in zip(result.record["frames"], result.frames, strict=True):
+            rec.update({k: frame.metrics.get(k) for k in CONFORMANCE_KEYS})
+    result.record["conformance"] = {
+        "technique": technique,
+        "params": res.params,
+        "shift_px": [v["conformance_shift"] for v in per_frame],
+    }
+    dx, dy = np.mean([v["conformance_shift"] for v in judged], axis=0)
+    if np.hypot(dx, dy) < MIN_DISPLACEMENT_PX:
+        return []
+    return [
+        f"conformance: the candidate's edges are displaced by ({dx:+.2f}, {dy:+.2f}) px from "
+        f"{technique}'s model (misclassified "
+        f"{result.record.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
+        "a filter or lookup that reads the map off by a texel, or another projection"
+    ]
