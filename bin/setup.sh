@@ -12,9 +12,12 @@ cd "$root"
 need_apt=()
 # libLLVM >= 16 for Dr.Jit's LLVM backend (Debian's default LLVM 15 aborts it).
 ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1 || need_apt+=(libllvm19)
-# Headless Chromium for the report tests only.
+# Headless Chromium for the report tests only; Mesa's EGL and llvmpipe for the test that
+# runs the published SMAA shader (tests/test_smaa_glsl.py, through moderngl).
 if [ "$mode" = test ]; then
     command -v chromium >/dev/null 2>&1 || need_apt+=(chromium)
+    ls /usr/lib/x86_64-linux-gnu/libEGL_mesa.so.0 >/dev/null 2>&1 || need_apt+=(libegl1 libegl-mesa0)
+    ls /usr/lib/x86_64-linux-gnu/dri/swrast_dri.so >/dev/null 2>&1 || need_apt+=(libgl1-mesa-dri)
 fi
 if [ "${#need_apt[@]}" -gt 0 ]; then
     if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; else SUDO=; fi

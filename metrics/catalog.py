@@ -183,6 +183,16 @@ _ENTRIES = (
         "mean frame-to-frame change of the candidate over the truth's (1: as steady as the truth)",
         min_frames=2,
     ),
+    # a perceptual score of the whole sequence (metrics.video, the optional extra [video])
+    _m(
+        "cvvdp_jod",
+        "higher",
+        "JOD (10 = identical)",
+        ("color",),
+        "ColorVideoVDP quality of the tone-mapped sequence against the truth's (null without "
+        "the extra raster-oracle[video])",
+        min_frames=2,
+    ),
     # an engine's velocity buffer against the reference motion (metrics.motion)
     _m(
         "motion_epe_mean",
@@ -306,8 +316,9 @@ def metric(key: str) -> Metric:
 def error_of(key: str, value: float) -> float:
     """``value`` of metric ``key`` as an error: 0 for a perfect candidate, larger is worse.
 
-    lower: ``value``; higher: ``1 - value`` (SSIM) or ``10**(-value/10)`` (PSNR in dB: the
-    MSE); zero: ``|value|``. ``ValueError`` for an ``info`` metric (it is not a score).
+    lower: ``value``; higher: ``1 - value`` (SSIM), ``10**(-value/10)`` (PSNR in dB: the
+    MSE) or ``10 - value`` (JOD); zero: ``|value|``. ``ValueError`` for an ``info`` metric
+    (it is not a score).
     """
     m = metric(key)
     value = float(value)
@@ -316,6 +327,8 @@ def error_of(key: str, value: float) -> float:
     if m.direction == "zero":
         return abs(value)
     if m.direction == "higher":
+        if m.unit.startswith("JOD"):
+            return 10.0 - value
         return 10.0 ** (-value / 10.0) if m.unit == "dB" else 1.0 - value
     raise ValueError(f"{key} is {m.better}: it has no error")
 

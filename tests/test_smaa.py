@@ -14,11 +14,16 @@ from raster_oracle.raster_models import run as run_model
 from raster_oracle.raster_models.aa.smaa import PRESETS, textures
 from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
-from raster_oracle.raster_models.aa.smaa.model import smaa_1x
+from raster_oracle.raster_models.aa.smaa.model import color_buffer, smaa_1x
 from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
 from raster_oracle.raster_models.aa.trace import sample_colors
-from raster_oracle.scenes.base.display import exposure_from_reference, tonemap
+from raster_oracle.scenes.base.display import (
+    exposure_from_reference,
+    srgb_decode,
+    srgb_encode,
+    tonemap,
+)
 
 from raster_oracle import scenes
 
@@ -205,20 +210,30 @@ def test_resolve_reprojects_with_the_velocity():
     np.testing.assert_allclose(out, a + (shifted - a) * 0.5, atol=FLOAT32_ATOL)
 
 
-def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames():
+@pytest.mark.parametrize("source", ["rgba8-srgb", "float"])
+def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames(source):
+    # 8-bit input (the default): each frame written to an RGBA8 sRGB target and the two
+    # averaged in linear light through the sRGB views, rounded to 1/255; float input: the
+    # frames averaged as stored (gamma)
     scene = scenes.load("star", width=48, height=27)
-    res = run_model("smaa", scene, mode="t2x")
+    res = run_model("smaa", scene, mode="t2x", input=source)
     frames = []
     for offset in ((0.75, 0.75), (0.25, 0.25)):
         col, _ = sample_colors(scene, np.array([offset]))
         frames.append(col["color"].reshape(27, 48, 3))
     exposure = exposure_from_reference((frames[0] + frames[1]) / 2)
-    cfg = resolved(SmaaParams())
+    cfg = resolved(SmaaParams(input=source))
     out = [
-        smaa_1x(tonemap(f, exposure=exposure), cfg, idx)["color"]
+        smaa_1x(color_buffer(tonemap(f, exposure=exposure), cfg), cfg, idx)["color"]
         for f, idx in zip(frames, ((1, 1, 1, 0), (2, 2, 2, 0)), strict=True)
     ]
-    want = out[1] + (out[0] - out[1]) * np.float32(0.5)
+    if source == "float":
+        want = out[1] + (out[0] - out[1]) * np.float32(0.5)
+    else:
+        assert np.array_equal(np.round(out[0] * 255) / 255, out[0])  # an RGBA8 target
+        cur, prev = srgb_decode(out[1]), srgb_decode(out[0])
+        want = srgb_encode(cur + (prev - cur) * np.float32(0.5))
+        want = np.round(np.clip(want.astype(np.float64), 0, 1) * 255) / 255
     np.testing.assert_allclose(res.outputs["color_display"], want, atol=FLOAT32_ATOL)
     assert not np.array_equal(out[0], out[1])  # the jittered frames differ
 
@@ -248,5 +263,49 @@ def test_modes_run_and_report_costs(tmp_path):
     assert cost["samples"] == 2 and cost["smaa_passes"] == 8
     assert cost["framebuffer_bytes_by_buffer"]["smaa_edges"] == 48 * 27 * 2
     assert cost["framebuffer_bytes_by_buffer"]["smaa_weights"] == 48 * 27 * 4
+    assert cost["framebuffer_bytes_by_buffer"]["smaa_velocity"] == 48 * 27 * 4  # RG16F
     assert cost["texture_fetches_per_pixel"] > 0
-    assert "static camera" in rec["diagnostics"]["velocity"]
+    assert "still scene" in rec["diagnostics"]["velocity"]
+
+
+def test_t2x_on_a_moving_sequence_reprojects_the_previous_frame_by_its_velocity():
+    # slide's frame 2: the current frame (sub-sample set 1, jitter (0.25, 0.25)) and frame 1
+    # (set 0, jitter (0.75, 0.75)), each SMAA 1x on its 8-bit buffer with its own velocity
+    # buffer (current minus previous position, texture units, RG16F), resolved with the
+    # previous frame fetched at texcoord - velocity
+    from raster_oracle.scenes.geometry.motion import film_motion
+
+    w, h = 48, 27
+    scene = scenes.load("slide", width=w, height=h).with_frame(2, n_frames=8)
+    res = run_model("smaa", scene, mode="t2x")
+    assert "film motion" in res.diagnostics["velocity"]
+    frames = [(scene.previous(), (0.75, 0.75), (1, 1, 1, 0)), (scene, (0.25, 0.25), (2, 2, 2, 0))]
+    cols, vels = [], []
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    for sc, off, _ in frames:
+        col, _ = sample_colors(sc, np.array([off]))
+        cols.append(col["color"].reshape(h, w, 3))
+        m = film_motion(sc, x + off[0], y + off[1], disocclusion=False)
+        v = -np.stack([m["motion_x"].reshape(h, w) / w, m["motion_y"].reshape(h, w) / h], -1)
+        vels.append(v.astype(np.float16).astype(np.float64))
+    assert np.abs(vels[1]).max() > 0.5 / w  # something moves by more than half a pixel
+    exposure = exposure_from_reference((cols[0] + cols[1]) / 2)
+    cfg = resolved(SmaaParams(mode="t2x"))
+    outs = [
+        smaa_1x(color_buffer(tonemap(c, exposure=exposure), cfg), cfg, idx, velocity=v)
+        for c, (_, _, idx), v in zip(cols, frames, vels, strict=True)
+    ]
+    want = resolve(
+        outs[1]["color"],
+        outs[0]["color"],
+        alpha_current=outs[1]["alpha"],
+        alpha_previous=outs[0]["alpha"],
+        velocity=vels[1],
+        srgb=True,
+        unorm8=True,
+    )
+    np.testing.assert_array_equal(res.outputs["color_display"], want)
+    # the blending pass packed the velocity into alpha (sqrt(5 |v|), 8-bit)
+    assert outs[1]["alpha"].max() > 0 and np.array_equal(
+        np.round(outs[1]["alpha"] * 255) / 255, outs[1]["alpha"].astype(np.float64)
+    )

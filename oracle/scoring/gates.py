@@ -296,6 +296,9 @@ def _number(value) -> float | None:
 
 def _value(record: dict, key: str, what: str) -> float:
     value = _number(record.get(key))
+    skipped = ((record.get("temporal_aa") or {}).get("video") or {}).get("skipped")
+    if value is None and key == "cvvdp_jod" and skipped:
+        raise GateError(f"{what}: {skipped}")
     if value is None or not math.isfinite(value):
         raise GateError(
             f"{what}: {key} is {'null' if value is None else value} for this run "

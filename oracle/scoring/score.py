@@ -214,6 +214,7 @@ def score(
             gate_frames=gate_frames,
             engine_motion=st["engine"],
             exact_frames=exact_frames,
+            display=(st["exposure"], ppd),
         )
         summary.update(taa)
     result.record = build_record(

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ... import metrics as M
+from ...metrics import video as V
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 
@@ -21,6 +22,7 @@ __all__ = [
     "MOTION_KEYS",
     "TEMPORAL_AA_KEYS",
     "add_temporal_aa",
+    "add_video_score",
     "truth_motion",
 ]
 
@@ -121,6 +123,7 @@ def add_temporal_aa(
     gate_frames=None,
     engine_motion=None,
     exact_frames=None,
+    display=None,
 ) -> tuple[dict, dict]:
     """Temporal AA metrics of a colour sequence (``result.frames``' references and
     candidates), to add to the record's summary, and a detail record; the per-pixel flicker
@@ -128,7 +131,8 @@ def add_temporal_aa(
     oracle's convention, disocclusion (H, W) or None)``, or None. ``exact_frames``: the
     exact surrogate of every frame (the noise-floor reference): the same metrics for it join
     frame 0's noise floor (``convergence_frames`` and ``lag_frames`` excepted: counts, not
-    errors)."""
+    errors). ``display``: ``(exposure, ppd)`` of the score's tone mapping: adds
+    :func:`add_video_score` (``cvvdp_jod``; its detail under ``video``)."""
     refs = np.stack([f.reference for f in result.frames]).astype(np.float64)
     cands = np.stack([f.candidate for f in result.frames]).astype(np.float64)
     motion, dis = truth_motion(scenes_k, seed=seed, cache=cache, quiet=quiet)
@@ -141,4 +145,46 @@ def add_temporal_aa(
         exact, _, _ = _taa_values(refs, exact_frames, motion, dis, age, gate_frames)
         floor = {k: v for k, v in exact.items() if k not in ("convergence_frames", "lag_frames")}
         result.frames[0].noise_floor.update({k: v for k, v in floor.items() if v is not None})
+    if display is not None:
+        exposure, ppd = display
+        video, detail["video"] = add_video_score(
+            result,
+            exposure=exposure,
+            ppd=ppd,
+            gate_frames=gate_frames,
+            exact_frames=exact_frames,
+            quiet=quiet,
+        )
+        out.update(video)
     return out, detail
+
+
+def add_video_score(
+    result, *, exposure: float, ppd: float, gate_frames=None, exact_frames=None, quiet=False
+) -> tuple[dict, dict]:
+    """ColorVideoVDP's JOD of the judged frames (the last ``gate_frames``, else all), both
+    sequences through the one tone mapper; its noise floor joins frame 0's: the JOD of the
+    exact surrogate frames (the seed-to-seed noise of the truth). Without the extra
+    ``raster-oracle[video]``: null, and one line on stderr (unless ``quiet``)."""
+    why = V.unavailable()
+    if why is None and min(result.frames[0].reference.shape[:2]) < 2:
+        why = "cvvdp_jod skipped: ColorVideoVDP needs frames of at least 2x2 pixels"
+    if why is not None:
+        if not quiet:
+            import sys
+
+            print(why, file=sys.stderr)
+        return {"cvvdp_jod": None}, {"skipped": why}
+    judged = slice(-(gate_frames or len(result.frames)), None)
+
+    def shown(frames) -> np.ndarray:
+        return np.stack([M.tonemap(f, exposure=exposure) for f in frames])[judged]
+
+    refs = shown([f.reference for f in result.frames])
+    jod = V.cvvdp_jod(refs, shown([f.candidate for f in result.frames]), ppd=ppd)
+    detail = {"display": V.DISPLAY, "fps": V.FPS, "ppd": float(ppd), "frames": len(refs)}
+    if exact_frames is not None and result.frames[0].noise_floor is not None:
+        floor = V.cvvdp_jod(refs, shown(list(exact_frames)), ppd=ppd)
+        result.frames[0].noise_floor["cvvdp_jod"] = floor
+        detail["noise_floor"] = floor
+    return {"cvvdp_jod": jod}, detail

@@ -20,12 +20,18 @@ import numpy as np
 from ....scenes.base.display import srgb_decode, srgb_encode
 from ._sampling import SUBTEXEL_BITS, Fetches, bilinear, bilinear_taps
 
-__all__ = ["REPROJECTION_WEIGHT_SCALE", "neighborhood_blend", "resolve"]
+__all__ = ["REPROJECTION_WEIGHT_SCALE", "neighborhood_blend", "resolve", "to_unorm8"]
 
 #: ``SMAA_REPROJECTION_WEIGHT_SCALE`` (SMAA.hlsl default).
 REPROJECTION_WEIGHT_SCALE = 30.0
 # SMAANeighborhoodBlendingPS: weights summing below this leave the pixel alone
 _NO_BLEND = 1e-5
+
+
+def to_unorm8(x) -> np.ndarray:
+    """A float written to an 8-bit UNORM channel: clamped to [0, 1], rounded to k/255."""
+    v = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
+    return (np.round(v * 255.0) / 255.0).astype(np.float32)
 
 
 def neighborhood_blend(
@@ -37,6 +43,7 @@ def neighborhood_blend(
     match: dict | None = None,
     velocity: np.ndarray | None = None,
     subtexel_bits: int = SUBTEXEL_BITS,
+    unorm8: bool = False,
     fetches: Fetches | None = None,
 ) -> dict:
     """Blend ``color`` ((H, W, 3) gamma-encoded display values) with the blend texture
@@ -47,10 +54,13 @@ def neighborhood_blend(
     filter weight the blend gives to texels whose id equals the pixel's id to match (the
     front-most shape's coverage); ``velocity``: (H, W, 2) in texture-coordinate units,
     blended the same way
-    and packed as ``alpha = sqrt(5 |v|)`` (``SMAA_REPROJECTION``).
+    and packed as ``alpha = sqrt(5 |v|)`` (``SMAA_REPROJECTION``); ``unorm8``: the target
+    is RGBA8 (sRGB view when ``srgb``): the written colour and alpha are rounded to 1/255
+    (``color`` should then hold multiples of 1/255, the 8-bit input).
 
     Returns a dict: ``color`` (H, W, 3) float32, ``blended`` (H, W) bool, ``alpha`` (H, W)
-    float32 (zeros without ``velocity``) and each ``extra`` by name.
+    float32 (zeros without ``velocity``), ``linear`` (H, W, 3) float32 (the shader's output
+    before the write's encoding, in the blending space) and each ``extra`` by name.
     """
     c = np.asarray(color, np.float32)
     wts = np.asarray(weights, np.float64)
@@ -78,9 +88,17 @@ def neighborhood_blend(
 
     out = c.copy()
     lin = srgb_decode(c) if srgb else c
-    mixed = mix(lin)
-    out[jy, jx] = (srgb_encode(mixed.astype(np.float32)) if srgb else mixed).astype(np.float32)
-    res = {"color": out, "blended": blended, "alpha": np.zeros((h, w), np.float32)}
+    mixed = mix(lin).astype(np.float32)
+    shader = np.array(lin, np.float32, copy=True)
+    shader[jy, jx] = mixed
+    written = srgb_encode(mixed) if srgb else mixed
+    out[jy, jx] = (to_unorm8(written) if unorm8 else written).astype(np.float32)
+    res = {
+        "color": out,
+        "blended": blended,
+        "alpha": np.zeros((h, w), np.float32),
+        "linear": shader,
+    }
     for name, arr in (extra or {}).items():
         e = np.asarray(arr, np.float32).copy()
         e[jy, jx] = mix(arr).astype(np.float32)
@@ -98,7 +116,8 @@ def neighborhood_blend(
     if velocity is not None:
         v = np.asarray(velocity, np.float64).copy()
         v[jy, jx] = mix(velocity)
-        res["alpha"] = np.sqrt(5.0 * np.hypot(v[..., 0], v[..., 1])).astype(np.float32)
+        alpha = np.sqrt(5.0 * np.hypot(v[..., 0], v[..., 1]))
+        res["alpha"] = (to_unorm8(alpha) if unorm8 else alpha).astype(np.float32)
     if fetches is not None:
         taps = h * w + len(jx)  # one colour fetch per pixel, two where it blends
         fetches.add("blend:weights", 3 * h * w)
@@ -116,14 +135,19 @@ def resolve(
     alpha_previous: np.ndarray,
     velocity: np.ndarray | None = None,
     weight_scale: float = REPROJECTION_WEIGHT_SCALE,
+    srgb: bool = False,
+    unorm8: bool = False,
     fetches: Fetches | None = None,
 ) -> np.ndarray:
-    """``SMAAResolvePS`` with ``SMAA_REPROJECTION``: (H, W, 3) float32.
+    """``SMAAResolvePS`` with ``SMAA_REPROJECTION``: (H, W, C) float32.
 
-    ``current``, ``previous``: (H, W, 3) frames as stored (gamma-encoded; the resolve reads
-    them without sRGB decoding); ``alpha_*``: their packed velocity lengths;
-    ``velocity``: (H, W, 2) current velocity in texture-coordinate units (None: a static
-    camera, zero everywhere).
+    ``current``, ``previous``: (H, W, C) frames as stored (gamma-encoded); ``srgb``: the
+    first three channels are read through an sRGB view (the demo's ``previousRT`` targets
+    are ``R8G8B8A8_UNORM_SRGB``: decoded, mixed in linear light, encoded on write; without
+    it they are mixed as stored); ``unorm8``: the written colour is rounded to 1/255;
+    ``alpha_*``: their packed velocity lengths; ``velocity``: (H, W, 2) current velocity
+    (``SMAA_DECODE_VELOCITY``: current minus previous position) in texture-coordinate
+    units (None: a static camera, zero everywhere).
     """
     cur = np.asarray(current, np.float32)
     h, w = cur.shape[:2]
@@ -143,4 +167,12 @@ def resolve(
         fetches.add("resolve:color", 2 * h * w)
         if velocity is not None:
             fetches.add("resolve:velocity", h * w)
-    return (cur + (prev - cur) * weight[..., None]).astype(np.float32)
+    if srgb:
+        cur, prev = cur.copy(), prev.copy()
+        cur[..., :3], prev[..., :3] = srgb_decode(cur[..., :3]), srgb_decode(prev[..., :3])
+    out = (cur + (prev - cur) * weight[..., None]).astype(np.float32)
+    if srgb:
+        out[..., :3] = srgb_encode(out[..., :3])
+    if unorm8:
+        out[..., :3] = to_unorm8(out[..., :3])
+    return out

@@ -6,7 +6,11 @@ Each sample image (one sample per pixel at the mode's position) is the oracle's 
 the D3D standard pattern: ``msaa.multisample``, shaded once per primitive at the pixel
 centre), tone-mapped by the project's pipeline (:func:`scenes.base.display.tonemap`, exposure
 from the model's own sample-averaged image, as ``fxaa``) to gamma-encoded values in [0, 1]
-where SMAA's thresholds are defined. SMAA 1x runs its three passes on it
+where SMAA's thresholds are defined, and stored as the engine stores it (``input``:
+``rgba8-srgb``, the demo's ``R8G8B8A8_UNORM_SRGB`` scene target, rounded to 1/255; edge
+detection reads these gamma values, neighbourhood blending reads them decoded to linear
+through the sRGB view and writes an 8-bit sRGB target; ``float``: unquantized, as before
+issue 36). SMAA 1x runs its three passes on it
 (:mod:`.edges`, :mod:`.weights`, :mod:`.blending`) with the sub-sample indices of its mode:
 
 =====  ===================================================  =================================
@@ -23,10 +27,15 @@ s2x    (0.75, 0.75) (1, 1, 1, 0); (0.25, 0.25) (2, 2, 2, 0)  averaged (sRGB targ
 
 The header's jitters assume y up: its T2x jitter (0.25, -0.25) is the D3D 2x sample 0
 (+4/16, +4/16 y down), and 4x's net jitters add the camera jitter (+-0.125, +-0.125) to it.
-T2x and 4x resolve frame 1 (current) with frame 0 (previous). The camera is static here:
-motion vectors (the temporal-AA issue) are not available yet, so the velocity is zero, the
-reprojection weight is 0.5 everywhere and the resolve is the plain average of both frames
-(``diagnostics["velocity"]`` says so).
+T2x and 4x resolve the scene's frame k (current, the table's frame (k + 1) mod 2) with its
+frame k - 1 (previous, frame k mod 2), as the demo's ``runSMAA`` does: the previous frame's
+SMAA output, point-fetched at texcoord - velocity, weighted down where the packed velocity
+lengths differ (``SMAAResolvePS``, ``SMAA_REPROJECTION``). The velocity buffer is what the
+demo's scene pass writes (RG16F, texture units, current minus previous position of the
+surface point under each sample, jitter excluded): the oracle's film motion
+(:func:`scenes.geometry.motion.film_motion`) at the sample, MSAA-resolved for S2x/4x. A
+still scene is its own previous frame: zero velocity, weight 0.5, the plain average
+(``diagnostics["velocity"]`` says which).
 
 Outputs: ``color`` (linear: the radiance the pipeline maps to the displayed image; the
 exact one-sample radiance where SMAA changed nothing and the samples agree), ``color_display``
@@ -59,16 +68,17 @@ from ....scenes.base.display import (
     tonemap,
     tonemap_inverse,
 )
+from ....scenes.geometry.motion import film_motion
 from .. import msaa as _msaa
 from ..common import package
 from ..trace import sample_colors, trace_samples
 from ._sampling import Fetches
-from .blending import neighborhood_blend, resolve
+from .blending import neighborhood_blend, resolve, to_unorm8
 from .edges import detect_edges
-from .params import MODES, SmaaParams, resolved
+from .params import INPUT_8BIT, MODES, SmaaParams, resolved
 from .weights import blending_weights
 
-__all__ = ["NAME", "run", "smaa_1x"]
+__all__ = ["NAME", "color_buffer", "hardware_depth", "run", "smaa_1x"]
 
 NAME = "smaa"
 
@@ -86,11 +96,20 @@ TEXEL_BYTES = {
 
 
 def smaa_1x(
-    display: np.ndarray, cfg: dict, indices, *, depth=None, extra=None, match=None, fetches=None
+    display: np.ndarray,
+    cfg: dict,
+    indices,
+    *,
+    depth=None,
+    extra=None,
+    match=None,
+    velocity=None,
+    fetches=None,
 ):
     """SMAA 1x on one gamma-encoded image with sub-sample ``indices``; ``cfg``:
-    :func:`.params.resolved`. Returns :func:`.blending.neighborhood_blend`'s dict plus
-    ``edges``."""
+    :func:`.params.resolved` (``input`` ``rgba8-srgb``: ``display`` holds the 8-bit buffer's
+    values k/255 and the output is written to an RGBA8 target). Returns
+    :func:`.blending.neighborhood_blend`'s dict plus ``edges`` and ``weights``."""
     pred = None
     if cfg["predication"]:
         pred = {k: cfg[f"predication_{k}"] for k in ("threshold", "scale", "strength")}
@@ -113,13 +132,31 @@ def smaa_1x(
         fetches=fetches,
     )
     out = neighborhood_blend(
-        display, wts, srgb=cfg["srgb_blending"], extra=extra, match=match, fetches=fetches
+        display,
+        wts,
+        srgb=cfg["srgb_blending"],
+        extra=extra,
+        match=match,
+        velocity=velocity,
+        unorm8=cfg["input"] == INPUT_8BIT,
+        fetches=fetches,
     )
     out["edges"] = edges
+    out["weights"] = wts
     return out
 
 
-def _hardware_depth(camera, view_depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def color_buffer(display: np.ndarray, cfg: dict) -> np.ndarray:
+    """The scene colour buffer SMAA reads: the tone-mapped, gamma-encoded image as the
+    engine stores it (``rgba8-srgb``: rounded to k/255, the bytes an ``R8G8B8A8_UNORM_SRGB``
+    render target holds; ``float``: as computed)."""
+    d = np.asarray(display, np.float32)
+    if cfg["input"] != INPUT_8BIT:
+        return d
+    return to_unorm8(d)
+
+
+def hardware_depth(camera, view_depth: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Direct3D depth-buffer values in [0, 1] (near 0, far 1, sky cleared to 1)."""
     n, f = camera.near, camera.far
     d = np.maximum(view_depth.astype(np.float64), n)
@@ -149,82 +186,174 @@ def _frame_samples(scene, offsets: np.ndarray):
     return np.ascontiguousarray(col), valid, {"rays": rays, "events": events.reshape(h, w)}
 
 
-def _run_frames(scene, p, cfg, fetches):
-    """Every frame of the mode: SMAA per sample, samples combined; returns a dict."""
-    frames = MODES[p.mode]
-    rendered = [_frame_samples(scene, np.array([s[0] for s in fr])) for fr in frames]
-    exposure = exposure_from_reference(np.mean([c.mean(axis=0) for c, _, _ in rendered], axis=0))
-    need_depth = cfg["edge_detection"] == "depth" or cfg["predication"]
-    w, h = scene.width, scene.height
-    centre = trace_samples(scene, np.array([[0.5, 0.5]]), keep=("shape",))["shape"].reshape(h, w)
-    results, first_edges, unchanged = [], None, np.ones((h, w), bool)
-    first = rendered[0][0][0]
-    for fr, (col, valid, _) in zip(frames, rendered, strict=True):
-        depth = None
-        tr = trace_samples(scene, np.array([s[0] for s in fr]), keep=("valid", "shape", "depth"))
-        if need_depth:
-            depth = [
-                _hardware_depth(scene.camera, tr["depth"][:, i], tr["valid"][:, i]).reshape(h, w)
-                for i in range(len(fr))
-            ]
-        outs = []
-        for i, (_, indices) in enumerate(fr):
-            disp = tonemap(col[i], exposure=exposure, method=p.tone_mapper)
-            o = smaa_1x(
+def _still(scene) -> bool:
+    """True where the scene is its own previous frame (no camera, light or object path)."""
+    return scene.camera_path is None and scene.light_path is None and not scene.object_motion
+
+
+def _velocity(scene, offsets: np.ndarray) -> np.ndarray | None:
+    """The frame's velocity buffer as the demo's scene pass writes it (RG16F, texture units,
+    current minus previous position of the surface point under each sample, the same jitter
+    in both matrices), MSAA-resolved (the mean of the samples); None for a still scene."""
+    if _still(scene):
+        return None
+    h, w = scene.height, scene.width
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    vel = np.zeros((h, w, 2))
+    for ox, oy in offsets:
+        m = film_motion(scene, x + ox, y + oy, disocclusion=False)
+        vel[..., 0] -= m["motion_x"].reshape(h, w) / w
+        vel[..., 1] -= m["motion_y"].reshape(h, w) / h
+    return (vel / len(offsets)).astype(np.float16).astype(np.float64)
+
+
+def _render(scene, frame_spec, need_depth: bool, want_velocity: bool) -> dict:
+    """One frame of the mode rendered: its samples, depth, ids and velocity buffer."""
+    h, w = scene.height, scene.width
+    offsets = np.array([s[0] for s in frame_spec])
+    col, valid, extra = _frame_samples(scene, offsets)
+    tr = trace_samples(scene, offsets, keep=("valid", "shape", "depth"))
+    centre = trace_samples(scene, np.array([[0.5, 0.5]]), keep=("shape",))["shape"]
+    depth = None
+    if need_depth:
+        depth = [
+            hardware_depth(scene.camera, tr["depth"][:, i], tr["valid"][:, i]).reshape(h, w)
+            for i in range(len(offsets))
+        ]
+    return {
+        "col": col,
+        "valid": valid,
+        "rays": extra["rays"],
+        "events": extra["events"],
+        "depth": depth,
+        "shape": [tr["shape"][:, i].reshape(h, w) for i in range(len(offsets))],
+        "centre": centre.reshape(h, w),
+        "velocity": _velocity(scene, offsets) if want_velocity else None,
+        "indices": [s[1] for s in frame_spec],
+    }
+
+
+def _smaa_frame(rf: dict, exposure: float, p, cfg: dict, fetches) -> dict:
+    """SMAA on every sample of one rendered frame, the samples combined (S2x's 0.5 blend)."""
+    outs = []
+    for i, indices in enumerate(rf["indices"]):
+        disp = color_buffer(tonemap(rf["col"][i], exposure=exposure, method=p.tone_mapper), cfg)
+        outs.append(
+            smaa_1x(
                 disp,
                 cfg,
                 indices,
-                depth=None if depth is None else depth[i],
-                extra={"coverage": valid[i].astype(np.float32)},
-                match={"front_coverage": (tr["shape"][:, i].reshape(h, w), centre)},
+                depth=None if rf["depth"] is None else rf["depth"][i],
+                extra={"coverage": rf["valid"][i].astype(np.float32)},
+                match={"front_coverage": (rf["shape"][i], rf["centre"])},
+                velocity=rf["velocity"],
                 fetches=fetches,
             )
-            unchanged &= ~o["blended"] & np.all(col[i] == first, axis=-1)
-            outs.append(o)
-            first_edges = o["edges"] if first_edges is None else first_edges
-        results.append(_combine_samples(outs, cfg["srgb_blending"]))
-    if len(results) == 2:  # T2x / 4x: resolve current (frame 1) with previous (frame 0)
-        cur, prev = results[1], results[0]
-        stacked = resolve(
-            np.concatenate([cur["color"], cur["coverage"][..., None], cur["front"][..., None]], -1),
-            np.concatenate(
-                [prev["color"], prev["coverage"][..., None], prev["front"][..., None]], -1
-            ),
-            alpha_current=cur["alpha"],
-            alpha_previous=prev["alpha"],
-            weight_scale=cfg["reprojection_weight_scale"],
-            fetches=fetches,
         )
-        final = {"color": stacked[..., :3], "coverage": stacked[..., 3], "front": stacked[..., 4]}
+    return _combine_samples(outs, cfg)
+
+
+def _run_frames(scene, p, cfg, fetches):
+    """Every frame of the mode: SMAA per sample, samples combined, and for T2x / 4x the
+    resolve of this frame with the previous one; returns a dict."""
+    frames = MODES[p.mode]
+    need_depth = cfg["edge_detection"] == "depth" or cfg["predication"]
+    temporal = len(frames) == 2
+    # T2x / 4x: frame k is the current frame (sub-sample set (k + 1) mod 2), frame k - 1
+    # the previous one (k mod 2); a still scene is its own previous frame
+    k = int(getattr(scene, "frame", 0) or 0)
+    if temporal:
+        cur_spec, prev_spec = frames[(k + 1) % 2], frames[k % 2]
+        scenes_ = [scene.previous(), scene]  # a still scene is its own previous frame
+        specs = [prev_spec, cur_spec]
     else:
-        final = results[0]
+        scenes_, specs = [scene], frames
+    moving = temporal and not _still(scene)
+    rendered = [_render(sc, sp, need_depth, moving) for sc, sp in zip(scenes_, specs, strict=True)]
+    exposure = exposure_from_reference(np.mean([r["col"].mean(axis=0) for r in rendered], axis=0))
+    first = rendered[0]["col"][0]
+    unchanged = np.ones(first.shape[:2], bool)
+    results = []
+    for rf in rendered:
+        res = _smaa_frame(rf, exposure, p, cfg, fetches)
+        unchanged &= ~res["blended"] & np.all(rf["col"] == first, axis=(0, -1))
+        results.append(res)
+    final = results[-1]
+    if temporal:
+        final = _resolve(results[1], results[0], rendered[1]["velocity"], cfg, fetches)
     return {
         "display": final["color"],
         "coverage": final["coverage"],
         "front_coverage": final["front"],
         "unchanged": unchanged,
         "linear0": first,
-        "edges": first_edges,
+        "edges": results[0]["edges"],
+        "weights": results[0]["weights"],
         "exposure": exposure,
-        "rays": sum(r["rays"] for _, _, r in rendered),
-        "events": rendered[-1][2]["events"],  # the frame rendered for this display
-        "valid": np.mean([v.mean(axis=0) for _, v, _ in rendered], axis=0),
+        "rays": sum(r["rays"] for r in rendered),
+        "events": rendered[-1]["events"],  # the frame rendered for this display
+        "valid": np.mean([r["valid"].mean(axis=0) for r in rendered], axis=0),
+        "moving": moving,
+        "temporal": temporal,
     }
 
 
-def _combine_samples(outs: list[dict], srgb: bool) -> dict:
-    """S2x: the per-sample results blended 0.5 into one target (in linear light when the
-    target is sRGB); one sample: itself."""
+def _resolve(cur: dict, prev: dict, velocity, cfg: dict, fetches) -> dict:
+    """``SMAAResolvePS``: the current frame with the previous one reprojected by the current
+    velocity buffer; colour through the sRGB views for 8-bit input (linear-light mix)."""
+    stack = [np.concatenate([r["color"], r["coverage"][..., None], r["front"][..., None]], -1)
+             for r in (cur, prev)]  # fmt: skip
+    eight = cfg["input"] == INPUT_8BIT
+    out = resolve(
+        stack[0],
+        stack[1],
+        alpha_current=cur["alpha"],
+        alpha_previous=prev["alpha"],
+        velocity=velocity,
+        weight_scale=cfg["reprojection_weight_scale"],
+        srgb=eight and cfg["srgb_blending"],
+        unorm8=eight,
+        fetches=fetches,
+    )
+    return {"color": out[..., :3], "coverage": out[..., 3], "front": out[..., 4]}
+
+
+def _combine_samples(outs: list[dict], cfg: dict) -> dict:
+    """S2x: the second sample's SMAA output alpha-blended (0.5) over the first's in the
+    target (in linear light when the target is sRGB, then written: rounded to 1/255 for an
+    RGBA8 target); one sample: itself."""
     if len(outs) == 1:
         return {**outs[0], "front": outs[0]["front_coverage"]}
-    cols = np.stack([o["color"] for o in outs])
-    color = srgb_encode(srgb_decode(cols).mean(axis=0)) if srgb else cols.mean(axis=0)
+    srgb, eight = cfg["srgb_blending"], cfg["input"] == INPUT_8BIT
+    if eight:
+        dest = srgb_decode(outs[0]["color"]) if srgb else outs[0]["color"]
+        mixed = 0.5 * dest + 0.5 * outs[1]["linear"]
+        color = srgb_encode(mixed) if srgb else mixed
+        color = to_unorm8(color)
+    else:
+        cols = np.stack([o["color"] for o in outs])
+        color = srgb_encode(srgb_decode(cols).mean(axis=0)) if srgb else cols.mean(axis=0)
     return {
         "color": color.astype(np.float32),
         "coverage": np.mean([o["coverage"] for o in outs], axis=0).astype(np.float32),
         "front": np.mean([o["front_coverage"] for o in outs], axis=0).astype(np.float32),
-        "alpha": outs[0]["alpha"],
+        # the blend state's alpha defaults (ONE, ZERO): the last pass's packed velocity
+        "alpha": outs[-1]["alpha"],
+        "blended": outs[0]["blended"] | outs[1]["blended"],
+        "edges": outs[0]["edges"],
+        "weights": outs[0]["weights"],
     }
+
+
+def _velocity_note(fr: dict) -> str:
+    if not fr["temporal"]:
+        return "no temporal resolve in this mode (1x, S2x): no velocity buffer"
+    if fr["moving"]:
+        return (
+            "film motion of the current frame's samples (scenes.geometry.motion), RG16F "
+            "texture units; the resolve reprojects the previous frame by it"
+        )
+    return "still scene: zero motion vectors; reprojection weight 0.5"
 
 
 def _costs(p, n_pix: int, fetches: Fetches) -> dict:
@@ -239,6 +368,7 @@ def _costs(p, n_pix: int, fetches: Fetches) -> dict:
         buffers["separated"] = 4 * n_pix * n_s  # SMAASeparatePS targets, RGBA8
     if n_f > 1:
         buffers["history"] = 4 * n_pix  # previous frame for the resolve, RGBA8
+        buffers["velocity"] = 4 * n_pix  # the scene pass's velocity target, RG16F
     return {
         "passes": 3 * n_s + (1 if n_s > 1 else 0) + (1 if n_f > 1 else 0),
         "texture_fetches_per_pixel": float(sum(fetch_pp.values())),
@@ -288,8 +418,8 @@ def run(scene, params: SmaaParams | None = None, **kwargs):
             "settings": cfg,
             "sample_positions": [[list(s[0]) for s in f] for f in MODES[p.mode]],
             "subsample_indices": [[list(s[1]) for s in f] for f in MODES[p.mode]],
-            "velocity": "static camera: zero motion vectors (temporal-AA motion vectors not "
-            "available yet); reprojection weight 0.5",
+            "velocity": _velocity_note(fr),
+            "input": cfg["input"],
             "tone_mapping": {
                 "exposure_stops": fr["exposure"],
                 "tone_mapper": p.tone_mapper,

@@ -9,7 +9,14 @@ from ....scenes.base.display import TONE_MAPPERS
 from ... import params as _params
 from ...errors import ModelError
 
-__all__ = ["MODES", "PRESETS", "SmaaParams", "resolved"]
+__all__ = ["INPUT_8BIT", "INPUTS", "MODES", "PRESETS", "SmaaParams", "resolved"]
+
+#: The colour buffer of the published integration (the demo's ``sceneRT``,
+#: ``DXGI_FORMAT_R8G8B8A8_UNORM_SRGB``): 8-bit sRGB bytes, read through the UNORM view
+#: (gamma) by edge detection and through the sRGB view (linear) by the blending pass.
+INPUT_8BIT = "rgba8-srgb"
+#: Colour buffers SMAA can read: the 8-bit sRGB buffer, or the float gamma-encoded image.
+INPUTS = (INPUT_8BIT, "float")
 
 #: ``SMAA.hlsl``'s presets and its no-preset defaults ("none"): threshold, max search steps,
 #: max diagonal search steps (0: ``SMAA_DISABLE_DIAG_DETECTION``), corner rounding (100:
@@ -58,6 +65,14 @@ class SmaaParams:
         source="SMAA.hlsl @SUBSAMPLE_INDICES: SMAA 1x, T2x, S2x, 4x",
         help="1x; t2x (two jittered frames, resolve); s2x (2x MSAA, SMAA per sample); 4x",
         choices=tuple(MODES),
+    )
+    input: str = _params.param(
+        INPUT_8BIT,
+        source="SMAA Demo/DX10/Code/Demo.cpp:512 (sceneRT_SRGB = R8G8B8A8_UNORM_SRGB view of "
+        "sceneRT), :686 (edges read sceneRT, blending sceneRT_SRGB); SMAA.hlsl step 5",
+        help="colour buffer SMAA reads: rgba8-srgb (8-bit sRGB render target, as engines feed "
+        "it) or float (the tone-mapped image unquantized)",
+        choices=INPUTS,
     )
     edge_detection: str = _params.param(
         "luma",
@@ -168,6 +183,7 @@ def resolved(p: SmaaParams) -> dict:
     dt = p.depth_threshold
     out["depth_threshold"] = 0.1 * out["threshold"] if dt == _FROM_PRESET else float(dt)
     for k in (
+        "input",
         "edge_detection",
         "local_contrast_factor",
         "predication",

@@ -22,7 +22,7 @@ import numpy as np
 from ._sampling import SUBTEXEL_BITS, Fetches, bilinear
 from .textures import area_texture, search_texture
 
-__all__ = ["blending_weights"]
+__all__ = ["blending_weights", "orthogonal_search"]
 
 # SMAA.hlsl's non-configurable constants, in texels of each texture
 AREATEX_MAX_DISTANCE = 16
@@ -201,6 +201,16 @@ class _Pass:
         return weights
 
 
+def orthogonal_search(edges, pos, across, step: float, steps: int, along: int, *, bits=0):
+    """One orthogonal search of :func:`blending_weights` (``SMAASearchXLeft`` etc.) on the
+    edges texture ``edges`` from texel positions ``pos`` (the pass's start offsets included)
+    at ``across`` on the other axis: the corrected end coordinate in texels. ``step`` is
+    -2 or +2, ``along`` 1 for horizontal searches (reading G), 0 for vertical (R)."""
+    tex = _Pass(edges, bits, None)
+    p = np.asarray(pos, np.float64)
+    return tex.search(p, np.asarray(across, np.float64), step, steps, along)
+
+
 def blending_weights(
     edges: np.ndarray,
     *,
@@ -210,6 +220,7 @@ def blending_weights(
     subsample_indices: tuple[int, int, int, int] = (0, 0, 0, 0),
     subtexel_bits: int = SUBTEXEL_BITS,
     fetches: Fetches | None = None,
+    quantize: bool = True,
 ) -> np.ndarray:
     """The blend texture of an edges texture.
 
@@ -225,6 +236,7 @@ def blending_weights(
         diagonal directions), rows of the area texture; zeros for SMAA 1x.
     subtexel_bits : fractional bits of the bilinear weights (0: exact).
     fetches : counter of texture fetches (pass ``weights``).
+    quantize : round to the RGBA8 target's 1/255 (False: the shader's float output).
 
     Returns
     -------
@@ -255,4 +267,6 @@ def blending_weights(
     jy, jx = np.nonzero((tex.edges[..., 0] > 0.0) & ~skip_vertical)
     if len(jx):
         out[jy, jx, 2:] = tex.vertical(jx + 0.5, jy + 0.5, max_search_steps, sub_v, rounding)
+    if not quantize:
+        return out
     return (np.round(np.clip(out, 0.0, 1.0) * 255.0) / 255.0).astype(np.float32)
