@@ -22,13 +22,15 @@ class InputWarning(UserWarning):
 
 
 def one_line(exc: BaseException, *, with_type: bool = False) -> str:
-    """The message of ``exc`` on one line: control characters (newlines in file names, ...)
-    are escaped as Python writes them (``\\n``), tabs kept.
+    """The message of ``exc`` on one line: control characters (newlines in file names, terminal
+    escapes, DEL, C1) are escaped as Python writes them (``\\n``, ``\\x1b``), tabs kept.
 
     Parameters
     ----------
     with_type : prefix the exception's class name (``"ValueError: ..."``), for records of
         failures whose type is not otherwise known (a sweep case, a report section).
     """
+    from ..scenes.base.untrusted import terminal
+
     text = f"{type(exc).__name__}: {exc}" if with_type else str(exc)
-    return "".join(c if c >= " " or c == "\t" else repr(c)[1:-1] for c in text)
+    return terminal(text)  # C0, DEL and C1 controls written out (an escape cannot recolour)

@@ -44,7 +44,14 @@ def render_html(report: Mapping) -> str:
         )
     check_report_urls(report)  # only data: images and relative links reach the page
     template = environment().get_template("report.html")
-    return template.render(report=report, page_data=_page_data(report))
+    html = template.render(report=report, page_data=_page_data(report))
+    return html.translate(_CONTROLS)  # user text's NUL, escapes, DEL, C1: never on the page
+
+
+#: Control characters (but tab, newline, carriage return) -> U+FFFD: jinja2 escapes HTML's
+#: specials, not these; the replacement is valid in text, attributes and embedded JSON alike.
+_CONTROLS = {c: 0xFFFD for c in [*range(0x00, 0x09), 0x0B, 0x0C, *range(0x0E, 0x20)]}
+_CONTROLS.update({c: 0xFFFD for c in range(0x7F, 0xA0)})
 
 
 def write_report(report: Mapping, path: str | os.PathLike) -> None:

@@ -267,14 +267,24 @@ def _failed_junit(path) -> list[tuple[str, str]]:
     return [(c.get("classname"), c.get("name")) for c in cases if c.find("failure") is not None]
 
 
-def _summary_rows(path) -> list[tuple[str, str]]:
-    """(scene, check) of the failed-check table of a Markdown summary."""
-    rows = []
+def _summary_rows(path, table: str = "| scene | check |") -> list[tuple[str, str]]:
+    """(first, second cell) of the rows of the Markdown summary's table whose header starts
+    with ``table`` (default: the failed-check table)."""
+    rows, inside = [], False
     for line in path.read_text().splitlines():
-        m = re.match(r"^\| (\S+) \| `([^`]+)` \|", line)
-        if m:
-            rows.append((m.group(1), m.group(2)))
+        if line.startswith("| scene |"):
+            inside = line.startswith(table)
+            continue
+        m = re.match(r"^\| ((?:\\.|[^\\|])+?) \| ((?:\\.|[^\\|])+?) \|", line)
+        if inside and m and m.group(1) != "---":
+            rows.append((_unescape(m.group(1)), _unescape(m.group(2))))
     return rows
+
+
+def _unescape(text: str) -> str:
+    """Markdown-escaped user text back (backslash escapes, ``&lt; &gt; &amp;``)."""
+    text = re.sub(r"\\(.)", r"\1", text)
+    return text.replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&")
 
 
 def test_ci_manifest_run_names_one_failure_everywhere_and_accept_makes_it_pass(
@@ -323,6 +333,10 @@ def test_ci_manifest_run_names_one_failure_everywhere_and_accept_makes_it_pass(
     assert (
         summary.startswith("## raster-oracle: FAIL") and _summary_rows(out / "summary.md") == failed
     )
+    # the first screen: one row for the one failing case, its regressions counted
+    assert _summary_rows(out / "summary.md", "| scene | failed |") == [
+        ("dolly/msaa", str(len(failed)))
+    ]
     page = browser.new_page(viewport={"width": 1280, "height": 800})
     try:
         page.goto((out / "run" / "report.html").resolve().as_uri())

@@ -203,7 +203,7 @@ def test_malformed_and_missing_files(tmp_path, capsys):
     doc = _plane(tmp_path)
     doc.nodes[-1].mesh = 99  # a mesh that does not exist
     path = _save(doc, tmp_path / "dangling.glb")
-    with pytest.raises(scenes.SceneError, match="dangling.glb: malformed glTF"):
+    with pytest.raises(scenes.SceneError, match="dangling.glb: node 2 mesh index is 99"):
         scenes.load(path)
 
 

@@ -470,3 +470,29 @@ def test_baseline_values_that_are_not_numbers_are_left_out():
     assert verdict.notes == [
         "baseline: not compared (a value or noise floor missing or not finite): flip_mean"
     ]
+
+
+def test_markdown_summary_first_screen_groups_regressions_by_case():
+    """An intended change that moves 20 metrics of one case is one first-screen row (its
+    count and first metrics), with every check still listed in the details table."""
+    from raster_oracle.oracle.scoring.gates import Check, Verdict
+    from raster_oracle.oracle.scoring.summary import summary_markdown
+
+    moved = [
+        Check(f"baseline m{i}", f"m{i}", False, f"REGRESSION m{i}", kind="baseline")
+        for i in range(20)
+    ]
+    gate = Check("flip_mean <= 0.03", "flip_mean", False, "FAIL flip_mean", kind="gate")
+    ok = Check("ssim >= 0.9", "ssim", True, "PASS ssim")
+    md = summary_markdown([Verdict("plate/msaa", [*moved, gate]), Verdict("star/msaa", [ok])])
+    first = md.split("<details>")[0]
+    rows = [line for line in first.splitlines() if line.startswith("| ") and "scene" not in line]
+    rows = [r for r in rows if not r.startswith("|---")]
+    assert len(rows) == 1
+    assert (
+        rows[0].startswith("| plate/msaa | 21 |")
+        and "20: m0, m1, m2, m3, m4 and 15 more" in rows[0]
+    )
+    assert "flip\\_mean &lt;= 0\\.03" in rows[0]  # the gate by name (Markdown-escaped)
+    assert md.count("| plate/msaa | baseline m") == 20
+    assert md.startswith("## raster-oracle: FAIL") and "21 of 22 checks failed" in md

@@ -129,7 +129,7 @@ def test_camera_file_frames_follow_the_file(tmp_path):
 def test_bad_camera_file_is_one_line(tmp_path):
     path = tmp_path / "cameras.json"
     path.write_text(json.dumps({"frames": [{"to_world": [[1, 0], [0, 1]]}]}))
-    with pytest.raises(scenes.SceneError, match="frame 0 to_world: expected a finite 4x4"):
+    with pytest.raises(scenes.SceneError, match="frame 0 to_world: expected a 4x4 matrix"):
         scenes.load("plate", width=W, height=H, camera_file=path)
     with pytest.raises(scenes.SceneError, match="camera file not found"):
         scenes.load("plate", width=W, height=H, camera_file=tmp_path / "none.json")

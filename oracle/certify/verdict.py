@@ -14,6 +14,13 @@ command line calls before every command:
   ``RASTER_ORACLE_TRUST_BACKEND=1`` for scripts that cannot change their command lines);
 - the verdict in force is recorded by :func:`scenes.backend.set_self_check` for every
   result's provenance.
+
+A cached verdict is untrusted input (:func:`valid_verdict`): a file that is no regular file
+(a folder, a FIFO), not strict JSON, of another key, or malformed or inconsistent (``passed``
+not a boolean, ``failed`` not a list of names, ``passed`` true with checks failed, ``failed``
+not the checks that did not pass) is discarded and the battery run again. A verdict that
+cannot be cached (the path a folder, ``self-check`` a file) is used for this run with one
+warning line.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from pathlib import Path
 from ...scenes import backend
 from ...scenes.base.files import atomic_write_json
 from ...scenes.base.records import package_versions
+from ...scenes.base.untrusted import UntrustedError, read_json
 from ..errors import InputError
 from ..reference.cache import default_cache_dir
 
@@ -39,6 +47,7 @@ __all__ = [
     "machine_key",
     "run_check",
     "summary",
+    "valid_verdict",
     "verdict_path",
 ]
 
@@ -78,10 +87,39 @@ def cached_verdict(variant: str, *, cache_dir: Path | None = None) -> dict | Non
     key = machine_key(variant)
     path = verdict_path(key, cache_dir)
     try:
-        verdict = json.loads(path.read_text())
-    except (OSError, ValueError):
+        if not os.path.lexists(path):
+            return None
+        verdict = read_json(path, limit=1 << 20, what="cached verdict")
+    except (UntrustedError, OSError):
         return None
-    return verdict if isinstance(verdict, dict) and verdict.get("key") == key else None
+    return verdict if valid_verdict(verdict, key) else None
+
+
+def _names(value) -> bool:
+    return isinstance(value, list) and all(isinstance(n, str) for n in value)
+
+
+def valid_verdict(verdict, key: dict) -> bool:
+    """Whether ``verdict`` is a well-formed, self-consistent verdict of ``key``: ``passed`` a
+    boolean, ``failed`` a list of check names empty exactly when passed, ``checks`` (when
+    given) a list of ``{"name": str, "passed": bool}`` whose failures are ``failed``,
+    ``checked_at`` a string or null."""
+    if not isinstance(verdict, dict) or verdict.get("key") != key:
+        return False
+    passed, failed = verdict.get("passed"), verdict.get("failed")
+    if not isinstance(passed, bool) or not _names(failed) or passed != (not failed):
+        return False
+    if not isinstance(verdict.get("checked_at"), str | type(None)):
+        return False
+    checks = verdict.get("checks")
+    if checks is None:
+        return True
+    if not isinstance(checks, list) or not all(
+        isinstance(c, dict) and isinstance(c.get("name"), str) and isinstance(c.get("passed"), bool)
+        for c in checks
+    ):
+        return False
+    return [c["name"] for c in checks if not c["passed"]] == failed
 
 
 def summary(verdict: dict, *, status: str | None = None) -> dict:
@@ -115,8 +153,15 @@ def run_check(*, cache_dir: Path | None = None, on_check=None, store: bool = Tru
     }
     if store:
         path = verdict_path(key, cache_dir)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(path, verdict)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_json(path, verdict)
+        except OSError as exc:
+            print(
+                f"raster-oracle: warning: the self-check verdict cannot be cached at {path} "
+                f"({type(exc).__name__}); it holds for this run only",
+                file=sys.stderr,
+            )
     backend.set_self_check(summary(verdict))
     return verdict
 

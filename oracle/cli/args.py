@@ -44,14 +44,15 @@ def input_errors() -> tuple[type[BaseException], ...]:
     """Exceptions that mean bad input: reported in one line with exit code 2.
 
     The oracle's own derive from :class:`oracle.errors.InputError`; the other packages' are
-    named here.
+    named here (an untrusted file refused by :mod:`scenes.base.untrusted` included).
     """
     from ...metrics import MetricError
     from ...raster_models import ModelError
     from ...scenes import SceneError
     from ...scenes.backend import BackendError
+    from ...scenes.base.untrusted import UntrustedError
 
-    return (InputError, SceneError, BackendError, MetricError, ModelError)
+    return (InputError, SceneError, BackendError, MetricError, ModelError, UntrustedError)
 
 
 class Parser(argparse.ArgumentParser):

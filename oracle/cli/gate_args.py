@@ -210,26 +210,34 @@ def print_verdict(verdict, *, baseline=None, prefix: str = "", grouped: bool = F
     regressions = [c for c in compared if not c.passed]
     for check in verdict.checks:
         if check.kind == "gate" or (not check.passed and not (grouped and check in compared)):
-            print(f"{prefix}{check.line}")
+            _say(f"{prefix}{check.line}")
     if baseline is not None and grouped and regressions:
         shown = ", ".join(c.metric for c in regressions[:5])
         more = f" and {len(regressions) - 5} more" if len(regressions) > 5 else ""
-        print(
+        _say(
             f"{prefix}REGRESSION {shown}{more} ({len(regressions)} of {len(compared)} "
             f"compared metrics, baseline {baseline})"
         )
     elif baseline is not None:
-        print(
+        _say(
             f"{prefix}baseline {baseline}: {len(compared)} metrics compared, "
             f"{len(regressions)} regressed"
         )
     for note in verdict.notes:
-        print(f"{prefix}{note}")
+        _say(f"{prefix}{note}")
     for _name, message in verdict.errors:
-        print(f"raster-oracle: {prefix}error: {message}", file=sys.stderr)
+        _say(f"raster-oracle: {prefix}error: {message}", file=sys.stderr)
     failed = list(verdict.failed)
     if grouped and regressions:
         failed = [c.name for c in verdict.failed_checks if c not in regressions]
         failed.append(f"{len(regressions)} regression(s)")
     if failed:
-        print(f"raster-oracle: {prefix}failed: {', '.join(failed)}", file=sys.stderr)
+        _say(f"raster-oracle: {prefix}failed: {', '.join(failed)}", file=sys.stderr)
+
+
+def _say(text: str, **kwargs) -> None:
+    """``print`` of a line holding user text (scene, case and check names, messages):
+    control characters written out (:func:`scenes.base.untrusted.terminal`)."""
+    from ...scenes.base.untrusted import terminal
+
+    print(terminal(text), **kwargs)

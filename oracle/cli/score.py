@@ -108,18 +108,12 @@ def add_parsers(sub) -> None:
 def _check_frame_pattern(pattern: str | None) -> None:
     """A ``--candidate`` pattern with a ``{frame}`` field is a ``str.format`` pattern: it may
     hold ``{frame}`` fields only, with an integer format (a name without one is literal)."""
+    from ..scoring.out_names import check_frame_pattern
     from ..scoring.request import FRAME_PATTERN
 
     if pattern is None or not FRAME_PATTERN.search(pattern):
         return
-    try:
-        for k in (0, 1):
-            pattern.format(frame=k)
-    except (KeyError, IndexError, ValueError, AttributeError) as exc:
-        raise A.CliError(
-            f"--candidate pattern {pattern!r} is not valid ({type(exc).__name__}: {exc}); "
-            "use {frame} or e.g. {frame:03d} (write a literal brace as {{ or }})"
-        ) from None
+    check_frame_pattern(pattern, "--candidate", error=A.CliError)
 
 
 def _camera_path(args, loaded) -> str | None:

@@ -35,6 +35,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from ...scenes.base.untrusted import read_json
+
 __all__ = [
     "CACHE_ENV",
     "ORACLE_VERSION",
@@ -178,6 +180,11 @@ def temp_prefix(key: str, *, pid: int | None = None, host: str | None = None) ->
     return f".{key[:8]}.{pid}@{_host() if host is None else host}."
 
 
+def _is_regular(path: Path) -> bool:
+    """A regular file, not a link (a FIFO planted in an entry would hang the checksum)."""
+    return path.is_file() and not path.is_symlink()
+
+
 def _sha256(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -204,8 +211,11 @@ class ReferenceCache:
             _remove(folder)
             return None, "corrupted"
         try:
-            sums = json.loads((folder / "checksums.json").read_text())
-            ok = all(_sha256(folder / name) == sums[name] for name in FILES)
+            sums = read_json(folder / "checksums.json", limit=1 << 16, what="cache checksums")
+            ok = isinstance(sums, dict) and all(
+                _is_regular(folder / name) and _sha256(folder / name) == sums[name]
+                for name in FILES
+            )
         except (OSError, ValueError, KeyError):
             ok = False
         if ok:

@@ -9,16 +9,19 @@ is kept: the human step every golden-image tool has.
 
 ``--baseline BASELINE_DIR`` (with the run's ``--platform``) finds the platform's
 ``metrics.json`` (:func:`resolve_baseline`).
+
+Nothing is lost and no link is followed out (:mod:`.baseline_files`): concurrent accepts
+take turns, the new files are written aside and renamed last.
 """
 
 from __future__ import annotations
 
 import json
-import shutil
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ...scenes.base.files import atomic_copy, atomic_write_json
+from ...scenes.base.records import jsonable
+from .baseline_files import install, platform_folder, read_run_record
 from .gates import FOLDER_SCHEMA, METRICS_SCHEMA, GateError
 
 __all__ = [
@@ -40,6 +43,8 @@ def check_platform(name: str | None) -> str | None:
     """A ``--platform`` name is a plain folder name (letters, digits, ``.``, ``_``, ``-``)."""
     if name is None:
         return None
+    if not isinstance(name, str):
+        raise GateError(f"platform {name!r}: a platform is a name, not a {type(name).__name__}")
     ok = name and name not in (".", "..") and all(c.isalnum() or c in "._-" for c in name)
     if not ok:
         raise GateError(
@@ -56,6 +61,14 @@ def resolve_baseline(path, *, platform: str | None = None) -> Path:
     path = Path(path)
     if not path.is_dir():
         return path
+    found = _find_baseline(path, platform)
+    root = path.resolve()
+    if root not in found.resolve().parents:
+        raise GateError(f"--baseline {found} leads outside {path} (a link out is not followed)")
+    return found
+
+
+def _find_baseline(path: Path, platform: str | None) -> Path:
     if (path / "metrics.json").is_file() and platform is None:
         return path / "metrics.json"
     folder = path / (platform or DEFAULT_PLATFORM)
@@ -72,23 +85,14 @@ def resolve_baseline(path, *, platform: str | None = None) -> Path:
     )
 
 
-def _run_record(run_dir: Path) -> dict:
+def _run_record(run_dir: Path) -> tuple[dict, bytes]:
     path = run_dir / "metrics.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise GateError(f"baseline accept: cannot read {path} ({type(exc).__name__})") from None
+    record, data = read_run_record(path)
     if not isinstance(record, dict) or record.get("schema") not in (METRICS_SCHEMA, FOLDER_SCHEMA):
         raise GateError(
             f"baseline accept: {path} is not the metrics.json of a score or score-folder run"
         )
-    return record
-
-
-def _next_previous(folder: Path) -> Path:
-    previous = folder / "previous"
-    taken = [int(p.name) for p in previous.glob("[0-9][0-9][0-9]") if p.is_dir()]
-    return previous / f"{max(taken, default=0) + 1:03d}"
+    return record, data
 
 
 def accept_baseline(run_dir, *, into, note: str, now: datetime | None = None) -> Path:
@@ -97,34 +101,26 @@ def accept_baseline(run_dir, *, into, note: str, now: datetime | None = None) ->
 
     The platform's current baseline (if any) is moved to ``previous/NNN/`` with its note
     first; then the run's ``metrics.json`` is copied and ``baseline.json`` written
-    (``{"schema", "note", "accepted_at", "run", "platform", "failed", "previous"}``).
-    :class:`GateError` for an empty note, a folder that is no run, or ``into`` inside it.
+    (``{"schema", "note", "accepted_at", "run", "platform", "failed", "previous"}``), both
+    written aside and renamed into place last (:func:`.baseline_files.install`).
+    :class:`GateError` for an empty note, a folder that is no run, ``into`` inside it, or
+    an odd baseline folder (a link, a file where a folder belongs).
     """
     run_dir, into = Path(run_dir), Path(into)
     if not isinstance(note, str) or not note.strip():
         raise GateError("baseline accept: --note must say why this run is approved")
-    record = _run_record(run_dir)
+    record, data = _run_record(run_dir)
     if into.resolve() == run_dir.resolve() or run_dir.resolve() in into.resolve().parents:
         raise GateError(f"baseline accept: --into {into} is inside the run folder {run_dir}")
     if into.exists() and not into.is_dir():
         raise GateError(f"baseline accept: --into {into} exists and is not a folder")
     platform = record.get("platform") or DEFAULT_PLATFORM
-    folder = into / check_platform(platform)
-    folder.mkdir(parents=True, exist_ok=True)
-    previous = None
-    if (folder / "metrics.json").is_file():
-        target = _next_previous(folder)
-        target.mkdir(parents=True)
-        for name in _FILES:
-            if (folder / name).is_file():
-                shutil.move(folder / name, target / name)
-        previous = target.relative_to(folder).as_posix()
-    atomic_copy(run_dir / "metrics.json", folder / "metrics.json")
+    folder = platform_folder(into, check_platform(platform))
     failed = record.get("failed")
     stamp = (now or datetime.now(UTC)).isoformat(timespec="seconds")
-    atomic_write_json(
-        folder / "baseline.json",
-        {
+
+    def files(previous: str | None) -> dict:
+        note_record = {
             "schema": BASELINE_SCHEMA,
             "note": note.strip(),
             "accepted_at": stamp,
@@ -132,6 +128,9 @@ def accept_baseline(run_dir, *, into, note: str, now: datetime | None = None) ->
             "platform": platform,
             "failed": failed,
             "previous": previous,
-        },
-    )
+        }
+        text = json.dumps(jsonable(note_record), indent=2, allow_nan=False)
+        return {"metrics.json": data, "baseline.json": text.encode()}
+
+    install(folder, _FILES, files)
     return folder

@@ -32,6 +32,8 @@ def combine_reports(folders: list[Path], out: Path, *, title: str, errors=None) 
     ScoreError
         ``out`` is a folder, a folder is not a score folder or its ``report.json`` is not JSON.
     """
+    from ...scenes.base.untrusted import read_json
+
     out = Path(out)
     if out.exists() and out.is_dir():
         raise ScoreError(f"--out {out} is a folder; give the report file to write")
@@ -40,10 +42,7 @@ def combine_reports(folders: list[Path], out: Path, *, title: str, errors=None) 
         js = Path(folder) / "report.json"
         if not js.is_file():
             raise ScoreError(f"{folder} is not a score folder (no report.json)")
-        try:
-            data = json.loads(js.read_text())
-        except ValueError as exc:
-            raise ScoreError(f"{js} is not valid JSON: {exc}") from None
+        data = read_json(js, what="score folder report", error=ScoreError)
         cases.extend(reports.read_cases(js, relative_to=out.parent.resolve()))
         provs.append(data.get("provenance", {}))
         scenes.append(str(data.get("provenance", {}).get("scene", "?")))

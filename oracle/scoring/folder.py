@@ -181,9 +181,12 @@ def score_folder(
     """
     from .combine import combine_reports
     from .gates import Verdict
+    from .out_names import case_folder
     from .request import score_to_folder
 
     out = Path(out)
+    for case in cases:  # every case's folder a folder name under out, before anything is written
+        case_folder(out, case.name, error=ScoreError)
     combined = {"schema": FOLDER_SCHEMA, "root": root, "scenes": {}, "failed": {}, "errors": {}}
     run = FolderRun(record=combined)
     strict = bool(baseline_options is not None and baseline_options.strict)
@@ -195,7 +198,7 @@ def score_folder(
             run.verdicts.append(verdict)
             continue
         baseline = (baselines or {}).get(case.name)
-        folder = out / case.name
+        folder = case_folder(out, case.name, error=ScoreError)
         try:
             verdict = score_to_folder(
                 case.loaded,

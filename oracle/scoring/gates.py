@@ -29,7 +29,6 @@ JUnit ``<testcase>`` each (classname: the scene, name: ``visibility_mae <= 0.02`
 
 from __future__ import annotations
 
-import json
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
@@ -328,15 +327,11 @@ def evaluate_gates(gates, record: dict) -> list[Check]:
     return checks
 
 
-def _read_record(path, where: str):
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GateError(f"{where}: cannot read it ({type(exc).__name__}: {exc})") from None
-    try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise GateError(f"{where} is not JSON ({exc})") from None
+def _read_record(path):
+    """A record file read as untrusted input (a bounded regular file of strict JSON)."""
+    from ...scenes.base.untrusted import read_json
+
+    return read_json(path, what="--baseline", error=GateError)
 
 
 def _check_record(record, where: str) -> dict:
@@ -347,7 +342,8 @@ def _check_record(record, where: str) -> dict:
             f"{where} is not a raster-oracle metrics.json (schema {found!r}, "
             f"expected {METRICS_SCHEMA!r}){hint if found == FOLDER_SCHEMA else ''}"
         )
-    scene = (record.get("reference") or {}).get("scene")
+    reference = record.get("reference")
+    scene = reference.get("scene") if isinstance(reference, dict) else None
     if not isinstance(scene, dict) or not isinstance(record.get("channel"), str):
         raise GateError(f"{where} is a metrics record without its scene or channel")
     size = scene.get("resolution")
@@ -368,7 +364,7 @@ def load_baseline(path) -> dict:
     where = f"--baseline {path}"
     if path.is_dir():
         path = path / "metrics.json"
-    return _check_record(_read_record(path, where), where)
+    return _check_record(_read_record(path), where)
 
 
 def load_folder_baseline(path) -> dict[str, dict]:
@@ -379,7 +375,7 @@ def load_folder_baseline(path) -> dict[str, dict]:
     where = f"--baseline {path}"
     if path.is_dir():
         path = path / "metrics.json"
-    record = _read_record(path, where)
+    record = _read_record(path)
     if not isinstance(record, dict) or record.get("schema") != FOLDER_SCHEMA:
         found = record.get("schema") if isinstance(record, dict) else type(record).__name__
         raise GateError(
@@ -648,8 +644,20 @@ def junit_xml(verdicts) -> bytes:
         case = ET.SubElement(suite, "testcase", {"classname": scene, "name": name})
         error = ET.SubElement(case, "error", {"message": message, "type": "input"})
         error.text = message
+    _xml_safe(root)
     ET.indent(root)
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
+
+
+def _xml_safe(root) -> None:
+    """Every attribute and text of ``root`` with only the characters XML allows (user text:
+    scene and check names, messages; a NUL or an escape character would make it unreadable)."""
+    from ...scenes.base.untrusted import xml_text
+
+    for el in root.iter():
+        el.attrib.update({k: xml_text(v) for k, v in el.attrib.items()})
+        if el.text is not None:
+            el.text = xml_text(el.text)
 
 
 def write_junit(path, verdicts) -> None:

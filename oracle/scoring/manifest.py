@@ -30,7 +30,12 @@ engine claims, scored for conformance), ``baseline_metrics`` (a list, or ``"all"
 the baseline's error).
 
 Every key is checked (an unknown key, a wrong type or an unknown metric is a
-:class:`ManifestError` naming it, before anything is scored). Gates add up from
+:class:`ManifestError` naming it, before anything is scored). The manifest is untrusted
+input (:mod:`scenes.base.untrusted`): a regular file of at most :data:`LIMITS` ``bytes``,
+tables and arrays at most ``nesting`` deep, at most ``cases`` scored cases; scene and
+channel keys name one folder each under ``--out``, ``file`` stays inside ROOT with
+``{frame}`` its only field (:mod:`.out_names`); ``spp`` is at most :data:`MAX_SPP` (the
+command line's limit), ``frames`` at most :data:`MAX_FRAMES`. Gates add up from
 ``[defaults]`` to the scene to the channel; a later limit of the same metric and direction
 replaces an earlier one.
 """
@@ -42,12 +47,30 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ...scenes import SceneError
+from ...scenes.base.untrusted import LIMITS as FILE_LIMITS
+from ...scenes.base.untrusted import json_depth, read_text
 from ...scenes.formats.inputs import named_input
 from .candidates import TRANSFERS
 from .gates import Gate, GateError, parse_gates
 from .options import VISIBILITY_CONVENTIONS
+from .out_names import check_out_name, relative_file
 
-__all__ = ["Manifest", "ManifestCase", "ManifestError", "read_manifest"]
+__all__ = [
+    "LIMITS",
+    "MAX_FRAMES",
+    "MAX_SPP",
+    "Manifest",
+    "ManifestCase",
+    "ManifestError",
+    "read_manifest",
+]
+
+#: Limits of a manifest: its bytes, nesting depth and scored cases.
+LIMITS = {"bytes": FILE_LIMITS["manifest_bytes"], "nesting": 16, "cases": 1000}
+#: Largest ``spp`` (the command line's ``--spp`` limit, 2^20).
+MAX_SPP = 2**20
+#: Largest ``frames``.
+MAX_FRAMES = 10_000
 
 _COMMON = {
     "fail_above",
@@ -129,9 +152,11 @@ def _keys(table: dict, allowed: set, where: str) -> None:
         )
 
 
-def _int(value, where: str, *, minimum: int) -> int:
+def _int(value, where: str, *, minimum: int, maximum: int | None = None) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise ManifestError(f"{where} must be an integer >= {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        raise ManifestError(f"{where} must be at most {maximum}, got {value}")
     return value
 
 
@@ -217,6 +242,10 @@ def _merge(*levels: list[Gate]) -> tuple[Gate, ...]:
     return tuple(merged.values())
 
 
+def _relative_file(text: str, where: str) -> str:
+    return relative_file(text, where, error=ManifestError)
+
+
 def _scene_ref(table: dict, key: str, where: str, *, base: Path, exports: Path | None) -> str:
     if "scene" in table:
         text = _text(table["scene"], f"{where}.scene")
@@ -235,20 +264,23 @@ def _opt(table: dict, key: str, check, *args, **kw):
 
 def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCase]:
     where = f"[scenes.{key}]"
+    check_out_name(key, "[scenes]", error=ManifestError)
     table = _table(table, where)
     _keys(table, _SCENE_KEYS, where)
     for k in ("spp", "seed", "flip_mode"):
         if k in table:
             raise ManifestError(f"{where}.{k}: give {k} in [defaults] (one setting a run)")
     merged = {**defaults, **table}
-    file = _text(table.get("file", f"{key}.exr"), f"{where}.file")
-    frames = _opt(table, "frames", _int, f"{where}.frames", minimum=1)
+    file = _relative_file(_text(table.get("file", f"{key}.exr"), f"{where}.file"), f"{where}.file")
+    frames = _opt(table, "frames", _int, f"{where}.frames", minimum=1, maximum=MAX_FRAMES)
     camera = _opt(merged, "camera_path", _text, f"{where}.camera_path")
     scene = _scene_ref(table, key, where, base=ctx["base"], exports=ctx["exports"])
     scene_gates = _gates(table, where)
     cases = []
     for channel, ctable in _table(table.get("channels", {None: {}}), f"{where}.channels").items():
         cwhere = f"{where}.channels.{channel}"
+        if channel is not None:
+            check_out_name(channel, f"{where}.channels", error=ManifestError)
         ctable = _table(ctable, cwhere)
         _keys(ctable, _CHANNEL_KEYS, cwhere)
         visibility = ctable.get("visibility", merged.get("visibility", "1-is-lit"))
@@ -279,12 +311,16 @@ def read_manifest(path) -> Manifest:
     """Read and check a manifest (see the module docstring); :class:`ManifestError` names
     the first problem."""
     path = Path(path)
+    what = "--manifest"
+    text = read_text(path, limit=LIMITS["bytes"], what=what, error=ManifestError)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ManifestError(f"--manifest {path}: cannot read it ({type(exc).__name__})") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ManifestError(f"--manifest {path} is not TOML: {exc}") from None
+        data = tomllib.loads(text)
+    except RecursionError:
+        raise ManifestError(f"{what} {path}: nested deeper than {LIMITS['nesting']}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ManifestError(f"{what} {path} is not TOML: {exc}") from None
+    if json_depth(data, LIMITS["nesting"]) > LIMITS["nesting"]:
+        raise ManifestError(f"{what} {path}: nested deeper than {LIMITS['nesting']}")
     _keys(data, {"defaults", "scenes"}, f"--manifest {path}")
     defaults = _table(data.get("defaults", {}), "[defaults]")
     _keys(defaults, _DEFAULT_KEYS, "[defaults]")
@@ -299,11 +335,15 @@ def read_manifest(path) -> Manifest:
         "gates": _gates(defaults, "[defaults]"),
         "baseline": _baseline(defaults, "[defaults]"),
     }
-    cases = [c for key, table in scenes.items() for c in _scene_cases(key, table, defaults, ctx)]
+    cases = []
+    for key, table in scenes.items():
+        cases += _scene_cases(key, table, defaults, ctx)
+        if len(cases) > LIMITS["cases"]:
+            raise ManifestError(f"{what} {path}: more than {LIMITS['cases']} cases (the limit)")
     return Manifest(
         path=path,
         cases=cases,
-        spp=_opt(defaults, "spp", _int, "[defaults].spp", minimum=1),
-        seed=_opt(defaults, "seed", _int, "[defaults].seed", minimum=0),
+        spp=_opt(defaults, "spp", _int, "[defaults].spp", minimum=1, maximum=MAX_SPP),
+        seed=_opt(defaults, "seed", _int, "[defaults].seed", minimum=0, maximum=2**32 - 1),
         flip_mode=_opt(defaults, "flip_mode", _text, "[defaults].flip_mode", ("LDR", "HDR")),
     )

@@ -1,9 +1,11 @@
 """A Markdown summary of a scored run (``--summary-md``): what a pull-request comment shows.
 
-The verdict first (the exit code's word), then every failed gate and regression with the
-same name as the JUnit case and ``metrics.json``'s ``failed``, with this run's value, the
-limit or the baseline's value and both noise floors; then the scenes that could not be
-scored, the likely causes found (diagnoses), and a count of the passing checks.
+The verdict first (the exit code's word), then the first screen: one row per scene with a
+failed check, its failed gates by name and its regressions counted (an intended change that
+moves 20 metrics of one case is one row, not 20); then every failed check with the same name
+as the JUnit case and ``metrics.json``'s ``failed``, with this run's value, the limit or the
+baseline's value and both noise floors; then the scenes that could not be scored, the likely
+causes found (diagnoses), and a count of the passing checks.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...scenes.base.files import atomic_write_bytes
+from ...scenes.base.untrusted import escape_markdown
 
 __all__ = ["summary_markdown", "write_summary_md"]
 
@@ -20,8 +23,10 @@ def _num(value) -> str:
 
 
 def _cell(text: str) -> str:
-    """Table-cell text: pipes and newlines cannot break the table."""
-    return str(text).replace("|", "\\|").replace("\n", " ")
+    """User text (scene, check and file names, messages) in Markdown: every Markdown and
+    HTML special escaped, control characters written out, one line (no table, link, image,
+    tag or code span can come from it)."""
+    return escape_markdown(text)
 
 
 def summary_markdown(verdicts, *, records=None, report=None) -> str:
@@ -42,7 +47,10 @@ def summary_markdown(verdicts, *, records=None, report=None) -> str:
         "",
     ]
     if failed:
+        lines += _first_screen(failed)
         lines += [
+            f"<details><summary>{len(failed)} failed checks</summary>",
+            "",
             "| scene | check | now | limit / baseline | noise floor (now / baseline) |",
             "|---|---|---:|---:|---:|",
         ]
@@ -50,12 +58,12 @@ def summary_markdown(verdicts, *, records=None, report=None) -> str:
             against = c.limit if c.kind == "gate" else c.previous
             floors = _num(c.floor) + (f" / {_num(c.previous_floor)}" if c.kind != "gate" else "")
             lines.append(
-                f"| {_cell(scene)} | `{_cell(c.name)}` | {_num(c.value)} | {_num(against)} "
+                f"| {_cell(scene)} | {_cell(c.name)} | {_num(c.value)} | {_num(against)} "
                 f"| {floors} |"
             )
-        lines.append("")
+        lines += ["", "</details>", ""]
     for scene, name, message in errors:
-        lines.append(f"- **{_cell(scene)}** `{_cell(name)}`: {_cell(message)}")
+        lines.append(f"- **{_cell(scene)}** {_cell(name)}: {_cell(message)}")
     if errors:
         lines.append("")
     for rec in records or []:
@@ -65,11 +73,31 @@ def summary_markdown(verdicts, *, records=None, report=None) -> str:
     passed = [c for _, c in checks if c.passed]
     if passed:
         lines += ["", f"<details><summary>{len(passed)} passing checks</summary>", ""]
-        lines += [f"- `{_cell(c.line)}`" for c in passed]
+        lines += [f"- {_cell(c.line)}" for c in passed]
         lines += ["", "</details>"]
     if report is not None:
-        lines += ["", f"Report: `{report}`"]
+        lines += ["", f"Report: {_cell(report)}"]
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _first_screen(failed) -> list[str]:
+    """One row per scene with a failed check: its failed gates by name, its regressions (and
+    other baseline checks) counted with their first metrics."""
+    scenes: dict[str, list] = {}
+    for scene, c in failed:
+        scenes.setdefault(scene, []).append(c)
+    lines = ["| scene | failed | gates | regressions |", "|---|---:|---|---|"]
+    for scene, checks in scenes.items():
+        gates = [c.name for c in checks if c.kind == "gate"]
+        regressed = [c.metric or c.name for c in checks if c.kind != "gate"]
+        shown = ", ".join(regressed[:5]) + (
+            f" and {len(regressed) - 5} more" if len(regressed) > 5 else ""
+        )
+        lines.append(
+            f"| {_cell(scene)} | {len(checks)} | {_cell(', '.join(gates)) or '—'} "
+            f"| {f'{len(regressed)}: {_cell(shown)}' if regressed else '—'} |"
+        )
+    return [*lines, ""]
 
 
 def write_summary_md(path, verdicts, *, records=None, report=None) -> None:

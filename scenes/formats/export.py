@@ -270,7 +270,7 @@ def export(loaded, out_dir: str | Path) -> dict:
         shapes, summary, area_shapes = [], {"shapes": {}}, set()
         for idx, sh in enumerate(loaded.mi_scene.shapes()):
             name = loaded.shape_names[idx] or f"shape_{idx}"
-            safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+            safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)[:100]
             rel = f"meshes/{idx:04d}_{safe}.ply"
             verts, faces = shape_mesh(mi, sh)
             _write_ply(tmp / rel, verts, faces)

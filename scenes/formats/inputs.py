@@ -10,10 +10,10 @@ a built-in scene name.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..base.untrusted import read_json
 from ..loader import LoadedScene, SceneError, load
 from .export import EXPORT_SCENE_FILES, export_scene_file
 
@@ -62,12 +62,9 @@ def read_export_record(folder: Path) -> dict | None:
     """An export folder's :data:`EXPORT_RECORD` (None when absent); :class:`SceneError` for
     one that is not an export record."""
     path = Path(folder) / EXPORT_RECORD
-    if not path.is_file():
-        return None
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise SceneError(f"{path} is not readable JSON ({type(exc).__name__})") from None
+    if not path.exists() and not path.is_symlink():
+        return None  # absent (anything else there is read, or refused, as untrusted input)
+    record = read_json(path, what="export record", error=SceneError)
     if not isinstance(record, dict) or record.get("schema") not in EXPORT_SCHEMAS:
         raise SceneError(f"{path} is not an export record (schema {EXPORT_SCHEMA!r})")
     if record["schema"] == EXPORT_SCHEMA:
@@ -79,7 +76,7 @@ def _sequence_fields(path: Path) -> dict:
     """``camera_path``, ``light_path``, ``frame`` and ``n_frames`` of an export from its
     ``camera.json``'s ``sequence`` (frame 0 and no count when neither path moves)."""
     try:
-        seq = json.loads(path.read_text(encoding="utf-8"))["sequence"]
+        seq = read_json(path, what="export camera record")["sequence"]
         camera_path, light_path = seq["camera_path"], seq["light_path"]
         moving = camera_path is not None or light_path is not None
         return {
@@ -94,7 +91,8 @@ def _sequence_fields(path: Path) -> dict:
 
 def _chosen_light(folder: Path) -> int | None:
     try:
-        return int(json.loads((folder / "lights.json").read_text())["chosen"])
+        chosen = read_json(folder / "lights.json", what="export lights")["chosen"]
+        return chosen if isinstance(chosen, int) and not isinstance(chosen, bool) else None
     except (OSError, ValueError, KeyError, TypeError):
         return None
 
@@ -193,7 +191,7 @@ def nearest_export(start, size: tuple[int, int]) -> Path | None:
         cam = folder / "camera.json"
         if cam.is_file() and export_scene_file(folder) is not None:
             try:
-                rec = json.loads(cam.read_text())
+                rec = read_json(cam, what="export camera record")
                 if (int(rec["width"]), int(rec["height"])) == tuple(size):
                     return folder
             except (OSError, ValueError, KeyError, TypeError):
