@@ -27,7 +27,9 @@ __all__ = [
     "Light",
     "LoadedScene",
     "SceneError",
+    "SceneParamError",
     "Specular",
+    "builtin_scene",
     "load",
     "scene_names",
     "shade",
@@ -36,6 +38,8 @@ __all__ = [
 _WHERE = {
     "BUILTIN_SCENES": ".catalogue.builtin",
     "DEFAULT_SCENES": ".catalogue.builtin",
+    "SceneParamError": ".catalogue.builtin",
+    "builtin_scene": ".catalogue.builtin",
     "Camera": ".camera",
     "Light": ".lights",
     "LoadedScene": ".loader",

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import backend
 from .camera import Camera
-from .catalogue.builtin import BUILTIN_SCENES, BuiltinScene
+from .catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 from .formats.camera_file import CameraFileError, load_camera_file
 from .formats.gltf import GltfError, gltf_scene
 from .light_paths import LIGHT_PATHS, check_light_path, path_light
@@ -492,9 +492,10 @@ def load(
 
     Parameters
     ----------
-    scene : built-in name (see :func:`scene_names`) or path to a Mitsuba XML file.
-        A :class:`scenes.catalogue.builtin.BuiltinScene` (e.g. a built-in scene's factory
-        wrapped by a
+    scene : built-in name (see :func:`scene_names`; with parameters such as
+        ``meadow:n=100000``, see :func:`scenes.catalogue.builtin.builtin_scene`) or path to
+        a Mitsuba XML file. A :class:`scenes.catalogue.builtin.BuiltinScene` (e.g. a
+        built-in scene's factory wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
     width, height : film size in pixels; default: the scene's own.
     light : index of the light to use among the scene's lights (punctual ones first, then
@@ -576,9 +577,10 @@ class _Source:
 def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
     """The Mitsuba scene of a glTF file or built-in glTF scene, a built-in scene or a Mitsuba
     XML file; the meshes given to Mitsuba are kept in ``meshes``."""
-    name = scene.name if isinstance(scene, BuiltinScene) else str(scene)
+    builtin = _builtin(scene)  # a built-in name, with its parameters (meadow:n=1000)
+    name = builtin.name if builtin is not None else str(scene)
     try:  # a glTF file or built-in glTF scene (scenes.formats.gltf), else None
-        gl = gltf_scene(scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
+        gl = gltf_scene(builtin or scene, BUILTIN_SCENES, width=width, height=height, camera=camera)
     except GltfError as exc:
         raise SceneError(str(exc)) from None
     if gl is not None:
@@ -589,10 +591,9 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
             mi_scene = mi.load_dict(_to_mitsuba_dict(mi, gl.raw, meshes), optimize=False)
         except Exception as exc:
             raise SceneError(f"glTF scene {name!r} failed to load: {exc}") from exc
-    elif isinstance(scene, BuiltinScene) or name in BUILTIN_SCENES:
-        spec = scene if isinstance(scene, BuiltinScene) else BUILTIN_SCENES[name]
-        w, h = int(width or spec.width), int(height or spec.height)
-        raw = spec.factory(w, h)
+    elif builtin is not None:
+        w, h = int(width or builtin.width), int(height or builtin.height)
+        raw = builtin.factory(w, h)
         digest = hashlib.sha256(b"builtin:" + name.encode())
         _hash_obj(digest, raw)
         # a scene-wide Blinn-Phong lobe (the catalogue's glossy); hashed above with the rest
@@ -602,7 +603,7 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
             mi_scene = mi.load_dict(_to_mitsuba_dict(mi, raw, meshes), optimize=False)
         except Exception as exc:  # Mitsuba raises RuntimeError subclasses
             raise SceneError(f"built-in scene {name!r} failed to load: {exc}") from exc
-        source, description = "builtin", spec.description
+        source, description = "builtin", builtin.description
     else:
         path = Path(name)
         if path.suffix.lower() != ".xml" and not path.exists():
@@ -661,6 +662,15 @@ def _lights_of(mi, mi_scene, name: str, gl, light: int) -> list[Light]:
             f"light(s) (0..{len(lights) - 1})"
         )
     return lights
+
+
+def _builtin(scene):
+    """The :class:`scenes.catalogue.builtin.BuiltinScene` ``scene`` names (None: not a
+    built-in one); :class:`SceneError` for a bad scene parameter."""
+    try:
+        return builtin_scene(scene)
+    except SceneParamError as exc:
+        raise SceneError(str(exc)) from None
 
 
 def _check_sequence(light_path, camera_path, camera_file, frame, n_frames) -> None:

@@ -24,8 +24,10 @@ own module (:mod:`.reference`, :mod:`.model`,
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
+import threading
 import warnings
 
 from ..errors import InputWarning, one_line
@@ -78,6 +80,20 @@ def _terminate(signum, frame):  # SIGTERM: unwind so that `finally` blocks clean
     raise SystemExit(128 + signum)
 
 
+def _exit_now(code: int) -> None:
+    """Stopped by a signal, everything cleaned up: exit now rather than wait at interpreter
+    shutdown for library threads (Dask's event loop and thread pools, joined at exit, after
+    a sweep's cluster was closed in a hurry). Only when another thread is alive; a process
+    of one thread exits the normal way."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if not any(t is not threading.main_thread() for t in threading.enumerate()):
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 def _run(args) -> int:
     """Run the command of ``args`` with the backend selected (``doctor`` selects its own)."""
     with warnings.catch_warnings():
@@ -97,12 +113,18 @@ def _run(args) -> int:
                 sys.stderr.write(warnings.formatwarning(message, category, *_args[:2]))
 
         warnings.showwarning = show
-        if args.command != "doctor":
-            from ..certify import certified_select
+        from ..reference.render import set_exact_budget
 
-            # a backend is used only after its self-check passed on this machine
-            certified_select(args.backend, trust=args.trust_backend)
-        return COMMANDS[args.command](args)
+        set_exact_budget(getattr(args, "exact_budget", None))  # None: the documented default
+        try:
+            if args.command != "doctor":
+                from ..certify import certified_select
+
+                # a backend is used only after its self-check passed on this machine
+                certified_select(args.backend, trust=args.trust_backend)
+            return COMMANDS[args.command](args)
+        finally:
+            set_exact_budget(None)  # the command's budget ends with it (main() in a library)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -123,9 +145,13 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:  # not the main thread
         pass
     mark = scratch_mark()
+    stopped = None
     try:
         sweep_stale_scratch()
         return _run(args)
+    except SystemExit as exc:  # SIGTERM (_terminate): what is below has unwound
+        stopped = exc.code if exc.code in (130, 143) else None
+        raise
     except input_errors() as exc:
         print(f"raster-oracle: error: {one_line(exc)}", file=sys.stderr)
         return 2
@@ -134,8 +160,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     except KeyboardInterrupt:
         print("raster-oracle: interrupted", file=sys.stderr)
+        stopped = 130
         return 130
     finally:
         remove_scratch(mark)
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+        if stopped is not None:
+            _exit_now(stopped)

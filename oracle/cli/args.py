@@ -17,6 +17,7 @@ __all__ = [
     "CliError",
     "Parser",
     "add_cache_args",
+    "add_exact_budget_arg",
     "add_reference_args",
     "add_scene_args",
     "add_set_arg",
@@ -27,6 +28,7 @@ __all__ = [
     "input_errors",
     "load_scene",
     "names",
+    "nonneg_float",
     "nonneg_int",
     "path",
     "positive_float",
@@ -84,6 +86,7 @@ def _number(kind: type, *, minimum: float, strict: bool):
 positive_int = _number(int, minimum=0, strict=True)
 nonneg_int = _number(int, minimum=0, strict=False)
 positive_float = _number(float, minimum=0.0, strict=True)
+nonneg_float = _number(float, minimum=0.0, strict=False)
 
 #: Largest ``--spp`` / ``--max-spp``: 2^20 samples per pixel (a 1-pixel reference then takes
 #: seconds; beyond it the standard error, 0.0005 at worst, stops mattering).
@@ -219,7 +222,21 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
         default=4096,
         help="adaptive: most samples a pixel gets (default 4096)",
     )
+    add_exact_budget_arg(p)
     add_cache_args(p)
+
+
+def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
+    """``--exact-budget SECONDS`` (see :func:`oracle.reference.render.set_exact_budget`)."""
+    p.add_argument(
+        "--exact-budget",
+        type=nonneg_float,
+        default=None,
+        metavar="SECONDS",
+        help="estimated seconds of coverage_exact work allowed per view (default 60); over "
+        "it the exact group is skipped for that view with one line on stderr and coverage "
+        "is scored against the Monte Carlo truth",
+    )
 
 
 def load_scene(args):

@@ -30,8 +30,9 @@ def add_parsers(sub) -> None:
     p.add_argument(
         "--channels",
         default=None,
-        help="comma-separated channel groups (default: all): visibility, coverage, "
-        "color, edge, id, depth, position, normal, albedo",
+        help="comma-separated channel groups (default: all but the optional ones): "
+        "visibility, coverage, coverage_exact, color, edge, id, depth, position, normal, "
+        "albedo; optional: tangent32, motion",
     )
     p.add_argument("--out", type=A.path, default=Path("out/reference"), help="output folder")
 
@@ -88,6 +89,8 @@ def cmd_scenes(args) -> int:
     width = max(len(n) for n in BUILTIN_SCENES)
     for name, spec in BUILTIN_SCENES.items():
         print(f"{name:<{width}}  {spec.width}x{spec.height}  {spec.description}")
+        for param in spec.params:  # meadow:n=100000
+            print(f"{'':<{width}}    {name}:{param.key}=N  {param.doc}")
     print("\ncamera paths (--camera-path NAME --frame K --frames N):")
     for name, text in CAMERA_PATHS.items():
         print(f"  {name:<13} {text}")

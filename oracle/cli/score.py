@@ -52,6 +52,7 @@ def add_parsers(sub) -> None:
     add_visibility_arg(p)
     add_transfer_args(p)
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
+    A.add_exact_budget_arg(p)
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default="LDR")
     p.add_argument(

@@ -68,6 +68,7 @@ def add_parser(sub) -> None:
     add_visibility_arg(p)
     add_transfer_args(p)
     p.add_argument("--spp", type=A.spp, default=None, help="reference spp (default 64)")
+    A.add_exact_budget_arg(p)
     p.add_argument("--seed", type=A.nonneg_int, default=None, help="reference seed (default 0)")
     p.add_argument("--flip-mode", choices=["LDR", "HDR", "ldr", "hdr"], default=None)
     add_gate_args(

@@ -16,15 +16,22 @@ def add_parsers(sub) -> None:
     """Add ``bench``, ``aa-memory``, ``converge``, ``extremes``, ``claims`` and
     ``soft-shadows`` to ``sub``."""
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
-    p.add_argument("what", choices=["oracle", "models"], help="what to benchmark")
-    p.add_argument("--width", type=A.positive_int, default=1920)
-    p.add_argument("--height", type=A.positive_int, default=1080)
-    p.add_argument("--spp", type=A.positive_int, default=32)
+    p.add_argument("what", choices=["oracle", "models", "scale"], help="what to benchmark")
+    p.add_argument("--width", type=A.positive_int, default=None, help="default 1920 (scale 640)")
+    p.add_argument("--height", type=A.positive_int, default=None, help="default 1080 (scale 360)")
+    p.add_argument("--spp", type=A.positive_int, default=None, help="default 32 (scale 16)")
     p.add_argument(
         "--only",
         default="",
-        help="models: comma-separated techniques to time (default: every row)",
+        help="models, scale: comma-separated techniques to time (default: every row; scale: "
+        "fxaa, shadow-map, smaa, sdsm, izb, agaa, msaa)",
     )
+    p.add_argument(
+        "--sizes",
+        default=None,
+        help="scale: comma-separated blade counts of meadow:n=N (default 10000,100000,1000000)",
+    )
+    A.add_exact_budget_arg(p)
     p.add_argument(
         "--quiet", action="store_true", help="no progress bar, no profile tables on stderr"
     )
@@ -83,7 +90,13 @@ def cmd_bench(args) -> int:
         oracle_profile_lines,
     )
 
-    kwargs = dict(width=args.width, height=args.height, spp=args.spp, quiet=args.quiet)
+    if args.what == "scale":
+        return _bench_scale(args)
+    if args.sizes is not None:
+        raise A.CliError(f"bench {args.what}: --sizes applies to 'bench scale' only")
+    kwargs = dict(
+        width=args.width or 1920, height=args.height or 1080, spp=args.spp or 32, quiet=args.quiet
+    )
     if args.what == "models":
         try:
             figures = bench_models(only=tuple(A.names(args.only)), **kwargs)
@@ -97,6 +110,38 @@ def cmd_bench(args) -> int:
     if not args.quiet:  # where the time goes, for a reader (the JSON holds it all)
         lines = models_profile_lines if args.what == "models" else oracle_profile_lines
         print("\n".join(lines(figures)), file=sys.stderr)
+    return 0
+
+
+def _bench_scale(args) -> int:
+    """``bench scale``: per size and phase, seconds and peak memory (JSON on stdout)."""
+    from ..studies.bench_scale import SCALE_MODELS, SCALE_SIZES, bench_scale, scale_lines
+
+    try:
+        sizes = [int(x) for x in A.names(args.sizes)] if args.sizes else list(SCALE_SIZES)
+    except ValueError:
+        raise A.CliError(f"bench scale: --sizes must be integers, got {args.sizes!r}") from None
+    if not sizes or min(sizes) < 0:
+        raise A.CliError(f"bench scale: --sizes must be blade counts >= 0, got {args.sizes!r}")
+    models = tuple(A.names(args.only)) or SCALE_MODELS
+    from ... import raster_models
+
+    known = {t["name"] for t in raster_models.list_techniques()}
+    unknown = [m for m in models if m not in known]
+    if unknown:
+        raise A.CliError(f"bench scale: unknown technique(s) {', '.join(unknown)}")
+    figures = bench_scale(
+        sizes=sizes,
+        width=args.width or 640,
+        height=args.height or 360,
+        spp=args.spp or 16,
+        models=models,
+        budget=args.exact_budget,
+        quiet=args.quiet,
+    )
+    print(json.dumps(figures, indent=2))
+    if not args.quiet:
+        print("\n".join(scale_lines(figures)), file=sys.stderr)
     return 0
 
 

@@ -157,6 +157,17 @@ def cmd_tune(args) -> int:
     return 0 if result["best"] is not None else 1
 
 
+def _builtin(name: str):
+    """The built-in scene ``name`` names (``meadow:n=1000`` too) or None; a bad parameter is
+    a :class:`CliError`."""
+    from ... import scenes
+
+    try:
+        return scenes.builtin_scene(name)
+    except scenes.SceneParamError as exc:
+        raise A.CliError(str(exc)) from None
+
+
 def cmd_main(args) -> int:
     from ... import scenes
     from ..sweeps.mainjob import run_main
@@ -164,7 +175,7 @@ def cmd_main(args) -> int:
     names = None
     if args.scenes:
         names = tuple(A.names(args.scenes))
-        unknown = [n for n in names if n not in scenes.BUILTIN_SCENES]
+        unknown = [n for n in names if _builtin(n) is None]
         if unknown:
             raise A.CliError(
                 f"unknown scene(s) {', '.join(unknown)}; choose from "

@@ -19,6 +19,8 @@ against it in every reference's provenance.
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from ...scenes import backend
@@ -62,7 +64,28 @@ def front_hits(shape, centre: np.ndarray, block: int):
 CROSS_CHECK_Z = 4.0
 
 
-def exact_channels(loaded, centre: np.ndarray | None, sampled: dict) -> tuple[dict, dict]:
+def _say_once(loaded, exc, line: str) -> None:
+    """Print ``line`` on stderr once per view (the noise floor's reference of the same view
+    is refused for the same reason without a second line)."""
+    said = loaded.memo.setdefault("exact_coverage_said", set())
+    view = getattr(exc, "view", None)
+    if view is None or (view, line) not in said:
+        print(line, file=sys.stderr)
+        said.add((view, line))
+
+
+def _no_exact(loaded, record: dict) -> tuple[dict, dict]:
+    """The ``coverage_exact`` group claiming nothing exact (``valid`` 0 everywhere: coverage
+    is then scored against the Monte Carlo truth, see ``coverage_truth``) and its record."""
+    zero = np.zeros((loaded.height, loaded.width), np.float32)
+    channels = {"coverage_exact": zero, "front_coverage_exact": zero}
+    channels["coverage_exact_valid"] = zero
+    return channels, {"valid_fraction": 0.0, **record}
+
+
+def exact_channels(
+    loaded, centre: np.ndarray | None, sampled: dict, *, budget: float | None = None
+) -> tuple[dict, dict]:
     """The ``coverage_exact`` group of ``loaded`` (:mod:`scenes.geometry.exact_coverage`) and its
     provenance record; with the Monte Carlo channels in ``sampled`` (``coverage`` and
     ``front_coverage`` with their standard errors), the record holds the z-scores of their
@@ -70,19 +93,34 @@ def exact_channels(loaded, centre: np.ndarray | None, sampled: dict) -> tuple[di
     beyond :data:`CROSS_CHECK_Z`): a sampling bug shows up in every reference."""
     import shapely
 
-    from ...scenes.geometry.exact_coverage import exact_coverage
+    from ...scenes.geometry.exact_coverage import NotExact, OverBudget, exact_coverage
 
     if centre is None:
         centre = centre_shapes(loaded)
     try:
-        ex = exact_coverage(loaded, centre)
+        ex = exact_coverage(loaded, centre, **({} if budget is None else {"budget": budget}))
+    except OverBudget as exc:
+        # too costly for this view: skipped with one line, Monte Carlo truth instead
+        _say_once(
+            loaded,
+            exc,
+            f"raster-oracle: coverage_exact skipped for {loaded.name!r} frame {loaded.frame}: "
+            f"{exc} (--exact-budget); coverage is scored against the Monte Carlo truth",
+        )
+        decision = {"decision": "skipped: over budget", "budget_seconds": exc.budget}
+        return _no_exact(loaded, {**decision, "estimate": exc.estimate})
+    except NotExact as exc:
+        # geometry float64 cannot clip exactly (coordinates of 1e30): said, not passed off
+        _say_once(
+            loaded,
+            exc,
+            f"raster-oracle: coverage_exact not exact for {loaded.name!r} frame "
+            f"{loaded.frame}: {exc}; coverage is scored against the Monte Carlo truth",
+        )
+        return _no_exact(loaded, {"decision": f"not exact: {exc}"})
     except shapely.errors.GEOSException as exc:
         # a polygon operation that failed on degenerate input: nothing is claimed exact
-        shape = (loaded.height, loaded.width)
-        zero = np.zeros(shape, np.float32)
-        channels = {"coverage_exact": zero, "front_coverage_exact": zero}
-        channels["coverage_exact_valid"] = zero
-        return channels, {"valid_fraction": 0.0, "error": f"polygon operation failed: {exc}"}
+        return _no_exact(loaded, {"error": f"polygon operation failed: {exc}"})
     f32 = np.float32
     channels = {
         "coverage_exact": ex.coverage.astype(f32),
@@ -90,6 +128,8 @@ def exact_channels(loaded, centre: np.ndarray | None, sampled: dict) -> tuple[di
         "coverage_exact_valid": ex.valid.astype(f32),
     }
     record = {**ex.stats, "valid_fraction": float(ex.valid.mean())}
+    if budget is not None:
+        record.update(decision="computed", budget_seconds=budget)
     checks = {}
     for name, exact in (("coverage", ex.coverage), ("front_coverage", ex.front_coverage)):
         if name not in sampled:

@@ -50,6 +50,7 @@ from .soft import light_samples, soft_samples
 
 __all__ = [
     "ALL_CHANNELS",
+    "EXACT_BUDGET_S",
     "CHANNEL_GROUPS",
     "MAX_SEED",
     "ReferenceSettingsError",
@@ -62,6 +63,7 @@ __all__ = [
     "render_reference",
     "sample_jitter",
     "samples_per_chunk",
+    "set_exact_budget",
     "sobol_sample",
 ]
 
@@ -130,6 +132,18 @@ _BYTES_PER_PIXEL = 64 + 56
 _BYTES_PER_COLOR_PIXEL = 48
 
 
+#: Default ``--exact-budget``: seconds of estimated ``coverage_exact`` work per view.
+EXACT_BUDGET_S = 60.0
+_EXACT_BUDGET = [EXACT_BUDGET_S]
+
+
+def set_exact_budget(seconds: float | None) -> None:
+    """Set the process's default exact-coverage budget (``--exact-budget``; None: the
+    documented default :data:`EXACT_BUDGET_S`). Settings made later take it as theirs, so
+    it enters their cache keys."""
+    _EXACT_BUDGET[0] = EXACT_BUDGET_S if seconds is None else float(seconds)
+
+
 class ReferenceSettingsError(InputError):
     """Invalid reference settings (bad spp, unknown channel, too much memory)."""
 
@@ -150,6 +164,10 @@ class ReferenceSettings:
     adaptive_spp: int = 16
     target_stderr: float = 0.01
     max_spp: int = 4096
+    #: Seconds of estimated ``coverage_exact`` work allowed per view (None: the process
+    #: default, :data:`EXACT_BUDGET_S` unless ``--exact-budget`` set it); over it the group
+    #: is skipped for that view (scenes.geometry.exact_coverage.estimate_cost).
+    exact_budget: float | None = None
 
     def validate(self) -> ReferenceSettings:
         if int(self.spp) < 1:
@@ -173,6 +191,9 @@ class ReferenceSettings:
             if int(self.max_spp) < int(self.adaptive_spp):
                 raise ReferenceSettingsError("max_spp must be >= adaptive_spp")
         ordered = tuple(c for c in CHANNEL_GROUPS if c in set(self.channels))
+        budget = _EXACT_BUDGET[0] if self.exact_budget is None else float(self.exact_budget)
+        if not budget >= 0:
+            raise ReferenceSettingsError(f"exact budget must be >= 0 seconds, got {budget}")
         return ReferenceSettings(
             int(self.spp),
             int(self.seed),
@@ -181,6 +202,7 @@ class ReferenceSettings:
             int(self.adaptive_spp),
             float(self.target_stderr),
             int(self.max_spp),
+            budget,
         )
 
     def key_record(self) -> dict:
@@ -189,6 +211,10 @@ class ReferenceSettings:
         if not self.adaptive:
             for k in ("adaptive_spp", "target_stderr", "max_spp"):
                 rec.pop(k)
+        # the default budget leaves the key (and every cached reference) as it was
+        budget = rec.pop("exact_budget")
+        if "coverage_exact" in self.channels and budget not in (None, EXACT_BUDGET_S):
+            rec["exact_budget"] = budget
         return rec
 
 
@@ -928,7 +954,9 @@ def render_reference(
     stats.update(_area_stats(loaded, acc))
     if "coverage_exact" in groups:
         with maybe_phase(phases, "coverage_exact"):
-            exact, stats["coverage_exact"] = exact_channels(loaded, acc.centre, channels)
+            exact, stats["coverage_exact"] = exact_channels(
+                loaded, acc.centre, channels, budget=_budget(settings)
+            )
         channels.update(exact)
     return channels, stats
 
@@ -1053,3 +1081,8 @@ def _adaptive_stats(settings: ReferenceSettings, acc: _Accum, width: int, height
         "pixels_refined": int((acc.n > settings.adaptive_spp).sum()),
         "pixels_near_features": int(near.sum()),
     }
+
+
+def _budget(settings) -> float:
+    """The exact-coverage budget of ``settings`` (the process default where unset)."""
+    return _EXACT_BUDGET[0] if settings.exact_budget is None else float(settings.exact_budget)

@@ -581,6 +581,46 @@ def _reference_seconds(futures) -> float:
     return total
 
 
+#: Seconds the Dask client and local cluster get to close.
+STOP_TIMEOUT_S = 1.0
+
+
+def _end_local_workers() -> None:
+    """Kill this process's child processes (the local cluster's nannies and workers): a
+    worker inside a long kernel would otherwise finish its task before it noticed; its
+    results are not stored, the store keeps what finished (each row one transaction)."""
+    import psutil
+
+    children = []
+    for child in psutil.Process().children(recursive=True):
+        try:  # multiprocessing's resource tracker stays: it ends with this process
+            if not any("resource_tracker" in part for part in child.cmdline()):
+                children.append(child)
+        except psutil.Error:
+            pass
+    for child in children:
+        try:
+            child.kill()
+        except psutil.Error:
+            pass
+    psutil.wait_procs(children, timeout=STOP_TIMEOUT_S)
+
+
+def _close_dask(client, cluster, *, quick: bool) -> None:
+    """Close the client and the local cluster; ``quick`` (stopping on a signal): a second
+    each, and a timeout closing what was killed is no error."""
+    for closing in (client, cluster):
+        if closing is None:
+            continue
+        if not quick:
+            closing.close()
+            continue
+        try:
+            closing.close(timeout=STOP_TIMEOUT_S)
+        except Exception:  # stopping anyway
+            pass
+
+
 def _run_dask(
     todo, cache_root, variant, summary, *, workers, scheduler, quiet, images, worker_timeout
 ):
@@ -604,6 +644,7 @@ def _run_dask(
         except (OSError, TimeoutError, ValueError) as exc:
             raise SweepError(f"--scheduler {scheduler}: cannot connect: {exc}") from None
     where = "local cluster" if scheduler is None else f"--scheduler {scheduler}"
+    stopping = False
     try:
         if scheduler is not None:
             try:
@@ -638,7 +679,13 @@ def _run_dask(
                 bar.update()
                 yield key, rec, row, res
         summary["phases"]["references"] += _reference_seconds(ref_futures.values())
-    finally:
-        client.close()
+    except (SystemExit, KeyboardInterrupt):
+        # stopped (SIGTERM, Ctrl-C): the local workers are ended now, not after their task
+        stopping = True
         if cluster is not None:
-            cluster.close()
+            for nanny in list(getattr(cluster, "workers", {}).values()):
+                nanny.auto_restart = False  # a killed worker is not started again
+            _end_local_workers()
+        raise
+    finally:
+        _close_dask(client, cluster, quick=stopping)

@@ -310,8 +310,11 @@ def _scene_name(where: str, name, base_dir: Path | None) -> str:
 
     if not isinstance(name, str) or not name:
         raise SpecError(f"{where}: expected a scene name, got {name!r}")
-    if name in scenes.BUILTIN_SCENES:
-        return name
+    try:
+        if scenes.builtin_scene(name) is not None:  # meadow:n=100000 too
+            return name
+    except scenes.SceneParamError as exc:
+        raise SpecError(f"{where}: {exc}") from None
     path = Path(name)
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path

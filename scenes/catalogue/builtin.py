@@ -9,12 +9,37 @@ two-sided diffuse (see :mod:`scenes.shading.phong`); a top-level ``"ro_specular"
 
 from __future__ import annotations
 
+import functools
+import re
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from . import aa_scenes, moving_scenes, pbr_scenes, shadow_scenes, soft_scenes
+from . import aa_scenes, moving_scenes, pbr_scenes, scale_scenes, shadow_scenes, soft_scenes
 
-__all__ = ["BUILTIN_SCENES", "BuiltinScene", "DEFAULT_SCENES"]
+__all__ = [
+    "BUILTIN_SCENES",
+    "BuiltinScene",
+    "DEFAULT_SCENES",
+    "SceneParam",
+    "SceneParamError",
+    "builtin_scene",
+]
+
+
+class SceneParamError(ValueError):
+    """A built-in scene name with a parameter that is unknown or out of range."""
+
+
+@dataclass(frozen=True)
+class SceneParam:
+    """An integer parameter of a built-in scene (``name:key=value``), passed to its factory
+    as a keyword: its default and inclusive bounds."""
+
+    key: str
+    default: int
+    lo: int
+    hi: int
+    doc: str
 
 
 @dataclass(frozen=True)
@@ -29,6 +54,9 @@ class BuiltinScene:
     #: ``"mitsuba"``: the factory returns a Mitsuba dictionary; ``"gltf"``: GLB bytes
     #: (read by :mod:`scenes.formats.gltf`, shaded with the glTF BRDF).
     kind: str = "mitsuba"
+    #: Parameters the factory takes as keywords (``meadow:n=100000``); see
+    #: :func:`builtin_scene`.
+    params: tuple[SceneParam, ...] = ()
 
 
 BUILTIN_SCENES: dict[str, BuiltinScene] = {
@@ -87,6 +115,87 @@ BUILTIN_SCENES.update(
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
 )
+
+# Scenes of real size, their size a parameter (meadow:n=1000000): see scenes.catalogue.scale_scenes.
+_SIZE = "number of {}; default {}"
+BUILTIN_SCENES.update(
+    {
+        "meadow": BuiltinScene(
+            "meadow",
+            scale_scenes.meadow,
+            "a 24 x 24 ground and n one-triangle grass blades 0.3-0.6 tall (content of real "
+            "size: meadow:n=1000000)",
+            320,
+            180,
+            params=(
+                SceneParam("n", scale_scenes.MEADOW_N, 0, 10**8, _SIZE.format("blades", 5000)),
+                SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the blades; default 1"),
+            ),
+        ),
+        "city-foliage": BuiltinScene(
+            "city-foliage",
+            scale_scenes.city_foliage,
+            "twelve buildings and sixteen trees whose crowns hold n leaves (large casters among "
+            "small ones: city-foliage:n=200000)",
+            320,
+            180,
+            params=(
+                SceneParam(
+                    "n", scale_scenes.CITY_FOLIAGE_N, 0, 10**8, _SIZE.format("leaves", 5000)
+                ),
+                SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the block; default 1"),
+            ),
+        ),
+    }
+)
+
+_VALUE = re.compile(r"[+]?[0-9][0-9_]*")
+
+
+def builtin_scene(name) -> BuiltinScene | None:
+    """The built-in scene ``name`` stands for, or None when it names none.
+
+    ``name`` is a catalogue name, or one followed by parameters ``:key=value`` (integers;
+    ``meadow:n=100000:seed=3``): the scene's factory then receives them as keywords and the
+    returned scene's name lists them in the catalogue's order (the name the reference cache,
+    the records and the reports carry). A :class:`BuiltinScene` is returned as it is.
+
+    Raises
+    ------
+    SceneParamError
+        A parameter the scene does not take, a repeated one, or a value that is not an
+        integer within the parameter's bounds.
+    """
+    if isinstance(name, BuiltinScene):
+        return name
+    if not isinstance(name, str):
+        return None
+    base, _, rest = name.partition(":")
+    spec = BUILTIN_SCENES.get(base)
+    if spec is None or not rest:
+        return spec if not rest else None
+    known = {p.key: p for p in spec.params}
+    if not known:
+        raise SceneParamError(f"built-in scene {base!r} takes no parameters (got {name!r})")
+    given: dict[str, int] = {}
+    for item in rest.split(":"):
+        key, eq, text = (part.strip() for part in item.partition("="))
+        if key not in known or not eq:
+            raise SceneParamError(
+                f"scene {name!r}: {key or item!r} is not a parameter of {base!r} "
+                f"(it takes {', '.join(f'{p.key}=' for p in spec.params)}; e.g. {base}:n=1000)"
+            )
+        if key in given:
+            raise SceneParamError(f"scene {name!r}: parameter {key!r} given twice")
+        p = known[key]
+        if not _VALUE.fullmatch(text) or not p.lo <= int(text) <= p.hi:
+            raise SceneParamError(
+                f"scene {name!r}: {key} must be an integer in [{p.lo}, {p.hi}], got {text!r}"
+            )
+        given[key] = int(text)
+    canonical = base + "".join(f":{p.key}={given[p.key]}" for p in spec.params if p.key in given)
+    return replace(spec, name=canonical, factory=functools.partial(spec.factory, **given))
+
 
 #: The scenes the main job runs by default.
 DEFAULT_SCENES = ("plate", "city", "thin", "star", "curved", "spot", "point", "pbr-spheres")

@@ -169,12 +169,15 @@ def named_input(name: str, *, exports=None) -> str:
     """The scene a name stands for in a folder of engine images: the export folder
     ``exports/name`` when it is one, else the built-in scene ``name``; :class:`SceneError`
     naming the built-in scenes otherwise."""
-    from ..catalogue.builtin import BUILTIN_SCENES
+    from ..catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 
     if exports is not None and export_scene_file(Path(exports) / name) is not None:
         return str(Path(exports) / name)
-    if name in BUILTIN_SCENES:
-        return name
+    try:
+        if builtin_scene(name) is not None:
+            return name
+    except SceneParamError as exc:
+        raise SceneError(str(exc)) from None
     where = f" nor an export in {exports}" if exports is not None else ""
     raise SceneError(
         f"{name!r} is not a built-in scene{where}; name the files after a scene "

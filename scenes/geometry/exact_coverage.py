@@ -44,10 +44,20 @@ import shapely
 
 from .. import backend
 from ..catalogue import meshes as _meshes
-from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area, touched_pixels
+from .coverage_edges import convex_arrays, visible_segments
+from .pixel_area import (
+    edge_pieces,
+    pixel_area,
+    segment_pieces,
+    tagged_pixel_area,
+    touched_pixels,
+)
 
 __all__ = [
     "ExactCoverage",
+    "NotExact",
+    "OverBudget",
+    "estimate_cost",
     "TriangleSet",
     "exact_coverage",
     "exact_coverage_of",
@@ -78,6 +88,27 @@ FILM_MARGIN = 1.0
 TILES_ACROSS = 16
 #: Polygons covering more than this many tiles' area are cut into tiles (see ``_tile``).
 BIG_TILES = 4.0
+#: Polygons per chunk of a bounding-box query (a long C call is cut so that a signal
+#: handler runs between chunks).
+QUERY_CHUNK = 8192
+#: Above this many shapes the cross-shape pairs come from one tree over every polygon
+#: instead of one tree per shape.
+SHAPE_TREES = 64
+#: The cost model of :func:`estimate_cost` (seconds on one core of the 2-core development
+#: machine, measured in CPU time on the built-in scenes and meadow:n=10k-100k; see
+#: docs/research.md): per projected triangle, per candidate pair sharing a grid cell on the
+#: layered path, and per pair on the polygon path (shapely intersections and unions).
+COST_PER_TRIANGLE = 3e-5
+COST_PER_PAIR_LAYERED = 1.5e-6
+COST_PER_PAIR_POLYGONS = 6e-6
+#: The layered path is tried when the polygon path's estimate exceeds this many seconds
+#: (below it the polygon path runs: small scenes keep their channels bit for bit).
+LAYERED_ABOVE_S = 5.0
+#: Cells across the film of the grid :func:`estimate_cost` counts candidate pairs on (a
+#: fixed number, so that the estimate does not grow with the resolution); polygons covering
+#: more than ``BIG_CELLS`` cells are counted against every other polygon.
+COST_CELLS_ACROSS = 80
+BIG_CELLS = 4096
 #: Key of the triangle sets in ``LoadedScene.memo`` (one per camera and film: the
 #: tessellation of curved shapes follows their size on the film).
 MEMO_KEY = "exact_coverage_triangles"
@@ -217,7 +248,18 @@ def _clip_plane(v, count, dist):
 
 
 def _project(camera, tris):
-    """Film polygons (shapely, clipped to the film) of the triangles, and each one's index."""
+    """Film polygons (shapely, clipped to the film) of the triangles, and each one's index;
+    in chunks (a signal handler runs between them)."""
+    polys, idx = [np.empty(0, dtype=object)], [np.zeros(0, np.int64)]
+    for start in range(0, len(tris), QUERY_CHUNK):
+        p, i = _project_chunk(camera, tris[start : start + QUERY_CHUNK])
+        polys.append(p)
+        idx.append(i + start)
+    return np.concatenate(polys), np.concatenate(idx)
+
+
+def _project_chunk(camera, tris):
+    """:func:`_project` of one chunk."""
     v, count = tris, np.full(len(tris), 3)
     for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):  # near, then far
         depth = (v - camera.position) @ camera.forward
@@ -225,6 +267,8 @@ def _project(camera, tris):
     film = camera.project(v)
     ok = count >= 3
     idx = np.flatnonzero(ok)
+    if not len(idx):  # everything behind the camera, nearer than near or beyond far
+        return np.empty(0, dtype=object), idx
     kmax = film.shape[1]
     ring_idx = np.repeat(idx, count[ok])
     sel = np.arange(kmax)[None, :] < count[ok][:, None]
@@ -295,10 +339,31 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     tie (coplanar, of two shapes) or come within a curved shape's tessellation bound of each
     other."""
     tree = shapely.STRtree(polys)
-    a, b = tree.query(polys, predicate="intersects")
+    a, b = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for start in range(0, len(polys), QUERY_CHUNK):  # chunks: a signal handler runs between
+        i, j = tree.query(polys[start : start + QUERY_CHUNK], predicate="intersects")
+        a.append(i + start)
+        b.append(j)
+    a, b = np.concatenate(a), np.concatenate(b)
     keep = a < b
-    a, b = a[keep], b[keep]
-    over = shapely.intersection(polys[a], polys[b])
+    o = _pair_order(camera, polys, tri_idx, tset, a[keep], b[keep])
+    a, b, over, a_front, b_front, cross, bad = o
+    n, c = _planes(tset.tris[tri_idx])
+    a_near, b_near = _split_overlap(
+        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
+    )
+    back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
+    # what hides the back one: the overlap (inside the back polygon: unions stay local), or
+    # the front one's side of the intersection line
+    occluder = np.concatenate([over[a_front], over[b_front], a_near, b_near])
+    return back, occluder, (a[bad], b[bad], over[bad])
+
+
+def _pair_order(camera, polys, tri_idx, tset, a, b):
+    """Depth order of the candidate pairs ``(a, b)`` whose overlap has an area:
+    ``(a, b, overlap, a_front, b_front, cross, bad)`` (``cross``: planar triangles that
+    interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`)."""
+    over = _chunked(shapely.intersection, polys[a], polys[b])
     big = shapely.area(over) > AREA_MIN
     a, b, over = a[big], b[big], over[big]
     xy, owner = shapely.get_coordinates(over, return_index=True)
@@ -330,14 +395,17 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     # planar triangles crossing each other: split the overlap along their intersection
     cross = (hi > 0) & (lo < 0) & (slack[a] == 0) & (slack[b] == 0)
     bad &= ~cross
-    a_near, b_near = _split_overlap(
-        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
-    )
-    back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
-    # what hides the back one: the overlap (inside the back polygon: unions stay local), or
-    # the front one's side of the intersection line
-    occluder = np.concatenate([over[a_front], over[b_front], a_near, b_near])
-    return back, occluder, (a[bad], b[bad], over[bad])
+    return a, b, over, a_front, b_front, cross, bad
+
+
+def _chunked(fn, *arrays):
+    """``fn(*arrays)`` (an element-wise shapely function) in chunks of
+    :data:`QUERY_CHUNK`: one long C call is cut so that a signal handler runs between."""
+    n = len(arrays[0])
+    if n <= QUERY_CHUNK:
+        return fn(*arrays)
+    parts = [fn(*(x[s : s + QUERY_CHUNK] for x in arrays)) for s in range(0, n, QUERY_CHUNK)]
+    return np.concatenate(parts)
 
 
 def _split_overlap(camera, over, na, ca, nb, cb):
@@ -405,9 +473,114 @@ def _visible(polys, back, occluder):
     has[back] = True
     vis = polys.copy()
     if has.any():
-        occ = shapely.union_all(groups[has][:, None], axis=1)
-        vis[has] = shapely.difference(polys[has], occ)
+        occ = _chunked(lambda g: shapely.union_all(g[:, None], axis=1), groups[has])
+        vis[has] = _chunked(shapely.difference, polys[has], occ)
     return vis
+
+
+#: Largest rounding error (px) of clipped and projected vertices that still counts as exact:
+#: float64 rounding of world coordinates of magnitude ``M`` seen at the near plane is about
+#: ``M * 2^-52 * pixels per unit there``; a ground of +-1e30 gives 1e16 px.
+ROUNDING_PX_MAX = 1e-6
+
+
+class NotExact(Exception):
+    """The scene's geometry cannot be clipped and projected exactly in float64 (coordinates
+    so large that rounding moves vertices by more than :data:`ROUNDING_PX_MAX` pixels)."""
+
+
+class OverBudget(Exception):
+    """The estimated cost of the exact coverage exceeds the budget; ``estimate`` says by how
+    much (:func:`estimate_cost`)."""
+
+    def __init__(self, estimate: dict, budget: float):
+        super().__init__(
+            f"estimated {estimate['seconds']:.3g} s > budget {budget:g} s "
+            f"({estimate['triangles']} projected triangles, {estimate['pairs']} overlapping "
+            f"pairs, {estimate['path']} path)"
+        )
+        self.estimate, self.budget = estimate, budget
+
+
+def estimate_cost(camera, tset: TriangleSet, path: str = "layered", pairs=None) -> dict:
+    """Deterministic cost estimate of :func:`exact_coverage_of` from the projected
+    triangles and their overlaps, made before any polygon work: the triangles are clipped
+    and projected with NumPy (in chunks), their bounding boxes binned on a grid of
+    :data:`COST_CELLS_ACROSS` cells across, and the pairs sharing a cell counted (``pairs``
+    given: that count). ``{"seconds", "triangles", "pairs", "path"}``; seconds by the cost
+    model above (``path``: ``"layered"`` or ``"polygons"``)."""
+    w, h = camera.width, camera.height
+    cell = w / COST_CELLS_ACROSS
+    nx, ny = int(w / cell) + 3, int(h / cell) + 3
+    counts = np.zeros(nx * ny, np.int64)
+    n_tri = n_big = 0
+    reach = 0.0
+    for start in range(0, len(tset.tris), 1 << 15):
+        box, far = _film_boxes(camera, tset.tris[start : start + (1 << 15)])
+        reach = max(reach, far)
+        if box is None:
+            continue
+        c0 = np.floor((box[:, :2] + FILM_MARGIN) / cell).astype(np.int64) + 1
+        c1 = np.floor((box[:, 2:] + FILM_MARGIN) / cell).astype(np.int64) + 1
+        c0, c1 = np.clip(c0, 0, [nx - 1, ny - 1]), np.clip(c1, 0, [nx - 1, ny - 1])
+        span = (c1 - c0 + 1).prod(axis=1)
+        big = span > BIG_CELLS
+        n_tri += len(box)
+        n_big += int(big.sum())
+        c0, c1, span = c0[~big], c1[~big], span[~big]
+        own = np.repeat(np.arange(len(span)), span)
+        k = np.arange(int(span.sum())) - np.repeat(np.cumsum(span) - span, span)
+        wx = (c1 - c0 + 1)[own, 0]
+        at = (c0[own, 1] + k // wx) * nx + c0[own, 0] + k % wx
+        counts += np.bincount(at, minlength=nx * ny)
+    if pairs is None:
+        pairs = int((counts * (counts - 1) // 2).sum()) + n_big * n_tri
+    rate = COST_PER_PAIR_LAYERED if path == "layered" else COST_PER_PAIR_POLYGONS
+    seconds = COST_PER_TRIANGLE * n_tri + rate * pairs
+    return {
+        "seconds": float(seconds),
+        "triangles": int(n_tri),
+        "pairs": int(pairs),
+        "path": path,
+        "rounding_px": float(reach * 2.0**-52 * _pixels_per_unit_near(camera)),
+    }
+
+
+def _pixels_per_unit_near(camera) -> float:
+    """Film pixels per world unit at the near plane (the largest scale a world distance in
+    view is seen at)."""
+    if camera.kind != "perspective":
+        return camera.width / (2.0 * camera.half_extent()[0])
+    return camera.width / (2.0 * camera.tan_half_x) / camera.near
+
+
+def _film_boxes(camera, tris):
+    """Film bounding boxes ``(N, 4)`` (x0, y0, x1, y1) of the triangles' parts between the
+    near and far planes that meet the film and its margin (None when none does), and the
+    largest distance from the camera of a vertex of a triangle that reaches that range."""
+    v, count = tris, np.full(len(tris), 3)
+    with np.errstate(all="ignore"):
+        for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):
+            depth = (v - camera.position) @ camera.forward
+            v, count = _clip_plane(v, count, sign * (depth - plane))
+    ok = count >= 3
+    if not ok.any():
+        return None, 0.0
+    with np.errstate(all="ignore"):
+        far = float(np.abs(tris[ok] - camera.position).max())
+    if not np.isfinite(far):
+        far = np.inf
+    v, count = v[ok], count[ok]
+    with np.errstate(all="ignore"):
+        film = camera.project(v)
+    used = np.arange(film.shape[1])[None, :] < count[:, None]
+    lo = np.where(used[..., None], film, np.inf).min(axis=1)
+    hi = np.where(used[..., None], film, -np.inf).max(axis=1)
+    box = np.concatenate([lo, hi], axis=1)
+    w, h = camera.width + FILM_MARGIN, camera.height + FILM_MARGIN
+    box = np.clip(box, -FILM_MARGIN, [w, h, w, h])
+    keep = np.isfinite(box).all(axis=1) & (box[:, 2] > box[:, 0]) & (box[:, 3] > box[:, 1])
+    return (box[keep] if keep.any() else None), far
 
 
 @dataclass
@@ -448,7 +621,7 @@ def _curved_invalid(vis, curved, tset, tri_idx, camera, w, h):
     return binary_dilation(partial, iterations=radius)
 
 
-def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
+def exact_coverage(loaded, centre: np.ndarray, *, budget=None, check=None) -> ExactCoverage:
     """Exact ``coverage``, ``front_coverage`` and validity of ``loaded``'s current view.
 
     Parameters
@@ -462,14 +635,32 @@ def exact_coverage(loaded, centre: np.ndarray) -> ExactCoverage:
     key = (view, hashlib.sha256(centre.tobytes()).hexdigest())
     slot = loaded.memo.get(RESULT_MEMO_KEY)
     if slot is not None and slot[0] == key:
-        return slot[1]
-    out = exact_coverage_of(loaded.camera, scene_triangle_set(loaded), centre)
+        done = slot[1]
+        over = isinstance(done, OverBudget) and budget is not None
+        if isinstance(done, NotExact) or (over and done.estimate["seconds"] > budget):
+            raise done  # the same view refused again (the noise floor's reference)
+        if not isinstance(done, Exception):
+            return done
+    try:
+        out = exact_coverage_of(
+            loaded.camera, scene_triangle_set(loaded), centre, budget=budget, check=check
+        )
+    except (OverBudget, NotExact) as exc:
+        exc.view = key  # said once per view by the caller
+        loaded.memo[RESULT_MEMO_KEY] = (key, exc)
+        raise exc.with_traceback(None) from None  # the memo keeps no frames alive
     loaded.memo[RESULT_MEMO_KEY] = (key, out)
     return out
 
 
 def exact_coverage_of(
-    camera, tset: TriangleSet, centre: np.ndarray, *, grid_offset=(0.0, 0.0)
+    camera,
+    tset: TriangleSet,
+    centre: np.ndarray,
+    *,
+    grid_offset=(0.0, 0.0),
+    check=None,
+    budget: float | None = None,
 ) -> ExactCoverage:
     """:func:`exact_coverage` of the triangles ``tset`` seen by ``camera`` (a
     :class:`scenes.camera.Camera`; its film size is the output's).
@@ -477,17 +668,49 @@ def exact_coverage_of(
     ``grid_offset`` ``(ox, oy)`` in ``[-1, 1]`` pixels moves the pixel grid: pixel ``(x, y)``
     then covers ``[x + ox, x + ox + 1) x [y + oy, y + oy + 1)`` (the expected coverage of a
     sample under random sub-pixel translations of the scene is the coverage of such a box).
+    ``check``: called between chunks of the long loops (a signal handler runs there).
+    ``budget``: seconds of estimated work (:func:`estimate_cost`) allowed; over it,
+    :class:`OverBudget` is raised before the work (before each path's own work).
+
+    Where the polygon path would cost more than :data:`LAYERED_ABOVE_S` by the estimate and
+    the shapes have one depth order wherever they overlap (no interpenetration or tie
+    between shapes, no curved shape) the visible boundaries come from
+    :mod:`scenes.geometry.coverage_edges` (``stats["method"] == "layered"``: work in
+    proportion to the overlapping pairs, no polygon booleans); otherwise each triangle's
+    visible polygon is its projection less the union of what is in front of it
+    (``"polygons"``).
     """
     t0 = time.perf_counter()
     cam = camera
     w, h = cam.width, cam.height
-    polys, tri_idx = _project(cam, tset.tris)
-    polys, tri_idx = _tile(polys, tri_idx, w, h)
-    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
-    vis = _visible(polys, back, occluder)
     off = np.asarray(grid_offset, dtype=np.float64)
     if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
         raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
+    est = estimate_cost(cam, tset)
+    if not est["rounding_px"] <= ROUNDING_PX_MAX:
+        raise NotExact(
+            f"coordinates too large for exact clipping in float64: rounding up to "
+            f"{est['rounding_px']:.3g} px (more than {ROUNDING_PX_MAX:g})"
+        )
+    if budget is not None and est["seconds"] > budget:
+        raise OverBudget(est, budget)
+    if est["triangles"] == 0:  # nothing between the near and far planes in view
+        return _empty_view(cam, centre, est, t0)
+    polys, tri_idx = _project(cam, tset.tris)
+    polys, tri_idx = _tile(polys, tri_idx, w, h)
+    poly_s = COST_PER_TRIANGLE * est["triangles"] + COST_PER_PAIR_POLYGONS * est["pairs"]
+    # the layered path where it pays; below, the polygon path (the bytes of before)
+    fast = None
+    if poly_s > LAYERED_ABOVE_S:
+        fast = _layered(cam, polys, tri_idx, tset, centre, off, check)
+    if fast is not None:
+        fast.stats.update(estimate=est, seconds=time.perf_counter() - t0)
+        return fast
+    est = dict(est, path="polygons", seconds=poly_s)
+    if budget is not None and est["seconds"] > budget:
+        raise OverBudget(est, budget)
+    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
+    vis = _visible(polys, back, occluder)
     if np.any(off != 0.0):
         vis = shapely.transform(vis, lambda xy: xy - off)
         bad_over = shapely.transform(bad_over, lambda xy: xy - off)
@@ -513,6 +736,128 @@ def exact_coverage_of(
         "unresolved_pairs": int(len(bad_a)),
         "curved_triangles": int(curved.sum()),
         "invalid_pixels": int(invalid.sum()),
+        "method": "polygons",
+        "estimate": est,
         "seconds": time.perf_counter() - t0,
     }
     return ExactCoverage(np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), ~invalid, stats)
+
+
+def _empty_view(cam, centre, est, t0) -> ExactCoverage:
+    """Nothing in view: coverage 0 everywhere (exact), front coverage 1 where the centre
+    sees the sky."""
+    w, h = cam.width, cam.height
+    zero = np.zeros((h, w))
+    centre = np.asarray(centre, dtype=np.int64).reshape(h, w)
+    stats = {
+        "triangles_projected": 0,
+        "tile_pieces": 0,
+        "occlusion_pairs": 0,
+        "unresolved_pairs": 0,
+        "curved_triangles": 0,
+        "invalid_pixels": 0,
+        "method": "empty",
+        "estimate": est,
+        "seconds": time.perf_counter() - t0,
+    }
+    return ExactCoverage(zero, np.where(centre < 0, 1.0, 0.0), np.ones((h, w), bool), stats)
+
+
+def _cross_shape_pairs(polys, shape, check=None):
+    """Candidate pairs ``(a, b)`` (``a < b``, bounding boxes overlapping) of polygons of
+    different shapes: one tree per shape (few shapes), else one tree over all, queried in
+    chunks."""
+    ids = np.unique(shape)
+    out_a, out_b = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    if len(ids) <= SHAPE_TREES:
+        for s in ids[:-1]:  # a loop over shapes, not triangles
+            mine = np.flatnonzero(shape == s)
+            other = np.flatnonzero(shape > s)
+            tree = shapely.STRtree(polys[mine])
+            for start in range(0, len(other), QUERY_CHUNK):
+                if check is not None:
+                    check()
+                q = other[start : start + QUERY_CHUNK]
+                i, j = tree.query(polys[q])
+                a, b = mine[j], q[i]
+                out_a.append(np.minimum(a, b))
+                out_b.append(np.maximum(a, b))
+    else:
+        tree = shapely.STRtree(polys)
+        for start in range(0, len(polys), QUERY_CHUNK):
+            if check is not None:
+                check()
+            i, j = tree.query(polys[start : start + QUERY_CHUNK])
+            a = i + start
+            keep = (a < j) & (shape[a] != shape[j])
+            out_a.append(a[keep])
+            out_b.append(j[keep])
+    return np.concatenate(out_a), np.concatenate(out_b)
+
+
+def _shape_layers(front, back, ids):
+    """Rank of each shape in a depth order where every ``front[k]`` precedes ``back[k]``
+    (Kahn's algorithm over shapes), or None where the relation has a cycle."""
+    edges = set(zip(front.tolist(), back.tolist(), strict=True))
+    indeg = {s: 0 for s in ids.tolist()}
+    succ: dict = {s: [] for s in indeg}
+    for f, b in edges:
+        succ[f].append(b)
+        indeg[b] += 1
+    ready = sorted(s for s, d in indeg.items() if d == 0)
+    rank = {}
+    while ready:  # a loop over shapes
+        s = ready.pop(0)
+        rank[s] = len(rank)
+        for t in sorted(succ[s]):
+            indeg[t] -= 1
+            if indeg[t] == 0:
+                ready.append(t)
+        ready.sort()
+    return rank if len(rank) == len(indeg) else None
+
+
+def _layered(cam, polys, tri_idx, tset, centre, off, check):
+    """The exact channels from the visible boundaries of layered shapes
+    (:mod:`scenes.geometry.coverage_edges`), or None where the shapes have no depth order (an
+    interpenetration, a tie between shapes, a cycle) or a shape is curved."""
+    w, h = cam.width, cam.height
+    shape = tset.shape[tri_idx]
+    if len(polys) == 0 or np.any(tset.slack[tri_idx] > 0):
+        return None
+    a, b = _cross_shape_pairs(polys, shape, check)
+    a, b, _, a_front, b_front, cross, bad = _pair_order(cam, polys, tri_idx, tset, a, b)
+    if bad.any() or cross.any():
+        return None
+    front = np.concatenate([shape[a[a_front]], shape[b[b_front]]])
+    back = np.concatenate([shape[b[a_front]], shape[a[b_front]]])
+    ids = np.unique(shape)
+    rank = _shape_layers(front, back, ids)
+    if rank is None:
+        return None
+    layer = np.array([rank[s] for s in ids.tolist()])[np.searchsorted(ids, shape)]
+    v, count = convex_arrays(polys)
+    tree = shapely.STRtree(polys)
+
+    def pairs(idx):
+        i, j = tree.query(polys[idx])
+        keep = idx[i] != j
+        return idx[i][keep], j[keep]
+
+    x0, y0, x1, y1, tag = visible_segments(v, count, layer, shape, pairs, check=check)
+    pieces = segment_pieces(x0 - off[0], y0 - off[1], x1 - off[0], y1 - off[1], tag, w, h)
+    cov = pixel_area(None, w, h, pieces=pieces)
+    centre = np.asarray(centre, dtype=np.int64).reshape(h, w)
+    front_cov = np.where(centre < 0, 1.0 - cov, tagged_pixel_area(pieces, centre))
+    stats = {
+        "triangles_projected": int(len(np.unique(tri_idx))),
+        "tile_pieces": int(len(polys)),
+        "occlusion_pairs": int(a_front.sum() + b_front.sum()),
+        "unresolved_pairs": 0,
+        "curved_triangles": 0,
+        "invalid_pixels": 0,
+        "method": "layered",
+        "boundary_segments": int(len(x0)),
+    }
+    valid = np.ones((h, w), bool)
+    return ExactCoverage(np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), valid, stats)

@@ -28,6 +28,7 @@ __all__ = [
     "EdgePieces",
     "edge_pieces",
     "pixel_area",
+    "segment_pieces",
     "tagged_pixel_area",
     "touched_pixels",
 ]
@@ -79,7 +80,11 @@ def _crossings(lo, hi, start, limit):
 def _split(geoms, tags, width, height):
     """Boundary edges of ``geoms`` cut at every grid line ``x = 0..width``, ``y = 0..height``
     they cross: ``(xa, ya, xb, yb, tag)`` of each piece, oriented as its polygon's ring."""
-    x0, y0, x1, y1, tag = _edges(geoms, tags)
+    return _split_segments(*_edges(geoms, tags), width, height)
+
+
+def _split_segments(x0, y0, x1, y1, tag, width, height):
+    """Directed segments cut at every grid line they cross (see :func:`_split`)."""
     dx, dy = x1 - x0, y1 - y0
     # parameters t along each edge where it meets a vertical (x = k) or horizontal line
     ex, kx = _crossings(np.minimum(x0, x1), np.maximum(x0, x1), 0, width)
@@ -124,7 +129,24 @@ def edge_pieces(geoms, width: int, height: int, *, tags=None) -> EdgePieces:
     """
     geoms = np.asarray(geoms, dtype=object).ravel()
     tags = np.arange(len(geoms)) if tags is None else np.asarray(tags, dtype=np.int64)
-    xa, ya, xb, yb, piece_tag = _split(geoms, tags, width, height)
+    return _pieces(*_split(geoms, tags, width, height), width, height)
+
+
+def segment_pieces(x0, y0, x1, y1, tag, width: int, height: int) -> EdgePieces:
+    """:func:`edge_pieces` of directed boundary segments ``(x0, y0) -> (x1, y1)`` (regions on
+    their left; ``tag`` per segment) instead of polygons: the boundaries of
+    :mod:`scenes.geometry.coverage_edges`."""
+    xa, ya, xb, yb, t = _split_segments(
+        *(np.asarray(c, np.float64) for c in (x0, y0, x1, y1)),
+        np.asarray(tag, np.int64),
+        width,
+        height,
+    )
+    return _pieces(xa, ya, xb, yb, t, width, height)
+
+
+def _pieces(xa, ya, xb, yb, piece_tag, width, height) -> EdgePieces:
+    """:class:`EdgePieces` of grid-cut segments."""
     xm, ym = 0.5 * (xa + xb), 0.5 * (ya + yb)
     row = np.floor(ym)
     col = np.floor(xm)
