@@ -130,9 +130,9 @@ def _receivers_only(ref_ch, cand, *, light, out, channel="visibility"):
     return np.where(rec, cand, ref).astype(np.float32)
 
 
-def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
-    """A shadow mask: shadow metrics on the receivers."""
-    ref = ref_ch["visibility"]
+def _shadow_on_receivers(ref, ref_ch, cand, *, full, kw, out, maps):
+    """The shadow metrics of ``cand`` against ``ref`` on the reference's receivers (values
+    into ``out``, error maps into ``maps``); returns the receivers and the FLIP record."""
     rec = reference_receivers(ref_ch, kw["light"])
     sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
     for k in _SHADOW_VALUES:
@@ -142,7 +142,13 @@ def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
     if full:
         maps["visibility_error"] = sm["signed_error"]
         maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    return rec, _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+
+
+def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A shadow mask: shadow metrics on the receivers."""
+    ref = ref_ch["visibility"]
+    rec, fl = _shadow_on_receivers(ref, ref_ch, cand, full=full, kw=kw, out=out, maps=maps)
     return ref, ref_ch["visibility_stderr"], rec, edge, fl
 
 
@@ -151,16 +157,7 @@ def _soft_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
     ``light_fraction``): the shadow metrics on the receivers (classified at 0.5), with the
     reference's penumbra (values in :data:`PENUMBRA`) added to the edge pixels."""
     ref = np.asarray(ref_ch[channel], dtype=np.float32)
-    rec = reference_receivers(ref_ch, kw["light"])
-    sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
-    for k in _SHADOW_VALUES:
-        out[k] = sm[k]
-    out["receiver_count"] = sm["receiver_count"]
-    out["edge_band_count"] = sm["edge_band_count"]
-    if full:
-        maps["visibility_error"] = sm["signed_error"]
-        maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    rec, fl = _shadow_on_receivers(ref, ref_ch, cand, full=full, kw=kw, out=out, maps=maps)
     penumbra = rec & (ref > PENUMBRA[0]) & (ref < PENUMBRA[1])
     return ref, ref_ch[f"{channel}_stderr"], rec, edge | penumbra, fl
 
