@@ -305,7 +305,18 @@ EXPECTATIONS: list[tuple[str, str, Expectation]] = [
     ),
     *(
         (tech, "tiny_map", Expectation(0.6, 0.1, reason=_TINY + "mostly false shadow"))
-        for tech in ("shadow-map", "csm", "coherent-shadow-map", "pcss", "msm")
+        for tech in ("shadow-map", "csm", "coherent-shadow-map", "pcss")
+    ),
+    (
+        "msm",
+        "tiny_map",
+        Expectation(
+            0.6,
+            0.02,
+            reason=_TINY + "the bilinear moment fetch mixes the plate's and the ground's depths "
+            "in every texel, and the 4MSM bound of that mix lets light through: false lit, "
+            "not false shadow (0.065 at the main job's 64x36)",
+        ),
     ),
     (
         "sdsm",
