@@ -14,7 +14,7 @@ from .aa.taa import model as taa
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
-from .shadowmaps import csm, sdsm, shadow_map
+from .shadowmaps import csm, msm, pcss, sdsm, shadow_map
 
 __all__ = [
     "FAMILIES",
@@ -105,6 +105,16 @@ FAMILIES: dict[str, Family] = {
             temporal=True,
             group="aa",
         ),
+        Family(
+            "soft",
+            "soft shadows",
+            ("soft_visibility", "light_fraction"),
+            ("visibility_mae", "edge_band_mae"),
+            ("memory_bytes", "texture_lookups_per_pixel"),
+            "shadow_map_bytes",
+            extremes_scene="plate",
+            extremes_metric="misclassified_fraction",
+        ),
     )
 }
 
@@ -178,6 +188,33 @@ TECHNIQUES: dict[str, Technique] = {
             sdsm.SdsmParams,
             sdsm.run,
             sdsm.LIGHTS,
+            front="shadow maps",
+        ),
+        Technique(
+            "pcss",
+            "percentage-closer soft shadows on one shadow map: blocker search over a "
+            "light-size-scaled disk, penumbra (z_r - z_b) L / z_b, PCF over it; presets "
+            "nvidia (16/16 Poisson) and hdrp (24/16 Fibonacci spiral, per-pixel rotation)",
+            (
+                "R. Fernando, Percentage-closer soft shadows, SIGGRAPH 2005 Sketches, "
+                "doi:10.1145/1187112.1187153",
+                "L. Bavoil, Integrating Realistic Soft Shadows into Your Game Engine, NVIDIA "
+                "whitepaper, 2008",
+                "Unity Technologies, HDRP 10.10.1 HDPCSS.hlsl / HDShadowSampling.hlsl",
+            ),
+            pcss.PcssParams,
+            pcss.run,
+            pcss.LIGHTS,
+            "soft",
+        ),
+        Technique(
+            "msm",
+            "moment shadow map: four moments of depth (16-bit optimized quantization or "
+            "float32), box blur, Hamburger 4MSM reconstruction with a moment bias",
+            ("C. Peters, R. Klein, Moment Shadow Mapping, I3D 2015, doi:10.1145/2699276.2699277",),
+            msm.MsmParams,
+            msm.run,
+            msm.LIGHTS,
             front="shadow maps",
         ),
         Technique(

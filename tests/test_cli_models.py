@@ -51,7 +51,7 @@ def test_model_writes_output_and_sidecar(tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["model", "pcss", "plate"], "unknown technique 'pcss'.*shadow-map"),
+        (["model", "pcs", "plate"], "unknown technique 'pcs'.*shadow-map"),
         (["model", "csm", "plate", "--set", "cascades=4"], "unknown parameter 'cascades'"),
         (["model", "csm", "plate", "--set", "split=cubic"], "split.*uniform"),
         (["model", "csm", "plate", "--set", "resolution=-5"], "resolution"),

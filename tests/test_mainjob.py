@@ -63,8 +63,14 @@ def sections(monkeypatch):
             techniques=EXTREME_MODELS,
         )
 
+    def soft_shadows(out, *, cache, quiet, quick):
+        calls.append({"id": "soft_shadows", "out": out, "quick": quick})
+        return real_soft(out, cache=cache, quiet=quiet, quick=quick, size=(32, 18))
+
+    real_soft = mainjob.run_soft_shadows
     monkeypatch.setattr(mainjob, "run_claims", claims)
     monkeypatch.setattr(mainjob, "run_extremes", extremes)
+    monkeypatch.setattr(mainjob, "run_soft_shadows", soft_shadows)
     return calls, fail
 
 
@@ -90,13 +96,14 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert {r["family"] for r in rows if r["scene"] == "decal"} == {"aa"}
     report = json.loads((out / "report.json").read_text())
     groups = {(g["family"], g["scene"]) for g in report["groups"]}
-    assert groups == {("shadow", "plate"), ("shadow", "spot"), ("aa", "decal")}
+    assert groups == {("shadow", "plate"), ("soft", "plate"), ("shadow", "spot"), ("aa", "decal")}
     assert all(g["fronts"] for g in report["groups"])
     assert len(report["cases"]) == len(rows)
     # the claims and extremes ran in their quick form into the main folder
     assert [(c["id"], c["quick"], c["out"]) for c in calls] == [
         ("claims", True, out),
         ("extremes", True, out),
+        ("soft_shadows", True, out),
     ]
     html = (out / "report.html").read_text()
     assert "Claims of the seed documents" in html and "Numerical extremes" in html
@@ -109,6 +116,8 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert {"noaa", "fxaa", "msaa (samples=8)"} <= set(labels)
     assert [r["rank"] for r in table["rows"]] == list(range(1, len(labels) + 1))
     assert "Anti-aliasing ranking" in html
+    (soft,) = [s for s in report["sections"] if s["kind"] == "soft_shadows"]
+    assert soft["data"]["ranking"]["rows"] and "Light bleeding of moment shadow maps" in html
     assert html.index('id="fronts"') < html.index('id="claims"') < html.index('id="cases"')
     # a second run finds every case in the store
     assert main(["main", "--scenes", "plate,spot,decal", "--out", str(out), *SMALL]) == 0
@@ -126,6 +135,7 @@ MAIN_PHASES = (
     "extremes",
     "aa_memory",
     "aa_ranking",
+    "soft_shadows",
     "report",
 )
 #: Slack of the phases' sum against the wall time: the phases are disjoint stretches of the
@@ -151,8 +161,11 @@ def test_report_json_holds_every_section_record(tmp_path, sections):
         "extremes",
         "aa-memory",
         "aa-ranking",
+        "soft-shadows",
     ]
     assert not any(s["failed"] for s in report["sections"])
+    soft = found["soft_shadows"]["data"]
+    assert soft == json.loads((out / "soft_shadows.json").read_text())
     # each holds its study's record, as the study wrote it beside the report
     claims = found["claims"]["data"]
     assert claims == json.loads((out / "claims.json").read_text())
@@ -189,6 +202,7 @@ def test_a_failing_section_is_in_the_report_and_the_exit_code(tmp_path, capsys, 
         "extremes",
         "aa-memory",
         "aa-ranking",
+        "soft-shadows",
     ]
 
 

@@ -106,7 +106,7 @@ def test_run_rejects_bad_values_and_lights(plate):
     with pytest.raises(rm.ModelError, match="resolution must be an integer"):
         rm.run("csm", plate, resolution="big")
     with pytest.raises(rm.ModelError, match="unknown technique"):
-        rm.run("pcss", plate)
+        rm.run("vssm", plate)
     spot = scenes.load("spot", **SMALL)
     for technique in ("csm", "sdsm"):
         with pytest.raises(rm.ModelError, match="directional light.*spot light"):
@@ -217,7 +217,8 @@ def test_family_of_every_technique():
     assert rm.family_of("coherent-shadow-map") == "shadow"
     assert rm.family_of("msaa") == "aa"
     assert rm.family_of("taa") == "taa"
-    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {"shadow", "aa", "taa"}
+    assert rm.family_of("pcss") == "soft" and rm.family_of("msm") == "shadow"
+    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {"shadow", "aa", "taa", "soft"}
     with pytest.raises(rm.ModelError, match=r"unknown technique 'nope'; choose one of shadow-map"):
         rm.family_of("nope")
 

@@ -148,8 +148,8 @@ BAD_SPECS = {
         r"defaults.seed: must be >= 0 and <= 4294967295",
     ),
     "unknown technique": (
-        _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "pcss"\n',
-        "case[0].technique: unknown technique 'pcss'",
+        _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "pcs"\n',
+        "case[0].technique: unknown technique 'pcs'",
     ),
     "unknown parameter": (
         _OK + '[[case]]\nscenes = ["plate"]\ntechnique = "csm"\n[case.params]\nresoltion = 5\n',

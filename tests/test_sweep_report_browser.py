@@ -156,7 +156,8 @@ def test_summary_is_in_the_first_screen_and_links_down(page, report_path):
     assert height < 8 * VIEWPORT["height"], height
     assert page.evaluate("document.documentElement.scrollWidth") <= VIEWPORT["width"]
     record = json.loads(report_path.with_suffix(".json").read_text())
-    assert [g["scene"] for g in record["overview"]["groups"]] == ["decal", "plate"]
+    groups = [(g["family"], g["scene"]) for g in record["overview"]["groups"]]
+    assert groups == [("aa", "decal"), ("shadow", "plate"), ("soft", "plate")]  # pcss: soft
 
 
 def test_every_plot_has_data_and_no_repeated_tick_labels(page):

@@ -112,7 +112,7 @@ def test_target_and_space_parsing():
     [
         (["--target", "nope<=1"], "unknown metric 'nope'"),
         (["--target", "flip_mean<=1", "--vary", "filter=1:2"], "needs a number parameter"),
-        (["--target", "flip_mean<=1", "--technique", "pcss"], "unknown technique 'pcss'"),
+        (["--target", "flip_mean<=1", "--technique", "pcs"], "unknown technique 'pcs'"),
         (
             ["--target", "misclassified_fraction<=0.1", "--minimize", "nope"],
             "--minimize nope: not a cost of shadow-map; choose from",

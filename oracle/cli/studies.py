@@ -1,5 +1,5 @@
 """Commands that measure the oracle and the models: ``bench``, ``aa-memory``, ``converge``,
-``extremes`` and ``claims``."""
+``extremes``, ``claims`` and ``soft-shadows``."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ __all__ = ["COMMANDS", "add_parsers"]
 
 
 def add_parsers(sub) -> None:
-    """Add ``bench``, ``aa-memory``, ``converge``, ``extremes`` and ``claims`` to ``sub``."""
+    """Add ``bench``, ``aa-memory``, ``converge``, ``extremes``, ``claims`` and
+    ``soft-shadows`` to ``sub``."""
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
     p.add_argument("what", choices=["oracle", "models", "scale"], help="what to benchmark")
     p.add_argument("--width", type=A.positive_int, default=None, help="default 1920 (scale 640)")
@@ -71,6 +72,14 @@ def add_parsers(sub) -> None:
     p.add_argument("--only", default=None, help="comma-separated claim ids (default: all)")
     A.add_cache_args(p)
     p.add_argument("--out", type=A.path, default=Path("out/claims"), help="output folder")
+
+    p = sub.add_parser(
+        "soft-shadows",
+        help="PCSS vs fixed-width PCF on the area-light truth, contact hardening, MSM bleeding",
+    )
+    p.add_argument("--quick", action="store_true", help="the main job's size (160x90, 16 spp)")
+    A.add_cache_args(p)
+    p.add_argument("--out", type=A.path, default=Path("out/soft-shadows"), help="output folder")
 
 
 def cmd_bench(args) -> int:
@@ -221,10 +230,24 @@ def cmd_claims(args) -> int:
     return 0
 
 
+def cmd_soft_shadows(args) -> int:
+    from ..studies.soft_shadows import run_soft_shadows
+
+    A.check_out(args.out)
+    data = run_soft_shadows(
+        args.out, cache=A.reference_cache(args), quiet=args.quiet, quick=args.quick
+    )
+    best = data["ranking"]["rows"][0]
+    print(f"soft-shadows: best on {data['ranking']['scene']}: {best['label']}")
+    print(f"soft-shadows: {args.out / 'soft_shadows.json'} and {args.out / 'soft_shadows.html'}")
+    return 0
+
+
 COMMANDS = {
     "bench": cmd_bench,
     "aa-memory": cmd_aa_memory,
     "converge": cmd_converge,
     "extremes": cmd_extremes,
     "claims": cmd_claims,
+    "soft-shadows": cmd_soft_shadows,
 }

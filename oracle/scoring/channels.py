@@ -4,6 +4,10 @@
   metrics on receivers (valid pixels with N.L > 0 at the pixel centre), edge/interior split,
   the per-pixel Z-test, and FLIP/SSIM/PSNR of the visibility image as display data (no tone
   mapping). Reference channels: visibility, edge, id, normal, position.
+- ``soft_visibility`` and ``light_fraction`` (soft-shadow models such as PCSS, or an engine's
+  soft shadow factor): the visibility metrics on receivers against the area-light truth (the
+  optional ``soft`` group, :mod:`oracle.reference.soft`; a punctual light's is its
+  visibility), its penumbra counted with the edges; the Z-test on its standard error.
 - ``color`` (an engine's linear radiance): FLIP (LDR after the shared tone mapper, or HDR with
   the exposure bracket of the reference), SSIM, PSNR, CIEDE2000, edge/interior split and the
   Z-test. Reference channels: color, edge, id.
@@ -29,7 +33,9 @@ __all__ = [
     "COVERAGE_CHANNELS",
     "METRIC_KEYS",
     "PSNR_CAP_DB",
+    "PENUMBRA",
     "REFERENCE_GROUPS",
+    "SOFT_CHANNELS",
     "coverage_truth",
     "finite",
     "metrics_for",
@@ -45,6 +51,10 @@ _SHADOW_VALUES = tuple(k for k in M.SHADOW_KEYS if not k.endswith("_count"))
 #: Reference channel groups each scored channel reads.
 REFERENCE_GROUPS = {
     "visibility": ("visibility", "edge", "id", "normal", "position"),
+    # an area light's shadow factor (oracle.reference.soft; a punctual light's is its
+    # visibility): what PCSS and other soft-shadow models are scored on
+    "soft_visibility": ("soft", "edge", "id", "normal", "position"),
+    "light_fraction": ("soft", "edge", "id", "normal", "position"),
     "color": ("color", "edge", "id"),
     "coverage": ("coverage", "coverage_exact", "edge", "id"),
     # the coverage of each pixel's front-most primitive (oracle.reference.coverage): what the
@@ -53,6 +63,10 @@ REFERENCE_GROUPS = {
 }
 #: Channels of sample counts (binary samples: binomial noise floor).
 COVERAGE_CHANNELS = ("coverage", "front_coverage")
+#: Soft-shadow channels: shadow metrics on the receivers against the area-light truth.
+SOFT_CHANNELS = ("soft_visibility", "light_fraction")
+#: Reference values strictly between these are an area light's penumbra (scored as edges).
+PENUMBRA = (0.02, 0.98)
 PSNR_CAP_DB = 100.0  # identical images: PSNR is infinite; JSON stores this cap instead
 
 
@@ -105,20 +119,20 @@ def _linear_display(ref, cand, *, ppd, full, out):
     return M.flip(ref, cand, mode="LDR", ppd=ppd, full=full, **lin)
 
 
-def _receivers_only(ref_ch, cand, *, light, out):
+def _receivers_only(ref_ch, cand, *, light, out, channel="visibility"):
     """A shadow mask with the reference's values off the oracle's receivers. Engine
     conventions differ there (sky, back faces, outside a spot cone: 1 in most engines, 0 in
     the oracle): only receivers are scored, the rest are counted in ``out``."""
-    ref = ref_ch["visibility"]
+    ref = ref_ch[channel]
     rec = reference_receivers(ref_ch, light)
     out["outside_receivers"] = int((~rec).sum())
     out["outside_receivers_differing"] = int(((cand != ref) & ~rec).sum())
     return np.where(rec, cand, ref).astype(np.float32)
 
 
-def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
-    """A shadow mask: shadow metrics on the receivers."""
-    ref = ref_ch["visibility"]
+def _shadow_on_receivers(ref, ref_ch, cand, *, full, kw, out, maps):
+    """The shadow metrics of ``cand`` against ``ref`` on the reference's receivers (values
+    into ``out``, error maps into ``maps``); returns the receivers and the FLIP record."""
     rec = reference_receivers(ref_ch, kw["light"])
     sm = M.shadow_metrics(ref, cand, receivers=rec, full=full)
     for k in _SHADOW_VALUES:
@@ -128,8 +142,24 @@ def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
     if full:
         maps["visibility_error"] = sm["signed_error"]
         maps["misclassified"] = sm["misclassified"].astype(np.float32)
-    fl = _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+    return rec, _linear_display(ref, cand, ppd=kw["ppd"], full=full, out=out)
+
+
+def _visibility_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A shadow mask: shadow metrics on the receivers."""
+    ref = ref_ch["visibility"]
+    rec, fl = _shadow_on_receivers(ref, ref_ch, cand, full=full, kw=kw, out=out, maps=maps)
     return ref, ref_ch["visibility_stderr"], rec, edge, fl
+
+
+def _soft_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """A soft shadow factor against the area-light truth (``soft_visibility`` or
+    ``light_fraction``): the shadow metrics on the receivers (classified at 0.5), with the
+    reference's penumbra (values in :data:`PENUMBRA`) added to the edge pixels."""
+    ref = np.asarray(ref_ch[channel], dtype=np.float32)
+    rec, fl = _shadow_on_receivers(ref, ref_ch, cand, full=full, kw=kw, out=out, maps=maps)
+    penumbra = rec & (ref > PENUMBRA[0]) & (ref < PENUMBRA[1])
+    return ref, ref_ch[f"{channel}_stderr"], rec, edge | penumbra, fl
 
 
 def _coverage_channel_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
@@ -168,6 +198,8 @@ def _color_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
 #: Scored channel -> (its catalogue kind, the function computing its own metrics).
 CHANNEL_METRICS = {
     "visibility": ("visibility", _visibility_metrics),
+    "soft_visibility": ("visibility", _soft_metrics),
+    "light_fraction": ("visibility", _soft_metrics),
     "coverage": ("coverage", _coverage_channel_metrics),
     "front_coverage": ("coverage", _coverage_channel_metrics),
     "color": ("color", _color_metrics),
@@ -213,8 +245,8 @@ def metrics_for(
         coverage_only=coverage_only,
     )
     edge = ref_ch["edge"] > 0.5
-    if channel == "visibility":
-        cand = _receivers_only(ref_ch, cand, light=light, out=out)
+    if channel == "visibility" or channel in SOFT_CHANNELS:
+        cand = _receivers_only(ref_ch, cand, light=light, out=out, channel=channel)
     ref, ref_se, rec, edge, fl = own(
         ref_ch, cand, channel=channel, edge=edge, full=full, kw=kw, out=out, maps=maps
     )

@@ -112,7 +112,8 @@ def score_model(
     ----------
     params : the technique's parameters (validated values, e.g. from
         ``raster_models.parse_params``).
-    channel : the channel asked for (None: the technique's primary one); a channel the
+    channel : the channel asked for (None: the technique's primary one; an anti-aliasing
+        model scores colour with its coverage merged whatever is asked); a channel the
         technique does not produce is a :class:`ScoreError`.
     frames, camera_path, flip_mode, ppd : as in :func:`oracle.scoring.score.score`.
     floor_cache : see :func:`oracle.scoring.score.score` (a sweep worker's noise floors).
@@ -144,10 +145,13 @@ def score_model(
         floor_cache=floor_cache,
         gate_frames=gate_frames,
     )
+    # the channel asked for (a soft-shadow model's light_fraction), else the primary one; an
+    # AA model always scores colour with its coverage merged in
+    primary = channel if channel is not None and cov_channel is None else produced[0]
     result = score(
         loaded,
-        channel=produced[0],
-        candidate_frames=model_candidate(technique, params, channel=produced[0], runs=runs),
+        channel=primary,
+        candidate_frames=model_candidate(technique, params, channel=primary, runs=runs),
         **kw,
     )
     if cov_channel is not None:

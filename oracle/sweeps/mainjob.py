@@ -7,8 +7,10 @@ extremes and the claims, and one report.
 2. The claims and the extremes matrix (:mod:`oracle.studies.claims.run`,
    :mod:`oracle.studies.extremes.run`, in their quick form), writing ``OUT/claims.json``
    and ``OUT/extremes.json`` (+ their pages), the anti-aliasing memory table
-   (:mod:`oracle.studies.aa_memory`) and the SMAA ranking from the sweep's rows
-   (:mod:`oracle.studies.aa_ranking`): :func:`run_sections`.
+   (:mod:`oracle.studies.aa_memory`), the SMAA ranking from the sweep's rows
+   (:mod:`oracle.studies.aa_ranking`) and the soft-shadow study (:mod:`oracle.studies.
+   soft_shadows`, quick: PCSS against fixed-width PCF on the area-light truth, contact
+   hardening, moment-map light bleeding): :func:`run_sections`.
 3. ``OUT/report.html`` (+ ``report.json``, which holds every section record of the page):
    Pareto fronts, parameter sensitivity, best at equal cost, the claims, the extremes, the
    memory table and every case.
@@ -32,6 +34,7 @@ from ...reports.sections import (
     claims_section,
     extremes_section,
     failed_section,
+    soft_shadows_section,
 )
 from ...scenes.base.files import atomic_write_bytes, atomic_write_json
 from ..errors import one_line
@@ -40,6 +43,7 @@ from ..studies.aa_memory import memory_report
 from ..studies.aa_ranking import aa_ranking
 from ..studies.claims.run import run_claims
 from ..studies.extremes.run import run_extremes
+from ..studies.soft_shadows import run_soft_shadows
 from .store import SweepStore
 
 __all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main", "run_sections", "timing_record"]
@@ -54,6 +58,10 @@ def _claims(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
 
 def _extremes(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
     return run_extremes(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+
+
+def _soft_shadows(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+    return run_soft_shadows(out, cache=cache, quiet=quiet, quick=quick)
 
 
 def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
@@ -76,6 +84,7 @@ SECTIONS: tuple[tuple[str, str, str, Callable[..., dict], Callable[..., dict]], 
     ("extremes", "extremes", "Numerical stability at the extremes", _extremes, extremes_section),
     ("aa_memory", "aa-memory", "Anti-aliasing memory", _aa_memory, aa_memory_section),
     ("aa_ranking", "aa-ranking", "Anti-aliasing ranking", _aa_ranking, aa_ranking_section),
+    ("soft_shadows", "soft-shadows", "Soft shadows", _soft_shadows, soft_shadows_section),
 )
 
 
@@ -215,10 +224,10 @@ def timing_record(phases: Phases, wall: float, *, inline: bool) -> dict:
     models' own runs), ``metrics`` (scoring: reading cached references, noise floors,
     metrics), ``images`` (the cases' thumbnails), ``sweep`` (the rest of the sweep: keys,
     store), then each study after it (``claims``, ``extremes``, ``aa_memory``,
-    ``aa_ranking``) and ``report`` (writing the page). The sweep's phases are wall seconds
-    in this process when it ran inline (``workers=0``), else seconds summed over the Dask
-    workers (they can add up to more than the wall time); ``sweep`` is then what is left of
-    the sweep's wall time, if anything.
+    ``aa_ranking``, ``soft_shadows``) and ``report`` (writing the page). The sweep's phases
+    are wall seconds in this process when it ran inline (``workers=0``), else seconds summed
+    over the Dask workers (they can add up to more than the wall time); ``sweep`` is then
+    what is left of the sweep's wall time, if anything.
     """
     return {
         "wall_seconds": float(wall),

@@ -18,6 +18,8 @@ THUMBNAIL_SIZE = 320
 #: Primary error map of each scored channel: map name, palette, fixed range.
 _ERROR_MAPS = {
     "visibility": ("visibility_error", "signed", (-1.0, 1.0)),
+    "soft_visibility": ("visibility_error", "signed", (-1.0, 1.0)),
+    "light_fraction": ("visibility_error", "signed", (-1.0, 1.0)),
     "color": ("flip", "magma", (0.0, 1.0)),
     "coverage": ("coverage_error", "signed", (-1.0, 1.0)),
 }

@@ -209,7 +209,7 @@ class CommonParams:
 
     def check(self, technique: str) -> None:
         """Cross-field validation (raises :class:`ModelError`)."""
-        if self.filter in ("vsm", "evsm2", "evsm4") and self.receiver_plane_bias:
+        if self.filter in ("vsm", "evsm2", "evsm4", "msm") and self.receiver_plane_bias:
             raise ModelError(
                 f"{technique}: receiver_plane_bias applies to compare filters "
                 f"(point, hw_pcf, pcf, poisson), not to filter={self.filter}"

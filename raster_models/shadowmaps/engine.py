@@ -27,9 +27,10 @@ def _cost(setup: Setup, maps, params, summary) -> dict:
       or not (SDSM's constant memory), plus VSM/EVSM moment maps and one blur scratch texture;
     - ``texels_rendered``: ``R^2`` per map actually rendered;
     - ``render_passes``: shadow depth passes, plus per map a moment conversion and two
-      separable blur passes for VSM/EVSM;
+      separable blur passes for VSM/EVSM/MSM;
     - ``texture_lookups_per_pixel``: sample instructions per receiver, averaged (``N^2`` for
-      NxN PCF, ``taps`` for Poisson, twice in a cascade blend band);
+      NxN PCF, ``taps`` for Poisson, blocker plus filter taps for PCSS, twice in a cascade
+      blend band);
     - ``readback_latency_frames``: frames between the depth used and the frame shaded;
     - ``compute_passes``: compute dispatches of the partition set-up (SDSM reductions).
     """
@@ -43,9 +44,14 @@ def _cost(setup: Setup, maps, params, summary) -> dict:
         moment_bytes = k * r * r * channels * per
         if params.blur_size > 1:
             moment_bytes += r * r * channels * per  # one blur scratch texture
+    if params.filter == "msm":
+        per = 2 if params.msm_format == "unorm16" else 4
+        moment_bytes = k * r * r * 4 * per
+        if params.blur_size > 1:
+            moment_bytes += r * r * 4 * per  # one blur scratch texture
     rendered = sum(1 for m in maps if m is not None)
     passes = rendered
-    if params.filter in _filters.MOMENT_FILTERS:
+    if params.filter in (*_filters.MOMENT_FILTERS, "msm"):
         passes += rendered * (1 + (2 if params.blur_size > 1 else 0))
     return {
         "shadow_map_bytes": int(depth_bytes + moment_bytes),
@@ -74,7 +80,7 @@ def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: di
             rec["projection"] = part.projection.to_json()
         if maps[i] is not None:
             rec["ray_start_light_z"] = maps[i].z_start
-            if maps[i].moments is not None:
+            if maps[i].moments is not None and params.filter in _filters.MOMENT_FILTERS:
                 rec["evsm_exponents"] = list(maps[i].exponents)
         rec.update(part.info)
         rec["statistics"] = summary["partitions"][i]

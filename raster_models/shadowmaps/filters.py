@@ -38,6 +38,7 @@ from ..depth import clip01_dr
 __all__ = [
     "FILTERS",
     "MOMENT_FILTERS",
+    "bilinear_texture",
     "blur_moments",
     "chebyshev",
     "compare_bilinear",
@@ -352,6 +353,12 @@ def _bilinear(tex: np.ndarray, u, v, subtexel_bits: int) -> np.ndarray:
     top = t[iy0, ix0].astype(np.float64) * (1 - fx) + t[iy0, ix1].astype(np.float64) * fx
     bot = t[iy1, ix0].astype(np.float64) * (1 - fx) + t[iy1, ix1].astype(np.float64) * fx
     return top * (1 - fy) + bot * fy
+
+
+def bilinear_texture(tex: np.ndarray, u, v, subtexel_bits: int) -> np.ndarray:
+    """Bilinear sample of an ``(R, R, C)`` texture with clamp addressing -> ``(N, C)``
+    float64 (the moment filters' fetch, D3D's ``subtexel_bits`` weights)."""
+    return _bilinear(tex, u, v, subtexel_bits)
 
 
 def chebyshev(m1, m2, mean, min_variance, bleed_reduction) -> np.ndarray:

@@ -50,4 +50,6 @@ def filter_kernel_texels(params) -> float:
         return float(params.pcf_size + 1)
     if f == "poisson":
         return float(np.ceil(params.filter_size) + 1)
+    if f == "pcss":
+        return 2.0  # the centre tap's 2x2 footprint; the disk's radius varies per pixel
     return float(params.blur_size + 1)

@@ -15,6 +15,7 @@ from ...scenes import backend
 from .. import depth as _depth
 from ..light_frame import Projection
 from . import filters as _filters
+from . import msm_filter as _msm
 from .depth_dr import fused_bias, stored_depth_dr
 from .raycast import GRID_CHUNK, iter_grid
 from .records import MapData, Partition, Setup
@@ -184,6 +185,10 @@ def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
         data = _render_one(scene, part, params, need_slope)
         if params.filter in _filters.MOMENT_FILTERS:
             _add_moments(data, part, params, setup)
+            data.texels = None
+        elif params.filter == "msm":
+            depth = _msm.moment_depth(part.projection, data.depth, params.moment_depth)
+            data.moments = _msm.msm_texture(depth, params.blur_size, params.msm_format)
             data.texels = None
         elif data.texels is None:
             data.texels = _filters.upload_texels(data.depth)

@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import filters as _filters
+from . import msm_filter as _msm
+from . import pcss_filter as _pcss
 from .geometry import DrjitColumns, normal_offset_texels, partition_geometry
 from .records import MapData, Setup
 
@@ -110,9 +112,11 @@ def _receiver_plane(j3: np.ndarray):
     return bu, bv
 
 
-def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.ndarray:
+def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=None, extras=None):
     """Visibility of receivers from one map (the filter of ``params``); ``ref``: a compare
-    reference replacing ``z - bias`` (perspective linear-depth bias)."""
+    reference replacing ``z - bias`` (perspective linear-depth bias); ``proj``: the map's
+    projection (PCSS converts depths to linear distances with it); ``extras``: a dict PCSS
+    fills with its per-receiver penumbra estimate (:func:`pcss_filter.estimates`)."""
     kind = params.filter
     if kind in _filters.MOMENT_FILTERS:
         return _filters.moment_lookup(
@@ -133,12 +137,29 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.
     else:
         ref = z - params.bias if ref is None else ref
         plane = None
+    if kind == "msm":
+        # The compare reference (bias toward the light, as HDRP's depth + depthBias).
+        return _msm.msm_lookup(
+            data.moments,
+            u,
+            v,
+            _msm.moment_depth(proj, np.clip(ref, 0.0, 1.0), params.moment_depth),
+            fmt=params.msm_format,
+            moment_bias=params.moment_bias,
+            bleed_reduction=params.light_bleeding_reduction,
+            subtexel_bits=params.subtexel_bits,
+        )
     common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
     tex = data.texels
     if kind == "point":
         return _filters.compare_point(tex, u, v, ref, address=params.address_mode)
     if kind == "hw_pcf":
         return _filters.compare_bilinear(tex, u, v, ref, **common)
+    if kind == "pcss":
+        vis, radius, z_b = _pcss.pcss_lookup(data, proj, u, v, z, ref, params, rotation)
+        if extras is not None:
+            extras.update(_pcss.estimates(proj, ref, radius, z_b, params.radius_scale))
+        return vis
     if kind == "pcf":
         return _filters.pcf_grid(tex, u, v, ref, params.pcf_size, plane=plane, **common)
     return _filters.pcf_poisson(
@@ -155,12 +176,14 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None) -> np.
     )
 
 
-def _lookup_subset(params, data, geo, mask, rotation):
+def _lookup_subset(params, data, geo, mask, rotation, extras=None):
     """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
-    return _lookup(params, data, geo["u"][mask], geo["v"][mask], z, plane, rotation, ref=ref)
+    u, v = geo["u"][mask], geo["v"][mask]
+    proj = geo.get("proj")
+    return _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
 
 
 def _smoothstep(e0, e1, x):
@@ -201,6 +224,28 @@ def _blend_cascades(
     return blended
 
 
+def _rotations(gbuf, params):
+    """Per-pixel disk rotation angles (all pixels), or ``None``: seeded uniform angles for
+    a rotated Poisson disc, interleaved gradient noise at pixel centres for PCSS's ``ign``."""
+    if params.filter == "poisson" and params.poisson_rotate:
+        rng = np.random.default_rng(params.seed)
+        return rng.uniform(0.0, 2.0 * np.pi, gbuf.size)
+    if params.filter == "pcss" and params.rotation == "ign":
+        idx = np.arange(gbuf.size)
+        px, py = idx % gbuf.width + 0.5, idx // gbuf.width + 0.5
+        return _pcss.interleaved_gradient_noise(px, py) * 2.0 * np.pi
+    return None
+
+
+def _lookups_per_pixel(params) -> int:
+    """Texture sample instructions one lookup issues (PCSS: blocker taps plus PCF taps)."""
+    if params.filter == "pcss":
+        return int(params.blocker_samples + params.filter_samples)
+    return _filters.lookups_per_pixel(
+        params.filter, pcf_size=params.pcf_size, taps=params.poisson_taps
+    )
+
+
 def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     """Outputs (see module docstring) and per-partition statistics."""
     n = gbuf.size
@@ -220,13 +265,10 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     )
     cascade[valid_idx] = sel
     receiver = gbuf.receiver
-    rotation_all = None
-    if params.filter == "poisson" and params.poisson_rotate:
-        rng = np.random.default_rng(params.seed)
-        rotation_all = rng.uniform(0.0, 2.0 * np.pi, n)
-    per_lookup = _filters.lookups_per_pixel(
-        params.filter, pcf_size=params.pcf_size, taps=params.poisson_taps
-    )
+    rotation_all = _rotations(gbuf, params)
+    # PCSS's penumbra estimate per receiver (world units; 0 where no blocker was found)
+    pcss_out = {k: np.zeros(n) for k in _pcss.ESTIMATES} if params.filter == "pcss" else {}
+    per_lookup = _lookups_per_pixel(params)
     stats = []
     for i, part in enumerate(setup.partitions):
         pix = valid_idx[sel == i]
@@ -246,7 +288,10 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         rmask = receiver[pix]
         if len(rec) and data is not None:
             rot = rotation_all[rec] if rotation_all is not None else None
-            vis[rec] = _lookup_subset(params, data, geo, rmask, rot)
+            extras = {} if pcss_out else None
+            vis[rec] = _lookup_subset(params, data, geo, rmask, rot, extras)
+            for key, img in pcss_out.items():
+                img[rec] = extras[key]
             uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
             lookups[rec] = per_lookup
         tpp_rec = geo["tpp"][rmask]  # = tpp[pix][rmask], gathered once
@@ -289,6 +334,7 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         "resolution_error": gbuf.image(err),
         "uncovered": gbuf.image(uncovered),
     }
+    outputs.update({k: gbuf.image(img) for k, img in pcss_out.items()})
     n_rec = int(receiver.sum())
     summary = {
         "partitions": stats,

@@ -3,6 +3,10 @@
 - Directional light: an orthographic map fit to the scene's bounds (``fit="scene"``) or to
   the AABB of the whole view frustum in light space (``fit="frustum"``).
 - Spot light: a perspective map on the light's axis covering its cutoff cone.
+- Rectangle or disk area light (its punctual proxy is a point light): one perspective map
+  along the light's normal, its field of view fit to the visible points in front of it, as
+  an engine shadows a one-sided area light (a cube would put flat ground at grazing angles
+  in its side faces); a sphere light is shadowed as its point proxy.
 - Point light: six 90-degree perspective cube faces; a pixel uses the face of the major axis
   of its direction from the light (normal offset included). Not seamless: filter taps near
   a face edge clamp to that face's edge texels (``address_mode``) instead of reading the
@@ -40,7 +44,7 @@ from .fit import aabb, box_corners, filter_kernel_texels, light_frame_for
 from .frustum import frustum_slice
 from .records import Partition, Setup
 
-__all__ = ["LIGHTS", "NAME", "ShadowMapParams", "build", "run"]
+__all__ = ["LIGHTS", "NAME", "ShadowMapParams", "build", "build_area", "run"]
 
 NAME = "shadow-map"
 
@@ -124,8 +128,42 @@ def _perspective_range(scene, position, forward, light_near: float):
     return min(near, 0.5 * far), far
 
 
+#: Widest half-angle of an area light's map: tan(80 degrees).
+MAX_TAN_HALF = math.tan(math.radians(80.0))
+
+
+def build_area(scene, gbuf, p: ShadowMapParams) -> Setup | None:
+    """One perspective map along a rectangle or disk light's normal (as an engine shadows a
+    one-sided area light), its field of view fit to the G-buffer's points in front of the
+    light (half-angle at most 80 degrees); ``None`` for other lights (a sphere light is its
+    point proxy: a cube)."""
+    light = scene.light
+    if getattr(light, "area", "") not in ("rectangle", "disk"):
+        return None
+    tangent, _, normal = light.frame
+    origin = np.asarray(light.position, dtype=np.float64)
+    frame = make_frame(normal, [("light_tangent", tangent)], origin)
+    d = gbuf.position[gbuf.valid] - origin
+    depth = d @ frame.z
+    front = depth > 1e-9
+    lateral = np.maximum(np.abs(d[front] @ frame.x), np.abs(d[front] @ frame.y))
+    tan_half = float(np.max(lateral / depth[front])) * 1.01 if front.any() else 1.0
+    tan_half = min(max(tan_half, 1e-3), MAX_TAN_HALF)
+    lo, hi = scene.bounds()
+    corners = box_corners(lo, hi)
+    far = max(float(np.max((corners - origin) @ frame.z)), 1e-6) * (1.0 + 1e-4)
+    near = p.light_near if p.light_near > 0 else 1e-3 * far
+    proj = Projection("persp", frame, (tan_half, near, far), p.resolution, p.matrix_precision)
+    diag = {"light": light.to_json(), "area_map": {"tan_half": tan_half, "near": near}}
+    return Setup([Partition(proj)], selection="single", diagnostics=diag)
+
+
 def build(scene, gbuf, p: ShadowMapParams) -> Setup:
-    """Partitions (one map, or six cube faces) for the scene's light."""
+    """Partitions (one map, or six cube faces) for the scene's light; one map along a
+    rectangle or disk area light's normal (:func:`build_area`)."""
+    area = build_area(scene, gbuf, p)
+    if area is not None:
+        return area
     light = scene.light
     cam = scene.camera
     diag: dict = {"light": light.to_json()}

@@ -16,6 +16,7 @@ from .page import (
     render_sweep_page,
     study_page,
 )
+from .soft_shadows import soft_shadows_section
 
 __all__ = [
     "SECTION_KINDS",
@@ -30,5 +31,6 @@ __all__ = [
     "render_section",
     "render_study_page",
     "render_sweep_page",
+    "soft_shadows_section",
     "study_page",
 ]

@@ -16,7 +16,8 @@ Seed documents (``shared/seeds/``): ``000`` notes on Sample Distribution Shadow 
 (ACAA, AGAA, FTIZB); ``002`` A. Tardif, "SDSM. Sample distribution shadow maps" slides;
 ``003`` "Coherent Shadow Maps: Uncompressed Algorithm" (blog). The lossless-compression claim
 is the coherent-shadow-maps paper's (Ritschel et al., EGSR 2007), as quoted in TECHNIQUES.md;
-the blog in seed 003 describes the uncompressed algorithm it builds on.
+the blog in seed 003 describes the uncompressed algorithm it builds on. The soft-shadow claims
+quote issue 38 and the abstract of Peters and Klein's moment-shadow-mapping paper.
 """
 
 from __future__ import annotations
@@ -45,12 +46,15 @@ from .shadow import (
     _sdsm_crawl,
     _sdsm_vs_pssm,
 )
+from .soft import BLEED_BLUR, BLEED_TOL, MISC_TOL, _msm_bleeding, _pcss_distance
 
 __all__ = [
     "ACAA_EQUAL",
     "ACAA_HALF",
     "AGAA_COMPARABLE",
     "AGAA_SAVING",
+    "BLEED_BLUR",
+    "BLEED_TOL",
     "BLUR_CLAIM",
     "CLAIMS",
     "IZB_RATIO",
@@ -195,6 +199,32 @@ CLAIMS: tuple[Claim, ...] = (
         "decompressed mismatch, and a compression ratio above 1; partly: lossless only; "
         "not: visibility differs",
         _coherent,
+    ),
+    Claim(
+        "pcss-penumbra-error-grows",
+        "PCSS's penumbra width error grows with the blocker-receiver distance",
+        "issue 38 (soft shadows), 'Built-in scenes'",
+        ("pcss",),
+        "reproduced: on soft-contact, for both presets, the mean |estimated - geometric| "
+        "penumbra width never falls from one receiver-caster distance bin to the next by more "
+        "than 2 stderr; partly: larger in the farthest bin than in the nearest for both; "
+        "not: otherwise",
+        _pcss_distance,
+        scenes=("soft-contact",),
+    ),
+    Claim(
+        "msm-bleeds-less",
+        "Like variance shadow mapping it allows for the application of all kinds of efficient "
+        "texture filtering [...] However it is designed to provide a substantially higher "
+        "quality.",
+        "Peters and Klein, Moment Shadow Mapping, I3D 2015, abstract",
+        ("msm", "shadow-map"),
+        f"reproduced: with a {BLEED_BLUR}-texel moment blur, 16-bit MSM leaves less light "
+        f"in the hard umbra than VSM (by more than {BLEED_TOL}) and misclassifies no more "
+        f"receivers than VSM and EVSM4 (within {MISC_TOL}) on stacked-casters and plate; "
+        "partly: less light than VSM on stacked-casters; not: otherwise",
+        _msm_bleeding,
+        scenes=("stacked-casters", "plate"),
     ),
 )
 
