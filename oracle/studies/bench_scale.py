@@ -26,6 +26,8 @@ __all__ = ["SCALE_MODELS", "SCALE_SIZES", "bench_scale", "scale_lines"]
 SCALE_SIZES = (10_000, 100_000, 1_000_000)
 #: The models timed: those of the issue's table.
 SCALE_MODELS = ("fxaa", "shadow-map", "smaa", "sdsm", "izb", "agaa", "msaa")
+#: Frames of the ``taa`` row (``--only taa``): the sequence's time and its time per frame.
+TAA_FRAMES = 8
 
 
 @contextmanager
@@ -80,6 +82,16 @@ def _one(n: int, width: int, height: int, spp: int, models: tuple, budget: float
     exact = {k: record.get(k) for k in ("decision", "estimate", "method", "valid_fraction")}
     outputs = {}
     for technique in models:
+        if technique == "taa":  # a sequence: frames 0..7 of a sub-pixel pan, timed per frame
+            with _measure(phases, "taa"):
+                last = loaded.with_frame(TAA_FRAMES - 1, path="subpixel-pan", n_frames=TAA_FRAMES)
+                raster_models.run("taa", last)
+            phases["taa per frame"] = {
+                **phases["taa"],
+                "seconds": phases["taa"]["seconds"] / TAA_FRAMES,
+                "cpu_seconds": phases["taa"]["cpu_seconds"] / TAA_FRAMES,
+            }
+            continue
         with _measure(phases, technique):
             outputs[technique] = raster_models.run(technique, loaded).outputs
     colour = next((outputs[t]["color"] for t in models if "color" in outputs[t]), None)
