@@ -1,4 +1,4 @@
-"""The published SMAA shader run on the CPU's OpenGL: ``tests/data/smaa/SMAA.hlsl`` compiled
+"""The published SMAA shader run on the CPU's OpenGL: iryoku/smaa's ``SMAA.hlsl`` compiled
 as GLSL 3.30 (``SMAA_GLSL_3``) by Mesa's llvmpipe through moderngl (a headless EGL context),
 its passes wrapped as the demo wraps them (``Demo/DX10/Shaders/SMAA.fx``: the offsets come
 from the ``*VS`` functions in the vertex shader and are interpolated; a full-screen
@@ -10,7 +10,10 @@ Textures are uploaded row 0 first and read back the same way: GL's texture coord
 offsets of -1 in y still mean "the row above".
 
 Used by ``tests/test_smaa_glsl.py`` only: an independent run of the published code to hold
-the ``smaa`` model against. :func:`unavailable` says why it cannot run (no moderngl, no EGL).
+the ``smaa`` model against. The shader is third-party code and is not in this repository:
+point ``RASTER_ORACLE_SMAA_HLSL`` at ``SMAA.hlsl`` of iryoku/smaa at commit 71c806a (checked
+by its SHA-256 below). :func:`unavailable` says why it cannot run (no shader, no moderngl, no
+EGL).
 """
 
 from __future__ import annotations
@@ -21,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-SHADER = Path(__file__).parent / "data" / "smaa" / "SMAA.hlsl"
+#: The published shader: a local copy named by the environment (never committed here).
+SHADER = Path(os.environ.get("RASTER_ORACLE_SMAA_HLSL", "SMAA.hlsl"))
 #: SHA-256 of iryoku/smaa's SMAA.hlsl at commit 71c806a838bdd7d517df19192a20f0c61b3ca29d.
 SHADER_SHA256 = "4db53d92ef0b45661f8450303589ffabce93c352cae4282a6f32dd2b80efbeb9"
 
@@ -95,6 +99,13 @@ def _float_sampler() -> None:
 
 def unavailable() -> str | None:
     """None when the published shader can run here, else the reason."""
+    if "RASTER_ORACLE_SMAA_HLSL" not in os.environ or not SHADER.is_file():
+        return (
+            "set RASTER_ORACLE_SMAA_HLSL to a copy of iryoku/smaa's SMAA.hlsl at 71c806a "
+            "(third-party code, not in this repository)"
+        )
+    if hashlib.sha256(SHADER.read_bytes()).hexdigest() != SHADER_SHA256:
+        return f"{SHADER} is not iryoku/smaa's SMAA.hlsl at 71c806a (SHA-256 differs)"
     _float_sampler()
     try:
         import moderngl

@@ -7,8 +7,9 @@ model's passes with exact bilinear weights (``subtexel_bits=0``, what llvmpipe's
 sampler computes) equal the shader's byte for byte; with the model's default 8-bit
 sub-texel weights (the D3D minimum GPUs implement) within 1/255. Neighbourhood blending (with
 the velocity packed into alpha) and the temporal resolve through the sRGB views: within 1/255
-(llvmpipe's approximate sRGB conversion), alpha exact. Skipped with one line
-where moderngl or a headless EGL context is missing (``bin/setup.sh --test`` installs both).
+(llvmpipe's approximate sRGB conversion), alpha exact. Skipped with one line where the
+shader (``RASTER_ORACLE_SMAA_HLSL``: third-party code, kept out of this repository), moderngl
+or a headless EGL context is missing (``bin/setup.sh --test`` installs the last two).
 """
 
 from __future__ import annotations
