@@ -24,10 +24,16 @@ import numpy as np
 from . import filters as _filters
 from . import msm_filter as _msm
 from . import pcss_filter as _pcss
-from .geometry import DrjitColumns, normal_offset_texels, partition_geometry
+from . import three_filters as _three
+from .geometry import (
+    DrjitColumns,
+    normal_offset_in_world_units,
+    normal_offset_texels,
+    partition_geometry,
+)
 from .records import MapData, Setup
 
-__all__ = ["perspective_reference", "select_partitions", "shade"]
+__all__ = ["linear_bias_reference", "perspective_reference", "select_partitions", "shade"]
 
 
 def perspective_reference(params, proj, z):
@@ -76,7 +82,9 @@ def select_partitions(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray
         proj0 = parts[0].projection
         d = gbuf.position[idx] - proj0.frame.origin
         offset = normal_offset_texels(params, proj0)
-        if offset > 0.0:
+        if offset > 0.0 and normal_offset_in_world_units(params, proj0):
+            d = d + gbuf.normal[idx] * offset
+        elif offset > 0.0:
             texel = 2.0 * float(proj0.extent[0]) * np.max(np.abs(d), axis=1) / proj0.resolution
             n_dot_l = np.clip(gbuf.cos_l[idx], 0.0, 1.0)
             scale = offset * texel * (1.0 - n_dot_l)
@@ -150,7 +158,13 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
             subtexel_bits=params.subtexel_bits,
         )
     common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
+    if kind == "three_vsm":
+        return _three.lookup_vsm(data.moments, u, v, ref, subtexel_bits=params.subtexel_bits)
     tex = data.texels
+    if kind == "three_pcf":
+        return _three.lookup_pcf(
+            tex, u, v, ref, radius=params.shadow_radius, phi=rotation, **common
+        )
     if kind == "point":
         return _filters.compare_point(tex, u, v, ref, address=params.address_mode)
     if kind == "hw_pcf":
@@ -176,11 +190,30 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
     )
 
 
+def linear_bias_reference(params, proj, z):
+    """Compare reference with ``bias_space="linear"``, or ``None``: the receiver's
+    light-view depth minus ``bias * (far - near)``, converted to the map's normalized depth
+    (on an orthographic map exactly ``z - bias``)."""
+    if getattr(params, "bias_space", "hyperbolic") != "linear" or proj is None:
+        return None
+    z = np.asarray(z, dtype=np.float64)
+    if proj.kind != "persp":
+        return z - params.bias
+    _, near, far = (float(x) for x in proj.extent)
+    a, b = far / (far - near), far * near / (far - near)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = b / (a - z) - params.bias * (far - near)
+        ref = a - b / np.maximum(tau, 1e-300)
+    return np.where(np.isfinite(ref), ref, z)
+
+
 def _lookup_subset(params, data, geo, mask, rotation, extras=None):
     """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
+    if ref is None:
+        ref = linear_bias_reference(params, geo.get("proj"), z)
     u, v = geo["u"][mask], geo["v"][mask]
     proj = geo.get("proj")
     return _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
@@ -226,10 +259,14 @@ def _blend_cascades(
 
 def _rotations(gbuf, params):
     """Per-pixel disk rotation angles (all pixels), or ``None``: seeded uniform angles for
-    a rotated Poisson disc, interleaved gradient noise at pixel centres for PCSS's ``ign``."""
+    a rotated Poisson disc, interleaved gradient noise at pixel centres for PCSS's ``ign``
+    and at ``gl_FragCoord`` (lower-left origin) for ``three_pcf``."""
     if params.filter == "poisson" and params.poisson_rotate:
         rng = np.random.default_rng(params.seed)
         return rng.uniform(0.0, 2.0 * np.pi, gbuf.size)
+    if params.filter == "three_pcf":
+        px, py = _three.frag_coord(gbuf.width, gbuf.height)
+        return _three.interleaved_gradient_noise(px, py) * (2.0 * np.pi)
     if params.filter == "pcss" and params.rotation == "ign":
         idx = np.arange(gbuf.size)
         px, py = idx % gbuf.width + 0.5, idx // gbuf.width + 0.5
