@@ -22,7 +22,7 @@ References
 The Khronos Group, glTF 2.0 specification, 3.9.6 "Alpha Coverage" and 5.19 "Material"
 (``alphaMode``, ``alphaCutoff`` default 0.5, minimum 0).
 M. Segal and K. Akeley, The OpenGL Graphics System: A Specification, version 4.6 (core
-profile), 2022: 8.14.2, equations 8.10-8.11 and table 8.20 (wrap modes).
+profile), 2022: 8.14.2 "Coordinate Wrapping and Texel Selection" and table 8.20.
 """
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def sample_np(
     coordinates ``u, v`` (any shape), float64.
 
     ``nearest``: texel ``(floor(u W), floor(v H))``; else bilinear between the texels around
-    ``(u W - 1/2, v H - 1/2)`` (OpenGL 4.6 equations 8.10-8.11); indices wrapped per axis by
+    ``(u W - 1/2, v H - 1/2)`` (OpenGL 4.6 section 8.14.2); indices wrapped per axis by
     :func:`wrap_index_np`. A non-finite coordinate samples as 0.
     """
     img = np.asarray(image, dtype=np.float64)
