@@ -15,6 +15,10 @@ Outputs (all ``(H, W)`` float32, row 0 at the top):
   with ``fw = max(|J dx|, |J dy|)`` per texel axis (0 = at least one texel per pixel).
 - ``uncovered``: 1 on receivers whose selected map does not contain them (outside its
   texture, an empty partition, or outside every partition's depth range).
+- ``compare_margin`` (compare filters: point, hw_pcf, pcf, poisson, three_pcf): the
+  smallest ``|reference - stored|`` in normalized depth over the texels a receiver's
+  lookup compared (:mod:`.margins`); 1 elsewhere. Within the depth format's rounding an
+  engine may decide the other way: conformance names those pixels implementation-defined.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import filters as _filters
+from . import margins as _margins
 from . import msm_filter as _msm
 from . import pcss_filter as _pcss
 from . import three_filters as _three
@@ -207,8 +212,10 @@ def linear_bias_reference(params, proj, z):
     return np.where(np.isfinite(ref), ref, z)
 
 
-def _lookup_subset(params, data, geo, mask, rotation, extras=None):
-    """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
+def _lookup_subset(params, data, geo, mask, rotation, extras=None, margin=None):
+    """Visibility of the pixels ``mask`` of a `partition_geometry` record; ``margin``: a
+    dict that receives the receivers' compare margins (:mod:`.margins`) under ``"margin"``
+    for the filters that have one."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
@@ -216,7 +223,17 @@ def _lookup_subset(params, data, geo, mask, rotation, extras=None):
         ref = linear_bias_reference(params, geo.get("proj"), z)
     u, v = geo["u"][mask], geo["v"][mask]
     proj = geo.get("proj")
-    return _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
+    vis = _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
+    if margin is not None and params.filter in _margins.MARGIN_FILTERS:
+        r = data.depth.shape[0]
+        if params.receiver_plane_bias:
+            compare = z - np.minimum((np.abs(plane[0]) + np.abs(plane[1])) / r, 0.01)
+        else:
+            compare = z - params.bias if ref is None else ref
+        du, dv = _margins.tap_offsets(params, r, rotation, len(u))
+        point = params.filter == "point"
+        margin["margin"] = _margins.compare_margin(data.depth, u, v, compare, du, dv, point=point)
+    return vis
 
 
 def _smoothstep(e0, e1, x):
@@ -283,6 +300,20 @@ def _lookups_per_pixel(params) -> int:
     )
 
 
+def _partition_stats(st: dict, geo: dict, rmask, uncovered_rec, data) -> dict:
+    """``st`` completed with a rendered partition's statistics over its receivers."""
+    tpp_rec = geo["tpp"][rmask]
+    st.update(
+        empty=False,
+        uncovered=int(uncovered_rec.sum()) if len(uncovered_rec) else 0,
+        texels_per_pixel_min=float(tpp_rec.min()) if len(tpp_rec) else None,
+        texels_per_pixel_mean=float(tpp_rec.mean()) if len(tpp_rec) else None,
+        resolution_error_mean=float(geo["err"][rmask].mean()) if rmask.any() else None,
+        texels_covered=int(data.texels_covered) if data is not None else 0,
+    )
+    return st
+
+
 def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     """Outputs (see module docstring) and per-partition statistics."""
     n = gbuf.size
@@ -306,6 +337,8 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     # PCSS's penumbra estimate per receiver (world units; 0 where no blocker was found)
     pcss_out = {k: np.zeros(n) for k in _pcss.ESTIMATES} if params.filter == "pcss" else {}
     per_lookup = _lookups_per_pixel(params)
+    # Compare margin per receiver (normalized depth; 1 where no compare was made).
+    margin = np.ones(n) if params.filter in _margins.MARGIN_FILTERS else None
     stats = []
     for i, part in enumerate(setup.partitions):
         pix = valid_idx[sel == i]
@@ -319,28 +352,21 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             continue
         data = maps[i]
         geo = partition_geometry(params, part, gbuf, pix, columns)
-        e = geo["err"]
         tpp[pix] = geo["tpp"]
-        err[pix] = e
+        err[pix] = geo["err"]
         rmask = receiver[pix]
         if len(rec) and data is not None:
             rot = rotation_all[rec] if rotation_all is not None else None
             extras = {} if pcss_out else None
-            vis[rec] = _lookup_subset(params, data, geo, rmask, rot, extras)
+            got: dict | None = {} if margin is not None else None
+            vis[rec] = _lookup_subset(params, data, geo, rmask, rot, extras, got)
+            if got:
+                margin[rec] = got["margin"]
             for key, img in pcss_out.items():
                 img[rec] = extras[key]
             uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
             lookups[rec] = per_lookup
-        tpp_rec = geo["tpp"][rmask]  # = tpp[pix][rmask], gathered once
-        st.update(
-            empty=False,
-            uncovered=int(uncovered[rec].sum()) if len(rec) else 0,
-            texels_per_pixel_min=float(tpp_rec.min()) if len(tpp_rec) else None,
-            texels_per_pixel_mean=float(tpp_rec.mean()) if len(tpp_rec) else None,
-            resolution_error_mean=float(e[rmask].mean()) if rmask.any() else None,
-            texels_covered=int(data.texels_covered) if data is not None else 0,
-        )
-        stats.append(st)
+        stats.append(_partition_stats(st, geo, rmask, uncovered[rec], data))
     # Outside every depth range (Intel: the lighting pass discards the pixel).
     none = valid_idx[sel < 0]
     rec_none = none[receiver[none]]
@@ -372,6 +398,8 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         "uncovered": gbuf.image(uncovered),
     }
     outputs.update({k: gbuf.image(img) for k, img in pcss_out.items()})
+    if margin is not None:
+        outputs["compare_margin"] = gbuf.image(np.minimum(margin, 1.0))
     n_rec = int(receiver.sum())
     summary = {
         "partitions": stats,
