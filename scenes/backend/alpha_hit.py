@@ -50,11 +50,13 @@ PASS_OFFSET = 2.0**-19
 class AlphaScene:
     """The alpha masks of one Mitsuba scene: ``table`` and ``registry`` (Dr.Jit Int32: mask
     index per shape registry id, -1 opaque), ``vertex`` (a mask reads vertex alpha: every
-    mesh of the scene then carries :data:`~scenes.shading.alpha.ALPHA_ATTRIBUTE`)."""
+    mesh of the scene then carries :data:`~scenes.shading.alpha.ALPHA_ATTRIBUTE`), ``bsdf``
+    (a mask reads its shape's Mitsuba ``mask`` BSDF's opacity)."""
 
     table: AlphaTable
     registry: object
     vertex: bool
+    bsdf: bool = False
 
     def mask_of(self, si, active):
         """Mask index (Int32, -1 opaque) of the shapes of hits ``si``."""
@@ -71,10 +73,12 @@ class AlphaScene:
         """The alpha test at hits ``si`` (True on opaque shapes and where alpha >= cutoff)."""
         mask = self.mask_of(si, active)
         tested = active & (mask >= 0)
-        va = None
+        va = op = None
         if self.vertex:
             va = si.shape.eval_attribute_1(ALPHA_ATTRIBUTE, si, tested)
-        return self.table.covered_dr(mask, si.uv, va, tested)
+        if self.bsdf:
+            op = si.bsdf().eval_attribute_1("opacity", si, tested)
+        return self.table.covered_dr(mask, si.uv, va, tested, op)
 
 
 def alpha_scene(mi_scene, table: AlphaTable | None, memo: dict | None = None):
@@ -89,7 +93,12 @@ def alpha_scene(mi_scene, table: AlphaTable | None, memo: dict | None = None):
     import mitsuba as mi
 
     reg = table.registry_table(mi, dr, mi_scene.shapes())
-    out = AlphaScene(table, mi.Int32(reg), any(m.vertex_alpha for m in table.masks))
+    out = AlphaScene(
+        table,
+        mi.Int32(reg),
+        any(m.vertex_alpha for m in table.masks),
+        any(m.bsdf_opacity for m in table.masks),
+    )
     if memo is not None:
         memo["alpha_scene"] = out
     return out

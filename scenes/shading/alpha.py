@@ -179,13 +179,18 @@ class AlphaTexture:
 class AlphaMask:
     """The alpha of one ``MASK`` material: ``factor`` (``baseColorFactor.a``), ``texture``
     (the base colour texture's alpha, or None), ``vertex_alpha`` (the shape's vertex colours
-    carry alpha, read from :data:`ALPHA_ATTRIBUTE`) and ``cutoff`` (``alphaCutoff``)."""
+    carry alpha, read from :data:`ALPHA_ATTRIBUTE`) and ``cutoff`` (``alphaCutoff``).
+
+    ``bsdf_opacity``: the alpha is also the ``opacity`` of the shape's Mitsuba ``mask`` BSDF
+    (a Mitsuba XML scene), evaluated by Mitsuba itself with the filter and wrap mode its XML
+    gives; only the Dr.Jit path (:meth:`AlphaTable.alpha_dr`) can sample it."""
 
     factor: float = 1.0
     texture: AlphaTexture | None = None
     cutoff: float = DEFAULT_CUTOFF
     vertex_alpha: bool = False
     name: str = ""
+    bsdf_opacity: bool = False
 
     def __post_init__(self):
         for what, value in (("factor", self.factor), ("cutoff", self.cutoff)):
@@ -195,6 +200,11 @@ class AlphaMask:
     def alpha_np(self, u, v, vertex_alpha=None) -> np.ndarray:
         """Alpha at texture coordinates ``u, v`` (float64): ``factor`` x texture alpha x
         ``vertex_alpha`` (the interpolated vertex colour alpha where the mask uses it)."""
+        if self.bsdf_opacity:
+            raise AlphaError(
+                f"alpha mask {self.name or 'unnamed'} is a Mitsuba mask BSDF's opacity: "
+                "it is sampled by Mitsuba (the Dr.Jit path), not in NumPy"
+            )
         u = np.asarray(u, dtype=np.float64)
         a = np.full(u.shape, float(self.factor))
         if self.texture is not None:
@@ -214,6 +224,7 @@ class AlphaMask:
             "factor": self.factor,
             "cutoff": self.cutoff,
             "vertex_alpha": self.vertex_alpha,
+            "bsdf_opacity": self.bsdf_opacity,
             "texture": None
             if t is None
             else {
@@ -300,6 +311,7 @@ class AlphaTable:
             "factor": mi.Float(np.asarray([m.factor for m in self.masks], f32)),
             "cutoff": mi.Float(np.asarray([m.cutoff for m in self.masks], f32)),
             "vertex": mi.Bool(np.asarray([m.vertex_alpha for m in self.masks], bool)),
+            "bsdf": mi.Bool(np.asarray([m.bsdf_opacity for m in self.masks], bool)),
         }
         self._dr["tables"] = tables
         return tables
@@ -314,10 +326,11 @@ class AlphaTable:
         table[reg] = self.shape_mask
         return table
 
-    def alpha_dr(self, mask, uv, vertex_alpha, active):
+    def alpha_dr(self, mask, uv, vertex_alpha, active, bsdf_alpha=None):
         """Alpha (Dr.Jit ``Float``) of masks ``mask`` (Int32, >= 0 where ``active``) at
         texture coordinates ``uv`` (``Point2f``), times ``vertex_alpha`` (Float) where the
-        mask uses vertex alpha. The same texel selection as :func:`sample_np`, in float32."""
+        mask uses vertex alpha and ``bsdf_alpha`` (Float: the mask BSDF's opacity) where it
+        uses that. The same texel selection as :func:`sample_np`, in float32."""
         import drjit as dr
         import mitsuba as mi
 
@@ -347,9 +360,11 @@ class AlphaTable:
         uses_vertex = dr.gather(mi.Bool, t["vertex"], m, active)
         if vertex_alpha is not None:
             a = dr.select(uses_vertex, a * vertex_alpha, a)
+        if bsdf_alpha is not None:
+            a = dr.select(dr.gather(mi.Bool, t["bsdf"], m, active), a * bsdf_alpha, a)
         return a
 
-    def covered_dr(self, mask, uv, vertex_alpha, active):
+    def covered_dr(self, mask, uv, vertex_alpha, active, bsdf_alpha=None):
         """The alpha test (Dr.Jit ``Bool``): True where ``mask < 0`` (an opaque shape) or the
         mask's alpha is at least its cutoff."""
         import drjit as dr
@@ -357,7 +372,8 @@ class AlphaTable:
 
         tested = active & (mask >= 0)
         cut = dr.gather(mi.Float, self._tables()["cutoff"], dr.select(tested, mask, 0), tested)
-        return ~tested | (self.alpha_dr(mask, uv, vertex_alpha, tested) >= cut)
+        alpha = self.alpha_dr(mask, uv, vertex_alpha, tested, bsdf_alpha)
+        return ~tested | (alpha >= cut)
 
 
 def _wrap_dr(i, n, wrap):
