@@ -100,6 +100,7 @@ def cmd_score_folder(args) -> int:
         "exports": args.exports,
         "quiet": args.quiet,
         "platform": args.platform,
+        "exact_budget": args.exact_budget,
     }
     cases, run = run_folder(
         args.root,

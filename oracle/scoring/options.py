@@ -42,6 +42,8 @@ class ScoreOptions:
     expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
         scored too, and the candidate against it (``conformance_*`` metrics;
         :mod:`oracle.scoring.conformance`).
+    exact_budget : the references' exact-coverage budget
+        (:attr:`oracle.reference.settings.ReferenceSettings.exact_budget`; None: the default).
     """
 
     spp: int = 64
@@ -57,6 +59,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
+    exact_budget: float | None = None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
@@ -80,6 +83,7 @@ class ScoreOptions:
     def score_kwargs(self) -> dict:
         """The keywords of :func:`oracle.scoring.score.score` these options set."""
         keys = ("spp", "seed", "frames", "camera_path", "quiet", "flip_mode", "ppd", "gate_frames")
+        keys += ("exact_budget",)
         return {k: getattr(self, k) for k in keys}
 
     def as_record(self) -> dict:

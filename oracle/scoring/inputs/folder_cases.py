@@ -70,7 +70,7 @@ class FolderOptions(dict):
     """Options of a folder run given by the caller (command line or API), each None where
     the manifest (or the default) decides: ``spp``, ``seed``, ``flip_mode``, ``transfer``,
     ``expect``, ``channel``, ``kind``, ``camera_path``, ``visibility``, ``exports``;
-    ``quiet`` and ``platform``."""
+    ``quiet``, ``platform`` and ``exact_budget``."""
 
     def pick(self, key, manifest_value=None, default=None):
         given = self.get(key)
@@ -87,6 +87,7 @@ def _score_options(fo: FolderOptions, manifest=None, **case) -> ScoreOptions:
         ppd=M.DEFAULT_PPD,
         quiet=bool(fo.get("quiet", True)),
         platform=fo.get("platform"),
+        exact_budget=fo.get("exact_budget"),
         **case,
     ).validate()
 
