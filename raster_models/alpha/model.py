@@ -114,9 +114,10 @@ def _trace(mi, dr, scene, registry, o, d, tmax):
     )
 
 
-def _fragment_keeps(chains, table, meshes, camera, params, px, py, sample, shape, prim):
-    """Whether the fragments of triangles ``prim`` of ``shape`` in pixels ``(px, py)`` keep
-    sample ``sample`` (bool), for the alpha-tested hits."""
+def _fragment_keeps(chains, table, meshes, camera, params, where, shape, prim):
+    """Whether the fragments of triangles ``prim`` of ``shape`` keep their samples (bool),
+    for alpha-tested hits at ``where = (px, py, sample)`` (pixel and sample indices)."""
+    px, py, sample = where
     mask = table.shape_mask[shape]
     tri_p, tri_uv = meshes.triangles(shape, prim)
     centre = [camera.rays(px + dx, py + dy) for dx, dy in ((0.5, 0.5), (1.5, 0.5), (0.5, 1.5))]
@@ -172,17 +173,10 @@ def alpha_raster(mi_scene, table: AlphaTable, camera, params: AlphaRasterParams)
         tested = table.shape_mask[shape] >= 0
         keep = ~tested
         if np.any(tested):
+            j = idx[tested]
+            where = (px[j], py[j], s[j])
             keep[tested] = _fragment_keeps(
-                chains,
-                table,
-                meshes,
-                camera,
-                params,
-                px[idx[tested]],
-                py[idx[tested]],
-                s[idx[tested]],
-                shape[tested],
-                prim[tested],
+                chains, table, meshes, camera, params, where, shape[tested], prim[tested]
             )
         kept[idx[keep]] = True
         go = ~keep & (layers[idx] < params.max_layers)
