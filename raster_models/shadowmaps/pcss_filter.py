@@ -20,8 +20,12 @@ Three steps per receiver (Fernando 2005; NVIDIA's sample code in Bavoil 2008):
 ``search = (z_r - z0) 2 tan(theta/2) / width`` and radius ``(z_r - z_b) 2 tan(theta/2) /
 width``, ``width`` the map's side in world units.
 
-NVIDIA uses the light's full size ``L`` as the disk *radius* in both steps (so the filtered
-transition is twice the geometric penumbra); ``radius_scale`` = 0.5 gives the geometric one.
+NVIDIA uses ``LIGHT_WORLD_SIZE`` ``L`` as the disk *radius* in both steps; read as the
+light's full width (this project's reading), the filter radius is twice the geometric
+penumbra radius and its 16-tap transition (10-90 %) 2.71x a disk light's at every field of
+view; ``radius_scale`` = 0.5 (the radius reading) gives 1.35x (measured:
+``oracle.studies.pcss_extent``, docs/models.md). ``softness`` = ``hdrp`` replaces these
+radii on perspective maps by HDRP 10.10.1's fitted mapping (:mod:`.pcss_hdrp`).
 
 Disks: ``poisson16`` (NVIDIA's 16-point Poisson disk, Bavoil 2008, listing 1) and
 ``fibonacci`` (Unity HDRP ``HDPCSS.hlsl``: direction ``i * (3 - sqrt 5) pi`` modulo 2 pi,
