@@ -6,7 +6,7 @@ seed."""
 from __future__ import annotations
 
 import numpy as np
-from raster_oracle.raster_models.rtshadows.frames import STRATUM, Frame, gradient_pixels
+from raster_oracle.raster_models.rtshadows.frames import Frame, gradient_pixels
 
 F32 = np.float32
 
