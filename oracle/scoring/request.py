@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...scenes.formats.inputs import read_export_record
+from ...scenes.inputs import read_export_record
 from .candidates import load_motion
 from .conformance import CONFORMANCE_KEYS, add_conformance, parse_expect
 from .diagnosis import diagnose_result, explain_colour
