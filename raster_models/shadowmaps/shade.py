@@ -177,7 +177,7 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
     if kind == "pcss":
         vis, radius, z_b = _pcss.pcss_lookup(data, proj, u, v, z, ref, params, rotation)
         if extras is not None:
-            extras.update(_pcss.estimates(proj, ref, radius, z_b, params.radius_scale))
+            extras.update(_pcss.estimates(proj, ref, radius, z_b, params))
         return vis
     if kind == "pcf":
         return _filters.pcf_grid(tex, u, v, ref, params.pcf_size, plane=plane, **common)
