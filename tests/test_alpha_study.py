@@ -21,3 +21,16 @@ def test_coverage_kept_per_band(mi):
     assert kept["test/box"][0] < 0.05 and kept["test/coverage"][0] > 0.9
     assert all(c >= b for c, b in zip(kept["test/coverage"], kept["test/box"], strict=True))
     assert kept["test/coverage"][-1] < 0.05
+
+
+@pytest.mark.slow
+def test_silhouette_shift_of_the_rules(mi):
+    from raster_oracle.oracle.studies.alpha_coverage import silhouette_shift
+
+    plain = silhouette_shift("test/box", size=96, samples=4)
+    a2c = silhouette_shift("threejs-a2c/box", size=96, samples=4)
+    assert plain["contour_px"] > 100
+    # the plain test's contour is the truth's (alpha at the pixel centre, no bias)
+    assert abs(plain["shift_px"]) < 0.1
+    # three.js's smoothstep(t, t + fwidth, a) puts half coverage half a ramp inside
+    assert -0.8 < a2c["shift_px"] < -0.4

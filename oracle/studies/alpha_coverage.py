@@ -7,8 +7,11 @@ alpha ignored, so every rule and the truth are compared over the same pixels):
 lost). The truth is the oracle's alpha test at the texture's base level (``alphaCutoff``
 0.5), ``spp`` stratified rays a pixel through :func:`scenes.backend.alpha_hit.closest_hit_alpha`.
 
+The silhouette shift (:func:`silhouette_shift`) is measured where silhouettes are
+resolved: one card seen orthographically with its texture magnified to 3 pixels a texel.
+
 Run: ``python -m raster_oracle.oracle.studies.alpha_coverage [--n N] [--width W] [--height H]
-[--samples S] [--spp K]``; it prints one line per rule and band.
+[--samples S] [--spp K]``; it prints one line per rule and band, then each rule's shift.
 """
 
 from __future__ import annotations
@@ -27,7 +30,15 @@ from ...scenes.catalogue import alpha_foliage as af
 from ...scenes.catalogue.factories import look_at
 from ...scenes.shading.alpha import AlphaMask, AlphaTable, AlphaTexture
 
-__all__ = ["PRESETS", "FoliageView", "coverage_by_band", "foliage_view", "main"]
+__all__ = [
+    "PRESETS",
+    "FoliageView",
+    "coverage_by_band",
+    "foliage_view",
+    "leaf_closeup",
+    "main",
+    "silhouette_shift",
+]
 
 #: The rules measured: name -> parameters (MSAA count set by the caller).
 PRESETS = {
@@ -71,14 +82,12 @@ def foliage_view(width: int, height: int, *, n: int, seed: int = 1) -> FoliageVi
     return FoliageView(scene, table, camera)
 
 
-def _truth(view: FoliageView, spp_side: int):
-    """Per pixel: the truth's coverage and the view depth of the first card (alpha ignored;
-    0 where none)."""
-    import drjit as dr
+def _rays(view: FoliageView, k: int):
+    """The view's ``k x k`` stratified rays a pixel (NumPy ``o, d`` and the Mitsuba ray)."""
     import mitsuba as mi
 
     cam = view.camera
-    h, w, k = cam.height, cam.width, spp_side
+    h, w = cam.height, cam.width
     g = (np.arange(k) + 0.5) / k
     ys, xs = np.mgrid[0:h, 0:w]
     x = np.broadcast_to(xs[..., None, None] + g[None, None, None, :], (h, w, k, k)).ravel()
@@ -89,11 +98,29 @@ def _truth(view: FoliageView, spp_side: int):
         mi.Vector3f(*(mi.Float(np.ascontiguousarray(d[:, i], np.float32)) for i in range(3))),
     )
     ray.maxt = mi.Float(tmax.astype(np.float32))
+    return o, d, ray
+
+
+def _truth_samples(view: FoliageView, k: int) -> np.ndarray:
+    """Whether each of the ``k x k`` rays a pixel meets a kept point (pixel-major, bool)."""
+    import mitsuba as mi
+
+    _, _, ray = _rays(view, k)
     alpha = alpha_scene(view.mi_scene, view.table)
     si, _, _ = closest_hit_alpha(view.mi_scene, ray, alpha, flags=mi.RayFlags.UV)
-    cover = np.array(si.is_valid()).reshape(h, w, k * k).mean(axis=2)
+    return np.array(si.is_valid())
+
+
+def _truth(view: FoliageView, spp_side: int):
+    """Per pixel: the truth's coverage and the view depth of the first card (alpha ignored;
+    0 where none)."""
+    import mitsuba as mi
+
+    cam = view.camera
+    h, w, k = cam.height, cam.width, spp_side
+    cover = _truth_samples(view, k).reshape(h, w, k * k).mean(axis=2)
+    o, d, ray = _rays(view, k)
     first = view.mi_scene.ray_intersect(ray, mi.RayFlags.Minimal, False)
-    dr.eval(first.t)
     hit = np.array(first.is_valid()).reshape(h, w, k * k)
     t = np.where(hit.ravel(), np.array(first.t, np.float64), 0.0)
     pts = (o + d * t[:, None]).reshape(h, w, k * k, 3)
@@ -127,6 +154,57 @@ def coverage_by_band(
     return out
 
 
+def leaf_closeup(size: int, *, px_per_texel: float) -> FoliageView:
+    """An orthographic view of one card, ``size`` pixels square, whose leaf texture (LINEAR,
+    REPEAT) is magnified to ``px_per_texel`` pixels a texel: silhouettes a pixel can resolve."""
+    import mitsuba as mi
+
+    span = size / px_per_texel / 256.0  # texture coordinates across the view
+    mesh = mi.Mesh("card", 4, 2, has_vertex_texcoords=True)
+    p = mi.traverse(mesh)
+    p["vertex_positions"] = np.array(
+        [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32
+    ).ravel()
+    p["faces"] = np.array([0, 1, 2, 0, 2, 3], np.uint32)
+    p["vertex_texcoords"] = (
+        np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32) * span + 0.3
+    ).ravel()
+    p.update()
+    scene = mi.load_dict({"type": "scene", "card": mesh})
+    tex = AlphaTexture(af.texture_alpha(af.leaf_texture()), "repeat", "repeat", False)
+    table = AlphaTable([AlphaMask(texture=tex, cutoff=af.CUTOFF)], np.array([0]))
+    camera = Camera("orthographic", look_at((0, 0, 5), (0, 0, 0)), size, size, 0.1, 10.0)
+    return FoliageView(scene, table, camera)
+
+
+def silhouette_shift(
+    preset: str, *, size: int = 192, px_per_texel: float = 3.0, samples: int = 4, spp_side=8
+) -> dict:
+    """Mean silhouette shift of ``preset`` on :func:`leaf_closeup`, in pixels (positive:
+    outwards): (covered area of the rule - the truth's) / the truth's contour length, the
+    length by Cauchy-Crofton from the truth's ``spp_side``-fold grid (``pi/4`` x the grid's
+    transitions x its spacing)."""
+    view = leaf_closeup(size, px_per_texel=px_per_texel)
+    truth_cover, _ = _truth(view, spp_side)
+    fine = _truth_mask(view, spp_side)
+    transitions = np.count_nonzero(np.diff(fine, axis=0)) + np.count_nonzero(np.diff(fine, axis=1))
+    length = math.pi / 4 * transitions / spp_side
+    params = AlphaRasterParams(samples=samples, **PRESETS[preset])
+    cover = alpha_raster(view.mi_scene, view.table, view.camera, params)["coverage"]
+    return {
+        "shift_px": float((cover.sum() - truth_cover.sum()) / length),
+        "contour_px": float(length),
+        "truth_area_px": float(truth_cover.sum()),
+    }
+
+
+def _truth_mask(view: FoliageView, k: int) -> np.ndarray:
+    """The truth's kept points on the view's ``k``-fold grid, (H k, W k) bool."""
+    cover_samples = _truth_samples(view, k)
+    h, w = view.camera.height, view.camera.width
+    return cover_samples.reshape(h, w, k, k).transpose(0, 2, 1, 3).reshape(h * k, w * k)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="alpha_coverage", description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000)
@@ -146,6 +224,9 @@ def main(argv=None) -> int:
     print("truth coverage".ljust(24) + "".join(f"{v:13.3f}" for v in res["truth"]))
     for name, kept in res["kept"].items():
         print(f"{name:24s}" + "".join(f"{v:13.3f}" for v in kept))
+    print("silhouette shift (px, + outwards) on a close-up at 3 px a texel:")
+    for name in PRESETS:
+        print(f"{name:24s}{silhouette_shift(name, samples=args.samples)['shift_px']:+13.3f}")
     return 0
 
 
