@@ -28,6 +28,7 @@ from ...scenes.backend.alpha_hit import alpha_scene, closest_hit_alpha
 from ...scenes.camera import Camera
 from ...scenes.catalogue import alpha_foliage as af
 from ...scenes.catalogue.factories import look_at
+from ...scenes.geometry.uv_mesh import QUAD_FACES, uv_mesh
 from ...scenes.shading.alpha import AlphaMask, AlphaTable, AlphaTexture
 
 __all__ = [
@@ -67,13 +68,7 @@ def foliage_view(width: int, height: int, *, n: int, seed: int = 1) -> FoliageVi
     verts, faces, _, uv, _ = af.leaf_cards(
         np.random.default_rng([int(seed), 44]), int(n), aspect=width / height
     )
-    mesh = mi.Mesh("cards", len(verts), len(faces), has_vertex_texcoords=True)
-    p = mi.traverse(mesh)
-    p["vertex_positions"] = verts.astype(np.float32).ravel()
-    p["faces"] = faces.astype(np.uint32).ravel()
-    p["vertex_texcoords"] = uv.astype(np.float32).ravel()
-    p.update()
-    scene = mi.load_dict({"type": "scene", "cards": mesh})
+    scene = mi.load_dict({"type": "scene", "cards": uv_mesh(mi, "cards", verts, faces, uv)})
     tex = AlphaTexture(af.texture_alpha(af.leaf_texture()), "repeat", "repeat", False)
     table = AlphaTable([AlphaMask(texture=tex, cutoff=af.CUTOFF)], np.array([0]))
     eye, target = af.camera_pose()
@@ -160,17 +155,9 @@ def leaf_closeup(size: int, *, px_per_texel: float) -> FoliageView:
     import mitsuba as mi
 
     span = size / px_per_texel / 256.0  # texture coordinates across the view
-    mesh = mi.Mesh("card", 4, 2, has_vertex_texcoords=True)
-    p = mi.traverse(mesh)
-    p["vertex_positions"] = np.array(
-        [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32
-    ).ravel()
-    p["faces"] = np.array([0, 1, 2, 0, 2, 3], np.uint32)
-    p["vertex_texcoords"] = (
-        np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32) * span + 0.3
-    ).ravel()
-    p.update()
-    scene = mi.load_dict({"type": "scene", "card": mesh})
+    corners = [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]
+    uvs = np.array([[0, 0], [1, 0], [1, 1], [0, 1]]) * span + 0.3
+    scene = mi.load_dict({"type": "scene", "card": uv_mesh(mi, "card", corners, QUAD_FACES, uvs)})
     tex = AlphaTexture(af.texture_alpha(af.leaf_texture()), "repeat", "repeat", False)
     table = AlphaTable([AlphaMask(texture=tex, cutoff=af.CUTOFF)], np.array([0]))
     camera = Camera("orthographic", look_at((0, 0, 5), (0, 0, 0)), size, size, 0.1, 10.0)
