@@ -47,6 +47,7 @@ __all__ = [
     "markdown_table",
     "run_cell",
     "run_detection",
+    "summarize",
 ]
 
 #: Constant depth bias of the claimed technique (normalized depth), as the README's gate.
@@ -80,6 +81,7 @@ METRICS = (
 RECOMMENDED_GATE = {
     "conformance_misclassified_fraction": 0.001,
     "conformance_edge_displacement_px": 0.1,
+    "conformance_flip_mean": 0.001,
 }
 
 #: Params of each fault's faulty engine (on top of the claim; ``None``: not a model param).
@@ -221,30 +223,29 @@ def run_detection(
                         f"{sum(r['caught'] for r in cell)}/{len(cell)} caught "
                         f"({time.perf_counter() - t0:.1f} s)"
                     )
+    return {"claim": CLAIM, "gate": RECOMMENDED_GATE, "rows": rows, "summary": summarize(rows)}
+
+
+def _where(r: dict) -> str:
+    return f"{r['scene']} {r['width']}x{r['height']} map {r['map']}"
+
+
+def summarize(rows: list[dict], gate: dict | None = None) -> dict:
+    """Counts of a table's rows judged by ``gate`` (the recommended one by default; each
+    row's ``caught`` and ``correct_flagged`` are set from it): faults with an effect,
+    caught, missed, without effect, cells whose correct engine is flagged."""
+    for r in rows:
+        r["caught"] = bool(gate_fails(r["faulty"], gate))
+        r["correct_flagged"] = bool(gate_fails(r["correct"], gate))
     effective = [r for r in rows if r["effect"]]
-    summary = {
+    return {
         "rows": len(rows),
         "faults_with_effect": len(effective),
         "caught": sum(r["caught"] for r in effective),
-        "missed": [
-            f"{r['scene']} {r['width']}x{r['height']} map {r['map']}: {r['fault']}"
-            for r in effective
-            if not r["caught"]
-        ],
-        "no_effect": [
-            f"{r['scene']} {r['width']}x{r['height']} map {r['map']}: {r['fault']}"
-            for r in rows
-            if not r["effect"]
-        ],
-        "correct_flagged": sorted(
-            {
-                f"{r['scene']} {r['width']}x{r['height']} map {r['map']}"
-                for r in rows
-                if r["correct_flagged"]
-            }
-        ),
+        "missed": [f"{_where(r)}: {r['fault']}" for r in effective if not r["caught"]],
+        "no_effect": [f"{_where(r)}: {r['fault']}" for r in rows if not r["effect"]],
+        "correct_flagged": sorted({_where(r) for r in rows if r["correct_flagged"]}),
     }
-    return {"claim": CLAIM, "gate": RECOMMENDED_GATE, "rows": rows, "summary": summary}
 
 
 def _fmt(v: float) -> str:

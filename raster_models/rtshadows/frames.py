@@ -35,7 +35,8 @@ STRATUM = 3
 @dataclass
 class Frame:
     """A frame's denoiser inputs (see the module docstring). ``pixel_size``: world size of a
-    pixel at the surface's view depth (NRD's ``PixelRadiusToWorld``); ``grad_*`` ``(Hs, Ws)``
+    pixel at the surface's view depth (NRD's ``PixelRadiusToWorld``); ``n_dot_v`` the cosine
+    between the normal and the direction to the eye; ``grad_*`` ``(Hs, Ws)``
     on the stratum grid (``grad_valid`` False where a stratum has no gradient sample,
     ``grad_index`` the flat pixel index of each stratum's sample)."""
 
@@ -44,7 +45,9 @@ class Frame:
     receiver: np.ndarray
     valid: np.ndarray
     depth: np.ndarray
+    position: np.ndarray
     normal: np.ndarray
+    n_dot_v: np.ndarray
     motion: np.ndarray
     disoccluded: np.ndarray
     depth_previous: np.ndarray
@@ -124,13 +127,21 @@ def build_frame(scene, index: int, previous: Frame | None) -> Frame:
     penumbra = np.full(w * h, 0.0, dtype=F32)
     penumbra[sel] = rays.pack(hit_t[sel])
     depth = np.where(g.valid, g.depth, 0.0)
+    if cam.kind == "perspective":
+        to_eye = cam.position - g.position
+        to_eye /= np.maximum(np.linalg.norm(to_eye, axis=1), 1e-30)[:, None]
+    else:
+        to_eye = np.broadcast_to(-cam.forward, g.position.shape)
+    n_dot_v = np.where(g.valid, np.einsum("ij,ij->i", to_eye, g.normal), 0.0)
     return Frame(
         index=index,
         noisy=noisy.reshape(h, w),
         receiver=recv.reshape(h, w),
         valid=g.valid.reshape(h, w),
         depth=depth.astype(F32).reshape(h, w),
+        position=g.position.astype(F32).reshape(h, w, 3),
         normal=g.normal.astype(F32).reshape(h, w, 3),
+        n_dot_v=n_dot_v.astype(F32).reshape(h, w),
         motion=np.stack([mo["motion_x"], mo["motion_y"]], -1).reshape(h, w, 2),
         disoccluded=mo["disoccluded"].reshape(h, w),
         depth_previous=mo["depth_previous"].reshape(h, w),

@@ -32,13 +32,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..reference.exr import ExrError, read_exr
+from ...reference.exr import ExrError, read_exr
 from .candidates import (
     CandidateError,
     MissingChannelError,
     check_candidate_values,
-    load_candidate,
     png_is_grey,
+    read_png,
 )
 
 __all__ = [
@@ -48,6 +48,7 @@ __all__ = [
     "CandidateLayout",
     "candidate_format",
     "candidate_layout",
+    "load_candidate",
     "read_candidate",
 ]
 
@@ -267,22 +268,70 @@ def read_candidate(
     transfer: str = "srgb",
 ) -> np.ndarray:
     """Read ``path`` as ``layout`` says: ``(H, W, 3)`` linear colour or ``(H, W)`` data in
-    [0, 1]; the same checks as :func:`oracle.scoring.candidates.load_candidate` (size,
+    [0, 1]; the same checks as :func:`load_candidate` (size,
     finite values, range) by kind. ``transfer``: how a PNG's colour is decoded
-    (:data:`oracle.scoring.candidates.TRANSFERS`; EXR colour is linear already)."""
+    (:data:`oracle.scoring.inputs.candidates.TRANSFERS`; EXR colour is linear already)."""
     path = Path(path)
     image = candidate_format(path).read(path, layout, expected_shape, transfer)
     return np.ascontiguousarray(image, dtype=np.float32)
 
 
+def load_candidate(
+    path: str | os.PathLike,
+    *,
+    channel: str = "color",
+    expected_shape: tuple[int, int] | None = None,
+    transfer: str = "srgb",
+) -> np.ndarray:
+    """Read one channel (or RGB group) of an engine's image as float32, by the layout rules
+    of :func:`candidate_layout` (the one set of EXR channel rules).
+
+    Parameters
+    ----------
+    path : ``.exr`` or ``.png`` file (extension compared case-insensitively).
+    channel : a kind, ``"color"`` (linear RGB radiance: an EXR's ``color.R/G/B``, top-level
+        ``R/G/B``, its only ``<layer>.R/G/B`` group or ``Y`` replicated; a PNG's decoded
+        colour) or ``"visibility"`` / ``"coverage"`` (grey data in [0, 1]: the channel of
+        that name, the only ``<layer>.<kind>``, ``Y``, the file's only plain grey channel or
+        equal ``R/G/B``; a PNG's grey values); any other name: an EXR channel of that exact
+        name (``"Z"``, ``"beauty.G"``, returned as it is), else a layer ``<name>.*``.
+    expected_shape : the reference's ``(H, W)``; a candidate of another size is an error.
+    transfer : how a PNG's colour is decoded to linear
+        (:data:`oracle.scoring.inputs.candidates.TRANSFERS`).
+
+    Returns float32, ``(H, W, 3)`` for colour and RGB layers, ``(H, W)`` otherwise; finite;
+    colour non-negative, visibility and coverage in [0, 1].
+
+    Raises
+    ------
+    CandidateError
+        With one line saying what is wrong: file missing, unknown extension, unreadable
+        file, missing channel (the file's are listed), wrong size, NaN or inf values, values
+        out of their kind's range.
+    """
+    path = Path(path)
+    layout = candidate_layout(path, channel=channel)
+    if candidate_format(path) is not FORMATS[".exr"]:
+        return read_candidate(path, layout, expected_shape=expected_shape, transfer=transfer)
+    image = _shape_planes(path, _exr_planes(path, layout), layout)
+    return check_candidate_values(path, image, expected_shape=expected_shape, kind=channel)
+
+
 def _png_read(path: Path, layout: CandidateLayout, expected_shape, transfer) -> np.ndarray:
     """A PNG is read whole: colour decoded by ``transfer``, grey kinds as data."""
     read = "color" if layout.kind == "color" else "visibility"
-    return load_candidate(path, channel=read, expected_shape=expected_shape, transfer=transfer)
+    image = read_png(path, read, transfer)
+    return check_candidate_values(path, image, expected_shape=expected_shape, kind=read)
 
 
 def _exr_read(path: Path, layout: CandidateLayout, expected_shape, transfer) -> np.ndarray:
     """The channels ``layout`` names, shaped and checked by kind."""
+    image = _shape_planes(path, _exr_planes(path, layout), layout)
+    return check_candidate_values(path, image, expected_shape=expected_shape, kind=layout.kind)
+
+
+def _exr_planes(path: Path, layout: CandidateLayout) -> list[np.ndarray]:
+    """The float32 channels ``layout`` names, in order."""
     try:
         chans = read_exr(path)
     except ExrError as exc:
@@ -295,9 +344,7 @@ def _exr_read(path: Path, layout: CandidateLayout, expected_shape, transfer) -> 
             f"candidate {path.name} has no channel {missing[0]!r} (as the first frame "
             f"had); {_listing(chans)}"
         )
-    planes = [np.asarray(chans[n], dtype=np.float32) for n in layout.names]
-    image = _shape_planes(path, planes, layout)
-    return check_candidate_values(path, image, expected_shape=expected_shape, kind=layout.kind)
+    return [np.asarray(chans[n], dtype=np.float32) for n in layout.names]
 
 
 def _png_size(path: Path) -> tuple[int, int]:

@@ -11,7 +11,8 @@ import pytest
 from engine_raster import render, velocity, write_engine_exr
 from raster_oracle.metrics import from_oracle_motion, to_oracle_motion
 from raster_oracle.oracle.cli import main
-from raster_oracle.oracle.scoring.gates import Gate, evaluate_gates
+from raster_oracle.oracle.scoring.ci.checks import Gate
+from raster_oracle.oracle.scoring.ci.gates import evaluate_gates
 from raster_oracle.oracle.scoring.score import score
 from raster_oracle.scenes.formats.export import export
 

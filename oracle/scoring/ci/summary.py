@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...scenes.base.files import atomic_write_bytes
-from ...scenes.base.untrusted import escape_markdown
+from ....scenes.base.files import atomic_write_bytes
+from ....scenes.base.untrusted import escape_markdown
 
 __all__ = ["summary_markdown", "write_summary_md"]
 

@@ -20,9 +20,9 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from ...scenes.base.files import atomic_write_bytes
-from ...scenes.base.untrusted import LIMITS, loads_json, read_bounded
-from .gates import GateError
+from ....scenes.base.files import atomic_write_bytes
+from ....scenes.base.untrusted import LIMITS, loads_json, read_bounded
+from .checks import GateError
 
 __all__ = ["LOCK", "install", "platform_folder", "read_run_record"]
 

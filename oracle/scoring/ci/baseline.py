@@ -20,9 +20,9 @@ import json
 from datetime import UTC, datetime
 from pathlib import Path
 
-from ...scenes.base.records import jsonable
+from ....scenes.base.records import jsonable
 from .baseline_files import install, platform_folder, read_run_record
-from .gates import FOLDER_SCHEMA, METRICS_SCHEMA, GateError
+from .checks import FOLDER_SCHEMA, METRICS_SCHEMA, GateError
 
 __all__ = [
     "BASELINE_SCHEMA",

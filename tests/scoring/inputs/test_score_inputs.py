@@ -74,7 +74,7 @@ def test_grey_png_scored_as_visibility(tmp_path, ref):
 
 
 def test_grey_alpha_and_16bit_png_are_visibility(tmp_path):
-    from raster_oracle.oracle.scoring.layout import candidate_layout
+    from raster_oracle.oracle.scoring.inputs.layout import candidate_layout
 
     la = tmp_path / "la.png"
     Image.fromarray(np.zeros((H, W, 2), np.uint8), mode="LA").save(la)
@@ -101,8 +101,8 @@ def test_two_layers_without_channel_is_exit_2_naming_them(tmp_path, ref, capsys)
 
 
 def test_rgb_plus_coverage_is_ambiguous(tmp_path):
-    from raster_oracle.oracle.scoring.candidates import CandidateError
-    from raster_oracle.oracle.scoring.layout import candidate_layout
+    from raster_oracle.oracle.scoring.inputs.candidates import CandidateError
+    from raster_oracle.oracle.scoring.inputs.layout import candidate_layout
 
     path = tmp_path / "c.exr"
     z = np.zeros((H, W))
@@ -137,7 +137,7 @@ def test_channel_finds_engine_layers(tmp_path, ref, capsys):
 
 
 def test_layer_with_rgb_is_colour_and_kind_overrides(tmp_path):
-    from raster_oracle.oracle.scoring.layout import candidate_layout
+    from raster_oracle.oracle.scoring.inputs.layout import candidate_layout
 
     path = tmp_path / "c.exr"
     z = np.zeros((H, W))
@@ -216,16 +216,17 @@ def test_memory_estimate_grows_with_size_spp_and_channels():
 
 def test_small_reference_not_refused_with_little_memory(monkeypatch):
     from raster_oracle.oracle.reference import render
+    from raster_oracle.oracle.reference import settings as settings_module
     from raster_oracle.oracle.reference.render import ReferenceSettings, ReferenceSettingsError
 
     from raster_oracle import scenes
 
     loaded = scenes.load("plate", width=320, height=180)
     settings = ReferenceSettings(spp=64, channels=("visibility", "edge", "id"))
-    monkeypatch.setattr(render, "available_memory", lambda: int(1.4 * 2**30))
+    monkeypatch.setattr(settings_module, "available_memory", lambda: int(1.4 * 2**30))
     channels, _ = render.render_reference(loaded, settings, quiet=True)
     assert channels["visibility"].shape == (180, 320)
-    monkeypatch.setattr(render, "available_memory", lambda: 32 << 20)
+    monkeypatch.setattr(settings_module, "available_memory", lambda: 32 << 20)
     with pytest.raises(ReferenceSettingsError, match=r"320x180 reference at 64 spp needs about"):
         render.render_reference(loaded, settings, quiet=True)
 
@@ -368,7 +369,7 @@ def test_score_folder_by_scene_and_frame(tmp_path, capsys):
 
 
 def test_candidate_name_never_the_raw_pattern():
-    from raster_oracle.oracle.scoring.request import candidate_name
+    from raster_oracle.oracle.scoring.inputs.frames import candidate_name
 
     pat = "out/frame_{frame:03d}.exr"
     assert candidate_name(pat, frames=8, camera_path="dolly") == "dolly frames 0-7"

@@ -9,7 +9,8 @@ import pytest
 from PIL import Image
 from raster_oracle.metrics import srgb_decode
 from raster_oracle.oracle.reference.exr import write_exr
-from raster_oracle.oracle.scoring.candidates import CandidateError, load_candidate
+from raster_oracle.oracle.scoring.inputs.candidates import CandidateError
+from raster_oracle.oracle.scoring.inputs.layout import load_candidate
 
 H, W = 6, 10
 # 8-bit PNG values decoded in float32: exact up to float32 rounding of the sRGB curve.
@@ -172,17 +173,18 @@ def test_missing_channel_lists_available(tmp_path, rgb):
     path = tmp_path / "c.exr"
     write_exr(path, {"depth": rgb[..., 0], "normal.X": rgb[..., 1]})
     with pytest.raises(
-        CandidateError, match=r"has no channel 'color'; available: depth, normal\.X$"
+        CandidateError, match=r"has no channel 'color'; channels: depth, normal\.X; layers: normal$"
     ):
         load_candidate(path)
-    with pytest.raises(CandidateError, match="has no channel 'visibility'"):
+    with pytest.raises(CandidateError, match="several grey channels for visibility; pick one"):
         load_candidate(path, channel="visibility")
 
 
-def test_visibility_from_unequal_rgb_exr_is_missing(tmp_path, rgb):
+def test_visibility_from_unequal_rgb_exr_is_an_error(tmp_path, rgb):
+    # the layout's rule (what `score` reads): grey data stored as R, G, B must be equal
     path = tmp_path / "c.exr"
     write_exr(path, {c: rgb[..., i] for i, c in enumerate("RGB")})
-    with pytest.raises(CandidateError, match="has no channel 'visibility'; available: B, G, R"):
+    with pytest.raises(CandidateError, match="has unequal R, G, B: visibility needs one grey"):
         load_candidate(path, channel="visibility")
 
 

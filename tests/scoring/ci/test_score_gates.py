@@ -345,7 +345,8 @@ def test_tune_target_must_be_lower_is_better():
 
 
 def test_a_null_or_nan_value_cannot_be_judged():
-    from raster_oracle.oracle.scoring.gates import GateError, evaluate_gates, parse_gates
+    from raster_oracle.oracle.scoring.ci.checks import GateError
+    from raster_oracle.oracle.scoring.ci.gates import evaluate_gates, parse_gates
 
     record = {"channel": "visibility", "visibility_mae": 0.01, "noise_floor": {}}
     (check,) = evaluate_gates(parse_gates(["visibility_mae=0.02"]), record)
@@ -357,7 +358,8 @@ def test_a_null_or_nan_value_cannot_be_judged():
 
 
 def test_judge_gates_a_record_as_the_cli_does(tmp_path, capsys, cands):
-    from raster_oracle.oracle.scoring.gates import GateError, judge
+    from raster_oracle.oracle.scoring.ci.checks import GateError
+    from raster_oracle.oracle.scoring.ci.gates import judge
 
     vis = ["--channel", "visibility"]
     _, first, _, _ = _score(tmp_path, capsys, cands["exact_vis"], *vis, out="first")
@@ -452,7 +454,7 @@ def test_inferred_kind_decides_which_gates_apply(tmp_path, capsys, cands):
 
 
 def test_baseline_values_that_are_not_numbers_are_left_out():
-    from raster_oracle.oracle.scoring.gates import compare_baseline
+    from raster_oracle.oracle.scoring.ci.regression import compare_baseline
 
     scene = {"name": "plate", "resolution": [48, 27], "light_index": 0}
     mine = {
@@ -475,8 +477,8 @@ def test_baseline_values_that_are_not_numbers_are_left_out():
 def test_markdown_summary_first_screen_groups_regressions_by_case():
     """An intended change that moves 20 metrics of one case is one first-screen row (its
     count and first metrics), with every check still listed in the details table."""
-    from raster_oracle.oracle.scoring.gates import Check, Verdict
-    from raster_oracle.oracle.scoring.summary import summary_markdown
+    from raster_oracle.oracle.scoring.ci.checks import Check, Verdict
+    from raster_oracle.oracle.scoring.ci.summary import summary_markdown
 
     moved = [
         Check(f"baseline m{i}", f"m{i}", False, f"REGRESSION m{i}", kind="baseline")

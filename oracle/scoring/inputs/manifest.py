@@ -46,13 +46,14 @@ import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ...scenes import SceneError
-from ...scenes.base.untrusted import LIMITS as FILE_LIMITS
-from ...scenes.base.untrusted import json_depth, read_text
-from ...scenes.formats.inputs import named_input
+from ....scenes import SceneError
+from ....scenes.base.untrusted import LIMITS as FILE_LIMITS
+from ....scenes.base.untrusted import json_depth, read_text
+from ....scenes.formats.inputs import named_input
+from ..ci.checks import Gate, GateError
+from ..ci.gates import parse_gates
+from ..options import VISIBILITY_CONVENTIONS
 from .candidates import TRANSFERS
-from .gates import Gate, GateError, parse_gates
-from .options import VISIBILITY_CONVENTIONS
 from .out_names import check_out_name, relative_file
 
 __all__ = [
@@ -179,7 +180,7 @@ def _gates(table: dict, where: str) -> list[Gate]:
     profiles = table.get("profiles", [])
     if not isinstance(profiles, list) or not all(isinstance(p, str) for p in profiles):
         raise ManifestError(f"{where}.profiles must be a list of names, got {profiles!r}")
-    from .engine_gates import profile_gates
+    from ..ci.profiles import profile_gates
 
     try:
         gates = profile_gates(profiles, error=ManifestError, origin=f"{where}.profiles")
@@ -193,7 +194,7 @@ def _gates(table: dict, where: str) -> list[Gate]:
 def _baseline(table: dict, where: str) -> dict:
     """``baseline_metrics`` (a list of keys or ``"all"``) and ``baseline_tolerance`` (metric
     -> a number or a percentage string such as ``"5%"``) of one level."""
-    from .gates import parse_baseline_metrics, parse_tolerance
+    from ..ci.regression import parse_baseline_metrics, parse_tolerance
 
     out = {}
     try:

@@ -1,5 +1,6 @@
 """The cases of a folder run, built in the library: from a folder's layout
-(:func:`oracle.scoring.folder.discover`) or a CI manifest (:mod:`oracle.scoring.manifest`).
+(:func:`oracle.scoring.inputs.folder_layout.discover`) or a CI manifest
+(:mod:`oracle.scoring.inputs.manifest`).
 
 Each case's scene is loaded, its candidate layout resolved once (frame 0's file, its size
 checked against the scene's) and its options fixed; the command line (``score-folder``) and
@@ -12,12 +13,13 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from ... import metrics as M
+from .... import metrics as M
+from ..ci.regression import BaselineOptions
+from ..folder import FolderCase
+from ..options import ScoreOptions
+from ..result import ScoreError
 from .candidates import CandidateError, MissingChannelError
-from .folder import FolderCase, discover
-from .gates import BaselineOptions
-from .options import ScoreOptions
-from .result import ScoreError
+from .folder_layout import discover
 
 __all__ = [
     "FolderOptions",
@@ -40,9 +42,9 @@ def resolve_layout(pattern: str, *, channel, kind, loaded, log=print):
     """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
     ``channel`` / ``kind``, logged as one line, after checking its size against
     ``loaded``'s (a :class:`ScoreError` naming the export or the size to pass)."""
-    from ...scenes.formats.inputs import nearest_export
+    from ....scenes.formats.inputs import nearest_export
+    from .frames import frame_file
     from .layout import candidate_layout
-    from .request import frame_file
 
     first = Path(frame_file(pattern, 0))
     layout = candidate_layout(first, channel=channel, kind=kind)
@@ -68,7 +70,7 @@ class FolderOptions(dict):
     """Options of a folder run given by the caller (command line or API), each None where
     the manifest (or the default) decides: ``spp``, ``seed``, ``flip_mode``, ``transfer``,
     ``expect``, ``channel``, ``kind``, ``camera_path``, ``visibility``, ``exports``;
-    ``quiet`` and ``platform``."""
+    ``quiet``, ``platform`` and ``exact_budget``."""
 
     def pick(self, key, manifest_value=None, default=None):
         given = self.get(key)
@@ -85,6 +87,7 @@ def _score_options(fo: FolderOptions, manifest=None, **case) -> ScoreOptions:
         ppd=M.DEFAULT_PPD,
         quiet=bool(fo.get("quiet", True)),
         platform=fo.get("platform"),
+        exact_budget=fo.get("exact_budget"),
         **case,
     ).validate()
 
@@ -93,7 +96,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
     """The cases of ``root``'s layout (every one checked: a problem is a
     :class:`ScoreError`, except a file that lacks the channel asked for: that scene's own
     error, the others scored)."""
-    from ...scenes.formats.inputs import load_input, named_input
+    from ....scenes.formats.inputs import load_input, named_input
 
     entries = discover(root)
     if {e.name for e in entries} & {"metrics.json", "report.html", "report.json"}:
@@ -136,9 +139,9 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
 def _manifest(root: Path, path, fo: FolderOptions, gates, log) -> list[FolderCase]:
     """The cases of a manifest: a bad manifest, scene or option is a :class:`ScoreError`; a
     missing file or layer is that case's own error."""
-    from ...scenes.formats.inputs import load_input
+    from ....scenes.formats.inputs import load_input
+    from .frames import frame_file
     from .manifest import read_manifest
-    from .request import frame_file
 
     if fo.get("channel") is not None or fo.get("kind") is not None:
         raise ScoreError("--channel and --kind are given per scene in --manifest")
@@ -219,9 +222,9 @@ def run_folder(
     previous folder run's ``metrics.json``, its folder, or a baseline folder of ``baseline
     accept``: the platform's) before anything is rendered, and score them
     (:func:`oracle.scoring.folder.score_folder`); returns ``(cases, run)``."""
-    from .baseline import check_platform, resolve_baseline
-    from .folder import score_folder
-    from .gates import check_baseline_scene, load_folder_baseline
+    from ..ci.baseline import check_platform, resolve_baseline
+    from ..ci.regression import check_baseline_scene, load_folder_baseline
+    from ..folder import score_folder
 
     fo = FolderOptions(options or {})
     platform = check_platform(fo.get("platform"))

@@ -309,7 +309,7 @@ def test_help_and_docs_say_what_the_commands_do(capsys):
     assert main(["score", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "default dolly" not in text and "--transfer" in text and "--baseline-strict" in text
-    cli = (Path(__file__).parent.parent / "docs" / "cli.md").read_text()
+    cli = (Path(__file__).resolve().parents[2] / "docs" / "cli.md").read_text()
     assert "RASTER_ORACLE_CACHE_DIR" in cli and "for\na glTF scene, `scene.glb`" in cli
 
 
@@ -334,7 +334,7 @@ def test_subpixel_shift_of_a_shadow_mask_is_named(engine_files, tmp_path, capsys
 
 
 def test_manifest_reads_transfer_expect_and_baseline_keys(tmp_path):
-    from raster_oracle.oracle.scoring.manifest import ManifestError, read_manifest
+    from raster_oracle.oracle.scoring.inputs.manifest import ManifestError, read_manifest
 
     path = tmp_path / "ci.toml"
     path.write_text(

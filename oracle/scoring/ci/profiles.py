@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from ...metrics import engine_gates as G
-from .gates import Gate
+from ....metrics import engine_gates as G
+from .checks import Gate
 
 __all__ = ["EDGE_AWARE_LIMIT", "GATE_PROFILES", "profile_gates"]
 

@@ -21,20 +21,15 @@ import pytest
 from _bounded import bounded
 from raster_oracle.oracle.certify import verdict as V
 from raster_oracle.oracle.cli.args import MAX_SPP
-from raster_oracle.oracle.scoring import manifest as M
-from raster_oracle.oracle.scoring.baseline import accept_baseline, resolve_baseline
+from raster_oracle.oracle.scoring.ci.baseline import accept_baseline, resolve_baseline
+from raster_oracle.oracle.scoring.ci.checks import METRICS_SCHEMA, Check, GateError, Verdict
+from raster_oracle.oracle.scoring.ci.junit import junit_xml
+from raster_oracle.oracle.scoring.ci.regression import load_baseline
+from raster_oracle.oracle.scoring.ci.summary import summary_markdown
 from raster_oracle.oracle.scoring.folder import FolderCase, score_folder
-from raster_oracle.oracle.scoring.gates import (
-    METRICS_SCHEMA,
-    Check,
-    GateError,
-    Verdict,
-    junit_xml,
-    load_baseline,
-)
-from raster_oracle.oracle.scoring.out_names import case_folder
+from raster_oracle.oracle.scoring.inputs import manifest as M
+from raster_oracle.oracle.scoring.inputs.out_names import case_folder
 from raster_oracle.oracle.scoring.score import ScoreError
-from raster_oracle.oracle.scoring.summary import summary_markdown
 from raster_oracle.scenes import backend
 from raster_oracle.scenes.base import untrusted as U
 from raster_oracle.scenes.camera import Camera
@@ -935,7 +930,7 @@ def test_every_manifest_field_of_every_type_is_refused_or_read(tmp_path):
 def test_every_baseline_record_field_of_every_type_is_refused_or_compared(tmp_path):
     """A previous run's metrics.json with each field set to each hostile value: read and
     compared with this run's record, or refused (GateError); never another exception."""
-    from raster_oracle.oracle.scoring.gates import compare_baseline
+    from raster_oracle.oracle.scoring.ci.regression import compare_baseline
 
     record = {
         "schema": METRICS_SCHEMA,

@@ -1,21 +1,15 @@
-"""Load an image exported by an external engine as a candidate to score against a reference.
+"""An external engine's candidate image: its errors, its value checks, the PNG reader and the
+EXR motion layer. Which EXR channels are read is decided in one place,
+:mod:`oracle.scoring.inputs.layout` (:func:`~oracle.scoring.inputs.layout.load_candidate`).
 
-Supported files:
-
-- **EXR** (any channel layout, read with the OpenEXR 3.x API through
-  :func:`oracle.reference.exr.read_exr`): ``R/G/B``, a layer ``name.R/name.G/name.B``, luminance
-  ``Y``, or named channels such as ``visibility``. Half, float and uint channels are
-  returned as float32. Values are taken as linear.
+- **EXR**: values are taken as linear; half, float and uint channels are returned as float32.
 - **PNG**: 8-bit grey/grey+alpha/RGB/RGBA/palette and 16-bit grey (via Pillow), 16-bit
   RGB/RGBA (via pypng: Pillow would reduce them to 8 bits a channel). Colour is
   taken as sRGB-encoded (what engines write to PNG) and decoded to linear. A grey PNG read
   as ``visibility`` is *data*, not colour: its values are scaled to [0, 1] (``v / 255`` or
   ``v / 65535``) and **not** sRGB-decoded, so 50 % visibility is stored as 128 (8-bit).
 
-``channel`` picks what to read: ``"color"`` returns ``(H, W, 3)`` linear radiance,
-``"visibility"`` returns ``(H, W)`` in [0, 1]; any other name is looked up in an EXR as a
-channel (``"Z"``, ``"color.R"``) or a layer (``"diffuse"`` -> ``diffuse.R/G/B``). Alpha is
-ignored everywhere.
+Alpha is ignored everywhere.
 """
 
 from __future__ import annotations
@@ -28,9 +22,9 @@ from pathlib import Path
 import numpy as np
 import png
 
-from ...scenes.base.arrays import nonfinite_counts
-from ..errors import InputError, InputWarning
-from ..reference.exr import ExrError, read_exr
+from ....scenes.base.arrays import nonfinite_counts
+from ...errors import InputError, InputWarning
+from ...reference.exr import ExrError, read_exr
 
 __all__ = [
     "DATA_RANGE_EPSILON",
@@ -39,9 +33,9 @@ __all__ = [
     "CandidateWarning",
     "MissingChannelError",
     "check_candidate_values",
-    "load_candidate",
     "load_motion",
     "png_is_grey",
+    "read_png",
     "TRANSFERS",
     "decode_transfer",
 ]
@@ -54,8 +48,6 @@ DATA_RANGE_EPSILON = 1e-4
 #: ringing of a reconstruction filter or a resolve's float rounding, not a wrong image.
 RADIANCE_EPSILON = 1e-4
 
-_RGB = ("R", "G", "B")
-_ALPHA = ("A",)
 #: How an 8/16-bit PNG's colour is decoded to linear radiance (``--transfer``).
 TRANSFERS = ("srgb", "gamma2.2", "linear")
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -74,67 +66,6 @@ class MissingChannelError(CandidateError):
 
 class CandidateWarning(InputWarning):
     """A candidate's values just outside their range were clamped (count and extremes)."""
-
-
-def load_candidate(
-    path: str | os.PathLike,
-    *,
-    channel: str = "color",
-    expected_shape: tuple[int, int] | None = None,
-    transfer: str = "srgb",
-) -> np.ndarray:
-    """Read one channel (or RGB group) of an engine's image as float32.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        ``.exr`` or ``.png`` file (extension compared case-insensitively).
-    channel : str, keyword-only
-        ``"color"``: linear RGB radiance, from (in this order) an EXR layer ``color.R/G/B``,
-        top-level ``R/G/B``, the only ``<layer>.R/G/B`` group, or ``Y`` replicated; from a
-        PNG, its sRGB-decoded colour (grey replicated).
-        ``"visibility"``: visibility in [0, 1], 1 = lit, from (in this order) an EXR channel
-        ``visibility``, the only ``<layer>.visibility``, ``Y``, the file's only non-alpha
-        channel, or equal ``R/G/B``; from a PNG, its grey values as data (not decoded).
-        Any other name: an EXR channel of that exact name, else a layer ``<name>.R/G/B``.
-    expected_shape : (int, int) or None, keyword-only
-        The reference's ``(H, W)``; a candidate of another size is an error.
-    transfer : str, keyword-only
-        How a PNG's colour is decoded to linear (:data:`TRANSFERS`): ``srgb`` (the sRGB
-        curve, default), ``gamma2.2`` (a pure 2.2 power, what many GL samples write) or
-        ``linear`` (the values as they are).
-
-    Returns
-    -------
-    numpy.ndarray
-        float32, ``(H, W, 3)`` for colour and RGB layers, ``(H, W)`` otherwise; row 0 at
-        the top; finite; colour non-negative, visibility in [0, 1].
-
-    Raises
-    ------
-    CandidateError
-        With one line saying what is wrong: file missing, unknown extension, truncated or
-        unreadable file, missing channel (the available ones are listed), wrong size
-        (``candidate is 640x360, the reference is 960x540``), NaN or inf values (counted),
-        negative radiance or visibility outside [0, 1].
-    """
-    path = Path(path)
-    if not isinstance(channel, str) or not channel:
-        raise CandidateError(f"channel must be a non-empty string, got {channel!r}")
-    if not path.is_file():
-        raise CandidateError(f"candidate file not found: {path}")
-    suffix = path.suffix.lower()
-    if suffix == ".exr":
-        image = _load_exr(path, channel)
-    elif suffix == ".png":
-        image = _load_png(path, channel, transfer)
-    else:
-        raise CandidateError(
-            f"unknown candidate file extension {path.suffix or '(none)'!r} for {path.name}; "
-            "expected .exr or .png"
-        )
-    _check_shape(path, image, expected_shape)
-    return _check_values(path, image, channel)
 
 
 def check_candidate_values(path, image: np.ndarray, *, expected_shape, kind: str) -> np.ndarray:
@@ -226,29 +157,7 @@ def _check_values(path: Path, image: np.ndarray, channel: str) -> np.ndarray:
     return np.clip(image, low, high).astype(np.float32)
 
 
-# --------------------------------------------------------------------------- EXR
-
-
-def _load_exr(path: Path, channel: str) -> np.ndarray:
-    try:
-        raw = read_exr(path)
-    except ExrError as exc:
-        raise CandidateError(
-            f"candidate {path.name} is truncated or not a readable EXR ({exc})"
-        ) from exc
-    chans = {name: np.asarray(a, dtype=np.float32) for name, a in raw.items()}
-    if channel == "color":
-        image = _exr_color(chans)
-    elif channel == "visibility":
-        image = _exr_visibility(chans)
-    else:
-        image = _exr_named(chans, channel)
-    if image is None:
-        available = ", ".join(sorted(chans))
-        raise MissingChannelError(
-            f"candidate {path.name} has no channel {channel!r}; available: {available}"
-        )
-    return np.ascontiguousarray(image, dtype=np.float32)
+# --------------------------------------------------------------------------- EXR motion
 
 
 def load_motion(
@@ -269,7 +178,7 @@ def load_motion(
     CandidateError
         Not an EXR, no such layer or channel (listing the channels), wrong size, NaN or inf.
     """
-    from ... import metrics as M
+    from .... import metrics as M
 
     path = Path(path)
     if path.suffix.lower() != ".exr":
@@ -308,59 +217,6 @@ def load_motion(
     return mv, mask
 
 
-def _group(chans: dict, prefix: str) -> np.ndarray | None:
-    names = [prefix + c for c in _RGB]
-    if all(n in chans for n in names):
-        return np.stack([chans[n] for n in names], axis=-1)
-    return None
-
-
-def _rgb_layers(chans: dict) -> list[str]:
-    """Layer prefixes ``"name."`` that hold a complete R/G/B group."""
-    prefixes = {n[: -len(c)] for n in chans for c in _RGB if n.endswith("." + c)}
-    return sorted(p for p in prefixes if _group(chans, p) is not None)
-
-
-def _exr_color(chans: dict) -> np.ndarray | None:
-    for prefix in ("color.", ""):
-        rgb = _group(chans, prefix)
-        if rgb is not None:
-            return rgb
-    layers = _rgb_layers(chans)
-    if len(layers) == 1:
-        return _group(chans, layers[0])
-    if "Y" in chans:
-        return np.repeat(chans["Y"][..., None], 3, axis=-1)
-    return None
-
-
-def _exr_visibility(chans: dict) -> np.ndarray | None:
-    if "visibility" in chans:
-        return chans["visibility"]
-    layered = [n for n in chans if n.endswith(".visibility")]
-    if len(layered) == 1:
-        return chans[layered[0]]
-    if "Y" in chans:
-        return chans["Y"]
-    data = [n for n in chans if n not in _ALPHA]
-    if len(data) == 1:
-        return chans[data[0]]
-    rgb = _group(chans, "")
-    if (
-        rgb is not None
-        and np.array_equal(rgb[..., 0], rgb[..., 1])
-        and np.array_equal(rgb[..., 0], rgb[..., 2])
-    ):
-        return rgb[..., 0]
-    return None
-
-
-def _exr_named(chans: dict, channel: str) -> np.ndarray | None:
-    if channel in chans:
-        return chans[channel]
-    return _group(chans, channel + ".")
-
-
 # --------------------------------------------------------------------------- PNG
 
 
@@ -376,7 +232,7 @@ def _png_header(path: Path) -> tuple[int, int]:
 
 def decode_transfer(values: np.ndarray, transfer: str) -> np.ndarray:
     """Encoded display values in [0, 1] -> linear, by ``transfer`` (:data:`TRANSFERS`)."""
-    from ...metrics.tonemap import srgb_decode
+    from ....metrics.tonemap import srgb_decode
 
     if transfer == "srgb":
         return srgb_decode(values)
@@ -387,7 +243,10 @@ def decode_transfer(values: np.ndarray, transfer: str) -> np.ndarray:
     raise CandidateError(f"transfer must be one of {', '.join(TRANSFERS)}, got {transfer!r}")
 
 
-def _load_png(path: Path, channel: str, transfer: str = "srgb") -> np.ndarray:
+def read_png(path: Path, channel: str, transfer: str = "srgb") -> np.ndarray:
+    """A PNG's pixels as ``channel`` (``color``: decoded by ``transfer`` to linear, grey
+    replicated; ``visibility``: grey values as data in [0, 1]), unchecked; the one PNG
+    reader (:func:`oracle.scoring.inputs.layout.read_candidate` checks the values)."""
     from PIL import Image
 
     if channel not in ("color", "visibility"):
