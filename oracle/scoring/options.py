@@ -35,7 +35,7 @@ class ScoreOptions:
     gate_frames : the gates judge the mean over the last N frames (None: all frames), so a
         temporal technique's warm-up neither passes nor fails a build.
     motion : an engine's motion-vector layer (``layer``, ``convention``, optional
-        ``disocclusion``; :func:`oracle.scoring.request.file_candidate`), scored against the
+        ``disocclusion``; :func:`oracle.scoring.inputs.frames.file_candidate`), scored against the
         reference's motion (candidates only).
     transfer : how an 8/16-bit PNG candidate's colour is decoded to linear: ``srgb``,
         ``gamma2.2`` or ``linear`` (None: ``srgb``; an EXR is linear and takes none).
@@ -71,7 +71,7 @@ class ScoreOptions:
             )
         if str(self.flip_mode).upper() not in ("LDR", "HDR"):
             raise ScoreError(f"flip mode must be LDR or HDR, got {self.flip_mode!r}")
-        from .candidates import TRANSFERS
+        from .inputs.candidates import TRANSFERS
 
         if self.transfer is not None and self.transfer not in TRANSFERS:
             raise ScoreError(

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import backend
-from ..catalogue import meshes as _meshes
+from . import meshes as _meshes
 
 __all__ = ["CURVED_ERROR_PX", "CURVED_SEGMENTS", "MEMO_KEY", "TriangleSet", "scene_triangle_set"]
 
@@ -44,7 +44,7 @@ class TriangleSet:
 
 def _curved_mesh(mi, shape, n: int):
     """Inscribed tessellation ``(verts, faces, chord_error)`` of a sphere, cylinder or disk."""
-    from ..formats.export import _tessellate_sphere
+    from .tessellation import tessellate_sphere as _tessellate_sphere
 
     kind = shape.class_name()
     m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
@@ -116,7 +116,7 @@ def scene_triangle_set(loaded) -> TriangleSet:
     cached = memo.get(key)
     if cached is not None:
         return cached
-    from ..formats.export import shape_mesh
+    from .tessellation import shape_mesh
 
     parts, shape_of, slack = [], [], []
     for i, sh in enumerate(loaded.mi_scene.shapes()):  # a loop over shapes, not triangles
