@@ -100,7 +100,7 @@ def cmd_score_folder(args) -> int:
         "exports": args.exports,
         "quiet": args.quiet,
         "platform": args.platform,
-        "exact_budget": args.exact_budget,
+        "exact_budget": A.exact_budget(args),
     }
     cases, run = run_folder(
         args.root,

@@ -59,7 +59,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
-    exact_budget: float | None = None
+    exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of

@@ -21,6 +21,7 @@ from ... import metrics as M
 from ...metrics.aliasing import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, coverage_metrics
 from ...metrics.temporal import added_flicker
 from ..reference.render import ReferenceSettings
+from ..reference.settings import ExactBudget
 from ..reference.store import get_reference
 from .channels import (
     CHANNEL_KIND,
@@ -150,7 +151,7 @@ def score(
     floor_cache: dict | None = None,
     coverage_only: bool = False,
     gate_frames: int | None = None,
-    exact_budget: float | None = None,
+    exact_budget: ExactBudget | float | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
@@ -181,6 +182,8 @@ def score(
     groups = REFERENCE_GROUPS[channel]
     opts = dict(spp=spp, seed=seed, groups=groups, cache=cache, quiet=quiet, ppd=ppd)
     opts.update(flip_mode=flip_mode, aa_samples=aa_samples, coverage_only=coverage_only)
+    # one budget for every reference of the score (frames, noise floors)
+    exact_budget = ExactBudget.of(exact_budget)
     opts.update(floor_cache=floor_cache, budget=exact_budget)
     noise = ReferenceSettings(
         spp=spp, seed=seed + 1, channels=groups, exact_budget=exact_budget
