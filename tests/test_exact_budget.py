@@ -175,6 +175,7 @@ def test_the_exact_pass_stops_at_its_deadline_and_says_so(tmp_path, monkeypatch,
     assert record["decision"].startswith("over budget after ")
     assert record["budget_seconds"] == 1.0
     assert 1.0 <= record["seconds"] <= 1.0 + DEADLINE_SLACK_S
+    assert record["estimate"]["seconds"] == 0.0  # what the blind estimate said
     assert not read_exr(out / "reference.exr")["coverage_exact_valid"].any()
     err = [line for line in capsys.readouterr().err.splitlines() if "coverage_exact" in line]
     assert len(err) == 1 and "stopped" in err[0] and "over budget after" in err[0]

@@ -213,6 +213,8 @@ def exact_channels(
         )
         record = {"decision": f"over budget after {used:.1f} s"}
         record["seconds"] = time.perf_counter() - t0
+        if getattr(exc, "estimate", None) is not None:
+            record["estimate"] = exc.estimate
         return _no_exact(loaded, {**record, **_budget_record(clock, spent_before)})
     except NotExact as exc:
         # geometry float64 cannot clip exactly (coordinates of 1e30): said, not passed off

@@ -168,7 +168,6 @@ def exact_coverage_of(
     """
     t0 = time.perf_counter()
     cam = camera
-    w, h = cam.width, cam.height
     off = np.asarray(grid_offset, dtype=np.float64)
     if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
         raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
@@ -183,6 +182,17 @@ def exact_coverage_of(
     if est["triangles"] == 0:  # nothing between the near and far planes in view
         return _empty_view(cam, centre, est, t0)
     stop = deadline_check(check, deadline, t0)
+    try:
+        return _run_paths(cam, tset, centre, off, est, (budget, stop, t0))
+    except OutOfTime as exc:
+        exc.estimate = est  # what the estimate said of the work the deadline stopped
+        raise
+
+
+def _run_paths(cam, tset, centre, off, est, limits) -> ExactCoverage:
+    """The layered path where it pays (and the shapes allow it), else the polygon path."""
+    budget, stop, t0 = limits
+    w, h = cam.width, cam.height
     polys, tri_idx = project(cam, tset.tris, stop)
     polys, tri_idx = tile(polys, tri_idx, w, h)
     poly_s = polygon_seconds(est)
