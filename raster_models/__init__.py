@@ -44,9 +44,13 @@ from .shadowmaps import CsmParams, SdsmParams, ShadowMapParams
 
 #: Names of the output channels every model writes (``output.exr``).
 OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_error", "uncovered")
+#: Written besides by the shadow models' compare filters (point, hw_pcf, pcf, poisson,
+#: three_pcf): each receiver's compare margin (:mod:`.shadowmaps.margins`).
+COMPARE_OUTPUT_CHANNELS = ("compare_margin",)
 
 __all__ = [
     "AA_OUTPUT_CHANNELS",
+    "COMPARE_OUTPUT_CHANNELS",
     "FAMILIES",
     "OUTPUT_CHANNELS",
     "TECHNIQUES",

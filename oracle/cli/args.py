@@ -254,7 +254,8 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
 
 
 def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
-    """``--exact-budget SECONDS`` (see :func:`oracle.reference.render.set_exact_budget`)."""
+    """``--exact-budget SECONDS``: the references' ``exact_budget`` setting
+    (:class:`oracle.reference.settings.ReferenceSettings`), handed to them by the command."""
     p.add_argument(
         "--exact-budget",
         type=nonneg_float,

@@ -15,7 +15,15 @@ from dataclasses import dataclass, replace
 
 from ..base.memory import available_memory, gib
 from ..base.numbers import parse_int
-from . import aa_scenes, moving_scenes, pbr_scenes, scale_scenes, shadow_scenes, soft_scenes
+from . import (
+    aa_scenes,
+    event_scenes,
+    moving_scenes,
+    pbr_scenes,
+    scale_scenes,
+    shadow_scenes,
+    soft_scenes,
+)
 
 __all__ = [
     "BUILTIN_SCENES",
@@ -119,6 +127,12 @@ BUILTIN_SCENES.update(
 # Soft-shadow scenes (soft-contact: an area light; stacked-casters): see .soft_scenes.
 BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
+)
+
+# Event scenes for temporal shadow denoisers (flicker-, occluder-, pan- x sun, rect): see
+# scenes.catalogue.event_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in event_scenes.EVENT_SCENES.items()}
 )
 
 # Scenes of real size, their size a parameter (meadow:n=1000000): see scenes.catalogue.scale_scenes.
