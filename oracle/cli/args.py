@@ -52,11 +52,20 @@ def input_errors() -> tuple[type[BaseException], ...]:
     """
     from ...metrics import MetricError
     from ...raster_models import ModelError
-    from ...scenes import SceneError
+    from ...scenes import SceneError, SceneParamError
     from ...scenes.backend import BackendError
     from ...scenes.base.untrusted import UntrustedError
 
-    return (InputError, SceneError, BackendError, MetricError, ModelError, UntrustedError)
+    return (
+        InputError,
+        SceneError,
+        SceneParamError,
+        BackendError,
+        MetricError,
+        ModelError,
+        UntrustedError,
+        NumberError,
+    )
 
 
 class Parser(argparse.ArgumentParser):
