@@ -51,9 +51,13 @@ from .shadowmaps import CsmParams, SdsmParams, ShadowMapParams
 #: Names of the output channels every hard-shadow model writes (``output.exr``); AA models'
 #: are :data:`AA_OUTPUT_CHANNELS`.
 OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_error", "uncovered")
+#: Written besides by the shadow models' compare filters (point, hw_pcf, pcf, poisson,
+#: three_pcf): each receiver's compare margin (:mod:`.shadowmaps.margins`).
+COMPARE_OUTPUT_CHANNELS = ("compare_margin",)
 
 __all__ = [
     "AA_OUTPUT_CHANNELS",
+    "COMPARE_OUTPUT_CHANNELS",
     "FAMILIES",
     "OUTPUT_CHANNELS",
     "TECHNIQUES",

@@ -444,7 +444,7 @@ def score_folder(
     quiet: bool = True,
 ) -> dict:
     """Score a folder of engine images as ``raster-oracle score-folder ROOT`` does (the same
-    library function, :func:`oracle.scoring.folder_cases.run_folder`): ``ROOT``'s layout, or
+    library function, :func:`oracle.scoring.inputs.folder_cases.run_folder`): ``ROOT``'s layout, or
     the CI manifest ``manifest``; every case into ``out/<case>/``, the combined record into
     ``out/metrics.json`` and ``out/report.html``.
 
@@ -459,16 +459,15 @@ def score_folder(
     ``failed``, ``errors``, ``baseline``, ``exit_code``); bad input raises
     :class:`InputError` before anything is scored.
     """
-    from .oracle.scoring.engine_gates import profile_gates
-    from .oracle.scoring.folder_cases import run_folder
-    from .oracle.scoring.gates import (
+    from .oracle.scoring.ci.checks import GateError
+    from .oracle.scoring.ci.gates import limit_texts, parse_gates
+    from .oracle.scoring.ci.profiles import profile_gates
+    from .oracle.scoring.ci.regression import (
         BaselineOptions,
-        GateError,
-        limit_texts,
         parse_baseline_metrics,
-        parse_gates,
         parse_tolerance,
     )
+    from .oracle.scoring.inputs.folder_cases import run_folder
 
     gates = profile_gates(profiles, error=GateError)
     gates += parse_gates(limit_texts(fail_above, "<="), limit_texts(fail_below, ">="))
@@ -531,7 +530,7 @@ def check(
     0.9}``, one that does not apply to the record's channel or frame count, a null value) or
     a baseline of another run raises :class:`InputError`, never a silent pass.
     """
-    from .oracle.scoring.gates import judge
+    from .oracle.scoring.ci.gates import judge
 
     with _library():
         return judge(record, fail_above=fail_above, fail_below=fail_below, baseline=baseline)
@@ -540,7 +539,7 @@ def check(
 def write_junit(path, verdicts) -> None:
     """Write JUnit XML of :func:`check` verdicts (one, or a list of them) to ``path``
     atomically: one test case per scene x check, as ``score --junit`` does."""
-    from .oracle.scoring.gates import write_junit as write
+    from .oracle.scoring.ci.junit import write_junit as write
 
     verdicts = [verdicts] if hasattr(verdicts, "checks") else list(verdicts)
     write(Path(path), verdicts)

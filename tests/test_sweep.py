@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 from raster_oracle.oracle.cli import main
-from raster_oracle.oracle.sweeps.run import WorkerCache, run_sweep, sweep_keys
+from raster_oracle.oracle.sweeps.cases import WorkerCache
+from raster_oracle.oracle.sweeps.run import run_sweep, sweep_keys
 from raster_oracle.oracle.sweeps.spec import SpecError, expand_spec, expand_values, load_spec
 from raster_oracle.oracle.sweeps.store import SweepStore
 from raster_oracle.raster_models import params, registry

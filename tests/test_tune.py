@@ -8,7 +8,7 @@ import json
 import pytest
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.reference.cache import ReferenceCache
-from raster_oracle.oracle.sweeps.run import evaluate_case
+from raster_oracle.oracle.sweeps.cases import evaluate_case
 from raster_oracle.oracle.sweeps.tune import TuneError, parse_space, parse_target, run_tune
 
 from raster_oracle import scenes

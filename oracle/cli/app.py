@@ -113,18 +113,12 @@ def _run(args) -> int:
                 sys.stderr.write(warnings.formatwarning(message, category, *_args[:2]))
 
         warnings.showwarning = show
-        from ..reference.render import set_exact_budget
+        if args.command != "doctor":
+            from ..certify import certified_select
 
-        set_exact_budget(getattr(args, "exact_budget", None))  # None: the documented default
-        try:
-            if args.command != "doctor":
-                from ..certify import certified_select
-
-                # a backend is used only after its self-check passed on this machine
-                certified_select(args.backend, trust=args.trust_backend)
-            return COMMANDS[args.command](args)
-        finally:
-            set_exact_budget(None)  # the command's budget ends with it (main() in a library)
+            # a backend is used only after its self-check passed on this machine
+            certified_select(args.backend, trust=args.trust_backend)
+        return COMMANDS[args.command](args)
 
 
 def main(argv: list[str] | None = None) -> int:

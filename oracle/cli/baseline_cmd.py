@@ -1,5 +1,5 @@
 """``baseline accept RUN_DIR --into BASELINE_DIR --note TEXT``: approve a run as the baseline
-of its platform (:func:`oracle.scoring.baseline.accept_baseline`)."""
+of its platform (:func:`oracle.scoring.ci.baseline.accept_baseline`)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def add_parser(sub) -> None:
 
 
 def cmd_baseline(args) -> int:
-    from ..scoring.baseline import accept_baseline
+    from ..scoring.ci.baseline import accept_baseline
 
     if not args.run.is_dir():
         raise A.CliError(f"baseline accept: {args.run} is not a folder (a run's --out)")

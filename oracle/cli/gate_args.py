@@ -1,6 +1,6 @@
 """The CI gate options shared by ``score`` and ``score-folder``, and how their verdict is shown.
 
-``--fail-above METRIC=V`` / ``--fail-below METRIC=V`` (:func:`oracle.scoring.gates.parse_gates`),
+``--fail-above METRIC=V`` / ``--fail-below METRIC=V`` (:func:`oracle.scoring.ci.gates.parse_gates`),
 ``--baseline`` (a previous run's metrics record) and ``--junit FILE`` (JUnit XML, one test case
 per scene x gate). Exit codes: 0 every gate passed, 1 a gate failed or a metric regressed, 2 a
 gate or baseline that cannot be judged.
@@ -106,8 +106,9 @@ def add_gate_args(p, *, baseline_help: str) -> None:
 def parse_all_gates(args) -> list:
     """``--fail-above``, ``--fail-below`` and ``--gate-profile`` as gates (a later limit of
     the same metric and direction replaces an earlier one)."""
-    from ..scoring.engine_gates import profile_gates
-    from ..scoring.gates import GateError, parse_gates
+    from ..scoring.ci.checks import GateError
+    from ..scoring.ci.gates import parse_gates
+    from ..scoring.ci.profiles import profile_gates
 
     gates = profile_gates(args.gate_profile, error=GateError)
     gates += parse_gates(args.fail_above, args.fail_below)
@@ -117,7 +118,7 @@ def parse_all_gates(args) -> list:
 def baseline_options(args):
     """:class:`BaselineOptions` of ``--baseline-metrics``, ``--baseline-tolerance`` and
     ``--baseline-strict`` (metrics None: the gated ones, decided per case)."""
-    from ..scoring.gates import BaselineOptions, parse_baseline_metrics, parse_tolerance
+    from ..scoring.ci.regression import BaselineOptions, parse_baseline_metrics, parse_tolerance
 
     tolerances = dict(parse_tolerance(t) for t in args.baseline_tolerance)
     metrics = parse_baseline_metrics(args.baseline_metrics)
@@ -188,8 +189,8 @@ def check_junit(path, *, out=None, summary=None) -> None:
 
 def write_outputs(args, verdicts, *, records=None, report=None) -> None:
     """Write ``--junit`` and ``--summary-md`` of ``verdicts`` (their folders created)."""
-    from ..scoring.gates import write_junit
-    from ..scoring.summary import write_summary_md
+    from ..scoring.ci.junit import write_junit
+    from ..scoring.ci.summary import write_summary_md
 
     if args.junit is not None:
         args.junit.parent.mkdir(parents=True, exist_ok=True)

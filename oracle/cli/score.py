@@ -109,8 +109,8 @@ def add_parsers(sub) -> None:
 def _check_frame_pattern(pattern: str | None) -> None:
     """A ``--candidate`` pattern with a ``{frame}`` field is a ``str.format`` pattern: it may
     hold ``{frame}`` fields only, with an integer format (a name without one is literal)."""
-    from ..scoring.out_names import check_frame_pattern
-    from ..scoring.request import FRAME_PATTERN
+    from ..scoring.inputs.frames import FRAME_PATTERN
+    from ..scoring.inputs.out_names import check_frame_pattern
 
     if pattern is None or not FRAME_PATTERN.search(pattern):
         return
@@ -151,8 +151,8 @@ def _paths() -> tuple[str, ...]:
 def cmd_score(args) -> int:
     from ... import metrics as M
     from ... import raster_models
-    from ..scoring.baseline import check_platform, resolve_baseline
-    from ..scoring.gates import load_baseline
+    from ..scoring.ci.baseline import check_platform, resolve_baseline
+    from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
     from ..scoring.request import score_to_folder
     from ..scoring.result import ScoreError
@@ -187,6 +187,7 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
+        exact_budget=args.exact_budget,
         motion=None
         if args.candidate_motion is None
         else {

@@ -1,11 +1,11 @@
 """``score-folder ROOT``: score a folder of engine images laid out by scene and frame, or
 as a manifest (``--manifest ci.toml``) says.
 
-Without a manifest every scene of ``ROOT`` (:func:`oracle.scoring.folder.discover`) is
+Without a manifest every scene of ``ROOT`` (:func:`oracle.scoring.inputs.folder_layout.discover`) is
 checked first (scene found, candidate layout unambiguous, size right). With one, each
-scene's channels are its cases (:mod:`oracle.scoring.manifest`); a case whose file or layer
+scene's channels are its cases (:mod:`oracle.scoring.inputs.manifest`); a case whose file or layer
 is missing is an error of its own (a JUnit ``<error>`` case) while the others are scored.
-The library builds and scores the cases (:func:`oracle.scoring.folder_cases.run_folder`,
+The library builds and scores the cases (:func:`oracle.scoring.inputs.folder_cases.run_folder`,
 the same function ``raster_oracle.score_folder`` calls) into ``OUT/<case>/``,
 ``OUT/metrics.json`` and ``OUT/report.html``; this command parses the options and prints the
 first screen: per case its gates, its regressions grouped in one row, its notes, then the
@@ -81,7 +81,7 @@ def add_parser(sub) -> None:
 
 
 def cmd_score_folder(args) -> int:
-    from ..scoring.folder_cases import run_folder
+    from ..scoring.inputs.folder_cases import run_folder
 
     gates = parse_all_gates(args)
     bo = baseline_options(args)
@@ -100,6 +100,7 @@ def cmd_score_folder(args) -> int:
         "exports": args.exports,
         "quiet": args.quiet,
         "platform": args.platform,
+        "exact_budget": args.exact_budget,
     }
     cases, run = run_folder(
         args.root,

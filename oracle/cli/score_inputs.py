@@ -12,9 +12,9 @@ __all__ = ["candidate_inputs"]
 
 def candidate_inputs(args, loaded):
     """The layout of ``--candidate`` with ``--channel`` / ``--kind``, resolved once by the
-    library (:func:`oracle.scoring.folder_cases.resolve_layout`: printed, its size checked
+    library (:func:`oracle.scoring.inputs.folder_cases.resolve_layout`: printed, its size checked
     against the scene's); None for a technique."""
-    from ..scoring.folder_cases import resolve_layout
+    from ..scoring.inputs.folder_cases import resolve_layout
 
     if args.candidate is None:
         if args.kind is not None:

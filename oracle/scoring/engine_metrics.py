@@ -1,5 +1,5 @@
 """The engine teams' gates as metrics of a score (:mod:`metrics.engine_gates`), with their
-noise floors; :mod:`oracle.scoring.engine_gates` names the profiles that judge them.
+noise floors; :mod:`oracle.scoring.ci.profiles` names the profiles that judge them.
 
 Metrics (every frame; the record holds their mean over frames):
 

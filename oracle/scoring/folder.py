@@ -1,92 +1,21 @@
-"""A folder of engine images laid out by scene and frame (``raster-oracle score-folder``), and
-the library function that scores a folder's cases (:func:`score_folder`; the command line
-only builds the cases, from the folder's layout or a manifest).
-
-``ROOT/<scene>.exr`` (or ``.png``) is one frame of ``<scene>``; ``ROOT/<scene>/frame_000.exr``,
-``frame_001.exr``, ... are the frames of a camera path (numbered from 0 without gaps, one
-extension and one digit count). ``<scene>`` is a built-in scene or, with ``exports``, a
-folder ``exports/<scene>`` written by ``export``. Names starting with ``.`` and files of
-other types are ignored, so notes and logs may sit beside the images.
+"""The library function that scores a folder's cases (:func:`score_folder`; the command line
+only builds the cases, from the folder's layout (:mod:`oracle.scoring.inputs.folder_layout`) or
+a manifest).
 """
 
 from __future__ import annotations
 
 import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ...scenes.base.files import atomic_write_json
 from ..errors import InputError
-from .gates import FOLDER_SCHEMA
+from .ci.checks import FOLDER_SCHEMA
 from .options import ScoreOptions
 from .result import ScoreError
 
-__all__ = ["FolderCase", "FolderEntry", "FolderRun", "discover", "score_folder"]
-
-_IMAGE = (".exr", ".png")
-_FRAME = re.compile(r"^frame_(\d+)\.(exr|png)$", re.IGNORECASE)
-
-
-@dataclass(frozen=True)
-class FolderEntry:
-    """One scene of a folder: its name, the candidate file or ``{frame}`` pattern, and the
-    frame count (None: one frame, the scene's own camera)."""
-
-    name: str
-    pattern: str
-    frames: int | None
-
-
-def _frames_entry(folder: Path) -> FolderEntry:
-    found = {}
-    for f in folder.iterdir():
-        m = _FRAME.match(f.name)
-        if m and f.is_file():
-            found[int(m.group(1))] = (len(m.group(1)), m.group(2), f)
-    if not found:
-        raise ScoreError(f"{folder} holds no frame_NNN.exr or frame_NNN.png")
-    n = len(found)
-    if sorted(found) != list(range(n)):
-        missing = sorted(set(range(max(found) + 1)) - set(found))
-        raise ScoreError(f"{folder}: frames must be numbered 0..{n - 1}; missing {missing[:5]}")
-    styles = {(d, e.lower()) for d, e, _ in found.values()}
-    if len(styles) != 1:
-        raise ScoreError(f"{folder}: frame files mix digit counts or extensions")
-    digits, ext = styles.pop()
-    if n == 1:
-        return FolderEntry(folder.name, str(found[0][2]), None)
-    return FolderEntry(folder.name, str(folder / f"frame_{{frame:0{digits}d}}.{ext}"), n)
-
-
-def discover(root: str | Path) -> list[FolderEntry]:
-    """The scenes of ``root``, sorted by name.
-
-    Raises
-    ------
-    ScoreError
-        ``root`` is not a folder, holds no image, names a scene twice (``a.exr`` and ``a/``)
-        or has a frame folder with gaps.
-    """
-    root = Path(root)
-    if not root.is_dir():
-        raise ScoreError(f"score-folder: {root} is not a folder")
-    entries: dict[str, FolderEntry] = {}
-    for item in sorted(root.iterdir()):
-        if item.name.startswith("."):
-            continue
-        if item.is_dir():
-            entry = _frames_entry(item)
-        elif item.is_file() and item.suffix.lower() in _IMAGE:
-            entry = FolderEntry(item.stem, str(item), None)
-        else:
-            continue
-        if entry.name in entries:
-            raise ScoreError(f"score-folder: scene {entry.name!r} is given twice in {root}")
-        entries[entry.name] = entry
-    if not entries:
-        raise ScoreError(f"score-folder: {root} holds no <scene>.exr/.png or <scene>/frame_000.exr")
-    return list(entries.values())
+__all__ = ["FolderCase", "FolderRun", "score_folder"]
 
 
 @dataclass(frozen=True)
@@ -127,7 +56,7 @@ class FolderRun:
 def case_baseline_options(case: FolderCase, given):
     """A case's baseline options: the caller's, else the manifest's, with the case's gated
     metrics where neither names the metrics."""
-    from .gates import BaselineOptions
+    from .ci.regression import BaselineOptions
 
     mine = case.baseline or {}
     if given is None:  # the API without baseline options: the manifest's, else the default
@@ -142,7 +71,7 @@ def case_baseline_options(case: FolderCase, given):
 def _missing_and_new(cases, baselines, source: str, strict: bool):
     """Cases of the baseline missing from this run and cases new in it: a note each, or
     with ``strict`` a failing check each (and an error verdict for a missing one)."""
-    from .gates import Check, Verdict
+    from .ci.checks import Check, Verdict
 
     names = [c.name for c in cases]
     missing = [k for k in baselines if k not in names]
@@ -175,13 +104,13 @@ def score_folder(
 
     A case with ``error`` is not scored: its verdict holds the error (JUnit ``<error>``).
     ``baselines``: case name -> a previous run's record of it; ``baseline_options``
-    (:class:`oracle.scoring.gates.BaselineOptions`, None: each case's manifest's or the
+    (:class:`oracle.scoring.ci.regression.BaselineOptions`, None: each case's manifest's or the
     default): the metrics compared and their tolerances, and ``strict``: a case of the
     baseline missing from this run, or new in it, fails (else a note names it).
     """
+    from .ci.checks import Verdict
     from .combine import combine_reports
-    from .gates import Verdict
-    from .out_names import case_folder
+    from .inputs.out_names import case_folder
     from .request import score_to_folder
 
     out = Path(out)
@@ -218,7 +147,7 @@ def score_folder(
             raise type(exc)(f"case {case.name}: {exc}") from None
         verdict.scene = case.name
         if baselines is not None and baseline is None:
-            from .gates import Check
+            from .ci.checks import Check
 
             line = f"baseline: new case {case.name}, not in {baseline_source}"
             line = f"{'FAIL' if strict else 'NOTE'} {line}"

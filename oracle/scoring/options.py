@@ -35,13 +35,15 @@ class ScoreOptions:
     gate_frames : the gates judge the mean over the last N frames (None: all frames), so a
         temporal technique's warm-up neither passes nor fails a build.
     motion : an engine's motion-vector layer (``layer``, ``convention``, optional
-        ``disocclusion``; :func:`oracle.scoring.request.file_candidate`), scored against the
+        ``disocclusion``; :func:`oracle.scoring.inputs.frames.file_candidate`), scored against the
         reference's motion (candidates only).
     transfer : how an 8/16-bit PNG candidate's colour is decoded to linear: ``srgb``,
         ``gamma2.2`` or ``linear`` (None: ``srgb``; an EXR is linear and takes none).
     expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
         scored too, and the candidate against it (``conformance_*`` metrics;
         :mod:`oracle.scoring.conformance`).
+    exact_budget : the references' exact-coverage budget
+        (:attr:`oracle.reference.settings.ReferenceSettings.exact_budget`; None: the default).
     """
 
     spp: int = 64
@@ -57,6 +59,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
+    exact_budget: float | None = None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
@@ -68,7 +71,7 @@ class ScoreOptions:
             )
         if str(self.flip_mode).upper() not in ("LDR", "HDR"):
             raise ScoreError(f"flip mode must be LDR or HDR, got {self.flip_mode!r}")
-        from .candidates import TRANSFERS
+        from .inputs.candidates import TRANSFERS
 
         if self.transfer is not None and self.transfer not in TRANSFERS:
             raise ScoreError(
@@ -80,6 +83,7 @@ class ScoreOptions:
     def score_kwargs(self) -> dict:
         """The keywords of :func:`oracle.scoring.score.score` these options set."""
         keys = ("spp", "seed", "frames", "camera_path", "quiet", "flip_mode", "ppd", "gate_frames")
+        keys += ("exact_budget",)
         return {k: getattr(self, k) for k in keys}
 
     def as_record(self) -> dict:

@@ -17,7 +17,7 @@ from ... import raster_models, reports
 from ...scenes.base.files import atomic_copy, atomic_write_bytes, atomic_write_json
 from ...scenes.base.records import jsonable, package_versions
 from ..reference.exr import read_exr, write_exr
-from .gates import Gate, Verdict
+from .ci.checks import Gate, Verdict
 from .result import ScoreResult
 
 __all__ = [

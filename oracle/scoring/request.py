@@ -8,94 +8,23 @@ written only when everything is computed (:func:`oracle.scoring.output.write_sco
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
-import numpy as np
-
 from ...scenes.inputs import read_export_record
-from .candidates import load_motion
+from .ci.checks import Gate, Verdict
+from .ci.gates import applicable_gates, check_applicable, evaluate_gates
+from .ci.regression import BaselineOptions, check_baseline_scene, compare_baseline
 from .conformance import CONFORMANCE_KEYS, add_conformance, parse_expect
 from .diagnosis import diagnose_result, explain_colour
-from .gates import (
-    BaselineOptions,
-    Gate,
-    Verdict,
-    applicable_gates,
-    check_applicable,
-    check_baseline_scene,
-    compare_baseline,
-    evaluate_gates,
-)
-from .layout import CandidateLayout, candidate_layout, read_candidate
+from .inputs.frames import candidate_name, file_candidate, frame_file
+from .inputs.layout import CandidateLayout, candidate_layout
 from .options import ScoreOptions
 from .output import write_score_folder
 from .result import ScoreError
 from .score import score
 from .technique import score_model, technique_channels
 
-__all__ = ["FRAME_PATTERN", "candidate_name", "file_candidate", "frame_file", "score_to_folder"]
-
-#: A ``{frame}`` field (with an optional format) in a candidate file pattern.
-FRAME_PATTERN = re.compile(r"\{frame(?::[^}]*)?\}")
-
-
-def frame_file(pattern: str, k: int) -> str:
-    """The candidate file of frame ``k``: ``pattern`` formatted with ``frame=k`` when it has a
-    ``{frame}`` field, else ``pattern`` itself."""
-    return pattern.format(frame=k) if FRAME_PATTERN.search(pattern) else pattern
-
-
-def file_candidate(
-    pattern: str,
-    *,
-    channel: str | None,
-    frames: int | None,
-    layout: CandidateLayout | None = None,
-    motion: dict | None = None,
-    visibility: str = "1-is-lit",
-    transfer: str | None = None,
-):
-    """Candidate callable ``(frame_scene, k) -> (image, info)`` reading (and validating) an
-    engine's image of each frame: ``pattern`` formatted with ``frame=k`` when it has a
-    ``{frame}`` field (required for ``frames`` > 1). Every frame is read as ``layout`` says
-    (None: :func:`oracle.scoring.layout.candidate_layout` of frame 0's file and ``channel``).
-    ``motion`` (``layer``, ``convention``, optional ``disocclusion``): also read each frame's
-    motion vectors (:func:`oracle.scoring.candidates.load_motion`) into the info's
-    ``motion`` / ``disocclusion``, which ``score`` turns into the end-point error metrics.
-    A visibility mask whose 1 means shadowed (``visibility="1-is-shadowed"``) is read as
-    ``1 - value``. ``transfer``: how a PNG's colour is decoded (None: sRGB).
-    """
-    has_frame = bool(FRAME_PATTERN.search(pattern))
-    if frames and frames > 1 and not has_frame:
-        raise ScoreError(
-            "--frames needs a --candidate pattern with {frame}, e.g. frame_{frame:03d}.exr"
-        )
-    if layout is None:
-        layout = candidate_layout(frame_file(pattern, 0), channel=channel)
-
-    def run(frame_scene, k):
-        path = frame_file(pattern, k)
-        shape = (frame_scene.height, frame_scene.width)
-        image = read_candidate(path, layout, expected_shape=shape, transfer=transfer or "srgb")
-        if layout.kind == "visibility" and visibility == "1-is-shadowed":
-            image = (1.0 - image).astype(np.float32)
-        info = {"frame": k, "file": str(path)}
-        if motion is not None:
-            info["motion"], info["disocclusion"] = load_motion(path, expected_shape=shape, **motion)
-        return image, info
-
-    return run
-
-
-def candidate_name(pattern: str, *, frames: int | None, camera_path: str | None) -> str:
-    """How the record and the report name an engine's candidate: the file name (frame 0's
-    for a one-frame pattern), or for several frames the camera path and the frame list
-    (``dolly frames 0-7``), never the raw ``{frame}`` pattern."""
-    n = frames or 1
-    if n == 1 or not FRAME_PATTERN.search(pattern):
-        return Path(frame_file(pattern, 0)).name
-    return f"{camera_path or 'camera'} frames 0-{n - 1}"
+__all__ = ["score_to_folder"]
 
 
 def _check_candidates(fn, loaded, frames, camera_path) -> None:
@@ -231,12 +160,12 @@ def score_to_folder(
 ) -> Verdict:
     """Score ``technique`` (with ``params``) or the engine image file(s) ``candidate`` on
     ``loaded``, judge the gates and the baseline, and write the score folder ``out``; returns
-    the :class:`oracle.scoring.gates.Verdict` (its checks, their lines, the exit code; as a
+    the :class:`oracle.scoring.ci.checks.Verdict` (its checks, their lines, the exit code; as a
     list, the names of the failed checks).
 
     A gate that cannot be judged (a metric that does not apply to the candidate's kind or
     frame count, a null value) or a baseline of another run is a
-    :class:`oracle.scoring.gates.GateError` raised before anything is written; a profile's
+    :class:`oracle.scoring.ci.checks.GateError` raised before anything is written; a profile's
     gate whose metric does not apply to the candidate's kind is left out with a note.
 
     Parameters
@@ -248,16 +177,16 @@ def score_to_folder(
     options : :class:`oracle.scoring.options.ScoreOptions` (reference spp and seed, frames
         and camera path, FLIP options, platform, the candidate mask's convention, the PNG
         transfer, the technique the engine claims: ``expect``).
-    layout : for files, what to read (:func:`oracle.scoring.layout.candidate_layout`; None:
+    layout : for files, what to read (:func:`oracle.scoring.inputs.layout.candidate_layout`; None:
         resolved here from frame 0's file and ``channel``).
-    gates : from :func:`oracle.scoring.gates.parse_gates` (``--fail-above``/``--fail-below``)
-        and :func:`oracle.scoring.engine_gates.profile_gates`.
+    gates : from :func:`oracle.scoring.ci.gates.parse_gates` (``--fail-above``/``--fail-below``)
+        and :func:`oracle.scoring.ci.profiles.profile_gates`.
     baseline, baseline_source : a previous run's ``metrics.json`` record (from
-        :func:`oracle.scoring.gates.load_baseline`) and its path, for messages; a baseline
+        :func:`oracle.scoring.ci.regression.load_baseline`) and its path, for messages; a baseline
         of another platform (``options.platform``) is a
-        :class:`oracle.scoring.gates.GateError`.
+        :class:`oracle.scoring.ci.checks.GateError`.
     baseline_options : which metrics the baseline compares and their tolerances
-        (:class:`oracle.scoring.gates.BaselineOptions`; None: the gated metrics).
+        (:class:`oracle.scoring.ci.regression.BaselineOptions`; None: the gated metrics).
     name : how the report names the case (default: the technique, or the candidate's file
         name; ``score-folder`` gives its case name, ``scene/channel``).
     """

@@ -83,8 +83,9 @@ def _score_frames(loaded, result, *, channel, candidate_frames, frames, camera_p
     frame scenes, the candidates' infos and motion, the tone-mapping record's inputs and
     frame 0's reference metadata and coverage truth."""
     n = frames or 1
-    settings = ReferenceSettings(spp=opts["spp"], seed=opts["seed"], channels=opts["groups"])
-    settings = settings.validate()
+    settings = ReferenceSettings(
+        spp=opts["spp"], seed=opts["seed"], channels=opts["groups"], exact_budget=opts["budget"]
+    ).validate()
     st = dict(exposure=None, flip_range=None, infos=[], engine=[], scenes=[], truth=None)
     for k in range(n):
         frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
@@ -149,6 +150,7 @@ def score(
     floor_cache: dict | None = None,
     coverage_only: bool = False,
     gate_frames: int | None = None,
+    exact_budget: float | None = None,
 ) -> ScoreResult:
     """Score candidate frames against references of ``loaded``.
 
@@ -179,8 +181,10 @@ def score(
     groups = REFERENCE_GROUPS[channel]
     opts = dict(spp=spp, seed=seed, groups=groups, cache=cache, quiet=quiet, ppd=ppd)
     opts.update(flip_mode=flip_mode, aa_samples=aa_samples, coverage_only=coverage_only)
-    opts["floor_cache"] = floor_cache
-    noise = ReferenceSettings(spp=spp, seed=seed + 1, channels=groups).validate()
+    opts.update(floor_cache=floor_cache, budget=exact_budget)
+    noise = ReferenceSettings(
+        spp=spp, seed=seed + 1, channels=groups, exact_budget=exact_budget
+    ).validate()
     opts["noise_settings"] = noise
     result = ScoreResult(record={})
     st = _score_frames(

@@ -105,6 +105,7 @@ def score_model(
     ppd: float = M.DEFAULT_PPD,
     floor_cache: dict | None = None,
     gate_frames: int | None = None,
+    exact_budget: float | None = None,
 ) -> ScoreResult:
     """Score one technique configuration on ``loaded`` (``raster-oracle score --technique``).
 
@@ -144,6 +145,7 @@ def score_model(
         aa_samples=aa_samples,
         floor_cache=floor_cache,
         gate_frames=gate_frames,
+        exact_budget=exact_budget,
     )
     # the channel asked for (a soft-shadow model's light_fraction), else the primary one; an
     # AA model always scores colour with its coverage merged in

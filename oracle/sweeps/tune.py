@@ -31,7 +31,8 @@ from ...raster_models import params
 from ...scenes import backend
 from ..errors import InputError
 from ..scoring.result import metric_limit
-from .run import run_case, store_row, sweep_keys
+from .cases import run_case
+from .run import store_row, sweep_keys
 from .spec import Case
 from .store import SweepStore
 

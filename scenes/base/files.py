@@ -1,23 +1,38 @@
-"""Files written atomically: a reader never sees a half-written file.
+"""Files and folders written atomically: a reader never sees a half-written output.
 
 Every file the oracle writes goes to a temporary name in the target folder (same file
 system) and is renamed into place with :func:`os.replace`; a failure removes the temporary
 file and leaves any previous file untouched. New files get the usual mode (``0666 & ~umask``),
 not the ``0600`` of :func:`tempfile.mkstemp`.
+
+A command's output folder is written the same way (:func:`staged_folder`): everything goes
+into a hidden staging folder beside it, moved into place only when the command succeeds,
+its record files last, with SIGTERM and SIGINT held back while the moves run; a failure or a
+stop leaves the output folder as it was (absent, or the previous run's).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
+import signal
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from .records import jsonable
 
-__all__ = ["atomic_copy", "atomic_write", "atomic_write_bytes", "atomic_write_json"]
+__all__ = [
+    "STAGING_MARK",
+    "atomic_copy",
+    "atomic_write",
+    "atomic_write_bytes",
+    "atomic_write_json",
+    "staged_folder",
+]
 
 
 def _make_readable(path: str) -> None:
@@ -64,3 +79,80 @@ def atomic_write_json(path: str | os.PathLike, record, *, sort_keys: bool = Fals
 def atomic_copy(source: str | os.PathLike, path: str | os.PathLike) -> None:
     """Copy the file ``source`` to ``path`` atomically."""
     atomic_write(path, lambda tmp: shutil.copyfile(source, tmp))
+
+
+#: The file that marks a staging folder as this module's (stale ones are swept by name and mark).
+STAGING_MARK = ".raster-oracle-staging"
+_STAGING = re.compile(r"\.(.{0,80})\.partial-(\d+)-")
+
+
+def _stale_staging(path: Path) -> None:
+    """Remove staging folders beside ``path`` that killed runs (dead pid) left for it."""
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        return
+    for name in names:
+        found = _STAGING.match(name)
+        if not found or found[1] != path.name[:80] or int(found[2]) == os.getpid():
+            continue
+        folder = path.parent / name
+        if os.path.islink(folder) or not (folder / STAGING_MARK).is_file():
+            continue
+        try:
+            os.kill(int(found[2]), 0)
+            continue  # its writer still runs
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except (PermissionError, OverflowError):
+            continue
+
+
+def _commit(stage: Path, path: Path, last: tuple[str, ...]) -> None:
+    """Move the staged output into ``path``: the whole folder renamed when ``path`` does not
+    exist; else each entry replaced (a sub-folder whole, the old one moved aside into the
+    stage), JSON records after the other files and the names in ``last`` at the end."""
+    (stage / STAGING_MARK).unlink()
+    if not os.path.lexists(path):
+        os.rename(stage, path)
+        return
+    aside = Path(tempfile.mkdtemp(prefix=".replaced-", dir=stage))
+    names = sorted(n for n in os.listdir(stage) if stage / n != aside)
+    names.sort(key=lambda n: (n in last, n.endswith(".json")))
+    for name in names:
+        src, dst = stage / name, path / name
+        if os.path.isdir(src) and not os.path.islink(src):
+            if os.path.lexists(dst):
+                os.rename(dst, aside / name)
+            os.rename(src, dst)
+        else:
+            os.replace(src, dst)
+
+
+@contextmanager
+def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Iterator[Path]:
+    """Yield a staging folder to write a command's output into; moved into ``path`` when the
+    block ends without an exception (see :func:`_commit`), removed otherwise.
+
+    Parameters
+    ----------
+    path : the output folder (made with its parents when missing).
+    last : names moved last (the record a reader takes as "the run is complete").
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _stale_staging(path)
+    stage = Path(
+        tempfile.mkdtemp(prefix=f".{path.name[:80]}.partial-{os.getpid()}-", dir=path.parent)
+    )
+    (stage / STAGING_MARK).write_bytes(b"")
+    try:
+        yield stage
+        # a stop while the moves run waits for them: the output is whole or as it was
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGINT})
+        try:
+            _commit(stage, path, last)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

@@ -1,0 +1,2 @@
+"""oracle.scoring.ci: how a score is judged in CI: gates, baselines, profiles, JUnit and
+summaries."""
