@@ -11,8 +11,9 @@ for conformance: a shadow lookup there answers for another surface.
 :func:`surface_sensitivity` flags them without an engine layer: the pixel is traced again at
 the four points ``(+-offset, +-offset)`` pixels from its centre (:data:`DEFAULT_OFFSET`);
 where one of them misses the centre's plane (its hit lies off the plane
-``p + dP/dx dx + dP/dy dy`` by more than :data:`PLANE_TOLERANCE` of the distance, or hits another shape, or the sky differs), the
-pixel is sensitive. Flat surfaces seen head-on or at grazing angles are not flagged.
+``p + dP/dx dx + dP/dy dy`` by more than :data:`PLANE_TOLERANCE` of the distance, or hits
+another shape, or the sky differs), the pixel is sensitive. Flat surfaces seen head-on or
+at grazing angles are not flagged.
 """
 
 from __future__ import annotations
