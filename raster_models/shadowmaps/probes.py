@@ -26,16 +26,18 @@ __all__ = ["other_surface_verdicts"]
 def other_surface_verdicts(
     scene, technique: str, values: dict, *, offset: float = DEFAULT_OFFSET
 ) -> dict:
-    """``{"visibility", "other_surface", "flipped"}``: the technique's ``(H, W)``
-    visibility at pixel centres (as :func:`raster_models.run`), the pixels where a probe sees
-    another surface, and those of them where the verdict on that surface differs."""
+    """``{"outputs", "visibility", "other_surface", "flipped"}``: the technique's output
+    images and ``(H, W)`` visibility at pixel centres (as :func:`raster_models.run`), the
+    pixels where a probe sees another surface, and those of them where the verdict on that
+    surface differs."""
     module, cls, _ = entry(technique)
     p = _params.make(technique, cls, dict(values))
     gbuf = trace_gbuffer(scene)
     setup = module.build(scene, gbuf, p)
     gbuf, setup = engine_conventions(technique, scene, gbuf, setup, p)
     maps = render_maps(scene, setup, p)
-    centre = np.asarray(shade(gbuf, setup, maps, p)[0]["visibility"], np.float64).ravel()
+    outputs = shade(gbuf, setup, maps, p)[0]
+    centre = np.asarray(outputs["visibility"], np.float64).ravel()
     lit = centre >= 0.5
     other = np.zeros(centre.size, dtype=bool)
     flipped = np.zeros(centre.size, dtype=bool)
@@ -57,6 +59,7 @@ def other_surface_verdicts(
         flipped[idx] |= (vis >= 0.5) != lit[idx]
     h, w = scene.height, scene.width
     return {
+        "outputs": outputs,
         "visibility": centre.reshape(h, w).astype(np.float32),
         "other_surface": other.reshape(h, w),
         "flipped": flipped.reshape(h, w),
