@@ -33,3 +33,22 @@ def test_city_silhouettes_over_their_own_shadow_flip(_backend):
     # wider probes find more (a quarter pixel against the default 1/64)
     wide = other_surface_verdicts(scene, "shadow-map", CLAIM, offset=0.25)
     assert wide["other_surface"].sum() > got["other_surface"].sum()
+
+
+def test_a_texel_rounded_the_other_way_flips_only_named_pixels(_backend):
+    """An engine whose rasterizer rounds a stored depth one D24 quantum the other way (a
+    hardware DepthBias of +-1) flips receivers only where the model names the compare
+    implementation-defined."""
+    from raster_oracle.raster_models.shadowmaps.probes import implementation_defined
+
+    scene = scenes.load("city", width=320, height=180)
+    claim = {"resolution": 1024, "filter": "point", "bias": 0.0, "format": "D24"}
+    got = implementation_defined(scene, "shadow-map", claim, surfaces=False)
+    model = got["outputs"]["visibility"] >= 0.5
+    flips = np.zeros_like(model)
+    for step in (-1, 1):
+        other = raster_models.run("shadow-map", scene, **claim, depth_bias=step)
+        flips |= (other.outputs["visibility"] >= 0.5) != model
+    assert flips.sum() > 0  # bias 0: the receivers' own texels decide by rounding
+    assert not np.any(flips & ~got["depth_rounding"])
+    assert not got["other_surface"].any()

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import params as _params
+from ..depth import FORMATS
 from ..gbuffer import points_gbuffer, trace_gbuffer
 from ..sensitivity import DEFAULT_OFFSET, probe_hits
 from .engine import engine_conventions
@@ -20,7 +21,19 @@ from .render import render_maps
 from .shade import shade
 from .visibility import entry
 
-__all__ = ["other_surface_verdicts"]
+__all__ = [
+    "FLOAT32_REFERENCE_ULPS",
+    "ROUNDING_QUANTA",
+    "compare_tolerance",
+    "implementation_defined",
+    "other_surface_verdicts",
+]
+
+#: Quanta of the depth format within which a compare is implementation-defined: the stored
+#: texel is rounded (half a quantum) and the engine's rasterizer interpolates its own depth.
+ROUNDING_QUANTA = 2.0
+#: float32 ulps of the reference an engine computes in 32-bit floats (matrix, divide, bias).
+FLOAT32_REFERENCE_ULPS = 4.0
 
 
 def other_surface_verdicts(
@@ -64,3 +77,47 @@ def other_surface_verdicts(
         "other_surface": other.reshape(h, w),
         "flipped": flipped.reshape(h, w),
     }
+
+
+def compare_tolerance(fmt: str, reference) -> np.ndarray:
+    """Normalized depth within which a compare of ``reference`` against a texel of ``fmt``
+    is implementation-defined: :data:`ROUNDING_QUANTA` quanta of a UNORM format (one float32
+    ulp of the texel for D32F) plus :data:`FLOAT32_REFERENCE_ULPS` ulps of the reference."""
+    ref = np.abs(np.asarray(reference, dtype=np.float64))
+    ulp = np.spacing(np.maximum(ref, 2.0**-126).astype(np.float32)).astype(np.float64)
+    kind, bits = FORMATS[fmt]
+    quantum = 1.0 / (2.0**bits - 1.0) if kind == "unorm" else ulp
+    return ROUNDING_QUANTA * quantum + FLOAT32_REFERENCE_ULPS * ulp
+
+
+def implementation_defined(
+    scene, technique: str, values: dict, *, offset: float = DEFAULT_OFFSET, surfaces=True
+) -> dict:
+    """The technique's outputs and the receivers a correct engine may decide otherwise:
+    ``{"outputs", "depth_rounding", "other_surface"}`` (``(H, W)`` bool each): compares
+    decided within :func:`compare_tolerance` of a texel (from the model's
+    ``compare_margin``), and pixels whose probes see another surface with another verdict
+    (:func:`other_surface_verdicts`; all False with ``surfaces=False``)."""
+    module, cls, _ = entry(technique)
+    p = _params.make(technique, cls, dict(values))
+    if surfaces:
+        got = other_surface_verdicts(scene, technique, values, offset=offset)
+        outputs, other = got["outputs"], got["flipped"]
+    else:
+        outputs = _run(scene, module, p, technique)
+        other = np.zeros((scene.height, scene.width), dtype=bool)
+    margin = outputs.get("compare_margin")
+    if margin is None:
+        rounding = np.zeros_like(other)
+    else:
+        # the margin is |reference - texel|: the reference is within it of the texel
+        # at the largest reference (1): the widest float32 ulp of [0, 1]
+        rounding = np.asarray(margin, np.float64) <= compare_tolerance(p.format, 1.0)
+    return {"outputs": outputs, "depth_rounding": rounding, "other_surface": other}
+
+
+def _run(scene, module, p, technique):
+    gbuf = trace_gbuffer(scene)
+    setup = module.build(scene, gbuf, p)
+    gbuf, setup = engine_conventions(technique, scene, gbuf, setup, p)
+    return shade(gbuf, setup, render_maps(scene, setup, p), p)[0]
