@@ -34,6 +34,7 @@ __all__ = [
     "AlphaScene",
     "alpha_scene",
     "closest_hit_alpha",
+    "loaded_alpha",
     "occluded_alpha",
 ]
 
@@ -102,6 +103,13 @@ def alpha_scene(mi_scene, table: AlphaTable | None, memo: dict | None = None):
     if memo is not None:
         memo["alpha_scene"] = out
     return out
+
+
+def loaded_alpha(loaded):
+    """The :class:`AlphaScene` of a loaded scene (its ``alpha`` table, when it has one; cached
+    in its ``memo``), or None."""
+    table = getattr(loaded, "alpha", None)
+    return alpha_scene(loaded.mi_scene, table, getattr(loaded, "memo", None))
 
 
 def _far_side(si, d, boost):
