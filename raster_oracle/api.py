@@ -109,7 +109,7 @@ def load_scene(
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
     """
     from . import scenes
-    from .scenes.formats.inputs import load_input
+    from .scenes.inputs import load_input
 
     if isinstance(scene, scenes.LoadedScene):
         given = (width, height, light, camera_path, light_path, camera)

@@ -52,11 +52,20 @@ def input_errors() -> tuple[type[BaseException], ...]:
     """
     from ...metrics import MetricError
     from ...raster_models import ModelError
-    from ...scenes import SceneError
+    from ...scenes import SceneError, SceneParamError
     from ...scenes.backend import BackendError
     from ...scenes.base.untrusted import UntrustedError
 
-    return (InputError, SceneError, BackendError, MetricError, ModelError, UntrustedError)
+    return (
+        InputError,
+        SceneError,
+        SceneParamError,
+        BackendError,
+        MetricError,
+        ModelError,
+        UntrustedError,
+        NumberError,
+    )
 
 
 class Parser(argparse.ArgumentParser):
@@ -260,9 +269,9 @@ def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
 
 def load_scene(args):
     """The scene of ``add_scene_args`` options (its frame of a camera or light path), as
-    :func:`scenes.formats.inputs.load_input` resolves it: an ``export`` folder (or its
+    :func:`scenes.inputs.load_input` resolves it: an ``export`` folder (or its
     ``scene.xml``) is loaded at its exported size with its light, named after its folder."""
-    from ...scenes.formats.inputs import load_input
+    from ...scenes.inputs import load_input
 
     loaded = load_input(
         args.scene,

@@ -116,14 +116,20 @@ def cmd_bench(args) -> int:
 
 def _bench_scale(args) -> int:
     """``bench scale``: per size and phase, seconds and peak memory (JSON on stdout)."""
-    from ..studies.bench_scale import SCALE_MODELS, SCALE_SIZES, bench_scale, scale_lines
+    from ...scenes.catalogue.builtin import builtin_scene
+    from ..studies.bench_scale import (
+        SCALE_MODELS,
+        SCALE_SIZES,
+        bench_scale,
+        failed_sizes,
+        scale_lines,
+    )
 
-    try:
-        sizes = [int(x) for x in A.names(args.sizes)] if args.sizes else list(SCALE_SIZES)
-    except ValueError:
-        raise A.CliError(f"bench scale: --sizes must be integers, got {args.sizes!r}") from None
-    if not sizes or min(sizes) < 0:
+    texts = A.names(args.sizes) if args.sizes else [str(n) for n in SCALE_SIZES]
+    if not texts:
         raise A.CliError(f"bench scale: --sizes must be blade counts >= 0, got {args.sizes!r}")
+    # each size is a scene name: the strict number rule, its bounds, its memory estimate
+    sizes = [int(builtin_scene(f"meadow:n={text}").name.partition("=")[2] or 0) for text in texts]
     models = tuple(A.names(args.only)) or SCALE_MODELS
     from ... import raster_models
 
@@ -143,6 +149,10 @@ def _bench_scale(args) -> int:
     print(json.dumps(figures, indent=2))
     if not args.quiet:
         print("\n".join(scale_lines(figures)), file=sys.stderr)
+    failed = failed_sizes(figures)
+    if failed:
+        print(f"raster-oracle: bench scale: size(s) {', '.join(failed)} failed", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..base.untrusted import read_json
-from ..loader import LoadedScene, SceneError, load
-from .export import EXPORT_SCENE_FILES, export_scene_file
+from .base.untrusted import read_json
+from .formats.export import EXPORT_SCENE_FILES, export_scene_file
+from .loader import LoadedScene, SceneError, load
 
 __all__ = [
     "EXPORT_RECORD",
@@ -169,7 +169,7 @@ def named_input(name: str, *, exports=None) -> str:
     """The scene a name stands for in a folder of engine images: the export folder
     ``exports/name`` when it is one, else the built-in scene ``name``; :class:`SceneError`
     naming the built-in scenes otherwise."""
-    from ..catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
+    from .catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 
     if exports is not None and export_scene_file(Path(exports) / name) is not None:
         return str(Path(exports) / name)
