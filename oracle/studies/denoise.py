@@ -133,11 +133,11 @@ def denoise_table(result: dict) -> str:
     ]
     for name, per in result["scores"].items():
         for d, r in per.items():
-            lag = (
-                "-"
-                if r["lag_off"] is None and r["lag_on"] is None
-                else (f"{_fmt(r['lag_off'], 'd')} / {_fmt(r['lag_on'], 'd')}")
-            )
+            lag = "-"
+            if name.startswith("flicker"):
+                n_on = result["settings"]["frames"] - FLICKER_ON
+                off = _lag(r["lag_off"], FLICKER_ON - FLICKER_OFF)
+                lag = f"{off} / {_lag(r['lag_on'], n_on)}"
             rows.append(
                 f"| {name} | {d} | {r['error']:.4f} ({r['floor']:.4f}) | {lag} | "
                 f"{_fmt(r['ghosting'], '.4f')} | {_fmt(r['penumbra_bias'], '+.2f')} | "
