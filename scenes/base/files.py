@@ -108,15 +108,19 @@ def _stale_staging(path: Path) -> None:
             continue
 
 
-def _commit(stage: Path, path: Path, last: tuple[str, ...]) -> None:
+def _commit(stage: Path, path: Path, last: tuple[str, ...], replaces: tuple[str, ...]) -> None:
     """Move the staged output into ``path``: the whole folder renamed when ``path`` does not
     exist; else each entry replaced (a sub-folder whole, the old one moved aside into the
-    stage), JSON records after the other files and the names in ``last`` at the end."""
+    stage), JSON records after the other files and the names in ``last`` at the end; the
+    entries of ``path`` named in ``replaces`` (an earlier run's own) are moved aside first."""
     (stage / STAGING_MARK).unlink()
     if not os.path.lexists(path):
         os.rename(stage, path)
         return
     aside = Path(tempfile.mkdtemp(prefix=".replaced-", dir=stage))
+    for name in replaces:
+        if "/" not in name and name not in ("", ".", "..") and os.path.lexists(path / name):
+            os.rename(path / name, aside / name)
     names = sorted(n for n in os.listdir(stage) if stage / n != aside)
     names.sort(key=lambda n: (n in last, n.endswith(".json")))
     for name in names:
@@ -130,7 +134,9 @@ def _commit(stage: Path, path: Path, last: tuple[str, ...]) -> None:
 
 
 @contextmanager
-def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Iterator[Path]:
+def staged_folder(
+    path: str | os.PathLike, *, last: tuple[str, ...] = (), replaces: tuple[str, ...] = ()
+) -> Iterator[Path]:
     """Yield a staging folder to write a command's output into; moved into ``path`` when the
     block ends without an exception (see :func:`_commit`), removed otherwise.
 
@@ -138,6 +144,8 @@ def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Ite
     ----------
     path : the output folder (made with its parents when missing).
     last : names moved last (the record a reader takes as "the run is complete").
+    replaces : names in ``path`` that the new output supersedes (an earlier run's entries
+        that this run does not write): removed when the output is moved in.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -151,7 +159,7 @@ def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Ite
         # a stop while the moves run waits for them: the output is whole or as it was
         previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGINT})
         try:
-            _commit(stage, path, last)
+            _commit(stage, path, last, replaces)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
     finally:
