@@ -31,6 +31,7 @@ __all__ = [
     "atomic_write",
     "atomic_write_bytes",
     "atomic_write_json",
+    "moves_in_progress",
     "staged_folder",
 ]
 
@@ -84,6 +85,41 @@ def atomic_copy(source: str | os.PathLike, path: str | os.PathLike) -> None:
 #: The file that marks a staging folder as this module's (stale ones are swept by name and mark).
 STAGING_MARK = ".raster-oracle-staging"
 _STAGING = re.compile(r"\.(.{0,80})\.partial-(\d+)-")
+
+
+_moving = [0]
+
+
+def moves_in_progress() -> bool:
+    """Whether an output is being moved into place now (a watchdog that would end the
+    process on a stop waits for it)."""
+    return _moving[0] > 0
+
+
+@contextmanager
+def _signals_held():
+    """SIGTERM and SIGINT held back (recorded, then delivered to the previous handlers) while
+    the block runs, in the main thread; elsewhere nothing is held."""
+    import threading
+
+    _moving[0] += 1
+    got: list[int] = []
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            previous[signum] = signal.signal(signum, lambda n, _f: got.append(n))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        _moving[0] -= 1
+        for signum in got[:1]:
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
 
 
 def _stale_staging(path: Path) -> None:
@@ -156,11 +192,7 @@ def staged_folder(
     (stage / STAGING_MARK).write_bytes(b"")
     try:
         yield stage
-        # a stop while the moves run waits for them: the output is whole or as it was
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGINT})
-        try:
+        with _signals_held():  # a stop while the moves run waits for them
             _commit(stage, path, last, replaces)
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
