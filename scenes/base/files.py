@@ -32,6 +32,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "moves_in_progress",
+    "signals_held",
     "staged_folder",
 ]
 
@@ -97,7 +98,7 @@ def moves_in_progress() -> bool:
 
 
 @contextmanager
-def _signals_held():
+def signals_held():
     """SIGTERM and SIGINT held back (recorded, then delivered to the previous handlers) while
     the block runs, in the main thread; elsewhere nothing is held."""
     import threading
@@ -192,7 +193,7 @@ def staged_folder(
     (stage / STAGING_MARK).write_bytes(b"")
     try:
         yield stage
-        with _signals_held():  # a stop while the moves run waits for them
+        with signals_held():  # a stop while the moves run waits for them
             _commit(stage, path, last, replaces)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
