@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from raster_oracle.scenes.backend.alpha_hit import alpha_scene, closest_hit_alpha, occluded_alpha
+from raster_oracle.scenes.geometry.uv_mesh import QUAD_FACES, uv_mesh
 from raster_oracle.scenes.shading.alpha import (
     ALPHA_ATTRIBUTE,
     DEFAULT_CUTOFF,
@@ -145,14 +146,8 @@ def test_dr_sampler_matches_numpy(mi):
 
 
 def _quad(mi, y, *, vertex_alpha=None):
-    mesh = mi.Mesh("quad", 4, 2, has_vertex_texcoords=True)
-    p = mi.traverse(mesh)
-    p["vertex_positions"] = np.array(
-        [[0, y, 0], [1, y, 0], [1, y, 1], [0, y, 1]], np.float32
-    ).ravel()
-    p["faces"] = np.array([0, 1, 2, 0, 2, 3], np.uint32)
-    p["vertex_texcoords"] = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32).ravel()
-    p.update()
+    corners = [[0, y, 0], [1, y, 0], [1, y, 1], [0, y, 1]]
+    mesh = uv_mesh(mi, "quad", corners, QUAD_FACES, [[0, 0], [1, 0], [1, 1], [0, 1]])
     if vertex_alpha is not None:
         mesh.add_attribute(ALPHA_ATTRIBUTE, 1, np.asarray(vertex_alpha, np.float32))
     return mesh

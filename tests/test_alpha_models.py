@@ -17,6 +17,7 @@ from raster_oracle.raster_models.alpha.rules import (
 from raster_oracle.raster_models.errors import ModelError
 from raster_oracle.scenes.camera import Camera
 from raster_oracle.scenes.catalogue.factories import look_at
+from raster_oracle.scenes.geometry.uv_mesh import QUAD_FACES, uv_mesh
 from raster_oracle.scenes.shading.alpha import AlphaMask, AlphaTable, AlphaTexture, checker_texture
 
 RES = 32
@@ -69,15 +70,9 @@ def test_hashed_threshold_is_uniform_and_deterministic():
 
 
 def _quad_scene(mi):
-    mesh = mi.Mesh("quad", 4, 2, has_vertex_texcoords=True)
-    p = mi.traverse(mesh)
-    p["vertex_positions"] = np.array(
-        [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32
-    ).ravel()
-    p["faces"] = np.array([0, 1, 2, 0, 2, 3], np.uint32)
-    p["vertex_texcoords"] = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32).ravel()
-    p.update()
-    return mi.load_dict({"type": "scene", "quad": mesh})
+    corners = [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]
+    uvs = [[0, 0], [1, 0], [1, 1], [0, 1]]
+    return mi.load_dict({"type": "scene", "quad": uv_mesh(mi, "quad", corners, QUAD_FACES, uvs)})
 
 
 def _ortho():

@@ -145,3 +145,15 @@ def test_extent_factors_of_the_presets():
     # the disk light's 10-90 % transition: the circular segment's 10 % point
     s = pcss_extent.disk_light_transition()
     assert (math.acos(s) - s * math.sqrt(1 - s * s)) / math.pi == pytest.approx(0.1, abs=1e-9)
+
+
+def test_directional_lights_say_they_keep_the_angular_model():
+    from raster_oracle import raster_models, scenes
+
+    sun = scenes.load("stacked-casters", width=16, height=9)
+    res = raster_models.run("pcss", sun, resolution=64, preset="hdrp")
+    assert res.diagnostics["pcss"]["softness_applied"] == "physical (directional light)"
+    spot = scenes.load("spot", width=16, height=9)
+    res = raster_models.run("pcss", spot, resolution=64, preset="hdrp")
+    assert "softness_applied" not in res.diagnostics["pcss"]
+    assert res.diagnostics["pcss"]["light_size"] == pytest.approx(0.05)  # shape radius 0.025

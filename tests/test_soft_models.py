@@ -347,3 +347,8 @@ def test_soft_shadows_section_renders_its_three_tables():
     assert "pcss &lt;a&gt;" in html and "pcss <a>" not in html  # user text is escaped
     assert "Contact hardening" in html and "Light bleeding of moment shadow maps" in html
     assert html.count("<tr>") >= 2 + 1 + 1 + 2
+    assert "Filter extent" not in html  # records before issue 45 have no extent
+    per = {"radius": {"min": 0.47, "max": 1.24}, "transition": {"factor": 0.68}}
+    data["extent"] = {"fovs": [30.0, 90.0], "presets": {"hdrp": {"30": per, "90": per}}}
+    html = render_section(soft_shadows_section(data))
+    assert "Filter extent" in html and html.count("0.47") == 2 and html.count("0.68") == 2

@@ -480,6 +480,9 @@ def test_hdrp_resolve_is_the_shaders_on_a_hand_built_frame(frame, quality):
         history = _r11g11b10(np.random.default_rng(6).random((H, W, 3)) * 2.0)
     else:
         mv = np.zeros_like(mv)
+    # a jittered frame (the central filter's weights depend on the jitter's sign and the
+    # diagonals' order) with an HDR highlight
+    assert np.abs(hdrp.jitter_unity(frame)).min() > 0.1 and samples.max() > 4.0
     out, blend, _, off = hdrp.step(history, samples, frame, mv, depth, quality)
     expect, t_blend, t_off = _hdrp_transcription(
         samples, history, mv, depth, frame, quality == "high"

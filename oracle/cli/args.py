@@ -269,9 +269,9 @@ def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
 
 def load_scene(args):
     """The scene of ``add_scene_args`` options (its frame of a camera or light path), as
-    :func:`scenes.formats.inputs.load_input` resolves it: an ``export`` folder (or its
+    :func:`scenes.inputs.load_input` resolves it: an ``export`` folder (or its
     ``scene.xml``) is loaded at its exported size with its light, named after its folder."""
-    from ...scenes.formats.inputs import load_input
+    from ...scenes.inputs import load_input
 
     loaded = load_input(
         args.scene,

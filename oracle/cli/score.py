@@ -129,7 +129,7 @@ def _camera_path(args, loaded) -> str | None:
         path = loaded.default_camera_path  # a camera file's or moving objects' own path
     if args.frames is None or path is not None or args.light_path is not None:
         return path
-    from ...scenes.formats.inputs import resolve_input
+    from ...scenes.inputs import resolve_input
 
     rec = resolve_input(args.scene).export or {}
     made = ""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...scenes.formats.inputs import read_export_record
+from ...scenes.inputs import read_export_record
 from .ci.checks import Gate, Verdict
 from .ci.gates import applicable_gates, check_applicable, evaluate_gates
 from .ci.regression import BaselineOptions, check_baseline_scene, compare_baseline

@@ -31,7 +31,7 @@ from .frames import build_frame
 from .sigma import sigma_step
 from .svgf import SvgfParams, svgf_step
 
-__all__ = ["DENOISERS", "NoParams", "cost_record", "make_runner"]
+__all__ = ["DENOISERS", "NoParams", "cost_record", "denoise_step", "make_runner"]
 
 MAX_SEQUENCES = 8
 _STATES: OrderedDict = OrderedDict()
@@ -97,7 +97,9 @@ def _frame_scene(scene, j: int):
     return scene.with_frame(j, n_frames=scene.n_frames)
 
 
-def _step(denoiser: str, frame, state, p):
+def denoise_step(denoiser: str, frame, state, p):
+    """One frame of ``denoiser`` (a key of :data:`DENOISERS`) on a :class:`.frames.Frame`:
+    ``(visibility, new state, record)``; ``p`` an :class:`.svgf.SvgfParams` or None."""
     if denoiser == "none":
         return frame.noisy.copy(), None, {}
     if denoiser == "ffx":
@@ -123,7 +125,7 @@ def make_runner(technique: str, denoiser: str):
         rays = 0
         for j in range(start, k + 1):
             prev = build_frame(_frame_scene(scene, j), j, prev)
-            out, state, _ = _step(denoiser, prev, state, p)
+            out, state, _ = denoise_step(denoiser, prev, state, p)
             rays += prev.rays
         _STATES[key] = (k, prev, state, out)
         _STATES.move_to_end(key)

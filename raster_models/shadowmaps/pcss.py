@@ -226,6 +226,9 @@ def run(scene, params: PcssParams | None = None, **kwargs):
         "light_angle": used.light_angle,
         "light_range": used.light_range,
     }
+    if used.softness == "hdrp" and getattr(scene.light, "is_directional", False):
+        # HDRP's directional softness is not transcribed: the sun keeps the angular model
+        setup.diagnostics["pcss"]["softness_applied"] = "physical (directional light)"
     res = execute(NAME, scene, gbuf, setup, used, _params.as_dict(p), t0)
     # the soft family's channels: PCSS's one estimate is both the irradiance-weighted shadow
     # factor an engine multiplies and the unoccluded area fraction it approximates

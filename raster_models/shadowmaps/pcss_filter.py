@@ -279,9 +279,10 @@ def pcss_lookup(data, proj, u, v, z, ref, params, rotation=None):
     """PCSS visibility of receivers at map coordinates ``(u, v)``, normalized depth ``z``,
     compare reference ``ref`` (``z`` minus the bias), from a rendered map ``data``
     (:class:`MapData`). ``params`` carries ``blocker_samples``, ``filter_samples``,
-    ``disk``, ``light_size``, ``light_angle``, ``radius_scale``, ``min_filter_uv``,
-    ``address_mode`` and ``subtexel_bits``. Returns ``(visibility, radius_uv, z_blocker)``
-    (radius 0 and blocker depth 0 where no blocker was found)."""
+    ``disk``, ``softness``, ``light_size``, ``light_angle``, ``light_range``,
+    ``radius_scale``, ``min_filter_uv``, ``address_mode`` and ``subtexel_bits``. Returns
+    ``(visibility, radius_uv, z_blocker)`` (``z_blocker`` linear; radius 0 and blocker depth
+    0 where no blocker was found)."""
     u = np.asarray(u, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
     ref = np.broadcast_to(np.asarray(ref, dtype=np.float64), u.shape)

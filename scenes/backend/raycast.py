@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import backend
-from ..formats.gltf_materials import surface_dr
+from ..shading.materials import surface_dr
 from ..shading.pbr import shade_gltf
 from ..shading.phong import facing, receiver_mask, shade
 
@@ -265,7 +265,7 @@ def trace_film_dr(
     ray = camera_rays_dr(camera, x, y)
     pbr = (
         loaded.pbr
-    )  # glTF scenes: materials of scenes.formats.gltf_materials, BRDF of scenes.shading.pbr
+    )  # glTF scenes: materials of scenes.shading.materials, BRDF of scenes.shading.pbr
     flags = primary_flags(mi)
     if pbr is not None and pbr.has_normal_textures:
         flags = mi.RayFlags.All  # dp/du: the normal texture's fallback tangent

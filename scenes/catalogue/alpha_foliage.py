@@ -49,8 +49,10 @@ __all__ = [
     "TILE",
     "alpha_foliage",
     "band_edges",
+    "camera_pose",
     "leaf_cards",
     "leaf_texture",
+    "texture_alpha",
 ]
 
 #: Default card count (small: tests and the catalogue's default resolution;
@@ -71,6 +73,8 @@ FOV_Y = 36.0
 EYE = np.array([0.0, 2.0, 0.0])
 #: Side margin of the columns for a camera pan (fraction of the horizontal half-angle).
 PAN_MARGIN = 0.05
+#: The sun's direction of travel (from behind the camera's left shoulder, forward and down).
+SUN = (0.35, -0.6, 0.72)
 
 
 def band_edges() -> np.ndarray:
@@ -184,6 +188,16 @@ def leaf_cards(rng: np.random.Generator, n: int, *, aspect: float):
     return corners.reshape(-1, 3), faces, normals, uv.reshape(-1, 2), band
 
 
+def texture_alpha(rgba: np.ndarray) -> np.ndarray:
+    """The alpha an 8-bit PNG of ``rgba`` stores (what a reader of the GLB gets), float32."""
+    return (np.clip(np.rint(rgba[..., 3] * 255.0), 0, 255) / 255.0).astype(np.float32)
+
+
+def camera_pose() -> tuple[np.ndarray, np.ndarray]:
+    """The camera's eye and target (it looks along +Z)."""
+    return EYE.copy(), EYE + np.array([0.0, 0.0, 1.0])
+
+
 def alpha_foliage(
     width: int, height: int, *, n: int = ALPHA_FOLIAGE_N, seed: int = 1, alpha: int = 1
 ) -> bytes:
@@ -203,17 +217,12 @@ def alpha_foliage(
     }
     if alpha:
         material.update({"alphaMode": "MASK", "alphaCutoff": CUTOFF})
-    sun = GltfLight("sun", "directional", light_matrix((0.35, -0.6, 0.72)), intensity=4.0)
+    sun = GltfLight("sun", "directional", light_matrix(SUN), intensity=4.0)
     cards = GltfMesh("cards", verts, faces, 0, normals, uv)
-    eye = tuple(EYE)
+    eye, target = camera_pose()
     return glb_bytes(
         camera=_camera(
-            eye,
-            (eye[0], eye[1], eye[2] + 1.0),
-            fov_y_deg=FOV_Y,
-            near=0.05,
-            far=FAR * 1.5,
-            aspect=aspect,
+            tuple(eye), tuple(target), fov_y_deg=FOV_Y, near=0.05, far=FAR * 1.5, aspect=aspect
         ),
         lights=[sun],
         meshes=[cards] if len(faces) else [],

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from . import meshes
+from ..geometry import meshes
 from .factories import diffuse, ground, look_at, mesh, sensor
 from .soft_scenes import rectangle_light
 

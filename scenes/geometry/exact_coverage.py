@@ -43,7 +43,7 @@ import numpy as np
 import shapely
 
 from .. import backend
-from ..catalogue import meshes as _meshes
+from . import meshes as _meshes
 from .coverage_edges import convex_arrays, convex_overlaps, visible_segments
 from .pixel_area import (
     edge_pieces,
@@ -137,7 +137,7 @@ class TriangleSet:
 
 def _curved_mesh(mi, shape, n: int):
     """Inscribed tessellation ``(verts, faces, chord_error)`` of a sphere, cylinder or disk."""
-    from ..formats.export import _tessellate_sphere
+    from .tessellation import tessellate_sphere as _tessellate_sphere
 
     kind = shape.class_name()
     m = np.array(mi.traverse(shape)["to_world"].matrix, dtype=np.float64).reshape(4, 4)
@@ -209,7 +209,7 @@ def scene_triangle_set(loaded) -> TriangleSet:
     cached = memo.get(key)
     if cached is not None:
         return cached
-    from ..formats.export import shape_mesh
+    from .tessellation import shape_mesh
 
     parts, shape_of, slack = [], [], []
     for i, sh in enumerate(loaded.mi_scene.shapes()):  # a loop over shapes, not triangles

@@ -42,7 +42,7 @@ def resolve_layout(pattern: str, *, channel, kind, loaded, log=print):
     """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
     ``channel`` / ``kind``, logged as one line, after checking its size against
     ``loaded``'s (a :class:`ScoreError` naming the export or the size to pass)."""
-    from ....scenes.formats.inputs import nearest_export
+    from ....scenes.inputs import nearest_export
     from .frames import frame_file
     from .layout import candidate_layout
 
@@ -96,7 +96,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
     """The cases of ``root``'s layout (every one checked: a problem is a
     :class:`ScoreError`, except a file that lacks the channel asked for: that scene's own
     error, the others scored)."""
-    from ....scenes.formats.inputs import load_input, named_input
+    from ....scenes.inputs import load_input, named_input
 
     entries = discover(root)
     if {e.name for e in entries} & {"metrics.json", "report.html", "report.json"}:
@@ -139,7 +139,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
 def _manifest(root: Path, path, fo: FolderOptions, gates, log) -> list[FolderCase]:
     """The cases of a manifest: a bad manifest, scene or option is a :class:`ScoreError`; a
     missing file or layer is that case's own error."""
-    from ....scenes.formats.inputs import load_input
+    from ....scenes.inputs import load_input
     from .frames import frame_file
     from .manifest import read_manifest
 
