@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from . import args as A
@@ -154,8 +153,9 @@ def cmd_score(args) -> int:
     from ..scoring.ci.baseline import check_platform, resolve_baseline
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
-    from ..scoring.request import score_to_folder
+    from ..scoring.request import ScoreRequest
     from ..scoring.result import ScoreError
+    from ..scoring.to_folder import score_to_folder
     from .score_inputs import candidate_inputs
 
     gates = parse_all_gates(args)
@@ -195,24 +195,29 @@ def cmd_score(args) -> int:
             "disocclusion": args.candidate_disocclusion,
         },
     )
-    verdict = score_to_folder(
-        loaded,
+    if args.technique:
+        request = ScoreRequest.for_model(
+            loaded, args.technique, params, channel=args.channel, options=options, cache=cache
+        )
+    else:
+        request = ScoreRequest.for_files(
+            loaded,
+            args.candidate,
+            channel=args.channel,
+            layout=layout,
+            options=options,
+            cache=cache,
+        )
+    verdict, record = score_to_folder(
+        request,
         out=args.out,
-        technique=args.technique,
-        params=params,
-        candidate=args.candidate,
-        channel=args.channel,
-        options=options,
-        cache=cache,
         gates=gates,
         baseline=baseline,
         baseline_source=str(args.baseline),
-        layout=layout,
         baseline_options=baseline_options(args).for_gates(gates),
     )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
-    record = json.loads((args.out / "metrics.json").read_text())
     write_outputs(args, [verdict], records=[record], report=args.out / "report.html")
     return verdict.exit_code
 
