@@ -7,9 +7,10 @@ visibility and coverage are in [0, 1] with 1 = lit / covered. Invalid input rais
 Modules: :mod:`metrics.tonemap` (the shared tone-mapping pipeline), :mod:`metrics.perceptual`
 (FLIP, SSIM, PSNR, CIEDE2000), :mod:`metrics.shadow` (visibility on receivers),
 :mod:`metrics.aliasing` (edge/interior and coverage error, straight-edge floor),
-:mod:`metrics.temporal` (flicker), :mod:`metrics.ghosting` (convergence, ghosting, lag,
-flicker ratio and map of a temporal AA), :mod:`metrics.motion` (motion-vector conventions
-and end-point error), :mod:`metrics.stats` (Z-test, noise floor),
+:mod:`metrics.temporal` (flicker), :mod:`metrics.depth` (linear view depth),
+:mod:`metrics.ghosting` (convergence, ghosting, lag, flicker ratio and map of a temporal
+AA), :mod:`metrics.motion` (motion-vector conventions and end-point error),
+:mod:`metrics.stats` (Z-test, noise floor),
 :mod:`metrics.catalog` (every scored metric's direction, unit and applicability).
 """
 
@@ -24,6 +25,7 @@ from .aliasing import (
     straight_edge_error_floor,
 )
 from .catalog import CATALOG
+from .depth import DEPTH_KEYS, depth_metrics, hyperbolic_rounding
 from .diagnose import diagnose
 from .ghosting import (
     convergence,
@@ -96,7 +98,10 @@ __all__ = [
     "noise_floor",
     "FRACTION_FLOOR_Z",
     "binomial_stderr_floor",
+    "DEPTH_KEYS",
+    "depth_metrics",
     "diagnose",
+    "hyperbolic_rounding",
     "fraction_floor",
     "exact_surrogate",
     "psnr_db",

@@ -250,7 +250,10 @@ def _evaluate_flip(ref, cand, mode, input_srgb, parameters):
                 parameters=parameters,
             )
     except SystemExit as exc:
-        message = " ".join(captured.getvalue().split()) or f"exit status {exc.code}"
+        message = " ".join(captured.getvalue().split())
+        if not message and exc.code in (130, 143):
+            raise  # a stop (SIGINT/SIGTERM unwinding through the call), not flip's refusal
+        message = message or f"exit status {exc.code}"
         raise MetricError(f"flip_evaluator rejected its arguments: {message}") from None
     except (RuntimeError, TypeError) as exc:
         raise MetricError(f"flip_evaluator failed: {exc}") from exc

@@ -14,6 +14,7 @@ import dataclasses
 import math
 from typing import Any
 
+from ..scenes.base.numbers import NumberError, parse_float, parse_int
 from .errors import ModelError
 
 __all__ = ["as_dict", "describe", "make", "param", "parse_pairs"]
@@ -163,27 +164,29 @@ def _parse_text(technique: str, f: dataclasses.Field, text: str) -> Any:
         raise bad
     if kind == "str":
         return s
-    if kind == "floats":
-        parts = [p for p in s.replace(";", ",").split(",") if p.strip()]
-        try:
-            return tuple(float(p) for p in parts)
-        except ValueError:
-            raise bad from None
-    if kind == "int":
-        try:
-            return int(s)
-        except ValueError:
-            try:
-                v = float(s)
-            except ValueError:
-                raise bad from None
-            if v.is_integer():
-                return int(v)
-            raise bad from None
     try:
-        return float(s)
-    except ValueError:
+        if kind == "floats":
+            parts = [p.strip() for p in s.replace(";", ",").split(",") if p.strip()]
+            return tuple(_float_text(p, f.name) for p in parts)
+        if kind == "int":
+            try:
+                return parse_int(s, what=f.name, signed=True)
+            except NumberError:
+                v = parse_float(s, what=f.name)  # 2.0 is the integer 2; 2.5 is refused
+                if v.is_integer():
+                    return int(v)
+                raise
+        return _float_text(s, f.name)
+    except NumberError:
         raise bad from None
+
+
+def _float_text(text: str, name: str) -> float:
+    """A strict decimal number (:func:`parse_float`), or ``inf``/``nan`` (refused or taken by
+    :func:`_check`, which names them)."""
+    if text.lower().lstrip("+-") in ("inf", "infinity", "nan"):
+        return float(text)
+    return parse_float(text, what=name)
 
 
 def _unknown(technique: str, cls, name: str) -> ModelError:

@@ -128,8 +128,10 @@ class Technique:
     """A registered technique: its parameter dataclass and entry point.
 
     ``family``: a key of :data:`FAMILIES`: ``shadow`` (visibility outputs, scored on
-    receivers), ``aa`` (colour and coverage outputs, scored against the reference image) or
-    ``taa`` (colour over a frame sequence, with the temporal metrics)."""
+    receivers), ``aa`` (colour and coverage outputs, scored against the reference image),
+    ``taa`` (colour over a frame sequence, with the temporal metrics) or ``soft``
+    (``soft_visibility`` and ``light_fraction`` under an area light, scored against the soft
+    truth)."""
 
     name: str
     description: str
@@ -198,13 +200,15 @@ TECHNIQUES: dict[str, Technique] = {
             "pcss",
             "percentage-closer soft shadows on one shadow map: blocker search over a "
             "light-size-scaled disk, penumbra (z_r - z_b) L / z_b, PCF over it; presets "
-            "nvidia (16/16 Poisson) and hdrp (24/16 Fibonacci spiral, per-pixel rotation)",
+            "nvidia (16/16 Poisson, the light's width as the disk radius) and hdrp (24/16 "
+            "Fibonacci spiral, per-pixel rotation, HDRP's fitted softness mapping)",
             (
                 "R. Fernando, Percentage-closer soft shadows, SIGGRAPH 2005 Sketches, "
                 "doi:10.1145/1187112.1187153",
                 "L. Bavoil, Integrating Realistic Soft Shadows into Your Game Engine, NVIDIA "
                 "whitepaper, 2008",
-                "Unity Technologies, HDRP 10.10.1 HDPCSS.hlsl / HDShadowSampling.hlsl",
+                "Unity Technologies, HDRP 10.10.1 HDPCSS.hlsl / HDShadowSampling.hlsl / "
+                "HDAdditionalLightData.cs",
             ),
             pcss.PcssParams,
             pcss.run,
@@ -385,7 +389,8 @@ def front_group(technique: str) -> str:
 
 
 def family_of(technique: str) -> str:
-    """The family of a registered technique: ``shadow`` or ``aa``.
+    """The family of a registered technique: a key of :data:`FAMILIES` (``shadow``, ``aa``,
+    ``taa`` or ``soft``).
 
     Raises
     ------

@@ -146,6 +146,8 @@ def build_report(
             ],
             # the verdict table: each failed gate, and a case's regressions as one row
             "failed_rows": _failed_rows(records),
+            # the first screen's "Where" crops: failing cases, the worst tile first
+            "where_cases": _where_order(records),
             "n_checks": sum(len(case.get("checks", [])) for case in records),
             "errors": _errors(errors),
             "diagnoses": [
@@ -158,6 +160,22 @@ def build_report(
         "colorbars": {style: _images.colorbar_uri(style) for style in styles},
         "cases": records,
     }
+
+
+def _where_order(records) -> list[int]:
+    """Indices of the failing cases with worst tiles, most severe first: by the mean |error|
+    of each case's worst tile, descending (ties keep the cases' order)."""
+    idx = [
+        i
+        for i, case in enumerate(records)
+        if case.get("status") == "fail" and case.get("worst_tiles", {}).get("tiles")
+    ]
+
+    def severity(i: int) -> float:
+        value = records[i]["worst_tiles"]["tiles"][0].get("mean_abs_error")
+        return float(value) if isinstance(value, int | float) else 0.0
+
+    return sorted(idx, key=lambda i: -severity(i))
 
 
 def _failed_rows(records) -> list[dict]:
@@ -178,6 +196,8 @@ def _failed_rows(records) -> list[dict]:
                 {
                     **where,
                     "name": f"{len(regressions)} regression(s): {names}{more}",
+                    "summary": f"{len(regressions)} metrics past their baselines' noise "
+                    "floors (each listed in the case)",
                     "kind": "baseline",
                     "metric": None,
                     "count": len(regressions),

@@ -21,7 +21,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-__all__ = ["Camera"]
+__all__ = ["Camera", "look_at"]
+
+
+def look_at(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """Mitsuba's look_at as a float64 ``to_world`` matrix: +Z forward, +Y up, +X left."""
+    o, t, u = (np.asarray(a, float) for a in (origin, target, up))
+    d = t - o
+    d /= np.linalg.norm(d)
+    left = np.cross(u, d)
+    left /= np.linalg.norm(left)
+    new_up = np.cross(d, left)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, o
+    return m
 
 
 @dataclass(frozen=True)

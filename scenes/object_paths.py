@@ -9,7 +9,10 @@ path is defined for every integer frame, frame -1 included, so frame 0 has a pre
 - ``{"path": "slide", "velocity": (vx, vy, vz)}``: translation by ``k * velocity`` (world
   units) at frame ``k``;
 - ``{"path": "spin", "pivot": (x, y, z), "axis": (x, y, z), "degrees": d}``: rotation by
-  ``k * d`` degrees about the axis through the pivot (right-handed about ``axis``).
+  ``k * d`` degrees about the axis through the pivot (right-handed about ``axis``);
+- ``{"path": "step", "offset": (x, y, z), "start": k0, "stop": k1}``: translation by ``offset``
+  at frames ``k0 <= k < k1``, none at other frames (a shutter closing and opening: a light
+  switched off and on, as the receivers see it).
 
 Frame 0 is the shape as the dictionary gives it.
 """
@@ -25,6 +28,13 @@ __all__ = ["OBJECT_PATHS", "check_motion", "object_transform"]
 OBJECT_PATHS = {
     "slide": "translate by `velocity` world units a frame",
     "spin": "rotate by `degrees` a frame about `axis` through `pivot`",
+    "step": "translate by `offset` at frames `start` <= k < `stop`",
+}
+
+_NEEDS = {
+    "slide": ("velocity",),
+    "spin": ("pivot", "axis", "degrees"),
+    "step": ("offset", "start", "stop"),
 }
 
 
@@ -37,8 +47,7 @@ def check_motion(motion: dict) -> None:
                 f"object path of shape {name!r}: unknown path {path!r}; "
                 f"choose one of {', '.join(OBJECT_PATHS)}"
             )
-        need = ("velocity",) if path == "slide" else ("pivot", "axis", "degrees")
-        for key in need:
+        for key in _NEEDS[path]:
             if key not in spec:
                 raise ValueError(f"object path {path} of shape {name!r} needs {key!r}")
 
@@ -50,6 +59,10 @@ def object_transform(spec: dict, frame: float) -> np.ndarray:
     k = float(frame)
     if spec["path"] == "slide":
         m[:3, 3] = k * np.asarray(spec["velocity"], dtype=np.float64)
+        return m
+    if spec["path"] == "step":
+        if float(spec["start"]) <= k < float(spec["stop"]):
+            m[:3, 3] = np.asarray(spec["offset"], dtype=np.float64)
         return m
     axis = np.asarray(spec["axis"], dtype=np.float64)
     axis = axis / np.linalg.norm(axis)

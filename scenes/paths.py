@@ -5,6 +5,8 @@
 - ``subtexel-pan``: the camera translates along its right axis by a quarter of a shadow-map
   texel per frame, the texel being the scene's horizontal extent / 2048 (a 2048^2 map fit
   to the scene): the workload that stable cascades must not shimmer under.
+- ``fast-pan``: the camera yaws by :data:`FAST_PAN_PX` pixels' angle per frame (orthographic:
+  translates as many pixels): the fast pan under which temporal denoisers ghost.
 - ``rotate``: slow yaw of 0.5 degree per frame about the camera position.
 - ``static``: the scene's own camera every frame (scenes whose objects move,
   :mod:`scenes.object_paths`; a static-camera TAA's convergence).
@@ -21,12 +23,16 @@ import numpy as np
 
 from .camera import Camera
 
-__all__ = ["CAMERA_PATHS", "path_camera"]
+__all__ = ["CAMERA_PATHS", "FAST_PAN_PX", "path_camera"]
+
+#: Image motion (pixels a frame at the image centre) of the ``fast-pan`` path.
+FAST_PAN_PX = 4.0
 
 CAMERA_PATHS = {
     "static": "the scene's own camera every frame (objects may move)",
     "subpixel-pan": "yaw by 1/4 pixel a frame (0.25 px image motion)",
     "subtexel-pan": "translate right by 1/4 shadow-map texel (scene extent / 2048) a frame",
+    "fast-pan": f"yaw by {FAST_PAN_PX:g} pixels a frame ({FAST_PAN_PX:g} px image motion)",
     "rotate": "yaw by 0.5 degree a frame",
     "dolly": "move forward by 4% of the distance to the geometry at the image centre a frame",
 }
@@ -51,12 +57,13 @@ def path_camera(base: Camera, path: str, frame: int, n_frames: int, *, scene=Non
         return base
     m = np.asarray(base.to_world, dtype=np.float64)
     k = float(frame)
-    if path == "subpixel-pan":
+    if path in ("subpixel-pan", "fast-pan"):
+        px = 0.25 if path == "subpixel-pan" else FAST_PAN_PX
         if base.kind == "perspective":
-            return base.with_to_world(_yaw(m, -0.25 * k * base.pixel_angle))
+            return base.with_to_world(_yaw(m, -px * k * base.pixel_angle))
         hw, _ = base.half_extent()
         m = m.copy()
-        m[:3, 3] += base.right * (0.25 * k * 2 * hw / base.width)
+        m[:3, 3] += base.right * (px * k * 2 * hw / base.width)
         return base.with_to_world(m)
     if path == "rotate":
         return base.with_to_world(_yaw(m, math.radians(-0.5 * k)))

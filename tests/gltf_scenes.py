@@ -11,7 +11,6 @@ import math
 
 import numpy as np
 from engine_raster import gltf_brdf as spec_brdf  # noqa: F401 (the tests' BRDF, re-exported)
-from raster_oracle.scenes.catalogue import meshes
 from raster_oracle.scenes.formats.gltf_write import (
     GltfCamera,
     GltfLight,
@@ -19,6 +18,7 @@ from raster_oracle.scenes.formats.gltf_write import (
     glb_bytes,
     light_matrix,
 )
+from raster_oracle.scenes.geometry import meshes
 
 #: glTF camera axes to Mitsuba's (its own inverse).
 GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])

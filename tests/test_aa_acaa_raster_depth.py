@@ -22,9 +22,9 @@ from raster_oracle.raster_models.aa.acaa import groups, plane
 from raster_oracle.raster_models.aa.acaa import model as acaa
 from raster_oracle.scenes import backend
 from raster_oracle.scenes.backend.raycast import camera_rays_dr
-from raster_oracle.scenes.catalogue import meshes
 from raster_oracle.scenes.catalogue.builtin import BuiltinScene
 from raster_oracle.scenes.catalogue.factories import mesh, sensor, sun
+from raster_oracle.scenes.geometry import meshes
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

@@ -124,8 +124,8 @@ def _squares(seed: int = 5):
 
 
 def _squares_scene(width, height):
-    from raster_oracle.scenes.catalogue import meshes
     from raster_oracle.scenes.catalogue.aa_scenes import ortho_camera
+    from raster_oracle.scenes.geometry import meshes
 
     squares = meshes.merge([meshes.quad(q) for q in _squares()])
     return {

@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 import pytest
-from raster_oracle.scenes.catalogue import meshes
 from raster_oracle.scenes.catalogue.builtin import BuiltinScene
 from raster_oracle.scenes.catalogue.factories import mesh, sensor, sun
+from raster_oracle.scenes.geometry import meshes
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

@@ -9,16 +9,35 @@ import math
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference import render as R
+from raster_oracle.oracle.reference.adaptive import refine_mask
+from raster_oracle.oracle.reference.coverage import CoverageGroup
+from raster_oracle.oracle.reference.edge import EdgeGroup
+from raster_oracle.oracle.reference.group import Accumulators
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle.oracle.reference.visibility import VisibilityGroup
 
 from raster_oracle import scenes
 
 CHANNELS = ("visibility", "coverage")
 
 
-def _uniform_acc(width: int, height: int, n: int, shape_id: int = 0) -> R._Accum:
+class _Sums:
+    """The groups an adaptive render keeps without colour (visibility, coverage without its
+    front part, the shape range), their sums reachable by name."""
+
+    def __init__(self, npix: int):
+        vis = VisibilityGroup(npix)
+        groups = {"visibility": vis, "coverage": CoverageGroup(npix, output=False)}
+        groups["edge"] = EdgeGroup(npix, visibility=vis)
+        self.acc = Accumulators(npix, groups, color=False)
+        self.n = self.acc.n
+        self.vis, self.cov = vis.vis, groups["coverage"].cov
+        self.smin, self.smax = groups["edge"].smin, groups["edge"].smax
+
+
+def _uniform_acc(width: int, height: int, n: int, shape_id: int = 0) -> _Sums:
     """Every pixel: ``n`` samples, all lit, all covered, all on shape ``shape_id``."""
-    acc = R._Accum(width * height, False)
+    acc = _Sums(width * height)
     acc.n[:] = n
     acc.vis[:] = n
     acc.cov[:] = n
@@ -36,7 +55,7 @@ def test_a_neighbours_id_change_refines_a_pixel_whose_own_samples_agree():
     centre = 2 * w + 3
     acc.smax[centre] = 1
     settings = ReferenceSettings(adaptive=True, target_stderr=0.01).validate()
-    mask = R._refine_mask(acc, settings, w, h).reshape(h, w)
+    mask = refine_mask(acc.acc, settings, w, h).reshape(h, w)
     expected = np.zeros((h, w), bool)
     expected[:, 1:6] = True
     np.testing.assert_array_equal(mask, expected)
@@ -49,13 +68,13 @@ def test_a_neighbours_visibility_change_refines_agreeing_pixels_on_both_sides():
     acc = _uniform_acc(w, h, 16)
     acc.vis.reshape(h, w)[:, :4] = 0
     settings = ReferenceSettings(adaptive=True, target_stderr=0.01).validate()
-    mask = R._refine_mask(acc, settings, w, h).reshape(h, w)
+    mask = refine_mask(acc.acc, settings, w, h).reshape(h, w)
     assert mask[:, 2:6].all() and not mask[:, :2].any() and not mask[:, 6:].any()
     # once a pixel meets the target (floor below it) it stops although it is near the edge
     acc.n[:] = 256
     acc.vis[acc.vis > 0] = 256
     acc.cov[:] = 256
-    assert not R._refine_mask(acc, settings, w, h).any()
+    assert not refine_mask(acc.acc, settings, w, h).any()
 
 
 def test_binary_stderr_is_the_floor_for_agreeing_samples_and_jeffreys_otherwise():

@@ -13,9 +13,10 @@ import pytest
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.scenes.catalogue.builtin import BuiltinScene
-from raster_oracle.scenes.catalogue.factories import diffuse, ground, sensor
+from raster_oracle.scenes.catalogue.factories import ground, sensor
 from raster_oracle.scenes.catalogue.soft_scenes import soft_contact
-from raster_oracle.scenes.loader import SceneError
+from raster_oracle.scenes.loaded import SceneError
+from raster_oracle.scenes.shading.materials import diffuse
 from scipy.special import erfc
 
 from raster_oracle import scenes

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from raster_oracle.scenes.catalogue.factories import look_at
+from raster_oracle.scenes.camera import look_at
 
 from raster_oracle import scenes
 

@@ -141,12 +141,12 @@ NO_LIGHT = (
     ],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys, args, message):
-    from raster_oracle.oracle.reference import render
+    from raster_oracle.oracle.reference import settings
 
     monkeypatch.chdir(tmp_path)
     # the memory guard's case needs less memory than the machine has: 12000x12000 needs
     # about 40 GiB, which the 128 GiB GPU machine had free (exit 0 there)
-    monkeypatch.setattr(render, "available_memory", lambda: 16 << 30)
+    monkeypatch.setattr(settings, "available_memory", lambda: 16 << 30)
     (tmp_path / "bad.xml").write_text(BAD_XML)
     (tmp_path / "nosensor.xml").write_text(NO_SENSOR)
     (tmp_path / "nolight.xml").write_text(NO_LIGHT)

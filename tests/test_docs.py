@@ -93,3 +93,14 @@ def test_readme_is_short_and_keeps_the_quick_start():
     assert "bin/test.sh     # the whole test suite" in text
     for flag in ("export", "--fail-above", "--fail-below", "--baseline", "--junit"):
         assert flag in text
+
+
+def test_readme_names_the_set_up_script_and_conventions_one_oracle_version():
+    """Issue 43 item 8: the quick start names `bin/setup.sh`; docs/conventions.md gives the
+    oracle version the cache uses, once."""
+    from raster_oracle.oracle.reference.cache import ORACLE_VERSION
+
+    assert "bin/setup.sh" in (ROOT / "README.md").read_text()
+    text = (DOCS / "conventions.md").read_text()
+    versions = set(re.findall(r"[Oo]racle version \(?(\d+)\)?", text))
+    assert versions == {ORACLE_VERSION}, versions

@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference.render import EXACT_BUDGET_S
-from raster_oracle.scenes.camera import Camera
-from raster_oracle.scenes.catalogue.factories import look_at
+from raster_oracle.scenes.camera import Camera, look_at
 from raster_oracle.scenes.geometry.exact_coverage import (
     NotExact,
     OverBudget,

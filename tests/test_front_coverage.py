@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.raster_models.aa import samples as aa_samples
-from raster_oracle.scenes.catalogue import meshes
 from raster_oracle.scenes.catalogue.aa_scenes import ortho_camera
 from raster_oracle.scenes.catalogue.builtin import BuiltinScene
 from raster_oracle.scenes.catalogue.factories import mesh, sun
+from raster_oracle.scenes.geometry import meshes
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes

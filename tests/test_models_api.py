@@ -33,7 +33,7 @@ def test_registry_names_and_records():
             assert set(p) >= {"name", "default", "type", "choices", "source", "help"}
             assert p["source"] and p["help"], p["name"]
             assert p["type"] in ("bool", "int", "float", "str", "floats")
-            if p["type"] == "str":
+            if p["type"] == "str" and p["name"] != "light_matrix":  # light_matrix: a path
                 assert p["default"] in p["choices"]
         json.dumps(rec)  # plain JSON
     sdsm = {p["name"]: p for p in records[2]["params"]}
@@ -138,7 +138,7 @@ def test_every_technique_runs_with_its_defaults(plate, technique):
 @pytest.mark.parametrize("technique", SHADOW_MAP_FAMILY)
 def test_result_contract(plate, technique):
     r = rm.run(technique, plate, resolution=SMALL_MAP, filter="hw_pcf")
-    assert set(r.outputs) == set(rm.OUTPUT_CHANNELS)
+    assert set(r.outputs) == set(rm.OUTPUT_CHANNELS) | set(rm.COMPARE_OUTPUT_CHANNELS)
     for name, img in r.outputs.items():
         assert img.shape == (plate.height, plate.width), name
         assert img.dtype == np.float32, name

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference import render as R
+from raster_oracle.oracle.reference import settings as settings_module
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.scenes import backend
 
@@ -55,7 +56,7 @@ def test_a_pixels_samples_split_over_launches_give_the_same_bytes(monkeypatch):
     scene = scenes.load("plate", width=8, height=6)
     settings = ReferenceSettings(spp=256, channels=("visibility", "coverage", "color"))
     whole, _ = render_reference(scene, settings, quiet=True)
-    monkeypatch.setattr(R, "SAMPLES_PER_CHUNK", 96)
+    monkeypatch.setattr(settings_module, "SAMPLES_PER_CHUNK", 96)
     split, stats = render_reference(scene, settings, quiet=True)
     assert stats["primary_rays"] == 256 * 48
     for name in whole:

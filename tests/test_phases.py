@@ -14,6 +14,7 @@ from raster_oracle.oracle.phases import (
     summarise_history,
 )
 from raster_oracle.oracle.reference import render as R
+from raster_oracle.oracle.reference import settings as settings_module
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 
 from raster_oracle import raster_models, scenes
@@ -132,17 +133,29 @@ def test_contiguous_chunks_give_the_bytes_of_uploaded_pixel_indices(monkeypatch)
     """A run of pixels adds an opaque first index; any other pixel list is uploaded and
     gathered (the former path for every chunk): the sums agree bit for bit."""
     loaded = scenes.load("city", width=16, height=10)
-    monkeypatch.setattr(R, "SAMPLES_PER_CHUNK", 8 * 16)  # several launches of 16 pixels
+    monkeypatch.setattr(settings_module, "SAMPLES_PER_CHUNK", 8 * 16)  # launches of 16 pixels
     npix = loaded.width * loaded.height
     runs = np.arange(npix, dtype=np.uint32)
     scattered = np.concatenate([runs[0::2], runs[1::2]])  # no chunk is a run
     sums = []
     for pixels in (runs, scattered):
-        acc = R._Accum(npix, True, track=frozenset({"vis", "cov", "shape"}))
-        R._pass(loaded, acc, pixels, 8, 0, 3, None)
-        sums.append(acc)
-    for k in ("n", "vis", "cov", "rgb", "rgb2", "smin", "smax"):
-        assert getattr(sums[0], k).tobytes() == getattr(sums[1], k).tobytes(), k
+        acc = R.make_accumulators(loaded, ("visibility", "coverage", "edge", "color"))
+        R.sample_pass(loaded, acc, pixels, 8, 0, 3, None)
+        g = acc.groups
+        sums.append(
+            {
+                "n": acc.n,
+                "vis": g["visibility"].vis,
+                "cov": g["coverage"].cov,
+                "front": g["coverage"].front,
+                "rgb": g["color"].rgb,
+                "rgb2": g["color"].rgb2,
+                "smin": g["edge"].smin,
+                "smax": g["edge"].smax,
+            }
+        )
+    for k in sums[0]:
+        assert sums[0][k].tobytes() == sums[1][k].tobytes(), k
 
 
 def test_device_description_names_the_machine(_backend):

@@ -479,3 +479,42 @@ def test_empty_report_renders_and_output_is_deterministic():
     assert "0 cases" in reports.render_html(empty)
     first, second = _visibility_case(), _visibility_case()
     assert json.dumps(first) == json.dumps(second)
+
+
+def _regression(metric: str) -> dict:
+    return {
+        "name": f"baseline {metric}",
+        "kind": "baseline",
+        "metric": metric,
+        "passed": False,
+        "line": f"REGRESSION {metric}",
+        "value": 0.2,
+        "previous": 0.1,
+        "noise_floor": 0.001,
+        "previous_noise_floor": 0.001,
+    }
+
+
+def test_first_screen_orders_cases_by_severity_and_groups_regressions_readably():
+    """Issue 43 item 8: the "Where" crops of the first screen come worst case first (not in
+    case order), and a case's grouped regressions say what they are, not "— / —"."""
+    reference, candidate = _visibility_pair()
+    mild = candidate.copy()
+    mild[96:128, 160:192] = 0.7  # a milder planted error than the severe case's 0
+    error = {"visibility_error": {"data": mild - reference, "style": "signed"}}
+    checks = [_regression("mae"), _regression("misclassified")]
+    cases = [
+        _visibility_case(name="mild", candidate=mild, error_maps=error, checks=checks[:1]),
+        _visibility_case(name="severe", checks=checks),
+    ]
+    report = reports.build_report(cases, title="t", provenance={})
+    assert [report["cases"][i]["name"] for i in report["summary"]["where_cases"]] == [
+        "severe",
+        "mild",
+    ]
+    html = reports.render_html(report)
+    first = html.split('id="verdict"')[1].split("</section>")[0]
+    where = first[first.index("Where: <a") :]
+    assert where.index(">severe<") < where.index(">mild<")
+    assert "— / —" not in first
+    assert "2 metrics past their baselines" in first

@@ -36,12 +36,13 @@ def test_parameters_are_parsed_checked_and_named_canonically():
     d = spec.factory(32, 18)
     assert len(d["grass"]["faces"]) == 300
     assert builtin_scene("meadow").name == "meadow"
-    assert builtin_scene("meadow:n=1_000").factory(8, 8)["grass"]["faces"].shape == (1000, 3)
+    assert builtin_scene("meadow:n=01000").factory(8, 8)["grass"]["faces"].shape == (1000, 3)
     assert builtin_scene("no-such-scene:n=3") is None and builtin_scene("x.xml") is None
     for bad, text in [
         ("meadow:x=1", "not a parameter of 'meadow'"),
-        ("meadow:n=-5", r"n must be an integer in \[0, 100000000\]"),
-        ("meadow:n=1.5", "must be an integer"),
+        ("meadow:n=-5", r"n must be a whole number \(decimal digits only\) in \[0, 100000000\]"),
+        ("meadow:n=1.5", "must be a whole number"),
+        ("meadow:n=1_000", "decimal digits only"),  # Python's digit grouping is not taken
         ("meadow:n=3:n=4", "given twice"),
         ("meadow:n", "not a parameter"),
         ("plate:n=3", "takes no parameters"),
@@ -118,7 +119,7 @@ def test_layered_boundaries_match_the_polygon_path(name, monkeypatch):
     tset = ec.scene_triangle_set(loaded)
     fast = ec.exact_coverage_of(loaded.camera, tset, centre, grid_offset=(0.25, -0.5))
     assert fast.stats["method"] == "layered"
-    monkeypatch.setattr(ec, "_layered", lambda *a: None)
+    monkeypatch.setattr(ec, "layered_coverage", lambda *a: None)
     slow = ec.exact_coverage_of(loaded.camera, tset, centre, grid_offset=(0.25, -0.5))
     assert slow.stats["method"] == "polygons"
     assert np.abs(fast.coverage - slow.coverage).max() < 1e-9

@@ -15,7 +15,7 @@ from raster_oracle.raster_models.aa.smaa import PRESETS, textures
 from raster_oracle.raster_models.aa.smaa.blending import neighborhood_blend, resolve
 from raster_oracle.raster_models.aa.smaa.edges import detect_edges
 from raster_oracle.raster_models.aa.smaa.model import color_buffer, smaa_1x
-from raster_oracle.raster_models.aa.smaa.params import SmaaParams, resolved
+from raster_oracle.raster_models.aa.smaa.params import MODES, SmaaParams, resolved
 from raster_oracle.raster_models.aa.smaa.weights import blending_weights
 from raster_oracle.raster_models.aa.trace import sample_colors
 from raster_oracle.scenes.base.display import (
@@ -227,15 +227,31 @@ def test_t2x_on_a_static_camera_is_the_average_of_its_two_smaa_frames(source):
         smaa_1x(color_buffer(tonemap(f, exposure=exposure), cfg), cfg, idx)["color"]
         for f, idx in zip(frames, ((1, 1, 1, 0), (2, 2, 2, 0)), strict=True)
     ]
+    # frame 0 is the demo's S0 (jitter (0.25, -0.25) y up, indices (1, 1, 1, 0)); the still
+    # scene's previous frame is S1
     if source == "float":
-        want = out[1] + (out[0] - out[1]) * np.float32(0.5)
+        want = out[0] + (out[1] - out[0]) * np.float32(0.5)
     else:
         assert np.array_equal(np.round(out[0] * 255) / 255, out[0])  # an RGBA8 target
-        cur, prev = srgb_decode(out[1]), srgb_decode(out[0])
+        cur, prev = srgb_decode(out[0]), srgb_decode(out[1])
         want = srgb_encode(cur + (prev - cur) * np.float32(0.5))
         want = np.round(np.clip(want.astype(np.float64), 0, 1) * 255) / 255
     np.testing.assert_allclose(res.outputs["color_display"], want, atol=FLOAT32_ATOL)
     assert not np.array_equal(out[0], out[1])  # the jittered frames differ
+    assert res.diagnostics["current_frame_set"] == 0
+
+
+def test_t2x_frame_0_is_the_demos_first_jitter():
+    # the header's S0, jitter (0.25, -0.25) with y up, is (0.5 + 0.25, 0.5 + 0.25) from the
+    # pixel's upper-left corner with y down; the demo renders it first (frameIndex 0)
+    jx, jy = 0.25, -0.25
+    assert T2X_DEMO[0] == ((0.5 + jx, 0.5 - jy), (1, 1, 1, 0))
+    assert [tuple(map(tuple, f[0])) for f in MODES["t2x"]] == [tuple(f) for f in T2X_DEMO]
+    for k in (0, 1, 2, 3):
+        scene = scenes.load("star", width=16, height=9).with_frame(k, n_frames=4)
+        res = run_model("smaa", scene, mode="t2x")
+        assert res.diagnostics["current_frame_set"] == k % 2
+        assert res.diagnostics["sample_positions"][k % 2] == [list(T2X_DEMO[k % 2][0])]
 
 
 def _score(tmp_path, name, args):
@@ -268,18 +284,26 @@ def test_modes_run_and_report_costs(tmp_path):
     assert "still scene" in rec["diagnostics"]["velocity"]
 
 
-def test_t2x_on_a_moving_sequence_reprojects_the_previous_frame_by_its_velocity():
-    # slide's frame 2: the current frame (sub-sample set 1, jitter (0.25, 0.25)) and frame 1
-    # (set 0, jitter (0.75, 0.75)), each SMAA 1x on its 8-bit buffer with its own velocity
-    # buffer (current minus previous position, texture units, RG16F), resolved with the
-    # previous frame fetched at texcoord - velocity
+#: SMAA.hlsl @SUBSAMPLE_INDICES (iryoku/smaa 71c806a, lines 220-221) in the demo's order: S0
+#: jitter (0.25, -0.25) y up = (0.75, 0.75) from the pixel's upper-left corner, then S1.
+T2X_DEMO = (((0.75, 0.75), (1, 1, 1, 0)), ((0.25, 0.25), (2, 2, 2, 0)))
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_t2x_on_a_moving_sequence_reprojects_the_previous_frame_by_its_velocity(k):
+    # slide's frame k: the current frame (the demo's sub-sample set k mod 2: its frameIndex
+    # starts at 0 and steps after each frame) and frame k - 1 (the other set), each SMAA 1x
+    # on its 8-bit buffer with its own velocity buffer (current minus previous position,
+    # texture units, RG16F), resolved with the previous frame fetched at texcoord - velocity
     from raster_oracle.scenes.geometry.motion import film_motion
 
     w, h = 48, 27
-    scene = scenes.load("slide", width=w, height=h).with_frame(2, n_frames=8)
+    scene = scenes.load("slide", width=w, height=h).with_frame(k, n_frames=8)
     res = run_model("smaa", scene, mode="t2x")
     assert "film motion" in res.diagnostics["velocity"]
-    frames = [(scene.previous(), (0.75, 0.75), (1, 1, 1, 0)), (scene, (0.25, 0.25), (2, 2, 2, 0))]
+    assert res.diagnostics["current_frame_set"] == k % 2
+    cur, prev = T2X_DEMO[k % 2], T2X_DEMO[(k + 1) % 2]
+    frames = [(scene.previous(), *prev), (scene, *cur)]
     cols, vels = [], []
     y, x = np.mgrid[0:h, 0:w].astype(np.float64)
     for sc, off, _ in frames:

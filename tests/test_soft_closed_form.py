@@ -27,9 +27,10 @@ import math
 import numpy as np
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
-from raster_oracle.scenes.catalogue import meshes
 from raster_oracle.scenes.catalogue.builtin import BuiltinScene
-from raster_oracle.scenes.catalogue.factories import diffuse, ground, mesh, sensor
+from raster_oracle.scenes.catalogue.factories import ground, mesh, sensor
+from raster_oracle.scenes.geometry import meshes
+from raster_oracle.scenes.shading.materials import diffuse
 
 from raster_oracle import scenes
 

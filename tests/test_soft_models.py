@@ -88,7 +88,7 @@ def test_pcss_blocker_search_finds_the_flat_blocker_depth():
     assert radius[0] == pytest.approx((10 - 4) / 4 * 1.0 / (2 * 10 * 1.0), rel=1e-5)
     assert 0.0 < vis[1] < 1.0  # the edge: partly lit
     assert vis[2] == 1.0 and zb[2] == 0.0 and radius[2] == 0.0
-    est = pcss_filter.estimates(proj, z - 1e-6, radius, zb, 1.0)
+    est = pcss_filter.estimates(proj, z - 1e-6, radius, zb, p)
     # Parallel planes: (10 - 4) x 1 m / 4 = 1.5 m of penumbra, 6 m from blocker to receiver.
     assert est["penumbra_width"][0] == pytest.approx(1.5, rel=1e-4)
     assert est["blocker_distance"][0] == pytest.approx(6.0, rel=1e-4)
@@ -120,7 +120,11 @@ def test_presets_transcribe_the_engines():
     assert pcss_filter.POISSON_16[0] == pytest.approx([-0.94201624, -0.39906216])
     p = resolved(PcssParams(preset="hdrp", filter_samples=8), SimpleNamespace(is_area=False))
     assert (p.blocker_samples, p.filter_samples, p.disk, p.rotation) == (24, 8, "fibonacci", "ign")
-    assert p.min_filter_uv == pytest.approx(1e-4) and p.light_size == 0.5
+    # HDRP's minimum filter size, 1e-4 of the 4096 fit, and its default shape radius 0.025
+    assert p.min_filter_uv == pytest.approx(1e-4 * 4096 / p.resolution)
+    assert p.light_size == pytest.approx(0.05) and p.softness == "hdrp"
+    q = resolved(PcssParams(), SimpleNamespace(is_area=False))
+    assert (q.light_size, q.min_filter_uv, q.softness) == (0.5, 0.0, "physical")
 
 
 def test_interleaved_gradient_noise_is_jimenez_formula():
@@ -292,9 +296,11 @@ def test_contact_hardening_and_its_claim():
     for c in row["cases"]:
         assert c["lo"] < c["hi"] and c["pixels"] >= 10
         assert c["true_width"] > 0 and c["abs_error"] >= 0 and 0 <= c["missed"] <= 1
-    # under the flat plate (2-4 m from the ground) the estimate is the geometry's
+    # under the flat plate (2-4 m from the ground) NVIDIA's parallel-plane estimate is the
+    # geometry's; HDRP's is its fitted softness (tests/test_pcss_hdrp.py checks its formula)
     far = [c for c in row["cases"] if c["lo"] == 2.0]
-    assert far and all(c["rel_error"] < 0.1 for c in far)
+    assert {c["preset"] for c in far} == {"nvidia", "hdrp"}
+    assert all(c["rel_error"] < 0.1 for c in far if c["preset"] == "nvidia")
 
 
 def test_soft_shadows_section_renders_its_three_tables():
@@ -346,3 +352,8 @@ def test_soft_shadows_section_renders_its_three_tables():
     assert "pcss &lt;a&gt;" in html and "pcss <a>" not in html  # user text is escaped
     assert "Contact hardening" in html and "Light bleeding of moment shadow maps" in html
     assert html.count("<tr>") >= 2 + 1 + 1 + 2
+    assert "Filter extent" not in html  # records before issue 45 have no extent
+    per = {"radius": {"min": 0.47, "max": 1.24}, "transition": {"factor": 0.68}}
+    data["extent"] = {"fovs": [30.0, 90.0], "presets": {"hdrp": {"30": per, "90": per}}}
+    html = render_section(soft_shadows_section(data))
+    assert "Filter extent" in html and html.count("0.47") == 2 and html.count("0.68") == 2

@@ -349,11 +349,14 @@ def _hd_bicubic(prev, prev_uv):
 
 
 def _hd_high_weights(frame, px, py):
-    """ComputeWeights + SwizzleFilterWeights: the raw weights and the 8 per neighbour."""
+    """PrepareTAAPassData's Blackman-Harris weights + SwizzleFilterWeights: the raw weights and
+    the 8 per neighbour. HDRP 12.1.0 (needle-mirror tag 12.1.0/Unity-2021.2.0b16)
+    HDRenderPipeline.PostProcess.cs:1534-1545 (TAASampleOffsets), :1578-1579 (x = offset.x -
+    taaJitter.x, y likewise), :1599-1600 (weights 1-4, then 5-8)."""
     i = (frame + 1) % 8 + 1  # HDCamera.Update: ++taaFrameIndex before the jitter is built
     jit = (_halton_seq(2, i) - 0.5, _halton_seq(3, i) - 0.5)
-    offs = [(0, 0), (0, 1), (1, 0), (-1, 0), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
-    raw = [math.exp((-0.5 / 0.22) * ((o[0] + jit[0]) ** 2 + (o[1] + jit[1]) ** 2)) for o in offs]
+    offs = [(0, 0), (0, 1), (1, 0), (-1, 0), (0, -1), (-1, 1), (1, -1), (1, 1), (-1, -1)]
+    raw = [math.exp((-0.5 / 0.22) * ((o[0] - jit[0]) ** 2 + (o[1] - jit[1]) ** 2)) for o in offs]
     fp1 = [raw[k] / sum(raw) for k in range(1, 5)]
     fp2 = [raw[k] / sum(raw) for k in range(5, 9)]
     sw = ((px & 1) == 0, (py & 1) == 0)
@@ -477,6 +480,9 @@ def test_hdrp_resolve_is_the_shaders_on_a_hand_built_frame(frame, quality):
         history = _r11g11b10(np.random.default_rng(6).random((H, W, 3)) * 2.0)
     else:
         mv = np.zeros_like(mv)
+    # a jittered frame (the central filter's weights depend on the jitter's sign and the
+    # diagonals' order) with an HDR highlight
+    assert np.abs(hdrp.jitter_unity(frame)).min() > 0.1 and samples.max() > 4.0
     out, blend, _, off = hdrp.step(history, samples, frame, mv, depth, quality)
     expect, t_blend, t_off = _hdrp_transcription(
         samples, history, mv, depth, frame, quality == "high"

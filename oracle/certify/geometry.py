@@ -12,8 +12,9 @@ import math
 
 import numpy as np
 
-from ...scenes.catalogue import meshes
-from ...scenes.catalogue.factories import ground, look_at, mesh, sensor, sun
+from ...scenes.camera import look_at
+from ...scenes.catalogue.factories import ground, mesh, sensor, sun
+from ...scenes.geometry import meshes
 
 __all__ = [
     "MARGIN",

@@ -7,9 +7,11 @@ into keyword calls of the library; nothing here is called by the library.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from pathlib import Path
 
+from ...scenes.base.numbers import MAX_FRAMES, NumberError, parse_float, parse_int
 from ..errors import InputError
 
 __all__ = [
@@ -50,11 +52,20 @@ def input_errors() -> tuple[type[BaseException], ...]:
     """
     from ...metrics import MetricError
     from ...raster_models import ModelError
-    from ...scenes import SceneError
+    from ...scenes import SceneError, SceneParamError
     from ...scenes.backend import BackendError
     from ...scenes.base.untrusted import UntrustedError
 
-    return (InputError, SceneError, BackendError, MetricError, ModelError, UntrustedError)
+    return (
+        InputError,
+        SceneError,
+        SceneParamError,
+        BackendError,
+        MetricError,
+        ModelError,
+        UntrustedError,
+        NumberError,
+    )
 
 
 class Parser(argparse.ArgumentParser):
@@ -66,15 +77,23 @@ class Parser(argparse.ArgumentParser):
 
 
 def _number(kind: type, *, minimum: float, strict: bool):
-    """An argparse type: ``kind`` parsed from text, bounded below by ``minimum``."""
+    """An argparse type: ``kind`` parsed from text by the one strict rule
+    (:mod:`scenes.base.numbers`: decimal digits, bounded length; ``inf`` for numbers),
+    bounded below by ``minimum``."""
     noun = "an integer" if kind is int else "a number"
     relation = ">" if strict else ">="
 
     def parse(text: str):
         try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {noun}, got {text!r}") from None
+            if kind is int:
+                value = parse_int(text, what="value")
+            elif text.lower() in ("inf", "+inf", "infinity", "+infinity"):
+                value = math.inf
+            else:
+                value = parse_float(text, what="value")
+        except NumberError:
+            shown = text if len(text) <= 40 else text[:40] + "..."
+            raise argparse.ArgumentTypeError(f"expected {noun}, got {shown!r}") from None
         if not (value > minimum if strict else value >= minimum):
             raise argparse.ArgumentTypeError(f"must be {relation} {minimum:g}, got {value}")
         return value
@@ -98,6 +117,14 @@ def spp(text: str) -> int:
     value = positive_int(text)
     if value > MAX_SPP:
         raise argparse.ArgumentTypeError(f"must be <= {MAX_SPP} (2^20), got {value}")
+    return value
+
+
+def frames(text: str) -> int:
+    """An argparse type: a frame count, an integer in [1, MAX_FRAMES] (as in a manifest)."""
+    value = positive_int(text)
+    if value > MAX_FRAMES:
+        raise argparse.ArgumentTypeError(f"must be <= {MAX_FRAMES}, got {value}")
     return value
 
 
@@ -162,7 +189,7 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--frames",
-        type=positive_int,
+        type=frames,
         default=None,
         help="frames in the camera path (default 8); for `score`: score that many frames of "
         "the path (--camera-path, or the one an export records: required) and add the "
@@ -227,7 +254,8 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
 
 
 def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
-    """``--exact-budget SECONDS`` (see :func:`oracle.reference.render.set_exact_budget`)."""
+    """``--exact-budget SECONDS``: the references' ``exact_budget`` setting
+    (:class:`oracle.reference.settings.ReferenceSettings`), handed to them by the command."""
     p.add_argument(
         "--exact-budget",
         type=nonneg_float,
@@ -241,9 +269,9 @@ def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
 
 def load_scene(args):
     """The scene of ``add_scene_args`` options (its frame of a camera or light path), as
-    :func:`scenes.formats.inputs.load_input` resolves it: an ``export`` folder (or its
+    :func:`scenes.inputs.load_input` resolves it: an ``export`` folder (or its
     ``scene.xml``) is loaded at its exported size with its light, named after its folder."""
-    from ...scenes.formats.inputs import load_input
+    from ...scenes.inputs import load_input
 
     loaded = load_input(
         args.scene,
@@ -327,10 +355,33 @@ def check_distinct(*, writes: dict[str, Path], reads: dict[str, Path]) -> None:
     """
     for wlabel, w in writes.items():
         for rlabel, r in reads.items():
-            if _same_file(w, r):
+            if w is not None and r is not None and _same_file(w, r):
                 raise CliError(
                     f"{wlabel} {w} is {rlabel} {r}: writing it would destroy it; "
                     "choose another output path"
+                )
+
+
+def check_not_inputs(*, writes: dict, reads: dict, folders: dict | None = None) -> None:
+    """Every output file of ``writes`` is none of the input files of ``reads``
+    (:func:`check_distinct`, links followed) and no existing file inside an input folder of
+    ``folders`` (a folder whose every file may be read, a folder of candidate images).
+    ``None`` values are skipped; files that do not exist are no inputs."""
+    reads = {k: v for k, v in reads.items() if v is not None and os.path.isfile(v)}
+    check_distinct(writes=writes, reads=reads)
+    for wlabel, w in writes.items():
+        if w is None or not os.path.lexists(w):
+            continue
+        inside = Path(w).resolve()
+        for flabel, folder in (folders or {}).items():
+            if (
+                folder is not None
+                and os.path.isdir(folder)
+                and Path(folder).resolve() in inside.parents
+            ):
+                raise CliError(
+                    f"{wlabel} {w} is a file of {flabel} {folder}: writing it would destroy "
+                    "it; choose another output path"
                 )
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 
 __all__ = ["COMMANDS", "add_parsers"]
@@ -41,7 +42,8 @@ def cmd_model(args) -> int:
     A.check_out(args.out)
     loaded = A.load_scene(args)
     params = raster_models.parse_params(args.technique, args.params)
-    run_model_to_folder(args.technique, loaded, params=params, out=args.out)
+    with staged_folder(args.out) as out:
+        run_model_to_folder(args.technique, loaded, params=params, out=out)
     print(f"model {args.technique}: {args.out / 'output.exr'}")
     return 0
 

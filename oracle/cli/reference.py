@@ -8,6 +8,7 @@ import os
 import sys
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 
 __all__ = ["COMMANDS", "add_parsers"]
@@ -112,13 +113,15 @@ def cmd_reference(args) -> int:
         adaptive=args.adaptive,
         target_stderr=args.target_stderr,
         max_spp=args.max_spp,
+        exact_budget=args.exact_budget,
     ).validate()
     A.check_out(args.out)
     loaded = A.load_scene(args)
     ref = get_reference(loaded, settings, cache=A.reference_cache(args), quiet=args.quiet)
     if ref.cache_status == "corrupted":
         print("raster-oracle: warning: corrupted cache entry replaced", file=sys.stderr)
-    publish(ref, args.out)
+    with staged_folder(args.out) as out:
+        publish(ref, out)
     print(f"reference ({ref.cache_status}): {args.out / 'reference.exr'}")
     return 0
 
@@ -128,7 +131,8 @@ def cmd_export(args) -> int:
 
     A.check_out(args.out)
     loaded = A.load_scene(args)
-    summary = export(loaded, args.out)
+    with staged_folder(args.out) as out:
+        summary = export(loaded, out)
     tris = sum(s["triangles"] for s in summary["shapes"].values())
     print(f"exported {len(summary['shapes'])} shapes ({tris} triangles) to {args.out}")
     return 0

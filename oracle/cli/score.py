@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 from . import baseline_cmd, score_folder
 from .gate_args import (
@@ -12,6 +13,7 @@ from .gate_args import (
     add_visibility_arg,
     baseline_options,
     check_junit,
+    check_outputs_not_inputs,
     parse_all_gates,
     print_verdict,
     write_outputs,
@@ -126,7 +128,7 @@ def _camera_path(args, loaded) -> str | None:
         path = loaded.default_camera_path  # a camera file's or moving objects' own path
     if args.frames is None or path is not None or args.light_path is not None:
         return path
-    from ...scenes.formats.inputs import resolve_input
+    from ...scenes.inputs import resolve_input
 
     rec = resolve_input(args.scene).export or {}
     made = ""
@@ -160,12 +162,23 @@ def cmd_score(args) -> int:
 
     gates = parse_all_gates(args)
     platform = check_platform(args.platform)
-    baseline = None
+    baseline = baseline_path = None
     if args.baseline is not None:
-        baseline = load_baseline(resolve_baseline(args.baseline, platform=platform))
+        baseline_path = resolve_baseline(args.baseline, platform=platform)
+        baseline = load_baseline(baseline_path)
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
     check_junit(args.junit, out=args.out, summary=args.summary_md)
+    check_outputs_not_inputs(
+        args,
+        reads={
+            "the candidate": args.candidate,
+            "--baseline": baseline_path,
+            "the scene": args.scene,
+            "--camera-file": getattr(args, "camera_file", None),
+        },
+        folders={"the candidate folder": args.candidate, "the scene folder": args.scene},
+    )
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -187,6 +200,7 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
+        exact_budget=args.exact_budget,
         motion=None
         if args.candidate_motion is None
         else {
@@ -208,14 +222,15 @@ def cmd_score(args) -> int:
             options=options,
             cache=cache,
         )
-    verdict, record = score_to_folder(
-        request,
-        out=args.out,
-        gates=gates,
-        baseline=baseline,
-        baseline_source=str(args.baseline),
-        baseline_options=baseline_options(args).for_gates(gates),
-    )
+    with staged_folder(args.out, last=("metrics.json",)) as out:
+        verdict, record = score_to_folder(
+            request,
+            out=out,
+            gates=gates,
+            baseline=baseline,
+            baseline_source=str(args.baseline),
+            baseline_options=baseline_options(args).for_gates(gates),
+        )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
     write_outputs(args, [verdict], records=[record], report=args.out / "report.html")

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 
 __all__ = ["COMMANDS", "add_parsers"]
@@ -83,12 +84,8 @@ def add_parsers(sub) -> None:
 
 
 def cmd_bench(args) -> int:
-    from ..studies.bench import (
-        bench_models,
-        bench_oracle,
-        models_profile_lines,
-        oracle_profile_lines,
-    )
+    from ..studies.bench import bench_oracle, oracle_profile_lines
+    from ..studies.bench_models import bench_models, models_profile_lines
 
     if args.what == "scale":
         return _bench_scale(args)
@@ -115,14 +112,20 @@ def cmd_bench(args) -> int:
 
 def _bench_scale(args) -> int:
     """``bench scale``: per size and phase, seconds and peak memory (JSON on stdout)."""
-    from ..studies.bench_scale import SCALE_MODELS, SCALE_SIZES, bench_scale, scale_lines
+    from ...scenes.catalogue.builtin import builtin_scene
+    from ..studies.bench_scale import (
+        SCALE_MODELS,
+        SCALE_SIZES,
+        bench_scale,
+        failed_sizes,
+        scale_lines,
+    )
 
-    try:
-        sizes = [int(x) for x in A.names(args.sizes)] if args.sizes else list(SCALE_SIZES)
-    except ValueError:
-        raise A.CliError(f"bench scale: --sizes must be integers, got {args.sizes!r}") from None
-    if not sizes or min(sizes) < 0:
+    texts = A.names(args.sizes) if args.sizes else [str(n) for n in SCALE_SIZES]
+    if not texts:
         raise A.CliError(f"bench scale: --sizes must be blade counts >= 0, got {args.sizes!r}")
+    # each size is a scene name: the strict number rule, its bounds, its memory estimate
+    sizes = [int(builtin_scene(f"meadow:n={text}").name.partition("=")[2] or 0) for text in texts]
     models = tuple(A.names(args.only)) or SCALE_MODELS
     from ... import raster_models
 
@@ -142,6 +145,10 @@ def _bench_scale(args) -> int:
     print(json.dumps(figures, indent=2))
     if not args.quiet:
         print("\n".join(scale_lines(figures)), file=sys.stderr)
+    failed = failed_sizes(figures)
+    if failed:
+        print(f"raster-oracle: bench scale: size(s) {', '.join(failed)} failed", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -149,7 +156,8 @@ def cmd_aa_memory(args) -> int:
     from ..studies.aa_memory import summary_lines, write_memory_report
 
     A.check_out(args.out)
-    data = write_memory_report(args.out)
+    with staged_folder(args.out) as out:
+        data = write_memory_report(out)
     print("\n".join(summary_lines(data)))
     print(f"aa-memory: {args.out / 'aa_memory.json'} and {args.out / 'aa_memory.html'}")
     return 0
@@ -161,19 +169,20 @@ def cmd_converge(args) -> int:
     if args.truth_spp is not None and args.truth_spp <= args.max_spp:
         raise A.CliError(f"--truth-spp ({args.truth_spp}) must be larger than --max-spp")
     A.check_out(args.out)
-    data = run_converge(
-        args.scene,
-        out=args.out,
-        max_spp=args.max_spp,
-        truth_spp=args.truth_spp,
-        targets=tuple(args.target or (0.01,)),
-        adaptive=not args.no_adaptive,
-        width=args.width,
-        height=args.height,
-        seed=args.seed,
-        quiet=args.quiet,
-        echo=None if args.quiet else print,
-    )
+    with staged_folder(args.out) as out:
+        data = run_converge(
+            args.scene,
+            out=out,
+            max_spp=args.max_spp,
+            truth_spp=args.truth_spp,
+            targets=tuple(args.target or (0.01,)),
+            adaptive=not args.no_adaptive,
+            width=args.width,
+            height=args.height,
+            seed=args.seed,
+            quiet=args.quiet,
+            echo=None if args.quiet else print,
+        )
     for t in data["targets"]:
         print(f"target RMS {t['target_rms']:g}: {t['spp_measured']} spp (fit {t['spp_fitted']})")
     print(f"converge: {args.out / 'converge.json'} and {args.out / 'converge.html'}")
@@ -186,14 +195,15 @@ def cmd_extremes(args) -> int:
     if args.huge is not None and not 8 <= args.huge <= 16384:
         raise A.CliError(f"--huge must be in [8, 16384], got {args.huge}")
     A.check_out(args.out)
-    data = run_extremes(
-        args.out,
-        cache=A.reference_cache(args),
-        quiet=args.quiet,
-        echo=None if args.quiet else print,
-        quick=args.quick,
-        huge=args.huge,
-    )
+    with staged_folder(args.out) as out:
+        data = run_extremes(
+            out,
+            cache=A.reference_cache(args),
+            quiet=args.quiet,
+            echo=None if args.quiet else print,
+            quick=args.quick,
+            huge=args.huge,
+        )
     cells, unexpected = data["cells"], data["unexpected"]
     print(
         f"extremes: {len(cells)} cells, {len(unexpected)} not as documented"
@@ -217,14 +227,15 @@ def cmd_claims(args) -> int:
                 f"{', '.join(known)}"
             )
     A.check_out(args.out)
-    data = run_claims(
-        args.out,
-        cache=A.reference_cache(args),
-        quiet=args.quiet,
-        echo=None if args.quiet else print,
-        quick=args.quick,
-        only=only,
-    )
+    with staged_folder(args.out) as out:
+        data = run_claims(
+            out,
+            cache=A.reference_cache(args),
+            quiet=args.quiet,
+            echo=None if args.quiet else print,
+            quick=args.quick,
+            only=only,
+        )
     print("claims: " + ", ".join(f"{k} {v}" for k, v in data["counts"].items()))
     print(f"claims: {args.out / 'claims.json'} and {args.out / 'claims.html'}")
     return 0
@@ -234,9 +245,10 @@ def cmd_soft_shadows(args) -> int:
     from ..studies.soft_shadows import run_soft_shadows
 
     A.check_out(args.out)
-    data = run_soft_shadows(
-        args.out, cache=A.reference_cache(args), quiet=args.quiet, quick=args.quick
-    )
+    with staged_folder(args.out) as out:
+        data = run_soft_shadows(
+            out, cache=A.reference_cache(args), quiet=args.quiet, quick=args.quick
+        )
     best = data["ranking"]["rows"][0]
     print(f"soft-shadows: best on {data['ranking']['scene']}: {best['label']}")
     print(f"soft-shadows: {args.out / 'soft_shadows.json'} and {args.out / 'soft_shadows.html'}")

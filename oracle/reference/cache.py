@@ -8,7 +8,11 @@ An entry is a folder ``<root>/<key[:2]>/<key>/`` holding ``reference.exr``,
 into place, so readers never see a partial entry, and a valid entry is never removed or
 replaced (a reader may be copying from it; a second writer of the same key keeps it). An
 entry whose checksums do not match is reported as corrupted, removed and rendered again; so
-is an entry that is not a folder (a file, a broken link). A writer's temporary folder is named
+is an entry that is not a folder (a file, a broken link), one whose record is not an object
+naming its key, and one whose record or image has another size than asked for. The cache
+touches only what it wrote (issue 48): its folder carries the marker :data:`MARKER`, no link
+is followed, and a folder is removed only when it holds nothing but an entry's own files.
+A writer's temporary folder is named
 ``<shard>/.<key[:8]>.<pid>@<host>.<random>``; the next writer (of any key) removes those of
 dead writers on this host at once, and any temporary folder older than
 :data:`STALE_TEMP_SECONDS` (another host's, or one named before writers were named).
@@ -31,18 +35,23 @@ import os
 import re
 import shutil
 import socket
+import stat
 import tempfile
 import time
 from pathlib import Path
 
+from ...scenes.base.files import atomic_write_bytes
 from ...scenes.base.untrusted import read_json
 
 __all__ = [
     "CACHE_ENV",
+    "MARKER",
     "ORACLE_VERSION",
     "ReferenceCache",
     "default_cache_dir",
     "reference_key",
+    "exr_size",
+    "remove_own",
     "remove_scratch",
     "scratch_dir",
     "scratch_mark",
@@ -59,6 +68,12 @@ __all__ = [
 #: 6: the coverage_exact group (analytic coverage of triangle scenes, issue 28).
 ORACLE_VERSION = "6"
 FILES = ("reference.exr", "reference.json")
+#: Every file an entry (or a temporary entry folder) may hold.
+OWN_FILES = (*FILES, "checksums.json")
+
+#: The file that marks a folder as the cache's own; without it nothing there is touched.
+MARKER = ".raster-oracle-cache"
+MARKER_TEXT = b"raster-oracle reference cache: entries <key[:2]>/<key>/\n"
 
 #: Environment variables naming the cache folder, first set wins (the first is documented).
 CACHE_ENV = ("RASTER_ORACLE_CACHE", "RASTER_ORACLE_CACHE_DIR")
@@ -76,6 +91,9 @@ STALE_TEMP_SECONDS = 3600.0
 
 #: A temporary entry folder's name: key prefix, writer's pid and host, mkdtemp's random part.
 _TEMP_NAME = re.compile(r"\.[0-9a-f]{8}\.(\d+)@([A-Za-z0-9-]+)\.")
+_TEMP_PREFIX = re.compile(r"\.[0-9a-f]{8}\.")
+_SHARD = re.compile(r"[0-9a-f]{2}")
+_KEY = re.compile(r"[0-9a-f]{64}")
 
 _scratch: list[Path] = []
 
@@ -194,37 +212,71 @@ def _sha256(path: Path) -> str:
 
 
 class ReferenceCache:
-    """A folder of cached references keyed by :func:`reference_key`."""
+    """A folder of cached references keyed by :func:`reference_key`.
+
+    The folder is the cache's only when it holds the marker file :data:`MARKER` (written when
+    the folder is made, or found empty, or holds nothing but shard folders of entries): a
+    folder holding anything else (a project, notes, links) is never written to nor cleaned,
+    and the cache is skipped with one line (:meth:`usable`). Inside its folder the cache
+    touches only paths of its own naming (shards ``[0-9a-f]{2}``, entries ``[0-9a-f]{64}``,
+    temporary ``.<key[:8]>.*``), never follows a link, and removes a folder only when it holds
+    nothing but the entry's own files (:func:`remove_own`).
+    """
 
     def __init__(self, root: str | os.PathLike | None = None):
         self.root = Path(root) if root is not None else default_cache_dir()
+        self._problem: str | None = None
+        self._checked = False
 
     def entry(self, key: str) -> Path:
         return self.root / key[:2] / key
 
-    def lookup(self, key: str) -> tuple[Path | None, str]:
-        """``(folder, status)``: status is ``hit``, ``miss`` or ``corrupted`` (entry removed)."""
-        folder = self.entry(key)
-        if not os.path.lexists(folder):
-            return None, "miss"
-        if folder.is_symlink() or not folder.is_dir():
-            _remove(folder)
-            return None, "corrupted"
-        try:
-            sums = read_json(folder / "checksums.json", limit=1 << 16, what="cache checksums")
-            ok = isinstance(sums, dict) and all(
-                _is_regular(folder / name) and _sha256(folder / name) == sums[name]
-                for name in FILES
-            )
-        except (OSError, ValueError, KeyError):
-            ok = False
-        if ok:
-            return folder, "hit"
-        _remove(folder)
-        return None, "corrupted"
+    def usable(self) -> str | None:
+        """None when the cache folder is the cache's own and writable (made and marked if
+        needed); else one line saying why the cache is skipped. Checked once."""
+        if not self._checked:
+            self._problem = _claim(self.root)
+            self._checked = True
+        return self._problem
 
-    def store(self, key: str, source_dir: Path) -> Path:
-        """Copy ``reference.exr`` and ``reference.json`` from ``source_dir`` into the cache.
+    def _shard(self, key: str) -> Path | None:
+        """The key's shard folder when it is a real folder (not a link); None when absent;
+        a file or link there is removed (the path is the cache's)."""
+        shard = self.root / key[:2]
+        try:
+            st = os.lstat(shard)
+        except FileNotFoundError:
+            return None
+        if stat.S_ISDIR(st.st_mode):
+            return shard
+        shard.unlink()  # a file or a link where the shard folder belongs: never followed
+        return None
+
+    def lookup(self, key: str, *, expect: tuple[int, int] | None = None) -> tuple[Path | None, str]:
+        """``(folder, status)``: status is ``hit``, ``miss``, ``corrupted`` (entry removed and
+        to be rendered again) or ``unusable`` (an entry that cannot be read or removed: the
+        reference is rendered and not stored). ``expect`` is the ``(width, height)`` the
+        entry's image and record must have."""
+        if self.usable() is not None:
+            return None, "unusable"
+        if not _KEY.fullmatch(key) or self._shard(key) is None:
+            return None, "miss"
+        folder = self.entry(key)
+        try:
+            st = os.lstat(folder)
+        except FileNotFoundError:
+            return None, "miss"
+        if stat.S_ISDIR(st.st_mode):
+            try:
+                if _entry_valid(folder, key, expect):
+                    return folder, "hit"
+            except PermissionError:
+                return None, "unusable"
+        return (None, "corrupted") if remove_own(folder) else (None, "unusable")
+
+    def store(self, key: str, source_dir: Path, *, expect=None) -> Path | None:
+        """Copy ``reference.exr`` and ``reference.json`` from ``source_dir`` into the cache;
+        returns the entry, or None when the entry's place holds what is not the cache's.
 
         A valid entry already there (another process stored the same key meanwhile) is kept
         as it is, never removed or replaced, since a reader may be copying from it: the
@@ -232,13 +284,17 @@ class ReferenceCache:
         is replaced. Temporary folders of killed writers, in any shard, are swept
         (:func:`sweep_stale_temps`).
         """
+        if self.usable() is not None or not _KEY.fullmatch(key):
+            return None
         folder = self.entry(key)
-        if os.path.lexists(folder.parent) and not folder.parent.is_dir():
-            _remove(folder.parent)  # a file where the shard folder belongs: corrupted
-        folder.parent.mkdir(parents=True, exist_ok=True)
+        if self._shard(key) is None:
+            folder.parent.mkdir(exist_ok=True)
         sweep_stale_temps(self.root)
-        if self.lookup(key)[1] == "hit":
-            return folder
+        found, status = self.lookup(key, expect=expect)
+        if status == "hit":
+            return found
+        if status == "unusable":
+            return None
         tmp = Path(tempfile.mkdtemp(prefix=temp_prefix(key), dir=folder.parent))
         try:
             for name in FILES:
@@ -248,11 +304,11 @@ class ReferenceCache:
             try:
                 os.rename(tmp, folder)  # fails when a folder appeared there meanwhile
             except OSError:
-                if self.lookup(key)[1] != "hit":
+                if self.lookup(key, expect=expect)[1] != "hit":
                     raise
-                shutil.rmtree(tmp, ignore_errors=True)  # another writer won: keep its entry
+                remove_own(tmp)  # another writer won: keep its entry
         except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
+            remove_own(tmp)
             raise
         return folder
 
@@ -266,7 +322,7 @@ def sweep_stale_temps(root: Path, *, now: float | None = None) -> int:
     now = time.time() if now is None else now
     host = _host()
     removed = 0
-    for tmp in Path(root).glob("*/.*"):
+    for tmp in _own_temps(Path(root)):
         try:
             old = now - tmp.lstat().st_mtime > STALE_TEMP_SECONDS
         except OSError:
@@ -278,15 +334,150 @@ def sweep_stale_temps(root: Path, *, now: float | None = None) -> int:
             and int(owner[1]) != os.getpid()
             and not _pid_alive(int(owner[1]))
         )
-        if old or dead:
-            _remove(tmp)
+        if (old or dead) and remove_own(tmp):
             removed += 1
     return removed
 
 
-def _remove(path: Path) -> None:
-    """Delete a file, link or folder tree at ``path``; a missing path is fine."""
-    if path.is_symlink() or (os.path.lexists(path) and not path.is_dir()):
-        path.unlink(missing_ok=True)
-    else:
-        shutil.rmtree(path, ignore_errors=True)
+def _own_temps(root: Path) -> list[Path]:
+    """The temporary entry folders of the cache ``root``: real folders (never links) named
+    ``.<8 hex>.*`` in real shard folders named ``[0-9a-f]{2}``."""
+    found = []
+    for shard in _listdir(root):
+        if not _SHARD.fullmatch(shard) or not _real_dir(root / shard):
+            continue
+        for name in _listdir(root / shard):
+            if _TEMP_PREFIX.match(name) and _real_dir(root / shard / name):
+                found.append(root / shard / name)
+    return found
+
+
+def _listdir(folder: Path) -> list[str]:
+    try:
+        return sorted(os.listdir(folder))
+    except OSError:
+        return []
+
+
+def _real_dir(path: Path) -> bool:
+    """A folder itself, not a link to one."""
+    try:
+        return stat.S_ISDIR(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
+def remove_own(path: Path) -> bool:
+    """Remove ``path`` when it is provably the cache's: a file or a link at a path of the
+    cache's naming (unlinked, never followed), or a real folder holding nothing but an entry's
+    own files (:data:`OWN_FILES`, none of them a folder). Returns whether it is gone; a folder
+    holding anything else is left whole."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return True
+    except OSError:
+        return False
+    try:
+        if not stat.S_ISDIR(st.st_mode):
+            os.unlink(path)
+            return True
+        names = os.listdir(path)
+        if any(n not in OWN_FILES or _real_dir(path / n) for n in names):
+            return False
+        for name in names:
+            os.unlink(path / name)
+        os.rmdir(path)
+    except OSError:
+        return False
+    return True
+
+
+def _is_cache_layout(root: Path) -> bool:
+    """Everything in ``root`` is the cache's own: shard folders (not links) named
+    ``[0-9a-f]{2}`` holding only entry folders (``[0-9a-f]{64}``) and temporary folders, each
+    holding only an entry's own files. A cache made before the marker existed is one."""
+    for shard in _listdir(root):
+        if not _SHARD.fullmatch(shard) or not _real_dir(root / shard):
+            return False
+        for name in _listdir(root / shard):
+            entry = root / shard / name
+            if not (_KEY.fullmatch(name) or _TEMP_PREFIX.match(name)) or not _real_dir(entry):
+                return False
+            if any(n not in OWN_FILES or _real_dir(entry / n) for n in _listdir(entry)):
+                return False
+    return True
+
+
+def _claim(root: Path) -> str | None:
+    """Make ``root`` the cache's (create it, write the marker) unless it holds foreign files
+    or cannot be written; None when usable, else why not (one line)."""
+    marker = root / MARKER
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        if not root.is_dir():
+            return f"cache folder {root} is not a folder"
+        if os.path.lexists(marker):
+            if not _is_regular(marker) or marker.read_bytes() != MARKER_TEXT:
+                return f"cache folder {root}: {MARKER} is not the cache's marker"
+        elif not _is_cache_layout(root):
+            return (
+                f"cache folder {root} holds files that are not the cache's (no {MARKER} "
+                "marker); choose an empty folder with --cache-dir or $RASTER_ORACLE_CACHE"
+            )
+        if not os.access(root, os.R_OK | os.W_OK | os.X_OK):
+            return f"cache folder {root} is not writable"
+        if not os.path.lexists(marker):
+            atomic_write_bytes(marker, MARKER_TEXT)
+    except OSError as exc:
+        return f"cache folder {root} cannot be used ({exc.strerror or type(exc).__name__})"
+    return None
+
+
+def _entry_valid(folder: Path, key: str, expect: tuple[int, int] | None) -> bool:
+    """The entry's files match its checksums, its record is an object naming ``key`` and the
+    image and record have the size ``expect`` (when given). A PermissionError propagates."""
+    try:
+        sums = read_json(folder / "checksums.json", limit=1 << 16, what="cache checksums")
+        if not isinstance(sums, dict):
+            return False
+        for name in FILES:
+            if not _is_regular(folder / name) or _sha256(folder / name) != sums.get(name):
+                return False
+        meta = read_json(folder / "reference.json", what="cached reference record")
+    except PermissionError:
+        raise
+    except (OSError, ValueError):
+        return False
+    if not isinstance(meta, dict) or meta.get("cache_key", key) != key:
+        return False
+    if expect is None:
+        return True
+    return meta.get("resolution") == list(expect) and exr_size(folder / "reference.exr") == expect
+
+
+def exr_size(path: Path) -> tuple[int, int] | None:
+    """``(width, height)`` of an EXR's data window read from its header, or None when the
+    header cannot be read (not an EXR, truncated, no ``dataWindow``)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError:
+        return None
+    if head[:4] != b"\x76\x2f\x31\x01":
+        return None
+    pos = 8
+    while pos < len(head) and head[pos] != 0:
+        name_end = head.find(b"\0", pos)
+        type_end = head.find(b"\0", name_end + 1)
+        if name_end < 0 or type_end < 0 or type_end + 4 > len(head):
+            return None
+        size = int.from_bytes(head[type_end + 1 : type_end + 5], "little")
+        value = head[type_end + 5 : type_end + 5 + size]
+        if head[pos:name_end] == b"dataWindow" and len(value) == 16:
+            x0, y0, x1, y1 = (
+                int.from_bytes(value[i : i + 4], "little", signed=True) for i in range(0, 16, 4)
+            )
+            return x1 - x0 + 1, y1 - y0 + 1
+        pos = type_end + 5 + size
+    return None

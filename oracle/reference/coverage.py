@@ -25,8 +25,9 @@ import numpy as np
 
 from ...scenes import backend
 from ...scenes.backend.raycast import trace_film_dr
+from .group import SampledGroup, binary_stderr, floored_stderr, mean_variance, stderr_summary
 
-__all__ = ["CROSS_CHECK_Z", "centre_shapes", "exact_channels", "front_hits"]
+__all__ = ["CROSS_CHECK_Z", "CoverageGroup", "centre_shapes", "exact_channels", "front_hits"]
 
 #: Pixel centres per Dr.Jit launch.
 CENTRE_CHUNK = 1 << 22
@@ -57,6 +58,61 @@ def front_hits(shape, centre: np.ndarray, block: int):
     pixel = dr.arange(mi.UInt32, dr.width(shape)) // block
     same = dr.gather(mi.Int32, mi.Int32(centre), pixel) == shape
     return dr.select(same, 1.0, 0.0)
+
+
+class CoverageGroup(SampledGroup):
+    """Sums of the samples that hit any geometry (``coverage``) and, with output, of those
+    whose nearest surface is the pixel centre's shape (``front_coverage``; the centres are
+    traced when the group is made). Without output (an adaptive render that did not ask
+    for coverage) only the first is kept, for the refinement."""
+
+    name = "coverage"
+
+    def __init__(self, npix: int, *, loaded=None, output: bool = True):
+        super().__init__(npix, output=output)
+        self.cov = np.zeros(npix)
+        #: shape seen through each pixel centre (None: ``front_coverage`` not asked for)
+        self.centre = centre_shapes(loaded) if output else None
+        self.front = np.zeros(npix if output else 0)
+
+    def sample_values(self, res, chunk, block):
+        import drjit as dr
+
+        out = {"cov": (dr.select(res["valid"], 1.0, 0.0), dr.ReduceOp.Add)}
+        if self.centre is not None:
+            out["front"] = (front_hits(res["shape"], self.centre[chunk], block), dr.ReduceOp.Add)
+        return out
+
+    def add(self, host, at):
+        self.cov[at] += host["cov"]
+        if self.centre is not None:
+            self.front[at] += host["front"]
+
+    def finish(self, n, img):
+        return {
+            "coverage": img(self.cov / n),
+            "coverage_stderr": img(floored_stderr(self.cov, n)),
+            "front_coverage": img(self.front / n),
+            "front_coverage_stderr": img(floored_stderr(self.front, n)),
+        }
+
+    def summary(self, channels):
+        return stderr_summary(channels, "coverage_stderr")
+
+    def refine_stderr(self, n):
+        se = binary_stderr(self.cov, n)
+        if self.centre is not None:
+            se = np.maximum(se, binary_stderr(self.front, n))
+        return se
+
+    def feature(self, n):
+        return (self.cov > 0) & (self.cov < n), [self.cov > 0]
+
+    def stderr(self, n):
+        return floored_stderr(self.cov, n)
+
+    def variance(self, n):
+        return [mean_variance(self.cov, self.cov, n)]
 
 
 #: Pixels of the cross-check whose |z| exceeds this count as disagreements (a 4-sigma

@@ -36,11 +36,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from ...metrics.stats import binomial_stderr_floor
 from ...scenes import backend
 from ...scenes.backend.raycast import occluded_segment_dr
 from ...scenes.shading.phong import shade
+from .group import SampledGroup, mean_variance, sample_stderr, stderr_summary
 
-__all__ = ["LIGHT_GRID", "LIGHT_SAMPLES", "light_samples", "soft_samples"]
+__all__ = ["LIGHT_GRID", "LIGHT_SAMPLES", "SoftGroup", "light_samples", "soft_samples"]
 
 #: Light samples per camera sample: a ``LIGHT_GRID x LIGHT_GRID`` jittered grid.
 LIGHT_GRID = 4
@@ -120,8 +124,6 @@ def _sphere_samples(mi, dr, light, p, u, v):
 def _light_shape(loaded):
     """The Mitsuba shape of ``loaded``'s area light: the emitter shape of its kind whose
     bounding box is centred on the light (shapes need not have ids), or None."""
-    import numpy as np
-
     light = loaded.light
     centre = np.asarray(light.position, dtype=np.float64)
     tol = 1e-4 * (1.0 + float(np.abs(centre).max()) + light.radius)
@@ -147,7 +149,7 @@ def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> di
     (Dr.Jit Float), ``light_rays`` (the shadow rays cast, Float) and, with ``color``, the
     area-lit ``color`` (Color3f). ``pix``, ``sample``: the camera samples' pixel and sample
     indices (UInt32); ``seed_key``: the pixels' film jitter keys
-    (:func:`oracle.reference.render.jitter_key`)."""
+    (:func:`oracle.reference.sampling.jitter_key`)."""
     mi = backend.mitsuba()
     import drjit as dr
 
@@ -225,3 +227,71 @@ def _colour(loaded, res: dict, g, lit, weight, measure, geometry):
         rgb = res["albedo"] * mi.Color3f(*light.radiance) * scale
     emitted = si.emitter(loaded.mi_scene).eval(si, valid)
     return dr.select(valid, rgb + emitted, 0.0)
+
+
+class SoftGroup(SampledGroup):
+    """Sums of the camera samples' ``soft_visibility`` and ``light_fraction`` and of their
+    squares (a punctual light's are its visibility)."""
+
+    name = "soft"
+
+    def __init__(self, npix: int, *, output: bool = True):
+        super().__init__(npix, output=output)
+        for name in ("soft", "soft2", "frac", "frac2"):
+            setattr(self, name, np.zeros(npix))
+
+    def sample_values(self, res, chunk, block):
+        import drjit as dr
+
+        soft = res.get("soft", dr.select(res["lit"], 1.0, 0.0))
+        frac = res.get("fraction", soft)
+        add = dr.ReduceOp.Add
+        return {
+            "soft": (soft, add),
+            "soft2": (soft * soft, add),
+            "frac": (frac, add),
+            "frac2": (frac * frac, add),
+        }
+
+    def add(self, host, at):
+        for name in ("soft", "soft2", "frac", "frac2"):
+            getattr(self, name)[at] += host[name]
+
+    @staticmethod
+    def channel_stderr(s, s2, n):
+        """Standard error of a soft channel's mean (sample values in [0, 1]): the sample
+        one; where every sample is 0 or every one is 1 (no variance to estimate), the
+        binomial floor, as visibility's (a feature all samples missed is not excluded)."""
+        se = sample_stderr(s, s2, n)
+        alike = (s == 0.0) | (s == n)
+        return np.where(alike, np.maximum(se, binomial_stderr_floor(n)), se)
+
+    def finish(self, n, img):
+        return {
+            "soft_visibility": img(self.soft / n),
+            "soft_visibility_stderr": img(self.channel_stderr(self.soft, self.soft2, n)),
+            "light_fraction": img(self.frac / n),
+            "light_fraction_stderr": img(self.channel_stderr(self.frac, self.frac2, n)),
+        }
+
+    def summary(self, channels):
+        out = stderr_summary(channels, "soft_visibility_stderr")
+        return {**out, **stderr_summary(channels, "light_fraction_stderr")}
+
+    def stderr(self, n):
+        """The larger standard error of the two channels."""
+        return np.maximum(
+            self.channel_stderr(self.soft, self.soft2, n),
+            self.channel_stderr(self.frac, self.frac2, n),
+        )
+
+    def refine_stderr(self, n):
+        # penumbra values are not binary: their sample standard error
+        return self.stderr(n)
+
+    def feature(self, n):
+        # a penumbra: soft values other than all 0 or all 1
+        return (self.soft > 0) & (self.soft < n), [self.soft > 0, self.soft < n]
+
+    def variance(self, n):
+        return [mean_variance(self.soft, self.soft2, n), mean_variance(self.frac, self.frac2, n)]

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import json
+import os
 import shutil
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -11,6 +12,7 @@ from ...scenes import backend
 from ...scenes.backend import provenance
 from ...scenes.base.files import atomic_copy, atomic_write_json
 from ...scenes.base.records import package_versions
+from ...scenes.base.untrusted import read_json, terminal
 from .cache import ORACLE_VERSION, ReferenceCache, reference_key, scratch_dir
 from .exr import read_exr, write_exr
 from .render import ReferenceSettings, render_reference
@@ -79,26 +81,44 @@ def get_reference(
     settings = settings.validate()
     key = reference_key(loaded, settings, backend.active().variant)
     status = "disabled"
+    expect = (loaded.width, loaded.height)
     if cache is not None:
-        folder, status = cache.lookup(key)
+        folder, status = cache.lookup(key, expect=expect)
         if folder is not None:
-            meta = json.loads((folder / "reference.json").read_text())
+            meta = read_json(folder / "reference.json", what="cached reference record")
             return Reference(folder, meta, status)
+        if status == "unusable":
+            _warn_skipped(cache, key)
+            cache, status = None, "skipped"
     # A scratch folder (deleted by remove_scratch when the CLI command ends), or at once when
     # the render fails or the reference goes into the cache.
     tmp = scratch_dir()
     try:
         meta = _render_into(tmp, loaded, settings, quiet=quiet, key=key)
-        if cache is None:
-            return Reference(tmp, meta, status)
-        folder = cache.store(key, tmp)
+        folder = None if cache is None else cache.store(key, tmp, expect=expect)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    finally:
+    if folder is None:
         if cache is not None:
-            shutil.rmtree(tmp, ignore_errors=True)
+            _warn_skipped(cache, key)
+            status = "skipped"
+        return Reference(tmp, meta, status)
+    shutil.rmtree(tmp, ignore_errors=True)
     return Reference(folder, meta, status)
+
+
+_warned: set[str] = set()
+
+
+def _warn_skipped(cache: ReferenceCache, key: str) -> None:
+    """One line on stderr (once per cache folder) saying why the cache is not used."""
+    problem = cache.usable() or (
+        f"cache entry {cache.entry(key)} cannot be read or replaced (not the cache's files)"
+    )
+    if os.fspath(cache.root) not in _warned:
+        _warned.add(os.fspath(cache.root))
+        print(f"raster-oracle: warning: {terminal(problem)}; not cached", file=sys.stderr)
 
 
 def publish(ref: Reference, out_dir: Path) -> None:

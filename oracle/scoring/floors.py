@@ -23,7 +23,9 @@ __all__ = ["fraction_floors", "noise_floor", "noise_settings", "temporal_floor"]
 def noise_settings(request) -> ReferenceSettings:
     """The settings of the noise floor's second reference: the request's, seeded ``seed + 1``."""
     o = request.options
-    return ReferenceSettings(spp=o.spp, seed=o.seed + 1, channels=request.groups).validate()
+    return ReferenceSettings(
+        spp=o.spp, seed=o.seed + 1, channels=request.groups, exact_budget=o.exact_budget
+    ).validate()
 
 
 def noise_floor(

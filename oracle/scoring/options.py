@@ -42,6 +42,8 @@ class ScoreOptions:
     expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
         scored too, and the candidate against it (``conformance_*`` metrics;
         :mod:`oracle.scoring.conformance`).
+    exact_budget : the references' exact-coverage budget
+        (:attr:`oracle.reference.settings.ReferenceSettings.exact_budget`; None: the default).
     """
 
     spp: int = 64
@@ -57,6 +59,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
+    exact_budget: float | None = None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of

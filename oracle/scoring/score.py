@@ -84,7 +84,9 @@ def score_frames(ctx: ScoreContext) -> None:
     truth) and metric keywords are kept for the passes."""
     request = ctx.request
     o = request.options
-    settings = ReferenceSettings(spp=o.spp, seed=o.seed, channels=request.groups).validate()
+    settings = ReferenceSettings(
+        spp=o.spp, seed=o.seed, channels=request.groups, exact_budget=o.exact_budget
+    ).validate()
     read = request.candidate_frames()
     for k, frame_scene in enumerate(request.frame_scenes):
         ref = get_reference(frame_scene, settings, cache=request.cache, quiet=o.quiet)

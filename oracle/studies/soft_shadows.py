@@ -13,6 +13,8 @@ hardening, and light bleeding of filtered shadow maps.
   visibility 0): its mean and the fraction of umbra receivers above 0.1.
 - :func:`soft_ranking`: PCSS at the engines' presets against PCF at fixed widths, ranked by
   their error against the area-light truth, with the noise floor.
+- ``extent``: PCSS's filter extent against the geometric penumbra per preset and map field
+  of view (:func:`..pcss_extent.extent_report`).
 """
 
 from __future__ import annotations
@@ -173,6 +175,7 @@ def contact_hardening(loaded, result, *, bins=DISTANCE_BINS) -> dict:
 RANKED = (
     ("pcss (nvidia)", "pcss", {"preset": "nvidia"}),
     ("pcss (hdrp)", "pcss", {"preset": "hdrp"}),
+    ("pcss (hdrp, light_range=10)", "pcss", {"preset": "hdrp", "light_range": 10.0}),
     ("pcss (nvidia, radius_scale=0.5)", "pcss", {"preset": "nvidia", "radius_scale": 0.5}),
     ("hw_pcf 2x2", "shadow-map", {"filter": "hw_pcf"}),
     ("pcf 5x5", "shadow-map", {"filter": "pcf", "pcf_size": 5}),
@@ -283,6 +286,7 @@ def soft_report(*, cache=None, quick: bool = True, quiet: bool = True, size=None
     from ... import raster_models, scenes
     from ..reference.render import ReferenceSettings, render_reference
     from ..reference.store import get_reference
+    from .pcss_extent import extent_report
 
     w, h, spp = (160, 90, 16) if quick else (320, 180, 32)
     maps = QUICK_MAP_RESOLUTION if quick else MAP_RESOLUTION
@@ -315,6 +319,7 @@ def soft_report(*, cache=None, quick: bool = True, quiet: bool = True, size=None
         "ranking": {"scene": "soft-contact", **ranking},
         "contact_hardening": {"scene": "soft-contact", "presets": hardening},
         "bleeding": _bleeding(reference, size=(w, h), resolution=maps, blurs=blurs),
+        "extent": extent_report(),
     }
 
 

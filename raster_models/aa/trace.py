@@ -40,7 +40,7 @@ from ...scenes.backend.raycast import (
     shadow_ray_dr,
     shape_table,
 )
-from ...scenes.formats.gltf_materials import surface_dr
+from ...scenes.shading.materials import surface_dr
 from ...scenes.shading.pbr import shade_gltf
 from ...scenes.shading.phong import facing, receiver_mask, shade
 from ..drjit import aligned, numpy_view
@@ -329,9 +329,7 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
     si.uv = si.uv + mi.Point2f(du, dv)
     si.p = xc
     pbr_vals = {}
-    if (
-        scene.pbr is not None
-    ):  # glTF material at the extrapolated uv (scenes.formats.gltf_materials)
+    if scene.pbr is not None:  # glTF material at the extrapolated uv (scenes.shading.materials)
         shape = dr.gather(
             mi.Int32, shape_table(mi, dr, scene), dr.reinterpret_array(mi.UInt32, si.shape)
         )

@@ -77,7 +77,7 @@ def scene_triangles(scene) -> np.ndarray:
     tris = scene.memo.get(MEMO_KEY)
     if tris is None:
         from ...scenes import backend
-        from ...scenes.formats.export import shape_mesh
+        from ...scenes.geometry.tessellation import shape_mesh
 
         mi = backend.mitsuba()
         parts, first, rule = [], [], []

@@ -90,11 +90,75 @@ class CommonParams:
         lo=0.0,
         hi=1e3,
     )
+    normal_offset_units: str = param(
+        "texels",
+        source="TheRealMJP/Shadows GetShadowPosOffset (texels x (1 - N.L)); three.js r187 "
+        "shadowmap_vertex.glsl.js:35 adds shadowNormalBias world units (LightShadow.js:74)",
+        help="texels: normal_offset texels of the map times saturate(1 - N.L) (MJP); world: "
+        "normal_offset world units along the normal, whatever N.L (three.js normalBias)",
+        choices=("texels", "world"),
+    )
+    normal_offset_direction: str = param(
+        "facing",
+        source="TheRealMJP/Shadows offsets along the shaded (light-facing) normal; three.js "
+        "r187 shadowmap_vertex.glsl.js:9 uses the vertex normal as wound",
+        help="facing: the normal of the side the camera and light see (a receiver faces "
+        "both); vertex: the normal as the triangle is wound, which points away from the "
+        "light on the back of a double-sided surface (three.js)",
+        choices=("facing", "vertex"),
+    )
+    bias_space: str = param(
+        "hyperbolic",
+        source="D3D/GL: the compare reference is the stored (normalized device) depth",
+        help="hyperbolic: bias is subtracted from the normalized depth as stored (for a "
+        "perspective map, hyperbolic in distance); linear: bias is a fraction of the map's "
+        "depth range (far - near) of linear light-view depth, then converted; identical on "
+        "orthographic maps, whose stored depth is linear",
+        choices=("hyperbolic", "linear"),
+    )
+    caster_faces: str = param(
+        "both",
+        source="D3D11 CullMode NONE in the shadow pass (MJP, Falcor); three.js r187 "
+        "WebGLShadowMap.js:51,490 renders the opposite side of single-sided materials",
+        help="faces rendered into the map, as seen from the light: both, front (wound "
+        "counter-clockwise towards the light: the geometric normal faces it) or back "
+        "(three.js's default for single-sided glTF materials)",
+        choices=("both", "front", "back"),
+    )
+    caster_alpha: str = param(
+        "test",
+        source="Filament surface_depth_main.fs:35-40 (google/filament 27de9fb) discards where "
+        "alpha < maskThreshold in the depth pass; ignore: the opaque-quad shadows of three.js "
+        "issues 24995 (map alpha, r146), 30462 (alphaToCoverage) and 31802 (WebGPURenderer)",
+        help="alpha-tested casters (glTF MASK): test (the depth pass discards where the "
+        "alpha test fails, at the texel centre, on the texture's base level) or ignore (the "
+        "card casts its whole quad)",
+        choices=("test", "ignore"),
+    )
+    lookup_offset: tuple = param(
+        (0.0, 0.0),
+        source="raster-oracle default (0: texel centres at (i + 0.5) / R; D3D9's texel-to-"
+        "pixel convention reads half a texel over)",
+        help="(du, dv) in texels added to every lookup's texture coordinates (an engine "
+        "that samples its map off the texel-centre convention)",
+        lo=-64.0,
+        hi=64.0,
+    )
+    light_matrix: str = param(
+        "",
+        source="raster-oracle default (the model fits its own light box)",
+        help='JSON file with the engine\'s world-to-shadow-texture matrix ({"matrix": 4x4 '
+        'row-major, "texture_origin": top-left or bottom-left}) for a directional '
+        "light's one orthographic map: the model renders and samples the engine's map",
+    )
     filter: str = param(
         "hw_pcf",
         source="Falcor CsmData::filterMode HwPcf",
         help="point, hw_pcf (2x2 hardware PCF), pcf (NxN taps), poisson (disc PCF), vsm, "
-        "evsm2, evsm4",
+        "evsm2, evsm4, three_pcf (three.js r187 PCFShadowMap: 5 hardware-PCF taps on a Vogel "
+        "disk of shadow_radius texels rotated per pixel by interleaved gradient noise), "
+        "three_vsm (three.js r187 VSMShadowMap: blur_samples taps over +-shadow_radius "
+        "texels, (mean, std-dev) in RG16F, (p - 0.3) / 0.65 bleed remap)",
         choices=FILTERS,
     )
     pcf_size: int = param(
@@ -179,6 +243,22 @@ class CommonParams:
         help="VSM/EVSM moment texture format",
         choices=("float32", "float16"),
     )
+    shadow_radius: float = param(
+        1.0,
+        source="three.js r187 src/lights/LightShadow.js:87 radius = 1",
+        help="three_pcf: radius in texels of the Vogel disk; three_vsm: half-width in "
+        "texels of the blur (taps at -radius..+radius)",
+        lo=0.0,
+        hi=100.0,
+    )
+    blur_samples: int = param(
+        8,
+        source="three.js r187 src/lights/LightShadow.js:95 blurSamples = 8 "
+        "(WebGLShadowMap.js:55 VSM_SAMPLES: 8)",
+        help="three_vsm: taps of each (vertical, horizontal) blur pass",
+        lo=1,
+        hi=64,
+    )
     address_mode: str = param(
         "clamp",
         source="Intel SDSM and MJP samplers use ADDRESS_CLAMP (Falcor: border, colour 1)",
@@ -209,7 +289,14 @@ class CommonParams:
 
     def check(self, technique: str) -> None:
         """Cross-field validation (raises :class:`ModelError`)."""
-        if self.filter in ("vsm", "evsm2", "evsm4", "msm") and self.receiver_plane_bias:
+        if len(self.lookup_offset) != 2:
+            raise ModelError(
+                f"{technique}: lookup_offset must be two numbers (du;dv texels), "
+                f"got {len(self.lookup_offset)}"
+            )
+        if self.filter in ("vsm", "evsm2", "evsm4", "msm", "three_vsm") and (
+            self.receiver_plane_bias
+        ):
             raise ModelError(
                 f"{technique}: receiver_plane_bias applies to compare filters "
                 f"(point, hw_pcf, pcf, poisson), not to filter={self.filter}"

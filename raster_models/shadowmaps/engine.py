@@ -10,14 +10,21 @@ described in :mod:`.shade`.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
+import numpy as np
+
 from .. import depth as _depth
+from ..errors import ModelError
 from ..result import model_result
 from . import filters as _filters
+from .engine_matrix import load_light_matrix, projection_from_matrix
+from .faces import wound_normals
 from .records import Setup
 from .render import render_maps
 from .shade import shade
 
-__all__ = ["execute"]
+__all__ = ["engine_conventions", "execute"]
 
 
 def _cost(setup: Setup, maps, params, summary) -> dict:
@@ -44,6 +51,9 @@ def _cost(setup: Setup, maps, params, summary) -> dict:
         moment_bytes = k * r * r * channels * per
         if params.blur_size > 1:
             moment_bytes += r * r * channels * per  # one blur scratch texture
+    if params.filter == "three_vsm":
+        # RG16F map plus its RG16F blur pass target (the D32F depth is counted above).
+        moment_bytes = k * r * r * 2 * 2 + r * r * 2 * 2
     if params.filter == "msm":
         per = 2 if params.msm_format == "unorm16" else 4
         moment_bytes = k * r * r * 4 * per
@@ -53,6 +63,8 @@ def _cost(setup: Setup, maps, params, summary) -> dict:
     passes = rendered
     if params.filter in (*_filters.MOMENT_FILTERS, "msm"):
         passes += rendered * (1 + (2 if params.blur_size > 1 else 0))
+    if params.filter == "three_vsm":
+        passes += rendered * 2  # the vertical pass reads the depth itself (no conversion)
     return {
         "shadow_map_bytes": int(depth_bytes + moment_bytes),
         "texels_rendered": int(rendered * r * r),
@@ -63,8 +75,39 @@ def _cost(setup: Setup, maps, params, summary) -> dict:
     }
 
 
+def engine_conventions(technique: str, scene, gbuf, setup: Setup, params):
+    """The G-buffer and set-up with the engine conventions of ``params`` applied: the
+    engine's own light matrix (``light_matrix``) in place of the fitted map, and the wound
+    vertex normal (``normal_offset_direction="vertex"``) as the normal-offset direction."""
+    path = getattr(params, "light_matrix", "")
+    if path:
+        parts = setup.partitions
+        if scene.light.kind != "directional" or len(parts) != 1 or parts[0].projection is None:
+            raise ModelError(
+                f"{technique}: light_matrix replaces the one orthographic map of a "
+                f"directional light; this set-up has {len(parts)} map(s) for a "
+                f"{scene.light.kind} light"
+            )
+        proj = projection_from_matrix(
+            load_light_matrix(path), params.resolution, params.matrix_precision
+        )
+        if float(proj.frame.z @ np.asarray(scene.light.direction, dtype=np.float64)) <= 0.0:
+            raise ModelError(
+                f"light_matrix {path}: depth must grow along the light's direction "
+                "(a reversed-depth matrix is not taken)"
+            )
+        old = parts[0]
+        setup = replace(setup, partitions=[replace(old, projection=proj)])
+        setup.diagnostics = dict(setup.diagnostics, light_matrix=str(path))
+    if getattr(params, "normal_offset_direction", "facing") == "vertex" and params.normal_offset:
+        gbuf = replace(gbuf, normal=wound_normals(scene, gbuf))
+    return gbuf, setup
+
+
 def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: dict, t0: float):
-    """Render, shade and package a :class:`ModelResult`."""
+    """Render, shade and package a :class:`ModelResult` (engine conventions applied first:
+    :func:`engine_conventions`)."""
+    gbuf, setup = engine_conventions(technique, scene, gbuf, setup, params)
     maps = render_maps(scene, setup, params)
     outputs, summary = shade(gbuf, setup, maps, params)
     diagnostics = dict(setup.diagnostics)

@@ -23,6 +23,8 @@ Address modes: ``clamp`` repeats the edge texels (D3D ``ADDRESS_CLAMP``: Intel s
 - ``vsm``, ``evsm2``, ``evsm4``: moments of the stored depth (optionally exponentially warped,
   MJP's ``WarpDepth``), box-blurred, sampled bilinearly and turned into visibility by the
   one-tailed Chebyshev bound with a minimum variance and light-bleeding reduction.
+- ``three_pcf``, ``three_vsm``: three.js r187's ``PCFShadowMap`` and ``VSMShadowMap``
+  (:mod:`.three_filters`).
 """
 
 from __future__ import annotations
@@ -55,7 +57,17 @@ __all__ = [
     "upload_texels",
 ]
 
-FILTERS = ("point", "hw_pcf", "pcf", "poisson", "vsm", "evsm2", "evsm4")
+FILTERS = (
+    "point",
+    "hw_pcf",
+    "pcf",
+    "poisson",
+    "vsm",
+    "evsm2",
+    "evsm4",
+    "three_pcf",
+    "three_vsm",
+)
 MOMENT_FILTERS = ("vsm", "evsm2", "evsm4")
 
 #: Largest EVSM exponent that does not overflow the moment format (MJP, Intel).
@@ -403,4 +415,6 @@ def lookups_per_pixel(kind: str, *, pcf_size: int = 3, taps: int = 16) -> int:
         return int(pcf_size) ** 2
     if kind == "poisson":
         return int(taps)
+    if kind == "three_pcf":
+        return 5
     return 1

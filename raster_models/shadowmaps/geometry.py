@@ -14,17 +14,34 @@ import numpy as np
 
 from ...scenes import backend
 
-__all__ = ["DRJIT_CHUNK", "DrjitColumns", "normal_offset_texels", "partition_geometry"]
+__all__ = [
+    "DRJIT_CHUNK",
+    "DrjitColumns",
+    "normal_offset_in_world_units",
+    "normal_offset_texels",
+    "partition_geometry",
+]
 
 
 def normal_offset_texels(params, proj) -> float:
-    """Normal offset (texels) of a map: ``perspective_normal_offset`` on spot/point maps of
-    techniques that have it, else ``normal_offset``."""
+    """Normal offset of a map: ``perspective_normal_offset`` (texels) on spot/point maps of
+    techniques that have it, else ``normal_offset`` (texels, or world units with
+    ``normal_offset_units="world"``)."""
     if proj is not None and proj.kind == "persp":
         persp = getattr(params, "perspective_normal_offset", None)
         if persp is not None:
             return float(persp)
     return float(params.normal_offset)
+
+
+def normal_offset_in_world_units(params, proj) -> bool:
+    """Whether :func:`normal_offset_texels` is in world units: ``normal_offset`` with
+    ``normal_offset_units="world"`` (never ``perspective_normal_offset``)."""
+    if getattr(params, "normal_offset_units", "texels") != "world":
+        return False
+    return not (
+        proj is not None and proj.kind == "persp" and hasattr(params, "perspective_normal_offset")
+    )
 
 
 #: Pixels per Dr.Jit launch of :func:`_geometry_drjit` (bounded memory).
@@ -57,6 +74,9 @@ def partition_geometry(params, part, gbuf, pix, columns: DrjitColumns | None = N
     the projection's precision (float32 for ``matrix_precision="float32"``, with its float32
     matrix, as :meth:`Projection.project`); the normal offset, the Jacobian
     ``J = d(u, v, z)/d(pixel)`` and the texel density in float64.
+
+    ``lookup_offset`` ``(du, dv)`` texels moves every lookup after the projection (an
+    engine off the texel-centre convention).
 
     Returns a dict: ``u``, ``v``, ``z`` (float64; non-finite values replaced by 0, 0, 1),
     ``inside`` (bool: within the map's texture and in front of the light), ``tpp`` (smallest
@@ -134,6 +154,10 @@ def _geometry_drjit(params, proj, cols: DrjitColumns, pix):
     tan2 = const(2.0 * float(proj.extent[0]) / res if persp else 0.0)
     texel_ortho = const(0.0 if persp else float(proj.texel_world_size()))
     offset_k = const(offset)
+    world_units = normal_offset_in_world_units(params, proj)
+    du, dv = getattr(params, "lookup_offset", (0.0, 0.0))
+    shift_uv = bool(du or dv)
+    shift_u, shift_v = const(float(du) / res), const(float(dv) / res)
 
     project = _projector(mi, proj)
 
@@ -148,11 +172,16 @@ def _geometry_drjit(params, proj, cols: DrjitColumns, pix):
         p = [gather("position", base, k) for k in range(3)]
         u, v, z, w = project(p)
         if offset > 0.0:
-            texel = tan2 * w if persp else texel_ortho
-            n_dot_l = dr.clip(dr.gather(f64, cols["cos_l"], idx), 0.0, 1.0)
-            scale = offset_k * texel * (1.0 - n_dot_l)
+            if world_units:
+                scale = offset_k
+            else:
+                texel = tan2 * w if persp else texel_ortho
+                n_dot_l = dr.clip(dr.gather(f64, cols["cos_l"], idx), 0.0, 1.0)
+                scale = offset_k * texel * (1.0 - n_dot_l)
             p = [p[k] + gather("normal", base, k) * scale for k in range(3)]
             u, v, z, w = project(p)
+        if shift_uv:
+            u, v = u + shift_u, v + shift_v
         jac = []
         for name in ("dpdx", "dpdy"):
             dp = [gather(name, base, k) for k in range(3)]

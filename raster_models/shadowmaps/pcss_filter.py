@@ -20,8 +20,12 @@ Three steps per receiver (Fernando 2005; NVIDIA's sample code in Bavoil 2008):
 ``search = (z_r - z0) 2 tan(theta/2) / width`` and radius ``(z_r - z_b) 2 tan(theta/2) /
 width``, ``width`` the map's side in world units.
 
-NVIDIA uses the light's full size ``L`` as the disk *radius* in both steps (so the filtered
-transition is twice the geometric penumbra); ``radius_scale`` = 0.5 gives the geometric one.
+NVIDIA uses ``LIGHT_WORLD_SIZE`` ``L`` as the disk *radius* in both steps; read as the
+light's full width (this project's reading), the filter radius is twice the geometric
+penumbra radius and its 16-tap transition (10-90 %) 2.71x a disk light's at every field of
+view; ``radius_scale`` = 0.5 (the radius reading) gives 1.35x (measured:
+``oracle.studies.pcss_extent``, docs/models.md). ``softness`` = ``hdrp`` replaces these
+radii on perspective maps by HDRP 10.10.1's fitted mapping (:mod:`.pcss_hdrp`).
 
 Disks: ``poisson16`` (NVIDIA's 16-point Poisson disk, Bavoil 2008, listing 1) and
 ``fibonacci`` (Unity HDRP ``HDPCSS.hlsl``: direction ``i * (3 - sqrt 5) pi`` modulo 2 pi,
@@ -51,6 +55,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import filters as _filters
+from . import pcss_hdrp as _hdrp
 
 __all__ = [
     "DISKS",
@@ -180,18 +185,22 @@ def penumbra_radius_uv(proj, z_r, z_b, *, light_size: float, light_angle: float)
 ESTIMATES = ("penumbra_width", "blocker_distance")
 
 
-def estimates(proj, ref, radius_uv, z_b, radius_scale: float) -> dict:
-    """PCSS's estimates in world units at the receivers: ``penumbra_width`` (the parallel-
-    plane width ``(z_r - z_b) L / z_b``, or ``(z_r - z_b) 2 tan(theta/2)``, i.e. the filter
-    radius before ``radius_scale``, at the receiver's depth) and ``blocker_distance``
-    (``z_r - z_b`` along the light's axis); 0 where no blocker was found."""
+def estimates(proj, ref, radius_uv, z_b, params) -> dict:
+    """PCSS's estimates in world units at the receivers: ``penumbra_width``, the penumbra
+    width the filter radius stands for before ``radius_scale`` (``physical``, Fernando's
+    reading: the radius *is* the parallel-plane width ``(z_r - z_b) L / z_b``, or ``(z_r -
+    z_b) 2 tan(theta/2)``; ``hdrp``: twice the radius, which HDRP fitted as the half-width of
+    a ray-traced penumbra), at the receiver's depth, and ``blocker_distance`` (``z_r - z_b``
+    along the light's axis); 0 where no blocker was found. ``params``: ``radius_scale`` and
+    ``softness``."""
     z_r = linear_depth(proj, np.clip(np.asarray(ref, dtype=np.float64), 0.0, 1.0))
     found = np.asarray(z_b) > 0
     if proj.kind == "persp":
         per_uv = 2.0 * z_r * float(proj.extent[0])
     else:
         per_uv = np.full(z_r.shape, float(proj.extent[1] - proj.extent[0]))
-    scale = 1.0 / radius_scale if radius_scale > 0 else 0.0
+    halves = 2.0 if (params.softness == "hdrp" and proj.kind == "persp") else 1.0
+    scale = halves / params.radius_scale if params.radius_scale > 0 else 0.0
     width = np.where(found, np.asarray(radius_uv) * scale * per_uv, 0.0)
     return {"penumbra_width": width, "blocker_distance": np.where(found, z_r - z_b, 0.0)}
 
@@ -219,42 +228,66 @@ def _point_fetch(depth_map: np.ndarray, u, v, address: str) -> np.ndarray:
     return val
 
 
-def blocker_search(depth_map, proj, u, v, ref, radius_uv, offsets, rotation, *, address):
-    """Average linear depth of the blockers (taps with stored depth ``< ref``) and their
-    count, per receiver; the average is NaN-free (0 where no tap is a blocker)."""
+def blocker_search(
+    depth_map, proj, u, v, ref, radius_uv, offsets, rotation, *, address, average="linear"
+):
+    """Average depth of the blockers (taps with stored depth ``< ref``) and their count, per
+    receiver; the average is NaN-free (0 where no tap is a blocker). ``average``: ``linear``
+    (the mean linear depth) or ``stored`` (the mean stored depth: HDRP averages reversed-Z
+    device depths, ``1 - z``, HDPCSS.hlsl:123-127)."""
     total = np.zeros(np.shape(u), dtype=np.float64)
     count = np.zeros(np.shape(u), dtype=np.float64)
     for dx, dy in _rotated(offsets, rotation):
         d = _point_fetch(depth_map, u + dx * radius_uv, v + dy * radius_uv, address)
         hit = d < ref
-        total += np.where(hit, linear_depth(proj, d), 0.0)
+        total += np.where(hit, linear_depth(proj, d) if average == "linear" else d, 0.0)
         count += hit
     avg = np.where(count > 0, total / np.maximum(count, 1.0), 0.0)
     return avg, count
+
+
+def _radii(data, proj, u, v, ref, z_r, params, rotation):
+    """Blocker search and filter radius of the preset's softness mapping: ``(radius_uv,
+    z_b linear, found)``. ``physical``: Fernando 2005 with the light's size; ``hdrp``:
+    HDRP 10.10.1's fitted mapping of the shape radius (:mod:`.pcss_hdrp`; perspective maps)."""
+    blockers = disk(params.disk, params.blocker_samples)
+    common = {"address": params.address_mode}
+    if params.softness == "hdrp" and proj.kind == "persp":
+        res = int(data.depth.shape[0])
+        shape = 0.5 * params.light_size
+        search = params.radius_scale * _hdrp.search_radius_uv(shape, res)
+        z_dev, count = blocker_search(
+            data.depth, proj, u, v, ref, search, blockers, rotation, average="stored", **common
+        )
+        found = count > 0
+        z_b = linear_depth(proj, np.clip(np.where(found, z_dev, ref), 0.0, 1.0))
+        far = params.light_range or float(proj.extent[2])
+        radius = _hdrp.filter_radius_uv(shape, res, z_r, z_b, far)
+        return params.radius_scale * radius, z_b, found
+    size = {"light_size": params.light_size, "light_angle": params.light_angle}
+    # The search reaches back to the nearest caster in the map (NVIDIA's NEAR_PLANE, which
+    # its demo places at the casters by hand; a map's own near plane can be far nearer).
+    near = float(linear_depth(proj, np.min(data.depth))) if data.depth.size else None
+    search = params.radius_scale * search_radius_uv(proj, z_r, near=near, **size)
+    z_b, count = blocker_search(data.depth, proj, u, v, ref, search, blockers, rotation, **common)
+    found = count > 0
+    z_b = np.where(found, z_b, z_r)
+    return params.radius_scale * penumbra_radius_uv(proj, z_r, z_b, **size), z_b, found
 
 
 def pcss_lookup(data, proj, u, v, z, ref, params, rotation=None):
     """PCSS visibility of receivers at map coordinates ``(u, v)``, normalized depth ``z``,
     compare reference ``ref`` (``z`` minus the bias), from a rendered map ``data``
     (:class:`MapData`). ``params`` carries ``blocker_samples``, ``filter_samples``,
-    ``disk``, ``light_size``, ``light_angle``, ``radius_scale``, ``min_filter_uv``,
-    ``address_mode`` and ``subtexel_bits``. Returns ``(visibility, radius_uv, z_blocker)``
-    (radius 0 and blocker depth 0 where no blocker was found)."""
+    ``disk``, ``softness``, ``light_size``, ``light_angle``, ``light_range``,
+    ``radius_scale``, ``min_filter_uv``, ``address_mode`` and ``subtexel_bits``. Returns
+    ``(visibility, radius_uv, z_blocker)`` (``z_blocker`` linear; radius 0 and blocker depth
+    0 where no blocker was found)."""
     u = np.asarray(u, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
     ref = np.broadcast_to(np.asarray(ref, dtype=np.float64), u.shape)
     z_r = linear_depth(proj, np.clip(ref, 0.0, 1.0))
-    size = {"light_size": params.light_size, "light_angle": params.light_angle}
-    # The search reaches back to the nearest caster in the map (NVIDIA's NEAR_PLANE, which
-    # its demo places at the casters by hand; a map's own near plane can be far nearer).
-    near = float(linear_depth(proj, np.min(data.depth))) if data.depth.size else None
-    search = params.radius_scale * search_radius_uv(proj, z_r, near=near, **size)
-    blockers = disk(params.disk, params.blocker_samples)
-    z_b, count = blocker_search(
-        data.depth, proj, u, v, ref, search, blockers, rotation, address=params.address_mode
-    )
-    found = count > 0
-    radius = params.radius_scale * penumbra_radius_uv(proj, z_r, np.where(found, z_b, z_r), **size)
+    radius, z_b, found = _radii(data, proj, u, v, ref, z_r, params, rotation)
     radius = np.where(found, np.maximum(radius, params.min_filter_uv), 0.0)
     taps = disk(params.disk, params.filter_samples)
     acc = np.zeros(u.shape, dtype=np.float64)

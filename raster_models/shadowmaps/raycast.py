@@ -17,6 +17,7 @@ import numpy as np
 from ...scenes import backend
 from ..drjit import numpy_view
 from .depth_dr import stored_depth_dr
+from .faces import first_hit
 
 __all__ = ["GRID_CHUNK", "iter_grid"]
 
@@ -32,6 +33,8 @@ def iter_grid(
     *,
     normals: bool = False,
     store: tuple[str, float] | None = None,
+    faces: str = "both",
+    alpha: str = "test",
 ):
     """Cast one ray per texel centre of a ``resolution``-square map, in launches of
     :data:`GRID_CHUNK` texels, and yield ``(start, stop, chunk)`` per launch (flat texel
@@ -55,6 +58,10 @@ def iter_grid(
         kernel (:func:`.depth_dr.stored_depth_dr`) and ``chunk`` holds ``stored`` (float32
         map texels, a view of the Dr.Jit array ``texels``) and ``covered`` (texels hit)
         instead of ``z``.
+    faces : the faces the shadow pass keeps (:func:`.faces.first_hit`: ``both``, ``front``,
+        ``back``).
+    alpha : ``test``: alpha-tested casters are cut out; ``ignore``: whole (see
+        :func:`.faces.first_hit`).
 
     ``chunk["z"]``: float64 normalized depth, unclamped, ``inf`` on a miss.
     """
@@ -94,12 +101,7 @@ def iter_grid(
             mi.Vector3f(mi.Float(d[0] * inv), mi.Float(d[1] * inv), mi.Float(d[2] * inv)),
         )
         ray.maxt = mi.Float(span_k * dnorm)
-        if normals:
-            si = scene.mi_scene.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
-            valid, th = si.is_valid(), si.t
-        else:
-            pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
-            valid, th = pi.is_valid(), pi.t
+        valid, th, hit_n = first_hit(scene, ray, faces, normals=normals, alpha=alpha)
         dist = f64(dr.select(valid, th, 0.0))
         if depth[0] == "ortho":
             z = coef[0] + s * coef[1] + t * coef[2] + dist * coef[3]
@@ -117,10 +119,10 @@ def iter_grid(
             yield start, stop, chunk
             continue
         if normals:
-            dr.eval(z, si.n, dist, dnorm, valid)
+            dr.eval(z, hit_n, dist, dnorm, valid)
             chunk = {
                 "z": numpy_view(z),
-                "normal": numpy_view(si.n).T.astype(np.float32),
+                "normal": numpy_view(hit_n).T.astype(np.float32),
                 "t": np.where(numpy_view(valid), numpy_view(dist), np.inf),
                 "dir_norm": numpy_view(dnorm),
             }

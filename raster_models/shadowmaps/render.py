@@ -16,6 +16,7 @@ from .. import depth as _depth
 from ..light_frame import Projection
 from . import filters as _filters
 from . import msm_filter as _msm
+from . import three_filters as _three
 from .depth_dr import fused_bias, stored_depth_dr
 from .raycast import GRID_CHUNK, iter_grid
 from .records import MapData, Partition, Setup
@@ -104,7 +105,15 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     )
     if bias is not None:
         # No per-texel bias: the texels are finished in the casting kernel (same bytes).
-        launches = iter_grid(scene, grid, r, depth, store=(params.format, bias))
+        launches = iter_grid(
+            scene,
+            grid,
+            r,
+            depth,
+            store=(params.format, bias),
+            faces=params.caster_faces,
+            alpha=params.caster_alpha,
+        )
         if r * r <= GRID_CHUNK:
             # One launch: the map is a view of the kernel's output, which lookups reuse.
             ((_, _, hits),) = launches
@@ -128,7 +137,16 @@ def _render_per_texel_bias(scene, proj, grid, depth, params, need_slope: bool):
     r = proj.resolution
     covered = 0
     stored = np.empty(r * r, dtype=np.float32)
-    for start, stop, hits in iter_grid(scene, grid, r, depth, normals=need_slope):
+    chunks = iter_grid(
+        scene,
+        grid,
+        r,
+        depth,
+        normals=need_slope,
+        faces=params.caster_faces,
+        alpha=params.caster_alpha,
+    )
+    for start, stop, hits in chunks:
         z = hits["z"]
         hit = np.isfinite(z)
         covered += int(hit.sum())
@@ -185,6 +203,14 @@ def render_maps(scene, setup: Setup, params) -> list[MapData | None]:
         data = _render_one(scene, part, params, need_slope)
         if params.filter in _filters.MOMENT_FILTERS:
             _add_moments(data, part, params, setup)
+            data.texels = None
+        elif params.filter == "three_vsm":
+            data.moments = _three.vsm_texture(
+                data.depth,
+                radius=params.shadow_radius,
+                samples=params.blur_samples,
+                subtexel_bits=params.subtexel_bits,
+            )
             data.texels = None
         elif params.filter == "msm":
             depth = _msm.moment_depth(part.projection, data.depth, params.moment_depth)

@@ -15,6 +15,10 @@ Outputs (all ``(H, W)`` float32, row 0 at the top):
   with ``fw = max(|J dx|, |J dy|)`` per texel axis (0 = at least one texel per pixel).
 - ``uncovered``: 1 on receivers whose selected map does not contain them (outside its
   texture, an empty partition, or outside every partition's depth range).
+- ``compare_margin`` (compare filters: point, hw_pcf, pcf, poisson, three_pcf): the
+  smallest ``|reference - stored|`` in normalized depth over the texels a receiver's
+  lookup compared (:mod:`.margins`); 1 elsewhere. Within the depth format's rounding an
+  engine may decide the other way: conformance names those pixels implementation-defined.
 """
 
 from __future__ import annotations
@@ -22,12 +26,19 @@ from __future__ import annotations
 import numpy as np
 
 from . import filters as _filters
+from . import margins as _margins
 from . import msm_filter as _msm
 from . import pcss_filter as _pcss
-from .geometry import DrjitColumns, normal_offset_texels, partition_geometry
+from . import three_filters as _three
+from .geometry import (
+    DrjitColumns,
+    normal_offset_in_world_units,
+    normal_offset_texels,
+    partition_geometry,
+)
 from .records import MapData, Setup
 
-__all__ = ["perspective_reference", "select_partitions", "shade"]
+__all__ = ["linear_bias_reference", "perspective_reference", "select_partitions", "shade"]
 
 
 def perspective_reference(params, proj, z):
@@ -76,7 +87,9 @@ def select_partitions(setup: Setup, gbuf, idx: np.ndarray, params) -> np.ndarray
         proj0 = parts[0].projection
         d = gbuf.position[idx] - proj0.frame.origin
         offset = normal_offset_texels(params, proj0)
-        if offset > 0.0:
+        if offset > 0.0 and normal_offset_in_world_units(params, proj0):
+            d = d + gbuf.normal[idx] * offset
+        elif offset > 0.0:
             texel = 2.0 * float(proj0.extent[0]) * np.max(np.abs(d), axis=1) / proj0.resolution
             n_dot_l = np.clip(gbuf.cos_l[idx], 0.0, 1.0)
             scale = offset * texel * (1.0 - n_dot_l)
@@ -150,7 +163,13 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
             subtexel_bits=params.subtexel_bits,
         )
     common = {"address": params.address_mode, "subtexel_bits": params.subtexel_bits}
+    if kind == "three_vsm":
+        return _three.lookup_vsm(data.moments, u, v, ref, subtexel_bits=params.subtexel_bits)
     tex = data.texels
+    if kind == "three_pcf":
+        return _three.lookup_pcf(
+            tex, u, v, ref, radius=params.shadow_radius, phi=rotation, **common
+        )
     if kind == "point":
         return _filters.compare_point(tex, u, v, ref, address=params.address_mode)
     if kind == "hw_pcf":
@@ -158,7 +177,7 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
     if kind == "pcss":
         vis, radius, z_b = _pcss.pcss_lookup(data, proj, u, v, z, ref, params, rotation)
         if extras is not None:
-            extras.update(_pcss.estimates(proj, ref, radius, z_b, params.radius_scale))
+            extras.update(_pcss.estimates(proj, ref, radius, z_b, params))
         return vis
     if kind == "pcf":
         return _filters.pcf_grid(tex, u, v, ref, params.pcf_size, plane=plane, **common)
@@ -176,14 +195,45 @@ def _lookup(params, data: MapData, u, v, z, plane, rotation, *, ref=None, proj=N
     )
 
 
-def _lookup_subset(params, data, geo, mask, rotation, extras=None):
-    """Visibility of the pixels ``mask`` of a `partition_geometry` record."""
+def linear_bias_reference(params, proj, z):
+    """Compare reference with ``bias_space="linear"``, or ``None``: the receiver's
+    light-view depth minus ``bias * (far - near)``, converted to the map's normalized depth
+    (on an orthographic map exactly ``z - bias``)."""
+    if getattr(params, "bias_space", "hyperbolic") != "linear" or proj is None:
+        return None
+    z = np.asarray(z, dtype=np.float64)
+    if proj.kind != "persp":
+        return z - params.bias
+    _, near, far = (float(x) for x in proj.extent)
+    a, b = far / (far - near), far * near / (far - near)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = b / (a - z) - params.bias * (far - near)
+        ref = a - b / np.maximum(tau, 1e-300)
+    return np.where(np.isfinite(ref), ref, z)
+
+
+def _lookup_subset(params, data, geo, mask, rotation, extras=None, margin=None):
+    """Visibility of the pixels ``mask`` of a `partition_geometry` record; ``margin``: a
+    dict that receives the receivers' compare margins (:mod:`.margins`) under ``"margin"``
+    for the filters that have one."""
     plane = _receiver_plane(geo["j3"][mask]) if params.receiver_plane_bias else None
     z = geo["z"][mask]
     ref = perspective_reference(params, geo.get("proj"), z)
+    if ref is None:
+        ref = linear_bias_reference(params, geo.get("proj"), z)
     u, v = geo["u"][mask], geo["v"][mask]
     proj = geo.get("proj")
-    return _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
+    vis = _lookup(params, data, u, v, z, plane, rotation, ref=ref, proj=proj, extras=extras)
+    if margin is not None and params.filter in _margins.MARGIN_FILTERS:
+        r = data.depth.shape[0]
+        if params.receiver_plane_bias:
+            compare = z - np.minimum((np.abs(plane[0]) + np.abs(plane[1])) / r, 0.01)
+        else:
+            compare = z - params.bias if ref is None else ref
+        du, dv = _margins.tap_offsets(params, r, rotation, len(u))
+        point = params.filter == "point"
+        margin["margin"] = _margins.compare_margin(data.depth, u, v, compare, du, dv, point=point)
+    return vis
 
 
 def _smoothstep(e0, e1, x):
@@ -226,10 +276,14 @@ def _blend_cascades(
 
 def _rotations(gbuf, params):
     """Per-pixel disk rotation angles (all pixels), or ``None``: seeded uniform angles for
-    a rotated Poisson disc, interleaved gradient noise at pixel centres for PCSS's ``ign``."""
+    a rotated Poisson disc, interleaved gradient noise at pixel centres for PCSS's ``ign``
+    and at ``gl_FragCoord`` (lower-left origin) for ``three_pcf``."""
     if params.filter == "poisson" and params.poisson_rotate:
         rng = np.random.default_rng(params.seed)
         return rng.uniform(0.0, 2.0 * np.pi, gbuf.size)
+    if params.filter == "three_pcf":
+        px, py = _three.frag_coord(gbuf.width, gbuf.height)
+        return _three.interleaved_gradient_noise(px, py) * (2.0 * np.pi)
     if params.filter == "pcss" and params.rotation == "ign":
         idx = np.arange(gbuf.size)
         px, py = idx % gbuf.width + 0.5, idx // gbuf.width + 0.5
@@ -244,6 +298,20 @@ def _lookups_per_pixel(params) -> int:
     return _filters.lookups_per_pixel(
         params.filter, pcf_size=params.pcf_size, taps=params.poisson_taps
     )
+
+
+def _partition_stats(st: dict, geo: dict, rmask, uncovered_rec, data) -> dict:
+    """``st`` completed with a rendered partition's statistics over its receivers."""
+    tpp_rec = geo["tpp"][rmask]
+    st.update(
+        empty=False,
+        uncovered=int(uncovered_rec.sum()) if len(uncovered_rec) else 0,
+        texels_per_pixel_min=float(tpp_rec.min()) if len(tpp_rec) else None,
+        texels_per_pixel_mean=float(tpp_rec.mean()) if len(tpp_rec) else None,
+        resolution_error_mean=float(geo["err"][rmask].mean()) if rmask.any() else None,
+        texels_covered=int(data.texels_covered) if data is not None else 0,
+    )
+    return st
 
 
 def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
@@ -269,6 +337,8 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
     # PCSS's penumbra estimate per receiver (world units; 0 where no blocker was found)
     pcss_out = {k: np.zeros(n) for k in _pcss.ESTIMATES} if params.filter == "pcss" else {}
     per_lookup = _lookups_per_pixel(params)
+    # Compare margin per receiver (normalized depth; 1 where no compare was made).
+    margin = np.ones(n) if params.filter in _margins.MARGIN_FILTERS else None
     stats = []
     for i, part in enumerate(setup.partitions):
         pix = valid_idx[sel == i]
@@ -282,28 +352,21 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
             continue
         data = maps[i]
         geo = partition_geometry(params, part, gbuf, pix, columns)
-        e = geo["err"]
         tpp[pix] = geo["tpp"]
-        err[pix] = e
+        err[pix] = geo["err"]
         rmask = receiver[pix]
         if len(rec) and data is not None:
             rot = rotation_all[rec] if rotation_all is not None else None
             extras = {} if pcss_out else None
-            vis[rec] = _lookup_subset(params, data, geo, rmask, rot, extras)
+            got: dict | None = {} if margin is not None else None
+            vis[rec] = _lookup_subset(params, data, geo, rmask, rot, extras, got)
+            if got:
+                margin[rec] = got["margin"]
             for key, img in pcss_out.items():
                 img[rec] = extras[key]
             uncovered[rec] = (~geo["inside"][rmask]).astype(np.float64)
             lookups[rec] = per_lookup
-        tpp_rec = geo["tpp"][rmask]  # = tpp[pix][rmask], gathered once
-        st.update(
-            empty=False,
-            uncovered=int(uncovered[rec].sum()) if len(rec) else 0,
-            texels_per_pixel_min=float(tpp_rec.min()) if len(tpp_rec) else None,
-            texels_per_pixel_mean=float(tpp_rec.mean()) if len(tpp_rec) else None,
-            resolution_error_mean=float(e[rmask].mean()) if rmask.any() else None,
-            texels_covered=int(data.texels_covered) if data is not None else 0,
-        )
-        stats.append(st)
+        stats.append(_partition_stats(st, geo, rmask, uncovered[rec], data))
     # Outside every depth range (Intel: the lighting pass discards the pixel).
     none = valid_idx[sel < 0]
     rec_none = none[receiver[none]]
@@ -335,6 +398,8 @@ def shade(gbuf, setup: Setup, maps, params) -> tuple[dict, dict]:
         "uncovered": gbuf.image(uncovered),
     }
     outputs.update({k: gbuf.image(img) for k, img in pcss_out.items()})
+    if margin is not None:
+        outputs["compare_margin"] = gbuf.image(np.minimum(margin, 1.0))
     n_rec = int(receiver.sum())
     summary = {
         "partitions": stats,

@@ -1,2 +1,2 @@
 """The built-in scenes: the catalogue (:mod:`.builtin`), the scene families (shadow, AA, moving,
-glTF/PBR), the mesh builders and the dict factories the families are written with."""
+glTF/PBR, scale) and the dict factories the families are written with."""

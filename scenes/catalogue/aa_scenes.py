@@ -37,8 +37,10 @@ import math
 
 import numpy as np
 
-from . import meshes
-from .factories import diffuse, look_at, mesh, sensor, sun
+from ..camera import look_at
+from ..geometry import meshes
+from ..shading.materials import diffuse
+from .factories import mesh, sensor, sun
 
 __all__ = [
     "AA_SCENES",

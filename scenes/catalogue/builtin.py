@@ -10,11 +10,21 @@ two-sided diffuse (see :mod:`scenes.shading.phong`); a top-level ``"ro_specular"
 from __future__ import annotations
 
 import functools
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from . import aa_scenes, moving_scenes, pbr_scenes, scale_scenes, shadow_scenes, soft_scenes
+from ..base.memory import available_memory, gib
+from ..base.numbers import parse_int
+from . import (
+    aa_scenes,
+    alpha_foliage,
+    event_scenes,
+    moving_scenes,
+    pbr_scenes,
+    scale_scenes,
+    shadow_scenes,
+    soft_scenes,
+)
 
 __all__ = [
     "BUILTIN_SCENES",
@@ -40,6 +50,10 @@ class SceneParam:
     lo: int
     hi: int
     doc: str
+    #: Bytes each unit of the parameter costs a command at its peak (measured: peak RSS of
+    #: ``reference`` at n=0 and n=1,000,000, 8x8, visibility, with a margin for the models
+    #: and scoring), checked against the memory free before the scene is built.
+    bytes_each: int = 0
 
 
 @dataclass(frozen=True)
@@ -116,6 +130,12 @@ BUILTIN_SCENES.update(
     {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in soft_scenes.SOFT_SCENES.items()}
 )
 
+# Event scenes for temporal shadow denoisers (flicker-, occluder-, pan- x sun, rect): see
+# scenes.catalogue.event_scenes.
+BUILTIN_SCENES.update(
+    {n: BuiltinScene(n, f, d, w, h) for n, (f, d, w, h) in event_scenes.EVENT_SCENES.items()}
+)
+
 # Scenes of real size, their size a parameter (meadow:n=1000000): see scenes.catalogue.scale_scenes.
 _SIZE = "number of {}; default {}"
 BUILTIN_SCENES.update(
@@ -128,7 +148,7 @@ BUILTIN_SCENES.update(
             320,
             180,
             params=(
-                SceneParam("n", scale_scenes.MEADOW_N, 0, 10**8, _SIZE.format("blades", 5000)),
+                SceneParam("n", scale_scenes.MEADOW_N, 0, 10**8, _SIZE.format("blades", 5000), 600),
                 SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the blades; default 1"),
             ),
         ),
@@ -141,15 +161,34 @@ BUILTIN_SCENES.update(
             180,
             params=(
                 SceneParam(
-                    "n", scale_scenes.CITY_FOLIAGE_N, 0, 10**8, _SIZE.format("leaves", 5000)
+                    "n", scale_scenes.CITY_FOLIAGE_N, 0, 10**8, _SIZE.format("leaves", 5000), 600
                 ),
                 SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the block; default 1"),
             ),
         ),
+        "alpha-foliage": BuiltinScene(
+            "alpha-foliage",
+            alpha_foliage.alpha_foliage,
+            "glTF: n alpha-tested (MASK) leaf cards in five distance bands 2-200 m, one column "
+            "each, under a sun (alpha-foliage:n=100000; alpha=0: the same cards opaque)",
+            320,
+            180,
+            kind="gltf",
+            params=(
+                SceneParam(
+                    "n",
+                    alpha_foliage.ALPHA_FOLIAGE_N,
+                    0,
+                    10**7,
+                    _SIZE.format("cards", alpha_foliage.ALPHA_FOLIAGE_N),
+                    2000,
+                ),
+                SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the cards; default 1"),
+                SceneParam("alpha", 1, 0, 1, "1: MASK (alpha-tested); 0: OPAQUE; default 1"),
+            ),
+        ),
     }
 )
-
-_VALUE = re.compile(r"[+]?[0-9][0-9_]*")
 
 
 def builtin_scene(name) -> BuiltinScene | None:
@@ -188,13 +227,25 @@ def builtin_scene(name) -> BuiltinScene | None:
         if key in given:
             raise SceneParamError(f"scene {name!r}: parameter {key!r} given twice")
         p = known[key]
-        if not _VALUE.fullmatch(text) or not p.lo <= int(text) <= p.hi:
-            raise SceneParamError(
-                f"scene {name!r}: {key} must be an integer in [{p.lo}, {p.hi}], got {text!r}"
-            )
-        given[key] = int(text)
+        what = f"scene {name[:80]!r}: {key}"
+        given[key] = parse_int(text, what=what, lo=p.lo, hi=p.hi, error=SceneParamError)
+    _check_memory(name, spec, given)
     canonical = base + "".join(f":{p.key}={given[p.key]}" for p in spec.params if p.key in given)
     return replace(spec, name=canonical, factory=functools.partial(spec.factory, **given))
+
+
+def _check_memory(name: str, spec: BuiltinScene, given: dict[str, int]) -> None:
+    """Refuse parameters whose estimated memory (:attr:`SceneParam.bytes_each` per unit)
+    exceeds what this machine has free, before anything is allocated."""
+    need = sum(p.bytes_each * given.get(p.key, p.default) for p in spec.params)
+    if not need:
+        return
+    free = available_memory()
+    if need > free:
+        raise SceneParamError(
+            f"scene {name[:80]!r} needs about {gib(need)} of memory, more than the {gib(free)} "
+            "free here; choose a smaller size"
+        )
 
 
 #: The scenes the main job runs by default.

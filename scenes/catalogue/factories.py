@@ -1,5 +1,7 @@
-"""Public dictionary helpers for building Mitsuba scene dictionaries: materials, meshes,
-cameras and lights (the pieces every built-in scene and every transformed scene is made of).
+"""Public dictionary helpers for building Mitsuba scene dictionaries: meshes with a diffuse
+material (:func:`scenes.shading.materials.diffuse`), cameras (placed with
+:func:`scenes.camera.look_at`), suns and grounds (the pieces every built-in scene and every
+transformed scene is made of).
 
 World up is +Y. Custom triangle meshes are ``{"type": "ro_mesh", "vertices": (V, 3),
 "faces": (F, 3), "bsdf": ...}`` entries that :mod:`scenes.loader` turns into Mitsuba meshes.
@@ -7,39 +9,17 @@ World up is +Y. Custom triangle meshes are ``{"type": "ro_mesh", "vertices": (V,
 
 from __future__ import annotations
 
-import numpy as np
+from ..camera import look_at
+from ..geometry import meshes
+from ..shading.materials import diffuse
 
-from . import meshes
-
-__all__ = ["diffuse", "ground", "look_at", "mesh", "sensor", "sun"]
-
-
-def diffuse(rgb) -> dict:
-    """Two-sided diffuse material of albedo ``rgb`` (a scalar or 3 linear values)."""
-    rgb = [float(c) for c in np.broadcast_to(np.asarray(rgb, float), (3,))]
-    return {
-        "type": "twosided",
-        "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": rgb}},
-    }
+__all__ = ["ground", "mesh", "sensor", "sun"]
 
 
 def mesh(verts_faces, rgb) -> dict:
     """An ``ro_mesh`` entry: ``(vertices (V, 3), faces (F, 3))`` with a diffuse material."""
     v, f = verts_faces
     return {"type": "ro_mesh", "vertices": v, "faces": f, "bsdf": diffuse(rgb)}
-
-
-def look_at(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
-    """Mitsuba's look_at as a float64 matrix: +Z forward, +Y up, +X left."""
-    o, t, u = (np.asarray(a, float) for a in (origin, target, up))
-    d = t - o
-    d /= np.linalg.norm(d)
-    left = np.cross(u, d)
-    left /= np.linalg.norm(left)
-    new_up = np.cross(d, left)
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, o
-    return m
 
 
 def sensor(width, height, *, origin, target, fov, near, far, up=(0, 1, 0)) -> dict:

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from . import meshes
+from ..geometry import meshes
 from .aa_scenes import ortho_camera
 from .factories import mesh, sensor, sun
 

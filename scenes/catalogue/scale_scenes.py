@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import meshes
+from ..geometry import meshes
 from .factories import ground, mesh, sensor, sun
 
 __all__ = ["CITY_FOLIAGE_N", "MEADOW_N", "city_foliage", "grass_blades", "leaves", "meadow"]

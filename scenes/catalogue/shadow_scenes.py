@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import meshes
-from .factories import diffuse, ground, look_at, mesh, sensor, sun
+from ..camera import look_at
+from ..geometry import meshes
+from ..shading.materials import diffuse
+from .factories import ground, mesh, sensor, sun
 
 __all__ = ["curved", "city", "plate", "point", "spot", "star", "thin"]
 

@@ -14,7 +14,7 @@
 - ``scene.xml``: a Mitsuba scene built from the files above, so the export can be loaded back
   (``raster-oracle reference out/scene.xml``) and compared with the original,
 - ``export.json``: what it was exported for: the scene, size and light, and a pointer to the
-  sequence in ``camera.json`` (``scenes.formats.inputs`` reads both back: scoring an export
+  sequence in ``camera.json`` (``scenes.inputs`` reads both back: scoring an export
   uses them),
 - ``cameras/frame_NNN.json``: with a camera path, every frame's ``camera.json`` (what an
   engine renders the path's frames from).
@@ -36,10 +36,10 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from .. import backend
-from ..catalogue import meshes as _meshes
+from ..geometry.tessellation import shape_mesh
 from ..lights import AREA_SHAPES
 
-__all__ = ["EXPORT_SCENE_FILES", "export", "export_scene_file", "shape_mesh"]
+__all__ = ["EXPORT_SCENE_FILES", "export", "export_scene_file"]
 
 #: The scene file of an export folder: Mitsuba XML, or GLB for a glTF scene.
 EXPORT_SCENE_FILES = ("scene.xml", "scene.glb")
@@ -51,54 +51,6 @@ def export_scene_file(folder) -> Path | None:
         if (Path(folder) / name).is_file():
             return Path(folder) / name
     return None
-
-
-def _tessellate_sphere(center, radius, n_phi=512, n_theta=256):
-    theta = np.linspace(0, np.pi, n_theta + 1)
-    phi = np.linspace(0, 2 * np.pi, n_phi, endpoint=False)
-    t, p = np.meshgrid(theta, phi, indexing="ij")
-    pts = np.stack([np.sin(t) * np.cos(p), np.cos(t), np.sin(t) * np.sin(p)], -1)
-    verts = (np.asarray(center) + radius * pts).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(n_theta), np.arange(n_phi), indexing="ij")
-    a = i * n_phi + j
-    b = i * n_phi + (j + 1) % n_phi
-    c = a + n_phi
-    d = b + n_phi
-    faces = np.concatenate(
-        [np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)]
-    )
-    return verts, faces.astype(np.uint32)
-
-
-def shape_mesh(mi, shape) -> tuple[np.ndarray, np.ndarray]:
-    """World-space triangles (vertices (V, 3) float64, faces (F, 3)) of a Mitsuba shape."""
-    params = mi.traverse(shape)
-    keys = set(params.keys())
-    if "vertex_positions" in keys:
-        v = np.array(params["vertex_positions"], dtype=np.float64).reshape(-1, 3)
-        f = np.array(params["faces"], dtype=np.uint32).reshape(-1, 3)
-        return v, f
-    kind = shape.class_name()
-    m = np.array(params["to_world"].matrix, dtype=np.float64).reshape(4, 4)
-    if kind == "Sphere":
-        radius = float(np.linalg.norm(m[:3, 0]))
-        return _tessellate_sphere(m[:3, 3], radius)
-    if kind == "Cylinder":
-        p0 = m[:3, 3]
-        p1 = m[:3, 3] + m[:3, 2]
-        radius = float(np.linalg.norm(m[:3, 0]))
-        return _meshes.tube(p0, p1, radius, sides=512)
-    if kind == "Rectangle":
-        corners = np.array([[-1, -1, 0, 1], [1, -1, 0, 1], [1, 1, 0, 1], [-1, 1, 0, 1]]) @ m.T
-        return _meshes.quad(corners[:, :3])
-    if kind == "Disk":
-        ang = np.linspace(0, 2 * np.pi, 512, endpoint=False)
-        ring = np.stack([np.cos(ang), np.sin(ang), 0 * ang, 1 + 0 * ang], -1) @ m.T
-        verts = np.concatenate([m[None, :3, 3], ring[:, :3]])
-        k = np.arange(512)
-        faces = np.stack([np.zeros(512), 1 + k, 1 + (k + 1) % 512], -1).astype(np.uint32)
-        return verts, faces
-    raise ValueError(f"shape {shape.id()!r} of type {kind} cannot be exported as a mesh")
 
 
 def _albedo(mi, shape) -> list[float]:
@@ -214,7 +166,7 @@ def _scene_xml(loaded, shapes: list[tuple[str, str, list[float]]], area_shapes=(
 def _write_export_record(tmp: Path, loaded) -> None:
     """``export.json`` (see the module docstring) and, along a camera path, every frame's
     camera. The sequence is recorded once, in ``camera.json``'s ``sequence``; ``export.json``
-    points at it (``scenes.formats.inputs.read_export_record`` reads both)."""
+    points at it (``scenes.inputs.read_export_record`` reads both)."""
     record = {
         "schema": "raster-oracle/export/2",
         "scene": loaded.name,

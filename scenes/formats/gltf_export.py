@@ -30,7 +30,7 @@ def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
 
 def materials_record(loaded, shapes: dict) -> dict:
     """``materials.json`` of a glTF scene: the shading model and, per shape, its material
-    (factors and texture indices of :class:`scenes.formats.gltf_materials.PbrMaterial`)."""
+    (factors and texture indices of :class:`scenes.shading.materials.PbrMaterial`)."""
     from ..shading.pbr import SHADING_MODEL
 
     pbr = loaded.pbr

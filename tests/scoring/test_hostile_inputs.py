@@ -728,7 +728,7 @@ def _odd(path: Path, kind: str) -> None:
 @pytest.mark.parametrize("kind", ["fifo", "folder", "zero-device"])
 def test_an_export_record_that_is_no_regular_file_is_refused(tmp_path, kind):
     from raster_oracle.scenes import SceneError
-    from raster_oracle.scenes.formats.inputs import resolve_input
+    from raster_oracle.scenes.inputs import resolve_input
 
     folder = tmp_path / "export"
     folder.mkdir()

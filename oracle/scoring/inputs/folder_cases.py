@@ -42,7 +42,7 @@ def resolve_layout(pattern: str, *, channel, kind, loaded, log=print):
     """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
     ``channel`` / ``kind``, logged as one line, after checking its size against
     ``loaded``'s (a :class:`ScoreError` naming the export or the size to pass)."""
-    from ....scenes.formats.inputs import nearest_export
+    from ....scenes.inputs import nearest_export
     from .frames import frame_file
     from .layout import candidate_layout
 
@@ -70,7 +70,7 @@ class FolderOptions(dict):
     """Options of a folder run given by the caller (command line or API), each None where
     the manifest (or the default) decides: ``spp``, ``seed``, ``flip_mode``, ``transfer``,
     ``expect``, ``channel``, ``kind``, ``camera_path``, ``visibility``, ``exports``;
-    ``quiet`` and ``platform``."""
+    ``quiet``, ``platform`` and ``exact_budget``."""
 
     def pick(self, key, manifest_value=None, default=None):
         given = self.get(key)
@@ -87,6 +87,7 @@ def _score_options(fo: FolderOptions, manifest=None, **case) -> ScoreOptions:
         ppd=M.DEFAULT_PPD,
         quiet=bool(fo.get("quiet", True)),
         platform=fo.get("platform"),
+        exact_budget=fo.get("exact_budget"),
         **case,
     ).validate()
 
@@ -95,7 +96,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
     """The cases of ``root``'s layout (every one checked: a problem is a
     :class:`ScoreError`, except a file that lacks the channel asked for: that scene's own
     error, the others scored)."""
-    from ....scenes.formats.inputs import load_input, named_input
+    from ....scenes.inputs import load_input, named_input
 
     entries = discover(root)
     if {e.name for e in entries} & {"metrics.json", "report.html", "report.json"}:
@@ -138,7 +139,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
 def _manifest(root: Path, path, fo: FolderOptions, gates, log) -> list[FolderCase]:
     """The cases of a manifest: a bad manifest, scene or option is a :class:`ScoreError`; a
     missing file or layer is that case's own error."""
-    from ....scenes.formats.inputs import load_input
+    from ....scenes.inputs import load_input
     from .frames import frame_file
     from .manifest import read_manifest
 

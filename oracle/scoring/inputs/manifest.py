@@ -49,7 +49,7 @@ from pathlib import Path
 from ....scenes import SceneError
 from ....scenes.base.untrusted import LIMITS as FILE_LIMITS
 from ....scenes.base.untrusted import json_depth, read_text
-from ....scenes.formats.inputs import named_input
+from ....scenes.inputs import named_input
 from ..ci.checks import Gate, GateError
 from ..ci.gates import parse_gates
 from ..options import VISIBILITY_CONVENTIONS

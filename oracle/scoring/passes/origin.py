@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ....scenes.formats.inputs import read_export_record
+from ....scenes.inputs import read_export_record
 
 NAME = "origin"
 

@@ -121,8 +121,8 @@ def _parallel_up(raw, w, h):
 
 
 def _in_wall(raw, w, h):
-    from ....scenes.catalogue import meshes
     from ....scenes.catalogue.factories import mesh
+    from ....scenes.geometry import meshes
 
     p = np.asarray(_sensor(raw)["to_world"], dtype=np.float64)[:3, 3]
     raw["wall"] = mesh(meshes.box(p - 0.5, p + 0.5), 0.5)
@@ -130,7 +130,7 @@ def _in_wall(raw, w, h):
 
 
 def _all_sky(raw, w, h):
-    from ....scenes.catalogue.factories import look_at
+    from ....scenes.camera import look_at
 
     cam = _sensor(raw)
     p = np.asarray(cam["to_world"], dtype=np.float64)[:3, 3]

@@ -6,7 +6,7 @@ Two fragments tie at a sample when their depths store equal values in the prepas
 such points can lie, and :func:`tie_groups` puts shapes whose bounding boxes are never that
 close into one group, traced together (:func:`group_scenes`).
 
-Memoized in ``scene.memo`` (:class:`scenes.loader.LoadedScene`): the group scenes (geometry
+Memoized in ``scene.memo`` (:class:`scenes.loaded.LoadedScene`): the group scenes (geometry
 only) and the groups of the last camera (they depend on its position and depth range).
 """
 

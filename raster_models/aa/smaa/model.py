@@ -27,8 +27,12 @@ s2x    (0.75, 0.75) (1, 1, 1, 0); (0.25, 0.25) (2, 2, 2, 0)  averaged (sRGB targ
 
 The header's jitters assume y up: its T2x jitter (0.25, -0.25) is the D3D 2x sample 0
 (+4/16, +4/16 y down), and 4x's net jitters add the camera jitter (+-0.125, +-0.125) to it.
-T2x and 4x resolve the scene's frame k (current, the table's frame (k + 1) mod 2) with its
-frame k - 1 (previous, frame k mod 2), as the demo's ``runSMAA`` does: the previous frame's
+T2x and 4x resolve the scene's frame k (current, the table's frame k mod 2) with its frame
+k - 1 (previous, frame (k + 1) mod 2), in the demo's phase: its ``SMAA`` starts at
+``frameIndex(0)`` (iryoku/smaa 71c806a ``Demo/DX10/Code/SMAA.cpp``:110), renders frame 0 with
+``getJitter``/``getSubsampleIndex`` of index 0 (:680-683, :703: the header's S0, ``SMAA.hlsl``
+:220) and steps the index only after the frame (``Demo.cpp``:904 ``nextFrame``, SMAA.cpp:591),
+as the demo's ``runSMAA`` does: the previous frame's
 SMAA output, point-fetched at texcoord - velocity, weighted down where the packed velocity
 lengths differ (``SMAAResolvePS``, ``SMAA_REPROJECTION``). The velocity buffer is what the
 demo's scene pass writes (RG16F, texture units, current minus previous position of the
@@ -259,11 +263,12 @@ def _run_frames(scene, p, cfg, fetches):
     frames = MODES[p.mode]
     need_depth = cfg["edge_detection"] == "depth" or cfg["predication"]
     temporal = len(frames) == 2
-    # T2x / 4x: frame k is the current frame (sub-sample set (k + 1) mod 2), frame k - 1
-    # the previous one (k mod 2); a still scene is its own previous frame
+    # T2x / 4x: frame k is the current frame (sub-sample set k mod 2: the demo's frameIndex
+    # starts at 0 and steps after each frame), frame k - 1 the previous one ((k + 1) mod 2);
+    # a still scene is its own previous frame
     k = int(getattr(scene, "frame", 0) or 0)
     if temporal:
-        cur_spec, prev_spec = frames[(k + 1) % 2], frames[k % 2]
+        cur_spec, prev_spec = frames[k % 2], frames[(k + 1) % 2]
         scenes_ = [scene.previous(), scene]  # a still scene is its own previous frame
         specs = [prev_spec, cur_spec]
     else:
@@ -295,6 +300,7 @@ def _run_frames(scene, p, cfg, fetches):
         "valid": np.mean([r["valid"].mean(axis=0) for r in rendered], axis=0),
         "moving": moving,
         "temporal": temporal,
+        "frame_set": k % 2 if temporal else 0,
     }
 
 
@@ -401,7 +407,7 @@ def run(scene, params: SmaaParams | None = None, **kwargs):
         p,
         color=linear,
         coverage=fr["coverage"],
-        offsets=np.array([s[0] for s in MODES[p.mode][-1]]),
+        offsets=np.array([s[0] for s in MODES[p.mode][fr["frame_set"]]]),
         events=fr["events"],
         extra_outputs={"smaa_edges": fr["edges"].any(axis=-1)},
         samples=n_s,
@@ -418,6 +424,7 @@ def run(scene, params: SmaaParams | None = None, **kwargs):
             "settings": cfg,
             "sample_positions": [[list(s[0]) for s in f] for f in MODES[p.mode]],
             "subsample_indices": [[list(s[1]) for s in f] for f in MODES[p.mode]],
+            "current_frame_set": fr["frame_set"],
             "velocity": _velocity_note(fr),
             "input": cfg["input"],
             "tone_mapping": {

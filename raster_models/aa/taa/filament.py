@@ -5,7 +5,7 @@ Pinned sources (github.com/google/filament, the newest stored copies):
 ``filterWidth`` 1, ``feedback`` 0.12, ``filterHistory``/``filterInput`` true,
 ``useYCoCg`` false, ``boxType`` AABB, ``boxClipping`` ACCURATE, ``jitterPattern``
 HALTON_23_X16, ``preventFlickering`` false, ``historyReprojection`` true, ``upscaling``
-false, ``sharpness`` 0); ``filament/src/PostProcessManager.cpp`` at 003e50057136
+false, ``sharpness`` 0); ``filament/src/PostProcessManager.cpp`` at 003e5005713c
 (``halton()`` skips 409 entries; ``prepareTaa``: jitter ``sHaltonSamples(frameId % 16)``
 minus 0.5, the projection moved by ``-jitter``; ``taa()``: input weights
 ``exp(-2.29 |o - jitter|^2 / filterWidth^2)`` normalized, the first frame's history is the

@@ -21,7 +21,7 @@ Blackman-Harris central filter with its quad swizzle and the motion-dependent an
 ``PrepareTAAPassData`` (anti-flicker ``lerp(0, 3.5, 0.5)``, contrast for the maximum
 anti-flicker ``0.7 - lerp(0, 0.3, Mathf.SmoothStep(0.5, 1, 0.5))`` = 0.475 (Unity's
 ``Mathf.SmoothStep(from, to, t)`` interpolates *between* from and to), base blend ``1 -
-0.875``, ``ComputeWeights`` ``exp(-0.5 / 0.22 |o + jitter|^2)``), ``HDCamera.cs``
+0.875``), ``HDCamera.cs``
 (``GetJitteredProjectionMatrix``: Halton ``(i + 1)`` in bases 2, 3 minus 0.5 with ``i =
 taaFrameIndex``, which ``Update`` increments (modulo 8) before ``UpdateAllViewConstants``
 builds the jittered projection, so frame ``k`` uses ``i = (k + 1) mod 8``; the frustum moves by
@@ -29,6 +29,20 @@ the offset, so the sample of pixel ``c`` lies at ``c + (x, -y)`` in y-down pixel
 ``Color.hlsl`` (``RGBToYCoCg`` adds ``YCOCG_CHROMA_BIAS`` 128/255 to Co and Cg: the perceptual
 weights scale the biased chroma, as shipped), ``RenderPipelineSettings`` (``colorBufferFormat``
 R11G11B10: the input and history buffers).
+
+High's central filter (``preset=hdrp-high``) follows the released C# the shader was shipped
+with, not the newer stored ``ComputeWeights``: needle-mirror/com.unity.render-pipelines.high-
+definition tag ``12.1.0/Unity-2021.2.0b16`` (commit 3178738b1464591a32ed19b931125863779f3ae9)
+``Runtime/RenderPipeline/HDRenderPipeline.PostProcess.cs`` :1534-1545 (``TAASampleOffsets``:
+the centre, ``(0, 1), (1, 0), (-1, 0), (0, -1)``, then the diagonals ``(-1, 1), (1, -1),
+(1, 1), (-1, -1)``), :1576-1589 (weights ``exp(-0.5 / 0.22 |o - taaJitter|^2)``, normalized
+over the nine), :1598-1600 (the centre's into ``_TaaPostParameters1.y``, then
+``_TaaFilterWeights`` and ``_TaaFilterWeights1`` in that order); the same lines at tag
+``13.0.0/Unity-2022.1.0a12`` (a645acddce977beddce5abef20e64f95d35c7c7b) :1526-1537,
+:1570-1571, :1591-1592. That order is the one ``SwizzleFilterWeights``
+(``TemporalAntiAliasing.shader`` :187-199 at both tags: "filterParams2 for { (-1, 1), (1, -1),
+(1, 1), (-1, -1) }") and ``GatherNeighbourhood`` (``TemporalAntialiasing.hlsl`` :482-496:
+neighbours 4-7 at ``(-q.x, q.y), (q.x, -q.y), q, -q``) expect.
 
 Per pixel (y-down pixels, ``q`` = the quad offset ``(x & 1) * 2 - 1`` per axis, pointing away
 from the pixel's 2x2-quad partner):
@@ -70,9 +84,10 @@ BASE_BLEND = 1.0 - 0.875
 ANTI_FLICKER = 0.0 + (3.5 - 0.0) * 0.5
 #: ``0.7 - lerp(0, 0.3, Mathf.SmoothStep(0.5, 1.0, 0.5))``.
 CONTRAST_FOR_MAX_ANTI_FLICKER = 0.7 - 0.3 * (1.0 * 0.5 + 0.5 * 0.5)
-#: ``TAASampleOffsets`` 1..8 (HDRenderPipeline.PostProcess.cs), in the order the weights
-#: arrive: ``_TaaFilterWeights`` then ``_TaaFilterWeights1``.
-SAMPLE_OFFSETS = ((0, 1), (1, 0), (-1, 0), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
+#: ``TAASampleOffsets`` 1..8 (HDRP 12.1.0 HDRenderPipeline.PostProcess.cs:1534-1545, 13.0.0
+#: :1526-1537), in the order the weights arrive: ``_TaaFilterWeights`` then
+#: ``_TaaFilterWeights1`` (the diagonals as ``SwizzleFilterWeights`` expects them).
+SAMPLE_OFFSETS = ((0, 1), (1, 0), (-1, 0), (0, -1), (-1, 1), (1, -1), (1, 1), (-1, -1))
 
 
 def jitter(frame: int) -> np.ndarray:
@@ -162,9 +177,11 @@ def _smoothstep(a, b, x):
 
 
 def _filter_weights(frame):
+    """The centre's and the 8 neighbours' weights: ``exp(-0.5 / 0.22 |o - taaJitter|^2)``
+    normalized (HDRP 12.1.0 HDRenderPipeline.PostProcess.cs:1576-1589)."""
     jx, jy = jitter_unity(frame)
     raw = [np.exp((-0.5 / 0.22) * (jx * jx + jy * jy))]
-    raw += [np.exp((-0.5 / 0.22) * ((ox + jx) ** 2 + (oy + jy) ** 2)) for ox, oy in SAMPLE_OFFSETS]
+    raw += [np.exp((-0.5 / 0.22) * ((ox - jx) ** 2 + (oy - jy) ** 2)) for ox, oy in SAMPLE_OFFSETS]
     total = sum(raw)
     return raw[0] / total, np.array(raw[1:]) / total
 

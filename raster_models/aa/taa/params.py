@@ -127,7 +127,9 @@ PRESET_SOURCES = {
     "@0bd1222b5959, PostProcessTemporalCommon.ush @0bd1222b5959 with the anti-flicker block "
     "under #if 0, PostProcessTemporalAA.cpp @0f9675ae7119 with r.TemporalAACatmullRom 0: "
     "Gaussian exp(-2.29 d^2) plus weights); otherwise as ue4; raster_models/aa/taa/ue4.py",
-    "ue4-20": "Unreal Engine 4.20.3 main pass (blackix/blackix@03236bd0c684: Build.version "
+    "ue4-20": "Unreal Engine 4.20.3 main pass as a licensee's branch has it, not Epic's "
+    "release (Epic's EpicGames/UnrealEngine is readable only by linked accounts; not read): "
+    "blackix/blackix@03236bd0c684, a partner's fork (Build.version "
     "4.20.3, PostProcessTemporalAA.usf TAA_PASS_CONFIG 1, not TAA_FAST) with the 4.20-4.22 "
     "PostProcessTemporalAA.cpp of folgerwang/UnrealEngine@19747897ecf5 (r.TemporalAACatmullRom "
     "0, HistoryBufferUVMinMax, TAA_CAMERA_CUT without a history); raster_models/aa/taa/ue4.py",
@@ -153,11 +155,15 @@ PRESET_SOURCES = {
     "HDAdditionalCameraData.cs :307-330; HDCamera.cs :949-952, :1731-1732); "
     "raster_models/aa/taa/hdrp.py",
     "hdrp-high": "as hdrp with TAAQuality High: HIGH_QUALITY defines (8 neighbours, "
-    "Blackman-Harris central filter exp(-0.5/0.22 |o + jitter|^2) with the quad swizzle, "
-    "motion-dependent anti-flicker); raster_models/aa/taa/hdrp.py",
+    "Blackman-Harris central filter exp(-0.5/0.22 |o - jitter|^2) with the quad swizzle, "
+    "motion-dependent anti-flicker); the weights as the released C# sends them (needle-mirror "
+    "tag 12.1.0/Unity-2021.2.0b16, 3178738b: HDRenderPipeline.PostProcess.cs :1534-1545 "
+    "TAASampleOffsets, diagonals (-1,1), (1,-1), (1,1), (-1,-1), :1578-1579 o - taaJitter; "
+    "13.0.0/Unity-2022.1.0a12, a645acdd: :1526-1537, :1570-1571); "
+    "raster_models/aa/taa/hdrp.py",
     "filament": "google/filament: Options.h@2fac13e154fb TemporalAntiAliasingOptions (feedback "
     "0.12, filterWidth 1, AABB box, ACCURATE clipping, HALTON_23_X16, useYCoCg false), "
-    "PostProcessManager.cpp@003e50057136 (halton() i += 409; jitter frameId % 16 - 0.5; "
+    "PostProcessManager.cpp@003e5005713c (halton() i += 409; jitter frameId % 16 - 0.5; "
     "weights exp(-2.29 |o - jitter|^2); first frame history = the colour buffer), "
     "taa.mat@63ddbb267ac6 (depth + camera reprojection, 5-tap Catmull-Rom, rounded box, "
     "clipToBox, c/(1+max c) tone weighting), Options.h RenderQuality (RGB16F buffers); "

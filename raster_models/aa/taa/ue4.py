@@ -17,8 +17,10 @@ defaults to 1 instead of 0, and the anti-flicker block of the blend (``+0.8 satu
 ``x (L_min + 0.5) / (L_max + 0.5)``) is compiled instead of ``#if 0`` -- so it is the later
 one, the repository's 4.19 (the clean 4.19.2 tree Andra-Games-Entertainment/Unreal-Engine-4.19.2
 at 591426c2af65 has the same ``r.TemporalAACatmullRom`` 1). ``ue4-18`` runs the same
-transcription with those two undone. ``ue4-20``: 4.20.3's ``PostProcessTemporalAA.usf``
-(blackix/blackix at 03236bd0c684, Build.version 4.20.3, ``TAA_PASS_CONFIG`` 1 Main, not
+transcription with those two undone. ``ue4-20``: 4.20.3's ``PostProcessTemporalAA.usf`` as a
+licensee's branch has it, not Epic's release (Epic's EpicGames/UnrealEngine is readable only
+by linked accounts and was not read): blackix/blackix at 03236bd0c684, a partner's fork
+(Build.version 4.20.3, ``TAA_PASS_CONFIG`` 1 Main, not
 ``TAA_FAST``) with the C++ of folgerwang/UnrealEngine's ``PostProcessTemporalAA.cpp`` at
 19747897ecf5 (``r.TemporalAACatmullRom`` 0, ``HistoryBufferUVMinMax`` at the outer texel
 centres, ``TAA_CAMERA_CUT`` when no history exists): 4.18's blend and weights, the anti-ghost

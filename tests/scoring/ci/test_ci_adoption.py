@@ -18,7 +18,7 @@ import pytest
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.reference.exr import read_exr, write_exr
 from raster_oracle.scenes import SceneError
-from raster_oracle.scenes.formats.inputs import read_export_record
+from raster_oracle.scenes.inputs import read_export_record
 
 SIZE = ["--width", "48", "--height", "27"]
 SPP = ["--spp", "16"]
@@ -280,7 +280,7 @@ def test_mask_off_receivers_only_scores_like_the_exact_one(tmp_path, capsys):
     a mask exact on the receivers and flipped everywhere else scores exactly as the exact
     mask (FLIP, SSIM, PSNR and the Z-test used to see those pixels); they are counted."""
     from raster_oracle.oracle.scoring.score import reference_receivers
-    from raster_oracle.scenes.formats.inputs import load_input
+    from raster_oracle.scenes.inputs import load_input
 
     args = ["reference", "spot", *SIZE, *SPP, "--quiet", "--out", str(tmp_path / "ref")]
     assert main(args) == 0

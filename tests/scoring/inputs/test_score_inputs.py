@@ -216,16 +216,17 @@ def test_memory_estimate_grows_with_size_spp_and_channels():
 
 def test_small_reference_not_refused_with_little_memory(monkeypatch):
     from raster_oracle.oracle.reference import render
+    from raster_oracle.oracle.reference import settings as settings_module
     from raster_oracle.oracle.reference.render import ReferenceSettings, ReferenceSettingsError
 
     from raster_oracle import scenes
 
     loaded = scenes.load("plate", width=320, height=180)
     settings = ReferenceSettings(spp=64, channels=("visibility", "edge", "id"))
-    monkeypatch.setattr(render, "available_memory", lambda: int(1.4 * 2**30))
+    monkeypatch.setattr(settings_module, "available_memory", lambda: int(1.4 * 2**30))
     channels, _ = render.render_reference(loaded, settings, quiet=True)
     assert channels["visibility"].shape == (180, 320)
-    monkeypatch.setattr(render, "available_memory", lambda: 32 << 20)
+    monkeypatch.setattr(settings_module, "available_memory", lambda: 32 << 20)
     with pytest.raises(ReferenceSettingsError, match=r"320x180 reference at 64 spp needs about"):
         render.render_reference(loaded, settings, quiet=True)
 

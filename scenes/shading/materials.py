@@ -1,4 +1,8 @@
-"""glTF metallic-roughness materials of a loaded scene: factors, textures, per-hit evaluation.
+"""Materials: the Mitsuba diffuse material of the built-in scenes (:func:`diffuse`) and the
+glTF metallic-roughness materials of a loaded scene (factors, textures, per-hit evaluation).
+
+The one owner of material data: the glTF reader (:mod:`scenes.formats.gltf`) builds these
+records and the intersection engine (:mod:`scenes.backend.raycast`) evaluates them at hits.
 
 A :class:`PbrMaterials` table holds every material of a glTF scene and the shape -> material
 map (shape index as in ``LoadedScene.shape_names``). :meth:`PbrMaterials.evaluate_dr` gives,
@@ -23,7 +27,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["PbrMaterial", "PbrMaterials", "Texture", "perturb_normal_dr", "srgb_to_linear"]
+__all__ = [
+    "PbrMaterial",
+    "PbrMaterials",
+    "Texture",
+    "diffuse",
+    "perturb_normal_dr",
+    "srgb_to_linear",
+    "surface_dr",
+]
+
+
+def diffuse(rgb) -> dict:
+    """Two-sided diffuse material of albedo ``rgb`` (a scalar or 3 linear values): the
+    Mitsuba dictionary of every built-in scene's shapes and of a glTF mesh's Mitsuba view."""
+    rgb = [float(c) for c in np.broadcast_to(np.asarray(rgb, float), (3,))]
+    return {
+        "type": "twosided",
+        "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": rgb}},
+    }
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
