@@ -51,6 +51,8 @@ class Family:
     extremes_scene : base scene of the extreme-input study (None: the study skips the family).
     extremes_metric : the error the extreme-input study judges.
     temporal : its models keep state from frame to frame (scored over frame sequences).
+    steady_against : what a temporal family's steady state is judged against: ``reference``
+        (the steady error itself) or ``ssaa8`` (8x SSAA's error over the same frames beside it).
     group : the family whose report fronts its techniques join (None: its own).
     """
 
@@ -65,6 +67,7 @@ class Family:
     extremes_scene: str | None = None
     extremes_metric: str | None = None
     temporal: bool = False
+    steady_against: str = "reference"
     group: str | None = None
 
 
@@ -103,6 +106,7 @@ FAMILIES: dict[str, Family] = {
             "framebuffer_bytes",
             per_pixel_memory=True,
             temporal=True,
+            steady_against="ssaa8",
             group="aa",
         ),
         Family(
