@@ -151,3 +151,61 @@ def test_alpha_foliage_family(tmp_path):
     assert 0.2 < cut["coverage"].mean() < 0.8 * full["coverage"].mean()
     with pytest.raises(scenes.SceneError, match=r"alpha must be in \[0, 1\], got 2"):
         scenes.load("alpha-foliage:alpha=2")
+
+
+def _soft_scene(kind: str):
+    """A 2 x 2 m plate 2 m above a ground under a 1 m square area light: ``mask`` (a Mitsuba
+    mask BSDF whose opacity is the 0/1 checker, NEAREST), ``split`` (the two opaque squares
+    the checker keeps) or ``full`` (the whole plate, opaque)."""
+    from raster_oracle.scenes import backend
+    from raster_oracle.scenes.catalogue.factories import diffuse, ground, sensor
+    from raster_oracle.scenes.catalogue.soft_scenes import rectangle_light
+
+    def square(x0, z0, x1, z1, bsdf):
+        v = np.array([[x0, 2, z0], [x1, 2, z0], [x1, 2, z1], [x0, 2, z1]], np.float32)
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+        f = np.array([[0, 2, 1], [0, 3, 2]], np.uint32)
+        return {"type": "ro_mesh", "vertices": v, "faces": f, "texcoords": uv, "bsdf": bsdf}
+
+    def factory(width, height):
+        scene = {
+            "type": "scene",
+            "camera": sensor(
+                width, height, origin=(0, 9, 0.01), target=(0, 0, 0), fov=40, near=0.1, far=50
+            ),
+            "area_light": rectangle_light((0.3, 5.0, 0.2), (0, -1, 0), (1.0, 1.0), 40.0),
+            "ground": ground(20.0, 0.6),
+        }
+        grey = diffuse((0.5, 0.5, 0.5))
+        if kind == "mask":
+            checker = np.array([[1, 0], [0, 1]], np.float32)[..., None]
+            opacity = {
+                "type": "bitmap",
+                "data": backend.mitsuba().TensorXf(checker),
+                "raw": True,
+                "filter_type": "nearest",
+                "wrap_mode": "clamp",
+            }
+            mask = {"type": "mask", "opacity": opacity, "material": grey}
+            scene["plate"] = square(-1, -1, 1, 1, mask)
+        elif kind == "split":
+            scene["a"], scene["b"] = square(-1, -1, 0, 0, grey), square(0, 0, 1, 1, grey)
+        else:
+            scene["plate"] = square(-1, -1, 1, 1, grey)
+        return scene
+
+    from raster_oracle.scenes.catalogue.builtin import BuiltinScene
+
+    return scenes.load(BuiltinScene(f"soft-{kind}", factory, "test", 48, 48))
+
+
+def test_area_light_shadow_sees_the_cut_out_surface():
+    settings = ReferenceSettings(spp=16, channels=("soft", "visibility"))
+    mask, split, full = (
+        render_reference(_soft_scene(k), settings, quiet=True)[0] for k in ("mask", "split", "full")
+    )
+    assert _soft_scene("mask").alpha is not None
+    for ch in ("soft_visibility", "visibility"):
+        # the mask plate shadows as the two squares it keeps, not as the whole plate
+        assert np.mean(np.abs(mask[ch] - split[ch])) < 0.005
+        assert np.mean(np.abs(mask[ch] - full[ch])) > 0.03
