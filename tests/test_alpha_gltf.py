@@ -209,3 +209,23 @@ def test_area_light_shadow_sees_the_cut_out_surface():
         # the mask plate shadows as the two squares it keeps, not as the whole plate
         assert np.mean(np.abs(mask[ch] - split[ch])) < 0.005
         assert np.mean(np.abs(mask[ch] - full[ch])) > 0.03
+
+
+def test_export_writes_mask_and_loads_back_to_the_same_bytes(tmp_path):
+    import json
+
+    from raster_oracle.scenes.formats.export import export
+
+    loaded = scenes.load("alpha-foliage:n=200", width=64, height=36)
+    export(loaded, tmp_path / "out")
+    back = scenes.load(tmp_path / "out" / "scene.glb")
+    (a,), (b,) = loaded.alpha.masks, back.alpha.masks
+    assert (b.cutoff, b.factor, b.texture.wrap_s, b.texture.nearest) == (0.5, 1.0, "repeat", False)
+    assert np.array_equal(a.texture.alpha, b.texture.alpha)
+    record = json.loads((tmp_path / "out" / "materials.json").read_text())
+    assert record["shapes"]["cards"]["alpha"]["cutoff"] == 0.5
+    settings = ReferenceSettings(spp=4, seed=5, channels=("visibility", "coverage"))
+    x, _ = render_reference(loaded, settings, quiet=True)
+    y, _ = render_reference(back, settings, quiet=True)
+    for key in ("visibility", "coverage"):
+        assert x[key].tobytes() == y[key].tobytes(), key
