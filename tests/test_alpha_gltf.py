@@ -137,6 +137,7 @@ def test_checker_coverage_and_exact_coverage_refused(tmp_path, nearest, cutoff):
     # exact coverage does not claim the triangles' area, and says why
     assert not np.any(ch["coverage_exact_valid"])
     assert "alpha-tested shapes" in stats["coverage_exact"]["decision"]
+    assert stats["alpha_tested"]["shapes"]["card"]["cutoff"] == cut
 
 
 def test_alpha_foliage_family(tmp_path):
