@@ -230,3 +230,18 @@ def test_export_writes_mask_and_loads_back_to_the_same_bytes(tmp_path):
     y, _ = render_reference(back, settings, quiet=True)
     for key in ("visibility", "coverage"):
         assert x[key].tobytes() == y[key].tobytes(), key
+
+
+def test_shadow_map_depth_pass_discards_or_ignores_the_cutout(tmp_path):
+    from raster_oracle.raster_models.registry import run
+
+    loaded = scenes.load(_checker_glb(tmp_path / "s.glb"))
+    px = (SPAN / RES) ** 2
+    area = {}
+    for mode in ("test", "ignore"):
+        vis = run("shadow-map", loaded, resolution=1024, caster_alpha=mode).outputs["visibility"]
+        area[mode] = float(np.sum(1.0 - vis)) * px
+    # the depth pass that discards keeps the checker's half of the 4 square metres; the one
+    # that ignores alpha (three.js issues 24995, 31802) casts the whole quad
+    assert area["test"] == pytest.approx(2.0, abs=0.15)
+    assert area["ignore"] == pytest.approx(4.0, abs=0.15)
