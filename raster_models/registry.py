@@ -136,8 +136,10 @@ class Technique:
     """A registered technique: its parameter dataclass and entry point.
 
     ``family``: a key of :data:`FAMILIES`: ``shadow`` (visibility outputs, scored on
-    receivers), ``aa`` (colour and coverage outputs, scored against the reference image) or
-    ``taa`` (colour over a frame sequence, with the temporal metrics)."""
+    receivers), ``aa`` (colour and coverage outputs, scored against the reference image),
+    ``taa`` (colour over a frame sequence, with the temporal metrics) or ``soft``
+    (``soft_visibility`` and ``light_fraction`` under an area light, scored against the soft
+    truth)."""
 
     name: str
     description: str
@@ -453,7 +455,8 @@ def front_group(technique: str) -> str:
 
 
 def family_of(technique: str) -> str:
-    """The family of a registered technique: ``shadow`` or ``aa``.
+    """The family of a registered technique: a key of :data:`FAMILIES` (``shadow``, ``aa``,
+    ``taa`` or ``soft``).
 
     Raises
     ------

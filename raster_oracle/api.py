@@ -27,24 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .api_names import API_NAMES
 from .oracle.errors import InputError
-from .raster_models.errors import ModelError
+from .raster_models.errors import ModelError  # noqa: F401 (an API name: API_NAMES)
+from .scenes.loader import LoadOptions, with_load_options
 
-__all__ = [
-    "InputError",
-    "ModelError",
-    "ReferenceImages",
-    "check",
-    "export",
-    "load_scene",
-    "reference",
-    "run_model",
-    "score_folder",
-    "score_image",
-    "score_technique",
-    "techniques",
-    "write_junit",
-]
+__all__ = list(API_NAMES)  # the one list of the API's names (raster_oracle.api_names)
 
 
 @contextlib.contextmanager
@@ -84,26 +72,17 @@ def _cache(cache):
     raise InputError(f"cache must be True, False, None or a folder, got {cache!r}")
 
 
-def load_scene(
-    scene,
-    *,
-    width: int | None = None,
-    height: int | None = None,
-    light: int | None = None,
-    camera_path: str | None = None,
-    frame: int = 0,
-    n_frames: int = 8,
-    light_path: str | None = None,
-    camera: int | None = None,
-):
+@with_load_options
+def load_scene(scene, **options):
     """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, a glTF 2.0 file
     (``.gltf``, ``.glb``), or an ``export`` folder (or its ``scene.xml``/``scene.glb``: the
     exported size and light, named after the folder), as the command line's ``SCENE`` is. A
     loaded scene is returned as it is.
 
-    ``light`` picks a light (default 0, an export's own light); ``camera_path``, ``frame``,
-    ``n_frames`` and ``light_path`` pick a frame of a camera or light path; ``camera`` a glTF
-    file's camera.
+    The options are those of ``raster_oracle.scenes.loader.LoadOptions``: ``width`` and
+    ``height``; ``light`` picks a light (default 0, an export's own light); ``camera_path``,
+    ``frame``, ``n_frames`` and ``light_path`` pick a frame of a camera or light path;
+    ``camera_file`` a camera sequence file; ``camera`` a glTF file's camera.
 
     Returns a ``raster_oracle.scenes.LoadedScene`` (``.width``, ``.height``, ``.light``,
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
@@ -111,28 +90,23 @@ def load_scene(
     from . import scenes
     from .scenes.inputs import load_input
 
+    try:
+        opts = LoadOptions.of(options)
+    except scenes.SceneError as exc:
+        raise InputError(str(exc)) from None
     if isinstance(scene, scenes.LoadedScene):
-        given = (width, height, light, camera_path, light_path, camera)
-        if any(v is not None for v in given) or frame:
+        given = [k for k in opts.given() if k != "n_frames"]
+        if given:
+            many = len(given) > 1
             raise InputError(
-                "width, height, light, camera_path, light_path, camera and frame apply to a "
-                "scene name or file; pass them to load_scene instead of a loaded scene"
+                f"the option{'s' if many else ''} {', '.join(given)} appl{'y' if many else 'ies'}"
+                " to a scene name or file; pass them to load_scene instead of a loaded scene"
             )
         return scene
     if not isinstance(scene, str | os.PathLike):
         raise InputError(f"scene must be a name, a file, a folder or a loaded scene: {scene!r}")
     with _library():
-        return load_input(
-            os.fspath(scene),
-            width=width,
-            height=height,
-            light=light,
-            camera_path=camera_path,
-            frame=frame,
-            n_frames=n_frames,
-            light_path=light_path,
-            camera=camera,
-        )
+        return load_input(os.fspath(scene), **options)
 
 
 @dataclass

@@ -355,10 +355,33 @@ def check_distinct(*, writes: dict[str, Path], reads: dict[str, Path]) -> None:
     """
     for wlabel, w in writes.items():
         for rlabel, r in reads.items():
-            if _same_file(w, r):
+            if w is not None and r is not None and _same_file(w, r):
                 raise CliError(
                     f"{wlabel} {w} is {rlabel} {r}: writing it would destroy it; "
                     "choose another output path"
+                )
+
+
+def check_not_inputs(*, writes: dict, reads: dict, folders: dict | None = None) -> None:
+    """Every output file of ``writes`` is none of the input files of ``reads``
+    (:func:`check_distinct`, links followed) and no existing file inside an input folder of
+    ``folders`` (a folder whose every file may be read, a folder of candidate images).
+    ``None`` values are skipped; files that do not exist are no inputs."""
+    reads = {k: v for k, v in reads.items() if v is not None and os.path.isfile(v)}
+    check_distinct(writes=writes, reads=reads)
+    for wlabel, w in writes.items():
+        if w is None or not os.path.lexists(w):
+            continue
+        inside = Path(w).resolve()
+        for flabel, folder in (folders or {}).items():
+            if (
+                folder is not None
+                and os.path.isdir(folder)
+                and Path(folder).resolve() in inside.parents
+            ):
+                raise CliError(
+                    f"{wlabel} {w} is a file of {flabel} {folder}: writing it would destroy "
+                    "it; choose another output path"
                 )
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 from . import baseline_cmd, score_folder
 from .gate_args import (
@@ -13,6 +14,7 @@ from .gate_args import (
     add_visibility_arg,
     baseline_options,
     check_junit,
+    check_outputs_not_inputs,
     parse_all_gates,
     print_verdict,
     write_outputs,
@@ -160,12 +162,23 @@ def cmd_score(args) -> int:
 
     gates = parse_all_gates(args)
     platform = check_platform(args.platform)
-    baseline = None
+    baseline = baseline_path = None
     if args.baseline is not None:
-        baseline = load_baseline(resolve_baseline(args.baseline, platform=platform))
+        baseline_path = resolve_baseline(args.baseline, platform=platform)
+        baseline = load_baseline(baseline_path)
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
     check_junit(args.junit, out=args.out, summary=args.summary_md)
+    check_outputs_not_inputs(
+        args,
+        reads={
+            "the candidate": args.candidate,
+            "--baseline": baseline_path,
+            "the scene": args.scene,
+            "--camera-file": getattr(args, "camera_file", None),
+        },
+        folders={"the candidate folder": args.candidate, "the scene folder": args.scene},
+    )
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -196,24 +209,25 @@ def cmd_score(args) -> int:
             "disocclusion": args.candidate_disocclusion,
         },
     )
-    verdict = score_to_folder(
-        loaded,
-        out=args.out,
-        technique=args.technique,
-        params=params,
-        candidate=args.candidate,
-        channel=args.channel,
-        options=options,
-        cache=cache,
-        gates=gates,
-        baseline=baseline,
-        baseline_source=str(args.baseline),
-        layout=layout,
-        baseline_options=baseline_options(args).for_gates(gates),
-    )
+    with staged_folder(args.out, last=("metrics.json",)) as out:
+        verdict = score_to_folder(
+            loaded,
+            out=out,
+            technique=args.technique,
+            params=params,
+            candidate=args.candidate,
+            channel=args.channel,
+            options=options,
+            cache=cache,
+            gates=gates,
+            baseline=baseline,
+            baseline_source=str(args.baseline),
+            layout=layout,
+            baseline_options=baseline_options(args).for_gates(gates),
+        )
+        record = json.loads((out / "metrics.json").read_text())
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
-    record = json.loads((args.out / "metrics.json").read_text())
     write_outputs(args, [verdict], records=[record], report=args.out / "report.html")
     return verdict.exit_code
 

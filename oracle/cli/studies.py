@@ -84,12 +84,8 @@ def add_parsers(sub) -> None:
 
 
 def cmd_bench(args) -> int:
-    from ..studies.bench import (
-        bench_models,
-        bench_oracle,
-        models_profile_lines,
-        oracle_profile_lines,
-    )
+    from ..studies.bench import bench_oracle, oracle_profile_lines
+    from ..studies.bench_models import bench_models, models_profile_lines
 
     if args.what == "scale":
         return _bench_scale(args)

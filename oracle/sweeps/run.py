@@ -454,6 +454,9 @@ def _run_dask(
     except (SystemExit, KeyboardInterrupt):
         # stopped (SIGTERM, Ctrl-C): the local workers are ended now, not after their task
         stopping = True
+        # the cluster's own loggers report the workers killed below as errors, with an
+        # asyncio.CancelledError traceback: a stop is no error (issue 48)
+        logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
         if cluster is not None:
             for nanny in list(getattr(cluster, "workers", {}).values()):
                 nanny.auto_restart = False  # a killed worker is not started again
