@@ -14,6 +14,8 @@ from .aa.taa import model as taa
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
+from .rtshadows import model as rtshadows
+from .rtshadows.svgf import SvgfParams
 from .shadowmaps import csm, msm, pcss, sdsm, shadow_map
 
 __all__ = [
@@ -118,6 +120,16 @@ FAMILIES: dict[str, Family] = {
             "shadow_map_bytes",
             extremes_scene="plate",
             extremes_metric="misclassified_fraction",
+        ),
+        Family(
+            "rtshadows",
+            "ray-traced shadows, denoised",
+            ("soft_visibility", "light_fraction"),
+            ("visibility_mae", "flicker"),
+            ("memory_bytes", "taps_per_pixel"),
+            "memory_bytes",
+            per_pixel_memory=True,
+            temporal=True,
         ),
     )
 }
@@ -355,6 +367,64 @@ TECHNIQUES: dict[str, Technique] = {
             taa.run,
             _ALL_LIGHTS,
             "taa",
+        ),
+        # ray-traced shadows at one ray a pixel, denoised over frames (issue 46)
+        Technique(
+            "rtshadows-none",
+            "one shadow ray a pixel (AMD's cone rays for a sun, a point on a rectangle light), "
+            "not denoised: what an integration that skips its denoiser shows",
+            ("AMD FidelityFX-SDK v1.1.4, samples/hybridshadows (traceshadows.hlsl)",),
+            rtshadows.NoParams,
+            rtshadows.make_runner("rtshadows-none", "none"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-ffx",
+            "one ray a pixel denoised by AMD's FidelityFX shadow denoiser: 8x4 ray masks, tile "
+            "classification, 17x17 moments, temporal clamp, three a-trous passes, remap",
+            ("AMD FidelityFX-SDK v1.1.4, sdk/include/FidelityFX/gpu/denoiser",),
+            rtshadows.NoParams,
+            rtshadows.make_runner("rtshadows-ffx", "ffx"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-svgf",
+            "one ray a pixel denoised by SVGF as Falcor ships it (reprojection with history "
+            "length, moments, 4 a-trous iterations, feedback tap 1)",
+            (
+                "C. Schied et al., Spatiotemporal Variance-Guided Filtering, HPG 2017, "
+                "doi:10.1145/3105762.3105770",
+                "NVIDIA Falcor eb540f6, Source/RenderPasses/SVGFPass",
+            ),
+            SvgfParams,
+            rtshadows.make_runner("rtshadows-svgf", "svgf"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-asvgf",
+            "SVGF with A-SVGF's gradient samples (one a 3x3 stratum re-tracing the previous "
+            "frame's ray) and history rejection by the filtered temporal gradient",
+            (
+                "C. Schied, C. Peters, C. Dachsbacher, Gradient Estimation for Real-Time "
+                "Adaptive Temporal Filtering, HPG 2018, doi:10.1145/3233301",
+            ),
+            SvgfParams,
+            rtshadows.make_runner("rtshadows-asvgf", "asvgf"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-sigma",
+            "one ray a pixel with NRD's penumbra input, denoised by a SIGMA-class model: 16x16 "
+            "tiles, blur radius from hit distance, two blurs, short stabilisation",
+            ("NVIDIA-RTX/NRD a822d87 (SIGMA settings and shader constants)",),
+            rtshadows.NoParams,
+            rtshadows.make_runner("rtshadows-sigma", "sigma"),
+            rtshadows.LIGHTS,
+            "rtshadows",
         ),
     )
 }
