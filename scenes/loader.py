@@ -18,6 +18,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from . import backend
+from .base.untrusted import LIMITS, read_bounded
 from .catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 from .formats.camera_file import CameraFileError, load_camera_file
 from .formats.gltf import GltfError, gltf_scene
@@ -229,8 +230,11 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
         if not path.is_file():
             raise SceneError(f"scene file not found: {path}")
         digest = hashlib.sha256(b"xml:")
-        for dep in xml_dependencies(path):
-            digest.update(dep.name.encode() + dep.read_bytes())
+        for dep in xml_dependencies(path, error=SceneError):  # inside its folder, bounded
+            data = read_bounded(
+                dep, limit=LIMITS["scene_bytes"], what="scene file", error=SceneError
+            )
+            digest.update(dep.name.encode() + data)
         try:
             mi_scene = mi.load_file(str(path), optimize=False)
         except Exception as exc:

@@ -86,7 +86,7 @@ def _number(kind: type, *, minimum: float, strict: bool):
     def parse(text: str):
         try:
             if kind is int:
-                value = parse_int(text, what="value")
+                value = parse_int(text, what="value", signed=True)
             elif text.lower() in ("inf", "+inf", "infinity", "+infinity"):
                 value = math.inf
             else:

@@ -45,6 +45,7 @@ LIMITS = {
     "json_bytes": 64 << 20,  # a camera file, a metrics.json, a verdict, a record
     "manifest_bytes": 4 << 20,  # a CI manifest (TOML)
     "gltf_bytes": 512 << 20,  # a .gltf/.glb and each external buffer or image it names
+    "scene_bytes": 512 << 20,  # a Mitsuba XML scene and each file it names (meshes, textures)
     "nesting": 64,  # JSON/TOML arrays and tables nested deeper: refused
 }
 
