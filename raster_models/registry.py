@@ -143,7 +143,8 @@ class Technique:
     receivers), ``aa`` (colour and coverage outputs, scored against the reference image),
     ``taa`` (colour over a frame sequence, with the temporal metrics) or ``soft``
     (``soft_visibility`` and ``light_fraction`` under an area light, scored against the soft
-    truth)."""
+    truth) or ``rtshadows`` (the same channels traced at one ray a pixel and denoised over
+    frames, judged at steady state against the area-light truth)."""
 
     name: str
     description: str
@@ -460,7 +461,7 @@ def front_group(technique: str) -> str:
 
 def family_of(technique: str) -> str:
     """The family of a registered technique: a key of :data:`FAMILIES` (``shadow``, ``aa``,
-    ``taa`` or ``soft``).
+    ``taa``, ``soft`` or ``rtshadows``).
 
     Raises
     ------
