@@ -34,8 +34,10 @@ def _seq(name, a, ndim=3) -> np.ndarray:
 
 def frame_error_with_floor(truth, candidate, stderr, mask) -> tuple[np.ndarray, np.ndarray]:
     """Per frame: the mean absolute error of ``candidate`` on the receivers and the truth's
-    noise floor there, the mean ``CI_Z * stderr`` (an error below it is within the truth's
-    own 95 % confidence interval on average). Two ``(T,)`` arrays."""
+    noise floor there, the mean ``CI_Z * stderr`` over receivers whose truth is neither 0 nor
+    1 (an error below it is within the truth's own 95 % confidence interval on average).
+    Where every sample agreed (truth exactly 0 or 1) the reference reports a binomial bound,
+    not an estimate, and the sample variance is 0: those pixels add 0. Two ``(T,)`` arrays."""
     t, c, s = _seq("truth", truth), _seq("candidate", candidate), _seq("stderr", stderr)
     if not t.shape == c.shape == s.shape:
         raise MetricError(
@@ -44,16 +46,20 @@ def frame_error_with_floor(truth, candidate, stderr, mask) -> tuple[np.ndarray, 
     m = np.broadcast_to(np.asarray(mask, dtype=bool), t.shape)
     n = np.maximum(m.sum(axis=(1, 2)), 1)
     err = np.where(m, np.abs(c - t), 0.0).sum(axis=(1, 2)) / n
-    floor = np.where(m, CI_Z * s, 0.0).sum(axis=(1, 2)) / n
+    mixed = m & (t > 0.0) & (t < 1.0)
+    floor = np.where(mixed, CI_Z * s, 0.0).sum(axis=(1, 2)) / n
     return err, floor
 
 
-def event_lag(errors, floors, *, event: int, baseline: int = 4) -> int | None:
+def event_lag(
+    errors, floors, *, event: int, baseline: int = 4, steady: float | None = None
+) -> int | None:
     """Frames after the event at frame ``event`` until the error is back: the first ``k >= 0``
     with ``errors[event + k] <= steady + floors[event + k]``, ``steady`` the mean error of the
     ``baseline`` frames before the event (the denoiser's own steady state: a denoiser is
-    biased, its error never reaches the truth's floor). 0: no lag; None: not back within the
-    sequence.
+    biased, its error never reaches the truth's floor) unless ``steady`` gives it (a light
+    coming back on is judged against the lit steady state). 0: no lag; None: not back within
+    the sequence.
 
     Raises
     ------
@@ -68,7 +74,8 @@ def event_lag(errors, floors, *, event: int, baseline: int = 4) -> int | None:
             f"event must leave {baseline} baseline frames and lie in the sequence of "
             f"{len(e)} frames, got {event}"
         )
-    steady = float(e[event - baseline : event].mean())
+    if steady is None:
+        steady = float(e[event - baseline : event].mean())
     back = np.flatnonzero(e[event:] <= steady + f[event:])
     return int(back[0]) if back.size else None
 

@@ -1,18 +1,25 @@
-"""raster-oracle's technique models: real-time shadow techniques reproduced in NumPy.
+"""raster-oracle's technique models: real-time shadow, soft-shadow, anti-aliasing and temporal
+anti-aliasing techniques reproduced in NumPy and Dr.Jit, one folder or file per technique,
+each registered in :mod:`.registry` (``TECHNIQUES``; its family record in ``FAMILIES``:
+``shadow``, ``soft``, ``rtshadows``, ``aa``, ``taa``).
 
 Each model samples the scene where the real technique samples (shadow-map texel centres from
-the light, pixel centres from the camera) with the same intersection engine as the oracle,
-and reconstructs the way the technique does: depth formats and their quantization, depth
-clamp, constant / slope-scaled / receiver-plane / normal-offset bias, point / PCF / Poisson /
-VSM / EVSM filters, cascade selection and blending.
+the light, MSAA sample positions, pixel centres from the camera) with the same intersection
+engine as the oracle, and reconstructs the way the technique does: depth formats and their
+quantization, depth clamp, bias, shadow-map filters (PCF, Poisson, VSM/EVSM, PCSS, moment
+shadow maps), cascade selection and blending; coverage, resolve and post-process filters for
+anti-aliasing (MSAA, SSAA, FXAA, SMAA, ACAA, AGAA), history and rectification for TAA;
+ray-traced shadows at one ray a pixel denoised over frames (SVGF, A-SVGF, FidelityFX, SIGMA-class).
 
->>> import scenes, raster_models
+>>> from raster_oracle import raster_models, scenes
 >>> s = scenes.load("city")                                            # doctest: +SKIP
 >>> r = raster_models.run("sdsm", s, partitions=4, resolution=2048,
 ...                       filter="pcf", pcf_size=3)                    # doctest: +SKIP
 >>> r.outputs["visibility"].shape, r.cost["shadow_map_bytes"]          # doctest: +SKIP
 
-Layering: depends on :mod:`scenes` only.
+Here: the registry's names and each family's parameter classes of the first families
+(``raster_models.registry.TECHNIQUES[name].params`` has every technique's). Layering:
+depends on :mod:`scenes` only.
 """
 
 from .aa import (
@@ -42,7 +49,8 @@ from .registry import (
 from .result import ModelResult
 from .shadowmaps import CsmParams, SdsmParams, ShadowMapParams
 
-#: Names of the output channels every model writes (``output.exr``).
+#: Names of the output channels every hard-shadow model writes (``output.exr``); AA models'
+#: are :data:`AA_OUTPUT_CHANNELS`.
 OUTPUT_CHANNELS = ("visibility", "cascade", "texels_per_pixel", "resolution_error", "uncovered")
 #: Written besides by the shadow models' compare filters (point, hw_pcf, pcf, poisson,
 #: three_pcf): each receiver's compare margin (:mod:`.shadowmaps.margins`).

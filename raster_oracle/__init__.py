@@ -1,8 +1,8 @@
 """raster-oracle: ground truth for real-time shadows and anti-aliasing.
 
-``raster_oracle.reference``, ``score_image``, ``score_folder``, ``score_technique``,
-``run_model``, ``check``, ``write_junit``, ``export`` and ``load_scene`` are the Python API
-(:mod:`raster_oracle.api`, documented in ``docs/python-api.md``); errors are
+The Python API (:mod:`raster_oracle.api`, documented in ``docs/python-api.md``) is importable
+from here: ``raster_oracle.load_scene``, ``reference``, ``score_image``, ... (the names of
+:data:`raster_oracle.api_names.API_NAMES`, loaded on first use); errors are
 :class:`InputError` and :class:`ModelError`.
 
 The installed import package. Its subpackages are the repository's top-level folders:
@@ -13,6 +13,8 @@ The installed import package. Its subpackages are the repository's top-level fol
 
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
+
+from .api_names import API_NAMES
 
 # A source checkout keeps the subpackages beside this folder (the wheel puts them inside it):
 # there, look them up in the checkout's root too, so the checkout's own code is what runs.
@@ -25,29 +27,13 @@ try:
 except PackageNotFoundError:  # a source tree that was not installed
     __version__ = "0+unknown"
 
-#: The Python API (``raster_oracle.api``), importable from here; loaded on first use so that
-#: ``import raster_oracle`` stays cheap (no Mitsuba, no Dr.Jit until a function runs).
-_API = (
-    "InputError",
-    "ModelError",
-    "ReferenceImages",
-    "check",
-    "export",
-    "load_scene",
-    "reference",
-    "run_model",
-    "score_folder",
-    "score_image",
-    "score_technique",
-    "techniques",
-    "write_junit",
-)
-
-__all__ = ["__version__", *_API]
+# The API's names are loaded on first use so that ``import raster_oracle`` stays cheap (no
+# Mitsuba, no Dr.Jit until a function runs); they are listed once, in API_NAMES.
+__all__ = ["__version__", *API_NAMES]
 
 
 def __getattr__(name: str):
-    if name in _API:
+    if name in API_NAMES:
         from . import api
 
         return getattr(api, name)
@@ -55,4 +41,4 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted({*globals(), *_API})
+    return sorted({*globals(), *API_NAMES})

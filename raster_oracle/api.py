@@ -17,7 +17,6 @@ does; set the environment variable ``RASTER_ORACLE_BACKEND`` to force one.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import tempfile
 import warnings
@@ -27,24 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .api_names import API_NAMES
 from .oracle.errors import InputError
-from .raster_models.errors import ModelError
+from .raster_models.errors import ModelError  # noqa: F401 (an API name: API_NAMES)
+from .scenes.loader import LoadOptions, with_load_options
 
-__all__ = [
-    "InputError",
-    "ModelError",
-    "ReferenceImages",
-    "check",
-    "export",
-    "load_scene",
-    "reference",
-    "run_model",
-    "score_folder",
-    "score_image",
-    "score_technique",
-    "techniques",
-    "write_junit",
-]
+__all__ = list(API_NAMES)  # the one list of the API's names (raster_oracle.api_names)
 
 
 @contextlib.contextmanager
@@ -84,26 +71,17 @@ def _cache(cache):
     raise InputError(f"cache must be True, False, None or a folder, got {cache!r}")
 
 
-def load_scene(
-    scene,
-    *,
-    width: int | None = None,
-    height: int | None = None,
-    light: int | None = None,
-    camera_path: str | None = None,
-    frame: int = 0,
-    n_frames: int = 8,
-    light_path: str | None = None,
-    camera: int | None = None,
-):
+@with_load_options
+def load_scene(scene, **options):
     """Load a scene: a built-in name (``"plate"``), a Mitsuba XML file, a glTF 2.0 file
     (``.gltf``, ``.glb``), or an ``export`` folder (or its ``scene.xml``/``scene.glb``: the
     exported size and light, named after the folder), as the command line's ``SCENE`` is. A
     loaded scene is returned as it is.
 
-    ``light`` picks a light (default 0, an export's own light); ``camera_path``, ``frame``,
-    ``n_frames`` and ``light_path`` pick a frame of a camera or light path; ``camera`` a glTF
-    file's camera.
+    The options are those of ``raster_oracle.scenes.loader.LoadOptions``: ``width`` and
+    ``height``; ``light`` picks a light (default 0, an export's own light); ``camera_path``,
+    ``frame``, ``n_frames`` and ``light_path`` pick a frame of a camera or light path;
+    ``camera_file`` a camera sequence file; ``camera`` a glTF file's camera.
 
     Returns a ``raster_oracle.scenes.LoadedScene`` (``.width``, ``.height``, ``.light``,
     ``.camera``, ``.name``); pass it to the other functions to load a scene once.
@@ -111,28 +89,23 @@ def load_scene(
     from . import scenes
     from .scenes.inputs import load_input
 
+    try:
+        opts = LoadOptions.of(options)
+    except scenes.SceneError as exc:
+        raise InputError(str(exc)) from None
     if isinstance(scene, scenes.LoadedScene):
-        given = (width, height, light, camera_path, light_path, camera)
-        if any(v is not None for v in given) or frame:
+        given = [k for k in opts.given() if k != "n_frames"]
+        if given:
+            many = len(given) > 1
             raise InputError(
-                "width, height, light, camera_path, light_path, camera and frame apply to a "
-                "scene name or file; pass them to load_scene instead of a loaded scene"
+                f"the option{'s' if many else ''} {', '.join(given)} appl{'y' if many else 'ies'}"
+                " to a scene name or file; pass them to load_scene instead of a loaded scene"
             )
         return scene
     if not isinstance(scene, str | os.PathLike):
         raise InputError(f"scene must be a name, a file, a folder or a loaded scene: {scene!r}")
     with _library():
-        return load_input(
-            os.fspath(scene),
-            width=width,
-            height=height,
-            light=light,
-            camera_path=camera_path,
-            frame=frame,
-            n_frames=n_frames,
-            light_path=light_path,
-            camera=camera,
-        )
+        return load_input(os.fspath(scene), **options)
 
 
 @dataclass
@@ -416,11 +389,12 @@ def score_technique(
 
 
 def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, quiet) -> dict:
-    """Score into ``out`` (or a temporary folder) with the command line's own request
-    function and read its ``metrics.json`` back: the record is the command line's."""
+    """Score into ``out`` (or a temporary folder) with the command line's own request and
+    function: the record returned is the ``metrics.json`` the command line writes."""
     from . import metrics as M
     from .oracle.scoring.options import ScoreOptions
-    from .oracle.scoring.request import score_to_folder
+    from .oracle.scoring.request import ScoreRequest
+    from .oracle.scoring.to_folder import score_to_folder
     from .scenes import CAMERA_PATHS
 
     loaded = load_scene(scene, **load)
@@ -439,8 +413,19 @@ def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, q
             options = ScoreOptions(
                 **opts, quiet=quiet, flip_mode=flip_mode, ppd=ppd or M.DEFAULT_PPD
             )
-            score_to_folder(loaded, out=folder, **what, options=options, cache=_cache(cache))
-        return json.loads((folder / "metrics.json").read_text())
+            if "technique" in what:
+                request = ScoreRequest.for_model(
+                    loaded, **what, options=options, cache=_cache(cache)
+                )
+            else:
+                request = ScoreRequest.for_files(
+                    loaded,
+                    what["candidate"],
+                    channel=what["channel"],
+                    options=options,
+                    cache=_cache(cache),
+                )
+            return score_to_folder(request, out=folder)[1]
 
 
 def score_folder(
@@ -494,6 +479,7 @@ def score_folder(
         parse_tolerance,
     )
     from .oracle.scoring.inputs.folder_cases import run_folder
+    from .scenes.base.records import jsonable
 
     gates = profile_gates(profiles, error=GateError)
     gates += parse_gates(limit_texts(fail_above, "<="), limit_texts(fail_below, ">="))
@@ -527,7 +513,7 @@ def score_folder(
             cache=_cache(cache),
             log=None,
         )
-    return json.loads((Path(out) / "metrics.json").read_text())
+    return jsonable(run.record)
 
 
 def check(

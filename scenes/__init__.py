@@ -3,17 +3,19 @@
 ``scenes/`` holds the scene model itself at its top (cameras, lights, camera and light paths,
 :class:`LoadedScene`, the loader and the resolution of a command's scene argument) and one
 folder per concern. Folders import down only (backend -> shading, base; geometry -> backend;
-formats -> geometry, shading, backend, base; catalogue -> formats, geometry, shading) and up
+formats -> geometry, shading, backend, base; catalogue -> formats, geometry, shading, base) and up
 to the scene model at the top, never a sibling that imports them back:
 
 - ``base/``: pure helpers every layer may import (atomic writes, records, display transform,
-  array checks); no Mitsuba;
+  array checks, numbers in text, free memory); no Mitsuba;
 - ``catalogue/``: the built-in scenes and the factories they are written with;
 - ``formats/``: glTF read/write, ``export`` folders, camera files;
-- ``shading/``: Lambert/Phong, the glTF BRDF and the materials both read;
-- ``geometry/``: mesh generators and tessellation, exact coverage, pixel areas, motion
-  vectors, tangent-plane points;
-- ``backend/``: the Mitsuba variant, the kernel audit and ray queries.
+- ``shading/``: Lambert/Phong, the glTF BRDF, the materials both read and alpha-tested
+  materials (the alpha itself; the test is the backend's);
+- ``geometry/``: mesh generators and tessellation, textured meshes, exact coverage, pixel
+  areas, motion vectors, tangent-plane points;
+- ``backend/``: the Mitsuba variant, the kernel audit and ray queries (the alpha test
+  included).
 
 Importing this package costs nothing: the public names below load their modules (and Mitsuba)
 on first use.
@@ -29,6 +31,7 @@ __all__ = [
     "Camera",
     "DEFAULT_SCENES",
     "Light",
+    "LoadOptions",
     "LoadedScene",
     "SceneError",
     "SceneParamError",
@@ -46,6 +49,7 @@ _WHERE = {
     "builtin_scene": ".catalogue.builtin",
     "Camera": ".camera",
     "Light": ".lights",
+    "LoadOptions": ".loader",
     "LoadedScene": ".loaded",
     "SceneError": ".loaded",
     "load": ".loader",

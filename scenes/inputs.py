@@ -10,12 +10,13 @@ a built-in scene name.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from .base.untrusted import read_json
+from .base.untrusted import path_problem, read_json
 from .formats.export import EXPORT_SCENE_FILES, export_scene_file
-from .loader import LoadedScene, SceneError, load
+from .loaded import LoadedScene, SceneError
+from .loader import LoadOptions, load, with_load_options
 
 __all__ = [
     "EXPORT_RECORD",
@@ -101,6 +102,8 @@ def resolve_input(scene) -> SceneInput:
     """Resolve ``scene`` (text or path): an export folder or its ``scene.xml``, a scene file
     of a known suffix, or a built-in name (checked when loaded)."""
     path = Path(scene)
+    if path_problem(path) is not None:  # no file has this name: a built-in's, or unknown
+        return SceneInput(scene=str(scene))
     if path.is_dir():
         found = export_scene_file(path)
         if found is None:
@@ -123,42 +126,23 @@ def resolve_input(scene) -> SceneInput:
     )
 
 
-def load_input(
-    scene,
-    *,
-    width: int | None = None,
-    height: int | None = None,
-    light: int | None = None,
-    camera_path: str | None = None,
-    frame: int = 0,
-    n_frames: int = 8,
-    light_path: str | None = None,
-    camera_file=None,
-    camera: int | None = None,
-) -> LoadedScene:
+@with_load_options
+def load_input(scene, **options) -> LoadedScene:
     """Load what ``scene`` stands for (:func:`resolve_input`) with :func:`scenes.load`'s
-    options; an export loads at its exported size with its light, named after its folder.
+    options (:class:`scenes.loader.LoadOptions`); an export loads at its exported size with
+    its light (unless ``light`` names one), named after its folder.
 
     An export made along a camera path from its first frame keeps that path
     (``loaded.camera_path``), so its later frames can be scored without naming it again.
     """
+    o = LoadOptions.of(options)
     found = resolve_input(scene)
     rec = found.export or {}
-    loaded = load(
-        found.scene,
-        width=width,
-        height=height,
-        light=light if light is not None else (found.light or 0),
-        camera_path=camera_path,
-        frame=frame,
-        n_frames=n_frames,
-        light_path=light_path,
-        camera_file=camera_file,
-        camera=camera,
-    )
+    light = o.light if o.light is not None else (found.light or 0)
+    loaded = load(found.scene, **asdict(replace(o, light=light)))
     if found.name is not None:
         loaded = replace(loaded, name=found.name)
-    if camera_path is None and rec.get("camera_path") and int(rec.get("frame") or 0) == 0:
+    if o.camera_path is None and rec.get("camera_path") and int(rec.get("frame") or 0) == 0:
         loaded = replace(
             loaded, camera_path=rec["camera_path"], n_frames=int(rec.get("n_frames") or 8)
         )

@@ -12,11 +12,13 @@ own geometry (:meth:`LoadedScene.bounds`), never from ``scene.bbox()``. The reco
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from . import backend
+from .base.untrusted import LIMITS, path_problem, read_bounded
 from .catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 from .formats.camera_file import CameraFileError, load_camera_file
 from .formats.gltf import GltfError, gltf_scene
@@ -26,9 +28,10 @@ from .mitsuba_dict import hash_obj, to_mitsuba_dict, xml_dependencies
 from .mitsuba_scene import camera_from_sensor, lights_of
 from .object_paths import check_motion
 from .paths import CAMERA_PATHS
+from .shading.alpha_mitsuba import alpha_table_from_bsdfs
 from .shading.phong import Specular
 
-__all__ = ["describe", "load", "scene_names"]
+__all__ = ["LoadOptions", "describe", "load", "scene_names", "with_load_options"]
 
 MAX_PIXELS = 16384 * 16384
 
@@ -45,19 +48,72 @@ def _check_size(width, height) -> None:
         raise SceneError(f"resolution {width}x{height} is larger than {MAX_PIXELS} pixels")
 
 
-def load(
-    scene: str | Path,
-    *,
-    width: int | None = None,
-    height: int | None = None,
-    light: int = 0,
-    camera_path: str | None = None,
-    frame: int = 0,
-    n_frames: int = 8,
-    light_path: str | None = None,
-    camera_file=None,
-    camera: int | None = None,
-) -> LoadedScene:
+@dataclass(frozen=True)
+class LoadOptions:
+    """How a scene is loaded: the one declaration of the keywords of :func:`load`,
+    :func:`scenes.inputs.load_input` and the Python API's ``load_scene`` (the command line's
+    scene options).
+
+    Attributes
+    ----------
+    width, height : film size in pixels; default: the scene's own.
+    light : index of the light to use among the scene's lights (punctual ones first, then
+        area lights, each in the scene's order); None: 0, or an export folder's own light
+        (:func:`scenes.inputs.load_input`).
+    camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
+        frame of it to view (frame 0 is the scene's own camera). Objects of a scene with
+        object paths (:mod:`scenes.object_paths`) are placed for ``frame``; such a scene's
+        frames keep the camera still unless a camera path is named.
+    light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
+        that of ``frame`` (frame 0 is the scene's own light).
+    camera_file : a camera sequence file (:mod:`scenes.formats.camera_file`): frames follow
+        its cameras (camera path ``file``).
+    camera : glTF scenes: index of the document's camera to view through (default: the
+        scene's first camera node); see :mod:`scenes.formats.gltf`.
+    """
+
+    width: int | None = None
+    height: int | None = None
+    light: int | None = None
+    camera_path: str | None = None
+    frame: int = 0
+    n_frames: int = 8
+    light_path: str | None = None
+    camera_file: object = None
+    camera: int | None = None
+
+    @classmethod
+    def of(cls, options: dict) -> LoadOptions:
+        """``options`` (keywords) as a record; :class:`SceneError` naming an unknown one."""
+        known = [f.name for f in fields(cls)]
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise SceneError(
+                f"unknown scene option {', '.join(unknown)}; the options are {', '.join(known)}"
+            )
+        return cls(**options)
+
+    def given(self) -> list[str]:
+        """The options that differ from their defaults."""
+        default = LoadOptions()
+        return [f.name for f in fields(self) if getattr(self, f.name) != getattr(default, f.name)]
+
+
+def with_load_options(func):
+    """Give ``func(scene, **options)`` the signature ``(scene, *, <LoadOptions' keywords>)``,
+    so ``help()`` and :func:`inspect.signature` show the options :class:`LoadOptions`
+    declares."""
+    keywords = [
+        inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default)
+        for f in fields(LoadOptions)
+    ]
+    scene = inspect.Parameter("scene", inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    func.__signature__ = inspect.Signature([scene, *keywords])
+    return func
+
+
+@with_load_options
+def load(scene: str | Path, **options) -> LoadedScene:
     """Load a built-in scene by name, a Mitsuba XML file or a glTF 2.0 file.
 
     Parameters
@@ -67,39 +123,29 @@ def load(
         a Mitsuba XML file. A :class:`scenes.catalogue.builtin.BuiltinScene` (e.g. a
         built-in scene's factory wrapped by a
         transformation, as ``oracle.studies.extremes.run`` does) loads like a built-in one.
-    width, height : film size in pixels; default: the scene's own.
-    light : index of the light to use among the scene's lights (punctual ones first, then
-        area lights, each in the scene's order).
-    camera_path, frame, n_frames : a camera path of :data:`scenes.paths.CAMERA_PATHS` and the
-        frame of it to view (frame 0 is the scene's own camera).
-    light_path : a light path of :data:`scenes.light_paths.LIGHT_PATHS`; the chosen light is
-        that of ``frame`` (frame 0 is the scene's own light).
-    camera_file : a camera sequence file (:mod:`scenes.formats.camera_file`): frames follow its
-        cameras (camera path ``file``).
-
-    Objects of a scene with object paths (:mod:`scenes.object_paths`) are placed for
-    ``frame``; such a scene's frames keep the camera still unless a camera path is named.
-    camera : glTF scenes: index of the document's camera to view through (default: the
-        scene's first camera node); see :mod:`scenes.formats.gltf`.
+    options : the keywords of :class:`LoadOptions` (size, light, frame of a camera or light
+        path, camera file, glTF camera).
 
     Raises
     ------
     SceneError
         Unknown name, missing or malformed file, no sensor, no usable light, bad sizes, an
-        unknown light path or one that does not fit the chosen light.
+        unknown light path or one that does not fit the chosen light, an unknown option.
     """
-    _check_size(width, height)
-    _check_sequence(light_path, camera_path, camera_file, frame, n_frames)
+    o = LoadOptions.of(options)
+    light = int(o.light or 0)
+    _check_size(o.width, o.height)
+    _check_sequence(o.light_path, o.camera_path, o.camera_file, o.frame, o.n_frames)
     mi = backend.mitsuba()
     meshes: dict = {}
-    src = _open(mi, scene, meshes, width=width, height=height, camera=camera)
+    src = _open(mi, scene, meshes, width=o.width, height=o.height, camera=o.camera)
     mi_scene, name, digest, gl = src.mi_scene, src.name, src.digest, src.gltf
     sensors = mi_scene.sensors()
     if not sensors:
         raise SceneError(f"scene {name!r} has no sensor (camera)")
-    cam = camera_from_sensor(mi, sensors[0], width, height)
-    if width and height:
-        cam = cam.with_resolution(width, height)
+    cam = camera_from_sensor(mi, sensors[0], o.width, o.height)
+    if o.width and o.height:
+        cam = cam.with_resolution(o.width, o.height)
     digest.update(f"res:{cam.width}x{cam.height}".encode())
     lights = lights_of(mi, mi_scene, name, gl, light)
     loaded = LoadedScene(
@@ -110,7 +156,7 @@ def load(
         camera=cam,
         base_camera=cam,
         lights=lights,
-        light_index=int(light),
+        light_index=light,
         shape_names=[s.id() for s in mi_scene.shapes()],
         content_hash=digest.hexdigest(),
         specular=src.specular,
@@ -118,15 +164,25 @@ def load(
         object_motion=src.motion,
         scene_dict=src.scene_dict,
         pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
+        alpha=_alpha(mi, mi_scene, gl),
     )
-    loaded = _placed(loaded, camera_file, camera_path, int(frame), int(n_frames))
-    if light_path is not None:
+    frame, n_frames = int(o.frame), int(o.n_frames)
+    loaded = _placed(loaded, o.camera_file, o.camera_path, frame, n_frames)
+    if o.light_path is not None:
         try:
-            check_light_path(light_path, loaded.light)
+            check_light_path(o.light_path, loaded.light)
         except ValueError as exc:
             raise SceneError(f"scene {name!r}: {exc}") from None
-        loaded = loaded.with_light_frame(int(frame), path=light_path, n_frames=int(n_frames))
+        loaded = loaded.with_light_frame(frame, path=o.light_path, n_frames=n_frames)
     return loaded
+
+
+def _alpha(mi, mi_scene, gl):
+    """The alpha-tested shapes of the scene: glTF MASK materials, or Mitsuba ``mask`` BSDFs
+    (alpha test at 0.5; :mod:`scenes.shading.alpha_mitsuba`); None when there are none."""
+    if gl is not None:
+        return gl.alpha([s.id() for s in mi_scene.shapes()])
+    return alpha_table_from_bsdfs(mi, mi_scene)
 
 
 @dataclass
@@ -176,16 +232,20 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
         source, description = "builtin", builtin.description
     else:
         path = Path(name)
-        if path.suffix.lower() != ".xml" and not path.exists():
+        problem = path_problem(path)
+        if problem is not None or (path.suffix.lower() != ".xml" and not path.exists()):
             raise SceneError(
-                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}), "
+                f"unknown scene {name[:80]!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}), "
                 "a Mitsuba XML file nor a glTF file (.gltf, .glb)"
             )
         if not path.is_file():
             raise SceneError(f"scene file not found: {path}")
         digest = hashlib.sha256(b"xml:")
-        for dep in xml_dependencies(path):
-            digest.update(dep.name.encode() + dep.read_bytes())
+        for dep in xml_dependencies(path, error=SceneError):  # inside its folder, bounded
+            data = read_bounded(
+                dep, limit=LIMITS["scene_bytes"], what="scene file", error=SceneError
+            )
+            digest.update(dep.name.encode() + data)
         try:
             mi_scene = mi.load_file(str(path), optimize=False)
         except Exception as exc:

@@ -45,15 +45,21 @@ def test_event_lag_counts_frames_until_the_steady_error():
     assert event_lag(err, floor, event=4) == 3
     assert event_lag(err, np.full(10, 1.0), event=4) == 0
     assert event_lag(np.r_[err[:5], [0.9] * 5], floor, event=4) is None
+    # judged against a given steady state (the lit one after a light comes back on)
+    assert event_lag(err, floor, event=4, steady=0.26) == 2
+    assert event_lag(err, floor, event=4, steady=0.0) is None
     with pytest.raises(MetricError, match="baseline"):
         event_lag(err, floor, event=2)
 
 
 def test_error_with_floor_closed_form():
-    truth = np.zeros((2, 4, 4))
+    truth = np.full((2, 4, 4), 0.5)
     cand = np.full((2, 4, 4), 0.25)
     se = np.full((2, 4, 4), 0.1)
     mask = np.zeros((4, 4), bool)
     mask[:2] = True
     err, floor = frame_error_with_floor(truth, cand, se, mask)
     assert np.allclose(err, 0.25) and np.allclose(floor, CI_Z * 0.1)
+    # all samples alike (truth 0 or 1): a bound, not an estimate; no floor there
+    _, floor = frame_error_with_floor(np.ones((2, 4, 4)), cand, se, mask)
+    assert np.allclose(floor, 0.0)

@@ -43,8 +43,11 @@ STOP_S = 2.0
 REACH_S = 240.0
 
 
-def _stop_in_phase(tmp_path: Path, target: str, argv: list[str]) -> tuple[int, float, str]:
-    """Run ``argv`` until ``target`` starts, SIGTERM it; (exit code, seconds to exit, stderr)."""
+def _stop_in_phase(
+    tmp_path: Path, target: str, argv: list[str], sig=signal.SIGTERM, settle: float = SETTLE_S
+) -> tuple[int, float, str]:
+    """Run ``argv`` until ``target`` starts, send ``sig`` ``settle`` seconds later; (exit
+    code, seconds to exit, stderr)."""
     marker = tmp_path / "phase-started"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
@@ -63,10 +66,10 @@ def _stop_in_phase(tmp_path: Path, target: str, argv: list[str]) -> tuple[int, f
             if time.monotonic() - t0 > REACH_S:
                 pytest.fail("the phase was not reached")
             time.sleep(0.05)
-        time.sleep(SETTLE_S)
+        time.sleep(settle)
         assert proc.poll() is None, "the phase ended before the signal"
         sent = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         rc = proc.wait(timeout=60)
         return rc, time.monotonic() - sent, proc.stderr.read().decode()
     finally:
@@ -168,8 +171,38 @@ def test_sigterm_during_a_sweep_with_a_worker(tmp_path):
     target = "raster_oracle.oracle.sweeps.run:completed_while_workers"
     rc, seconds, err = _stop_in_phase(tmp_path, target, argv)
     assert rc == 143, err[-2000:]
+    # issue 48: the cluster's loggers reported the killed workers with a traceback
+    assert "Traceback" not in err and "CancelledError" not in err, err[-2000:]
     assert seconds <= STOP_S, seconds
     if db.exists():  # the store stays a readable database
         with sqlite3.connect(db) as con:
             assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    _cache_intact(tmp_path / "cache")
+
+
+@pytest.mark.parametrize(("sig", "code"), [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_stop_while_the_libraries_load(tmp_path, sig, code):
+    """Issue 48: a signal while Mitsuba and Dr.Jit load aborted the interpreter ("Fatal
+    Python error: PyThreadState_Get"); now the process ends at once with the signal's code."""
+    argv = ["reference", "plate", "--width", "16", "--height", "12", "--spp", "1", "--quiet"]
+    argv += ["--no-cache", "--out", str(tmp_path / "out")]
+    target = "raster_oracle.oracle.certify:certified_select"
+    rc, seconds, err = _stop_in_phase(tmp_path, target, argv, sig=sig, settle=0.05)
+    assert rc == code, err[-2000:]
+    assert "Fatal Python error" not in err and "Traceback" not in err, err[-2000:]
+    assert seconds <= STOP_S, seconds
+    assert not (tmp_path / "out").exists()
+
+
+def test_sigterm_while_a_large_scene_is_built(tmp_path):
+    """Issue 48: SIGTERM during the BVH build of a million-blade meadow (one C call) took as
+    long as the build (17.6 s at two million); the watchdog ends the process within 2 s."""
+    argv = ["reference", "meadow:n=1000000", "--width", "16", "--height", "12", "--spp", "1"]
+    argv += ["--quiet", "--cache-dir", str(tmp_path / "cache"), "--out", str(tmp_path / "out")]
+    target = "raster_oracle.scenes.loader:to_mitsuba_dict"
+    rc, seconds, err = _stop_in_phase(tmp_path, target, argv, settle=1.0)
+    assert rc == 143, err[-2000:]
+    assert "Traceback" not in err, err[-2000:]
+    assert seconds <= STOP_S, seconds
+    assert not (tmp_path / "out").exists()
     _cache_intact(tmp_path / "cache")

@@ -24,8 +24,8 @@ own module (:mod:`.reference`, :mod:`.model`,
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
-import signal
 import sys
 import threading
 import warnings
@@ -33,6 +33,7 @@ import warnings
 from ..errors import InputWarning, one_line
 from . import model, reference, score, studies, sweeps
 from .args import CliError, Parser, input_errors
+from .stops import Stops
 
 __all__ = ["COMMANDS", "build_parser", "main"]
 
@@ -76,8 +77,14 @@ def _version() -> str:
     return __version__
 
 
-def _terminate(signum, frame):  # SIGTERM: unwind so that `finally` blocks clean up
-    raise SystemExit(128 + signum)
+#: The stop handlers of the command running now (one at a time: ``main`` is not re-entered).
+_stops: list = [None]
+
+
+def _deferred_stops():
+    """The running command's :meth:`Stops.deferred` (a library called ``main``: nothing)."""
+    stops = _stops[0]
+    return stops.deferred() if stops is not None else contextlib.nullcontext()
 
 
 def _exit_now(code: int) -> None:
@@ -116,8 +123,10 @@ def _run(args) -> int:
         if args.command != "doctor":
             from ..certify import certified_select
 
-            # a backend is used only after its self-check passed on this machine
-            certified_select(args.backend, trust=args.trust_backend)
+            # a backend is used only after its self-check passed on this machine; a stop
+            # while its libraries load ends the process at once (see .stops)
+            with _deferred_stops():
+                certified_select(args.backend, trust=args.trust_backend)
         return COMMANDS[args.command](args)
 
 
@@ -133,12 +142,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
-    previous = None
-    try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
-    except ValueError:  # not the main thread
-        pass
     mark = scratch_mark()
+    stops = Stops(cleanup=lambda: remove_scratch(mark))
+    stops.install()
+    _stops[0] = stops
     stopped = None
     try:
         sweep_stale_scratch()
@@ -158,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         remove_scratch(mark)
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        _stops[0] = None
+        stops.remove()
         if stopped is not None:
             _exit_now(stopped)

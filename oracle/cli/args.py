@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from ...scenes.base.numbers import MAX_FRAMES, NumberError, parse_float, parse_int
+from ...scenes.base.untrusted import check_path, path_problem
 from ..errors import InputError
 
 __all__ = [
@@ -53,11 +54,20 @@ def input_errors() -> tuple[type[BaseException], ...]:
     """
     from ...metrics import MetricError
     from ...raster_models import ModelError
-    from ...scenes import SceneError
+    from ...scenes import SceneError, SceneParamError
     from ...scenes.backend import BackendError
     from ...scenes.base.untrusted import UntrustedError
 
-    return (InputError, SceneError, BackendError, MetricError, ModelError, UntrustedError)
+    return (
+        InputError,
+        SceneError,
+        SceneParamError,
+        BackendError,
+        MetricError,
+        ModelError,
+        UntrustedError,
+        NumberError,
+    )
 
 
 class Parser(argparse.ArgumentParser):
@@ -78,7 +88,7 @@ def _number(kind: type, *, minimum: float, strict: bool):
     def parse(text: str):
         try:
             if kind is int:
-                value = parse_int(text, what="value")
+                value = parse_int(text, what="value", signed=True)
             elif text.lower() in ("inf", "+inf", "infinity", "+infinity"):
                 value = math.inf
             else:
@@ -126,6 +136,9 @@ def path(text: str) -> Path:
         raise argparse.ArgumentTypeError("expected a path, got ''")
     if any(ord(c) < 32 for c in text):
         raise argparse.ArgumentTypeError(f"path contains control characters: {text!r}")
+    problem = path_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{text[:60]!r}...: {problem}")
     return Path(text)
 
 
@@ -165,6 +178,7 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--camera-file",
+        type=path,
         default=None,
         metavar="JSON",
         help="camera sequence file: per-frame camera matrices and field of view "
@@ -315,6 +329,7 @@ def check_dir(folder: Path, *, label: str) -> None:
     text = os.fspath(folder)
     if not text:
         raise CliError(f"{label}: expected a path, got ''")
+    check_path(text, what=label, error=CliError)
     if os.path.exists(text) or os.path.islink(text):
         if not os.path.isdir(text):
             raise CliError(f"{label} {folder} exists and is not a folder")
@@ -359,10 +374,33 @@ def check_distinct(*, writes: dict[str, Path], reads: dict[str, Path]) -> None:
     """
     for wlabel, w in writes.items():
         for rlabel, r in reads.items():
-            if _same_file(w, r):
+            if w is not None and r is not None and _same_file(w, r):
                 raise CliError(
                     f"{wlabel} {w} is {rlabel} {r}: writing it would destroy it; "
                     "choose another output path"
+                )
+
+
+def check_not_inputs(*, writes: dict, reads: dict, folders: dict | None = None) -> None:
+    """Every output file of ``writes`` is none of the input files of ``reads``
+    (:func:`check_distinct`, links followed) and no existing file inside an input folder of
+    ``folders`` (a folder whose every file may be read, a folder of candidate images).
+    ``None`` values are skipped; files that do not exist are no inputs."""
+    reads = {k: v for k, v in reads.items() if v is not None and os.path.isfile(v)}
+    check_distinct(writes=writes, reads=reads)
+    for wlabel, w in writes.items():
+        if w is None or not os.path.lexists(w):
+            continue
+        inside = Path(w).resolve()
+        for flabel, folder in (folders or {}).items():
+            if (
+                folder is not None
+                and os.path.isdir(folder)
+                and Path(folder).resolve() in inside.parents
+            ):
+                raise CliError(
+                    f"{wlabel} {w} is a file of {flabel} {folder}: writing it would destroy "
+                    "it; choose another output path"
                 )
 
 

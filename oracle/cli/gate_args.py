@@ -187,6 +187,14 @@ def check_junit(path, *, out=None, summary=None) -> None:
         A.check_distinct(writes={"--summary-md": summary}, reads={"--junit": path})
 
 
+def check_outputs_not_inputs(args, *, reads: dict, folders: dict | None = None) -> None:
+    """``--junit`` and ``--summary-md`` name none of the command's inputs (``reads``: label ->
+    file; ``folders``: label -> a folder every file of which is an input), links followed:
+    exit 2 before any work (issue 48)."""
+    writes = {"--junit": args.junit, "--summary-md": getattr(args, "summary_md", None)}
+    A.check_not_inputs(writes=writes, reads=reads, folders=folders)
+
+
 def write_outputs(args, verdicts, *, records=None, report=None) -> None:
     """Write ``--junit`` and ``--summary-md`` of ``verdicts`` (their folders created)."""
     from ..scoring.ci.junit import write_junit

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 from . import baseline_cmd, score_folder
 from .gate_args import (
@@ -13,6 +13,7 @@ from .gate_args import (
     add_visibility_arg,
     baseline_options,
     check_junit,
+    check_outputs_not_inputs,
     parse_all_gates,
     print_verdict,
     write_outputs,
@@ -154,18 +155,30 @@ def cmd_score(args) -> int:
     from ..scoring.ci.baseline import check_platform, resolve_baseline
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
-    from ..scoring.request import score_to_folder
+    from ..scoring.request import ScoreRequest
     from ..scoring.result import ScoreError
+    from ..scoring.to_folder import score_to_folder
     from .score_inputs import candidate_inputs
 
     gates = parse_all_gates(args)
     platform = check_platform(args.platform)
-    baseline = None
+    baseline = baseline_path = None
     if args.baseline is not None:
-        baseline = load_baseline(resolve_baseline(args.baseline, platform=platform))
+        baseline_path = resolve_baseline(args.baseline, platform=platform)
+        baseline = load_baseline(baseline_path)
     _check_frame_pattern(args.candidate)
     A.check_out(args.out)
     check_junit(args.junit, out=args.out, summary=args.summary_md)
+    check_outputs_not_inputs(
+        args,
+        reads={
+            "the candidate": args.candidate,
+            "--baseline": baseline_path,
+            "the scene": args.scene,
+            "--camera-file": getattr(args, "camera_file", None),
+        },
+        folders={"the candidate folder": args.candidate, "the scene folder": args.scene},
+    )
     loaded = A.load_scene(args)
     layout = candidate_inputs(args, loaded)
     cache = A.reference_cache(args)
@@ -196,24 +209,30 @@ def cmd_score(args) -> int:
             "disocclusion": args.candidate_disocclusion,
         },
     )
-    verdict = score_to_folder(
-        loaded,
-        out=args.out,
-        technique=args.technique,
-        params=params,
-        candidate=args.candidate,
-        channel=args.channel,
-        options=options,
-        cache=cache,
-        gates=gates,
-        baseline=baseline,
-        baseline_source=str(args.baseline),
-        layout=layout,
-        baseline_options=baseline_options(args).for_gates(gates),
-    )
+    if args.technique:
+        request = ScoreRequest.for_model(
+            loaded, args.technique, params, channel=args.channel, options=options, cache=cache
+        )
+    else:
+        request = ScoreRequest.for_files(
+            loaded,
+            args.candidate,
+            channel=args.channel,
+            layout=layout,
+            options=options,
+            cache=cache,
+        )
+    with staged_folder(args.out, last=("metrics.json",)) as out:
+        verdict, record = score_to_folder(
+            request,
+            out=out,
+            gates=gates,
+            baseline=baseline,
+            baseline_source=str(args.baseline),
+            baseline_options=baseline_options(args).for_gates(gates),
+        )
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
-    record = json.loads((args.out / "metrics.json").read_text())
     write_outputs(args, [verdict], records=[record], report=args.out / "report.html")
     return verdict.exit_code
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 from .gate_args import (
     add_gate_args,
@@ -27,6 +28,7 @@ from .gate_args import (
     add_visibility_arg,
     baseline_options,
     check_junit,
+    check_outputs_not_inputs,
     parse_all_gates,
     print_verdict,
     write_outputs,
@@ -87,6 +89,11 @@ def cmd_score_folder(args) -> int:
     bo = baseline_options(args)
     A.check_out(args.out)
     check_junit(args.junit, out=args.out, summary=args.summary_md)
+    check_outputs_not_inputs(
+        args,
+        reads={"--manifest": args.manifest, "--baseline": args.baseline},
+        folders={"ROOT": args.root, "--exports": args.exports, "--baseline": args.baseline},
+    )
     options = {
         "spp": args.spp,
         "seed": args.seed,
@@ -102,16 +109,20 @@ def cmd_score_folder(args) -> int:
         "platform": args.platform,
         "exact_budget": A.exact_budget(args),
     }
-    cases, run = run_folder(
-        args.root,
-        out=args.out,
-        manifest=args.manifest,
-        options=options,
-        gates=gates,
-        baseline=args.baseline,
-        baseline_options=bo,
-        cache=A.reference_cache(args),
-    )
+    # the whole run appears at once, its combined record last; an earlier run's case folders
+    # go with it (a reused --out never shows an earlier record beside new results)
+    earlier = _earlier_cases(args.out)
+    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
+        cases, run = run_folder(
+            args.root,
+            out=out,
+            manifest=args.manifest,
+            options=options,
+            gates=gates,
+            baseline=args.baseline,
+            baseline_options=bo,
+            cache=A.reference_cache(args),
+        )
     print(f"score-folder: {len(cases)} case(s): {args.out / 'metrics.json'}")
     # the first screen: one line a case (its gates, its regressions grouped, its notes)
     for verdict in run.verdicts:
@@ -121,6 +132,23 @@ def cmd_score_folder(args) -> int:
     records = [run.record["scenes"].get(c.name) for c in cases]
     write_outputs(args, run.verdicts, records=records, report=args.out / "report.html")
     return run.exit_code
+
+
+def _earlier_cases(out: Path) -> tuple[str, ...]:
+    """The case folders (top-level names) that an earlier score-folder run's combined record
+    in ``out`` lists; nothing when ``out`` holds no such record."""
+    from ...scenes.base.untrusted import UntrustedError, read_json
+    from ..scoring.ci.checks import FOLDER_SCHEMA
+
+    try:
+        record = read_json(out / "metrics.json", what="earlier run's record")
+    except (UntrustedError, OSError):
+        return ()
+    if not isinstance(record, dict) or record.get("schema") != FOLDER_SCHEMA:
+        return ()
+    scenes = record.get("scenes")
+    names = {str(name).split("/")[0] for name in scenes} if isinstance(scenes, dict) else set()
+    return tuple(sorted(n for n in names if n and not n.startswith(".") and "\\" not in n))
 
 
 def _print_totals(run) -> None:

@@ -20,7 +20,7 @@ import threading
 import time
 from contextlib import contextmanager
 
-__all__ = ["SCALE_MODELS", "SCALE_SIZES", "bench_scale", "scale_lines"]
+__all__ = ["SCALE_MODELS", "SCALE_SIZES", "bench_scale", "failed_sizes", "scale_lines"]
 
 #: Blade counts (``meadow:n=N``) of ``bench scale`` by default.
 SCALE_SIZES = (10_000, 100_000, 1_000_000)
@@ -65,6 +65,8 @@ def _one(n: int, width: int, height: int, spp: int, models: tuple, budget: float
     from ..reference.coverage import exact_channels
     from ..reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
     from ..reference.store import get_reference
+    from ..scoring.options import ScoreOptions
+    from ..scoring.request import ScoreRequest
     from ..scoring.score import REFERENCE_GROUPS, score
 
     phases: dict = {}
@@ -103,12 +105,15 @@ def _one(n: int, width: int, height: int, spp: int, models: tuple, budget: float
                 settings = ReferenceSettings(spp=spp, seed=seed, channels=groups)
                 get_reference(loaded, settings, cache=cache, quiet=True)
             with _measure(phases, "metrics"):
+                image = np.asarray(colour, np.float32)
                 score(
-                    loaded,
-                    channel="color",
-                    candidate_frames=lambda _s, _k: (np.asarray(colour, np.float32), {}),
-                    spp=spp,
-                    cache=cache,
+                    ScoreRequest(
+                        loaded,
+                        "color",
+                        lambda _s, _k: (image, {}),
+                        options=ScoreOptions(spp=spp),
+                        cache=cache,
+                    )
                 )
     trace = phases["tracing"]["seconds"]
     for rec in phases.values():
@@ -143,18 +148,51 @@ def bench_scale(
     for n in sizes:
         args = json.dumps([int(n), width, height, spp, list(models), budget, variant])
         code = f"import json,sys; from {__name__} import _child; _child({args!r})"
-        run = subprocess.run(
-            [sys.executable, "-c", code], capture_output=True, text=True, check=False
-        )
-        if run.returncode != 0:
-            tail = (run.stderr.strip().splitlines() or ["?"])[-1]
-            out["sizes"][str(n)] = {"error": f"exit {run.returncode}: {tail}"}
+        returncode, stdout, stderr = _run_child([sys.executable, "-c", code])
+        if returncode != 0:
+            tail = (stderr.strip().splitlines() or ["?"])[-1]
+            out["sizes"][str(n)] = {"error": f"exit {returncode}: {tail}"}
         else:
-            out["sizes"][str(n)] = json.loads(run.stdout.strip().splitlines()[-1])
+            out["sizes"][str(n)] = json.loads(stdout.strip().splitlines()[-1])
         if not quiet:
             one = {**out, "sizes": {str(n): out["sizes"][str(n)]}}
             print("\n".join(scale_lines(one)), file=sys.stderr)
     return out
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child before exec
+    """Linux: the child gets SIGKILL when its parent dies (even by ``kill -9``)."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, 9)  # PR_SET_PDEATHSIG, SIGKILL
+    except (OSError, AttributeError):
+        pass
+
+
+def _run_child(argv: list[str]) -> tuple[int, str, str]:
+    """Run a size's child: ``(exit status, stdout, stderr)``. The child dies with this
+    process: killed when this one is stopped (SIGTERM, SIGINT unwind here) and, on Linux,
+    by the kernel when this one is killed outright."""
+    proc = subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None,
+    )
+    try:
+        stdout, stderr = proc.communicate()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    return proc.returncode, stdout, stderr
+
+
+def failed_sizes(figures: dict) -> list[str]:
+    """The sizes of ``figures`` whose child failed."""
+    return [n for n, rec in figures["sizes"].items() if "error" in rec]
 
 
 def _child(args: str) -> None:

@@ -31,7 +31,14 @@ from .frames import build_frame
 from .sigma import sigma_step
 from .svgf import SvgfParams, svgf_step
 
-__all__ = ["DENOISERS", "NoParams", "cost_record", "make_runner"]
+__all__ = [
+    "DENOISERS",
+    "LIGHTS",
+    "NoParams",
+    "cost_record",
+    "denoise_step",
+    "make_runner",
+]
 
 MAX_SEQUENCES = 8
 _STATES: OrderedDict = OrderedDict()
@@ -41,6 +48,11 @@ _STATES: OrderedDict = OrderedDict()
 class NoParams:
     """A model without parameters (the transcriptions take their sources' constants)."""
 
+
+#: Light kinds the models accept (an area light's punctual proxy is a point light,
+#: :mod:`scenes.lights`; a disk is a sun of angular size, a rectangle sampled over its area,
+#: the others give hard shadows: :mod:`.rays`).
+LIGHTS = ("directional", "point", "spot")
 
 #: denoiser -> (per-pixel bytes of its buffers, texel taps a pixel a frame, source)
 DENOISERS = {
@@ -97,7 +109,9 @@ def _frame_scene(scene, j: int):
     return scene.with_frame(j, n_frames=scene.n_frames)
 
 
-def _step(denoiser: str, frame, state, p):
+def denoise_step(denoiser: str, frame, state, p):
+    """One frame of ``denoiser`` (a key of :data:`DENOISERS`) on a :class:`.frames.Frame`:
+    ``(visibility, new state, record)``; ``p`` an :class:`.svgf.SvgfParams` or None."""
     if denoiser == "none":
         return frame.noisy.copy(), None, {}
     if denoiser == "ffx":
@@ -123,7 +137,7 @@ def make_runner(technique: str, denoiser: str):
         rays = 0
         for j in range(start, k + 1):
             prev = build_frame(_frame_scene(scene, j), j, prev)
-            out, state, _ = _step(denoiser, prev, state, p)
+            out, state, _ = denoise_step(denoiser, prev, state, p)
             rays += prev.rays
         _STATES[key] = (k, prev, state, out)
         _STATES.move_to_end(key)

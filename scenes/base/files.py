@@ -31,6 +31,8 @@ __all__ = [
     "atomic_write",
     "atomic_write_bytes",
     "atomic_write_json",
+    "moves_in_progress",
+    "signals_held",
     "staged_folder",
 ]
 
@@ -86,6 +88,41 @@ STAGING_MARK = ".raster-oracle-staging"
 _STAGING = re.compile(r"\.(.{0,80})\.partial-(\d+)-")
 
 
+_moving = [0]
+
+
+def moves_in_progress() -> bool:
+    """Whether an output is being moved into place now (a watchdog that would end the
+    process on a stop waits for it)."""
+    return _moving[0] > 0
+
+
+@contextmanager
+def signals_held():
+    """SIGTERM and SIGINT held back (recorded, then delivered to the previous handlers) while
+    the block runs, in the main thread; elsewhere nothing is held."""
+    import threading
+
+    _moving[0] += 1
+    got: list[int] = []
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            previous[signum] = signal.signal(signum, lambda n, _f: got.append(n))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        _moving[0] -= 1
+        for signum in got[:1]:
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(signum)
+
+
 def _stale_staging(path: Path) -> None:
     """Remove staging folders beside ``path`` that killed runs (dead pid) left for it."""
     try:
@@ -108,15 +145,19 @@ def _stale_staging(path: Path) -> None:
             continue
 
 
-def _commit(stage: Path, path: Path, last: tuple[str, ...]) -> None:
+def _commit(stage: Path, path: Path, last: tuple[str, ...], replaces: tuple[str, ...]) -> None:
     """Move the staged output into ``path``: the whole folder renamed when ``path`` does not
     exist; else each entry replaced (a sub-folder whole, the old one moved aside into the
-    stage), JSON records after the other files and the names in ``last`` at the end."""
+    stage), JSON records after the other files and the names in ``last`` at the end; the
+    entries of ``path`` named in ``replaces`` (an earlier run's own) are moved aside first."""
     (stage / STAGING_MARK).unlink()
     if not os.path.lexists(path):
         os.rename(stage, path)
         return
     aside = Path(tempfile.mkdtemp(prefix=".replaced-", dir=stage))
+    for name in replaces:
+        if "/" not in name and name not in ("", ".", "..") and os.path.lexists(path / name):
+            os.rename(path / name, aside / name)
     names = sorted(n for n in os.listdir(stage) if stage / n != aside)
     names.sort(key=lambda n: (n in last, n.endswith(".json")))
     for name in names:
@@ -130,7 +171,9 @@ def _commit(stage: Path, path: Path, last: tuple[str, ...]) -> None:
 
 
 @contextmanager
-def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Iterator[Path]:
+def staged_folder(
+    path: str | os.PathLike, *, last: tuple[str, ...] = (), replaces: tuple[str, ...] = ()
+) -> Iterator[Path]:
     """Yield a staging folder to write a command's output into; moved into ``path`` when the
     block ends without an exception (see :func:`_commit`), removed otherwise.
 
@@ -138,6 +181,8 @@ def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Ite
     ----------
     path : the output folder (made with its parents when missing).
     last : names moved last (the record a reader takes as "the run is complete").
+    replaces : names in ``path`` that the new output supersedes (an earlier run's entries
+        that this run does not write): removed when the output is moved in.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -148,11 +193,7 @@ def staged_folder(path: str | os.PathLike, *, last: tuple[str, ...] = ()) -> Ite
     (stage / STAGING_MARK).write_bytes(b"")
     try:
         yield stage
-        # a stop while the moves run waits for them: the output is whole or as it was
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM, signal.SIGINT})
-        try:
-            _commit(stage, path, last)
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        with signals_held():  # a stop while the moves run waits for them
+            _commit(stage, path, last, replaces)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -80,7 +80,8 @@ ROUNDING_PX_MAX = 1e-6
 
 class NotExact(Exception):
     """The scene's geometry cannot be clipped and projected exactly in float64 (coordinates
-    so large that rounding moves vertices by more than :data:`ROUNDING_PX_MAX` pixels)."""
+    so large that rounding moves vertices by more than :data:`ROUNDING_PX_MAX` pixels), or its
+    visible surface is not its triangles (alpha-tested shapes: glTF ``MASK``)."""
 
 
 @dataclass
@@ -120,6 +121,7 @@ def exact_coverage(
         if not isinstance(done, Exception):
             return done
     try:
+        _refuse_alpha(loaded)
         out = exact_coverage_of(
             loaded.camera,
             scene_triangle_set(loaded),
@@ -134,6 +136,20 @@ def exact_coverage(
         raise exc.with_traceback(None) from None  # the memo keeps no frames alive
     loaded.memo[RESULT_MEMO_KEY] = (key, out)
     return out
+
+
+def _refuse_alpha(loaded) -> None:
+    """:class:`NotExact` for a scene with alpha-tested shapes: the alpha test cuts their
+    triangles along texture contours that no polygon here follows (as curved shapes'
+    silhouettes are not exact, these shapes' coverage is not)."""
+    table = getattr(loaded, "alpha", None)
+    if table is not None and table.any:
+        names = [loaded.shape_names[i] for i in np.nonzero(table.shape_mask >= 0)[0]]
+        shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+        raise NotExact(
+            f"alpha-tested shapes ({shown}: glTF MASK) cut their triangles along texture "
+            "contours; their coverage is sampled, not exact"
+        )
 
 
 def exact_coverage_of(

@@ -20,7 +20,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from ....scenes.base.files import atomic_write_bytes
+from ....scenes.base.files import atomic_write_bytes, signals_held
 from ....scenes.base.untrusted import LIMITS, loads_json, read_bounded
 from .checks import GateError
 
@@ -110,11 +110,34 @@ def _claim_previous(folder: Path) -> Path:
             n += 1
 
 
+def _sweep_killed(folder: Path) -> None:
+    """What an accept killed outright (``kill -9``) left, removed under the lock (so no
+    accept is running): its ``.incoming-*`` folders (real folders, links never followed) and
+    its claimed ``previous/NNN`` folders that stayed empty."""
+    for entry in folder.iterdir():
+        if entry.name.startswith(".incoming-") and _real_folder(entry):
+            shutil.rmtree(entry, ignore_errors=True)
+    previous = folder / "previous"
+    if not _real_folder(previous):
+        return
+    for entry in previous.iterdir():
+        if entry.name.isdigit() and _real_folder(entry) and not any(entry.iterdir()):
+            entry.rmdir()
+
+
+def _real_folder(path: Path) -> bool:
+    try:
+        return stat.S_ISDIR(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
 def install(folder: Path, names: tuple[str, ...], make: Callable[[str | None], dict]) -> None:
     """Put new files ``names`` in ``folder`` keeping the current ones (see the module
     docstring); ``make(previous)`` gives the new files' bytes by name, ``previous`` the
     ``previous/NNN`` the current files move to (None: there are none)."""
     with _locked(folder):
+        _sweep_killed(folder)
         current = [n for n in names if _exists(folder / n, folder=False)]
         target = _claim_previous(folder) if current else None
         incoming = Path(tempfile.mkdtemp(prefix=".incoming-", dir=folder))
@@ -122,10 +145,11 @@ def install(folder: Path, names: tuple[str, ...], make: Callable[[str | None], d
             files = make(None if target is None else target.relative_to(folder).as_posix())
             for name in names:
                 atomic_write_bytes(incoming / name, files[name])
-            for name in current:
-                os.replace(folder / name, target / name)
-            for name in names:  # in the order given: a reader never sees a new note alone
-                os.replace(incoming / name, folder / name)
+            with signals_held():  # a stop waits for the renames: both sets whole
+                for name in current:
+                    os.replace(folder / name, target / name)
+                for name in names:  # in the order given: a reader never sees a new note alone
+                    os.replace(incoming / name, folder / name)
         except BaseException:
             if target is not None and not any(target.iterdir()):
                 target.rmdir()
