@@ -17,6 +17,20 @@ SUB = 16
 Z = 5.0
 
 
+def _view(mi, sensor: dict, origin, target, res) -> dict:
+    """The sensor (``sensor``'s type and field of view) at ``origin`` looking at ``target``
+    with a box-filtered film of ``res`` = (W, H) and SPP samples, before a white constant
+    environment."""
+    film = {"type": "hdrfilm", "width": res[0], "height": res[1], "pixel_format": "rgb"}
+    film["rfilter"] = {"type": "box"}
+    look = {"origin": list(origin), "target": list(target), "up": [0, 1, 0]}
+    to_world = mi.ScalarTransform4f().look_at(**look)
+    sensor = {**sensor, "to_world": to_world, "film": film}
+    sensor["sampler"] = {"type": "independent", "sample_count": SPP}
+    env = {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}}
+    return {"sensor": sensor, "env": env}
+
+
 def _scene(mi, opacity: np.ndarray, *, filter_type="nearest"):
     """An orthographic view down -Z of a 2 x 2 rectangle with a mask BSDF over a black
     diffuse, before a white constant environment: a pixel's value is the fraction of it
@@ -26,21 +40,7 @@ def _scene(mi, opacity: np.ndarray, *, filter_type="nearest"):
         {
             "type": "scene",
             "integrator": {"type": "path", "max_depth": 6},
-            "sensor": {
-                "type": "orthographic",
-                "to_world": mi.ScalarTransform4f().look_at(
-                    origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]
-                ),
-                "film": {
-                    "type": "hdrfilm",
-                    "width": RES,
-                    "height": RES,
-                    "rfilter": {"type": "box"},
-                    "pixel_format": "rgb",
-                },
-                "sampler": {"type": "independent", "sample_count": SPP},
-            },
-            "env": {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}},
+            **_view(mi, {"type": "orthographic"}, (0, 0, 5), (0, 0, 0), (RES, RES)),
             "card": {
                 "type": "rectangle",
                 "bsdf": {
@@ -144,23 +144,13 @@ def test_foliage_truth_agrees_with_mitsuba_on_binary_alpha(mi):
         {
             "type": "scene",
             "integrator": {"type": "path", "max_depth": 80},
-            "sensor": {
-                "type": "perspective",
-                "fov": float(fov_x),
-                "fov_axis": "x",
-                "to_world": mi.ScalarTransform4f().look_at(
-                    origin=eye.tolist(), target=target.tolist(), up=[0, 1, 0]
-                ),
-                "film": {
-                    "type": "hdrfilm",
-                    "width": w,
-                    "height": h,
-                    "rfilter": {"type": "box"},
-                    "pixel_format": "rgb",
-                },
-                "sampler": {"type": "independent", "sample_count": SPP},
-            },
-            "env": {"type": "constant", "radiance": {"type": "rgb", "value": 1.0}},
+            **_view(
+                mi,
+                {"type": "perspective", "fov": float(fov_x), "fov_axis": "x"},
+                eye.tolist(),
+                target.tolist(),
+                (w, h),
+            ),
             "cards": uv_mesh(mi, "cards", verts, faces, uv, bsdf=mask),
         }
     )
