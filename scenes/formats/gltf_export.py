@@ -16,16 +16,12 @@ import math
 import numpy as np
 
 from .. import backend
+from ..base.display import srgb_encode
 from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
 
 __all__ = ["light_records", "materials_record", "scene_glb"]
 
 _GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
-
-
-def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
-    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
 def materials_record(loaded, shapes: dict) -> dict:
@@ -111,7 +107,7 @@ def _texture_dicts(pbr):
     wrap = {"repeat": 10497, "clamp": 33071, "mirror": 33648}
     for tex in pbr.textures:
         img = tex.image[..., :3] if tex.image.shape[-1] >= 3 else np.repeat(tex.image, 3, -1)
-        images.append(png_bytes(_linear_to_srgb(img) if tex.srgb else img))
+        images.append(png_bytes(srgb_encode(np.clip(img, 0.0, 1.0)) if tex.srgb else img))
         samplers.append(
             {
                 "magFilter": 9728 if tex.nearest else 9729,

@@ -24,9 +24,10 @@ import warnings
 
 import numpy as np
 
+from ..base.display import srgb_decode
 from ..camera import look_at
 from ..shading.alpha import AlphaError, gltf_alpha_mode
-from ..shading.materials import PbrMaterial, Texture, srgb_to_linear
+from ..shading.materials import PbrMaterial, Texture
 from .gltf_document import LIMITS, GltfDocument, GltfError, as_index, as_number, as_numbers
 
 __all__ = [
@@ -192,7 +193,7 @@ class Textures:
                     )
                 wrap, nearest = _WRAP[ws], smp.magFilter == 9728
             rgb = _image(d, tex.source)
-            img = srgb_to_linear(rgb) if srgb else rgb
+            img = srgb_decode(rgb) if srgb else rgb
             name = f"texture {info.index} ({'sRGB' if srgb else 'linear'})"
             self.index[key] = len(self.items)
             self.items.append(Texture(img.astype(np.float32), wrap, nearest, name, srgb))
