@@ -17,11 +17,17 @@ import numpy as np
 
 from .. import backend
 from ..base.display import srgb_encode
-from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
+from .gltf_write import (
+    GL_TO_MI,
+    GltfCamera,
+    GltfLight,
+    GltfMesh,
+    glb_bytes,
+    light_matrix,
+    png_bytes,
+)
 
 __all__ = ["light_records", "materials_record", "scene_glb"]
-
-_GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
 
 
 def materials_record(loaded, shapes: dict) -> dict:
@@ -81,7 +87,7 @@ def _camera(cam) -> GltfCamera:
     if cam.kind == "perspective":
         yfov = math.radians(cam.fov_y)
         return GltfCamera(
-            m @ _GL_TO_MI,
+            m @ GL_TO_MI,
             cam.near,
             cam.far,
             yfov=yfov,
@@ -93,7 +99,7 @@ def _camera(cam) -> GltfCamera:
     frame[:3, 0] /= np.linalg.norm(frame[:3, 0])
     frame[:3, 1] /= np.linalg.norm(frame[:3, 1])
     return GltfCamera(
-        frame @ _GL_TO_MI,
+        frame @ GL_TO_MI,
         cam.near,
         cam.far,
         ymag=hh,
