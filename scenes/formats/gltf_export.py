@@ -17,15 +17,8 @@ import numpy as np
 
 from .. import backend
 from ..base.display import srgb_encode
-from .gltf_write import (
-    GL_TO_MI,
-    GltfCamera,
-    GltfLight,
-    GltfMesh,
-    glb_bytes,
-    light_matrix,
-    png_bytes,
-)
+from . import gltf_write
+from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
 
 __all__ = ["light_records", "materials_record", "scene_glb"]
 
@@ -87,7 +80,7 @@ def _camera(cam) -> GltfCamera:
     if cam.kind == "perspective":
         yfov = math.radians(cam.fov_y)
         return GltfCamera(
-            m @ GL_TO_MI,
+            m @ gltf_write.GL_TO_MI,
             cam.near,
             cam.far,
             yfov=yfov,
@@ -99,7 +92,7 @@ def _camera(cam) -> GltfCamera:
     frame[:3, 0] /= np.linalg.norm(frame[:3, 0])
     frame[:3, 1] /= np.linalg.norm(frame[:3, 1])
     return GltfCamera(
-        frame @ GL_TO_MI,
+        frame @ gltf_write.GL_TO_MI,
         cam.near,
         cam.far,
         ymag=hh,
