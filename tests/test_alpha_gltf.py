@@ -137,6 +137,7 @@ def test_checker_coverage_and_exact_coverage_refused(tmp_path, nearest, cutoff):
     # exact coverage does not claim the triangles' area, and says why
     assert not np.any(ch["coverage_exact_valid"])
     assert "alpha-tested shapes" in stats["coverage_exact"]["decision"]
+    assert stats["alpha_tested"]["shapes"]["card"]["cutoff"] == cut
 
 
 def test_alpha_foliage_family(tmp_path):
@@ -151,3 +152,96 @@ def test_alpha_foliage_family(tmp_path):
     assert 0.2 < cut["coverage"].mean() < 0.8 * full["coverage"].mean()
     with pytest.raises(scenes.SceneError, match=r"alpha must be in \[0, 1\], got 2"):
         scenes.load("alpha-foliage:alpha=2")
+
+
+def _soft_scene(kind: str):
+    """A 2 x 2 m plate 2 m above a ground under a 1 m square area light: ``mask`` (a Mitsuba
+    mask BSDF whose opacity is the 0/1 checker, NEAREST), ``split`` (the two opaque squares
+    the checker keeps) or ``full`` (the whole plate, opaque)."""
+    from raster_oracle.scenes import backend
+    from raster_oracle.scenes.catalogue.factories import diffuse, ground, sensor
+    from raster_oracle.scenes.catalogue.soft_scenes import rectangle_light
+
+    def square(x0, z0, x1, z1, bsdf):
+        v = np.array([[x0, 2, z0], [x1, 2, z0], [x1, 2, z1], [x0, 2, z1]], np.float32)
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+        f = np.array([[0, 2, 1], [0, 3, 2]], np.uint32)
+        return {"type": "ro_mesh", "vertices": v, "faces": f, "texcoords": uv, "bsdf": bsdf}
+
+    def factory(width, height):
+        scene = {
+            "type": "scene",
+            "camera": sensor(
+                width, height, origin=(0, 9, 0.01), target=(0, 0, 0), fov=40, near=0.1, far=50
+            ),
+            "area_light": rectangle_light((0.3, 5.0, 0.2), (0, -1, 0), (1.0, 1.0), 40.0),
+            "ground": ground(20.0, 0.6),
+        }
+        grey = diffuse((0.5, 0.5, 0.5))
+        if kind == "mask":
+            checker = np.array([[1, 0], [0, 1]], np.float32)[..., None]
+            opacity = {
+                "type": "bitmap",
+                "data": backend.mitsuba().TensorXf(checker),
+                "raw": True,
+                "filter_type": "nearest",
+                "wrap_mode": "clamp",
+            }
+            mask = {"type": "mask", "opacity": opacity, "material": grey}
+            scene["plate"] = square(-1, -1, 1, 1, mask)
+        elif kind == "split":
+            scene["a"], scene["b"] = square(-1, -1, 0, 0, grey), square(0, 0, 1, 1, grey)
+        else:
+            scene["plate"] = square(-1, -1, 1, 1, grey)
+        return scene
+
+    from raster_oracle.scenes.catalogue.builtin import BuiltinScene
+
+    return scenes.load(BuiltinScene(f"soft-{kind}", factory, "test", 48, 48))
+
+
+def test_area_light_shadow_sees_the_cut_out_surface():
+    settings = ReferenceSettings(spp=16, channels=("soft", "visibility"))
+    mask, split, full = (
+        render_reference(_soft_scene(k), settings, quiet=True)[0] for k in ("mask", "split", "full")
+    )
+    assert _soft_scene("mask").alpha is not None
+    for ch in ("soft_visibility", "visibility"):
+        # the mask plate shadows as the two squares it keeps, not as the whole plate
+        assert np.mean(np.abs(mask[ch] - split[ch])) < 0.005
+        assert np.mean(np.abs(mask[ch] - full[ch])) > 0.03
+
+
+def test_export_writes_mask_and_loads_back_to_the_same_bytes(tmp_path):
+    import json
+
+    from raster_oracle.scenes.formats.export import export
+
+    loaded = scenes.load("alpha-foliage:n=200", width=64, height=36)
+    export(loaded, tmp_path / "out")
+    back = scenes.load(tmp_path / "out" / "scene.glb")
+    (a,), (b,) = loaded.alpha.masks, back.alpha.masks
+    assert (b.cutoff, b.factor, b.texture.wrap_s, b.texture.nearest) == (0.5, 1.0, "repeat", False)
+    assert np.array_equal(a.texture.alpha, b.texture.alpha)
+    record = json.loads((tmp_path / "out" / "materials.json").read_text())
+    assert record["shapes"]["cards"]["alpha"]["cutoff"] == 0.5
+    settings = ReferenceSettings(spp=4, seed=5, channels=("visibility", "coverage"))
+    x, _ = render_reference(loaded, settings, quiet=True)
+    y, _ = render_reference(back, settings, quiet=True)
+    for key in ("visibility", "coverage"):
+        assert x[key].tobytes() == y[key].tobytes(), key
+
+
+def test_shadow_map_depth_pass_discards_or_ignores_the_cutout(tmp_path):
+    from raster_oracle.raster_models.registry import run
+
+    loaded = scenes.load(_checker_glb(tmp_path / "s.glb"))
+    px = (SPAN / RES) ** 2
+    area = {}
+    for mode in ("test", "ignore"):
+        vis = run("shadow-map", loaded, resolution=1024, caster_alpha=mode).outputs["visibility"]
+        area[mode] = float(np.sum(1.0 - vis)) * px
+    # the depth pass that discards keeps the checker's half of the 4 square metres; the one
+    # that ignores alpha (three.js issues 24995, 31802) casts the whole quad
+    assert area["test"] == pytest.approx(2.0, abs=0.15)
+    assert area["ignore"] == pytest.approx(4.0, abs=0.15)

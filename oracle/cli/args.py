@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from ...scenes.base.numbers import MAX_FRAMES, NumberError, parse_float, parse_int
+from ...scenes.base.untrusted import check_path, path_problem
 from ..errors import InputError
 
 __all__ = [
@@ -86,7 +87,7 @@ def _number(kind: type, *, minimum: float, strict: bool):
     def parse(text: str):
         try:
             if kind is int:
-                value = parse_int(text, what="value")
+                value = parse_int(text, what="value", signed=True)
             elif text.lower() in ("inf", "+inf", "infinity", "+infinity"):
                 value = math.inf
             else:
@@ -134,6 +135,9 @@ def path(text: str) -> Path:
         raise argparse.ArgumentTypeError("expected a path, got ''")
     if any(ord(c) < 32 for c in text):
         raise argparse.ArgumentTypeError(f"path contains control characters: {text!r}")
+    problem = path_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{text[:60]!r}...: {problem}")
     return Path(text)
 
 
@@ -173,6 +177,7 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--camera-file",
+        type=path,
         default=None,
         metavar="JSON",
         help="camera sequence file: per-frame camera matrices and field of view "
@@ -311,6 +316,7 @@ def check_dir(folder: Path, *, label: str) -> None:
     text = os.fspath(folder)
     if not text:
         raise CliError(f"{label}: expected a path, got ''")
+    check_path(text, what=label, error=CliError)
     if os.path.exists(text) or os.path.islink(text):
         if not os.path.isdir(text):
             raise CliError(f"{label} {folder} exists and is not a folder")

@@ -178,7 +178,7 @@ BUILTIN_SCENES.update(
                 SceneParam(
                     "n",
                     alpha_foliage.ALPHA_FOLIAGE_N,
-                    0,
+                    1,
                     10**7,
                     _SIZE.format("cards", alpha_foliage.ALPHA_FOLIAGE_N),
                     2000,
