@@ -200,7 +200,7 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
-        exact_budget=args.exact_budget,
+        exact_budget=A.exact_budget(args),
         motion=None
         if args.candidate_motion is None
         else {
