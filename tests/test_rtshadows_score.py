@@ -28,3 +28,16 @@ def test_asvgf_removes_svgfs_lag_after_the_light_goes_off():
     # judged: the two frames after the light went off (truth 0 on every receiver)
     assert svgf["steady_error"] > 0.2
     assert asvgf["steady_error"] < LAG_FACTOR * svgf["steady_error"]
+
+
+def test_the_asvgf_claim_is_reproduced_and_its_rule_orders_lags():
+    from raster_oracle.oracle.studies.claims import run as C
+    from raster_oracle.oracle.studies.claims.denoise import _worse
+
+    assert _worse(None, 3) and _worse(4, 3) and not _worse(3, 3) and not _worse(2, None)
+    assert not _worse(None, None)
+    (row,) = C.run_claims(None, only=["asvgf-less-lag"], size=(48, 27))["claims"]
+    assert row["verdict"] == C.REPRODUCED, row
+    svgf, asvgf = row["cases"]
+    assert svgf["lag_off"] is None and asvgf["lag_off"] == 0
+    assert row["value"]["mean"] > 0.1
