@@ -156,6 +156,7 @@ def cmd_score(args) -> int:
     from ..scoring.ci.baseline import check_platform, resolve_baseline
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
+    from ..scoring.output import stale_files
     from ..scoring.request import score_to_folder
     from ..scoring.result import ScoreError
     from .score_inputs import candidate_inputs
@@ -209,7 +210,9 @@ def cmd_score(args) -> int:
             "disocclusion": args.candidate_disocclusion,
         },
     )
-    with staged_folder(args.out, last=("metrics.json",)) as out:
+    # an earlier score's files (its record lists them) go when this one's are moved in
+    earlier = tuple(p.name for p in stale_files(args.out, []))
+    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
         verdict = score_to_folder(
             loaded,
             out=out,
