@@ -121,10 +121,30 @@ def _srgb_as_gamma22(cand) -> np.ndarray:
     return srgb_decode(np.power(np.clip(cand, 0.0, 1.0), 1 / 2.2))
 
 
-def colour_causes(ref, cand, ids, *, noise_floor: float = 0.0, names=None) -> dict:
+def _transfer_messages(linear_file: bool) -> tuple[str, str]:
+    """What to say when a 2.2 power or the sRGB curve explains the error: the ``--transfer``
+    to score an 8-bit file with, or, for a linear file (an EXR, which takes no
+    ``--transfer``), that the engine wrote display-encoded values into it."""
+    if linear_file:
+        return (
+            "colour encoded with a 2.2 power written into a linear file: write linear radiance "
+            "(an EXR takes no --transfer)",
+            "sRGB-encoded colour written into a linear file: write linear radiance (an EXR "
+            "takes no --transfer)",
+        )
+    return (
+        "8-bit colour encoded with a 2.2 power, decoded as sRGB (score with --transfer gamma2.2)",
+        "sRGB-encoded colour decoded with a 2.2 power (score with --transfer srgb)",
+    )
+
+
+def colour_causes(
+    ref, cand, ids, *, noise_floor: float = 0.0, names=None, linear_file: bool = False
+) -> dict:
     """Which gap explains the colour error of ``cand`` against ``ref`` (both ``(H, W, 3)``
     linear; ``ids`` the reference's ``id``; ``noise_floor`` the relative error an exact
-    candidate scores).
+    candidate scores; ``linear_file``: the candidate came from a linear file such as an EXR,
+    so a transfer-curve cause names the file's content, not a ``--transfer``).
 
     Returns ``{"error", "tried": {cause: error left}, "gain", "material_gains", "shift":
     {"dx", "dy", "magnitude"}, "causes": [{"cause", "error", "message"}]}``, the causes
@@ -153,18 +173,10 @@ def colour_causes(ref, cand, ids, *, noise_floor: float = 0.0, names=None) -> di
             if v is not None
         )
         msg["per-material gain"] = f"a gain per material (shading model or units): {named}"
+    gamma_text, srgb_text = _transfer_messages(linear_file)
     for name, fn, text in (
-        (
-            "gamma 2.2 read as sRGB",
-            _gamma22_as_srgb,
-            "8-bit colour encoded with a 2.2 power, decoded as sRGB (score with --transfer "
-            "gamma2.2)",
-        ),
-        (
-            "sRGB read as gamma 2.2",
-            _srgb_as_gamma22,
-            "sRGB-encoded colour decoded with a 2.2 power (score with --transfer srgb)",
-        ),
+        ("gamma 2.2 read as sRGB", _gamma22_as_srgb, gamma_text),
+        ("sRGB read as gamma 2.2", _srgb_as_gamma22, srgb_text),
     ):
         tried[name] = _rel_error(ref, fn(cand), valid)
         msg[name] = text

@@ -62,6 +62,10 @@ class LoadedScene:
     #: shaded with the glTF BRDF of :mod:`scenes.shading.pbr`; None: the Lambert/Blinn-Phong
     #: of scenes.shading.phong.
     pbr: object = field(default=None, repr=False, compare=False)
+    #: Alpha-tested shapes (glTF MASK, Mitsuba mask BSDFs):
+    #: :class:`scenes.shading.alpha.AlphaTable`, or None when every shape is opaque. The
+    #: intersection engine (:mod:`scenes.backend.alpha_hit`) cuts them out for every ray.
+    alpha: object = field(default=None, repr=False, compare=False)
     #: Per-scene memo caches of derived data (shape tables, occluder triangles, tie groups),
     #: keyed by their owner's name. A declared field, so ``dataclasses.replace`` carries it:
     #: only data that depends on the scene's geometry (not its camera or light) belongs here.

@@ -28,6 +28,7 @@ from .mitsuba_dict import hash_obj, to_mitsuba_dict, xml_dependencies
 from .mitsuba_scene import camera_from_sensor, lights_of
 from .object_paths import check_motion
 from .paths import CAMERA_PATHS
+from .shading.alpha_mitsuba import alpha_table_from_bsdfs
 from .shading.phong import Specular
 
 __all__ = ["LoadOptions", "describe", "load", "scene_names", "with_load_options"]
@@ -163,6 +164,7 @@ def load(scene: str | Path, **options) -> LoadedScene:
         object_motion=src.motion,
         scene_dict=src.scene_dict,
         pbr=None if gl is None else gl.pbr([s.id() for s in mi_scene.shapes()]),
+        alpha=_alpha(mi, mi_scene, gl),
     )
     frame, n_frames = int(o.frame), int(o.n_frames)
     loaded = _placed(loaded, o.camera_file, o.camera_path, frame, n_frames)
@@ -173,6 +175,14 @@ def load(scene: str | Path, **options) -> LoadedScene:
             raise SceneError(f"scene {name!r}: {exc}") from None
         loaded = loaded.with_light_frame(frame, path=o.light_path, n_frames=n_frames)
     return loaded
+
+
+def _alpha(mi, mi_scene, gl):
+    """The alpha-tested shapes of the scene: glTF MASK materials, or Mitsuba ``mask`` BSDFs
+    (alpha test at 0.5; :mod:`scenes.shading.alpha_mitsuba`); None when there are none."""
+    if gl is not None:
+        return gl.alpha([s.id() for s in mi_scene.shapes()])
+    return alpha_table_from_bsdfs(mi, mi_scene)
 
 
 @dataclass

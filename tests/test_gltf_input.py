@@ -146,8 +146,6 @@ def _break(doc, what: str):
     mat = doc.materials[0]
     if what == "mode":
         prim.mode = 1
-    elif what == "mask":
-        mat.alphaMode = "MASK"
     elif what == "blend":
         mat.alphaMode = "BLEND"
     elif what == "extension":
@@ -172,8 +170,7 @@ def _break(doc, what: str):
     "what, message",
     [
         ("mode", "primitive mode LINES"),
-        ("mask", "alphaMode MASK"),
-        ("blend", "alphaMode BLEND"),
+        ("blend", "alphaMode BLEND; only OPAQUE and MASK are supported"),
         ("extension", "extension KHR_materials_clearcoat is not supported"),
         ("texcoord", "TEXCOORD_1"),
         ("camera", "no camera node"),

@@ -56,3 +56,25 @@ def test_flicker_scene_switches_the_light_off_and_on():
         f = build_frame(sc.with_frame(k, n_frames=FLICKER_ON + 1), k, None)
         lit.append(f.noisy[f.receiver].mean())
     assert lit[0] > 0.5 and lit[1] == 0.0 and lit[2] == 0.0 and lit[3] > 0.5
+
+
+@pytest.mark.parametrize(
+    "technique,denoiser", [("rtshadows-ffx", "ffx"), ("rtshadows-sigma", "sigma")]
+)
+def test_an_integration_that_passes_the_noisy_input_through_fails_the_recommended_gate(
+    technique, denoiser
+):
+    """The silent failure users report (nvpro-samples/vk_denoise_nrd issue 1): the "denoised"
+    output is the one-ray input. Scored against the claimed denoiser's model with the
+    conformance metrics of ``score --expect``, it fails the recommended gate; the model's own
+    output passes it."""
+    from raster_oracle.oracle.studies.detection import conformance_values, gate_fails
+
+    sc = load("occluder-rect", width=W, height=H, n_frames=4).with_frame(3, n_frames=4)
+    model._STATES.clear()
+    res = model.make_runner(technique, denoiser)(sc)
+    claimed = res.outputs["soft_visibility"]
+    recv = build_frame(sc, 3, None).receiver
+    passthrough = conformance_values(claimed, res.outputs["noisy"], recv)
+    assert gate_fails(passthrough)
+    assert gate_fails(conformance_values(claimed, claimed, recv)) == []

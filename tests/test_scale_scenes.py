@@ -119,7 +119,7 @@ def test_layered_boundaries_match_the_polygon_path(name, monkeypatch):
     tset = ec.scene_triangle_set(loaded)
     fast = ec.exact_coverage_of(loaded.camera, tset, centre, grid_offset=(0.25, -0.5))
     assert fast.stats["method"] == "layered"
-    monkeypatch.setattr(ec, "_layered", lambda *a: None)
+    monkeypatch.setattr(ec, "layered_coverage", lambda *a: None)
     slow = ec.exact_coverage_of(loaded.camera, tset, centre, grid_offset=(0.25, -0.5))
     assert slow.stats["method"] == "polygons"
     assert np.abs(fast.coverage - slow.coverage).max() < 1e-9

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ...scenes.base.files import staged_folder
@@ -157,8 +156,9 @@ def cmd_score(args) -> int:
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
     from ..scoring.output import stale_files
-    from ..scoring.request import score_to_folder
+    from ..scoring.request import ScoreRequest
     from ..scoring.result import ScoreError
+    from ..scoring.to_folder import score_to_folder
     from .score_inputs import candidate_inputs
 
     gates = parse_all_gates(args)
@@ -210,25 +210,30 @@ def cmd_score(args) -> int:
             "disocclusion": args.candidate_disocclusion,
         },
     )
+    if args.technique:
+        request = ScoreRequest.for_model(
+            loaded, args.technique, params, channel=args.channel, options=options, cache=cache
+        )
+    else:
+        request = ScoreRequest.for_files(
+            loaded,
+            args.candidate,
+            channel=args.channel,
+            layout=layout,
+            options=options,
+            cache=cache,
+        )
     # an earlier score's files (its record lists them) go when this one's are moved in
     earlier = tuple(p.name for p in stale_files(args.out, []))
     with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
-        verdict = score_to_folder(
-            loaded,
+        verdict, record = score_to_folder(
+            request,
             out=out,
-            technique=args.technique,
-            params=params,
-            candidate=args.candidate,
-            channel=args.channel,
-            options=options,
-            cache=cache,
             gates=gates,
             baseline=baseline,
             baseline_source=str(args.baseline),
-            layout=layout,
             baseline_options=baseline_options(args).for_gates(gates),
         )
-        record = json.loads((out / "metrics.json").read_text())
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
     write_outputs(args, [verdict], records=[record], report=args.out / "report.html")

@@ -17,7 +17,9 @@ def add_parsers(sub) -> None:
     """Add ``bench``, ``aa-memory``, ``converge``, ``extremes``, ``claims`` and
     ``soft-shadows`` to ``sub``."""
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
-    p.add_argument("what", choices=["oracle", "models", "scale"], help="what to benchmark")
+    p.add_argument(
+        "what", choices=["oracle", "models", "scale", "detection"], help="what to benchmark"
+    )
     p.add_argument("--width", type=A.positive_int, default=None, help="default 1920 (scale 640)")
     p.add_argument("--height", type=A.positive_int, default=None, help="default 1080 (scale 360)")
     p.add_argument("--spp", type=A.positive_int, default=None, help="default 32 (scale 16)")
@@ -35,6 +37,16 @@ def add_parsers(sub) -> None:
     A.add_exact_budget_arg(p)
     p.add_argument(
         "--quiet", action="store_true", help="no progress bar, no profile tables on stderr"
+    )
+    for flag, text in (
+        ("--scenes", "detection: comma-separated scenes (default plate,city,meadow:n=100000)"),
+        ("--screens", "detection: comma-separated WxH (default 320x180,1280x720,1920x1080)"),
+        ("--maps", "detection: comma-separated map sizes (default 1024,2048,4096)"),
+        ("--faults", "detection: comma-separated faults (default every one)"),
+    ):
+        p.add_argument(flag, default=None, help=text)
+    p.add_argument(
+        "--out", type=A.path, default=None, help="detection: folder for detection.json and .md"
     )
 
     p = sub.add_parser(
@@ -84,13 +96,14 @@ def add_parsers(sub) -> None:
 
 
 def cmd_bench(args) -> int:
-    from ..studies.bench import (
-        bench_models,
-        bench_oracle,
-        models_profile_lines,
-        oracle_profile_lines,
-    )
+    from ..studies.bench import bench_oracle, oracle_profile_lines
+    from ..studies.bench_models import bench_models, models_profile_lines
 
+    if args.what == "detection":
+        return _bench_detection(args)
+    given = [f for f in ("scenes", "screens", "maps", "faults", "out") if getattr(args, f)]
+    if given:
+        raise A.CliError(f"bench {args.what}: --{given[0]} applies to 'bench detection' only")
     if args.what == "scale":
         return _bench_scale(args)
     if args.sizes is not None:
@@ -111,6 +124,60 @@ def cmd_bench(args) -> int:
     if not args.quiet:  # where the time goes, for a reader (the JSON holds it all)
         lines = models_profile_lines if args.what == "models" else oracle_profile_lines
         print("\n".join(lines(figures)), file=sys.stderr)
+    return 0
+
+
+def _detection_grid(args) -> dict:
+    """The ``bench detection`` grid from its options (defaults: the published table's)."""
+    from ..studies import detection as D
+
+    screens = D.DEFAULT_SIZES
+    if args.screens is not None:
+        screens = []
+        for text in A.names(args.screens):
+            w, x, h = text.partition("x")
+            if not (x and w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
+                raise A.CliError(f"bench detection: --screens expects WxH, got {text!r}")
+            screens.append((int(w), int(h)))
+    maps = D.DEFAULT_MAPS
+    if args.maps is not None:
+        if not all(t.isdigit() and 8 <= int(t) <= 16384 for t in A.names(args.maps)):
+            raise A.CliError(f"bench detection: --maps expects sizes 8..16384, got {args.maps!r}")
+        maps = tuple(int(t) for t in A.names(args.maps))
+    faults = None
+    if args.faults is not None:
+        faults = A.names(args.faults)
+        unknown = [f for f in faults if f not in D.FAULTS]
+        if unknown:
+            raise A.CliError(
+                f"bench detection: unknown fault(s) {', '.join(unknown)}; choose from "
+                f"{', '.join(D.FAULTS)}"
+            )
+    names = tuple(A.names(args.scenes)) if args.scenes is not None else D.DEFAULT_SCENES
+    if not (names and screens and maps):
+        raise A.CliError("bench detection: --scenes, --screens and --maps need a value each")
+    return {"scene_names": names, "sizes": tuple(screens), "maps": maps, "faults": faults}
+
+
+def _bench_detection(args) -> int:
+    """``bench detection``: the detection-power table (JSON summary on stdout, the rows and
+    a Markdown table in ``--out``)."""
+    from ...scenes import SceneError
+    from ...scenes.base.files import atomic_write_bytes, atomic_write_json
+    from ..studies import detection as D
+
+    grid = _detection_grid(args)
+    log = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        record = D.run_detection(**grid, log=log)
+    except SceneError as exc:
+        raise A.CliError(f"bench detection: {exc}") from None
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(args.out / "detection.json", record)
+        text = D.markdown_summary(record) + "\n" + D.markdown_table(record)
+        atomic_write_bytes(args.out / "detection.md", text.encode())
+    print(json.dumps({"gate": record["gate"], "summary": record["summary"]}, indent=2))
     return 0
 
 

@@ -63,6 +63,7 @@ def tangent32_channel(loaded) -> np.ndarray:
     mi = backend.mitsuba()
     import drjit as dr
 
+    from ...scenes.backend.alpha_hit import closest_hit_alpha, loaded_alpha
     from ...scenes.backend.raycast import camera_rays_dr, occluded_from_dr
     from ...scenes.geometry.tangent32 import tangent_derivatives_dr, tangent_offsets
     from ...scenes.shading.phong import facing, receiver_mask
@@ -74,6 +75,7 @@ def tangent32_channel(loaded) -> np.ndarray:
     out = np.zeros(npix, dtype=np.float64)
     per_chunk = max(1, settings.SAMPLES_PER_CHUNK // k_n)
     light = loaded.light
+    alpha = loaded_alpha(loaded)  # alpha-tested shapes: cut out (None: plain queries)
     for start in range(0, npix, per_chunk):
         stop = min(npix, start + per_chunk)
         idx = dr.arange(mi.UInt32, (stop - start) * k_n)
@@ -82,7 +84,9 @@ def tangent32_channel(loaded) -> np.ndarray:
         x = mi.Float(pix % w) + 0.5
         y = mi.Float(pix // w) + 0.5
         ray = camera_rays_dr(loaded.camera, x, y)
-        si = loaded.mi_scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True)
+        si, _, _ = closest_hit_alpha(
+            loaded.mi_scene, ray, alpha, flags=mi.RayFlags.All, coherent=True
+        )
         valid = si.is_valid()
         n = facing(si.sh_frame.n, -ray.d)
         dpdx, dpdy = tangent_derivatives_dr(loaded.camera, x, y, si.p, n)
@@ -91,7 +95,9 @@ def tangent32_channel(loaded) -> np.ndarray:
         q = si.p + dpdx * a + dpdy * b
         wl, _ = light.to_light(q)
         candidate = receiver_mask(valid=valid, cos_l=dr.dot(n, wl), to_light=wl, light=light)
-        blocked = occluded_from_dr(loaded.mi_scene, light, q, si.n, wl, si.shape, candidate)
+        blocked = occluded_from_dr(
+            loaded.mi_scene, light, q, si.n, wl, si.shape, candidate, alpha=alpha
+        )
         lit = dr.select(valid, dr.select(candidate & ~blocked, 1.0, 0.0), 1.0)
         total = dr.block_reduce(dr.ReduceOp.Add, lit, k_n, mode="evaluated")
         dr.eval(total)

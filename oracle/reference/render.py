@@ -385,6 +385,8 @@ def render_reference(
         channels.update(centre)
     stats = _stats(settings, acc, channels, (primary, shadow), wall, passes, (w, h))
     stats.update(_area_stats(loaded, acc))
+    if getattr(loaded, "alpha", None) is not None:  # glTF MASK: what every ray cut out
+        stats["alpha_tested"] = _alpha_record(loaded)
     if "coverage_exact" in groups:
         cov = acc.groups.get("coverage")
         with maybe_phase(phases, "coverage_exact"):
@@ -396,6 +398,21 @@ def render_reference(
             )
         channels.update(exact)
     return channels, stats
+
+
+def _alpha_record(loaded) -> dict:
+    """The alpha-tested shapes of ``loaded`` (reference.json): the rule and each mask."""
+    table = loaded.alpha
+    return {
+        "rule": "kept where alpha >= cutoff (glTF 2.0 3.9.6); alpha = baseColorFactor.a x "
+        "base colour texture alpha (base level, the sampler's magnification filter and wrap "
+        "modes) x vertex alpha; rays go on through cut-out points (scenes.backend.alpha_hit)",
+        "shapes": {
+            loaded.shape_names[i]: table.masks[m].to_json()
+            for i, m in enumerate(table.shape_mask)
+            if m >= 0
+        },
+    }
 
 
 def _area_stats(loaded, acc: Accumulators) -> dict:

@@ -40,6 +40,7 @@ import numpy as np
 
 from ...metrics.stats import binomial_stderr_floor
 from ...scenes import backend
+from ...scenes.backend.alpha_hit import loaded_alpha
 from ...scenes.backend.raycast import occluded_segment_dr
 from ...scenes.shading.phong import shade
 from .group import SampledGroup, mean_variance, sample_stderr, stderr_summary
@@ -174,7 +175,15 @@ def soft_samples(loaded, res: dict, pix, sample, seed_key, *, color: bool) -> di
     # light's rim or of a planar light seen at a grazing angle err by more than any margin):
     # blocked rays are traced again, ignoring the light
     blocked = occluded_segment_dr(
-        loaded.mi_scene, p, ng, shape, wl, dist, reach, light_shape=_light_shape(loaded)
+        loaded.mi_scene,
+        p,
+        ng,
+        shape,
+        wl,
+        dist,
+        reach,
+        light_shape=_light_shape(loaded),
+        alpha=loaded_alpha(loaded),  # alpha-tested casters block where their test keeps them
     )
     lit = reach & ~blocked
     weight = dr.select(reach, cos_r * w, 0.0)

@@ -83,15 +83,15 @@ def _frame_values(model, cand, ref, *, kind, receivers, ppd, exposure) -> dict:
 
 
 def add_conformance(
-    result, scenes_k, expect: str, *, kind: str, ppd: float, gate_frames=None
+    result, scenes_k, expect: str, *, kind: str, ppd: float, exposure, into: dict, gate_frames=None
 ) -> list[str]:
     """Run the claimed technique's model on every frame scene of ``scenes_k`` and add the
     conformance metrics to each frame's metrics and (their mean over the judged frames) to
-    the record, with ``conformance`` (technique, params, per-frame shift ``[dx, dy]``).
+    ``into`` (the record's sections), with ``conformance`` (technique, params, per-frame
+    shift ``[dx, dy]``); ``exposure``: the score's tone mapping (colour).
     Returns a note naming the displacement when the edges moved by
     :data:`MIN_DISPLACEMENT_PX` or more."""
     technique, params = parse_expect(expect, kind=kind)
-    exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops")
     per_frame = []
     for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
         res = raster_models.run(technique, frame_scene, **params)
@@ -119,11 +119,8 @@ def add_conformance(
     judged = per_frame[-(gate_frames or len(per_frame)) :]
     for key in CONFORMANCE_KEYS:
         vals = [v[key] for v in judged if v.get(key) is not None]
-        result.record[key] = float(np.mean(vals)) if vals else None
-    if result.record.get("frames"):
-        for rec, frame in zip(result.record["frames"], result.frames, strict=True):
-            rec.update({k: frame.metrics.get(k) for k in CONFORMANCE_KEYS})
-    result.record["conformance"] = {
+        into[key] = float(np.mean(vals)) if vals else None
+    into["conformance"] = {
         "technique": technique,
         "params": res.params,
         "shift_px": [v["conformance_shift"] for v in per_frame],
@@ -134,6 +131,6 @@ def add_conformance(
     return [
         f"conformance: the candidate's edges are displaced by ({dx:+.2f}, {dy:+.2f}) px from "
         f"{technique}'s model (misclassified "
-        f"{result.record.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
+        f"{into.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
         "a filter or lookup that reads the map off by a texel, or another projection"
     ]

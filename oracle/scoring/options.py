@@ -23,7 +23,7 @@ VISIBILITY_CONVENTIONS = ("1-is-lit", "1-is-shadowed")
 
 @dataclass(frozen=True)
 class ScoreOptions:
-    """Options of :func:`oracle.scoring.request.score_to_folder`.
+    """Options of a :class:`oracle.scoring.request.ScoreRequest`.
 
     spp, seed : the reference's samples per pixel and seed (the noise floor uses seed + 1).
     frames, camera_path : score that many frames of the camera path (None or 1: the
@@ -79,12 +79,6 @@ class ScoreOptions:
             )
         frames = self.frames if self.frames and self.frames > 1 else None
         return replace(self, frames=frames, flip_mode=str(self.flip_mode).upper())
-
-    def score_kwargs(self) -> dict:
-        """The keywords of :func:`oracle.scoring.score.score` these options set."""
-        keys = ("spp", "seed", "frames", "camera_path", "quiet", "flip_mode", "ppd", "gate_frames")
-        keys += ("exact_budget",)
-        return {k: getattr(self, k) for k in keys}
 
     def as_record(self) -> dict:
         return asdict(self)

@@ -61,20 +61,12 @@ class FoliageView:
 
 
 def foliage_view(width: int, height: int, *, n: int, seed: int = 1) -> FoliageView:
-    """The cards of ``alpha-foliage:n=N`` (the same geometry, texture alpha as its PNG stores
-    it, REPEAT, LINEAR) as a Mitsuba scene, without the glTF round trip."""
-    import mitsuba as mi
+    """The built-in ``alpha-foliage:n=N:seed=S`` as loaded (its GLB read back: the alpha its
+    PNG stores, REPEAT, LINEAR), at ``width`` x ``height``."""
+    from ... import scenes
 
-    verts, faces, _, uv, _ = af.leaf_cards(
-        np.random.default_rng([int(seed), 44]), int(n), aspect=width / height
-    )
-    scene = mi.load_dict({"type": "scene", "cards": uv_mesh(mi, "cards", verts, faces, uv)})
-    tex = AlphaTexture(af.texture_alpha(af.leaf_texture()), "repeat", "repeat", False)
-    table = AlphaTable([AlphaMask(texture=tex, cutoff=af.CUTOFF)], np.array([0]))
-    eye, target = af.camera_pose()
-    fov_x = math.degrees(2 * math.atan(math.tan(math.radians(af.FOV_Y / 2)) * width / height))
-    camera = Camera("perspective", look_at(eye, target), width, height, 0.05, af.FAR * 1.5, fov_x)
-    return FoliageView(scene, table, camera)
+    loaded = scenes.load(f"alpha-foliage:n={int(n)}:seed={int(seed)}", width=width, height=height)
+    return FoliageView(loaded.mi_scene, loaded.alpha, loaded.camera)
 
 
 def _rays(view: FoliageView, k: int):

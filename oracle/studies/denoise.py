@@ -10,7 +10,8 @@ every denoiser, so they see the same rays. Per denoiser and scene:
   (the flicker scenes: the frames before the light goes off), beside ``floor``, the truth's
   mean 95 % half-interval there;
 - ``lag_off`` / ``lag_on`` (flicker scenes): :func:`metrics.denoise.event_lag` after the light
-  goes off and comes back on;
+  goes off (within the frames it stays off) and comes back on (judged against the lit steady
+  error); the table writes ``>N`` when the error was not back within the N frames judged;
 - ``ghosting``: :func:`metrics.ghosting.ghosting`'s error on pixels disoccluded within the last
   4 frames (None where nothing is disoccluded);
 - ``penumbra_bias``: :func:`metrics.denoise.penumbra_width` of the last frame minus the
@@ -89,7 +90,10 @@ def _scores(seq: dict, name: str, d: str) -> dict:
         "floor": float(floor[steady].mean()),
         "errors": err.tolist(),
         "floors": floor.tolist(),
-        "lag_off": event_lag(err, floor, event=FLICKER_OFF) if flick else None,
+        # the light is off for frames FLICKER_OFF .. FLICKER_ON - 1 only
+        "lag_off": event_lag(err[:FLICKER_ON], floor[:FLICKER_ON], event=FLICKER_OFF)
+        if flick
+        else None,
         "lag_on": event_lag(err, floor, event=FLICKER_ON, steady=lit) if flick else None,
         "ghosting": g["ghosting_error"],
         "penumbra_bias": None if w_c is None or w_t is None else w_c - w_t,
@@ -115,6 +119,11 @@ def _fmt(v, spec):
     return "-" if v is None else format(v, spec)
 
 
+def _lag(v, frames: int) -> str:
+    """A lag, or ``>N`` when the error was not back within the ``frames`` judged."""
+    return f">{frames - 1}" if v is None else str(v)
+
+
 def denoise_table(result: dict) -> str:
     """The Markdown table of docs/research.md: one row per scene and denoiser."""
     rows = [
@@ -124,11 +133,11 @@ def denoise_table(result: dict) -> str:
     ]
     for name, per in result["scores"].items():
         for d, r in per.items():
-            lag = (
-                "-"
-                if r["lag_off"] is None and r["lag_on"] is None
-                else (f"{_fmt(r['lag_off'], 'd')} / {_fmt(r['lag_on'], 'd')}")
-            )
+            lag = "-"
+            if name.startswith("flicker"):
+                n_on = result["settings"]["frames"] - FLICKER_ON
+                off = _lag(r["lag_off"], FLICKER_ON - FLICKER_OFF)
+                lag = f"{off} / {_lag(r['lag_on'], n_on)}"
             rows.append(
                 f"| {name} | {d} | {r['error']:.4f} ({r['floor']:.4f}) | {lag} | "
                 f"{_fmt(r['ghosting'], '.4f')} | {_fmt(r['penumbra_bias'], '+.2f')} | "

@@ -46,6 +46,7 @@ __all__ = [
     "RECOMMENDED_GATE",
     "conformance_values",
     "gate_fails",
+    "markdown_summary",
     "markdown_table",
     "run_cell",
     "run_detection",
@@ -260,6 +261,28 @@ def summarize(rows: list[dict], gate: dict | None = None) -> dict:
 
 def _fmt(v: float) -> str:
     return f"{v:.4f}" if abs(v) >= 1e-4 or v == 0 else f"{v:.1e}"
+
+
+def markdown_summary(record: dict, gate: dict | None = None) -> str:
+    """One line per fault: for each scene, the cells where the gate caught it out of those
+    where it had an effect, and the metric that caught it with the smallest margin (faulty
+    value / limit) over its cells."""
+    gate = RECOMMENDED_GATE if gate is None else gate
+    rows = record["rows"]
+    scene_names = list(dict.fromkeys(r["scene"] for r in rows))
+    head = "| fault | " + " | ".join(f"`{n}`" for n in scene_names) + " |\n"
+    head += "| --- |" + " --- |" * len(scene_names) + "\n"
+    lines = []
+    for fault in dict.fromkeys(r["fault"] for r in rows):
+        cells = []
+        for name in scene_names:
+            mine = [r for r in rows if r["fault"] == fault and r["scene"] == name and r["effect"]]
+            caught = [r for r in mine if gate_fails(r["faulty"], gate)]
+            best = [max(r["faulty"][k] / lim for k, lim in gate.items()) for r in caught]
+            low = f" (weakest {min(best):.2g}x its limit)" if best else ""
+            cells.append(f"{len(caught)}/{len(mine)}{low}")
+        lines.append(f"| {fault} | " + " | ".join(cells) + " |")
+    return head + "\n".join(lines) + "\n"
 
 
 def markdown_table(record: dict) -> str:

@@ -125,6 +125,16 @@ class CommonParams:
         "(three.js's default for single-sided glTF materials)",
         choices=("both", "front", "back"),
     )
+    caster_alpha: str = param(
+        "test",
+        source="Filament surface_depth_main.fs:35-40 (google/filament 27de9fb) discards where "
+        "alpha < maskThreshold in the depth pass; ignore: the opaque-quad shadows of three.js "
+        "issues 24995 (map alpha, r146), 30462 (alphaToCoverage) and 31802 (WebGPURenderer)",
+        help="alpha-tested casters (glTF MASK): test (the depth pass discards where the "
+        "alpha test fails, at the texel centre, on the texture's base level) or ignore (the "
+        "card casts its whole quad)",
+        choices=("test", "ignore"),
+    )
     lookup_offset: tuple = param(
         (0.0, 0.0),
         source="raster-oracle default (0: texel centres at (i + 0.5) / R; D3D9's texel-to-"

@@ -24,7 +24,7 @@ from .records import Setup
 from .render import render_maps
 from .shade import shade
 
-__all__ = ["execute"]
+__all__ = ["engine_conventions", "execute"]
 
 
 def _cost(setup: Setup, maps, params, summary) -> dict:
@@ -75,7 +75,7 @@ def _cost(setup: Setup, maps, params, summary) -> dict:
     }
 
 
-def _engine_conventions(technique: str, scene, gbuf, setup: Setup, params):
+def engine_conventions(technique: str, scene, gbuf, setup: Setup, params):
     """The G-buffer and set-up with the engine conventions of ``params`` applied: the
     engine's own light matrix (``light_matrix``) in place of the fitted map, and the wound
     vertex normal (``normal_offset_direction="vertex"``) as the normal-offset direction."""
@@ -106,8 +106,8 @@ def _engine_conventions(technique: str, scene, gbuf, setup: Setup, params):
 
 def execute(technique: str, scene, gbuf, setup: Setup, params, params_record: dict, t0: float):
     """Render, shade and package a :class:`ModelResult` (engine conventions applied first:
-    :func:`_engine_conventions`)."""
-    gbuf, setup = _engine_conventions(technique, scene, gbuf, setup, params)
+    :func:`engine_conventions`)."""
+    gbuf, setup = engine_conventions(technique, scene, gbuf, setup, params)
     maps = render_maps(scene, setup, params)
     outputs, summary = shade(gbuf, setup, maps, params)
     diagnostics = dict(setup.diagnostics)

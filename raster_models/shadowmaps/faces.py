@@ -5,6 +5,10 @@
   the light: ``n . d < 0`` for a ray travelling from the light) or ``back`` (the opposite
   side, three.js's ``shadowSide`` default for single-sided materials). Culled hits are
   stepped over, a layer at a time, as a rasterizer with face culling never sees them.
+- Alpha-tested casters (glTF ``MASK``): with ``alpha="test"`` a hit the alpha test cuts out
+  (:mod:`scenes.backend.alpha_hit`, the truth's own test at the texel centre's hit) is
+  stepped over as a culled one; ``"ignore"`` keeps it (the opaque-quad shadow of engines
+  whose depth pass drops the alpha test).
 - :func:`wound_normals`: the visible surface's normal as its triangle is wound (not turned
   towards the camera), the direction an engine that offsets along the vertex normal uses
   (three.js ``shadowmap_vertex``): on the back of a double-sided surface it points away
@@ -16,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...scenes import backend
+from ...scenes.backend.alpha_hit import closest_hit_alpha, loaded_alpha
 
 __all__ = ["CULL_LAYERS", "first_hit", "wound_normals"]
 
@@ -27,13 +32,19 @@ CULL_LAYERS = 64
 STEP_REL = 1e-6
 
 
-def first_hit(scene, ray, faces: str, *, normals: bool):
+def first_hit(scene, ray, faces: str, *, normals: bool, alpha: str = "test"):
     """``(valid, t, n)`` of the nearest kept hit of ``ray`` (a Mitsuba ``Ray3f`` whose
     ``maxt`` bounds the search): Dr.Jit mask, distance along the (unit) direction and the
     geometric normal (``None`` unless ``normals``; ``both`` faces: Mitsuba's own hit)."""
     mi = backend.mitsuba()
     import drjit as dr
 
+    cut = loaded_alpha(scene) if alpha == "test" else None
+    if faces == "both" and cut is not None:
+        si, _, _ = closest_hit_alpha(
+            scene.mi_scene, ray, cut, flags=mi.RayFlags.Minimal, coherent=True
+        )
+        return si.is_valid(), si.t, (si.n if normals else None)
     if faces == "both":
         if normals:
             si = scene.mi_scene.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
@@ -50,10 +61,13 @@ def first_hit(scene, ray, faces: str, *, normals: bool):
     for _ in range(CULL_LAYERS):
         r = mi.Ray3f(o + d * travelled, d)
         r.maxt = dr.maximum(maxt - travelled, 0.0)
-        si = scene.mi_scene.ray_intersect(r, mi.RayFlags.Minimal, active)
+        flags = mi.RayFlags.Minimal if cut is None else mi.RayFlags.UV
+        si = scene.mi_scene.ray_intersect(r, flags, active)
         hit = active & si.is_valid()
         front = dr.dot(si.n, d) < 0.0
         keep = hit & (front if faces == "front" else ~front)
+        if cut is not None:
+            keep &= cut.covered(si, keep)
         t_out = dr.select(keep, travelled + si.t, t_out)
         n_out = dr.select(keep, si.n, n_out)
         found |= keep

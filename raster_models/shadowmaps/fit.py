@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..light_frame import LightFrame, make_frame
+from .frustum import frustum_slice
 
-__all__ = ["aabb", "box_corners", "filter_kernel_texels", "light_frame_for"]
+__all__ = ["aabb", "box_corners", "filter_kernel_texels", "light_box", "light_frame_for"]
 
 
 def light_frame_for(light, camera, light_up: str, origin=(0.0, 0.0, 0.0)) -> LightFrame:
@@ -37,6 +38,23 @@ def aabb(frame: LightFrame, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     """Light-frame (min, max) of world points."""
     lc = frame.to_light(points)
     return lc.min(axis=0), lc.max(axis=0)
+
+
+def light_box(
+    frame: LightFrame, scene, camera, *, whole_scene: bool, precision, inverse
+) -> tuple[np.ndarray, np.ndarray]:
+    """Light-frame (min, max) of what one light box must hold: the scene's bounding box
+    (``whole_scene``) or the camera's view frustum from its near to its far plane (its
+    corners at the matrices' ``precision``, through the view-projection ``inverse`` a model
+    names; :func:`raster_models.shadowmaps.frustum.frustum_slice`)."""
+    if whole_scene:
+        lo, hi = scene.bounds()
+        pts = box_corners(lo, hi)
+    else:
+        pts = frustum_slice(
+            camera, camera.near, camera.far, precision=precision, inverse=inverse
+        ).astype(np.float64)
+    return aabb(frame, pts)
 
 
 def filter_kernel_texels(params) -> float:

@@ -34,6 +34,7 @@ def iter_grid(
     normals: bool = False,
     store: tuple[str, float] | None = None,
     faces: str = "both",
+    alpha: str = "test",
 ):
     """Cast one ray per texel centre of a ``resolution``-square map, in launches of
     :data:`GRID_CHUNK` texels, and yield ``(start, stop, chunk)`` per launch (flat texel
@@ -59,6 +60,8 @@ def iter_grid(
         instead of ``z``.
     faces : the faces the shadow pass keeps (:func:`.faces.first_hit`: ``both``, ``front``,
         ``back``).
+    alpha : ``test``: alpha-tested casters are cut out; ``ignore``: whole (see
+        :func:`.faces.first_hit`).
 
     ``chunk["z"]``: float64 normalized depth, unclamped, ``inf`` on a miss.
     """
@@ -98,7 +101,7 @@ def iter_grid(
             mi.Vector3f(mi.Float(d[0] * inv), mi.Float(d[1] * inv), mi.Float(d[2] * inv)),
         )
         ray.maxt = mi.Float(span_k * dnorm)
-        valid, th, hit_n = first_hit(scene, ray, faces, normals=normals)
+        valid, th, hit_n = first_hit(scene, ray, faces, normals=normals, alpha=alpha)
         dist = f64(dr.select(valid, th, 0.0))
         if depth[0] == "ortho":
             z = coef[0] + s * coef[1] + t * coef[2] + dist * coef[3]

@@ -106,7 +106,13 @@ def _render_one(scene, part: Partition, params, need_slope: bool) -> MapData:
     if bias is not None:
         # No per-texel bias: the texels are finished in the casting kernel (same bytes).
         launches = iter_grid(
-            scene, grid, r, depth, store=(params.format, bias), faces=params.caster_faces
+            scene,
+            grid,
+            r,
+            depth,
+            store=(params.format, bias),
+            faces=params.caster_faces,
+            alpha=params.caster_alpha,
         )
         if r * r <= GRID_CHUNK:
             # One launch: the map is a view of the kernel's output, which lookups reuse.
@@ -131,7 +137,15 @@ def _render_per_texel_bias(scene, proj, grid, depth, params, need_slope: bool):
     r = proj.resolution
     covered = 0
     stored = np.empty(r * r, dtype=np.float32)
-    chunks = iter_grid(scene, grid, r, depth, normals=need_slope, faces=params.caster_faces)
+    chunks = iter_grid(
+        scene,
+        grid,
+        r,
+        depth,
+        normals=need_slope,
+        faces=params.caster_faces,
+        alpha=params.caster_alpha,
+    )
     for start, stop, hits in chunks:
         z = hits["z"]
         hit = np.isfinite(z)

@@ -60,7 +60,7 @@ from ..light_frame import Projection
 from ..params import param
 from .common import CommonParams
 from .engine import execute
-from .fit import aabb, box_corners, light_frame_for
+from .fit import aabb, light_box, light_frame_for
 from .frustum import frustum_slice
 from .records import Partition, Setup
 
@@ -262,18 +262,14 @@ def _global_box(scene, camera, frame, p: SdsmParams):
     """The sample's global light box: the view frustum's extents in the light frame, or the
     scene's bounding box when partitions are quantized (App.cpp: fixed, so that quantized
     partitions do not move with the camera)."""
-    if p.quantize:
-        lo, hi = scene.bounds()
-        pts = box_corners(lo, hi)
-    else:
-        pts = frustum_slice(
-            camera,
-            camera.near,
-            camera.far,
-            precision=p.matrix_precision,
-            inverse=p.view_projection_inverse,
-        ).astype(np.float64)
-    bmin, bmax = aabb(frame, pts)
+    bmin, bmax = light_box(
+        frame,
+        scene,
+        camera,
+        whole_scene=p.quantize,
+        precision=p.matrix_precision,
+        inverse=p.view_projection_inverse,
+    )
     return bmin, np.maximum(bmax - bmin, 1e-12)
 
 

@@ -40,8 +40,7 @@ from ..light_frame import Projection, make_frame
 from ..params import param
 from .common import CommonParams
 from .engine import execute
-from .fit import aabb, box_corners, filter_kernel_texels, light_frame_for
-from .frustum import frustum_slice
+from .fit import box_corners, filter_kernel_texels, light_box, light_frame_for
 from .records import Partition, Setup
 
 __all__ = ["LIGHTS", "NAME", "ShadowMapParams", "build", "build_area", "run"]
@@ -169,18 +168,14 @@ def build(scene, gbuf, p: ShadowMapParams) -> Setup:
     diag: dict = {"light": light.to_json()}
     if light.kind == "directional":
         frame = light_frame_for(light, cam, p.light_up)
-        if p.fit == "scene":
-            lo, hi = scene.bounds()
-            pts = box_corners(lo, hi)
-        else:
-            pts = frustum_slice(
-                cam,
-                cam.near,
-                cam.far,
-                precision=p.matrix_precision,
-                inverse=p.view_projection_inverse,
-            ).astype(np.float64)
-        bmin, bmax = aabb(frame, pts)
+        bmin, bmax = light_box(
+            frame,
+            scene,
+            cam,
+            whole_scene=p.fit == "scene",
+            precision=p.matrix_precision,
+            inverse=p.view_projection_inverse,
+        )
         size = bmax - bmin
         pad = BOX_MARGIN * np.maximum(size, 1e-9)
         if p.fit == "frustum":

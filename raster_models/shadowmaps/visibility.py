@@ -18,7 +18,7 @@ from . import csm, sdsm, shadow_map
 from .render import render_maps
 from .shade import shade
 
-__all__ = ["SHADOW_TECHNIQUES", "supported_lights", "visibility_at"]
+__all__ = ["SHADOW_TECHNIQUES", "entry", "supported_lights", "visibility_at"]
 
 #: Technique name -> (module with ``build``, parameter dataclass, light kinds).
 _MODULES = {
@@ -31,7 +31,8 @@ _MODULES = {
 SHADOW_TECHNIQUES = tuple(_MODULES)
 
 
-def _entry(technique: str):
+def entry(technique: str):
+    """``(module with build, parameter dataclass, light kinds)`` of a technique."""
     if technique not in _MODULES:
         raise ModelError(
             f"unknown shadow-map technique {technique!r}; choose one of "
@@ -42,7 +43,7 @@ def _entry(technique: str):
 
 def supported_lights(technique: str) -> tuple[str, ...]:
     """Light kinds (``directional``, ``spot``, ``point``) a shadow-map technique supports."""
-    return _entry(technique)[2]
+    return entry(technique)[2]
 
 
 def visibility_at(
@@ -68,7 +69,7 @@ def visibility_at(
     ModelError
         Unknown technique, or a light kind the technique does not support.
     """
-    module, cls, lights = _entry(technique)
+    module, cls, lights = entry(technique)
     if scene.light.kind not in lights:
         raise ModelError(
             f"{technique} needs a {' or '.join(lights)} light; the scene's light is a "

@@ -34,6 +34,7 @@ __all__ = [
     "AlphaScene",
     "alpha_scene",
     "closest_hit_alpha",
+    "loaded_alpha",
     "occluded_alpha",
 ]
 
@@ -87,8 +88,10 @@ def alpha_scene(mi_scene, table: AlphaTable | None, memo: dict | None = None):
     whose results are unchanged). Cached in ``memo`` when given."""
     if table is None or not table.any:
         return None
-    if memo is not None and "alpha_scene" in memo:
-        return memo["alpha_scene"]
+    # keyed by the Mitsuba scene: a scene whose objects move is rebuilt per frame
+    cache = None if memo is None else memo.setdefault("alpha_scene", {})
+    if cache is not None and id(mi_scene) in cache and cache[id(mi_scene)][0] is mi_scene:
+        return cache[id(mi_scene)][1]
     import drjit as dr
     import mitsuba as mi
 
@@ -99,9 +102,16 @@ def alpha_scene(mi_scene, table: AlphaTable | None, memo: dict | None = None):
         any(m.vertex_alpha for m in table.masks),
         any(m.bsdf_opacity for m in table.masks),
     )
-    if memo is not None:
-        memo["alpha_scene"] = out
+    if cache is not None:
+        cache[id(mi_scene)] = (mi_scene, out)
     return out
+
+
+def loaded_alpha(loaded):
+    """The :class:`AlphaScene` of a loaded scene (its ``alpha`` table, when it has one; cached
+    in its ``memo``), or None."""
+    table = getattr(loaded, "alpha", None)
+    return alpha_scene(loaded.mi_scene, table, getattr(loaded, "memo", None))
 
 
 def _far_side(si, d, boost):

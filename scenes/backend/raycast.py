@@ -11,6 +11,11 @@ Two levels:
   chunked so memory stays bounded; models use these to sample where a technique samples
   (MSAA sample positions, shadow-map texel centres from the light, ...).
 
+**Alpha-tested shapes** (glTF ``MASK``, Mitsuba ``mask`` BSDFs; ``loaded.alpha``): every
+query here (primary rays, the hard and area-light shadow rays, :func:`intersect`) passes
+through the points their alpha test cuts out (:mod:`.alpha_hit`), so coverage, visibility,
+soft visibility and colour see the cut-out surface.
+
 **One Mitsuba scene per Dr.Jit kernel.** Every helper here traces ``loaded.mi_scene`` only
 (primary, shadow and self-hit rays of one scene may share a kernel). Code that also traces
 another ``mi.Scene`` (a sub-scene of some of the shapes, as ACAA's tie groups) must evaluate
@@ -27,6 +32,7 @@ from .. import backend
 from ..shading.materials import surface_dr
 from ..shading.pbr import shade_gltf
 from ..shading.phong import facing, receiver_mask, shade
+from .alpha_hit import closest_hit_alpha, loaded_alpha, occluded_alpha
 
 __all__ = [
     "CHUNK",
@@ -132,12 +138,28 @@ def shadow_ray_dr(light, p, ng, wl, offset=SHADOW_OFFSET):
 SELF_HIT_ROUNDS = 3
 
 
+def _test(scene, ray, active, alpha):
+    """``scene.ray_test``, through alpha-tested surfaces when ``alpha`` (an
+    :class:`.alpha_hit.AlphaScene`) is given."""
+    if alpha is None:
+        return scene.ray_test(ray, active)
+    return occluded_alpha(scene, ray, alpha, active=active)[0]
+
+
+def _closest(scene, ray, flags, coherent, active, alpha):
+    """``scene.ray_intersect``: the closest hit kept by the alpha test when ``alpha`` is
+    given (:func:`.alpha_hit.closest_hit_alpha`)."""
+    if alpha is None:
+        return scene.ray_intersect(ray, flags, coherent, active)
+    return closest_hit_alpha(scene, ray, alpha, flags=flags, coherent=coherent, active=active)[0]
+
+
 def _has_analytic_shapes(scene) -> bool:
     """Whether ``scene`` (a Mitsuba scene) holds a non-mesh (analytic) shape."""
     return any(not sh.is_mesh() for sh in scene.shapes())
 
 
-def occluded_from_dr(scene, light, p, ng, wl, shape, active):
+def occluded_from_dr(scene, light, p, ng, wl, shape, active, *, alpha=None):
     """True where the light is blocked from surface points ``p`` (geometric normal ``ng``,
     hit shape ``shape``: a Mitsuba ``ShapePtr``) in direction ``wl`` (Dr.Jit).
 
@@ -148,7 +170,9 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     (Mitsuba's cylinder intersection is less accurate than the offset: 30 % of the lit side
     of the `curved` scene's cylinder read as shadowed with the offset alone), and is skipped
     by resuming the ray from that hit. Rays leaving an analytic shape on its inner side
-    (inside a sphere or tube) keep the plain test: the far wall may shadow them.
+    (inside a sphere or tube) keep the plain test: the far wall may shadow them. With
+    ``alpha`` (:func:`.alpha_hit.loaded_alpha`), alpha-tested surfaces block only where
+    their alpha test keeps the point.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -157,11 +181,11 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     offset = dr.select(mesh, SHADOW_OFFSET_MESH, SHADOW_OFFSET)
     ray = shadow_ray_dr(light, p, ng, wl, offset)
     if not _has_analytic_shapes(scene):
-        return scene.ray_test(ray, active)
+        return _test(scene, ray, active, alpha)
     pending = active & ~mesh & (dr.dot(ng, wl) > 0.0)
-    blocked = scene.ray_test(ray, active & ~pending)
+    blocked = _test(scene, ray, active & ~pending, alpha)
     for _ in range(SELF_HIT_ROUNDS):
-        si = scene.ray_intersect(ray, mi.RayFlags.Minimal, False, pending)
+        si = _closest(scene, ray, mi.RayFlags.Minimal, False, pending, alpha)
         hit = pending & si.is_valid()
         own = hit & (si.shape == shape)
         blocked |= hit & ~own
@@ -170,7 +194,9 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active):
     return blocked
 
 
-def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None, recheck=None):
+def occluded_segment_dr(
+    scene, p, ng, shape, wl, dist, active, light_shape=None, recheck=None, *, alpha=None
+):
     """True where the segment from surface points ``p`` (geometric normal ``ng``, hit shape
     ``shape``) along unit directions ``wl`` to the points ``p + wl * dist`` (on an area
     light) is blocked (Dr.Jit).
@@ -184,7 +210,7 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None,
     so a margin alone would let the light shadow itself. The rays that need closest hits run
     in a symbolic loop (one intersection for most, a second after a spurious hit), not
     :data:`SELF_HIT_ROUNDS` unrolled intersections of every ray (which tripled the cost of an
-    area light's samples).
+    area light's samples). ``alpha``: as in :func:`occluded_from_dr`.
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -202,9 +228,9 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None,
         return mi.Ray3f(origin, to / length, length * (1.0 - 1e-5), 0.0, mi.Color0f())
 
     if light_shape is None and not _has_analytic_shapes(scene):
-        return scene.ray_test(ray_from(p), active)
+        return _test(scene, ray_from(p), active, alpha)
     pending = active & outward
-    blocked = scene.ray_test(ray_from(p), active & ~pending)
+    blocked = _test(scene, ray_from(p), active & ~pending, alpha)
     if light_shape is not None:  # blocked, perhaps by the light itself: look again
         light_ptr = mi.ShapePtr(light_shape)
         again = mi.Bool(blocked) if recheck is None else blocked & recheck
@@ -212,7 +238,7 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None,
         pending = pending | again
 
     def body(q, blocked, pending, rounds):
-        si = scene.ray_intersect(ray_from(q), mi.RayFlags.Minimal, False, pending)
+        si = _closest(scene, ray_from(q), mi.RayFlags.Minimal, False, pending, alpha)
         hit = pending & si.is_valid()
         if light_shape is not None:
             hit &= si.shape != light_ptr
@@ -228,10 +254,10 @@ def occluded_segment_dr(scene, p, ng, shape, wl, dist, active, light_shape=None,
     return blocked
 
 
-def shadow_occluded_dr(scene, light, si, wl, active):
+def shadow_occluded_dr(scene, light, si, wl, active, *, alpha=None):
     """True where the light is blocked from the surface interaction ``si`` (Dr.Jit): see
     :func:`occluded_from_dr`."""
-    return occluded_from_dr(scene, light, si.p, si.n, wl, si.shape, active)
+    return occluded_from_dr(scene, light, si.p, si.n, wl, si.shape, active, alpha=alpha)
 
 
 def primary_flags(mi):
@@ -269,14 +295,15 @@ def trace_film_dr(
     flags = primary_flags(mi)
     if pbr is not None and pbr.has_normal_textures:
         flags = mi.RayFlags.All  # dp/du: the normal texture's fallback tangent
-    si = scene.ray_intersect(ray, ray_flags=flags, coherent=True)
+    alpha = loaded_alpha(loaded)  # alpha-tested shapes (glTF MASK): cut out for every ray
+    si = _closest(scene, ray, flags, True, True, alpha)
     valid = si.is_valid()
     to_eye = -ray.d
     n = facing(si.sh_frame.n, to_eye)
     wl, dist = light.to_light(si.p)
     cos_l = dr.dot(n, wl)
     candidate = receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=light)
-    occluded_ = shadow_occluded_dr(scene, light, si, wl, candidate)
+    occluded_ = shadow_occluded_dr(scene, light, si, wl, candidate, alpha=alpha)
     lit = dr.select(valid, candidate & ~occluded_, True)
     fwd = [dr.opaque(mi.Float, float(c)) for c in camera.forward]  # opaque: kernel reuse
     pos = [dr.opaque(mi.Float, float(c)) for c in camera.position]
@@ -376,6 +403,7 @@ def intersect(loaded, origins: np.ndarray, directions: np.ndarray, *, tmax=None)
     d = np.asarray(directions, dtype=np.float32).reshape(-1, 3)
     tm = None if tmax is None else np.broadcast_to(np.asarray(tmax, np.float32), (len(o),))
     table = shape_table(mi, dr, loaded)
+    alpha = loaded_alpha(loaded)
     out: dict[str, list] = {"valid": [], "t": [], "position": [], "normal": [], "shape": []}
     for start in range(0, len(o), CHUNK):
         sl = slice(start, start + CHUNK)
@@ -385,7 +413,7 @@ def intersect(loaded, origins: np.ndarray, directions: np.ndarray, *, tmax=None)
         )
         if tm is not None:
             ray.maxt = mi.Float(np.ascontiguousarray(tm[sl]))
-        si = loaded.mi_scene.ray_intersect(ray)
+        si = _closest(loaded.mi_scene, ray, mi.RayFlags.All, False, True, alpha)
         valid = si.is_valid()
         shape = dr.select(
             valid, dr.gather(mi.Int32, table, dr.reinterpret_array(mi.UInt32, si.shape)), -1

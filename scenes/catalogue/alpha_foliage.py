@@ -33,12 +33,11 @@ The scene (GLB bytes, read by the glTF loader like ``pbr-foliage``):
 
 from __future__ import annotations
 
-import io
 import math
 
 import numpy as np
 
-from ..formats.gltf_write import GltfLight, GltfMesh, glb_bytes, light_matrix
+from ..formats.gltf_write import GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
 from .pbr_scenes import _camera, _srgb_encode
 
 __all__ = [
@@ -136,13 +135,7 @@ def leaf_texture(size: int = 256, *, leaves: int = 10, seed: int = 7) -> np.ndar
 
 def _png_rgba(rgba: np.ndarray) -> bytes:
     """An 8-bit RGBA PNG: RGB sRGB-encoded (a colour texture), alpha stored linear."""
-    from PIL import Image
-
-    enc = np.concatenate([_srgb_encode(rgba[..., :3]), rgba[..., 3:]], -1)
-    arr = np.clip(np.rint(enc * 255.0), 0, 255).astype(np.uint8)
-    buf = io.BytesIO()
-    Image.fromarray(arr, "RGBA").save(buf, format="PNG")
-    return buf.getvalue()
+    return png_bytes(np.concatenate([_srgb_encode(rgba[..., :3]), rgba[..., 3:]], -1))
 
 
 def leaf_cards(rng: np.random.Generator, n: int, *, aspect: float):

@@ -17,6 +17,7 @@ from ..base.memory import available_memory, gib
 from ..base.numbers import parse_int
 from . import (
     aa_scenes,
+    alpha_foliage,
     event_scenes,
     moving_scenes,
     pbr_scenes,
@@ -163,6 +164,27 @@ BUILTIN_SCENES.update(
                     "n", scale_scenes.CITY_FOLIAGE_N, 0, 10**8, _SIZE.format("leaves", 5000), 600
                 ),
                 SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the block; default 1"),
+            ),
+        ),
+        "alpha-foliage": BuiltinScene(
+            "alpha-foliage",
+            alpha_foliage.alpha_foliage,
+            "glTF: n alpha-tested (MASK) leaf cards in five distance bands 2-200 m, one column "
+            "each, under a sun (alpha-foliage:n=100000; alpha=0: the same cards opaque)",
+            320,
+            180,
+            kind="gltf",
+            params=(
+                SceneParam(
+                    "n",
+                    alpha_foliage.ALPHA_FOLIAGE_N,
+                    1,
+                    10**7,
+                    _SIZE.format("cards", alpha_foliage.ALPHA_FOLIAGE_N),
+                    2000,
+                ),
+                SceneParam("seed", 1, 0, 2**31 - 1, "random seed of the cards; default 1"),
+                SceneParam("alpha", 1, 0, 1, "1: MASK (alpha-tested); 0: OPAQUE; default 1"),
             ),
         ),
     }

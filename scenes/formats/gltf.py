@@ -20,7 +20,9 @@ of every light. What is read:
   -Z with +Y up; Mitsuba's look down +Z with +X left: ``to_world = node @ diag(-1, 1, -1, 1)``;
 - KHR_lights_punctual lights (a light travels along its node's -Z);
 - pbrMetallicRoughness factors and textures, emissive (and KHR_materials_emissive_strength),
-  normal textures. Occlusion textures scale ambient light only, which these scenes do not
+  normal textures; ``alphaMode`` MASK (the alpha test of :mod:`scenes.shading.alpha`, read
+  by :mod:`.gltf_alpha`: alpha-tested shapes are cut out for every ray). Occlusion
+  textures scale ambient light only, which these scenes do not
   have: they are read and have no effect.
 
 The document is read and checked by :mod:`.gltf_document`, its nodes, meshes, materials,
@@ -36,7 +38,7 @@ positions, light intensity, colour and range, camera ``yfov``, ``aspectRatio``, 
 hierarchy depth, mesh instances, vertices, triangles, image pixels, accessor bytes) are
 enforced, naming the one exceeded.
 
-Refused, with one line naming it: other primitive modes, ``alphaMode`` MASK or BLEND, vertex
+Refused, with one line naming it: other primitive modes, ``alphaMode`` BLEND, vertex
 colours, skins and morph targets, sparse accessors, texture coordinate sets other than 0,
 different wrap modes in s and t, and every extension but KHR_lights_punctual and
 KHR_materials_emissive_strength. Materials are shaded two-sided (back faces are not culled;
@@ -47,12 +49,13 @@ from __future__ import annotations
 
 import hashlib
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..shading.materials import PbrMaterial, PbrMaterials, diffuse
+from .gltf_alpha import alpha_table, read_alpha
 from .gltf_document import (
     LIMITS,
     GltfDocument,
@@ -108,6 +111,8 @@ class GltfInput:
     shape_materials: dict
     materials: list
     textures: list
+    #: per material slot: its alpha mask (glTF MASK, :mod:`.gltf_alpha`) or None (OPAQUE)
+    alpha_masks: list = field(default_factory=list)
 
     def lights(self, lights: list) -> list:
         """The loaded lights with their KHR_lights_punctual attenuation."""
@@ -117,6 +122,11 @@ class GltfInput:
         """The material table for shapes in loaded order."""
         table = np.array([self.shape_materials[n] for n in shape_names], dtype=np.int32)
         return PbrMaterials(list(self.materials), list(self.textures), table)
+
+    def alpha(self, shape_names: list[str]):
+        """The alpha-tested shapes' table (:class:`scenes.shading.alpha.AlphaTable`) for
+        shapes in loaded order, or None when no material is ``MASK``."""
+        return alpha_table(self.alpha_masks, self.shape_materials, shape_names)
 
 
 def _safe(text: str) -> str:
@@ -158,6 +168,7 @@ def _scene_input(d: GltfDocument, data: bytes, scene, *, width, height, camera, 
     nodes = walk_nodes(d)
     textures = Textures(d)
     materials: list[PbrMaterial] = []
+    alpha_masks: list = []
     mat_index: dict = {}
     raw: dict = {"type": "scene"}
     shape_materials, light_records, keys = {}, {}, set()
@@ -193,6 +204,7 @@ def _scene_input(d: GltfDocument, data: bytes, scene, *, width, height, camera, 
             if prim.material not in mat_index:
                 mat_index[prim.material] = len(materials)
                 materials.append(read_material(d, prim.material, textures))
+                alpha_masks.append(read_alpha(d, prim.material))
             mat = materials[mat_index[prim.material]]
             entry["bsdf"] = diffuse(mat.base_color)  # Mitsuba's view (the G-buffer's is ours)
             key = key_for(base if len(prims) == 1 else f"{base}_{p}")
@@ -242,6 +254,7 @@ def _scene_input(d: GltfDocument, data: bytes, scene, *, width, height, camera, 
         shape_materials=shape_materials,
         materials=materials,
         textures=textures.items,
+        alpha_masks=alpha_masks,
     )
 
 

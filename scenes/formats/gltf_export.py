@@ -5,8 +5,10 @@ normals, ``TEXCOORD_0`` and tangents), the camera of the export (the frame's vie
 film's aspect, glTF axes: ``node = to_world @ diag(-1, 1, -1, 1)``), every light as a
 KHR_lights_punctual light on a node whose -Z is the light's direction (colour already
 multiplied by the intensity, so ``intensity`` is 1), and the metallic-roughness materials with
-their textures (8-bit PNG; colour textures encoded back to sRGB). Loading the GLB gives the
-same colour truth as the scene it came from.
+their textures (8-bit PNG; colour textures encoded back to sRGB). Alpha-tested materials
+(``loaded.alpha``) are written ``MASK`` with their ``alphaCutoff`` and ``baseColorFactor``
+alpha, their base colour texture as RGBA with the alpha the truth tests (linear). Loading the
+GLB gives the same colour truth as the scene it came from.
 """
 
 from __future__ import annotations
@@ -34,10 +36,14 @@ def materials_record(loaded, shapes: dict) -> dict:
     from ..shading.pbr import SHADING_MODEL
 
     pbr = loaded.pbr
+    table = loaded.alpha
     out = {}
     for name, rec in shapes.items():
         mat = pbr.materials[int(pbr.shape_material[rec["id"]])]
         out[name] = {**rec, "albedo": list(mat.base_color), "pbr": mat.to_json()}
+        m = -1 if table is None else int(table.shape_mask[rec["id"]])
+        if m >= 0:  # glTF MASK: the alpha test the truth applies
+            out[name]["alpha"] = table.masks[m].to_json()
     return {
         "model": SHADING_MODEL,
         "brdf": "glTF 2.0 Appendix B: GGX D (alpha = roughness^2), height-correlated Smith V, "
@@ -106,12 +112,34 @@ def _camera(cam) -> GltfCamera:
     )
 
 
-def _texture_dicts(pbr):
+def _masks_by_material(loaded) -> dict:
+    """Material index -> its :class:`scenes.shading.alpha.AlphaMask` (alpha-tested
+    materials of ``loaded``, through the shapes that use them)."""
+    table, pbr = loaded.alpha, loaded.pbr
+    if table is None:
+        return {}
+    return {
+        int(pbr.shape_material[idx]): table.masks[m]
+        for idx, m in enumerate(table.shape_mask)
+        if m >= 0
+    }
+
+
+def _texture_dicts(pbr, masks: dict):
     images, textures, samplers = [], [], []
     wrap = {"repeat": 10497, "clamp": 33071, "mirror": 33648}
-    for tex in pbr.textures:
+    # a MASK material's base colour texture carries the alpha the truth tests
+    alpha = {
+        pbr.materials[k].base_color_texture: m.texture.alpha
+        for k, m in masks.items()
+        if m.texture is not None and pbr.materials[k].base_color_texture >= 0
+    }
+    for k, tex in enumerate(pbr.textures):
         img = tex.image[..., :3] if tex.image.shape[-1] >= 3 else np.repeat(tex.image, 3, -1)
-        images.append(png_bytes(_linear_to_srgb(img) if tex.srgb else img))
+        img = _linear_to_srgb(img) if tex.srgb else img
+        if k in alpha and alpha[k].shape == img.shape[:2]:
+            img = np.concatenate([img, alpha[k][..., None]], -1)
+        images.append(png_bytes(img))
         samplers.append(
             {
                 "magFilter": 9728 if tex.nearest else 9729,
@@ -123,9 +151,9 @@ def _texture_dicts(pbr):
     return images, textures, samplers
 
 
-def _material_dict(mat) -> dict:
+def _material_dict(mat, mask=None) -> dict:
     pbr = {
-        "baseColorFactor": [*mat.base_color, 1.0],
+        "baseColorFactor": [*mat.base_color, 1.0 if mask is None else float(mask.factor)],
         "metallicFactor": mat.metallic,
         "roughnessFactor": mat.roughness,
     }
@@ -140,6 +168,8 @@ def _material_dict(mat) -> dict:
         out["emissiveTexture"] = {"index": mat.emissive_texture}
     if mat.normal_texture >= 0:
         out["normalTexture"] = {"index": mat.normal_texture, "scale": mat.normal_scale}
+    if mask is not None:
+        out.update(alphaMode="MASK", alphaCutoff=float(mask.cutoff))
     return out
 
 
@@ -164,12 +194,13 @@ def scene_glb(loaded) -> bytes:
             if np.any(t3):
                 mesh.tangents = np.concatenate([t3, tw], axis=1)
         meshes.append(mesh)
-    images, textures, samplers = _texture_dicts(pbr)
+    masks = _masks_by_material(loaded)
+    images, textures, samplers = _texture_dicts(pbr, masks)
     return glb_bytes(
         camera=_camera(loaded.camera),
         lights=[_light(lt) for lt in loaded.lights],
         meshes=meshes,
-        materials=[_material_dict(m) for m in pbr.materials],
+        materials=[_material_dict(m, masks.get(k)) for k, m in enumerate(pbr.materials)],
         images=images,
         textures=textures,
         samplers=samplers,

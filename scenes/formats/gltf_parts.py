@@ -7,6 +7,7 @@
   and tangents);
 - :class:`Textures` and :func:`read_material`: metallic-roughness materials and their
   textures (:mod:`scenes.shading.materials`), sRGB colour textures decoded to linear;
+  ``alphaMode`` OPAQUE or MASK (whose alpha :mod:`.gltf_alpha` reads), BLEND refused;
 - :func:`camera_entry`: the camera as a Mitsuba sensor (glTF cameras look down -Z with +Y up;
   Mitsuba's down +Z with +X left);
 - :func:`light_entry`: a KHR_lights_punctual light as a Mitsuba emitter and its attenuation
@@ -24,6 +25,7 @@ import warnings
 import numpy as np
 
 from ..camera import look_at
+from ..shading.alpha import AlphaError, gltf_alpha_mode
 from ..shading.materials import PbrMaterial, Texture, srgb_to_linear
 from .gltf_document import LIMITS, GltfDocument, GltfError, as_index, as_number, as_numbers
 
@@ -129,8 +131,9 @@ def check_extensions(d: GltfDocument) -> None:
         )
 
 
-def _image(d: GltfDocument, index: int) -> np.ndarray:
-    """Image ``index`` as (H, W, 3) float64 values in [0, 1] (alpha dropped)."""
+def _image(d: GltfDocument, index: int, *, mode: str = "RGB") -> np.ndarray:
+    """Image ``index`` as (H, W, 3) float64 values in [0, 1] (``mode="RGBA"``: (H, W, 4),
+    alpha kept; an image without alpha has alpha 1)."""
     from PIL import Image
 
     img = d.doc.images[as_index(d, index, d.doc.images, "image")]
@@ -149,7 +152,7 @@ def _image(d: GltfDocument, index: int) -> np.ndarray:
                 w, h = im.size
                 if w * h > limit:
                     d.fail(f"image {index} is {w}x{h}, over the limit of {limit:,} pixels")
-                rgb = np.asarray(im.convert("RGB"), dtype=np.float64) / 255.0
+                rgb = np.asarray(im.convert(mode), dtype=np.float64) / 255.0
     except GltfError:
         raise
     except (Image.DecompressionBombWarning, Image.DecompressionBombError):
@@ -201,8 +204,10 @@ def read_material(d: GltfDocument, index: int | None, textures: Textures) -> Pbr
         return PbrMaterial(name="default")
     mat = d.doc.materials[as_index(d, index, d.doc.materials, "material")]
     label = f"material {index} ({mat.name or 'unnamed'})"
-    if (mat.alphaMode or "OPAQUE") != "OPAQUE":
-        d.fail(f"{label} has alphaMode {mat.alphaMode}; only OPAQUE is supported")
+    try:  # OPAQUE and MASK (scenes.formats.gltf_alpha); BLEND refused with one line
+        gltf_alpha_mode({"alphaMode": mat.alphaMode, "alphaCutoff": mat.alphaCutoff}, label=label)
+    except AlphaError as exc:
+        d.fail(str(exc))
     ext = dict(mat.extensions or {})
     es = ext.pop("KHR_materials_emissive_strength", {})
     strength = as_number(d, es.get("emissiveStrength", 1.0), f"{label} emissiveStrength", 0, 1e6)

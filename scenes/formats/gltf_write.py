@@ -125,13 +125,13 @@ def light_matrix(direction=None, position=(0.0, 0.0, 0.0)) -> np.ndarray:
 
 
 def png_bytes(values: np.ndarray) -> bytes:
-    """An 8-bit RGB PNG of ``values`` (H, W, 3) in [0, 1] (stored as given: encode sRGB
-    yourself for a colour texture)."""
+    """An 8-bit RGB PNG of ``values`` (H, W, 3) in [0, 1], or RGBA of (H, W, 4) (stored as
+    given: encode sRGB yourself for a colour texture; alpha is linear)."""
     from PIL import Image
 
     arr = np.clip(np.rint(np.asarray(values, dtype=np.float64) * 255.0), 0, 255).astype(np.uint8)
     buf = io.BytesIO()
-    Image.fromarray(arr, "RGB").save(buf, format="PNG")
+    Image.fromarray(arr, "RGBA" if arr.shape[-1] == 4 else "RGB").save(buf, format="PNG")
     return buf.getvalue()
 
 

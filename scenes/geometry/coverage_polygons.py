@@ -1,0 +1,256 @@
+"""The polygon path of exact coverage: each triangle's visible polygon is its projection
+less the union of what is in front of it (shapely 2, vectorised over all triangles and
+pairs), interpenetrating pairs split along their intersection line, ties and curved
+silhouettes turned into invalid pixels."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import shapely
+
+from .coverage_edges import convex_overlaps
+from .coverage_projection import (
+    AREA_MIN,
+    FILM_MARGIN,
+    QUERY_CHUNK,
+    chunked,
+    clip_plane,
+    nearness,
+    planes,
+    polygons_of,
+)
+from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area, touched_pixels
+
+__all__ = ["DEPTH_REL_TOL", "INVALID_AREA", "OVERLAP_SURE", "pair_order", "polygon_coverage"]
+
+#: Relative tolerance of the depth comparison of two planes at an overlap vertex: float64
+#: rounding of planes from float32 vertices is about 1e-16; contact lines (a box on the
+#: ground) meet at zero and must not read as interpenetration.
+DEPTH_REL_TOL = 1e-9
+#: Overlap area (px^2) above which the layered path takes an overlap's vertices from compiled
+#: convex clipping instead of the polygon boolean (below: touching edges, where rounding
+#: could leave a sliver the boolean does not have).
+OVERLAP_SURE = 1e-6
+#: A pixel is invalid where a not-exact region covers more than this area of it (px^2).
+INVALID_AREA = 1e-12
+
+
+def _classify_pairs(camera, polys, tri_idx, tset):
+    """Overlapping projected pairs: ``(front, back)`` index pairs (into ``polys``) where one
+    is in front over the whole overlap, and ``(a, b, overlap)`` where they interpenetrate,
+    tie (coplanar, of two shapes) or come within a curved shape's tessellation bound of each
+    other."""
+    tree = shapely.STRtree(polys)
+    a, b = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for start in range(0, len(polys), QUERY_CHUNK):  # chunks: a signal handler runs between
+        i, j = tree.query(polys[start : start + QUERY_CHUNK], predicate="intersects")
+        a.append(i + start)
+        b.append(j)
+    a, b = np.concatenate(a), np.concatenate(b)
+    keep = a < b
+    o = pair_order(camera, polys, tri_idx, tset, a[keep], b[keep])
+    a, b, over, a_front, b_front, cross, bad = o
+    n, c = planes(tset.tris[tri_idx])
+    a_near, b_near = _split_overlap(
+        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
+    )
+    back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
+    # what hides the back one: the overlap (inside the back polygon: unions stay local), or
+    # the front one's side of the intersection line
+    occluder = np.concatenate([over[a_front], over[b_front], a_near, b_near])
+    return back, occluder, (a[bad], b[bad], over[bad])
+
+
+def pair_order(camera, polys, tri_idx, tset, a, b, convex=None):
+    """Depth order of the candidate pairs ``(a, b)`` whose overlap has an area:
+    ``(a, b, overlap, a_front, b_front, cross, bad)`` (``cross``: planar triangles that
+    interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`).
+
+    ``convex``: :func:`convex_arrays` of ``polys``; given, the vertices of overlaps of more
+    than :data:`OVERLAP_SURE` px^2 come from :func:`convex_overlaps` (compiled, no polygon
+    boolean; the same points up to rounding) and ``overlap`` is None."""
+    if convex is None:
+        over = chunked(shapely.intersection, polys[a], polys[b])
+        big = shapely.area(over) > AREA_MIN
+        a, b, over = a[big], b[big], over[big]
+        xy, owner = shapely.get_coordinates(over, return_index=True)
+    else:
+        xy, owner, big = _overlap_vertices(convex, polys, a, b)
+        a, b, over = a[big], b[big], None
+    n, c = planes(tset.tris[tri_idx])
+    ta, tb = a[owner], b[owner]
+    qa = nearness(camera, xy[:, 0], xy[:, 1], n[ta], c[ta])
+    qb = nearness(camera, xy[:, 0], xy[:, 1], n[tb], c[tb])
+    # a curved shape's tessellation may lie `slack` from its surface: widen the tie band
+    slack = tset.slack[tri_idx]
+    if camera.kind == "perspective":
+        band = slack[ta] * qa * qa + slack[tb] * qb * qb
+    else:
+        band = slack[ta] + slack[tb]
+    tol = DEPTH_REL_TOL * (np.abs(qa) + np.abs(qb)) + band
+    diff = qa - qb
+    hi = np.full(len(a), -np.inf)
+    lo = np.full(len(a), np.inf)
+    np.maximum.at(hi, owner, diff - tol)  # > 0: a clearly nearer at some vertex
+    np.minimum.at(lo, owner, diff + tol)  # < 0: b clearly nearer at some vertex
+    a_front = (hi > 0) & (lo >= 0)
+    b_front = (lo < 0) & (hi <= 0)
+    # a tie between coplanar triangles: either in front gives the same coverage (a consistent
+    # order, as there is one depth at each point), and the same front coverage within one
+    # shape; between two shapes which one a ray tracer keeps is rounding: not exact
+    shape = tset.shape[tri_idx]
+    tie = (hi <= 0) & (lo >= 0)
+    bad = ~(a_front | b_front | tie) | (tie & (shape[a] != shape[b]))
+    a_front |= tie
+    # planar triangles crossing each other: split the overlap along their intersection
+    cross = (hi > 0) & (lo < 0) & (slack[a] == 0) & (slack[b] == 0)
+    bad &= ~cross
+    return a, b, over, a_front, b_front, cross, bad
+
+
+def _overlap_vertices(convex, polys, a, b):
+    """The vertices ``(M, 2)`` of the overlaps of the pairs ``(a, b)`` that have an area,
+    the pair each belongs to (numbered among those) and which pairs have one: compiled
+    convex clipping where the overlap is sure (over :data:`OVERLAP_SURE`); the polygon
+    boolean, as :func:`pair_order` has it, for the touching, thin or disjoint rest."""
+    xy, owner, area = convex_overlaps(*convex, a, b)
+    sure = area > OVERLAP_SURE
+    doubt = np.flatnonzero(~sure)
+    over = chunked(shapely.intersection, polys[a[doubt]], polys[b[doubt]])
+    big = sure.copy()
+    big[doubt] = shapely.area(over) > AREA_MIN
+    xy_d, own_d = shapely.get_coordinates(over, return_index=True)
+    keep = sure[owner]
+    xy = np.concatenate([xy[keep], xy_d])
+    owner = np.concatenate([owner[keep], doubt[own_d]])
+    keep = big[owner]
+    return xy[keep], (np.cumsum(big) - 1)[owner[keep]], big
+
+
+def _split_overlap(camera, over, na, ca, nb, cb):
+    """The parts of overlaps ``over`` where plane ``a`` / plane ``b`` is nearer: the
+    overlap clipped by the half-plane ``q_a - q_b >= 0`` / ``<= 0`` of the film, the
+    nearness difference being affine in the film position (:func:`nearness`)."""
+    if len(over) == 0:
+        return over, over
+    k = len(over)
+    probe = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    g = np.stack(
+        [
+            nearness(camera, np.full(k, px), np.full(k, py), na, ca)
+            - nearness(camera, np.full(k, px), np.full(k, py), nb, cb)
+            for px, py in probe
+        ],
+        axis=1,
+    )
+    gx, gy, g0 = g[:, 1] - g[:, 0], g[:, 2] - g[:, 0], g[:, 0]
+    lo, hi = -FILM_MARGIN - 1.0, FILM_MARGIN + 1.0
+    rect = np.array(
+        [
+            [lo, lo],
+            [camera.width + hi, lo],
+            [camera.width + hi, camera.height + hi],
+            [lo, camera.height + hi],
+        ]
+    )
+    pts = np.zeros((k, 4, 3))
+    pts[:, :, :2] = rect
+    sides = []
+    for sign in (1.0, -1.0):
+        dist = sign * (
+            g0[:, None] + gx[:, None] * rect[None, :, 0] + gy[:, None] * rect[None, :, 1]
+        )
+        v, count = clip_plane(pts, np.full(k, 4), dist)
+        sides.append(shapely.intersection(over, polygons_of(v[..., :2], count)))
+    return sides[0], sides[1]
+
+
+def _visible(polys, back, occluder):
+    """Each polygon less the union of what is in front of it (``occluder[i]`` in front of
+    ``polys[back[i]]``; vectorised per polygon)."""
+    order = np.argsort(back, kind="stable")
+    occluder, back = occluder[order], back[order]
+    groups = np.empty(len(polys), dtype=object)
+    groups[:] = None
+    if len(back):
+        shapely.geometrycollections(occluder, indices=back, out=groups)
+    has = np.zeros(len(polys), bool)
+    has[back] = True
+    vis = polys.copy()
+    if has.any():
+        occ = chunked(lambda g: shapely.union_all(g[:, None], axis=1), groups[has])
+        vis[has] = chunked(shapely.difference, polys[has], occ)
+    return vis
+
+
+#: Largest rounding error (px) of clipped and projected vertices that still counts as exact:
+#: float64 rounding of world coordinates of magnitude ``M`` seen at the near plane is about
+#: ``M * 2^-52 * pixels per unit there``; a ground of +-1e30 gives 1e16 px.
+
+
+def _curved_invalid(vis, curved, tset, tri_idx, camera, w, h):
+    """Pixels within the tessellation bound of a curved shape's visible silhouette: the
+    pixels the boundary of each curved shape's visible region (the union of its triangles'
+    visible parts: against the sky, another shape or itself) meets, dilated by the chord
+    error in pixels plus one."""
+    if not curved.any():
+        return np.zeros((h, w), bool)
+    shape = tset.shape[tri_idx[curved]]
+    order = np.argsort(shape, kind="stable")
+    ids, first = np.unique(shape[order], return_index=True)
+    groups = shapely.geometrycollections(
+        vis[curved][order], indices=np.searchsorted(ids, shape[order])
+    )
+    regions = shapely.union_all(groups[:, None], axis=1)
+    partial = touched_pixels(regions, w, h)
+    tris = tset.tris[tri_idx[curved]]
+    slack = tset.slack[tri_idx[curved]]
+    if camera.kind == "perspective":
+        depth = np.maximum((tris - camera.position) @ camera.forward, camera.near).min(axis=1)
+        px = float((slack * (camera.width / (2.0 * camera.tan_half_x)) / depth).max())
+    else:
+        px = float(slack.max()) * camera.width / (2.0 * camera.half_extent()[0])
+    radius = int(math.ceil(px)) + 1
+    from scipy.ndimage import binary_dilation
+
+    return binary_dilation(partial, iterations=radius)
+
+
+def polygon_coverage(cam, polys, tri_idx, tset, centre, off):
+    """The exact channels of the film polygons ``polys`` (tile pieces of the triangles
+    ``tri_idx`` of ``tset``) seen by ``cam``, the pixel grid moved by ``off``: ``(coverage,
+    front_coverage, valid, stats)``, each visible polygon its projection less the union of
+    what is in front of it."""
+    w, h = cam.width, cam.height
+    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
+    vis = _visible(polys, back, occluder)
+    if np.any(off != 0.0):
+        vis = shapely.transform(vis, lambda xy: xy - off)
+        bad_over = shapely.transform(bad_over, lambda xy: xy - off)
+    shape_of = tset.shape[tri_idx]
+    pieces = edge_pieces(vis, w, h, tags=shape_of)
+    cov = pixel_area(None, w, h, pieces=pieces)
+    centre = np.asarray(centre, dtype=np.int64).reshape(h, w)
+    front_cov = tagged_pixel_area(pieces, centre)
+    front_cov = np.where(centre < 0, 1.0 - cov, front_cov)
+    # not exact: visible parts of interpenetrating / tied overlaps, curved silhouettes
+    bad_regions = np.concatenate(
+        [shapely.intersection(vis[bad_a], bad_over), shapely.intersection(vis[bad_b], bad_over)]
+    )
+    invalid = (
+        pixel_area(bad_regions, w, h) > INVALID_AREA if len(bad_regions) else np.zeros((h, w), bool)
+    )
+    curved = tset.slack[tri_idx] > 0
+    invalid |= _curved_invalid(vis, curved, tset, tri_idx, cam, w, h)
+    stats = {
+        "triangles_projected": int(len(np.unique(tri_idx))),
+        "tile_pieces": int(len(polys)),
+        "occlusion_pairs": int(len(back)),
+        "unresolved_pairs": int(len(bad_a)),
+        "curved_triangles": int(curved.sum()),
+        "invalid_pixels": int(invalid.sum()),
+        "method": "polygons",
+    }
+    return np.clip(cov, 0.0, 1.0), np.clip(front_cov, 0.0, 1.0), ~invalid, stats
