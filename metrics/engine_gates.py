@@ -115,40 +115,56 @@ def _shifted(padded: np.ndarray, dy: int, dx: int, h: int, w: int) -> np.ndarray
 
 def _aa_features(rgb: np.ndarray) -> dict:
     """What ``IsAntialiased`` counts over the eight neighbours, for any tolerance: identical
-    neighbours, neighbours of another hue (> 0.3), and each neighbour's luminance difference
-    (NaN outside the image: never a high-contrast neighbour)."""
+    neighbours, neighbours of another hue (> 0.3), and the second largest luminance
+    difference to a neighbour (more than one high-contrast neighbour is that one above the
+    tolerance; outside the image a neighbour is never high-contrast)."""
     h, w = rgb.shape[:2]
     lum = rgb @ _LUMA
     hue = _hue(rgb)
-    p_rgb = np.pad(rgb, ((1, 1), (1, 1), (0, 0)), constant_values=-1)
-    p_lum = np.pad(lum, 1, constant_values=np.nan)
+    # one integer per 8-bit colour: identical neighbours compare once, not per channel
+    packed = (rgb[..., 0] * 256 + rgb[..., 1]) * 256 + rgb[..., 2]
+    p_rgb = np.pad(packed, 1, constant_values=-1)
+    p_lum = np.pad(lum, 1, constant_values=-np.inf)
     p_hue = np.pad(hue, 1, constant_values=np.nan)
     same = np.zeros((h, w), np.int32)
     other_hue = np.zeros((h, w), np.int32)
     diffs = np.empty((len(_NEIGHBOURS), h, w))
     for i, (dy, dx) in enumerate(_NEIGHBOURS):  # eight passes, not a loop over pixels
-        same += np.all(rgb == _shifted(p_rgb, dy, dx, h, w), axis=-1)
+        same += packed == _shifted(p_rgb, dy, dx, h, w)
         with np.errstate(invalid="ignore"):
             other_hue += np.abs(hue - _shifted(p_hue, dy, dx, h, w)) > 0.3
+        # outside the image: |lum - -inf| = inf; set to -inf below (never above a tolerance)
         diffs[i] = np.abs(lum - _shifted(p_lum, dy, dx, h, w))
-    return {"same": same, "other_hue": other_hue, "lum_diffs": diffs}
+    diffs[np.isinf(diffs)] = -np.inf
+    second = np.partition(diffs, len(_NEIGHBOURS) - 2, axis=0)[len(_NEIGHBOURS) - 2]
+    return {"same": same, "other_hue": other_hue, "second_lum_diff": second}
 
 
 def _anti_aliased(features: dict, tol: UnrealTolerance) -> np.ndarray:
     """``FPixelOperations::IsAntialiased`` of every pixel: more than one high-contrast or
     other-hue neighbour, or fewer than two identical ones."""
-    with np.errstate(invalid="ignore"):
-        contrast = (features["lum_diffs"] > tol.max_brightness).sum(axis=0)
-    return (features["other_hue"] > 1) | (contrast > 1) | (features["same"] < 2)
+    contrast = features["second_lum_diff"] > tol.max_brightness
+    return (features["other_hue"] > 1) | contrast | (features["same"] < 2)
 
 
-def unreal_comparisons(reference, candidate, *, tolerances: dict) -> dict:
+def prepare_reference(reference) -> dict:
+    """The reference's side of :func:`unreal_comparisons` and :func:`unity_delta_e` (its
+    8-bit levels, anti-aliasing features and JzAzBz), computed once for every candidate
+    judged against it: pass it as ``prepared``."""
+    a = to_8bit(reference)
+    return {"rgb8": a, "features": _aa_features(a), "jab": jzazbz(a)}
+
+
+def unreal_comparisons(reference, candidate, *, tolerances: dict, prepared=None) -> dict:
     """:func:`unreal_comparison` at each of ``tolerances`` (name -> tolerance), sharing the
-    work that does not depend on the tolerance."""
-    a, b = to_8bit(reference), to_8bit(candidate)
+    work that does not depend on the tolerance; ``prepared``: :func:`prepare_reference` of
+    ``reference`` (then ``reference`` itself is not read)."""
+    a = to_8bit(reference) if prepared is None else prepared["rgb8"]
+    b = to_8bit(candidate)
     if a.shape != b.shape:
         raise ValueError(f"reference and candidate shapes differ: {a.shape} and {b.shape}")
-    fa, fb = _aa_features(a), _aa_features(b)
+    fa = _aa_features(a) if prepared is None else prepared["features"]
+    fb = _aa_features(b)
     channel_diff = np.abs(a - b)
     lum_diff = np.abs(a @ _LUMA - b @ _LUMA)
     h, w = a.shape[:2]
@@ -231,12 +247,18 @@ def _hue_angle(jab: np.ndarray) -> np.ndarray:
 
 
 def unity_delta_e(
-    reference, candidate, *, per_pixel_threshold: float = UNITY_PER_PIXEL_THRESHOLD
+    reference,
+    candidate,
+    *,
+    per_pixel_threshold: float = UNITY_PER_PIXEL_THRESHOLD,
+    prepared=None,
 ) -> dict:
     """Unity's ``ImageAssert`` difference of two display images: ``{"average": mean over
     pixels of max(0, dE - per_pixel_threshold), "max": largest dE, "map": (H, W) dE}``,
-    with dE the JzAzBz difference of ``JABDeltaE``."""
-    a, b = jzazbz(to_8bit(reference)), jzazbz(to_8bit(candidate))
+    with dE the JzAzBz difference of ``JABDeltaE``; ``prepared``: as in
+    :func:`unreal_comparisons`."""
+    a = jzazbz(to_8bit(reference)) if prepared is None else prepared["jab"]
+    b = jzazbz(to_8bit(candidate))
     ca, cb = np.hypot(a[..., 1], a[..., 2]), np.hypot(b[..., 1], b[..., 2])
     dh = 2.0 * np.sqrt(ca * cb) * np.sin((_hue_angle(a) - _hue_angle(b)) / 2.0)
     de = np.sqrt((a[..., 0] - b[..., 0]) ** 2 + (ca - cb) ** 2 + dh**2)

@@ -1,14 +1,15 @@
 """raster-oracle's technique models: real-time shadow, soft-shadow, anti-aliasing and temporal
 anti-aliasing techniques reproduced in NumPy and Dr.Jit, one folder or file per technique,
 each registered in :mod:`.registry` (``TECHNIQUES``; its family record in ``FAMILIES``:
-``shadow``, ``soft``, ``aa``, ``taa``).
+``shadow``, ``soft``, ``rtshadows``, ``aa``, ``taa``).
 
 Each model samples the scene where the real technique samples (shadow-map texel centres from
 the light, MSAA sample positions, pixel centres from the camera) with the same intersection
 engine as the oracle, and reconstructs the way the technique does: depth formats and their
 quantization, depth clamp, bias, shadow-map filters (PCF, Poisson, VSM/EVSM, PCSS, moment
 shadow maps), cascade selection and blending; coverage, resolve and post-process filters for
-anti-aliasing (MSAA, SSAA, FXAA, SMAA, ACAA, AGAA), history and rectification for TAA.
+anti-aliasing (MSAA, SSAA, FXAA, SMAA, ACAA, AGAA), history and rectification for TAA;
+ray-traced shadows at one ray a pixel denoised over frames (SVGF, A-SVGF, FidelityFX, SIGMA-class).
 
 >>> from raster_oracle import raster_models, scenes
 >>> s = scenes.load("city")                                            # doctest: +SKIP

@@ -14,6 +14,8 @@ from .aa.taa import model as taa
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
+from .rtshadows import model as rtshadows
+from .rtshadows.svgf import SvgfParams
 from .shadowmaps import csm, msm, pcss, sdsm, shadow_map
 
 __all__ = [
@@ -51,6 +53,8 @@ class Family:
     extremes_scene : base scene of the extreme-input study (None: the study skips the family).
     extremes_metric : the error the extreme-input study judges.
     temporal : its models keep state from frame to frame (scored over frame sequences).
+    steady_against : what a temporal family's steady state is judged against: ``reference``
+        (the steady error itself) or ``ssaa8`` (8x SSAA's error over the same frames beside it).
     group : the family whose report fronts its techniques join (None: its own).
     """
 
@@ -65,6 +69,7 @@ class Family:
     extremes_scene: str | None = None
     extremes_metric: str | None = None
     temporal: bool = False
+    steady_against: str = "reference"
     group: str | None = None
 
 
@@ -103,6 +108,7 @@ FAMILIES: dict[str, Family] = {
             "framebuffer_bytes",
             per_pixel_memory=True,
             temporal=True,
+            steady_against="ssaa8",
             group="aa",
         ),
         Family(
@@ -114,6 +120,18 @@ FAMILIES: dict[str, Family] = {
             "shadow_map_bytes",
             extremes_scene="plate",
             extremes_metric="misclassified_fraction",
+        ),
+        Family(
+            "rtshadows",
+            "ray-traced shadows, denoised",
+            ("soft_visibility", "light_fraction"),
+            ("visibility_mae", "flicker"),
+            ("memory_bytes", "taps_per_pixel"),
+            "memory_bytes",
+            per_pixel_memory=True,
+            temporal=True,
+            # judged at steady state against the area-light truth itself (its soft group)
+            steady_against="reference",
         ),
     )
 }
@@ -127,7 +145,8 @@ class Technique:
     receivers), ``aa`` (colour and coverage outputs, scored against the reference image),
     ``taa`` (colour over a frame sequence, with the temporal metrics) or ``soft``
     (``soft_visibility`` and ``light_fraction`` under an area light, scored against the soft
-    truth)."""
+    truth) or ``rtshadows`` (the same channels traced at one ray a pixel and denoised over
+    frames, judged at steady state against the area-light truth)."""
 
     name: str
     description: str
@@ -352,6 +371,64 @@ TECHNIQUES: dict[str, Technique] = {
             _ALL_LIGHTS,
             "taa",
         ),
+        # ray-traced shadows at one ray a pixel, denoised over frames (issue 46)
+        Technique(
+            "rtshadows-none",
+            "one shadow ray a pixel (AMD's cone rays for a sun, a point on a rectangle light), "
+            "not denoised: what an integration that skips its denoiser shows",
+            ("AMD FidelityFX-SDK v1.1.4, samples/hybridshadows (traceshadows.hlsl)",),
+            rtshadows.NoParams,
+            rtshadows.make_runner("rtshadows-none", "none"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-ffx",
+            "one ray a pixel denoised by AMD's FidelityFX shadow denoiser: 8x4 ray masks, tile "
+            "classification, 17x17 moments, temporal clamp, three a-trous passes, remap",
+            ("AMD FidelityFX-SDK v1.1.4, sdk/include/FidelityFX/gpu/denoiser",),
+            rtshadows.NoParams,
+            rtshadows.make_runner("rtshadows-ffx", "ffx"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-svgf",
+            "one ray a pixel denoised by SVGF as Falcor ships it (reprojection with history "
+            "length, moments, 4 a-trous iterations, feedback tap 1)",
+            (
+                "C. Schied et al., Spatiotemporal Variance-Guided Filtering, HPG 2017, "
+                "doi:10.1145/3105762.3105770",
+                "NVIDIA Falcor eb540f6, Source/RenderPasses/SVGFPass",
+            ),
+            SvgfParams,
+            rtshadows.make_runner("rtshadows-svgf", "svgf"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-asvgf",
+            "SVGF with A-SVGF's gradient samples (one a 3x3 stratum re-tracing the previous "
+            "frame's ray) and history rejection by the filtered temporal gradient",
+            (
+                "C. Schied, C. Peters, C. Dachsbacher, Gradient Estimation for Real-Time "
+                "Adaptive Temporal Filtering, HPG 2018, doi:10.1145/3233301",
+            ),
+            SvgfParams,
+            rtshadows.make_runner("rtshadows-asvgf", "asvgf"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
+        Technique(
+            "rtshadows-sigma",
+            "one ray a pixel with NRD's penumbra input, denoised by a SIGMA-class model: 16x16 "
+            "tiles, blur radius from hit distance, two blurs, short stabilisation",
+            ("NVIDIA-RTX/NRD a822d87 (SIGMA settings and shader constants)",),
+            rtshadows.NoParams,
+            rtshadows.make_runner("rtshadows-sigma", "sigma"),
+            rtshadows.LIGHTS,
+            "rtshadows",
+        ),
     )
 }
 
@@ -386,7 +463,7 @@ def front_group(technique: str) -> str:
 
 def family_of(technique: str) -> str:
     """The family of a registered technique: a key of :data:`FAMILIES` (``shadow``, ``aa``,
-    ``taa`` or ``soft``).
+    ``taa``, ``soft`` or ``rtshadows``).
 
     Raises
     ------

@@ -17,7 +17,6 @@ does; set the environment variable ``RASTER_ORACLE_BACKEND`` to force one.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import tempfile
 import warnings
@@ -390,11 +389,12 @@ def score_technique(
 
 
 def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, quiet) -> dict:
-    """Score into ``out`` (or a temporary folder) with the command line's own request
-    function and read its ``metrics.json`` back: the record is the command line's."""
+    """Score into ``out`` (or a temporary folder) with the command line's own request and
+    function: the record returned is the ``metrics.json`` the command line writes."""
     from . import metrics as M
     from .oracle.scoring.options import ScoreOptions
-    from .oracle.scoring.request import score_to_folder
+    from .oracle.scoring.request import ScoreRequest
+    from .oracle.scoring.to_folder import score_to_folder
     from .scenes import CAMERA_PATHS
 
     loaded = load_scene(scene, **load)
@@ -413,8 +413,19 @@ def _score(scene, what, *, frame_list, load, opts, flip_mode, ppd, out, cache, q
             options = ScoreOptions(
                 **opts, quiet=quiet, flip_mode=flip_mode, ppd=ppd or M.DEFAULT_PPD
             )
-            score_to_folder(loaded, out=folder, **what, options=options, cache=_cache(cache))
-        return json.loads((folder / "metrics.json").read_text())
+            if "technique" in what:
+                request = ScoreRequest.for_model(
+                    loaded, **what, options=options, cache=_cache(cache)
+                )
+            else:
+                request = ScoreRequest.for_files(
+                    loaded,
+                    what["candidate"],
+                    channel=what["channel"],
+                    options=options,
+                    cache=_cache(cache),
+                )
+            return score_to_folder(request, out=folder)[1]
 
 
 def score_folder(
@@ -468,6 +479,7 @@ def score_folder(
         parse_tolerance,
     )
     from .oracle.scoring.inputs.folder_cases import run_folder
+    from .scenes.base.records import jsonable
 
     gates = profile_gates(profiles, error=GateError)
     gates += parse_gates(limit_texts(fail_above, "<="), limit_texts(fail_below, ">="))
@@ -501,7 +513,7 @@ def score_folder(
             cache=_cache(cache),
             log=None,
         )
-    return json.loads((Path(out) / "metrics.json").read_text())
+    return jsonable(run.record)
 
 
 def check(

@@ -75,5 +75,5 @@ def write_report(report: Mapping, path: str | os.PathLike) -> None:
     html = render_html(report)
     text = json.dumps(report, ensure_ascii=False, allow_nan=False, indent=1)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path.with_suffix(".json"), (text + "\n").encode("utf-8"))
-    atomic_write_bytes(path, html.encode("utf-8"))
+    atomic_write_bytes(path.with_suffix(".json"), (text + "\n").encode("utf-8", "backslashreplace"))
+    atomic_write_bytes(path, html.encode("utf-8", "backslashreplace"))

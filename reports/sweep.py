@@ -518,6 +518,6 @@ def write_sweep_report(
     text = json.dumps(record, indent=1, allow_nan=False, default=str)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path.with_suffix(".json"), text.encode("utf-8"))
-    atomic_write_bytes(path, html.encode("utf-8"))
+    atomic_write_bytes(path.with_suffix(".json"), text.encode("utf-8", "backslashreplace"))
+    atomic_write_bytes(path, html.encode("utf-8", "backslashreplace"))
     return record

@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
-from .base.untrusted import read_json
+from .base.untrusted import path_problem, read_json
 from .formats.export import EXPORT_SCENE_FILES, export_scene_file
 from .loaded import LoadedScene, SceneError
 from .loader import LoadOptions, load, with_load_options
@@ -102,6 +102,8 @@ def resolve_input(scene) -> SceneInput:
     """Resolve ``scene`` (text or path): an export folder or its ``scene.xml``, a scene file
     of a known suffix, or a built-in name (checked when loaded)."""
     path = Path(scene)
+    if path_problem(path) is not None:  # no file has this name: a built-in's, or unknown
+        return SceneInput(scene=str(scene))
     if path.is_dir():
         found = export_scene_file(path)
         if found is None:

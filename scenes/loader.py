@@ -18,6 +18,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 from . import backend
+from .base.untrusted import LIMITS, path_problem, read_bounded
 from .catalogue.builtin import BUILTIN_SCENES, SceneParamError, builtin_scene
 from .formats.camera_file import CameraFileError, load_camera_file
 from .formats.gltf import GltfError, gltf_scene
@@ -231,16 +232,20 @@ def _open(mi, scene, meshes: dict, *, width, height, camera) -> _Source:
         source, description = "builtin", builtin.description
     else:
         path = Path(name)
-        if path.suffix.lower() != ".xml" and not path.exists():
+        problem = path_problem(path)
+        if problem is not None or (path.suffix.lower() != ".xml" and not path.exists()):
             raise SceneError(
-                f"unknown scene {name!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}), "
+                f"unknown scene {name[:80]!r}: not a built-in scene ({', '.join(BUILTIN_SCENES)}), "
                 "a Mitsuba XML file nor a glTF file (.gltf, .glb)"
             )
         if not path.is_file():
             raise SceneError(f"scene file not found: {path}")
         digest = hashlib.sha256(b"xml:")
-        for dep in xml_dependencies(path):
-            digest.update(dep.name.encode() + dep.read_bytes())
+        for dep in xml_dependencies(path, error=SceneError):  # inside its folder, bounded
+            data = read_bounded(
+                dep, limit=LIMITS["scene_bytes"], what="scene file", error=SceneError
+            )
+            digest.update(dep.name.encode() + data)
         try:
             mi_scene = mi.load_file(str(path), optimize=False)
         except Exception as exc:

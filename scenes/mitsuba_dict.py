@@ -15,6 +15,8 @@ from xml.etree import ElementTree
 
 import numpy as np
 
+from .base.untrusted import LIMITS, UntrustedError, read_bounded
+
 __all__ = ["hash_obj", "to_mitsuba_dict", "xml_dependencies"]
 
 
@@ -78,7 +80,12 @@ _PARAM = re.compile(r"\$(\w+)")
 
 
 def xml_dependencies(
-    path: Path, seen: set | None = None, *, root: Path | None = None, params: dict | None = None
+    path: Path,
+    seen: set | None = None,
+    *,
+    root: Path | None = None,
+    params: dict | None = None,
+    error=None,
 ) -> list[Path]:
     """The XML file and every file it references, recursively, as Mitsuba resolves them.
 
@@ -88,6 +95,11 @@ def xml_dependencies(
     ``value`` of every ``<string>`` property (``filename`` of meshes and bitmaps, ...), resolved
     against the referencing file's folder and then the scene's folder. Only existing files count:
     a missing one makes Mitsuba's own load fail.
+
+    Issue 48: every file is read only inside the scene's folder (links resolved): a reference
+    to an existing file outside it (an absolute path, ``..``, a link out) is refused with one
+    line (``error``, default :class:`scenes.base.untrusted.UntrustedError`), and each XML file
+    is read bounded (``LIMITS["scene_bytes"]``).
     """
     seen = set() if seen is None else seen
     path = path.resolve()
@@ -97,11 +109,11 @@ def xml_dependencies(
         return []
     seen.add(path)
     files = [path]
+    text = read_bounded(path, limit=LIMITS["scene_bytes"], what="scene file", error=error)
     try:
-        tree = ElementTree.parse(path)
-    except (OSError, ElementTree.ParseError):
+        elements = list(ElementTree.fromstring(text).iter())
+    except ElementTree.ParseError:
         return files  # Mitsuba's own load reports the error
-    elements = list(tree.getroot().iter())
     for el in elements:
         if el.tag == "default" and "name" in el.attrib and "value" in el.attrib:
             params.setdefault(el.attrib["name"], el.attrib["value"])
@@ -120,10 +132,20 @@ def xml_dependencies(
             if not ref:
                 continue
             for base in (path.parent, root):
-                dep = (base / ref).resolve()
-                if dep.is_file():
+                try:
+                    dep = (base / ref).resolve()
+                    found = dep.is_file()
+                except (OSError, ValueError):  # a name too long, a NUL: no file of the scene
+                    continue
+                if found and root != dep and root not in dep.parents:
+                    raise (error or UntrustedError)(
+                        f"scene {path.name}: {ref[:200]!r} names {dep}, outside the scene's "
+                        f"folder {root} (a scene reads only its own folder's files)"
+                    )
+                if found:
                     if dep.suffix.lower() == ".xml":
-                        files.extend(xml_dependencies(dep, seen, root=root, params=params))
+                        kw = {"root": root, "params": params, "error": error}
+                        files.extend(xml_dependencies(dep, seen, **kw))
                     elif dep not in seen:
                         seen.add(dep)
                         files.append(dep)

@@ -82,6 +82,10 @@ def _light_from_emitter(mi, emitter, name: str) -> Light | None:
     return None
 
 
+#: Largest radiance of an area light per channel: its square stays finite in float32 sums
+#: (1e30 gave NaN standard errors).
+RADIANCE_MAX = 1e15
+
 #: Relative tolerance of an area light's shape checks (orthogonal axes, round disk, sphere).
 _AREA_TOLERANCE = 1e-4
 
@@ -105,7 +109,18 @@ def _area_light(mi, emitter, radiance, name: str) -> Light | None:
             f"area light {name!r}: its {kind}'s to_world must scale and rotate without shear "
             "(orthogonal, non-zero axes)"
         )
+    # issue 48: a flattened to_world (scale z = 0) has no normal (np.linalg.inv failed)
+    if not lw > 0 or abs(float(np.linalg.det(m[:3, :3]))) <= 1e-9 * lu * lv * lw:
+        raise SceneError(
+            f"area light {name!r}: its {kind}'s to_world is singular (an axis scaled to zero or "
+            "the axes in one plane); give every axis a non-zero scale"
+        )
     rgb = np.asarray(radiance, dtype=np.float64)
+    if not (np.isfinite(rgb).all() and (rgb >= 0).all() and (rgb <= RADIANCE_MAX).all()):
+        raise SceneError(
+            f"area light {name!r}: radiance {tuple(float(c) for c in rgb)} must be finite, "
+            f"non-negative and at most {RADIANCE_MAX:g} per channel"
+        )
     if kind == "sphere":
         if abs(lu - lv) > tol or abs(lu - lw) > tol:
             raise SceneError(f"area light {name!r}: a sphere light must be scaled uniformly")

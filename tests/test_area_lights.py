@@ -113,6 +113,13 @@ def test_area_points_cover_the_light_uniformly(tmp_path):
         (_area("disk", '<scale x="1" y="0.5"/><translate y="3"/>'), "must be round"),
         (_area("sphere", '<scale x="1" y="2" z="1"/><translate y="3"/>'), "scaled uniformly"),
         (_area("cube", '<translate y="3"/>'), "no usable light.*AreaLight on a Cube"),
+        # issue 48: singular transforms and radiance that is not finite and non-negative
+        (_area("rectangle", '<scale x="1" y="1" z="0"/><translate y="3"/>'), "singular"),
+        (_area("disk", '<scale x="1" y="1" z="0"/><translate y="3"/>'), "lamp_disk.*singular"),
+        (_area("disk", '<translate y="3"/>', radiance="-1,1,1"), "finite, non-negative"),
+        (_area("rectangle", '<translate y="3"/>', radiance="1e30,1,1"), "at most 1e\\+15"),
+        (_area("sphere", '<translate y="3"/>', radiance="inf,1,1"), "finite, non-negative"),
+        (_area("sphere", '<translate y="3"/>', radiance="nan,1,1"), "finite, non-negative"),
     ],
 )
 def test_bad_area_lights_are_one_line_exit_2(tmp_path, monkeypatch, capsys, body, message):

@@ -67,3 +67,26 @@ def test_conformance_values_are_zero_for_identical_masks():
     assert v["conformance_misclassified_fraction"] == 0.0
     assert v["conformance_edge_displacement_px"] == 0.0
     assert v["changed_pixels"] == 0 and v["receivers"] == 600
+
+
+def test_bench_detection_command(tmp_path, capsys, _backend):
+    import json
+
+    from raster_oracle.oracle.cli import main
+
+    argv = ["bench", "detection", "--scenes", "plate", "--screens", "96x54", "--maps", "256"]
+    rc = main([*argv, "--faults", "image_shift_1px", "--out", str(tmp_path), "--quiet"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["summary"]["caught"] == 1 and out["summary"]["rows"] == 1
+    rows = json.loads((tmp_path / "detection.json").read_text())["rows"]
+    assert rows[0]["fault"] == "image_shift_1px" and rows[0]["caught"]
+    assert "| image_shift_1px |" in (tmp_path / "detection.md").read_text()
+    for bad, say in (
+        (["--screens", "96"], "--screens expects WxH"),
+        (["--faults", "nope"], "unknown fault(s) nope"),
+        (["--scenes", "nosuch"], "unknown scene 'nosuch'"),
+    ):
+        assert main(["bench", "detection", *bad, "--quiet"]) == 2
+        assert say in capsys.readouterr().err
+    assert main(["bench", "models", "--maps", "256"]) == 2
+    assert "applies to 'bench detection' only" in capsys.readouterr().err

@@ -87,3 +87,21 @@ def test_edge_aware_relaxes_fractional_truth_only():
         ref, np.array([[0.5, 0.99, 0.0]]), reference_stderr=np.full_like(ref, 0.004)
     )
     assert noisy["count"] == 0  # 0.01 <= 3 x 0.004
+
+
+def test_a_prepared_reference_gives_the_same_comparisons():
+    """The reference's side computed once (a sweep worker keeps it for the next case) gives
+    the same Unreal and Unity results as computing it with each candidate."""
+    rng = np.random.default_rng(3)
+    ref = rng.random((23, 31, 3))
+    cand = np.clip(ref + rng.normal(0.0, 0.05, ref.shape), 0.0, 1.0)
+    ready = G.prepare_reference(ref)
+    a = G.unreal_comparisons(ref, cand, tolerances=G.UNREAL_TOLERANCES)
+    b = G.unreal_comparisons(None, cand, tolerances=G.UNREAL_TOLERANCES, prepared=ready)
+    assert max(found["global_error"] for found in a.values()) > 0
+    for level in a:
+        assert a[level]["global_error"] == b[level]["global_error"]
+        assert a[level]["local_error"] == b[level]["local_error"]
+        assert np.array_equal(a[level]["mismatch"], b[level]["mismatch"])
+    u, v = G.unity_delta_e(ref, cand), G.unity_delta_e(None, cand, prepared=ready)
+    assert u["average"] == v["average"] > 0 and np.array_equal(u["map"], v["map"])

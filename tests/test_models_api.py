@@ -218,7 +218,13 @@ def test_family_of_every_technique():
     assert rm.family_of("msaa") == "aa"
     assert rm.family_of("taa") == "taa"
     assert rm.family_of("pcss") == "soft" and rm.family_of("msm") == "shadow"
-    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {"shadow", "aa", "taa", "soft"}
+    assert {rm.family_of(t) for t in rm.TECHNIQUES} == {
+        "shadow",
+        "aa",
+        "taa",
+        "soft",
+        "rtshadows",
+    }
     with pytest.raises(rm.ModelError, match=r"unknown technique 'nope'; choose one of shadow-map"):
         rm.family_of("nope")
 

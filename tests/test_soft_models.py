@@ -267,16 +267,21 @@ def test_soft_scores_closed_form():
 
 def test_pcss_is_scored_against_the_area_light_truth(tmp_path):
     from raster_oracle.oracle.reference.cache import ReferenceCache
+    from raster_oracle.oracle.scoring.options import ScoreOptions
+    from raster_oracle.oracle.scoring.request import ScoreRequest
     from raster_oracle.oracle.scoring.technique import score_model
 
     loaded = scenes.load("soft-contact", width=32, height=18)
     cache = ReferenceCache(tmp_path)
-    kw = dict(spp=4, seed=0, cache=cache, quiet=True)
-    res = score_model(loaded, "pcss", {"resolution": 256}, **kw)
+    kw = dict(options=ScoreOptions(spp=4, seed=0), cache=cache)
+    res = score_model(ScoreRequest.for_model(loaded, "pcss", {"resolution": 256}, **kw))
     rec = res.record
     assert rec["channel"] == "soft_visibility"
     assert 0.0 <= rec["visibility_mae"] < 0.1 and rec["noise_floor"]["visibility_mae"] >= 0
-    lf = score_model(loaded, "pcss", {"resolution": 256}, channel="light_fraction", **kw)
+    asked = ScoreRequest.for_model(
+        loaded, "pcss", {"resolution": 256}, channel="light_fraction", **kw
+    )
+    lf = score_model(asked)
     assert lf.record["channel"] == "light_fraction"
     assert lf.record["visibility_mae"] == pytest.approx(rec["visibility_mae"], abs=0.02)
 

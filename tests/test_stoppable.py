@@ -199,7 +199,7 @@ def test_sigterm_while_a_large_scene_is_built(tmp_path):
     long as the build (17.6 s at two million); the watchdog ends the process within 2 s."""
     argv = ["reference", "meadow:n=1000000", "--width", "16", "--height", "12", "--spp", "1"]
     argv += ["--quiet", "--cache-dir", str(tmp_path / "cache"), "--out", str(tmp_path / "out")]
-    target = "raster_oracle.scenes.loader:_to_mitsuba_dict"
+    target = "raster_oracle.scenes.loader:to_mitsuba_dict"
     rc, seconds, err = _stop_in_phase(tmp_path, target, argv, settle=1.0)
     assert rc == 143, err[-2000:]
     assert "Traceback" not in err, err[-2000:]

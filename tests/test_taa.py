@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from raster_oracle.metrics import convergence
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
+from raster_oracle.oracle.scoring.options import ScoreOptions
+from raster_oracle.oracle.scoring.request import ScoreRequest
 from raster_oracle.oracle.scoring.technique import score_model
 from raster_oracle.oracle.scoring.temporal import CONVERGENCE_WINDOW
 from raster_oracle.raster_models.aa.taa.blend import blend, luma4
@@ -229,17 +231,8 @@ def test_reprojection_off_ghosts_more_and_the_ghosting_metric_ranks_it_so():
     base = dict(preset="hdrp", rectify="none")
     rec = {}
     for name, extra in (("on", {}), ("off", {"reprojection": "off"})):
-        r = score_model(
-            s,
-            "taa",
-            {**base, **extra},
-            spp=16,
-            seed=0,
-            cache=None,
-            quiet=True,
-            frames=8,
-            camera_path=None,
-        )
+        options = ScoreOptions(spp=16, seed=0, frames=8, camera_path=None)
+        r = score_model(ScoreRequest.for_model(s, "taa", {**base, **extra}, options=options))
         rec[name] = r.record
     assert rec["off"]["ghosting_error"] > GHOSTING_MARGIN * rec["on"]["ghosting_error"]
     assert rec["off"]["history_error"] > rec["on"]["history_error"]
@@ -262,17 +255,9 @@ def test_the_models_own_velocity_and_rejection_are_scored_against_the_truth():
     s = scenes.load("slide", width=64, height=36)
     rec = {}
     for reject in ("offscreen", "depth"):
-        r = score_model(
-            s,
-            "taa",
-            {"preset": "hdrp", "dilation": "none", "reject": reject},
-            spp=4,
-            seed=0,
-            cache=None,
-            quiet=True,
-            frames=4,
-            camera_path=None,
-        )
+        options = ScoreOptions(spp=4, seed=0, frames=4, camera_path=None)
+        params = {"preset": "hdrp", "dilation": "none", "reject": reject}
+        r = score_model(ScoreRequest.for_model(s, "taa", params, options=options))
         rec[reject] = r.record
     # undilated, the velocity of each jittered sample is the truth's within a pixel except
     # where the sample and the centre see different surfaces (the panel's edges)

@@ -12,6 +12,7 @@ import os
 from pathlib import Path
 
 from ...scenes.base.numbers import MAX_FRAMES, NumberError, parse_float, parse_int
+from ...scenes.base.untrusted import check_path, path_problem
 from ..errors import InputError
 
 __all__ = [
@@ -20,6 +21,7 @@ __all__ = [
     "Parser",
     "add_cache_args",
     "add_exact_budget_arg",
+    "exact_budget",
     "add_reference_args",
     "add_scene_args",
     "add_set_arg",
@@ -86,7 +88,7 @@ def _number(kind: type, *, minimum: float, strict: bool):
     def parse(text: str):
         try:
             if kind is int:
-                value = parse_int(text, what="value")
+                value = parse_int(text, what="value", signed=True)
             elif text.lower() in ("inf", "+inf", "infinity", "+infinity"):
                 value = math.inf
             else:
@@ -134,6 +136,9 @@ def path(text: str) -> Path:
         raise argparse.ArgumentTypeError("expected a path, got ''")
     if any(ord(c) < 32 for c in text):
         raise argparse.ArgumentTypeError(f"path contains control characters: {text!r}")
+    problem = path_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(f"{text[:60]!r}...: {problem}")
     return Path(text)
 
 
@@ -173,6 +178,7 @@ def add_scene_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--camera-file",
+        type=path,
         default=None,
         metavar="JSON",
         help="camera sequence file: per-frame camera matrices and field of view "
@@ -253,6 +259,16 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
     add_cache_args(p)
 
 
+def exact_budget(args):
+    """The command's one exact-coverage budget (``--exact-budget``, default
+    :data:`oracle.reference.settings.EXACT_BUDGET_S`): every reference the command renders
+    holds this object, so their exact work adds up against it."""
+    from ..reference.settings import EXACT_BUDGET_S, ExactBudget
+
+    seconds = getattr(args, "exact_budget", None)
+    return ExactBudget(EXACT_BUDGET_S if seconds is None else seconds)
+
+
 def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
     """``--exact-budget SECONDS``: the references' ``exact_budget`` setting
     (:class:`oracle.reference.settings.ReferenceSettings`), handed to them by the command."""
@@ -261,9 +277,11 @@ def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
         type=nonneg_float,
         default=None,
         metavar="SECONDS",
-        help="estimated seconds of coverage_exact work allowed per view (default 60); over "
-        "it the exact group is skipped for that view with one line on stderr and coverage "
-        "is scored against the Monte Carlo truth",
+        help="seconds of coverage_exact work the whole command may spend, all views and "
+        "frames together (default 60): a view whose estimate exceeds what is left is "
+        "skipped, and the exact pass stops when the time runs out; either way with one "
+        "line on stderr, the decision in the record, and coverage scored against the "
+        "Monte Carlo truth",
     )
 
 
@@ -311,6 +329,7 @@ def check_dir(folder: Path, *, label: str) -> None:
     text = os.fspath(folder)
     if not text:
         raise CliError(f"{label}: expected a path, got ''")
+    check_path(text, what=label, error=CliError)
     if os.path.exists(text) or os.path.islink(text):
         if not os.path.isdir(text):
             raise CliError(f"{label} {folder} exists and is not a folder")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ...scenes.base.files import staged_folder
@@ -156,8 +155,10 @@ def cmd_score(args) -> int:
     from ..scoring.ci.baseline import check_platform, resolve_baseline
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
-    from ..scoring.request import score_to_folder
+    from ..scoring.output import stale_files
+    from ..scoring.request import ScoreRequest
     from ..scoring.result import ScoreError
+    from ..scoring.to_folder import score_to_folder
     from .score_inputs import candidate_inputs
 
     gates = parse_all_gates(args)
@@ -200,7 +201,7 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
-        exact_budget=args.exact_budget,
+        exact_budget=A.exact_budget(args),
         motion=None
         if args.candidate_motion is None
         else {
@@ -209,23 +210,31 @@ def cmd_score(args) -> int:
             "disocclusion": args.candidate_disocclusion,
         },
     )
-    with staged_folder(args.out, last=("metrics.json",)) as out:
-        verdict = score_to_folder(
+    if args.technique:
+        request = ScoreRequest.for_model(
+            loaded, args.technique, params, channel=args.channel, options=options, cache=cache
+        )
+    else:
+        request = ScoreRequest.for_files(
             loaded,
-            out=out,
-            technique=args.technique,
-            params=params,
-            candidate=args.candidate,
+            args.candidate,
             channel=args.channel,
+            layout=layout,
             options=options,
             cache=cache,
+        )
+    # an earlier score's own files in --out (its metrics.json lists them) are superseded;
+    # anything else there (a note, the engine's render) is kept
+    earlier = tuple(p.name for p in stale_files(args.out, []))
+    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
+        verdict, record = score_to_folder(
+            request,
+            out=out,
             gates=gates,
             baseline=baseline,
             baseline_source=str(args.baseline),
-            layout=layout,
             baseline_options=baseline_options(args).for_gates(gates),
         )
-        record = json.loads((out / "metrics.json").read_text())
     print(f"score: {args.out / 'metrics.json'} and {args.out / 'report.html'}")
     print_verdict(verdict, baseline=args.baseline)
     write_outputs(args, [verdict], records=[record], report=args.out / "report.html")

@@ -17,7 +17,11 @@ def add_parsers(sub) -> None:
     """Add ``bench``, ``aa-memory``, ``converge``, ``extremes``, ``claims`` and
     ``soft-shadows`` to ``sub``."""
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
-    p.add_argument("what", choices=["oracle", "models", "scale"], help="what to benchmark")
+    p.add_argument(
+        "what",
+        choices=["oracle", "models", "scale", "exact", "detection"],
+        help="what to benchmark",
+    )
     p.add_argument("--width", type=A.positive_int, default=None, help="default 1920 (scale 640)")
     p.add_argument("--height", type=A.positive_int, default=None, help="default 1080 (scale 360)")
     p.add_argument("--spp", type=A.positive_int, default=None, help="default 32 (scale 16)")
@@ -34,7 +38,31 @@ def add_parsers(sub) -> None:
     )
     A.add_exact_budget_arg(p)
     p.add_argument(
+        "--rows",
+        default=None,
+        help="exact: comma-separated rows scene@WxH (panes:n=N is the stacked panes; default "
+        "meadow, city-foliage, the panes at 16:9, 4:3, 1:1, then every built-in scene)",
+    )
+    p.add_argument(
+        "--panes-xml",
+        type=A.path,
+        default=None,
+        metavar="FILE",
+        help="exact: write the stacked panes (80, or --rows panes:n=N) as a Mitsuba XML scene "
+        "at --width x --height (default 256x256) and stop",
+    )
+    p.add_argument(
         "--quiet", action="store_true", help="no progress bar, no profile tables on stderr"
+    )
+    for flag, text in (
+        ("--scenes", "detection: comma-separated scenes (default plate,city,meadow:n=100000)"),
+        ("--screens", "detection: comma-separated WxH (default 320x180,1280x720,1920x1080)"),
+        ("--maps", "detection: comma-separated map sizes (default 1024,2048,4096)"),
+        ("--faults", "detection: comma-separated faults (default every one)"),
+    ):
+        p.add_argument(flag, default=None, help=text)
+    p.add_argument(
+        "--out", type=A.path, default=None, help="detection: folder for detection.json and .md"
     )
 
     p = sub.add_parser(
@@ -87,8 +115,17 @@ def cmd_bench(args) -> int:
     from ..studies.bench import bench_oracle, oracle_profile_lines
     from ..studies.bench_models import bench_models, models_profile_lines
 
+    if args.what == "detection":
+        return _bench_detection(args)
+    given = [f for f in ("scenes", "screens", "maps", "faults", "out") if getattr(args, f)]
+    if given:
+        raise A.CliError(f"bench {args.what}: --{given[0]} applies to 'bench detection' only")
     if args.what == "scale":
         return _bench_scale(args)
+    if args.what == "exact":
+        return _bench_exact(args)
+    if args.rows is not None or args.panes_xml is not None:
+        raise A.CliError(f"bench {args.what}: --rows and --panes-xml apply to 'bench exact' only")
     if args.sizes is not None:
         raise A.CliError(f"bench {args.what}: --sizes applies to 'bench scale' only")
     kwargs = dict(
@@ -107,6 +144,83 @@ def cmd_bench(args) -> int:
     if not args.quiet:  # where the time goes, for a reader (the JSON holds it all)
         lines = models_profile_lines if args.what == "models" else oracle_profile_lines
         print("\n".join(lines(figures)), file=sys.stderr)
+    return 0
+
+
+def _bench_exact(args) -> int:
+    """``bench exact``: the estimate against the exact pass per row (JSON on stdout), or
+    the stacked panes written as XML (``--panes-xml``)."""
+    from ..studies.bench_exact import EXACT_ROWS, bench_exact, exact_lines
+    from ..studies.panes import PANES_N, stacked_panes_xml
+
+    rows = A.names(args.rows) if args.rows else None
+    if args.panes_xml is not None:
+        spec = (rows or ["panes"])[0]
+        n = int(spec.partition("n=")[2].partition("@")[0] or PANES_N)
+        xml = stacked_panes_xml(args.width or 256, args.height or 256, n=n)
+        args.panes_xml.parent.mkdir(parents=True, exist_ok=True)
+        args.panes_xml.write_text(xml)
+        print(f"bench exact: the stacked panes ({n}) written to {args.panes_xml}")
+        return 0
+    log = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    figures = bench_exact(rows or EXACT_ROWS, builtins=rows is None, log=log)
+    print(json.dumps(figures, indent=2))
+    if not args.quiet:
+        print("\n".join(exact_lines(figures)), file=sys.stderr)
+    return 0
+
+
+def _detection_grid(args) -> dict:
+    """The ``bench detection`` grid from its options (defaults: the published table's)."""
+    from ..studies import detection as D
+
+    screens = D.DEFAULT_SIZES
+    if args.screens is not None:
+        screens = []
+        for text in A.names(args.screens):
+            w, x, h = text.partition("x")
+            if not (x and w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
+                raise A.CliError(f"bench detection: --screens expects WxH, got {text!r}")
+            screens.append((int(w), int(h)))
+    maps = D.DEFAULT_MAPS
+    if args.maps is not None:
+        if not all(t.isdigit() and 8 <= int(t) <= 16384 for t in A.names(args.maps)):
+            raise A.CliError(f"bench detection: --maps expects sizes 8..16384, got {args.maps!r}")
+        maps = tuple(int(t) for t in A.names(args.maps))
+    faults = None
+    if args.faults is not None:
+        faults = A.names(args.faults)
+        unknown = [f for f in faults if f not in D.FAULTS]
+        if unknown:
+            raise A.CliError(
+                f"bench detection: unknown fault(s) {', '.join(unknown)}; choose from "
+                f"{', '.join(D.FAULTS)}"
+            )
+    names = tuple(A.names(args.scenes)) if args.scenes is not None else D.DEFAULT_SCENES
+    if not (names and screens and maps):
+        raise A.CliError("bench detection: --scenes, --screens and --maps need a value each")
+    return {"scene_names": names, "sizes": tuple(screens), "maps": maps, "faults": faults}
+
+
+def _bench_detection(args) -> int:
+    """``bench detection``: the detection-power table (JSON summary on stdout, the rows and
+    a Markdown table in ``--out``)."""
+    from ...scenes import SceneError
+    from ...scenes.base.files import atomic_write_bytes, atomic_write_json
+    from ..studies import detection as D
+
+    grid = _detection_grid(args)
+    log = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    try:
+        record = D.run_detection(**grid, log=log)
+    except SceneError as exc:
+        raise A.CliError(f"bench detection: {exc}") from None
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(args.out / "detection.json", record)
+        text = D.markdown_summary(record) + "\n" + D.markdown_table(record)
+        atomic_write_bytes(args.out / "detection.md", text.encode())
+    print(json.dumps({"gate": record["gate"], "summary": record["summary"]}, indent=2))
     return 0
 
 

@@ -12,6 +12,7 @@ import contextlib
 import io
 import os
 import sys
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -52,7 +53,12 @@ def write_exr(
 
     def write(tmp: str) -> None:
         with OpenEXR.File(hdr, data) as f:
-            f.write(tmp)
+            if _is_utf8(tmp):
+                f.write(tmp)
+            else:  # OpenEXR takes file names as UTF-8 text only (issue 48)
+                buffer = io.BytesIO()
+                f.write(buffer)
+                Path(tmp).write_bytes(buffer.getvalue())
 
     atomic_write(path, write)
 
@@ -82,6 +88,28 @@ def _silenced_stdio():
             os.close(copy)
 
 
+def _is_utf8(path) -> bool:
+    try:
+        os.fsencode(path).decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+@contextlib.contextmanager
+def _utf8_name(path: Path):
+    """A name OpenEXR can open for ``path``: its own when it is UTF-8, else a link with a
+    plain name in a fresh temporary folder (OpenEXR takes file names as UTF-8 text: a file
+    whose name is other bytes was refused as truncated, issue 48)."""
+    if _is_utf8(path):
+        yield str(path)
+        return
+    with tempfile.TemporaryDirectory(prefix="raster-oracle-exr-") as tmp:
+        link = os.path.join(tmp, "image.exr")
+        os.symlink(os.path.abspath(path), link)
+        yield link
+
+
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read every channel of an EXR as a flat ``name -> (H, W)`` mapping.
 
@@ -96,7 +124,11 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     if not path.is_file():
         raise ExrError(f"EXR file not found: {path}")
     try:
-        with _silenced_stdio(), OpenEXR.File(str(path), separate_channels=True) as f:
+        with (
+            _utf8_name(path) as name,
+            _silenced_stdio(),
+            OpenEXR.File(name, separate_channels=True) as f,
+        ):
             out = {name: np.array(ch.pixels) for name, ch in f.channels().items()}
     except Exception as exc:  # OpenEXR raises plain Exceptions for corrupt files
         raise ExrError(f"cannot read EXR {path}: {exc}") from exc

@@ -39,6 +39,7 @@ __all__ = [
     "coverage_truth",
     "finite",
     "metrics_for",
+    "on_receivers",
     "reference_receivers",
     "rgb",
     "second_reference",
@@ -210,6 +211,14 @@ CHANNEL_METRICS = {
 CHANNEL_KIND = {channel: kind for channel, (kind, _) in CHANNEL_METRICS.items()}
 
 
+def on_receivers(channel: str) -> bool:
+    """The receivers rule, stated once: a channel of the visibility kind (a shadow mask, hard
+    or soft) is scored on the reference's receivers only; the pixels off them keep the
+    reference's values and are counted (``outside_receivers`` in the record, and a note
+    when some differ)."""
+    return CHANNEL_KIND[channel] == "visibility"
+
+
 def metrics_for(
     channel,
     ref_ch,
@@ -245,7 +254,7 @@ def metrics_for(
         coverage_only=coverage_only,
     )
     edge = ref_ch["edge"] > 0.5
-    if channel == "visibility" or channel in SOFT_CHANNELS:
+    if on_receivers(channel):
         cand = _receivers_only(ref_ch, cand, light=light, out=out, channel=channel)
     ref, ref_se, rec, edge, fl = own(
         ref_ch, cand, channel=channel, edge=edge, full=full, kw=kw, out=out, maps=maps
@@ -256,6 +265,10 @@ def metrics_for(
         out["flip_mean"], maps["flip"] = fl[0], fl[1]
     else:
         out["flip_mean"] = fl
+    if coverage_only:
+        # beside colour, only the coverage metrics are kept: no edge split, no Z-test
+        keep = {k: finite(v) if k in METRIC_KEYS else v for k, v in out.items()}
+        return keep, maps, ref, rec
     ei = M.edge_interior_error(ref, cand, edge_mask=edge)
     out["edge_mae"], out["interior_mae"] = ei["edge_mae"], ei["interior_mae"]
     # radiance a missed sub-pixel feature could have: the reference's 99th percentile

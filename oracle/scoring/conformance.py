@@ -47,7 +47,12 @@ def parse_expect(text: str, *, kind: str | None = None) -> tuple[str, dict]:
     technique = technique.strip()
     if not technique:
         raise ScoreError(f"--expect expects TECHNIQUE[:KEY=VALUE,...], got {text!r}")
-    pairs = [p.strip() for p in rest.split(",") if p.strip()]
+    pairs: list[str] = []
+    for piece in (p.strip() for p in rest.split(",")):
+        if piece and ("=" in piece or not pairs):
+            pairs.append(piece)
+        elif piece:  # a list value (splits=0.1,0.3,0.6,1.0), as --set takes it
+            pairs[-1] += f",{piece}"
     try:
         params = raster_models.parse_params(technique, pairs)
         produced = raster_models.family(technique).channels
@@ -78,15 +83,15 @@ def _frame_values(model, cand, ref, *, kind, receivers, ppd, exposure) -> dict:
 
 
 def add_conformance(
-    result, scenes_k, expect: str, *, kind: str, ppd: float, gate_frames=None
+    result, scenes_k, expect: str, *, kind: str, ppd: float, exposure, into: dict, gate_frames=None
 ) -> list[str]:
     """Run the claimed technique's model on every frame scene of ``scenes_k`` and add the
     conformance metrics to each frame's metrics and (their mean over the judged frames) to
-    the record, with ``conformance`` (technique, params, per-frame shift ``[dx, dy]``).
+    ``into`` (the record's sections), with ``conformance`` (technique, params, per-frame
+    shift ``[dx, dy]``); ``exposure``: the score's tone mapping (colour).
     Returns a note naming the displacement when the edges moved by
     :data:`MIN_DISPLACEMENT_PX` or more."""
     technique, params = parse_expect(expect, kind=kind)
-    exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops")
     per_frame = []
     for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
         res = raster_models.run(technique, frame_scene, **params)
@@ -114,11 +119,8 @@ def add_conformance(
     judged = per_frame[-(gate_frames or len(per_frame)) :]
     for key in CONFORMANCE_KEYS:
         vals = [v[key] for v in judged if v.get(key) is not None]
-        result.record[key] = float(np.mean(vals)) if vals else None
-    if result.record.get("frames"):
-        for rec, frame in zip(result.record["frames"], result.frames, strict=True):
-            rec.update({k: frame.metrics.get(k) for k in CONFORMANCE_KEYS})
-    result.record["conformance"] = {
+        into[key] = float(np.mean(vals)) if vals else None
+    into["conformance"] = {
         "technique": technique,
         "params": res.params,
         "shift_px": [v["conformance_shift"] for v in per_frame],
@@ -129,6 +131,6 @@ def add_conformance(
     return [
         f"conformance: the candidate's edges are displaced by ({dx:+.2f}, {dy:+.2f}) px from "
         f"{technique}'s model (misclassified "
-        f"{result.record.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
+        f"{into.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
         "a filter or lookup that reads the map off by a texel, or another projection"
     ]

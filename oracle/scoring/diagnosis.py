@@ -35,29 +35,28 @@ NO_GAIN = 0.01
 SHOWN_ROWS = 3
 
 
-def _stderr(result: ScoreResult) -> np.ndarray:
-    channel = result.record["channel"]
+def _stderr(result: ScoreResult, channel: str) -> np.ndarray:
     ch = read_exr(result.reference_folders[0] / "reference.exr")
     if channel == "color":
         return np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1)
     return ch[f"{channel}_stderr"]
 
 
-def diagnose_result(result: ScoreResult) -> dict:
+def diagnose_result(result: ScoreResult, *, channel: str, floors: dict | None) -> dict:
     """``{"error", "noise_floor", "tried", "likely"}`` of the first frame (see
-    :func:`metrics.diagnose`), plus ``notes``: a hint for a grey mask stored as RGB."""
+    :func:`metrics.diagnose`) of a score of ``channel`` whose noise floors are ``floors``,
+    plus ``notes``: a hint for a grey mask stored as RGB."""
     frame = result.frames[0]
-    channel = result.record["channel"]
     kind = (
         "color" if channel == "color" else ("visibility" if channel == "visibility" else "coverage")
     )
     # the score's own floor of the same mean |error| where it has one
-    floors = result.record.get("noise_floor") or {}
+    floors = floors or {}
     floor = floors.get({"visibility": "visibility_mae", "coverage": "coverage_mae"}.get(kind, ""))
     found = M.diagnose(
         frame.reference,
         frame.candidate,
-        reference_stderr=_stderr(result),
+        reference_stderr=_stderr(result, channel),
         kind=kind,
         mask=frame.receivers,
         noise_floor=floor,
@@ -96,38 +95,41 @@ def _mask_shift(frame, error: float) -> list[str]:
     ]
 
 
-def explain_colour(result: ScoreResult, names=None) -> tuple[list[str], list[str]]:
+def explain_colour(
+    result: ScoreResult, record: dict, *, exposure, names=None
+) -> tuple[list[str], list[str]]:
     """Per-shape rows, the gaps that explain the colour error and the metrics after the best
-    per-material gain, into the record (``materials``, ``colour_causes``,
-    ``gain_corrected``) for frame 0. Returns ``(causes, details)``: a message per gap that
-    explains the error (diagnoses), and the worst rows and the gain-corrected metrics when
-    the error is large or explained (``colour_causes["details"]``: printed and shown on the
-    report's first screen)."""
+    per-material gain, into ``record`` (``materials``, ``colour_causes``, ``gain_corrected``;
+    it also holds the score's ``diagnosis``, ``flip_mean`` and ``delta_e2000_mean``) for
+    frame 0; ``exposure``: the score's tone mapping. Returns ``(causes, details)``: a
+    message per gap that explains the error (diagnoses), and the worst rows and the
+    gain-corrected metrics when the error is large or explained
+    (``colour_causes["details"]``: printed and shown on the report's first screen)."""
     frame = result.frames[0]
     ch = read_exr(result.reference_folders[0] / "reference.exr")
     ids = np.asarray(ch["id"]).astype(np.int64)
     ref, cand = frame.reference, frame.candidate
     rows = material_rows(ref, cand, ids, flip_map=frame.maps.get("flip"), names=names)
-    floor = (result.record.get("diagnosis") or {}).get("noise_floor") or 0.0
+    floor = (record.get("diagnosis") or {}).get("noise_floor") or 0.0
     found = colour_causes(ref, cand, ids, noise_floor=floor, names=names)
-    exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
-    result.record["materials"] = rows
-    result.record["colour_causes"] = found
+    exposure = exposure or 0.0
+    record["materials"] = rows
+    record["colour_causes"] = found
     gains = [g for g in found["material_gains"].values() if g is not None]
     if any(abs(g - 1.0) > NO_GAIN for g in gains):
         fixed = material_gain_corrected(ref, cand, ids).astype(np.float32)
         flip = float(M.flip(ref, fixed, mode="LDR", exposure=exposure))
         de = float(M.delta_e2000(ref, fixed, exposure=exposure))
     else:  # no material off by a gain: the raw values (FLIP is a case's costliest metric)
-        flip, de = result.record.get("flip_mean"), result.record.get("delta_e2000_mean")
-    result.record["gain_corrected"] = {
+        flip, de = record.get("flip_mean"), record.get("delta_e2000_mean")
+    record["gain_corrected"] = {
         "flip_mean": flip,
         "delta_e2000_mean": de,
         "gains": {str(k): v for k, v in found["material_gains"].items()},
     }
     causes = [f"colour: {c['message']}" for c in found["causes"]]
     details = []
-    large = (result.record.get("diagnosis") or {}).get("error", 0.0) > 5.0 * max(floor, 1e-6)
+    large = (record.get("diagnosis") or {}).get("error", 0.0) > 5.0 * max(floor, 1e-6)
     if large or causes:
         for row in rows[:SHOWN_ROWS]:
             details.append(
@@ -137,10 +139,10 @@ def explain_colour(result: ScoreResult, names=None) -> tuple[list[str], list[str
                 else f"shape {row['name'] or row['id']}: {row['pixels']} px"
             )
     if found["causes"] and found["causes"][0]["error"] <= REMOVED_FRACTION * found["error"]:
-        g = result.record["gain_corrected"]
+        g = record["gain_corrected"]
         details.append(
             f"after the best per-material gain: FLIP {g['flip_mean']:.4g} (raw "
-            f"{result.record.get('flip_mean') or 0:.4g}), dE2000 {g['delta_e2000_mean']:.4g}"
+            f"{record.get('flip_mean') or 0:.4g}), dE2000 {g['delta_e2000_mean']:.4g}"
         )
     found["details"] = details
     return causes, details

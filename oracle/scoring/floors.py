@@ -12,11 +12,20 @@ from __future__ import annotations
 import numpy as np
 
 from ... import metrics as M
+from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
-from .channels import METRIC_KEYS, metrics_for, second_reference
-from .engine_metrics import add_engine_gate_metrics, exact_floors
+from .channels import COVERAGE_CHANNELS, METRIC_KEYS, metrics_for, second_reference
+from .engine_metrics import engine_gates_apply, exact_floors, prepared_reference
 
-__all__ = ["engine_records", "fraction_floors", "noise_floor", "temporal_floor"]
+__all__ = ["fraction_floors", "noise_floor", "noise_settings", "temporal_floor"]
+
+
+def noise_settings(request) -> ReferenceSettings:
+    """The settings of the noise floor's second reference: the request's, seeded ``seed + 1``."""
+    o = request.options
+    return ReferenceSettings(
+        spp=o.spp, seed=o.seed + 1, channels=request.groups, exact_budget=o.exact_budget
+    ).validate()
 
 
 def noise_floor(
@@ -26,7 +35,10 @@ def noise_floor(
     reference (``settings``) stands for it. Cached in ``floor_cache`` by reference and options.
     """
     floor_key = (ref.meta.get("cache_key"), channel, kw["flip_mode"], kw["ppd"], kw["samples"])
-    floor_key += (kw["aa_samples"], kw["coverage_only"])
+    if channel in COVERAGE_CHANNELS:
+        # the straight-edge floor and the kept metrics of coverage depend on these; the other
+        # channels' floors do not (one colour floor serves every sample count)
+        floor_key += (kw["aa_samples"], kw["coverage_only"])
     cached = floor_cache.get(floor_key) if floor_cache is not None else None
     if cached is not None and floor_key[0] is not None:
         return dict(cached)
@@ -37,9 +49,27 @@ def noise_floor(
     exact = M.exact_surrogate(ref_img, second)
     floor, _, _, rec = metrics_for(channel, ref_ch, exact, full=False, **kw)
     floor = {key: floor[key] for key in METRIC_KEYS if floor.get(key) is not None}
-    # the engine teams' gates (Unreal, Unity, edge-aware) on the same exact surrogate
+    # the engine teams' gates (Unreal, Unity, edge-aware) on the same exact surrogate; the
+    # reference's side of them kept for the cases judged against it
+    prepared = None
+    if engine_gates_apply(channel) and not kw["coverage_only"]:
+        prepared = prepared_reference(
+            ref_img,
+            channel=channel,
+            exposure=kw["exposure"],
+            key=ref.meta.get("cache_key"),
+            memo=floor_cache,
+        )
     floor.update(
-        exact_floors(ref_img, exact, ref_ch, channel=channel, exposure=kw["exposure"], mask=rec)
+        exact_floors(
+            ref_img,
+            exact,
+            ref_ch,
+            channel=channel,
+            exposure=kw["exposure"],
+            mask=rec,
+            prepared=prepared,
+        )
     )
     if floor_cache is not None and floor_key[0] is not None:
         floor_cache[floor_key] = dict(floor)
@@ -74,32 +104,16 @@ _FRACTION_OF = {
 }
 
 
-def engine_records(result, *, channel: str, exposure) -> None:
-    """The pixel-fraction noise floors, the engine teams' gate metrics and, for a shadow
-    mask, the pixels off the oracle's receivers (ignored and counted) of a scored result."""
-    fraction_floors(result)
-    add_engine_gate_metrics(result, channel=channel, exposure=exposure)
-    if channel == "visibility":
-        result.record["outside_receivers"] = {
-            key: sum(int(f.metrics[k]) for f in result.frames)
-            for key, k in (
-                ("pixels", "outside_receivers"),
-                ("differing", "outside_receivers_differing"),
-            )
-        }
-
-
-def fraction_floors(result) -> None:
+def fraction_floors(result, values: dict, floors: dict | None) -> None:
     """The noise floors of the fractions of pixels: an exact candidate flags ~0 pixels
     (``significant_fraction``'s Sidak correction; a 0.5 threshold), yet a re-rendered
     reference flips the pixels near the threshold; each floor is at least that flip's bound
     (:func:`metrics.fraction_floor` of the run's fraction over the pixels it counts), so an
     unchanged candidate against another seed's reference is no regression."""
-    floors = result.record.get("noise_floor")
     if floors is None:
         return
     for key, count_key in _FRACTION_OF.items():
-        value = result.record.get(key)
+        value = values.get(key)
         if value is None:
             continue
         if count_key is None:

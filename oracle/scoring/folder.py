@@ -5,7 +5,6 @@ a manifest).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -111,7 +110,8 @@ def score_folder(
     from .ci.checks import Verdict
     from .combine import combine_reports
     from .inputs.out_names import case_folder
-    from .request import score_to_folder
+    from .request import ScoreRequest
+    from .to_folder import score_to_folder
 
     out = Path(out)
     for case in cases:  # every case's folder a folder name under out, before anything is written
@@ -129,17 +129,20 @@ def score_folder(
         baseline = (baselines or {}).get(case.name)
         folder = case_folder(out, case.name, error=ScoreError)
         try:
-            verdict = score_to_folder(
+            request = ScoreRequest.for_files(
                 case.loaded,
-                out=folder,
-                candidate=case.pattern,
+                case.pattern,
                 channel=case.channel,
+                layout=case.layout,
                 options=case.options,
                 cache=cache,
+            )
+            verdict, record = score_to_folder(
+                request,
+                out=folder,
                 gates=list(case.gates),
                 baseline=baseline,
                 baseline_source=f"{baseline_source} scene {case.name}",
-                layout=case.layout,
                 name=case.name,
                 baseline_options=case_baseline_options(case, baseline_options),
             )
@@ -156,8 +159,7 @@ def score_folder(
             else:
                 verdict.add(notes=[line])
         run.verdicts.append(verdict)
-        record = json.loads((folder / "metrics.json").read_text())
-        record["folder"] = case.name
+        record = dict(record, folder=case.name)
         combined["scenes"][case.name] = record
         if verdict.failed:
             combined["failed"][case.name] = list(verdict.failed)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 
 from ... import metrics as M
+from ..reference.settings import ExactBudget
 from .result import ScoreError
 
 __all__ = ["VISIBILITY_CONVENTIONS", "ScoreOptions"]
@@ -23,7 +24,7 @@ VISIBILITY_CONVENTIONS = ("1-is-lit", "1-is-shadowed")
 
 @dataclass(frozen=True)
 class ScoreOptions:
-    """Options of :func:`oracle.scoring.request.score_to_folder`.
+    """Options of a :class:`oracle.scoring.request.ScoreRequest`.
 
     spp, seed : the reference's samples per pixel and seed (the noise floor uses seed + 1).
     frames, camera_path : score that many frames of the camera path (None or 1: the
@@ -59,7 +60,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
-    exact_budget: float | None = None
+    exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
@@ -78,13 +79,10 @@ class ScoreOptions:
                 f"--transfer must be one of {', '.join(TRANSFERS)}, got {self.transfer!r}"
             )
         frames = self.frames if self.frames and self.frames > 1 else None
-        return replace(self, frames=frames, flip_mode=str(self.flip_mode).upper())
-
-    def score_kwargs(self) -> dict:
-        """The keywords of :func:`oracle.scoring.score.score` these options set."""
-        keys = ("spp", "seed", "frames", "camera_path", "quiet", "flip_mode", "ppd", "gate_frames")
-        keys += ("exact_budget",)
-        return {k: getattr(self, k) for k in keys}
+        # one exact-coverage budget for every reference of the score (frames, noise floors)
+        budget = ExactBudget.of(self.exact_budget)
+        flip_mode = str(self.flip_mode).upper()
+        return replace(self, frames=frames, flip_mode=flip_mode, exact_budget=budget)
 
     def as_record(self) -> dict:
         return asdict(self)

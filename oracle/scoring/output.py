@@ -314,8 +314,8 @@ def write_score_folder(
     technique=None,
     params=None,
     cost=None,
-) -> list[str]:
-    """Write the score folder; returns the names of the failed checks.
+) -> dict:
+    """Write the score folder; returns the ``metrics.json`` record written.
 
     ``gates`` and ``verdict`` (their checks and the baseline's, judged by the caller) are
     recorded in ``metrics.json``: ``thresholds`` (``--fail-above`` limits), ``fail_below``,
@@ -394,4 +394,4 @@ def write_score_folder(
     reports.write_report(report, out_dir / "report.html")
     for path in stale:  # after every new file is in place: a failed run removes nothing
         path.unlink(missing_ok=True)
-    return record["failed"]
+    return record

@@ -4,6 +4,7 @@ it), the record's summary over frames, and the metric-limit parser of gates."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from ..errors import InputError
 from .channels import METRIC_KEYS, REFERENCE_GROUPS
 
 __all__ = [
+    "SECTIONS",
     "FrameScore",
     "ScoreError",
     "ScoreResult",
@@ -46,6 +48,10 @@ class ScoreResult:
     record: dict
     frames: list[FrameScore] = field(default_factory=list)
     reference_folders: list[Path] = field(default_factory=list)
+    #: wall seconds by pass (:class:`oracle.phases.Phases`; None: not timed)
+    phases: object = None
+    #: the notes the passes made for the verdict (diagnoses, conformance, receivers)
+    notes: list = field(default_factory=list)
 
 
 def summarise(result, *, temporal: bool, gate_frames: int | None = None) -> dict:
@@ -76,31 +82,48 @@ def tone_record(channel, exposure, flip_mode, flip_range) -> dict | None:
     }
 
 
-def build_record(
-    result, loaded, ref_meta, *, channel, summary, frames, camera_path, tone, ppd, spp, seed
-) -> dict:
-    """The ``metrics.json`` record of a score (before thresholds and the candidate's cost)."""
-    return {
+#: The record's sections after its reference, in this order when present (a pass's
+#: section not named here follows them, in the order the passes ran).
+SECTIONS = (
+    "outside_receivers",
+    "candidate_info",
+    "gate_frames",
+    "temporal_aa",
+    "wall_seconds",
+    "coverage_reference",
+)
+
+
+def build_record(ctx) -> dict:
+    """The ``metrics.json`` record of a score (before thresholds and the candidate's cost),
+    built once from what the frames and the passes of ``ctx``
+    (:class:`oracle.scoring.passes.context.ScoreContext`) computed."""
+    request = ctx.request
+    o = request.options
+    loaded = request.loaded
+    ref_meta = ctx.references[0][0].meta
+    frames = ctx.result.frames
+    record = {
         "schema": "raster-oracle/metrics/1",
-        "channel": channel,
+        "channel": request.channel,
         # this run's backend, device and self-check (a model ran here; the reference's
         # own are under "reference")
         "provenance": provenance(),
-        **summary,
-        "noise_floor": result.frames[0].noise_floor,
-        "frames": [f.metrics for f in result.frames] if frames else None,
-        "camera_path": camera_path if frames else None,
+        **ctx.summary,
+        "noise_floor": frames[0].noise_floor,
+        "frames": [f.metrics for f in frames] if o.frames else None,
+        "camera_path": o.camera_path if o.frames else None,
         "light_path": loaded.light_path,
-        "tone_mapping": tone,
-        "ppd": ppd,
+        "tone_mapping": tone_record(request.channel, ctx.exposure, o.flip_mode, ctx.flip_range),
+        "ppd": o.ppd,
         "reference": {
             # the cached reference may have been rendered from another file of the same content
             # (an export copied into CI's folder): the scene is named as this run loaded it
             "scene": {**ref_meta["scene"], "name": loaded.name, "source": loaded.source},
-            "spp": spp,
-            "seed": seed,
-            "noise_floor_seed": seed + 1,
-            "channels": list(REFERENCE_GROUPS[channel]),
+            "spp": o.spp,
+            "seed": o.seed,
+            "noise_floor_seed": o.seed + 1,
+            "channels": list(REFERENCE_GROUPS[request.channel]),
             "variant": ref_meta["variant"],
             # the machine that rendered the reference and its self-check (older cache
             # entries have neither)
@@ -111,6 +134,18 @@ def build_record(
             "filter": ref_meta["filter"],
         },
     }
+    if ctx.coverage_truth is not None:
+        # which truth the coverage metrics used: exact (noise floor 0 there) or Monte Carlo
+        record["reference"]["coverage_truth"] = ctx.coverage_truth
+    sections = dict(ctx.sections)
+    sections.update(candidate_info=ctx.infos, gate_frames=o.gate_frames)
+    sections.setdefault("temporal_aa", None)
+    sections["wall_seconds"] = time.perf_counter() - ctx.started
+    for name in SECTIONS:
+        if name in sections:
+            record[name] = sections.pop(name)
+    record.update(sections)
+    return record
 
 
 def metric_limit(

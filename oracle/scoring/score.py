@@ -10,12 +10,13 @@ added: ``flicker`` (:func:`metrics.temporal.added_flicker`, non-negative) and
 anti-aliasing pass and the engine teams' gate pass run where the metric catalogue declares
 their metrics for the scored channel's kind (:mod:`metrics.catalog`).
 
-The record itself is built in :mod:`oracle.scoring.result`.
+:func:`score` scores the frames, runs the passes the plan picks for the request
+(:mod:`oracle.scoring.passes.plan`: noise floors, temporal metrics, engine gates, receivers,
+coverage, steady-state yardstick) and builds the record once, last
+(:func:`oracle.scoring.result.build_record`).
 """
 
 from __future__ import annotations
-
-import time
 
 from ... import metrics as M
 from ...metrics.aliasing import COVERAGE_FLOOR_RMS, COVERAGE_KEYS, coverage_metrics
@@ -23,7 +24,6 @@ from ...metrics.temporal import added_flicker
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 from .channels import (
-    CHANNEL_KIND,
     COVERAGE_CHANNELS,
     METRIC_KEYS,
     REFERENCE_GROUPS,
@@ -32,17 +32,12 @@ from .channels import (
     reference_receivers,
     rgb,
 )
-from .floors import engine_records, noise_floor, temporal_floor
-from .result import (
-    FrameScore,
-    ScoreError,
-    ScoreResult,
-    build_record,
-    metric_limit,
-    summarise,
-    tone_record,
-)
-from .temporal import TEMPORAL_AA_KEYS, add_temporal_aa
+from .engine_metrics import frame_stderr
+from .passes import engine_gates
+from .passes.context import ScoreContext
+from .passes.plan import plan
+from .request import ScoreRequest
+from .result import FrameScore, ScoreError, ScoreResult, build_record, metric_limit
 
 __all__ = [
     "COVERAGE_FLOOR_RMS",
@@ -50,9 +45,9 @@ __all__ = [
     "METRIC_KEYS",
     "REFERENCE_GROUPS",
     "ScoreError",
+    "ScoreRequest",
     "ScoreResult",
     "added_flicker",
-    "applies",
     "coverage_metrics",
     "coverage_truth",
     "metric_limit",
@@ -61,185 +56,77 @@ __all__ = [
 ]
 
 
-def applies(keys, channel: str) -> bool:
-    """True when the metric catalogue declares one of ``keys`` for ``channel``'s kind."""
-    kind = CHANNEL_KIND[channel]
-    return any(kind in M.CATALOG[k].kinds for k in keys)
+def _frame_keywords(ctx: ScoreContext, frame_scene, ref_ch) -> dict:
+    """The keywords of :func:`metrics_for` for one frame (colour: the tone mapping of frame
+    0's reference, kept for every frame)."""
+    request = ctx.request
+    o = request.options
+    if ctx.exposure is None and request.channel == "color":
+        ref_rgb = rgb(ref_ch, "color")
+        ctx.exposure = M.exposure_from_reference(ref_rgb)
+        if o.flip_mode == "HDR":
+            ctx.flip_range = M.hdr_exposure_range(ref_rgb)
+    return dict(
+        light=frame_scene.light,
+        exposure=ctx.exposure,
+        flip_mode=o.flip_mode,
+        flip_range=ctx.flip_range,
+        ppd=o.ppd,
+        samples=o.spp,
+        aa_samples=request.aa_samples,
+        coverage_only=request.coverage_only and request.channel in COVERAGE_CHANNELS,
+    )
 
 
-def _check_request(channel, flip_mode, gate_frames, frames) -> str:
-    if gate_frames is not None and not 1 <= int(gate_frames) <= (frames or 1):
-        raise ScoreError(f"--gate-frames must be in [1, {frames or 1}], got {gate_frames}")
-    if channel not in REFERENCE_GROUPS:
-        raise ScoreError(f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {channel!r}")
-    flip_mode = flip_mode.upper()
-    if flip_mode not in ("LDR", "HDR"):
-        raise ScoreError(f"flip mode must be LDR or HDR, got {flip_mode!r}")
-    return flip_mode
-
-
-def _score_frames(loaded, result, *, channel, candidate_frames, frames, camera_path, opts):
-    """Score every frame into ``result.frames`` (frame 0 with its noise floor); returns the
-    frame scenes, the candidates' infos and motion, the tone-mapping record's inputs and
-    frame 0's reference metadata and coverage truth."""
-    n = frames or 1
+def score_frames(ctx: ScoreContext) -> None:
+    """Score every frame into ``ctx.result.frames``: its reference, its candidate, the
+    channel's metrics and error maps; frame 0's reference (metadata, channels, coverage
+    truth) and metric keywords are kept for the passes."""
+    request = ctx.request
+    o = request.options
     settings = ReferenceSettings(
-        spp=opts["spp"], seed=opts["seed"], channels=opts["groups"], exact_budget=opts["budget"]
+        spp=o.spp, seed=o.seed, channels=request.groups, exact_budget=o.exact_budget
     ).validate()
-    st = dict(exposure=None, flip_range=None, infos=[], engine=[], scenes=[], truth=None)
-    for k in range(n):
-        frame_scene = loaded.with_frame(k, path=camera_path, n_frames=n) if frames else loaded
-        st["scenes"].append(frame_scene)
-        ref = get_reference(frame_scene, settings, cache=opts["cache"], quiet=opts["quiet"])
+    read = request.candidate_frames()
+    for k, frame_scene in enumerate(request.frame_scenes):
+        ref = get_reference(frame_scene, settings, cache=request.cache, quiet=o.quiet)
         ref_ch = ref.channels()
-        cand, info = candidate_frames(frame_scene, k)
-        st["engine"].append((info.pop("motion", None), info.pop("disocclusion", None)))
-        st["infos"].append(info)
-        if k == 0 and channel == "color":
-            ref_rgb = rgb(ref_ch, "color")
-            st["exposure"] = M.exposure_from_reference(ref_rgb)
-            if opts["flip_mode"] == "HDR":
-                st["flip_range"] = M.hdr_exposure_range(ref_rgb)
-        kw = dict(
-            light=frame_scene.light,
-            exposure=st["exposure"],
-            flip_mode=opts["flip_mode"],
-            flip_range=st["flip_range"],
-            ppd=opts["ppd"],
-            samples=opts["spp"],
-            aa_samples=opts["aa_samples"],
-            coverage_only=opts["coverage_only"] and channel in COVERAGE_CHANNELS,
-        )
-        values, maps, ref_img, rec = metrics_for(channel, ref_ch, cand, full=True, **kw)
-        floor = None
+        cand, info = read(frame_scene, k)
+        ctx.engine_motion.append((info.pop("motion", None), info.pop("disocclusion", None)))
+        ctx.infos.append(info)
+        kw = _frame_keywords(ctx, frame_scene, ref_ch)
+        values, maps, ref_img, rec = metrics_for(request.channel, ref_ch, cand, full=True, **kw)
         if k == 0:
-            st["ref_meta"] = ref.meta
-            if channel in COVERAGE_CHANNELS:
-                st["truth"] = coverage_truth(ref_ch, channel)[2]
-            floor = noise_floor(
-                frame_scene,
-                ref,
-                ref_ch,
-                ref_img,
-                channel=channel,
-                settings=opts["noise_settings"],
-                kw=kw,
-                cache=opts["cache"],
-                quiet=opts["quiet"],
-                floor_cache=opts["floor_cache"],
-            )
-        result.frames.append(FrameScore(values, floor, maps, ref_img, cand, rec))
-        result.reference_folders.append(ref.folder)
-    return st
+            ctx.kw = kw
+            ctx.references.append((ref, ref_ch))
+            if request.channel in COVERAGE_CHANNELS:
+                ctx.coverage_truth = coverage_truth(ref_ch, request.channel)[2]
+        else:
+            ctx.references.append((ref, None))
+        if engine_gates.applies(request):
+            ctx.stderrs.append(frame_stderr(ref_ch, request.channel))
+        ctx.result.frames.append(FrameScore(values, None, maps, ref_img, cand, rec))
+        ctx.result.reference_folders.append(ref.folder)
 
 
-def score(
-    loaded,
-    *,
-    channel: str,
-    candidate_frames,
-    spp: int = 64,
-    seed: int = 0,
-    frames: int | None = None,
-    camera_path: str = "dolly",
-    cache=None,
-    quiet: bool = True,
-    flip_mode: str = "LDR",
-    ppd: float = M.DEFAULT_PPD,
-    aa_samples: int | None = None,
-    floor_cache: dict | None = None,
-    coverage_only: bool = False,
-    gate_frames: int | None = None,
-    exact_budget: float | None = None,
-) -> ScoreResult:
-    """Score candidate frames against references of ``loaded``.
+def score(request: ScoreRequest) -> ScoreResult:
+    """Score ``request``'s candidate frames against references of its scene.
 
-    Parameters
-    ----------
-    channel : ``"visibility"``, ``"color"``, ``"coverage"`` or ``"front_coverage"``.
-    candidate_frames : callable ``(frame_scene, k) -> (image, info)`` giving the candidate of
-        frame ``k`` (a model run, or an image file read and validated) and a plain record
-        (cost, diagnostics, file name) for the report.
-    frames : score ``frames`` frames of ``camera_path`` (None: the scene's own camera only).
-    aa_samples : samples per pixel of an anti-aliasing technique: picks the straight-edge
-        coverage floor ``coverage_floor_rms`` (None: no floor).
-    floor_cache : a dict shared between calls (a sweep worker's): the noise floor depends on
-        the references and scoring options only, so it is computed once per reference.
-    coverage_only : a coverage channel whose coverage metrics alone are kept (an AA model's
-        ``front_coverage`` beside its colour): no FLIP, SSIM or PSNR of it.
-    gate_frames : average the per-frame metrics over the last ``gate_frames`` frames only
-        (None: all), and judge convergence against their level.
-
-    A sequence (``frames`` >= 2) of a kind the temporal AA metrics apply to (colour) also
-    gets them (:mod:`oracle.scoring.temporal`); a candidate whose ``info`` carries
-    ``"motion"`` (its motion vectors, ``(H, W, 2)`` in the oracle's convention) and
-    optionally ``"disocclusion"`` gets their end-point error (the arrays leave ``info``
-    before it is recorded).
+    The frames first (each against its own reference), then the passes the plan picks for
+    the request (:func:`oracle.scoring.passes.plan.plan`), then the record, built once
+    (:func:`oracle.scoring.result.build_record`). A sequence (``frames`` >= 2) gets the
+    temporal metrics; a candidate whose ``info`` carries ``"motion"`` (its motion vectors,
+    ``(H, W, 2)`` in the oracle's convention) and optionally ``"disocclusion"`` gets their
+    end-point error (the arrays leave ``info`` before it is recorded).
     """
-    flip_mode = _check_request(channel, flip_mode, gate_frames, frames)
-    t0 = time.perf_counter()
-    groups = REFERENCE_GROUPS[channel]
-    opts = dict(spp=spp, seed=seed, groups=groups, cache=cache, quiet=quiet, ppd=ppd)
-    opts.update(flip_mode=flip_mode, aa_samples=aa_samples, coverage_only=coverage_only)
-    opts.update(floor_cache=floor_cache, budget=exact_budget)
-    noise = ReferenceSettings(
-        spp=spp, seed=seed + 1, channels=groups, exact_budget=exact_budget
-    ).validate()
-    opts["noise_settings"] = noise
-    result = ScoreResult(record={})
-    st = _score_frames(
-        loaded,
-        result,
-        channel=channel,
-        candidate_frames=candidate_frames,
-        frames=frames,
-        camera_path=camera_path,
-        opts=opts,
-    )
-    sequence = bool(frames) and len(result.frames) >= 2
-    exact_frames = None
-    if sequence:
-        floor = dict(result.frames[0].noise_floor or {})
-        tf, exact_frames = temporal_floor(
-            result, st["scenes"], noise, channel, cache=cache, quiet=quiet
-        )
-        floor.update(tf)
-        result.frames[0].noise_floor = floor
-    tone = tone_record(channel, st["exposure"], flip_mode, st["flip_range"])
-    summary = summarise(result, temporal=sequence, gate_frames=gate_frames)
-    taa_detail = None
-    if sequence and applies(TEMPORAL_AA_KEYS, channel):
-        taa, taa_detail = add_temporal_aa(
-            result,
-            st["scenes"],
-            seed=seed,
-            cache=cache,
-            quiet=quiet,
-            gate_frames=gate_frames,
-            engine_motion=st["engine"],
-            exact_frames=exact_frames,
-            display=(st["exposure"], ppd),
-        )
-        summary.update(taa)
-    result.record = build_record(
-        result,
-        loaded,
-        st["ref_meta"],
-        channel=channel,
-        summary=summary,
-        frames=frames,
-        camera_path=camera_path,
-        tone=tone,
-        ppd=ppd,
-        spp=spp,
-        seed=seed,
-    )
-    engine_records(result, channel=channel, exposure=st["exposure"])
-    if st["truth"] is not None:
-        # which truth the coverage metrics used: exact (noise floor 0 there) or Monte Carlo
-        result.record["reference"]["coverage_truth"] = st["truth"]
-    result.record["candidate_info"] = st["infos"]
-    result.record["gate_frames"] = gate_frames
-    result.record["temporal_aa"] = taa_detail
-    result.record["wall_seconds"] = time.perf_counter() - t0
-    return result
+    request = request.check()
+    ctx = ScoreContext(request, rescore=score)
+    with ctx.phases.phase("frames"):
+        score_frames(ctx)
+    for step in plan(request):
+        with ctx.phases.phase(step.NAME):
+            step.run(ctx)
+    ctx.result.record = build_record(ctx)
+    ctx.result.phases = ctx.phases
+    ctx.result.notes = ctx.note_lines()
+    return ctx.result

@@ -65,6 +65,8 @@ def _one(n: int, width: int, height: int, spp: int, models: tuple, budget: float
     from ..reference.coverage import exact_channels
     from ..reference.render import ALL_CHANNELS, ReferenceSettings, render_reference
     from ..reference.store import get_reference
+    from ..scoring.options import ScoreOptions
+    from ..scoring.request import ScoreRequest
     from ..scoring.score import REFERENCE_GROUPS, score
 
     phases: dict = {}
@@ -103,12 +105,15 @@ def _one(n: int, width: int, height: int, spp: int, models: tuple, budget: float
                 settings = ReferenceSettings(spp=spp, seed=seed, channels=groups)
                 get_reference(loaded, settings, cache=cache, quiet=True)
             with _measure(phases, "metrics"):
+                image = np.asarray(colour, np.float32)
                 score(
-                    loaded,
-                    channel="color",
-                    candidate_frames=lambda _s, _k: (np.asarray(colour, np.float32), {}),
-                    spp=spp,
-                    cache=cache,
+                    ScoreRequest(
+                        loaded,
+                        "color",
+                        lambda _s, _k: (image, {}),
+                        options=ScoreOptions(spp=spp),
+                        cache=cache,
+                    )
                 )
     trace = phases["tracing"]["seconds"]
     for rec in phases.values():

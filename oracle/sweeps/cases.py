@@ -16,6 +16,8 @@ from ..reference.cache import ReferenceCache
 from ..reference.render import ReferenceSettings
 from ..reference.store import get_reference
 from ..scoring.channels import METRIC_KEYS, REFERENCE_GROUPS
+from ..scoring.options import ScoreOptions
+from ..scoring.request import ScoreRequest
 from ..scoring.technique import score_model, technique_channels
 from .thumbnails import case_images
 
@@ -190,23 +192,20 @@ def evaluate_case(
             camera_path=loaded.camera_path,
             gate_frames=min(SEQUENCE_GATE_FRAMES, frames),
         )
-    result = score_model(
-        loaded,
-        technique,
-        params,
-        spp=spp,
-        seed=seed,
-        cache=cache,
-        quiet=True,
-        floor_cache=WORKER_CACHE.floors,
-        **seq,
+    options = ScoreOptions(spp=spp, seed=seed, quiet=True, **seq)
+    request = ScoreRequest.for_model(
+        loaded, technique, params, options=options, cache=cache, floor_cache=WORKER_CACHE.floors
     )
+    result = score_model(request)
     record = result.record
     info = record["candidate_info"][0]
     metrics = {k: record.get(k) for k in METRIC_KEYS}
     metrics["noise_floor"] = record.get("noise_floor")
     metrics["receiver_count"] = result.frames[0].metrics.get("receiver_count")
     out = {"metrics": metrics, "cost": info["cost"], "params": info["params"]}
+    # the score's seconds by pass (its frames include the model runs): what the main job's
+    # "metrics by pass" table sums
+    out["passes"] = result.phases.record() if result.phases is not None else {}
     # the models' own seconds (each frame's run, once however many channels are scored)
     out["model_seconds"] = float(
         sum(i.get("model_seconds") or 0.0 for i in record["candidate_info"])

@@ -205,6 +205,7 @@ def run_main(
             extra_sections=sections,
         )
     timing = timing_record(phases, time.perf_counter() - t_start, inline=workers == 0)
+    timing["score_passes"] = dict(summary.get("passes") or {})
     for line in phases.lines(title="main job by phase", wall=timing["wall_seconds"]):
         echo(line)
     if workers != 0:
@@ -212,9 +213,23 @@ def run_main(
             "  (references, models, metrics and images are seconds summed over the sweep's "
             "workers, so their shares can add up to more than the wall time)"
         )
+    for line in pass_lines(summary.get("passes")):
+        echo(line)
     atomic_write_json(out / "timing.json", timing)
     _add_timing(report.with_suffix(".json"), timing)
     return report, failed
+
+
+def pass_lines(passes: dict | None) -> list[str]:
+    """The sweep cases' scoring seconds by score pass (:mod:`oracle.scoring.passes`; the
+    ``frames`` pass includes the model runs, whose own seconds are the ``models`` phase),
+    largest first: the table that names the pass of a regression."""
+    if not passes:
+        return []
+    table = Phases()
+    for name, seconds in sorted(passes.items(), key=lambda kv: -kv[1]):
+        table.add(name, seconds)
+    return table.lines(title="sweep scoring by pass")
 
 
 def timing_record(phases: Phases, wall: float, *, inline: bool) -> dict:

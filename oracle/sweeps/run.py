@@ -231,6 +231,8 @@ def run_sweep(
         "references": 0,
         # seconds by phase: wall in this process (workers=0), else summed over the workers
         "phases": {"references": 0.0, "models": 0.0, "metrics": 0.0, "images": 0.0},
+        # the cases' scoring seconds by score pass (oracle.scoring.passes), summed likewise
+        "passes": {},
     }
     with SweepStore(db) as store:
         finished = store.finished_keys(include_failed=not retry_failed)
@@ -263,6 +265,8 @@ def run_sweep(
                 summary[res["status"]] += 1
                 for name, seconds in (res.get("phases") or {}).items():
                     summary["phases"][name] = summary["phases"].get(name, 0.0) + seconds
+                for name, seconds in (res.pop("passes", None) or {}).items():
+                    summary["passes"][name] = summary["passes"].get(name, 0.0) + seconds
     summary["wall_seconds"] = time.perf_counter() - t0
     return summary
 

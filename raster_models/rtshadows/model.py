@@ -31,7 +31,14 @@ from .frames import build_frame
 from .sigma import sigma_step
 from .svgf import SvgfParams, svgf_step
 
-__all__ = ["DENOISERS", "NoParams", "cost_record", "denoise_step", "make_runner"]
+__all__ = [
+    "DENOISERS",
+    "LIGHTS",
+    "NoParams",
+    "cost_record",
+    "denoise_step",
+    "make_runner",
+]
 
 MAX_SEQUENCES = 8
 _STATES: OrderedDict = OrderedDict()
@@ -41,6 +48,11 @@ _STATES: OrderedDict = OrderedDict()
 class NoParams:
     """A model without parameters (the transcriptions take their sources' constants)."""
 
+
+#: Light kinds the models accept (an area light's punctual proxy is a point light,
+#: :mod:`scenes.lights`; a disk is a sun of angular size, a rectangle sampled over its area,
+#: the others give hard shadows: :mod:`.rays`).
+LIGHTS = ("directional", "point", "spot")
 
 #: denoiser -> (per-pixel bytes of its buffers, texel taps a pixel a frame, source)
 DENOISERS = {

@@ -21,7 +21,9 @@ c6efa6bf7f2027b3ec94f28578bb5965eabb9e55):
 A disk area light far away is this project's sun with an angular size (the soft truth
 integrates over the disk); its apex angle is ``2 atan(r / d)`` from the scene's centre. A
 rectangle light has no AMD ray; the same noise picks a uniform point on it (this project's
-choice, the estimator whose mean is the truth's ``light_fraction``).
+choice, the estimator whose mean is the truth's ``light_fraction``). A directional light is a
+sun of no angular size (the cone's radius 0), a point, spot or sphere light a point: hard
+shadows, as their truth.
 
 **NVIDIA NRD SIGMA input** (NVIDIA-RTX/NRD commit a822d87f6202650da1dcebaeaf1f2c5b0b7be112,
 ``Shaders/NRD.hlsli``): ``SIGMA_FrontEnd_PackPenumbra(distanceToOccluder,
@@ -169,11 +171,27 @@ class ShadowRays:
         return pack_penumbra_local(h, self.tmax, self.light_size)
 
 
+def _punctual_rays(light, origin) -> ShadowRays:
+    """A directional light's ray (a sun of no angular size: AMD's cone of radius 0) or the
+    ray to a point, spot or sphere light's centre (stopping at a sphere's surface): hard
+    shadows, NRD's penumbra 0 where a ray is blocked."""
+    if light.kind == "directional":
+        d = cone_directions(np.asarray(light.direction, dtype=F32), np.zeros((len(origin), 2)), 0)
+        tmax = np.full(len(origin), np.inf, dtype=F32)
+        return ShadowRays(origin, d, tmax, sun=True, tan_radius=0.0)
+    to = np.asarray(light.position, dtype=np.float64) - origin.astype(np.float64)
+    dist = np.sqrt(np.einsum("ij,ij->i", to, to))
+    d = (to / np.maximum(dist, 1e-30)[:, None]).astype(F32)
+    tmax = ((dist - light.shadow_end) * (1.0 - 1e-5)).astype(F32)
+    return ShadowRays(origin, d, tmax, sun=False, light_size=0.0)
+
+
 def frame_rays(light, position, normal, px, py, frame: int, *, centre=None) -> ShadowRays:
     """The rays of pixels ``(px, py)`` whose primary hits are ``position`` with shading
-    normals ``normal`` (``(N, 3)``), frame ``frame``, towards ``light`` (a disk or rectangle
-    area light, :class:`scenes.lights.Light`). ``centre``: the point the sun's angular size
-    is measured from (default the origin)."""
+    normals ``normal`` (``(N, 3)``), frame ``frame``, towards ``light``
+    (:class:`scenes.lights.Light`: a disk area light is a sun of angular size, a rectangle
+    one is sampled over its area, other lights give hard rays). ``centre``: the point the
+    sun's angular size is measured from (default the origin)."""
     p = np.asarray(position, dtype=F32).reshape(-1, 3)
     n = np.asarray(normal, dtype=F32).reshape(-1, 3)
     origin = (p + n * PIXEL_THICKNESS).astype(F32)
@@ -192,7 +210,7 @@ def frame_rays(light, position, normal, px, py, frame: int, *, centre=None) -> S
         tmax = (t * (1.0 - 1e-5)).astype(F32)
         return ShadowRays(origin, d, tmax, sun=True, tan_radius=np.tan(half))
     if light.area != "rectangle":
-        raise ValueError(f"rtshadows rays need a disk or rectangle area light, got {light.area!r}")
+        return _punctual_rays(light, origin)
     q = np.asarray(light.area_point(s[:, 0].astype(np.float64), s[:, 1].astype(np.float64)))
     q = q.reshape(-1, 3)
     to = q - origin.astype(np.float64)

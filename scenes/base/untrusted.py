@@ -23,14 +23,18 @@ from pathlib import Path
 
 __all__ = [
     "LIMITS",
+    "NAME_MAX",
+    "PATH_MAX",
     "UntrustedError",
     "check_finite",
     "check_int",
     "check_number",
+    "check_path",
     "contained",
     "escape_html",
     "escape_markdown",
     "json_depth",
+    "path_problem",
     "read_bounded",
     "read_json",
     "read_text",
@@ -45,6 +49,7 @@ LIMITS = {
     "json_bytes": 64 << 20,  # a camera file, a metrics.json, a verdict, a record
     "manifest_bytes": 4 << 20,  # a CI manifest (TOML)
     "gltf_bytes": 512 << 20,  # a .gltf/.glb and each external buffer or image it names
+    "scene_bytes": 512 << 20,  # a Mitsuba XML scene and each file it names (meshes, textures)
     "nesting": 64,  # JSON/TOML arrays and tables nested deeper: refused
 }
 
@@ -193,6 +198,33 @@ def contained(base, relative: str, *, what: str, error=None) -> Path:
 
 
 _COMPONENT = re.compile(r"[^A-Za-z0-9._-]")
+
+
+#: Longest file-name component and whole path, in bytes (Linux's NAME_MAX and PATH_MAX - 1).
+NAME_MAX, PATH_MAX = 255, 4095
+
+
+def path_problem(path) -> str | None:
+    """Why ``path`` cannot name a file on this system (a NUL, a component over
+    :data:`NAME_MAX` bytes, the whole over :data:`PATH_MAX`), or None. Names that are not
+    UTF-8 are measured as the bytes they stand for."""
+    data = os.fsencode(path)
+    if b"\0" in data:
+        return "it holds a NUL character"
+    if len(data) > PATH_MAX:
+        return f"it is {len(data)} bytes long, over the {PATH_MAX} a path may have"
+    longest = max((len(part) for part in data.split(b"/")), default=0)
+    if longest > NAME_MAX:
+        return f"a component of it is {longest} bytes long, over the {NAME_MAX} a name may have"
+    return None
+
+
+def check_path(path, *, what: str, error=None) -> None:
+    """One line when ``path`` cannot name a file (:func:`path_problem`)."""
+    problem = path_problem(path)
+    if problem is not None:
+        shown = os.fsdecode(os.fsencode(path))
+        _fail(error, f"{what} {shown[:80]!r}{'...' if len(shown) > 80 else ''}: {problem}")
 
 
 def safe_component(text: str, *, what: str, error=None) -> str:

@@ -17,7 +17,8 @@ __all__ = ["shape_mesh", "tessellate_sphere"]
 
 def tessellate_sphere(center, radius, n_phi=512, n_theta=256) -> tuple[np.ndarray, np.ndarray]:
     """A sphere as ``n_theta`` rings of ``n_phi`` segments: vertices on the sphere (poles
-    repeated per segment), faces (F, 3) facing outwards."""
+    repeated per segment) and faces (F, 3) wound clockwise seen from outside (the mesh's
+    signed volume is negative; consumers take the triangles two-sided)."""
     theta = np.linspace(0, np.pi, n_theta + 1)
     phi = np.linspace(0, 2 * np.pi, n_phi, endpoint=False)
     t, p = np.meshgrid(theta, phi, indexing="ij")

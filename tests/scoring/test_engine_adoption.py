@@ -75,6 +75,8 @@ def test_no_receiver_in_view_is_null_not_a_traceback(tmp_path, capsys):
 def test_gate_frames_judges_the_motion_vectors():
     """Frame 0's vectors are zero (wrong), frames 1-2 exact: with --gate-frames 2 the
     judged motion_epe_* is the exact frames' 0, while frame 0 keeps its own error."""
+    from raster_oracle.oracle.scoring.options import ScoreOptions
+    from raster_oracle.oracle.scoring.request import ScoreRequest
     from raster_oracle.oracle.scoring.score import score
     from raster_oracle.oracle.scoring.temporal import truth_motion
 
@@ -88,11 +90,14 @@ def test_gate_frames_judges_the_motion_vectors():
         mv = np.zeros_like(motion[k]) if k == 0 else motion[k]
         return np.zeros((H, W, 3), np.float32), {"frame": k, "motion": mv}
 
-    kw = dict(channel="color", candidate_frames=candidate, spp=1, frames=3, camera_path="rotate")
-    rec = score(base, gate_frames=2, **kw).record
+    def request(gate_frames=None):
+        options = ScoreOptions(spp=1, frames=3, camera_path="rotate", gate_frames=gate_frames)
+        return ScoreRequest(base, "color", candidate, options=options)
+
+    rec = score(request(gate_frames=2)).record
     assert rec["frames"][0]["motion_epe_mean"] > 0.2
     assert rec["motion_epe_mean"] == 0.0 and rec["motion_epe_over_half"] == 0.0
-    assert score(base, **kw).record["motion_epe_mean"] > 0.1  # all frames: frame 0 counts
+    assert score(request()).record["motion_epe_mean"] > 0.1  # all frames: frame 0 counts
 
 
 # 3: exports write the camera of frame -1 ---------------------------------------------------

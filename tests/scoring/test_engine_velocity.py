@@ -13,6 +13,8 @@ from raster_oracle.metrics import from_oracle_motion, to_oracle_motion
 from raster_oracle.oracle.cli import main
 from raster_oracle.oracle.scoring.ci.checks import Gate
 from raster_oracle.oracle.scoring.ci.gates import evaluate_gates
+from raster_oracle.oracle.scoring.options import ScoreOptions
+from raster_oracle.oracle.scoring.request import ScoreRequest
 from raster_oracle.oracle.scoring.score import score
 from raster_oracle.scenes.formats.export import export
 
@@ -51,14 +53,8 @@ def _score(base, frames, *, sign):
         mv = to_oracle_motion(sign * unreal, convention="unreal", width=W, height=H)
         return color, {"frame": k, "motion": mv}
 
-    return score(
-        base,
-        channel="color",
-        candidate_frames=candidate,
-        spp=4,
-        frames=FRAMES,
-        camera_path="rotate",
-    ).record
+    options = ScoreOptions(spp=4, frames=FRAMES, camera_path="rotate")
+    return score(ScoreRequest(base, "color", candidate, options=options)).record
 
 
 def test_correct_engine_motion_vectors_pass_the_velocity_gate(engine_frames):

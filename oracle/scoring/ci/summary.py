@@ -103,4 +103,4 @@ def _first_screen(failed) -> list[str]:
 def write_summary_md(path, verdicts, *, records=None, report=None) -> None:
     """Write :func:`summary_markdown` to ``path`` atomically."""
     text = summary_markdown(verdicts, records=records, report=report)
-    atomic_write_bytes(Path(path), text.encode("utf-8"))
+    atomic_write_bytes(Path(path), text.encode("utf-8", "backslashreplace"))

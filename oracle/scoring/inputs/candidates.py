@@ -200,8 +200,11 @@ def load_motion(
             f"candidate {path.name} has no motion layer {layer!r} ({layer}.X/Y, .R/G or .U/V); "
             f"available: {', '.join(sorted(raw))}"
         )
+    for channel in pair:  # each channel its own size (a sub-sampled .Y: issue 48)
+        if np.ndim(channel) != 2:
+            raise CandidateError(f"candidate {path.name}: motion layer {layer!r} is not 2-D")
+        _check_shape(path, np.asarray(channel), expected_shape or np.shape(pair[0]))
     mv = np.stack([np.asarray(c, dtype=np.float64) for c in pair], -1)
-    _check_shape(path, mv[..., 0], expected_shape)
     if not np.all(np.isfinite(mv)):
         raise CandidateError(f"candidate {path.name}: motion layer {layer!r} holds NaN or inf")
     h, w = expected_shape
@@ -213,6 +216,7 @@ def load_motion(
                 f"candidate {path.name} has no channel {disocclusion!r}; "
                 f"available: {', '.join(sorted(raw))}"
             )
+        _check_shape(path, np.asarray(raw[disocclusion]), mv.shape[:2])
         mask = np.asarray(raw[disocclusion]) > 0.5
     return mv, mask
 
