@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...scenes.base.files import staged_folder
 from . import args as A
 from . import baseline_cmd, score_folder
 from .gate_args import (
@@ -155,6 +154,7 @@ def cmd_score(args) -> int:
     from ..scoring.ci.baseline import check_platform, resolve_baseline
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
+    from ..scoring.output import stale_files
     from ..scoring.request import ScoreRequest
     from ..scoring.result import ScoreError
     from ..scoring.to_folder import score_to_folder
@@ -200,7 +200,7 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
-        exact_budget=args.exact_budget,
+        exact_budget=A.exact_budget(args),
         motion=None
         if args.candidate_motion is None
         else {
@@ -222,7 +222,10 @@ def cmd_score(args) -> int:
             options=options,
             cache=cache,
         )
-    with staged_folder(args.out, last=("metrics.json",)) as out:
+    # an earlier score's own files in --out (its metrics.json lists them) are superseded;
+    # anything else there (a note, the engine's render) is kept
+    earlier = tuple(p.name for p in stale_files(args.out, []))
+    with A.staged_output(args.out, last=("metrics.json",), replaces=earlier) as out:
         verdict, record = score_to_folder(
             request,
             out=out,

@@ -20,7 +20,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ...scenes.base.files import staged_folder
 from . import args as A
 from .gate_args import (
     add_gate_args,
@@ -107,12 +106,12 @@ def cmd_score_folder(args) -> int:
         "exports": args.exports,
         "quiet": args.quiet,
         "platform": args.platform,
-        "exact_budget": args.exact_budget,
+        "exact_budget": A.exact_budget(args),
     }
     # the whole run appears at once, its combined record last; an earlier run's case folders
     # go with it (a reused --out never shows an earlier record beside new results)
     earlier = _earlier_cases(args.out)
-    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
+    with A.staged_output(args.out, last=("metrics.json",), replaces=earlier) as out:
         cases, run = run_folder(
             args.root,
             out=out,
