@@ -7,7 +7,6 @@ into keyword calls of the library; nothing here is called by the library.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
 import os
 from pathlib import Path
@@ -17,7 +16,6 @@ from ...scenes.base.untrusted import check_path, path_problem
 from ..errors import InputError
 
 __all__ = [
-    "staged_output",
     "MAX_SPP",
     "CliError",
     "Parser",
@@ -411,22 +409,3 @@ def check_db(db: Path) -> None:
     if db.exists() and not db.is_file():
         raise CliError(f"--db {db} exists and is not a file")
     check_dir(db.parent if str(db.parent) else Path("."), label=f"--db {db}: folder")
-
-
-@contextlib.contextmanager
-def staged_output(path: Path, **kw):
-    """:func:`scenes.base.files.staged_folder` of ``path`` (``kw``: ``last``, ``replaces``);
-    when the block fails, the folders above ``path`` that staging made are removed again
-    (when empty): bad input writes nothing, not even an empty parent."""
-    from ...scenes.base.files import staged_folder
-
-    path = Path(path)
-    missing = [p for p in (path.parent, *path.parent.parents) if not p.exists()]
-    try:
-        with staged_folder(path, **kw) as out:
-            yield out
-    except BaseException:
-        for folder in missing:  # innermost first; one that holds anything stays
-            with contextlib.suppress(OSError):
-                folder.rmdir()
-        raise

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 from . import baseline_cmd, score_folder
 from .gate_args import (
@@ -225,7 +226,7 @@ def cmd_score(args) -> int:
     # an earlier score's own files in --out (its metrics.json lists them) are superseded;
     # anything else there (a note, the engine's render) is kept
     earlier = tuple(p.name for p in stale_files(args.out, []))
-    with A.staged_output(args.out, last=("metrics.json",), replaces=earlier) as out:
+    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
         verdict, record = score_to_folder(
             request,
             out=out,

@@ -20,6 +20,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from ...scenes.base.files import staged_folder
 from . import args as A
 from .gate_args import (
     add_gate_args,
@@ -111,7 +112,7 @@ def cmd_score_folder(args) -> int:
     # the whole run appears at once, its combined record last; an earlier run's case folders
     # go with it (a reused --out never shows an earlier record beside new results)
     earlier = _earlier_cases(args.out)
-    with A.staged_output(args.out, last=("metrics.json",), replaces=earlier) as out:
+    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
         cases, run = run_folder(
             args.root,
             out=out,
