@@ -165,9 +165,14 @@ def test_an_entry_holding_foreign_files_is_left_and_not_cached(tmp_path, capfd):
 def test_a_cache_that_cannot_be_made_is_skipped_with_one_line(tmp_path, capfd):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    for root in (os.path.join("/proc", "raster-oracle-cache"), str(tmp_path / ("n" * 300))):
-        out = tmp_path / f"out{len(root)}"
-        rc = main(["reference", "plate", *SMALL, "--cache-dir", root, "--out", str(out)])
-        err = capfd.readouterr().err.strip().splitlines()
-        assert rc == 0 and (out / "reference.exr").is_file()
-        assert len(err) == 1 and "cannot be used" in err[0], err
+    root = os.path.join("/proc", "raster-oracle-cache")  # mkdir fails, even for root
+    out = tmp_path / "out"
+    rc = main(["reference", "plate", *SMALL, "--cache-dir", root, "--out", str(out)])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert rc == 0 and (out / "reference.exr").is_file()
+    assert len(err) == 1 and "cannot be used" in err[0], err
+    # a name no file can have is refused before any work (the one path rule)
+    root = str(tmp_path / ("n" * 300))
+    rc = main(["reference", "plate", *SMALL, "--cache-dir", root, "--out", str(out)])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "over the 255" in err[0], err

@@ -155,6 +155,7 @@ def cmd_score(args) -> int:
     from ..scoring.ci.baseline import check_platform, resolve_baseline
     from ..scoring.ci.regression import load_baseline
     from ..scoring.options import ScoreOptions
+    from ..scoring.output import stale_files
     from ..scoring.request import ScoreRequest
     from ..scoring.result import ScoreError
     from ..scoring.to_folder import score_to_folder
@@ -222,7 +223,10 @@ def cmd_score(args) -> int:
             options=options,
             cache=cache,
         )
-    with staged_folder(args.out, last=("metrics.json",)) as out:
+    # an earlier score's own files in --out (its metrics.json lists them) are superseded;
+    # anything else there (a note, the engine's render) is kept
+    earlier = tuple(p.name for p in stale_files(args.out, []))
+    with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
         verdict, record = score_to_folder(
             request,
             out=out,

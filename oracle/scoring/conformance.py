@@ -47,7 +47,12 @@ def parse_expect(text: str, *, kind: str | None = None) -> tuple[str, dict]:
     technique = technique.strip()
     if not technique:
         raise ScoreError(f"--expect expects TECHNIQUE[:KEY=VALUE,...], got {text!r}")
-    pairs = [p.strip() for p in rest.split(",") if p.strip()]
+    pairs: list[str] = []
+    for piece in (p.strip() for p in rest.split(",")):
+        if piece and ("=" in piece or not pairs):
+            pairs.append(piece)
+        elif piece:  # a list value (splits=0.1,0.3,0.6,1.0), as --set takes it
+            pairs[-1] += f",{piece}"
     try:
         params = raster_models.parse_params(technique, pairs)
         produced = raster_models.family(technique).channels

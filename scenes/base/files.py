@@ -185,15 +185,23 @@ def staged_folder(
         that this run does not write): removed when the output is moved in.
     """
     path = Path(path)
+    made = [p for p in path.parents if not os.path.lexists(p)]  # removed again on failure
     path.parent.mkdir(parents=True, exist_ok=True)
     _stale_staging(path)
     stage = Path(
         tempfile.mkdtemp(prefix=f".{path.name[:80]}.partial-{os.getpid()}-", dir=path.parent)
     )
     (stage / STAGING_MARK).write_bytes(b"")
+    done = False
     try:
         yield stage
         with signals_held():  # a stop while the moves run waits for them
             _commit(stage, path, last, replaces)
+        done = True
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+        for folder in [] if done else made:  # deepest first: only the empty ones it made
+            try:
+                folder.rmdir()
+            except OSError:
+                break

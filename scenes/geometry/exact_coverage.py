@@ -101,7 +101,7 @@ def exact_coverage(
 
     Parameters
     ----------
-    loaded : a :class:`scenes.loader.LoadedScene` (its camera and film size are used).
+    loaded : a :class:`scenes.loaded.LoadedScene` (its camera and film size are used).
     centre : ``(H*W,)`` or ``(H, W)`` int shape index seen through each pixel centre
         (-1: sky), as the Monte Carlo ``front_coverage`` uses it.
     budget, check, deadline : as :func:`exact_coverage_of` takes them. A view refused by the

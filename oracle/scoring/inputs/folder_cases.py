@@ -38,10 +38,11 @@ def _candidate_size(path: Path):
         return None
 
 
-def resolve_layout(pattern: str, *, channel, kind, loaded, log=print):
+def resolve_layout(pattern: str, *, channel, kind, loaded, log=print, folder: bool = False):
     """The layout of a candidate file or ``{frame}`` pattern (frame 0's file) with
     ``channel`` / ``kind``, logged as one line, after checking its size against
-    ``loaded``'s (a :class:`ScoreError` naming the export or the size to pass)."""
+    ``loaded``'s (a :class:`ScoreError` naming the export or, for ``score``, the size to
+    pass; ``folder``: a score-folder case, which takes no --width/--height)."""
     from ....scenes.inputs import nearest_export
     from .frames import frame_file
     from .layout import candidate_layout
@@ -57,9 +58,11 @@ def resolve_layout(pattern: str, *, channel, kind, loaded, log=print):
             if found
             else "score the export folder that wrote it (`score EXPORT_DIR`)"
         )
+        # score-folder takes no --width/--height: its scenes come at their export's size
+        fix = export if folder else f"pass --width {w} --height {h}, or {export}"
         raise ScoreError(
             f"candidate is {w}x{h}, the reference is {loaded.width}x{loaded.height} "
-            f"({first.name}): pass --width {w} --height {h}, or {export}"
+            f"({first.name}): {fix}"
         )
     if log is not None:
         log(layout.message(first.name), flush=True)
@@ -109,7 +112,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
         error = layout = None
         try:
             layout = resolve_layout(
-                entry.pattern, channel=channel, kind=kind, loaded=loaded, log=log
+                entry.pattern, channel=channel, kind=kind, loaded=loaded, log=log, folder=True
             )
         except MissingChannelError as exc:
             if channel is None:
@@ -175,7 +178,7 @@ def _manifest(root: Path, path, fo: FolderOptions, gates, log) -> list[FolderCas
             if not Path(frame_file(pattern, 0)).is_file():
                 raise CandidateError(f"candidate file not found: {frame_file(pattern, 0)}")
             layout = resolve_layout(
-                pattern, channel=mc.channel, kind=mc.kind, loaded=loaded, log=log
+                pattern, channel=mc.channel, kind=mc.kind, loaded=loaded, log=log, folder=True
             )
             case = replace(case, layout=layout)
         except CandidateError as exc:

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ....scenes import SceneError
+from ....scenes.base.numbers import MAX_FRAMES
 from ....scenes.base.untrusted import LIMITS as FILE_LIMITS
 from ....scenes.base.untrusted import json_depth, read_text
 from ....scenes.inputs import named_input
@@ -70,8 +71,7 @@ __all__ = [
 LIMITS = {"bytes": FILE_LIMITS["manifest_bytes"], "nesting": 16, "cases": 1000}
 #: Largest ``spp`` (the command line's ``--spp`` limit, 2^20).
 MAX_SPP = 2**20
-#: Largest ``frames``.
-MAX_FRAMES = 10_000
+#: Largest ``frames`` (as ``--frames``: :data:`scenes.base.numbers.MAX_FRAMES`).
 
 _COMMON = {
     "fail_above",
@@ -279,7 +279,8 @@ def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCas
     scene_gates = _gates(table, where)
     cases = []
     for channel, ctable in _table(table.get("channels", {None: {}}), f"{where}.channels").items():
-        cwhere = f"{where}.channels.{channel}"
+        # the key path of what is wrong (no channels table: the scene's own table)
+        cwhere = where if channel is None else f"{where}.channels.{channel}"
         if channel is not None:
             check_out_name(channel, f"{where}.channels", error=ManifestError)
         ctable = _table(ctable, cwhere)
