@@ -130,6 +130,8 @@ FAMILIES: dict[str, Family] = {
             "memory_bytes",
             per_pixel_memory=True,
             temporal=True,
+            # judged at steady state against the area-light truth itself (its soft group)
+            steady_against="reference",
         ),
     )
 }

@@ -34,3 +34,15 @@ def test_silhouette_shift_of_the_rules(mi):
     assert abs(plain["shift_px"]) < 0.1
     # three.js's smoothstep(t, t + fwidth, a) puts half coverage half a ramp inside
     assert -0.8 < a2c["shift_px"] < -0.4
+
+
+@pytest.mark.slow
+def test_flicker_over_a_subpixel_pan(mi):
+    from raster_oracle.oracle.studies.alpha_coverage import flicker
+
+    res = flicker(n=300, width=64, height=36, frames=4)
+    assert res["truth_change"] > 0  # sub-pixel leaves change coverage as they move
+    values = res["flicker"]
+    assert set(values) == set(PRESETS) and all(v >= 0 for v in values.values())
+    # a hashed threshold per pixel-sized object-space cell: a new threshold at every step
+    assert values["hashed/box"] > 1.5 * values["test/box"]

@@ -56,6 +56,10 @@ OTHER_QUOTES = {
         "texture filtering [...] However it is designed to provide a substantially higher "
         "quality.",
     ),
+    "asvgf-less-lag": (
+        "issue 46",
+        "gradient-based history rejection reduces lag after a light change compared with SVGF",
+    ),
 }
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "Parser",
     "add_cache_args",
     "add_exact_budget_arg",
+    "exact_budget",
     "add_reference_args",
     "add_scene_args",
     "add_set_arg",
@@ -258,6 +259,16 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
     add_cache_args(p)
 
 
+def exact_budget(args):
+    """The command's one exact-coverage budget (``--exact-budget``, default
+    :data:`oracle.reference.settings.EXACT_BUDGET_S`): every reference the command renders
+    holds this object, so their exact work adds up against it."""
+    from ..reference.settings import EXACT_BUDGET_S, ExactBudget
+
+    seconds = getattr(args, "exact_budget", None)
+    return ExactBudget(EXACT_BUDGET_S if seconds is None else seconds)
+
+
 def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
     """``--exact-budget SECONDS``: the references' ``exact_budget`` setting
     (:class:`oracle.reference.settings.ReferenceSettings`), handed to them by the command."""
@@ -266,9 +277,11 @@ def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:
         type=nonneg_float,
         default=None,
         metavar="SECONDS",
-        help="estimated seconds of coverage_exact work allowed per view (default 60); over "
-        "it the exact group is skipped for that view with one line on stderr and coverage "
-        "is scored against the Monte Carlo truth",
+        help="seconds of coverage_exact work the whole command may spend, all views and "
+        "frames together (default 60): a view whose estimate exceeds what is left is "
+        "skipped, and the exact pass stops when the time runs out; either way with one "
+        "line on stderr, the decision in the record, and coverage scored against the "
+        "Monte Carlo truth",
     )
 
 

@@ -113,7 +113,7 @@ def cmd_reference(args) -> int:
         adaptive=args.adaptive,
         target_stderr=args.target_stderr,
         max_spp=args.max_spp,
-        exact_budget=args.exact_budget,
+        exact_budget=A.exact_budget(args),
     ).validate()
     A.check_out(args.out)
     loaded = A.load_scene(args)

@@ -201,7 +201,7 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
-        exact_budget=args.exact_budget,
+        exact_budget=A.exact_budget(args),
         motion=None
         if args.candidate_motion is None
         else {
@@ -223,7 +223,8 @@ def cmd_score(args) -> int:
             options=options,
             cache=cache,
         )
-    # an earlier score's files (its record lists them) go when this one's are moved in
+    # an earlier score's own files in --out (its metrics.json lists them) are superseded;
+    # anything else there (a note, the engine's render) is kept
     earlier = tuple(p.name for p in stale_files(args.out, []))
     with staged_folder(args.out, last=("metrics.json",), replaces=earlier) as out:
         verdict, record = score_to_folder(

@@ -107,7 +107,7 @@ def cmd_score_folder(args) -> int:
         "exports": args.exports,
         "quiet": args.quiet,
         "platform": args.platform,
-        "exact_budget": args.exact_budget,
+        "exact_budget": A.exact_budget(args),
     }
     # the whole run appears at once, its combined record last; an earlier run's case folders
     # go with it (a reused --out never shows an earlier record beside new results)

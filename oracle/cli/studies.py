@@ -18,7 +18,9 @@ def add_parsers(sub) -> None:
     ``soft-shadows`` to ``sub``."""
     p = sub.add_parser("bench", help="benchmarks that print JSON figures")
     p.add_argument(
-        "what", choices=["oracle", "models", "scale", "detection"], help="what to benchmark"
+        "what",
+        choices=["oracle", "models", "scale", "exact", "detection"],
+        help="what to benchmark",
     )
     p.add_argument("--width", type=A.positive_int, default=None, help="default 1920 (scale 640)")
     p.add_argument("--height", type=A.positive_int, default=None, help="default 1080 (scale 360)")
@@ -35,6 +37,20 @@ def add_parsers(sub) -> None:
         help="scale: comma-separated blade counts of meadow:n=N (default 10000,100000,1000000)",
     )
     A.add_exact_budget_arg(p)
+    p.add_argument(
+        "--rows",
+        default=None,
+        help="exact: comma-separated rows scene@WxH (panes:n=N is the stacked panes; default "
+        "meadow, city-foliage, the panes at 16:9, 4:3, 1:1, then every built-in scene)",
+    )
+    p.add_argument(
+        "--panes-xml",
+        type=A.path,
+        default=None,
+        metavar="FILE",
+        help="exact: write the stacked panes (80, or --rows panes:n=N) as a Mitsuba XML scene "
+        "at --width x --height (default 256x256) and stop",
+    )
     p.add_argument(
         "--quiet", action="store_true", help="no progress bar, no profile tables on stderr"
     )
@@ -106,6 +122,10 @@ def cmd_bench(args) -> int:
         raise A.CliError(f"bench {args.what}: --{given[0]} applies to 'bench detection' only")
     if args.what == "scale":
         return _bench_scale(args)
+    if args.what == "exact":
+        return _bench_exact(args)
+    if args.rows is not None or args.panes_xml is not None:
+        raise A.CliError(f"bench {args.what}: --rows and --panes-xml apply to 'bench exact' only")
     if args.sizes is not None:
         raise A.CliError(f"bench {args.what}: --sizes applies to 'bench scale' only")
     kwargs = dict(
@@ -124,6 +144,29 @@ def cmd_bench(args) -> int:
     if not args.quiet:  # where the time goes, for a reader (the JSON holds it all)
         lines = models_profile_lines if args.what == "models" else oracle_profile_lines
         print("\n".join(lines(figures)), file=sys.stderr)
+    return 0
+
+
+def _bench_exact(args) -> int:
+    """``bench exact``: the estimate against the exact pass per row (JSON on stdout), or
+    the stacked panes written as XML (``--panes-xml``)."""
+    from ..studies.bench_exact import EXACT_ROWS, bench_exact, exact_lines
+    from ..studies.panes import PANES_N, stacked_panes_xml
+
+    rows = A.names(args.rows) if args.rows else None
+    if args.panes_xml is not None:
+        spec = (rows or ["panes"])[0]
+        n = int(spec.partition("n=")[2].partition("@")[0] or PANES_N)
+        xml = stacked_panes_xml(args.width or 256, args.height or 256, n=n)
+        args.panes_xml.parent.mkdir(parents=True, exist_ok=True)
+        args.panes_xml.write_text(xml)
+        print(f"bench exact: the stacked panes ({n}) written to {args.panes_xml}")
+        return 0
+    log = None if args.quiet else (lambda line: print(line, file=sys.stderr, flush=True))
+    figures = bench_exact(rows or EXACT_ROWS, builtins=rows is None, log=log)
+    print(json.dumps(figures, indent=2))
+    if not args.quiet:
+        print("\n".join(exact_lines(figures)), file=sys.stderr)
     return 0
 
 

@@ -20,12 +20,14 @@ against it in every reference's provenance.
 from __future__ import annotations
 
 import sys
+import time
 
 import numpy as np
 
 from ...scenes import backend
 from ...scenes.backend.raycast import trace_film_dr
 from .group import SampledGroup, binary_stderr, floored_stderr, mean_variance, stderr_summary
+from .settings import ExactBudget
 
 __all__ = ["CROSS_CHECK_Z", "CoverageGroup", "centre_shapes", "exact_channels", "front_hits"]
 
@@ -139,6 +141,31 @@ def _no_exact(loaded, record: dict) -> tuple[dict, dict]:
     return channels, {"valid_fraction": 0.0, **record}
 
 
+def _spent(loaded, clock: ExactBudget) -> tuple[dict, dict]:
+    """A view of a command whose exact budget is spent: skipped (one line for the scene,
+    none after a line of an earlier view already told the budget's story)."""
+    said = loaded.memo.setdefault("exact_coverage_said", set())
+    if not said:
+        said.add(("spent", clock.seconds))
+        print(
+            f"raster-oracle: coverage_exact skipped for {loaded.name!r} from frame "
+            f"{loaded.frame} on: the command's exact budget ({clock.seconds:g} s, "
+            "--exact-budget) is spent; coverage is scored against the Monte Carlo truth",
+            file=sys.stderr,
+        )
+    record = {"decision": "skipped: over budget", "budget_seconds": clock.seconds}
+    return _no_exact(loaded, {**record, "budget_left_seconds": 0.0})
+
+
+def _budget_record(clock: ExactBudget, spent_before: float) -> dict:
+    """The budget in a view's record: the command's seconds and, when earlier views had
+    spent some, what was left for this one."""
+    out = {"budget_seconds": clock.seconds}
+    if spent_before > 0:
+        out["budget_left_seconds"] = max(0.0, clock.seconds - spent_before)
+    return out
+
+
 def exact_channels(
     loaded, centre: np.ndarray | None, sampled: dict, *, budget: float | None = None
 ) -> tuple[dict, dict]:
@@ -149,22 +176,46 @@ def exact_channels(
     beyond :data:`CROSS_CHECK_Z`): a sampling bug shows up in every reference."""
     import shapely
 
-    from ...scenes.geometry.exact_coverage import NotExact, OverBudget, exact_coverage
+    from ...scenes.geometry.exact_coverage import NotExact, OutOfTime, OverBudget, exact_coverage
 
     if centre is None:
         centre = centre_shapes(loaded)
+    clock = budget if isinstance(budget, ExactBudget) or budget is None else ExactBudget(budget)
+    kw, spent_before, t0 = {}, 0.0, time.perf_counter()
+    if clock is not None:
+        spent_before = clock.spent
+        kw = {"budget": clock.left(), "deadline": t0 + clock.left()}
+        if clock.spent > 0.0 and clock.left() <= 0.0:  # earlier views spent it all
+            return _spent(loaded, clock)
     try:
-        ex = exact_coverage(loaded, centre, **({} if budget is None else {"budget": budget}))
+        ex = exact_coverage(loaded, centre, **kw)
     except OverBudget as exc:
-        # too costly for this view: skipped with one line, Monte Carlo truth instead
+        # too costly for what is left: skipped with one line, Monte Carlo truth instead
         _say_once(
             loaded,
             exc,
             f"raster-oracle: coverage_exact skipped for {loaded.name!r} frame {loaded.frame}: "
             f"{exc} (--exact-budget); coverage is scored against the Monte Carlo truth",
         )
-        decision = {"decision": "skipped: over budget", "budget_seconds": exc.budget}
+        decision = {"decision": "skipped: over budget", **_budget_record(clock, spent_before)}
         return _no_exact(loaded, {**decision, "estimate": exc.estimate})
+    except OutOfTime as exc:
+        # the deadline: the estimate was wrong for this content; stopped, said, Monte Carlo
+        if not hasattr(exc, "used"):  # the view's first stop (its noise floor re-raises it)
+            exc.used = spent_before + (time.perf_counter() - t0)
+        used = exc.used
+        _say_once(
+            loaded,
+            exc,
+            f"raster-oracle: coverage_exact stopped for {loaded.name!r} frame {loaded.frame}: "
+            f"over budget after {used:.1f} s of exact work (--exact-budget "
+            f"{clock.seconds:g}); coverage is scored against the Monte Carlo truth",
+        )
+        record = {"decision": f"over budget after {used:.1f} s"}
+        record["seconds"] = time.perf_counter() - t0
+        if getattr(exc, "estimate", None) is not None:
+            record["estimate"] = exc.estimate
+        return _no_exact(loaded, {**record, **_budget_record(clock, spent_before)})
     except NotExact as exc:
         # geometry float64 cannot clip exactly (coordinates of 1e30): said, not passed off
         _say_once(
@@ -177,6 +228,9 @@ def exact_channels(
     except shapely.errors.GEOSException as exc:
         # a polygon operation that failed on degenerate input: nothing is claimed exact
         return _no_exact(loaded, {"error": f"polygon operation failed: {exc}"})
+    finally:
+        if clock is not None:
+            clock.charge(time.perf_counter() - t0)
     f32 = np.float32
     channels = {
         "coverage_exact": ex.coverage.astype(f32),
@@ -184,8 +238,8 @@ def exact_channels(
         "coverage_exact_valid": ex.valid.astype(f32),
     }
     record = {**ex.stats, "valid_fraction": float(ex.valid.mean())}
-    if budget is not None:
-        record.update(decision="computed", budget_seconds=budget)
+    if clock is not None:
+        record.update(decision="computed", **_budget_record(clock, spent_before))
     checks = {}
     for name, exact in (("coverage", ex.coverage), ("front_coverage", ex.front_coverage)):
         if name not in sampled:

@@ -42,6 +42,7 @@ import numpy as np
 
 from ...raster_models.drjit import numpy_view
 from ...scenes import backend
+from ...scenes.backend.alpha_hit import MAX_ALPHA_LAYERS
 from ...scenes.backend.raycast import trace_film_dr
 from ..phases import maybe_phase
 from .adaptive import adaptive_stats, binary_stderr, feature_mask, refine_mask
@@ -407,6 +408,7 @@ def _alpha_record(loaded) -> dict:
         "rule": "kept where alpha >= cutoff (glTF 2.0 3.9.6); alpha = baseColorFactor.a x "
         "base colour texture alpha (base level, the sampler's magnification filter and wrap "
         "modes) x vertex alpha; rays go on through cut-out points (scenes.backend.alpha_hit)",
+        "max_layers": MAX_ALPHA_LAYERS,
         "shapes": {
             loaded.shape_names[i]: table.masks[m].to_json()
             for i, m in enumerate(table.shape_mask)

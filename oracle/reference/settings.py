@@ -20,6 +20,7 @@ __all__ = [
     "CHANNEL_GROUPS",
     "CUDA_CHUNK_FACTOR",
     "EXACT_BUDGET_S",
+    "ExactBudget",
     "MAX_SEED",
     "OPTIONAL_GROUPS",
     "SAMPLED_GROUPS",
@@ -102,8 +103,51 @@ _BYTES_PER_PIXEL = 64 + 56
 _BYTES_PER_COLOR_PIXEL = 48
 
 
-#: Default ``--exact-budget``: seconds of estimated ``coverage_exact`` work per view.
+#: Default ``--exact-budget``: seconds of ``coverage_exact`` work a command may spend.
 EXACT_BUDGET_S = 60.0
+
+
+class ExactBudget:
+    """Seconds of ``coverage_exact`` work allowed, and how many were spent: a deadline the
+    exact pass checks as it works (:func:`oracle.reference.coverage.exact_channels`).
+
+    One object is one budget: a command makes one and hands it to every reference's
+    settings (all views and frames, the noise floors included), so their exact work adds up
+    against it; settings given a number make their own. Two budgets of the same seconds
+    compare equal (the cache key holds the seconds, never what was spent).
+    """
+
+    def __init__(self, seconds: float = EXACT_BUDGET_S):
+        self.seconds = float(seconds)
+        self.spent = 0.0
+
+    @classmethod
+    def of(cls, budget) -> ExactBudget:
+        """``budget`` itself when it is one, else a new one of ``budget`` seconds (None:
+        :data:`EXACT_BUDGET_S`)."""
+        if isinstance(budget, ExactBudget):
+            return budget
+        return cls(EXACT_BUDGET_S if budget is None else float(budget))
+
+    def left(self) -> float:
+        """Seconds not spent yet (0 once the budget is used up)."""
+        return max(0.0, self.seconds - self.spent)
+
+    def charge(self, seconds: float) -> None:
+        """Count ``seconds`` of exact work against the budget."""
+        self.spent += max(0.0, float(seconds))
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, ExactBudget) and other.seconds == self.seconds
+
+    def __hash__(self) -> int:
+        return hash(("ExactBudget", self.seconds))
+
+    def __deepcopy__(self, memo) -> ExactBudget:
+        return self  # one ledger, shared: dataclasses.asdict must not copy it
+
+    def __repr__(self) -> str:
+        return f"ExactBudget({self.seconds:g} s, {self.spent:.3g} s spent)"
 
 
 class ReferenceSettingsError(InputError):
@@ -126,10 +170,12 @@ class ReferenceSettings:
     adaptive_spp: int = 16
     target_stderr: float = 0.01
     max_spp: int = 4096
-    #: Seconds of estimated ``coverage_exact`` work allowed per view (None:
-    #: :data:`EXACT_BUDGET_S`); over it the group is skipped for that view
-    #: (scenes.geometry.exact_coverage.estimate_cost).
-    exact_budget: float | None = None
+    #: ``coverage_exact`` work allowed: an :class:`ExactBudget` (shared by whoever holds it),
+    #: seconds (a budget of these settings' own) or None (:data:`EXACT_BUDGET_S`). The
+    #: estimate refuses a view that would not fit in what is left, and the exact pass stops
+    #: when it runs out (scenes.geometry.exact_coverage); coverage is then scored against the
+    #: Monte Carlo truth.
+    exact_budget: ExactBudget | float | None = None
 
     def validate(self) -> ReferenceSettings:
         if int(self.spp) < 1:
@@ -153,9 +199,9 @@ class ReferenceSettings:
             if int(self.max_spp) < int(self.adaptive_spp):
                 raise ReferenceSettingsError("max_spp must be >= adaptive_spp")
         ordered = tuple(c for c in CHANNEL_GROUPS if c in set(self.channels))
-        budget = EXACT_BUDGET_S if self.exact_budget is None else float(self.exact_budget)
-        if not budget >= 0:
-            raise ReferenceSettingsError(f"exact budget must be >= 0 seconds, got {budget}")
+        budget = ExactBudget.of(self.exact_budget)
+        if not budget.seconds >= 0:
+            raise ReferenceSettingsError(f"exact budget must be >= 0 seconds, got {budget.seconds}")
         return ReferenceSettings(
             int(self.spp),
             int(self.seed),
@@ -175,8 +221,9 @@ class ReferenceSettings:
                 rec.pop(k)
         # the default budget leaves the key (and every cached reference) as it was
         budget = rec.pop("exact_budget")
-        if "coverage_exact" in self.channels and budget not in (None, EXACT_BUDGET_S):
-            rec["exact_budget"] = budget
+        seconds = budget.seconds if isinstance(budget, ExactBudget) else budget
+        if "coverage_exact" in self.channels and seconds not in (None, EXACT_BUDGET_S):
+            rec["exact_budget"] = seconds
         return rec
 
 

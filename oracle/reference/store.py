@@ -17,7 +17,7 @@ from .cache import ORACLE_VERSION, ReferenceCache, reference_key, scratch_dir
 from .exr import read_exr, write_exr
 from .render import ReferenceSettings, render_reference
 
-__all__ = ["Reference", "get_reference", "publish"]
+__all__ = ["Reference", "get_reference", "publish", "reproducible"]
 
 
 @dataclass
@@ -95,6 +95,8 @@ def get_reference(
     tmp = scratch_dir()
     try:
         meta = _render_into(tmp, loaded, settings, quiet=quiet, key=key)
+        if cache is not None and not reproducible(meta):
+            return Reference(tmp, meta, "not cached (exact coverage cut by the budget)")
         folder = None if cache is None else cache.store(key, tmp, expect=expect)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -119,6 +121,18 @@ def _warn_skipped(cache: ReferenceCache, key: str) -> None:
     if os.fspath(cache.root) not in _warned:
         _warned.add(os.fspath(cache.root))
         print(f"raster-oracle: warning: {terminal(problem)}; not cached", file=sys.stderr)
+
+
+def reproducible(meta: dict) -> bool:
+    """Whether a rendered reference is what its cache key promises whenever it is rendered:
+    not when its exact coverage was stopped at the deadline, or refused because earlier
+    views of the command had spent part of the budget (a later command, with the whole
+    budget, may compute it)."""
+    exact = meta.get("coverage_exact") or {}
+    decision = str(exact.get("decision", ""))
+    if decision.startswith("over budget after"):
+        return False
+    return not (decision.startswith("skipped") and "budget_left_seconds" in exact)
 
 
 def publish(ref: Reference, out_dir: Path) -> None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 
 from ... import metrics as M
+from ..reference.settings import ExactBudget
 from .result import ScoreError
 
 __all__ = ["VISIBILITY_CONVENTIONS", "ScoreOptions"]
@@ -59,7 +60,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
-    exact_budget: float | None = None
+    exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
@@ -78,7 +79,10 @@ class ScoreOptions:
                 f"--transfer must be one of {', '.join(TRANSFERS)}, got {self.transfer!r}"
             )
         frames = self.frames if self.frames and self.frames > 1 else None
-        return replace(self, frames=frames, flip_mode=str(self.flip_mode).upper())
+        # one exact-coverage budget for every reference of the score (frames, noise floors)
+        budget = ExactBudget.of(self.exact_budget)
+        flip_mode = str(self.flip_mode).upper()
+        return replace(self, frames=frames, flip_mode=flip_mode, exact_budget=budget)
 
     def as_record(self) -> dict:
         return asdict(self)

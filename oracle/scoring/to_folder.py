@@ -25,7 +25,7 @@ from .technique import score_model
 __all__ = ["score_to_folder"]
 
 
-def _check_before_rendering(request: ScoreRequest, gates, *, baseline, source) -> list[str]:
+def _check_before_rendering(request: ScoreRequest, gates, *, baseline, source) -> tuple:
     """Gates that do not apply to the kinds scored or the frame count, a baseline of another
     scene, size, light, frame count or kind, a bad ``--expect`` and every candidate file fail
     here, before any reference is rendered; returns the gates kept and the notes of the

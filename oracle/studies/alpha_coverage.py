@@ -35,6 +35,7 @@ __all__ = [
     "PRESETS",
     "FoliageView",
     "coverage_by_band",
+    "flicker",
     "foliage_view",
     "leaf_closeup",
     "main",
@@ -60,13 +61,38 @@ class FoliageView:
     camera: Camera
 
 
-def foliage_view(width: int, height: int, *, n: int, seed: int = 1) -> FoliageView:
+def foliage_view(
+    width: int, height: int, *, n: int, seed: int = 1, frame: int = 0, frames: int = 8
+) -> FoliageView:
     """The built-in ``alpha-foliage:n=N:seed=S`` as loaded (its GLB read back: the alpha its
-    PNG stores, REPEAT, LINEAR), at ``width`` x ``height``."""
+    PNG stores, REPEAT, LINEAR), at ``width`` x ``height``; ``frame`` > 0: that frame of a
+    ``subpixel-pan`` of ``frames``."""
     from ... import scenes
 
-    loaded = scenes.load(f"alpha-foliage:n={int(n)}:seed={int(seed)}", width=width, height=height)
+    path = {"camera_path": "subpixel-pan", "frame": frame, "n_frames": frames} if frame else {}
+    name = f"alpha-foliage:n={int(n)}:seed={int(seed)}"
+    loaded = scenes.load(name, width=width, height=height, **path)
     return FoliageView(loaded.mi_scene, loaded.alpha, loaded.camera)
+
+
+def flicker(
+    *, n: int = 1000, width: int = 160, height: int = 90, frames: int = 8, samples: int = 4
+) -> dict:
+    """Flicker of each rule over a ``subpixel-pan`` (0.25 px a frame): the mean over pixels
+    and frame pairs of ``|(c[k+1] - c[k]) - (t[k+1] - t[k])|``, the rule's frame-to-frame
+    change of coverage less the truth's (4 x 4 stratified rays a pixel), and the truth's own
+    mean ``|t[k+1] - t[k]|`` (``truth_change``)."""
+    views = [foliage_view(width, height, n=n, frame=k, frames=frames) for k in range(frames)]
+    truth = np.stack([_truth(v, 4)[0] for v in views])
+    dt = np.diff(truth, axis=0)
+    out = {"truth_change": float(np.abs(dt).mean()), "flicker": {}}
+    for name, kw in PRESETS.items():  # five rules
+        params = AlphaRasterParams(samples=samples, **kw)
+        cov = np.stack(
+            [alpha_raster(v.mi_scene, v.table, v.camera, params)["coverage"] for v in views]
+        )
+        out["flicker"][name] = float(np.abs(np.diff(cov, axis=0) - dt).mean())
+    return out
 
 
 def _rays(view: FoliageView, k: int):
@@ -203,6 +229,13 @@ def main(argv=None) -> int:
     print("truth coverage".ljust(24) + "".join(f"{v:13.3f}" for v in res["truth"]))
     for name, kept in res["kept"].items():
         print(f"{name:24s}" + "".join(f"{v:13.3f}" for v in kept))
+    fl = flicker(n=args.n, samples=args.samples)
+    print(
+        f"flicker over a sub-pixel pan (160 x 90, 8 frames; truth's own change "
+        f"{fl['truth_change']:.4f}):"
+    )
+    for name, v in fl["flicker"].items():
+        print(f"{name:24s}{v:13.4f}")
     print("silhouette shift (px, + outwards) on a close-up at 3 px a texel:")
     for name in PRESETS:
         print(f"{name:24s}{silhouette_shift(name, samples=args.samples)['shift_px']:+13.3f}")

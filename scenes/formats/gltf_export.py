@@ -18,16 +18,11 @@ import math
 import numpy as np
 
 from .. import backend
+from ..base.display import srgb_encode
+from . import gltf_write
 from .gltf_write import GltfCamera, GltfLight, GltfMesh, glb_bytes, light_matrix, png_bytes
 
 __all__ = ["light_records", "materials_record", "scene_glb"]
-
-_GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
-
-
-def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
-    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
 def materials_record(loaded, shapes: dict) -> dict:
@@ -91,7 +86,7 @@ def _camera(cam) -> GltfCamera:
     if cam.kind == "perspective":
         yfov = math.radians(cam.fov_y)
         return GltfCamera(
-            m @ _GL_TO_MI,
+            m @ gltf_write.GL_TO_MI,
             cam.near,
             cam.far,
             yfov=yfov,
@@ -103,7 +98,7 @@ def _camera(cam) -> GltfCamera:
     frame[:3, 0] /= np.linalg.norm(frame[:3, 0])
     frame[:3, 1] /= np.linalg.norm(frame[:3, 1])
     return GltfCamera(
-        frame @ _GL_TO_MI,
+        frame @ gltf_write.GL_TO_MI,
         cam.near,
         cam.far,
         ymag=hh,
@@ -136,7 +131,7 @@ def _texture_dicts(pbr, masks: dict):
     }
     for k, tex in enumerate(pbr.textures):
         img = tex.image[..., :3] if tex.image.shape[-1] >= 3 else np.repeat(tex.image, 3, -1)
-        img = _linear_to_srgb(img) if tex.srgb else img
+        img = srgb_encode(np.clip(img.astype(np.float64), 0.0, 1.0)) if tex.srgb else img
         if k in alpha and alpha[k].shape == img.shape[:2]:
             img = np.concatenate([img, alpha[k][..., None]], -1)
         images.append(png_bytes(img))

@@ -24,10 +24,12 @@ import warnings
 
 import numpy as np
 
+from ..base.display import srgb_decode
 from ..camera import look_at
 from ..shading.alpha import AlphaError, gltf_alpha_mode
-from ..shading.materials import PbrMaterial, Texture, srgb_to_linear
+from ..shading.materials import PbrMaterial, Texture
 from .gltf_document import LIMITS, GltfDocument, GltfError, as_index, as_number, as_numbers
+from .gltf_write import GL_TO_MI
 
 __all__ = [
     "SUPPORTED_EXTENSIONS",
@@ -45,8 +47,6 @@ SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength"
 _MODES = {0: "POINTS", 1: "LINES", 2: "LINE_LOOP", 3: "LINE_STRIP", 5: "TRIANGLE_STRIP"}
 _MODES[6] = "TRIANGLE_FAN"
 _WRAP = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
-#: glTF camera axes to Mitsuba's: +X right -> +X left, -Z forward -> +Z forward.
-_GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
 
 
 def _node_matrix(node, d: GltfDocument | None = None, where: str = "node") -> np.ndarray:
@@ -192,7 +192,7 @@ class Textures:
                     )
                 wrap, nearest = _WRAP[ws], smp.magFilter == 9728
             rgb = _image(d, tex.source)
-            img = srgb_to_linear(rgb) if srgb else rgb
+            img = srgb_decode(rgb) if srgb else rgb
             name = f"texture {info.index} ({'sRGB' if srgb else 'linear'})"
             self.index[key] = len(self.items)
             self.items.append(Texture(img.astype(np.float32), wrap, nearest, name, srgb))
@@ -314,7 +314,7 @@ def camera_entry(d, cam_index, world, width, height, verts) -> dict:
     if not (norms > 1e-12).all():
         d.fail(f"camera {cam_index}'s node has a degenerate transform (zero scale)")
     world[:3, :3] /= norms  # a camera node's scale is not a zoom: the frame alone counts
-    to_world = world @ _GL_TO_MI
+    to_world = world @ GL_TO_MI
     film = {"type": "hdrfilm", "width": int(width), "height": int(height)}
     film.update({"rfilter": {"type": "box"}, "component_format": "float32"})
     eye = world[:3, 3]

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = [
+    "GL_TO_MI",
     "GltfCamera",
     "GltfLight",
     "GltfMesh",
@@ -24,6 +25,10 @@ __all__ = [
     "light_matrix",
     "png_bytes",
 ]
+
+#: glTF camera axes to Mitsuba's (+X right -> +X left, -Z forward -> +Z forward): a camera
+#: node's matrix is ``to_world @ GL_TO_MI`` and ``to_world`` is ``node @ GL_TO_MI``.
+GL_TO_MI = np.diag([-1.0, 1.0, -1.0, 1.0])
 
 
 @dataclass

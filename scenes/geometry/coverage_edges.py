@@ -29,10 +29,14 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["POLY_CHUNK", "convex_arrays", "convex_overlaps", "visible_segments"]
+__all__ = ["PAIR_ROWS", "POLY_CHUNK", "convex_arrays", "convex_overlaps", "visible_segments"]
 
 #: Polygons whose edges are resolved per pass (their candidate pairs are queried together).
 POLY_CHUNK = 512
+#: Candidate pairs a pass resolves at most: a pass of :data:`POLY_CHUNK` dense polygons
+#: (thousands overlapping each) is cut into passes of fewer polygons (a deadline or a signal
+#: is checked between passes).
+PAIR_ROWS = 1 << 16
 #: Distance (px) within which two edges count as collinear, and relative parallelism.
 COLLINEAR_PX = 1e-10
 PARALLEL_REL = 1e-12
@@ -276,12 +280,17 @@ def visible_segments(v, count, layer, tag, pairs, *, check=None):
     geo = (p0, p1, owner, first_edge, e, poly, count, layer, tag, layer_tag, order)
     out = []
     n = len(count)
-    for start in range(0, n, POLY_CHUNK):
+    start, step = 0, POLY_CHUNK
+    while start < n:
         if check is not None:
             check()
-        idx = np.arange(start, min(n, start + POLY_CHUNK))
+        idx = np.arange(start, min(n, start + step))
         a, b = pairs(order[idx])
+        if len(a) > PAIR_ROWS and len(idx) > 1:  # dense: fewer polygons a pass
+            step = max(1, len(idx) * PAIR_ROWS // len(a))
+            continue
         out.append(_chunk(inv[a], inv[b], idx, geo))
+        start += len(idx)
     if not out:
         z = np.zeros(0)
         return z, z, z, z, np.zeros(0, np.int64)

@@ -83,7 +83,7 @@ def layered_coverage(cam, polys, tri_idx, tset, centre, off, check):
         return None
     a, b = _cross_shape_pairs(polys, shape, check)
     v, count = convex_arrays(polys)
-    order = pair_order(cam, polys, tri_idx, tset, a, b, convex=(v, count))
+    order = pair_order(cam, polys, tri_idx, tset, a, b, convex=(v, count), check=check)
     a, b, _, a_front, b_front, cross, bad = order
     if bad.any() or cross.any():
         return None

@@ -23,7 +23,14 @@ from .coverage_projection import (
 )
 from .pixel_area import edge_pieces, pixel_area, tagged_pixel_area, touched_pixels
 
-__all__ = ["DEPTH_REL_TOL", "INVALID_AREA", "OVERLAP_SURE", "pair_order", "polygon_coverage"]
+__all__ = [
+    "DEPTH_REL_TOL",
+    "INVALID_AREA",
+    "OVERLAP_SURE",
+    "PAIR_CHUNK",
+    "pair_order",
+    "polygon_coverage",
+]
 
 #: Relative tolerance of the depth comparison of two planes at an overlap vertex: float64
 #: rounding of planes from float32 vertices is about 1e-16; contact lines (a box on the
@@ -33,28 +40,33 @@ DEPTH_REL_TOL = 1e-9
 #: convex clipping instead of the polygon boolean (below: touching edges, where rounding
 #: could leave a sliver the boolean does not have).
 OVERLAP_SURE = 1e-6
+#: Candidate pairs depth-ordered at a time (a deadline is checked between chunks).
+PAIR_CHUNK = 1 << 16
 #: A pixel is invalid where a not-exact region covers more than this area of it (px^2).
 INVALID_AREA = 1e-12
 
 
-def _classify_pairs(camera, polys, tri_idx, tset):
+def _classify_pairs(camera, polys, tri_idx, tset, check=None):
     """Overlapping projected pairs: ``(front, back)`` index pairs (into ``polys``) where one
     is in front over the whole overlap, and ``(a, b, overlap)`` where they interpenetrate,
     tie (coplanar, of two shapes) or come within a curved shape's tessellation bound of each
     other."""
     tree = shapely.STRtree(polys)
     a, b = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    for start in range(0, len(polys), QUERY_CHUNK):  # chunks: a signal handler runs between
-        i, j = tree.query(polys[start : start + QUERY_CHUNK], predicate="intersects")
+    step = QUERY_CHUNK // 8  # a stack of panes: every piece meets a hundred others
+    for start in range(0, len(polys), step):  # chunks: a signal handler runs between
+        if check is not None:
+            check()
+        i, j = tree.query(polys[start : start + step], predicate="intersects")
         a.append(i + start)
         b.append(j)
     a, b = np.concatenate(a), np.concatenate(b)
     keep = a < b
-    o = pair_order(camera, polys, tri_idx, tset, a[keep], b[keep])
+    o = pair_order(camera, polys, tri_idx, tset, a[keep], b[keep], check=check)
     a, b, over, a_front, b_front, cross, bad = o
     n, c = planes(tset.tris[tri_idx])
     a_near, b_near = _split_overlap(
-        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]]
+        camera, over[cross], n[a[cross]], c[a[cross]], n[b[cross]], c[b[cross]], check
     )
     back = np.concatenate([b[a_front], a[b_front], b[cross], a[cross]])
     # what hides the back one: the overlap (inside the back polygon: unions stay local), or
@@ -63,7 +75,25 @@ def _classify_pairs(camera, polys, tri_idx, tset):
     return back, occluder, (a[bad], b[bad], over[bad])
 
 
-def pair_order(camera, polys, tri_idx, tset, a, b, convex=None):
+def pair_order(camera, polys, tri_idx, tset, a, b, convex=None, check=None):
+    """Depth order of the candidate pairs ``(a, b)``: :func:`_pair_order` in chunks of
+    :data:`PAIR_CHUNK` pairs, ``check`` called before each (the same arrays as one call)."""
+    if len(a) <= PAIR_CHUNK:
+        if check is not None:
+            check()
+        return _pair_order(camera, polys, tri_idx, tset, a, b, convex, check)
+    parts = []
+    for s in range(0, len(a), PAIR_CHUNK):
+        if check is not None:
+            check()
+        sl = slice(s, s + PAIR_CHUNK)
+        parts.append(_pair_order(camera, polys, tri_idx, tset, a[sl], b[sl], convex, check))
+    out = [np.concatenate([p[k] for p in parts]) for k in range(7) if k != 2]
+    over = None if convex is not None else np.concatenate([p[2] for p in parts])
+    return (*out[:2], over, *out[2:])
+
+
+def _pair_order(camera, polys, tri_idx, tset, a, b, convex, check):
     """Depth order of the candidate pairs ``(a, b)`` whose overlap has an area:
     ``(a, b, overlap, a_front, b_front, cross, bad)`` (``cross``: planar triangles that
     interpenetrate; ``bad``: not exact, see :func:`_classify_pairs`).
@@ -72,12 +102,12 @@ def pair_order(camera, polys, tri_idx, tset, a, b, convex=None):
     than :data:`OVERLAP_SURE` px^2 come from :func:`convex_overlaps` (compiled, no polygon
     boolean; the same points up to rounding) and ``overlap`` is None."""
     if convex is None:
-        over = chunked(shapely.intersection, polys[a], polys[b])
+        over = chunked(shapely.intersection, polys[a], polys[b], check=check)
         big = shapely.area(over) > AREA_MIN
         a, b, over = a[big], b[big], over[big]
         xy, owner = shapely.get_coordinates(over, return_index=True)
     else:
-        xy, owner, big = _overlap_vertices(convex, polys, a, b)
+        xy, owner, big = _overlap_vertices(convex, polys, a, b, check)
         a, b, over = a[big], b[big], None
     n, c = planes(tset.tris[tri_idx])
     ta, tb = a[owner], b[owner]
@@ -110,7 +140,7 @@ def pair_order(camera, polys, tri_idx, tset, a, b, convex=None):
     return a, b, over, a_front, b_front, cross, bad
 
 
-def _overlap_vertices(convex, polys, a, b):
+def _overlap_vertices(convex, polys, a, b, check=None):
     """The vertices ``(M, 2)`` of the overlaps of the pairs ``(a, b)`` that have an area,
     the pair each belongs to (numbered among those) and which pairs have one: compiled
     convex clipping where the overlap is sure (over :data:`OVERLAP_SURE`); the polygon
@@ -118,7 +148,7 @@ def _overlap_vertices(convex, polys, a, b):
     xy, owner, area = convex_overlaps(*convex, a, b)
     sure = area > OVERLAP_SURE
     doubt = np.flatnonzero(~sure)
-    over = chunked(shapely.intersection, polys[a[doubt]], polys[b[doubt]])
+    over = chunked(shapely.intersection, polys[a[doubt]], polys[b[doubt]], check=check)
     big = sure.copy()
     big[doubt] = shapely.area(over) > AREA_MIN
     xy_d, own_d = shapely.get_coordinates(over, return_index=True)
@@ -129,7 +159,7 @@ def _overlap_vertices(convex, polys, a, b):
     return xy[keep], (np.cumsum(big) - 1)[owner[keep]], big
 
 
-def _split_overlap(camera, over, na, ca, nb, cb):
+def _split_overlap(camera, over, na, ca, nb, cb, check=None):
     """The parts of overlaps ``over`` where plane ``a`` / plane ``b`` is nearer: the
     overlap clipped by the half-plane ``q_a - q_b >= 0`` / ``<= 0`` of the film, the
     nearness difference being affine in the film position (:func:`nearness`)."""
@@ -163,31 +193,34 @@ def _split_overlap(camera, over, na, ca, nb, cb):
             g0[:, None] + gx[:, None] * rect[None, :, 0] + gy[:, None] * rect[None, :, 1]
         )
         v, count = clip_plane(pts, np.full(k, 4), dist)
-        sides.append(shapely.intersection(over, polygons_of(v[..., :2], count)))
+        sides.append(
+            chunked(shapely.intersection, over, polygons_of(v[..., :2], count), check=check)
+        )
     return sides[0], sides[1]
 
 
-def _visible(polys, back, occluder):
+def _visible(polys, back, occluder, check=None):
     """Each polygon less the union of what is in front of it (``occluder[i]`` in front of
-    ``polys[back[i]]``; vectorised per polygon)."""
+    ``polys[back[i]]``; vectorised per polygon, in chunks of about :data:`QUERY_CHUNK`
+    occluders, ``check`` called before each: a stack of panes puts dozens in front of each
+    piece)."""
+    vis = polys.copy()
+    if not len(back):
+        return vis
     order = np.argsort(back, kind="stable")
     occluder, back = occluder[order], back[order]
-    groups = np.empty(len(polys), dtype=object)
-    groups[:] = None
-    if len(back):
-        shapely.geometrycollections(occluder, indices=back, out=groups)
-    has = np.zeros(len(polys), bool)
-    has[back] = True
-    vis = polys.copy()
-    if has.any():
-        occ = chunked(lambda g: shapely.union_all(g[:, None], axis=1), groups[has])
-        vis[has] = chunked(shapely.difference, polys[has], occ)
+    ids, first, counts = np.unique(back, return_index=True, return_counts=True)
+    bounds = _chunk_bounds(counts, QUERY_CHUNK)
+    for s, e in zip(bounds[:-1], bounds[1:], strict=True):
+        if check is not None:
+            check()
+        lo, hi = first[s], first[e - 1] + counts[e - 1]
+        groups = shapely.geometrycollections(
+            occluder[lo:hi], indices=np.repeat(np.arange(e - s), counts[s:e])
+        )
+        union = shapely.union_all(groups[:, None], axis=1)
+        vis[ids[s:e]] = shapely.difference(polys[ids[s:e]], union)
     return vis
-
-
-#: Largest rounding error (px) of clipped and projected vertices that still counts as exact:
-#: float64 rounding of world coordinates of magnitude ``M`` seen at the near plane is about
-#: ``M * 2^-52 * pixels per unit there``; a ground of +-1e30 gives 1e16 px.
 
 
 def _curved_invalid(vis, curved, tset, tri_idx, camera, w, h):
@@ -218,14 +251,24 @@ def _curved_invalid(vis, curved, tset, tri_idx, camera, w, h):
     return binary_dilation(partial, iterations=radius)
 
 
-def polygon_coverage(cam, polys, tri_idx, tset, centre, off):
+def _chunk_bounds(sizes: np.ndarray, most: int) -> list[int]:
+    """Start indices of chunks of consecutive elements of ``sizes`` whose sums stay near
+    ``most`` (an element larger than it is a chunk of its own), and the end."""
+    ends = np.cumsum(sizes)
+    starts = np.unique(np.searchsorted(ends, np.arange(0, int(ends[-1]), most), side="right"))
+    return sorted({0, *starts.tolist(), len(sizes)})
+
+
+def polygon_coverage(cam, polys, tri_idx, tset, centre, off, check=None):
     """The exact channels of the film polygons ``polys`` (tile pieces of the triangles
     ``tri_idx`` of ``tset``) seen by ``cam``, the pixel grid moved by ``off``: ``(coverage,
     front_coverage, valid, stats)``, each visible polygon its projection less the union of
     what is in front of it."""
     w, h = cam.width, cam.height
-    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset)
-    vis = _visible(polys, back, occluder)
+    back, occluder, (bad_a, bad_b, bad_over) = _classify_pairs(cam, polys, tri_idx, tset, check)
+    vis = _visible(polys, back, occluder, check)
+    if check is not None:
+        check()
     if np.any(off != 0.0):
         vis = shapely.transform(vis, lambda xy: xy - off)
         bad_over = shapely.transform(bad_over, lambda xy: xy - off)

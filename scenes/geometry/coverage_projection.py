@@ -61,11 +61,13 @@ def clip_plane(v, count, dist):
     return np.take_along_axis(cand, order[..., None], 1), keep.sum(axis=1)
 
 
-def project(camera, tris):
+def project(camera, tris, check=None):
     """Film polygons (shapely, clipped to the film) of the triangles, and each one's index;
-    in chunks (a signal handler runs between them)."""
+    in chunks (a signal handler runs between them, and ``check``)."""
     polys, idx = [np.empty(0, dtype=object)], [np.zeros(0, np.int64)]
     for start in range(0, len(tris), QUERY_CHUNK):
+        if check is not None:
+            check()
         p, i = _project_chunk(camera, tris[start : start + QUERY_CHUNK])
         polys.append(p)
         idx.append(i + start)
@@ -147,13 +149,21 @@ def nearness(camera, x, y, n, c):
         return nd / num if camera.kind == "perspective" else -num / nd
 
 
-def chunked(fn, *arrays):
+def chunked(fn, *arrays, check=None, bounds=None):
     """``fn(*arrays)`` (an element-wise shapely function) in chunks of
-    :data:`QUERY_CHUNK`: one long C call is cut so that a signal handler runs between."""
+    :data:`QUERY_CHUNK` elements (``bounds``: the chunks' start indices and the end, when
+    elements differ in cost): one long C call is cut so that a signal handler runs between,
+    and ``check`` (a deadline, :func:`coverage_cost.deadline_check`) is called before each."""
     n = len(arrays[0])
-    if n <= QUERY_CHUNK:
-        return fn(*arrays)
-    parts = [fn(*(x[s : s + QUERY_CHUNK] for x in arrays)) for s in range(0, n, QUERY_CHUNK)]
+    if bounds is None:
+        if n <= QUERY_CHUNK and check is None:
+            return fn(*arrays)
+        bounds = [*range(0, n, QUERY_CHUNK), n]
+    parts = [np.empty(0, dtype=object)]
+    for s, e in zip(bounds[:-1], bounds[1:], strict=True):
+        if check is not None:
+            check()
+        parts.append(fn(*(x[s:e] for x in arrays)))
     return np.concatenate(parts)
 
 
@@ -172,9 +182,12 @@ def polygons_of(v, count):
 
 
 def film_boxes(camera, tris):
-    """Film bounding boxes ``(N, 4)`` (x0, y0, x1, y1) of the triangles' parts between the
-    near and far planes that meet the film and its margin (None when none does), and the
-    largest distance from the camera of a vertex of a triangle that reaches that range."""
+    """The triangles' parts between the near and far planes that meet the film and its
+    margin: a dict of their film bounding boxes ``box`` ``(N, 4)`` (x0, y0, x1, y1, clipped
+    to the film and its margin), their projected polygons ``film`` ``(N, K, 2)`` with
+    ``count`` vertices each, their ``area`` (px^2, at most their clipped box's) and their
+    ``index`` among ``tris``; None when none does. Also the largest distance from the camera
+    of a vertex of a triangle that reaches that range."""
     v, count = tris, np.full(len(tris), 3)
     with np.errstate(all="ignore"):
         for sign, plane in ((1.0, camera.near), (-1.0, camera.far)):
@@ -197,4 +210,16 @@ def film_boxes(camera, tris):
     w, h = camera.width + FILM_MARGIN, camera.height + FILM_MARGIN
     box = np.clip(box, -FILM_MARGIN, [w, h, w, h])
     keep = np.isfinite(box).all(axis=1) & (box[:, 2] > box[:, 0]) & (box[:, 3] > box[:, 1])
-    return (box[keep] if keep.any() else None), far
+    if not keep.any():
+        return None, far
+    film, count, used = film[keep], count[keep], used[keep]
+    # shoelace area of each polygon (its unused slots repeat nothing: closed by index)
+    nxt = (np.arange(film.shape[1])[None, :] + 1) % count[:, None]
+    x, y = film[..., 0], film[..., 1]
+    xn, yn = np.take_along_axis(x, nxt, 1), np.take_along_axis(y, nxt, 1)
+    with np.errstate(all="ignore"):
+        area = 0.5 * np.abs(np.where(used, x * yn - xn * y, 0.0).sum(axis=1))
+    box = box[keep]
+    area = np.minimum(area, (box[:, 2] - box[:, 0]) * (box[:, 3] - box[:, 1]))
+    index = np.flatnonzero(ok)[keep]
+    return {"box": box, "film": film, "count": count, "area": area, "index": index}, far

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .coverage_cost import COST_PER_PAIR_POLYGONS, COST_PER_TRIANGLE, OverBudget, estimate_cost
+from .coverage_cost import OutOfTime, OverBudget, deadline_check, estimate_cost, polygon_seconds
 from .coverage_layered import layered_coverage
 from .coverage_polygons import polygon_coverage
 from .coverage_projection import FILM_MARGIN, project, tile
@@ -55,6 +55,7 @@ __all__ = [
     "MEMO_KEY",
     "ExactCoverage",
     "NotExact",
+    "OutOfTime",
     "OverBudget",
     "estimate_cost",
     "TriangleSet",
@@ -93,14 +94,19 @@ class ExactCoverage:
     stats: dict
 
 
-def exact_coverage(loaded, centre: np.ndarray, *, budget=None, check=None) -> ExactCoverage:
+def exact_coverage(
+    loaded, centre: np.ndarray, *, budget=None, check=None, deadline=None
+) -> ExactCoverage:
     """Exact ``coverage``, ``front_coverage`` and validity of ``loaded``'s current view.
 
     Parameters
     ----------
-    loaded : a :class:`scenes.loader.LoadedScene` (its camera and film size are used).
+    loaded : a :class:`scenes.loaded.LoadedScene` (its camera and film size are used).
     centre : ``(H*W,)`` or ``(H, W)`` int shape index seen through each pixel centre
         (-1: sky), as the Monte Carlo ``front_coverage`` uses it.
+    budget, check, deadline : as :func:`exact_coverage_of` takes them. A view refused by the
+        estimate, stopped at its deadline or not exact is refused again at once (the noise
+        floor's reference of the same view).
     """
     centre = np.ascontiguousarray(centre, dtype=np.int64)
     view = json.dumps(loaded.camera.to_json(), sort_keys=True)
@@ -109,16 +115,22 @@ def exact_coverage(loaded, centre: np.ndarray, *, budget=None, check=None) -> Ex
     if slot is not None and slot[0] == key:
         done = slot[1]
         over = isinstance(done, OverBudget) and budget is not None
-        if isinstance(done, NotExact) or (over and done.estimate["seconds"] > budget):
+        again = isinstance(done, NotExact | OutOfTime)
+        if again or (over and done.estimate["seconds"] > budget):
             raise done  # the same view refused again (the noise floor's reference)
         if not isinstance(done, Exception):
             return done
     try:
         _refuse_alpha(loaded)
         out = exact_coverage_of(
-            loaded.camera, scene_triangle_set(loaded), centre, budget=budget, check=check
+            loaded.camera,
+            scene_triangle_set(loaded),
+            centre,
+            budget=budget,
+            check=check,
+            deadline=deadline,
         )
-    except (OverBudget, NotExact) as exc:
+    except (OverBudget, NotExact, OutOfTime) as exc:
         exc.view = key  # said once per view by the caller
         loaded.memo[RESULT_MEMO_KEY] = (key, exc)
         raise exc.with_traceback(None) from None  # the memo keeps no frames alive
@@ -148,6 +160,7 @@ def exact_coverage_of(
     grid_offset=(0.0, 0.0),
     check=None,
     budget: float | None = None,
+    deadline: float | None = None,
 ) -> ExactCoverage:
     """:func:`exact_coverage` of the triangles ``tset`` seen by ``camera`` (a
     :class:`scenes.camera.Camera`; its film size is the output's).
@@ -158,6 +171,8 @@ def exact_coverage_of(
     ``check``: called between chunks of the long loops (a signal handler runs there).
     ``budget``: seconds of estimated work (:func:`estimate_cost`) allowed; over it,
     :class:`OverBudget` is raised before the work (before each path's own work).
+    ``deadline``: a ``time.perf_counter()`` time; the work checks it between its chunks and
+    raises :class:`OutOfTime` once past it (the estimate can be wrong; the deadline holds).
 
     Where the polygon path would cost more than :data:`LAYERED_ABOVE_S` by the estimate and
     the shapes have one depth order wherever they overlap (no interpenetration or tie
@@ -169,7 +184,6 @@ def exact_coverage_of(
     """
     t0 = time.perf_counter()
     cam = camera
-    w, h = cam.width, cam.height
     off = np.asarray(grid_offset, dtype=np.float64)
     if off.shape != (2,) or not np.all(np.abs(off) <= FILM_MARGIN):
         raise ValueError(f"grid_offset must be two values in [-1, 1] pixels, got {grid_offset!r}")
@@ -183,21 +197,34 @@ def exact_coverage_of(
         raise OverBudget(est, budget)
     if est["triangles"] == 0:  # nothing between the near and far planes in view
         return _empty_view(cam, centre, est, t0)
-    polys, tri_idx = project(cam, tset.tris)
+    stop = deadline_check(check, deadline, t0)
+    try:
+        return _run_paths(cam, tset, centre, off, est, (budget, stop, t0))
+    except OutOfTime as exc:
+        exc.estimate = est  # what the estimate said of the work the deadline stopped
+        raise
+
+
+def _run_paths(cam, tset, centre, off, est, limits) -> ExactCoverage:
+    """The layered path where it pays (and the shapes allow it), else the polygon path."""
+    budget, stop, t0 = limits
+    w, h = cam.width, cam.height
+    polys, tri_idx = project(cam, tset.tris, stop)
     polys, tri_idx = tile(polys, tri_idx, w, h)
-    poly_s = COST_PER_TRIANGLE * est["triangles"] + COST_PER_PAIR_POLYGONS * est["pairs"]
+    poly_s = polygon_seconds(est)
     # the layered path where it pays; below, the polygon path (the bytes of before)
     fast = None
     if poly_s > LAYERED_ABOVE_S:
-        fast = layered_coverage(cam, polys, tri_idx, tset, centre, off, check)
+        fast = layered_coverage(cam, polys, tri_idx, tset, centre, off, stop)
     if fast is not None:
         cov, front_cov, valid, stats = fast
         stats.update(estimate=est, seconds=time.perf_counter() - t0)
         return ExactCoverage(cov, front_cov, valid, stats)
     est = dict(est, path="polygons", seconds=poly_s)
+    stop()
     if budget is not None and est["seconds"] > budget:
         raise OverBudget(est, budget)
-    cov, front_cov, valid, stats = polygon_coverage(cam, polys, tri_idx, tset, centre, off)
+    cov, front_cov, valid, stats = polygon_coverage(cam, polys, tri_idx, tset, centre, off, stop)
     stats.update(estimate=est, seconds=time.perf_counter() - t0)
     return ExactCoverage(cov, front_cov, valid, stats)
 

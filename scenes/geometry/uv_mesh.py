@@ -11,12 +11,16 @@ __all__ = ["QUAD_FACES", "uv_mesh"]
 QUAD_FACES = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
 
 
-def uv_mesh(mi, name: str, vertices, faces, uvs):
+def uv_mesh(mi, name: str, vertices, faces, uvs, *, bsdf=None):
     """A ``mitsuba.Mesh`` of ``vertices`` (V, 3), ``faces`` (F, 3) and texture coordinates
-    ``uvs`` (V, 2), stored as float32 / uint32."""
+    ``uvs`` (V, 2), stored as float32 / uint32; ``bsdf``: a Mitsuba BSDF object for it
+    (default: Mitsuba's diffuse)."""
     v = np.asarray(vertices, np.float32).reshape(-1, 3)
     f = np.asarray(faces, np.uint32).reshape(-1, 3)
-    mesh = mi.Mesh(name, len(v), len(f), has_vertex_texcoords=True)
+    props = mi.Properties()
+    if bsdf is not None:
+        props["bsdf"] = bsdf
+    mesh = mi.Mesh(name, len(v), len(f), props, has_vertex_texcoords=True)
     p = mi.traverse(mesh)
     p["vertex_positions"] = v.ravel()
     p["faces"] = f.ravel()

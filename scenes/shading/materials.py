@@ -33,7 +33,6 @@ __all__ = [
     "Texture",
     "diffuse",
     "perturb_normal_dr",
-    "srgb_to_linear",
     "surface_dr",
 ]
 
@@ -46,12 +45,6 @@ def diffuse(rgb) -> dict:
         "type": "twosided",
         "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": rgb}},
     }
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """The sRGB EOTF (IEC 61966-2-1) on values in [0, 1]."""
-    c = np.asarray(c, dtype=np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 @dataclass(frozen=True)

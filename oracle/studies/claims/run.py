@@ -33,6 +33,7 @@ from ...errors import one_line
 from ..output import write_study
 from .aa import ACAA_EQUAL, ACAA_HALF, AGAA_COMPARABLE, AGAA_SAVING, _acaa, _agaa, _coherent
 from .base import NOT, PARTLY, REPRODUCED, ClaimContext, summary
+from .denoise import LAG_SCENE, _asvgf_lag
 from .shadow import (
     BLUR_CLAIM,
     IZB_RATIO,
@@ -225,6 +226,19 @@ CLAIMS: tuple[Claim, ...] = (
         "partly: less light than VSM on stacked-casters; not: otherwise",
         _msm_bleeding,
         scenes=("stacked-casters", "plate"),
+    ),
+    Claim(
+        "asvgf-less-lag",
+        "gradient-based history rejection reduces lag after a light change compared with SVGF",
+        "issue 46 (ray-traced shadows denoised), after C. Schied, C. Peters, C. Dachsbacher, "
+        "Gradient Estimation for Real-Time Adaptive Temporal Filtering, HPG 2018",
+        ("rtshadows-svgf", "rtshadows-asvgf"),
+        f"reproduced: on {LAG_SCENE}, A-SVGF's error is back within its lit steady error plus "
+        "the truth's floor sooner than SVGF's both after the light goes off and after it "
+        "comes back on (and never later); partly: sooner after one of them, never later; "
+        "not: otherwise",
+        _asvgf_lag,
+        scenes=(LAG_SCENE,),
     ),
 )
 
