@@ -12,7 +12,7 @@ from pathlib import Path
 
 from ...scenes.inputs import read_export_record
 from .ci.checks import Gate, Verdict
-from .ci.gates import applicable_gates, check_applicable, evaluate_gates
+from .ci.gates import applicable_gates, check_applicable, evaluate_gates, support_record
 from .ci.regression import BaselineOptions, check_baseline_scene, compare_baseline
 from .conformance import CONFORMANCE_KEYS, add_conformance, parse_expect
 from .diagnosis import diagnose_result, explain_colour
@@ -227,6 +227,7 @@ def score_to_folder(
         result.record["export"] = read_export_record(source.parent)
     # the machine and driver the run stands for: baselines are kept per platform
     result.record["platform"] = o.platform
+    support_record(result.record)  # a metric over an empty set is None, support 0
     verdict = Verdict(scene=loaded.name, checks=evaluate_gates(gates, result.record))
     verdict.add(notes=notes + _notes(result, candidate, list(loaded.shape_names)))
     if baseline is not None:
