@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from engine_raster import render, write_engine_exr, write_rgb_png
 from raster_oracle.metrics.shift import apply_shift, subpixel_shift
+from raster_oracle.metrics.tonemap import srgb_decode
 from raster_oracle.oracle.cli import main
 
 W, H = 96, 54
@@ -40,6 +41,9 @@ def plate(tmp_path_factory):
     images["pcf_offset"] = render(root / "e", pcf_offset=(-1, 1), **kw)
     images["fresnel"] = render(root / "e", diffuse="fresnel", **kw)
     images["pi"] = render(root / "e", color_scale=math.pi, **kw)
+    # an engine that wrote 2.2-encoded colour into the linear EXR (read as if sRGB-decoded)
+    encoded = srgb_decode(np.power(np.clip(images["pcf"]["color"], 0, 1), 1 / 2.2))
+    images["gamma_in_exr"] = {**images["pcf"], "color": encoded}
     for name, im in images.items():
         write_engine_exr(root / f"{name}.exr", im)
     write_rgb_png(root / "gamma22.png", images["pcf"]["color"], gamma=2.2)
@@ -117,6 +121,10 @@ def test_colour_faults_are_named(plate, tmp_path):
     # gamma 2.2 read as sRGB: named with the option that reads it right
     assert _causes(gamma)[0] == "gamma 2.2 read as sRGB"
     assert "--transfer gamma2.2" in gamma["colour_causes"]["causes"][0]["message"]
+    # the same content in an EXR (which takes no --transfer): write linear radiance (item 8)
+    _, exr = _score(plate, tmp_path, "gamma_in_exr.exr", "--channel", "msaa")
+    message = exr["colour_causes"]["causes"][0]["message"]
+    assert "write linear radiance" in message and "--transfer" not in message.split("(")[0]
     # the per-shape table: every shape seen, worst first, the gain undone beside the raw
     rows = fresnel["materials"]
     assert len(rows) >= 2 and all(r["name"] for r in rows)

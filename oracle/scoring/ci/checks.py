@@ -82,6 +82,9 @@ class Check:
     floor: float | None = None
     previous: float | None = None
     previous_floor: float | None = None
+    #: False for a baseline check that could not compare (a value or noise floor missing):
+    #: passed unless ``--baseline-strict``, and named in the CLI, JUnit and Markdown
+    compared: bool = True
 
     def as_record(self) -> dict:
         """The JSON record of the check: what ``metrics.json``, the report, the JUnit
@@ -97,6 +100,7 @@ class Check:
             "noise_floor": self.floor,
             "previous": self.previous,
             "previous_noise_floor": self.previous_floor,
+            "compared": self.compared,
         }
 
 
