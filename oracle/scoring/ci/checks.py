@@ -178,6 +178,11 @@ def format_number(x: float, other: float | None = None) -> str:
         return "n/a"
     for digits in (4, 6, 9):
         text = f"{x:.{digits}g}"
+        # an SSIM floor of 0.99996 is not "1": more digits until a rounded integer is told
+        # apart from the value
+        whole = float(text) == round(float(text)) and float(text) != x
+        if whole and digits < 9:
+            continue
         if other is None or x == other or text != f"{other:.{digits}g}":
             return text
     return repr(x)

@@ -75,3 +75,10 @@ def test_passing_checks_in_the_markdown_name_their_case():
     )
     md = summary_markdown([verdict])
     assert "- **plate** PASS baseline conformance" in md
+
+
+def test_an_ssim_floor_below_one_does_not_print_as_one():
+    from raster_oracle.oracle.scoring.ci.checks import format_number
+
+    assert format_number(0.99996) == "0.99996" and format_number(1.0) == "1"
+    assert format_number(0.9991) == "0.9991" and format_number(0.02) == "0.02"
