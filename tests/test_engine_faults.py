@@ -162,3 +162,34 @@ def test_manifest_expect_gates_conformance_per_layer(plate, tmp_path, capsys):
     assert rec["scenes"]["pcf/shadow"]["conformance_misclassified_fraction"] == 0.0
     (case, *_) = json.loads((out / "pcf" / "shadow" / "report.json").read_text())["cases"]
     assert "conformance_edge_displacement_px" in case["metrics"]
+
+
+def test_a_texel_fault_after_baseline_accept_is_named_in_cli_junit_and_markdown(
+    plate, tmp_path, capsys
+):
+    """Issue 43 "must show": the correct PCF accepted as the baseline, then the same engine
+    reading its map one texel over: exit 1 with the conformance regression named in the
+    CLI, the JUnit XML and the Markdown summary (before: not compared, exit 0)."""
+    import xml.etree.ElementTree as ET
+
+    keys = "conformance_misclassified_fraction,conformance_edge_displacement_px"
+    common = ["--channel", "shadow", "--expect", EXPECT, "--baseline-metrics", keys]
+    rc, _ = _score(plate, tmp_path, "pcf.exr", *common)
+    assert rc == 0
+    base = tmp_path / "baselines"
+    argv = ["baseline", "accept", str(tmp_path / "pcf_exr"), "--into", str(base)]
+    assert main([*argv, "--note", "the correct PCF"]) == 0
+    capsys.readouterr()
+    junit, md = tmp_path / "ci.xml", tmp_path / "ci.md"
+    extra = ["--baseline", str(base), "--junit", str(junit), "--summary-md", str(md)]
+    out = tmp_path / "faulty"
+    argv = ["score", str(plate / "e"), "--candidate", str(plate / "pcf_offset.exr")]
+    rc = main([*argv, "--spp", "4", *common, *extra, "--out", str(out)])
+    text = capsys.readouterr().out
+    assert rc == 1
+    assert "REGRESSION conformance_edge_displacement_px" in text
+    failures = [
+        c.get("name") for c in ET.parse(junit).iter("testcase") if c.find("failure") is not None
+    ]
+    assert "baseline conformance_edge_displacement_px" in failures
+    assert "conformance\\_edge\\_displacement\\_px" in md.read_text()
