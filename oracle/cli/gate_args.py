@@ -75,8 +75,9 @@ def add_gate_args(p, *, baseline_help: str) -> None:
     p.add_argument(
         "--baseline-strict",
         action="store_true",
-        help="score-folder: a case of the baseline missing from this run, or new in it, "
-        "fails (default: named in a note)",
+        help="a metric that cannot be compared with the baseline (a value or noise floor "
+        "missing) fails (default: named, NOT COMPARED); score-folder: a case of the baseline "
+        "missing from this run, or new in it, fails (default: named in a note)",
     )
     p.add_argument(
         "--junit",

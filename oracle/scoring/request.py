@@ -205,7 +205,11 @@ class ScoreRequest:
         files = FileCandidate(
             pattern, layout, o.motion, o.visibility, _transfer(pattern, layout, o.transfer)
         )
-        return cls(loaded, layout.kind, files, options=o, cache=cache)
+        # an engine's coverage layer against the truth of the same coverage (--coverage-truth)
+        front = layout.kind == "coverage" and o.coverage_truth == "front"
+        return cls(
+            loaded, "front_coverage" if front else layout.kind, files, options=o, cache=cache
+        )
 
     def with_channel(self, channel: str, **changes) -> ScoreRequest:
         """This request on another channel (the same candidate, model runs shared)."""

@@ -12,7 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from .ci.checks import Gate, Verdict
-from .ci.gates import applicable_gates, check_applicable, evaluate_gates
+from .ci.gates import applicable_gates, check_applicable, evaluate_gates, support_record
 from .ci.regression import BaselineOptions, check_baseline_scene, compare_baseline
 from .conformance import CONFORMANCE_KEYS, parse_expect
 from .inputs.frames import candidate_name
@@ -118,6 +118,7 @@ def score_to_folder(
         label = candidate_name(
             request.candidate.pattern, frames=o.frames, camera_path=o.camera_path
         )
+    support_record(result.record)  # a metric over an empty set is None, support 0
     verdict = Verdict(scene=request.loaded.name, checks=evaluate_gates(gates, result.record))
     verdict.add(notes=notes + result.notes)
     if baseline is not None:

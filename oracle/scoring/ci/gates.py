@@ -10,7 +10,10 @@ silently: every rule below is an :class:`GateError` (exit 2), never a pass.
   ``info`` metric (a technique's constant) is no score at all;
 - the metric does not apply to the candidate kinds scored (a shadow metric on a colour
   candidate) or to the frame count (``flicker`` needs 2 frames);
-- its value is null or NaN in this run (e.g. no receiver in view).
+- its value is null or NaN in this run;
+- its support is empty (:func:`support_record`: no receiver in view, no edge-band pixel):
+  the message names the case, the metric and the empty set, and the record says
+  ``support: 0`` for it.
 
 Judged gates give one line each, with the value, the limit and the noise floor:
 ``FAIL visibility_mae 0.0719 > 0.02 (noise floor 0.0011)``,
@@ -47,6 +50,7 @@ from .checks import (
 from .regression import BaselineOptions, compare_baseline, load_baseline
 
 __all__ = [
+    "support_record",
     "applicable_gates",
     "check_applicable",
     "evaluate_gates",
@@ -112,7 +116,58 @@ def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
             )
 
 
+#: The set a shadow mask's metric is computed over: (the record's counter, its name).
+_RECEIVERS = ("receiver_count", "receivers")
+_EDGE_BAND = ("edge_band_count", "edge-band receivers (within 2 px of a shadow edge)")
+
+
+def _support_set(record: dict, key: str) -> tuple[str, str] | None:
+    """``(counter, name)`` of the pixels ``key`` is computed over in ``record``, or None
+    where the metric's support is not counted (colour, coverage: every pixel)."""
+    if record.get("channel") not in ("visibility", "soft_visibility", "light_fraction"):
+        return None
+    if key.startswith("edge_band_"):
+        return _EDGE_BAND
+    return _RECEIVERS  # a shadow mask is judged on the receivers: every metric of it
+
+
+def support_record(record: dict) -> dict:
+    """``{metric: pixels}``: the size of the set each scored metric of ``record`` is computed
+    over (summed over its frames), for the metrics whose support is counted; a metric with
+    support 0 is set to None in ``record`` (and its frames): never a perfect score from
+    nothing. Returns the support (also stored as ``record["support"]``)."""
+    frames = record.get("frames") or [record]
+    support = {}
+    for key in catalog.CATALOG:
+        if key not in record:
+            continue
+        found = _support_set(record, key)
+        if found is None:
+            continue
+        counter = found[0]
+        counts = [f.get(counter) for f in frames]
+        if any(c is None for c in counts):
+            continue
+        n = int(sum(int(c) for c in counts))
+        support[key] = n
+        if n == 0:
+            record[key] = None
+            for f in record.get("frames") or []:
+                f[key] = None
+    record["support"] = support
+    return support
+
+
 def _value(record: dict, key: str, what: str) -> float:
+    n = (record.get("support") or {}).get(key)
+    if n == 0:
+        case = ((record.get("reference") or {}).get("scene") or {}).get("name", "?")
+        found = _support_set(record, key)
+        name = found[1] if found else "pixels"
+        raise GateError(
+            f"{what}: case {case}: {key} is computed over the {name}, and this run has none "
+            "(support: 0): nothing to judge, no gate passes on nothing"
+        )
     value = as_number(record.get(key))
     skipped = ((record.get("temporal_aa") or {}).get("video") or {}).get("skipped")
     if value is None and key == "cvvdp_jod" and skipped:
