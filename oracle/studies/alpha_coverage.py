@@ -40,6 +40,7 @@ __all__ = [
     "leaf_closeup",
     "main",
     "silhouette_shift",
+    "truth_and_depth",
 ]
 
 #: The rules measured: name -> parameters (MSAA count set by the caller).
@@ -83,7 +84,7 @@ def flicker(
     change of coverage less the truth's (4 x 4 stratified rays a pixel), and the truth's own
     mean ``|t[k+1] - t[k]|`` (``truth_change``)."""
     views = [foliage_view(width, height, n=n, frame=k, frames=frames) for k in range(frames)]
-    truth = np.stack([_truth(v, 4)[0] for v in views])
+    truth = np.stack([truth_and_depth(v, 4)[0] for v in views])
     dt = np.diff(truth, axis=0)
     out = {"truth_change": float(np.abs(dt).mean()), "flicker": {}}
     for name, kw in PRESETS.items():  # five rules
@@ -124,7 +125,7 @@ def _truth_samples(view: FoliageView, k: int) -> np.ndarray:
     return np.array(si.is_valid())
 
 
-def _truth(view: FoliageView, spp_side: int):
+def truth_and_depth(view: FoliageView, spp_side: int):
     """Per pixel: the truth's coverage and the view depth of the first card (alpha ignored;
     0 where none)."""
     import mitsuba as mi
@@ -147,7 +148,7 @@ def coverage_by_band(
     """The study (see the module text): ``{"bands": [[lo, hi], ...], "truth": [per band],
     "pixels": [per band], "kept": {preset: [ratio per band]}}``."""
     view = foliage_view(width, height, n=n)
-    truth, depth = _truth(view, spp_side)
+    truth, depth = truth_and_depth(view, spp_side)
     edges = af.band_edges()
     band = np.searchsorted(edges, depth, side="right") - 1
     out = {
@@ -190,7 +191,7 @@ def silhouette_shift(
     length by Cauchy-Crofton from the truth's ``spp_side``-fold grid (``pi/4`` x the grid's
     transitions x its spacing)."""
     view = leaf_closeup(size, px_per_texel=px_per_texel)
-    truth_cover, _ = _truth(view, spp_side)
+    truth_cover, _ = truth_and_depth(view, spp_side)
     fine = _truth_mask(view, spp_side)
     transitions = np.count_nonzero(np.diff(fine, axis=0)) + np.count_nonzero(np.diff(fine, axis=1))
     length = math.pi / 4 * transitions / spp_side
