@@ -106,3 +106,32 @@ def test_the_two_alpha_claims_reproduce_the_studys_figures(mi):
     a2c = rows["alpha-threejs-a2c-shrinks"]
     assert a2c["verdict"] == C.REPRODUCED and -0.7 < a2c["value"]["mean"] < -0.5
     assert abs(a2c["cases"][1]["shift_px"]) < 0.1  # the plain test: no shift
+
+
+def test_alpha_foliage_section_plots_coverage_kept_per_rule():
+    """The section's lines: one a rule, x at each band's geometric mid distance, bands
+    without pixels left out; zeros (foliage lost) are drawn on the linear y axis."""
+    from raster_oracle.reports.sections import alpha_foliage_section, render_section
+
+    data = {
+        "schema": "raster-oracle.studies.alpha-foliage/1",
+        "quick": True,
+        "resolution": [320, 180],
+        "cards": 1000,
+        "samples": 4,
+        "truth_rays_per_pixel": 16,
+        "bands": [[2.0, 8.0], [8.0, 32.0]],
+        "pixels": [10, 0],
+        "truth": [0.5, None],
+        "kept": {"test/box": [0.0, None], "hashed/box": [1.0, None]},
+        "closeup_px": 96,
+        "silhouette_shift_px": {"test/box": 0.02, "hashed/box": -0.05},
+        "wall_seconds": 1.0,
+    }
+    section = alpha_foliage_section(data)
+    assert section["series"] == [
+        {"name": "test/box", "x": [4.0], "y": [0.0]},
+        {"name": "hashed/box", "x": [4.0], "y": [1.0]},
+    ]
+    html = render_section(section)
+    assert "<svg" in html and "coverage kept" in html and "test/box" in html

@@ -33,12 +33,15 @@ from ...scenes.shading.alpha import AlphaMask, AlphaTable, AlphaTexture
 
 __all__ = [
     "PRESETS",
+    "REPORT_SIZE",
     "FoliageView",
+    "alpha_report",
     "coverage_by_band",
     "flicker",
     "foliage_view",
     "leaf_closeup",
     "main",
+    "run_alpha_foliage",
     "silhouette_shift",
     "truth_and_depth",
 ]
@@ -209,6 +212,58 @@ def _truth_mask(view: FoliageView, k: int) -> np.ndarray:
     cover_samples = _truth_samples(view, k)
     h, w = view.camera.height, view.camera.width
     return cover_samples.reshape(h, w, k, k).transpose(0, 2, 1, 3).reshape(h * k, w * k)
+
+
+#: Film size of the report's bands (the study's; docs/research.md) and of its close-up.
+REPORT_SIZE = (320, 180)
+
+
+def alpha_report(*, quick: bool = True, size=None) -> dict:
+    """The report's record: coverage kept per distance band by every rule of :data:`PRESETS`
+    (4x MSAA, 1000 cards, truth 4 x 4 rays a pixel; ``size`` overrides :data:`REPORT_SIZE`)
+    and each rule's silhouette shift on a close-up (96 px square when ``quick``, else 192).
+    A band without pixels (tiny films) has ``None`` for its values."""
+    import time
+
+    t0 = time.perf_counter()
+    width, height = size or REPORT_SIZE
+    with np.errstate(invalid="ignore", divide="ignore"):
+        res = coverage_by_band(n=1000, width=width, height=height, samples=4, spp_side=4)
+    close = 96 if quick else 192
+    shifts = {name: silhouette_shift(name, size=close, samples=4)["shift_px"] for name in PRESETS}
+
+    def clean(values):
+        return [None if v is None or not math.isfinite(v) else float(v) for v in values]
+
+    return {
+        "schema": "raster-oracle.studies.alpha-foliage/1",
+        "quick": quick,
+        "resolution": [int(width), int(height)],
+        "cards": 1000,
+        "samples": 4,
+        "truth_rays_per_pixel": 16,
+        "bands": res["bands"],
+        "pixels": res["pixels"],
+        "truth": clean(res["truth"]),
+        "kept": {name: clean(v) for name, v in res["kept"].items()},
+        "closeup_px": close,
+        "silhouette_shift_px": {k: float(v) for k, v in shifts.items()},
+        "wall_seconds": time.perf_counter() - t0,
+    }
+
+
+def run_alpha_foliage(out, *, quick: bool = True, size=None) -> dict:
+    """:func:`alpha_report`, written as ``out/alpha_foliage.json`` and ``.html`` when ``out``
+    is given; returns the record."""
+    from ...reports.sections import alpha_foliage_section
+    from .output import write_study
+
+    data = alpha_report(quick=quick, size=size)
+    if out is not None:
+        section = alpha_foliage_section(data)
+        title = "Alpha-tested foliage"
+        write_study(out, name="alpha_foliage", data=data, section=section, title=title)
+    return data
 
 
 def main(argv=None) -> int:
