@@ -43,6 +43,8 @@ class ScoreOptions:
     expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
         scored too, and the candidate against it (``conformance_*`` metrics;
         :mod:`oracle.scoring.conformance`).
+    family : the technique family (``raster_models.FAMILIES``) an engine's files come from
+        (candidates only; None: none): its record decides the passes as for a model's.
     exact_budget : the references' exact-coverage budget
         (:attr:`oracle.reference.settings.ReferenceSettings.exact_budget`; None: the default).
     """
@@ -60,6 +62,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
+    family: str | None = None
     exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
 
     def validate(self) -> ScoreOptions:
