@@ -105,3 +105,15 @@ def test_the_catalogue_opens_the_temporal_metrics_to_temporal_families_only():
         check_applicable(gate, kinds=("visibility",), frames=4)
     with pytest.raises(GateError, match="at least 2 frames"):
         check_applicable(gate, kinds=("visibility",), frames=1, temporal=True)
+
+
+def test_a_shadow_maps_sequence_keeps_its_temporal_metrics_closed(tmp_path, capsys):
+    """The shadow family is not temporal: its frames have no steady error to gate (refused
+    before anything is rendered or written)."""
+    out = tmp_path / "sm"
+    args = ["score", "plate", "--technique", "shadow-map", "--frames", "2", "--spp", "1"]
+    args += ["--camera-path", "dolly"]
+    args += ["--width", "16", "--height", "9", "--fail-above", "steady_error=0.1"]
+    assert main([*args, "--out", str(out)]) == 2
+    assert "steady_error applies to color candidates" in capsys.readouterr().err
+    assert not out.exists()
