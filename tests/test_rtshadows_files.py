@@ -117,3 +117,29 @@ def test_a_shadow_maps_sequence_keeps_its_temporal_metrics_closed(tmp_path, caps
     assert main([*args, "--out", str(out)]) == 2
     assert "steady_error applies to color candidates" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_manifest_names_the_family_of_its_frames(runs, tmp_path):
+    """``family = "rtshadows"`` in a ``score-folder`` manifest: the case gets the temporal
+    metrics and its steady-error gate is judged, as with ``score --family``."""
+    root, exp, _, rec = runs
+    manifest = tmp_path / "ci.toml"
+    manifest.write_text(
+        f"""[defaults]
+spp = 4
+[scenes.occ]
+scene = "{exp.as_posix()}"
+file = "ffx/f{{frame:03d}}.exr"
+frames = {N}
+family = "rtshadows"
+[scenes.occ.channels.soft_visibility]
+fail_above = {{ steady_error = 0.1 }}
+"""
+    )
+    out = tmp_path / "out"
+    args = ["score-folder", str(root), "--manifest", str(manifest), "--out", str(out)]
+    assert main(args) == 0
+    case = json.loads((out / "occ" / "soft_visibility" / "metrics.json").read_text())
+    assert case["channel"] == "soft_visibility" and case["temporal_aa"] is not None
+    assert [g["metric"] for g in case["gates"]] == ["steady_error"]
+    assert case["lag_frames"] == rec["ffx"]["lag_frames"]

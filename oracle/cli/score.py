@@ -52,14 +52,6 @@ def add_parsers(sub) -> None:
     )
     add_visibility_arg(p)
     add_transfer_args(p)
-    p.add_argument(
-        "--family",
-        default=None,
-        metavar="FAMILY",
-        help="the technique family a candidate file's frames come from (rtshadows: a "
-        "denoised ray-traced shadow): its record decides the passes (a temporal family's "
-        "sequence gets the temporal metrics, gateable on its channels)",
-    )
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     A.add_exact_budget_arg(p)
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
