@@ -143,3 +143,15 @@ fail_above = {{ steady_error = 0.1 }}
     assert case["channel"] == "soft_visibility" and case["temporal_aa"] is not None
     assert [g["metric"] for g in case["gates"]] == ["steady_error"]
     assert case["lag_frames"] == rec["ffx"]["lag_frames"]
+
+
+def test_soft_channels_gate_and_compare_as_visibility(runs, tmp_path):
+    """A soft channel is of the catalogue's kind ``visibility``: the shadow metrics gate a
+    PCSS run, and a soft run's baseline is a run of the same kind (both were refused)."""
+    root, exp, _, _ = runs
+    pcss = ["score", "occluder-rect", "--technique", "pcss", "--width", "24", "--height", "14"]
+    pcss += ["--spp", "2", "--fail-above", "visibility_mae=0.5", "--out", str(tmp_path / "p")]
+    assert main(pcss) == 0
+    again = ["score", str(exp), "--frames", str(N), "--gate-frames", "3", "--spp", "4"]
+    again += ["--technique", "rtshadows-ffx", "--baseline", str(root / "out_m" / "metrics.json")]
+    assert main([*again, "--out", str(tmp_path / "b")]) == 0

@@ -44,7 +44,7 @@ def _check_before_rendering(request: ScoreRequest, gates, *, baseline, source) -
             baseline,
             request.loaded,
             frames=o.frames or 1,
-            kinds=kinds,
+            kinds=gate_kinds,
             source=source,
             platform=o.platform,
         )
