@@ -96,6 +96,12 @@ def test_temporal_gates_need_a_temporal_family(runs, capsys):
     # a family that does not produce the channel is named
     assert main([*args, "--family", "taa", "--out", str(root / "refused")]) == 2
     assert "--family taa produces color" in capsys.readouterr().err
+    assert main([*args, "--family", "nonesuch", "--out", str(root / "refused")]) == 2
+    assert "unknown technique family 'nonesuch'" in capsys.readouterr().err
+    tech = ["score", str(exp), "--technique", "rtshadows-ffx", "--family", "rtshadows"]
+    assert main([*tech, "--out", str(root / "refused")]) == 2
+    assert "--family applies to --candidate" in capsys.readouterr().err
+    assert not (root / "refused").exists()
 
 
 def test_the_catalogue_opens_the_temporal_metrics_to_temporal_families_only():

@@ -68,6 +68,8 @@ def _check_request(request: ScoreRequest) -> None:
             raise ScoreError("--candidate-motion applies to --candidate, not to --technique")
         if o.transfer is not None or o.expect is not None:
             raise ScoreError("--transfer and --expect apply to --candidate, not to --technique")
+        if o.family is not None:
+            raise ScoreError("--family applies to --candidate (a technique has its own)")
     elif not request.is_file:
         raise ScoreError("score: give a technique or a candidate file (one of them)")
 
