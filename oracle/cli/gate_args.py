@@ -127,8 +127,9 @@ def baseline_options(args):
 
 
 def add_transfer_args(p) -> None:
-    """``--transfer`` (how a PNG's colour is decoded) and ``--expect`` (the technique the
-    engine claims to implement, scored for conformance)."""
+    """``--transfer`` (how a PNG's colour is decoded), ``--expect`` (the technique the
+    engine claims to implement, scored for conformance) and ``--family`` (the technique
+    family its frames come from: its record decides the passes)."""
     p.add_argument(
         "--transfer",
         choices=["srgb", "gamma2.2", "linear"],
@@ -144,6 +145,14 @@ def add_transfer_args(p) -> None:
         help="what the engine claims to implement (a technique and its --set keys, e.g. "
         "shadow-map:resolution=2048,filter=pcf,pcf_size=3): its model runs too, and the "
         "candidate is scored against it (conformance_* metrics, gateable)",
+    )
+    p.add_argument(
+        "--family",
+        default=None,
+        metavar="FAMILY",
+        help="the technique family the candidate files' frames come from (rtshadows: a "
+        "denoised ray-traced shadow): its record decides the passes (a temporal family's "
+        "sequence gets the temporal metrics, gateable on its channels)",
     )
 
 

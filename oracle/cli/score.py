@@ -210,6 +210,7 @@ def cmd_score(args) -> int:
         transfer=args.transfer,
         expect=args.expect,
         coverage_truth=args.coverage_truth,
+        family=args.family,
         exact_budget=A.exact_budget(args),
         motion=None
         if args.candidate_motion is None

@@ -52,6 +52,8 @@ class ScoreOptions:
         (the fraction covered by the surface seen at the pixel, an MSAA coverage mask of
         the front-most primitive: ``front_coverage``; a ground plane behind a shape makes
         ``any`` 1 on every pixel, so an all-ones mask would score perfectly against it).
+    family : the technique family (``raster_models.FAMILIES``) an engine's files come from
+        (candidates only; None: none): its record decides the passes as for a model's.
     exact_budget : the references' exact-coverage budget
         (:attr:`oracle.reference.settings.ReferenceSettings.exact_budget`; None: the default).
     """
@@ -69,6 +71,7 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
+    family: str | None = None
     exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
     coverage_truth: str = "any"
 

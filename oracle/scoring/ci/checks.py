@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..channels import CHANNEL_KIND
 from ..result import ScoreError
 
 __all__ = [
@@ -189,9 +190,10 @@ def format_number(x: float, other: float | None = None) -> str:
 
 
 def scored_kinds(record: dict) -> tuple[str, ...]:
-    """Candidate kinds a ``metrics.json`` record scored: its channel, plus coverage where an
-    anti-aliasing model's coverage was scored beside its colour."""
-    kinds = [record["channel"]]
+    """Candidate kinds (the metric catalogue's) a ``metrics.json`` record scored: its
+    channel's (``soft_visibility`` is ``visibility``), plus coverage where an anti-aliasing
+    model's coverage was scored beside its colour."""
+    kinds = [CHANNEL_KIND.get(record["channel"], record["channel"])]
     if record.get("coverage_reference") is not None and "coverage" not in kinds:
         kinds.append("coverage")
     return tuple(kinds)

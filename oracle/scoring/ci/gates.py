@@ -82,13 +82,14 @@ def parse_gates(fail_above=(), fail_below=()) -> list[Gate]:
     return gates
 
 
-def applicable_gates(gates, *, kinds) -> tuple[list, list[str]]:
+def applicable_gates(gates, *, kinds, temporal: bool = False) -> tuple[list, list[str]]:
     """``gates`` without the profile gates (``optional``) whose metric does not apply to the
-    candidate ``kinds``, and a note naming each one left out."""
+    candidate ``kinds`` (of a temporal family's sequence when ``temporal``), and a note naming
+    each one left out."""
     kept, notes = [], []
     for g in gates:
         m = catalog.CATALOG[g.metric]
-        if g.optional and not set(m.kinds) & set(kinds):
+        if g.optional and not m.applies(kinds, temporal=temporal):
             notes.append(
                 f"{g.where}: {g.metric} applies to {' and '.join(m.kinds)} candidates, not "
                 f"{' and '.join(kinds)}: not judged"
@@ -98,12 +99,13 @@ def applicable_gates(gates, *, kinds) -> tuple[list, list[str]]:
     return kept, notes
 
 
-def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
+def check_applicable(gates, *, kinds=None, frames: int = 1, temporal: bool = False) -> None:
     """:class:`GateError` for a gate whose metric does not apply to the candidate ``kinds``
-    (None: not known yet, not checked) or to ``frames`` frames."""
+    (None: not known yet, not checked; ``temporal``: of a temporal family's sequence) or to
+    ``frames`` frames."""
     for g in gates:
         m = catalog.CATALOG[g.metric]
-        if kinds is not None and not set(m.kinds) & set(kinds):
+        if kinds is not None and not m.applies(kinds, temporal=temporal):
             raise GateError(
                 f"{g.where} {g.metric}: {g.metric} applies to {' and '.join(m.kinds)} "
                 f"candidates; this run scores {' and '.join(kinds)} "
@@ -181,9 +183,11 @@ def _value(record: dict, key: str, what: str) -> float:
 
 
 def evaluate_gates(gates, record: dict) -> list[Check]:
-    """Judge ``gates`` on a ``metrics.json`` record (applicability is checked first)."""
+    """Judge ``gates`` on a ``metrics.json`` record (applicability is checked first; the
+    temporal metrics apply where the record's temporal pass ran: ``temporal_aa``)."""
     frames = len(record.get("frames") or []) or 1
-    check_applicable(gates, kinds=scored_kinds(record), frames=frames)
+    temporal = record.get("temporal_aa") is not None
+    check_applicable(gates, kinds=scored_kinds(record), frames=frames, temporal=temporal)
     floors = record.get("noise_floor") or {}
     checks = []
     for g in gates:
