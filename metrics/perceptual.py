@@ -13,8 +13,10 @@ colour), ``(H, W, 3)`` or ``(H, W, 4)`` (alpha dropped), row 0 at the top.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -61,19 +63,63 @@ def _as_rgb(img: np.ndarray, name: str) -> np.ndarray:
     return img
 
 
-def _tonemapped_pair(reference, candidate, exposure, tone_mapper):
-    """Validate, then run both images through the shared pipeline with one exposure."""
+#: Bytes of reference sides (:func:`_reference_side`) this process keeps, oldest dropped
+#: first: about 17 references of 640 x 360 (their tone-mapped image and CIE Lab).
+REFERENCE_SIDE_BYTES = 192 << 20
+
+_SIDES: OrderedDict = OrderedDict()
+
+
+def _side_bytes(side: dict) -> int:
+    return sum(v.nbytes for v in side.values() if isinstance(v, np.ndarray))
+
+
+def _reference_side(ref: np.ndarray, exposure, tone_mapper: str) -> dict:
+    """The reference's half of the tone-mapped metrics: ``{"exposure", "display"}`` (its
+    exposure and tone-mapped image), and ``"lab"`` once :func:`delta_e2000` asked for it.
+
+    Several candidates are judged against one reference (the cases of a sweep, the noise
+    floor), so it is kept: keyed by the reference's bytes, shape and dtype with the exposure
+    and tone mapper asked for, it is what recomputing would give, bit for bit. Its arrays
+    are read-only."""
+    digest = hashlib.blake2b(np.ascontiguousarray(ref).data, digest_size=20).digest()
+    key = (digest, ref.shape, ref.dtype.str, exposure, tone_mapper)
+    side = _SIDES.get(key)
+    if side is not None:
+        _SIDES.move_to_end(key)
+        return side
+    if exposure is None:
+        exposure = exposure_from_reference(np.maximum(ref, 0.0))
+    display = tonemap(ref, exposure=exposure, method=tone_mapper)
+    display.setflags(write=False)
+    side = {"exposure": exposure, "display": display}
+    _SIDES[key] = side
+    _trim_sides()
+    return side
+
+
+def _trim_sides() -> None:
+    total = sum(_side_bytes(s) for s in _SIDES.values())
+    while _SIDES and total > REFERENCE_SIDE_BYTES:
+        total -= _side_bytes(_SIDES.popitem(last=False)[1])
+
+
+def _tonemapped_sides(reference, candidate, exposure, tone_mapper):
+    """Validate, then run both images through the shared pipeline with one exposure: the
+    reference's side (:func:`_reference_side`) and the tone-mapped candidate."""
     ref, cand = check_images("reference", reference, "candidate", candidate)
     if tone_mapper not in TONE_MAPPERS:
         raise MetricError(
             f"tone_mapper must be one of {', '.join(TONE_MAPPERS)}, got {tone_mapper!r}"
         )
-    if exposure is None:
-        exposure = exposure_from_reference(np.maximum(ref, 0.0))
-    return (
-        tonemap(ref, exposure=exposure, method=tone_mapper),
-        tonemap(cand, exposure=exposure, method=tone_mapper),
-    )
+    side = _reference_side(ref, exposure, tone_mapper)
+    return side, tonemap(cand, exposure=side["exposure"], method=tone_mapper)
+
+
+def _tonemapped_pair(reference, candidate, exposure, tone_mapper):
+    """Validate, then run both images through the shared pipeline with one exposure."""
+    side, cand = _tonemapped_sides(reference, candidate, exposure, tone_mapper)
+    return side["display"], cand
 
 
 def hdr_exposure_range(reference) -> tuple[float, float]:
@@ -213,6 +259,8 @@ def flip(
         parameters.update(startExposure=start, stopExposure=stop)
         input_srgb = False
     ref = np.ascontiguousarray(_as_rgb(ref, "reference"), dtype=np.float32)
+    if not ref.flags.writeable:  # a kept reference side: flip_evaluator takes writable arrays
+        ref = ref.copy()
     cand = np.ascontiguousarray(_as_rgb(cand, "candidate"), dtype=np.float32)
     error_map, mean = _evaluate_flip(ref, cand, mode, input_srgb, parameters)
     if full:
@@ -432,8 +480,13 @@ def delta_e2000(
     .. [2] M. R. Luo, G. Cui, B. Rigg, "The development of the CIE 2000 colour-difference
        formula: CIEDE2000", Color Res. Appl. 26(5), 2001. DOI: 10.1002/col.1049
     """
-    ref, cand = _tonemapped_pair(reference, candidate, exposure, tone_mapper)
-    lab_ref = _linear_srgb_to_lab(srgb_decode(_as_rgb(ref, "reference")))
+    side, cand = _tonemapped_sides(reference, candidate, exposure, tone_mapper)
+    lab_ref = side.get("lab")
+    if lab_ref is None:
+        lab_ref = _linear_srgb_to_lab(srgb_decode(_as_rgb(side["display"], "reference")))
+        lab_ref.setflags(write=False)
+        side["lab"] = lab_ref
+        _trim_sides()
     lab_cand = _linear_srgb_to_lab(srgb_decode(_as_rgb(cand, "candidate")))
     de = delta_e2000_lab(lab_ref, lab_cand)
     if full:

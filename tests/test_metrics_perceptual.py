@@ -266,3 +266,58 @@ def test_delta_e2000_lab_rejects_bad_shapes():
         delta_e2000_lab(np.zeros((4, 2)), np.zeros((4, 2)))
     with pytest.raises(MetricError, match="lab_a and lab_b must have the same shape"):
         delta_e2000_lab(np.zeros((4, 3)), np.zeros((5, 3)))
+
+
+# ---------------------------------------------------------------------- the reference's side
+def _sides_cleared(monkeypatch):
+    from raster_oracle.metrics import perceptual
+
+    monkeypatch.setattr(perceptual, "_SIDES", type(perceptual._SIDES)())
+    return perceptual
+
+
+def test_a_kept_reference_side_gives_the_bytes_of_a_fresh_one(monkeypatch):
+    """Each candidate judged against a kept reference side scores exactly as with the side
+    computed afresh (the memo cleared before every call), and the side is kept once."""
+    perceptual = _sides_cleared(monkeypatch)
+    rng = np.random.default_rng(7)
+    ref = (rng.random((24, 32, 4)) * 3.0).astype(np.float32)[..., :3]  # a strided view
+    cands = [ref * 1.05, np.clip(ref + rng.normal(0, 0.1, ref.shape), 0, None)]
+
+    def scores(cand):
+        de, de_map = delta_e2000(ref, cand, full=True)
+        fl, fl_map = flip(ref, cand, full=True)
+        return (de, de_map.tobytes(), fl, fl_map.tobytes(), ssim(ref, cand), psnr_db(ref, cand))
+
+    kept = [scores(c) for c in cands]
+    assert len(perceptual._SIDES) == 1
+    (side,) = perceptual._SIDES.values()
+    assert "lab" in side and not side["display"].flags.writeable
+    fresh = []
+    for c in cands:
+        perceptual._SIDES.clear()
+        fresh.append(scores(c))
+    assert kept == fresh
+
+
+def test_reference_sides_are_keyed_by_content_and_trimmed_to_their_budget(monkeypatch):
+    perceptual = _sides_cleared(monkeypatch)
+    a = np.full((16, 16, 3), 0.25)
+    b = a.copy()
+    b[3, 4, 1] = 0.5  # one value apart: another reference
+    assert perceptual._reference_side(a, None, "aces") is perceptual._reference_side(
+        a.copy(), None, "aces"
+    )
+    side_b = perceptual._reference_side(b, None, "aces")
+    assert (
+        side_b["display"].tobytes()
+        != perceptual._reference_side(a, None, "aces")["display"].tobytes()
+    )
+    assert perceptual._reference_side(a, 1.0, "aces") is not perceptual._reference_side(
+        a, None, "aces"
+    )
+    assert len(perceptual._SIDES) == 3
+    one = perceptual._side_bytes(side_b)
+    monkeypatch.setattr(perceptual, "REFERENCE_SIDE_BYTES", 2 * one)
+    perceptual._reference_side(np.zeros((16, 16, 3)), None, "aces")
+    assert len(perceptual._SIDES) == 2  # the oldest dropped

@@ -291,16 +291,21 @@ def _warp(d: np.ndarray, exponents) -> tuple[np.ndarray, np.ndarray]:
     return np.exp(exponents[0] * d), -np.exp(-exponents[1] * d)
 
 
+def _moment_planes(depth_map: np.ndarray, kind: str, exponents) -> list[np.ndarray]:
+    """The float64 ``(R, R)`` planes of :func:`moments_from_depth`, in channel order."""
+    d = np.asarray(depth_map, dtype=np.float64)
+    if kind == "vsm":
+        return [d, d * d]
+    pos, neg = _warp(d, exponents)
+    if kind == "evsm2":
+        return [pos, pos * pos]
+    return [pos, pos * pos, neg, neg * neg]
+
+
 def moments_from_depth(depth_map: np.ndarray, kind: str, exponents=(0.0, 0.0)) -> np.ndarray:
     """``(R, R, C)`` float64 moments: VSM ``(d, d^2)``, EVSM2 ``(p, p^2)``, EVSM4 adds
     ``(n, n^2)`` of the negative warp."""
-    d = np.asarray(depth_map, dtype=np.float64)
-    if kind == "vsm":
-        return np.stack([d, d * d], axis=-1)
-    pos, neg = _warp(d, exponents)
-    if kind == "evsm2":
-        return np.stack([pos, pos * pos], axis=-1)
-    return np.stack([pos, pos * pos, neg, neg * neg], axis=-1)
+    return np.stack(_moment_planes(depth_map, kind, exponents), axis=-1)
 
 
 def blur_moments(moments: np.ndarray, size: int, fmt: str) -> np.ndarray:
@@ -331,7 +336,10 @@ def moment_texture(depth_map: np.ndarray, kind: str, exponents, size: int, fmt: 
     rows = max(1, MOMENT_BAND_TEXELS // max(cols_n, 1))
     cols = max(1, MOMENT_BAND_TEXELS // max(rows_n, 1))
     for y0 in range(0, rows_n, rows):
-        out[y0 : y0 + rows] = moments_from_depth(depth_map[y0 : y0 + rows], kind, exponents)
+        # stacked straight into the stored type: no (rows, R, C) float64 stack to allocate
+        # (the same float64 values, rounded to the store type once, as assigning them does)
+        planes = _moment_planes(depth_map[y0 : y0 + rows], kind, exponents)
+        np.stack(planes, axis=-1, out=out[y0 : y0 + rows])
     if size > 1:
         for axis, step, n in ((0, cols, cols_n), (1, rows, rows_n)):
             for a in range(0, n, step):
