@@ -135,3 +135,27 @@ def test_alpha_foliage_section_plots_coverage_kept_per_rule():
     ]
     html = render_section(section)
     assert "<svg" in html and "coverage kept" in html and "test/box" in html
+
+
+def test_model_and_score_commands_run_a_rule(tmp_path, capsys):
+    """``raster-oracle model`` and ``score --technique`` take the rules and their parameters;
+    the score is on coverage (three.js A2C at 64 x 36 loses most of the foliage: biased low)."""
+    import json
+
+    from raster_oracle.oracle.cli.app import main
+
+    small = ["--width", "64", "--height", "36"]
+    out = tmp_path / "m"
+    scene = "alpha-foliage:n=200"
+    args = ["model", "alpha-test", scene, *small, "--set", "mips=nvtt", "--out", str(out)]
+    assert main(args) == 0
+    record = json.loads((out / "model.json").read_text())
+    assert record["params"] == {"samples": 4, "mips": "nvtt", "cutoff": -1.0}
+    s = tmp_path / "s"
+    args = ["score", "--technique", "alpha-threejs-a2c", scene, *small, "--spp", "4"]
+    assert main([*args, "--no-cache", "--quiet", "--out", str(s)]) == 0
+    metrics = json.loads((s / "metrics.json").read_text())
+    assert metrics["channel"] == "coverage" and metrics["coverage_bias"] < -0.2
+    bad = ["model", "alpha-test", scene, *small, "--set", "mips=trilinear", "--out", str(out)]
+    assert main(bad) == 2
+    assert "mips" in capsys.readouterr().err

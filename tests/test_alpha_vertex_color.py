@@ -88,3 +88,23 @@ def test_vec3_colour_is_alpha_one(tmp_path):
 def test_bad_vertex_colours_are_refused_in_one_line(tmp_path, colors, mode, message):
     with pytest.raises(scenes.SceneError, match=message):
         scenes.load(_ramp_glb(tmp_path / "bad.glb", colors, mode=mode))
+
+
+@pytest.mark.parametrize("technique", ["alpha-test", "alpha-hashed"])
+def test_the_alpha_rules_read_the_vertex_alpha_too(tmp_path, technique):
+    """The registered rules multiply the interpolated vertex alpha in as the truth does: the
+    ramp card (no texture) is kept on its right half, 2 of its 4 square metres (the plain
+    test to a pixel column; hashed alpha's uniform threshold keeps the ramp's mean alpha,
+    half the card too)."""
+    from raster_oracle import raster_models as rm
+
+    loaded = scenes.load(_ramp_glb(tmp_path / "ramp.glb", RAMPS["float VEC4"]))
+    cov = rm.run(technique, loaded, samples=4).outputs["coverage"].astype(np.float64)
+    px = (SPAN / RES) ** 2
+    tol = 0.1 if technique == "alpha-test" else 0.25
+    assert float(cov.sum()) * px == pytest.approx(2.0, abs=tol)
+    if technique == "alpha-test":
+        c = (np.arange(RES) + 0.5) / RES * SPAN - SPAN / 2  # pixel centres, x and z alike
+        inner = np.abs(c) < 0.95
+        assert np.all(cov[np.ix_(inner, (c > 0.05) & (c < 0.95))] == 1.0)
+        assert np.all(cov[:, c < -0.05] == 0.0)
