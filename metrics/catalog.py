@@ -16,6 +16,11 @@ once, with
 ``min_frames``
     Frames a run must score for the metric to exist (the temporal metrics compare
     consecutive frames: 2).
+``temporal_family``
+    It also applies to every kind of a *temporal family*'s sequence (a family record's
+    ``temporal``: a ray-traced shadow denoised over frames has a steady error, a lag and
+    ghosting like a TAA); on other sequences of those kinds it stays null (a shadow map's
+    frames are not judged as a history).
 
 Judging is done in one place, on the metric's *error*: :func:`error_of` maps a value to a
 number that is 0 for a perfect candidate and grows as it gets worse (``x`` for lower-is-better,
@@ -67,6 +72,13 @@ class Metric:
     meaning: str = ""
     #: written only when asked for (``--expect``): not a key of every record
     on_request: bool = False
+    #: also applies to every kind of a temporal family's sequence (module docstring)
+    temporal_family: bool = False
+
+    def applies(self, kinds, *, temporal: bool = False) -> bool:
+        """Whether the metric applies to a candidate of ``kinds`` (catalogue kinds), of a
+        temporal family's sequence when ``temporal``."""
+        return bool(set(self.kinds) & set(kinds)) or (temporal and self.temporal_family)
 
     @property
     def better(self) -> str:
@@ -80,8 +92,12 @@ class Metric:
         }[self.direction]
 
 
-def _m(key, direction, unit, kinds, meaning, min_frames=1, on_request=False) -> Metric:
-    return Metric(key, direction, unit, tuple(kinds), min_frames, meaning, on_request)
+def _m(
+    key, direction, unit, kinds, meaning, min_frames=1, on_request=False, temporal_family=False
+) -> Metric:
+    return Metric(
+        key, direction, unit, tuple(kinds), min_frames, meaning, on_request, temporal_family
+    )
 
 
 _ENTRIES = (
@@ -142,6 +158,7 @@ _ENTRIES = (
         ("color",),
         "mean |error| over the judged frames (the last --gate-frames, else all)",
         min_frames=2,
+        temporal_family=True,
     ),
     _m(
         "convergence_frames",
@@ -150,6 +167,7 @@ _ENTRIES = (
         ("color",),
         "frames until the per-frame mean |error| reaches and stays within 10% of its steady level",
         min_frames=2,
+        temporal_family=True,
     ),
     _m(
         "ghosting_error",
@@ -158,6 +176,7 @@ _ENTRIES = (
         ("color",),
         "mean |error| on pixels disoccluded within the last N frames (reference disocclusion)",
         min_frames=2,
+        temporal_family=True,
     ),
     _m(
         "history_error",
@@ -166,6 +185,7 @@ _ENTRIES = (
         ("color",),
         "mean |error| where the truth changed along its motion since the previous frame",
         min_frames=2,
+        temporal_family=True,
     ),
     _m(
         "lag_frames",
@@ -174,6 +194,7 @@ _ENTRIES = (
         ("color",),
         "frames after a disocclusion until the error there is within 10% of the settled error",
         min_frames=2,
+        temporal_family=True,
     ),
     _m(
         "flicker_ratio",
@@ -182,6 +203,7 @@ _ENTRIES = (
         ("color",),
         "mean frame-to-frame change of the candidate over the truth's (1: as steady as the truth)",
         min_frames=2,
+        temporal_family=True,
     ),
     # a perceptual score of the whole sequence (metrics.video, the optional extra [video])
     _m(

@@ -11,6 +11,7 @@ from .aa.acaa import model as acaa
 from .aa.agaa import model as agaa
 from .aa.smaa import model as smaa_model
 from .aa.taa import model as taa
+from .alpha import technique as alpha
 from .coherent import model as coherent
 from .errors import ModelError
 from .izb import model as izb
@@ -133,6 +134,16 @@ FAMILIES: dict[str, Family] = {
             # judged at steady state against the area-light truth itself (its soft group)
             steady_against="reference",
         ),
+        Family(
+            "alpha",
+            "alpha-tested foliage",
+            ("coverage",),
+            ("coverage_bias", "coverage_rmse", "coverage_edge_rmse"),
+            ("framebuffer_bytes", "layers_mean"),
+            "framebuffer_bytes",
+            coverage_channel="coverage",
+            per_pixel_memory=True,
+        ),
     )
 }
 
@@ -146,7 +157,8 @@ class Technique:
     ``taa`` (colour over a frame sequence, with the temporal metrics) or ``soft``
     (``soft_visibility`` and ``light_fraction`` under an area light, scored against the soft
     truth) or ``rtshadows`` (the same channels traced at one ray a pixel and denoised over
-    frames, judged at steady state against the area-light truth)."""
+    frames, judged at steady state against the area-light truth) or ``alpha`` (a shipped
+    alpha-test rule's ``coverage`` of alpha-tested cards against the cut-out truth)."""
 
     name: str
     description: str
@@ -429,6 +441,54 @@ TECHNIQUES: dict[str, Technique] = {
             rtshadows.LIGHTS,
             "rtshadows",
         ),
+        # alpha-tested foliage (issue 44): the engines' cutout rules, scored on coverage
+        # against the alpha-tested truth (glTF MASK)
+        Technique(
+            "alpha-test",
+            "the plain alpha test (glTF MASK, three.js alphaTest): a fragment shaded at the "
+            "pixel centre with trilinear mips keeps its MSAA samples where alpha >= cutoff",
+            (
+                "Khronos, glTF 2.0 specification, 3.9.6 Alpha Coverage",
+                "mrdoob/three.js alphatest_fragment.glsl.js",
+            ),
+            alpha.AlphaParams,
+            alpha.make_runner("alpha-test"),
+            _ALL_LIGHTS,
+            "alpha",
+        ),
+        Technique(
+            "alpha-threejs-a2c",
+            "three.js alpha-to-coverage: smoothstep(cutoff, cutoff + fwidth(a), a) of the "
+            "samples, discarded at 0",
+            ("mrdoob/three.js alphatest_fragment.glsl.js (alphaToCoverage)",),
+            alpha.AlphaParams,
+            alpha.make_runner("alpha-threejs-a2c"),
+            _ALL_LIGHTS,
+            "alpha",
+        ),
+        Technique(
+            "alpha-filament-a2c",
+            "Filament's masked alpha-to-coverage centred on maskThreshold 0.4: "
+            "(a - t) / fwidth(a) + 1/2 of the samples, discarded at or under t",
+            ("google/filament 24a7bc2 shaders/src/surface_main.fs (applyAlphaMask)",),
+            alpha.FilamentAlphaParams,
+            alpha.make_runner("alpha-filament-a2c"),
+            _ALL_LIGHTS,
+            "alpha",
+        ),
+        Technique(
+            "alpha-hashed",
+            "hashed alpha test as three.js ships it (alphaHash, ALPHA_HASH_SCALE 0.05): kept "
+            "where alpha >= a hashed threshold stable in object space",
+            (
+                "C. Wyman, M. McGuire, Hashed Alpha Testing, I3D 2017, doi:10.1145/3023368.3023370",
+                "mrdoob/three.js 80c40c4 alphahash_pars_fragment.glsl.js",
+            ),
+            alpha.AlphaParams,
+            alpha.make_runner("alpha-hashed"),
+            _ALL_LIGHTS,
+            "alpha",
+        ),
     )
 }
 
@@ -463,7 +523,7 @@ def front_group(technique: str) -> str:
 
 def family_of(technique: str) -> str:
     """The family of a registered technique: a key of :data:`FAMILIES` (``shadow``, ``aa``,
-    ``taa``, ``soft`` or ``rtshadows``).
+    ``taa``, ``soft``, ``rtshadows`` or ``alpha``).
 
     Raises
     ------

@@ -33,8 +33,8 @@ def _filters() -> dict:
         "scatter_svg": lambda fam, cost_key, metric: svg.scatter_svg(
             fam, cost_key=cost_key, metric=metric
         ),
-        "loglog_svg": lambda series, x_label, y_label, title: svg.loglog_svg(
-            series, x_label=x_label, y_label=y_label, title=title
+        "loglog_svg": lambda series, x_label, y_label, title, log_y=True: svg.loglog_svg(
+            series, x_label=x_label, y_label=y_label, title=title, log_y=log_y
         ),
         "axis_label": plots.axis_label,
     }

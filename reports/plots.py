@@ -389,10 +389,17 @@ def sensitivity_plot(item: Mapping, *, salt: str = "") -> Markup:
 
 @_styled
 def loglog_plot(
-    series: Sequence[Mapping], *, x_label: str, y_label: str, title: str = "", salt: str = ""
+    series: Sequence[Mapping],
+    *,
+    x_label: str,
+    y_label: str,
+    title: str = "",
+    salt: str = "",
+    log_y: bool = True,
 ) -> Markup:
     """Log-log lines of ``series`` (``{"name", "x", "y", "dashed"?}``; positive values only
-    are drawn), with a legend; each point's ``<title>`` gives its values."""
+    are drawn), with a legend; each point's ``<title>`` gives its values. ``log_y=False``:
+    a linear y axis (log x), on which zeros and negative values are drawn too."""
     fig, ax = _figure((6.4, 3.6))
     drawn = 0
     tips = {}
@@ -400,7 +407,7 @@ def loglog_plot(
         xy = [
             (float(x), float(y))
             for x, y in zip(s["x"], s["y"], strict=True)
-            if _finite(x) and _finite(y) and x > 0 and y > 0
+            if _finite(x) and _finite(y) and x > 0 and (y > 0 or not log_y)
         ]
         if not xy:
             continue
@@ -422,13 +429,14 @@ def loglog_plot(
         plt.close(fig)
         raise EmptyPlotError(f"{title or y_label}: no positive value")
     ax.set_xscale("log")
-    ax.set_yscale("log")
-    for axis in (ax.xaxis, ax.yaxis):  # 1, 2, 5 x 10^k: a decade or less still has ticks
+    if log_y:
+        ax.set_yscale("log")
+    for axis in (ax.xaxis, ax.yaxis) if log_y else (ax.xaxis,):  # 1, 2, 5 x 10^k ticks
         axis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
         axis.set_minor_formatter(ticker.NullFormatter())
         axis.set_major_formatter(DistinctFormatter(is_bytes=False))
     ax.set_xlabel(f"{x_label}, log scale", fontsize=9)
-    ax.set_ylabel(f"{y_label}, log scale", fontsize=9)
+    ax.set_ylabel(f"{y_label}, log scale" if log_y else y_label, fontsize=9)
     ax.legend(fontsize=8, frameon=True, framealpha=0.85, edgecolor="none", loc="best")
     text = _svg(fig, ax, salt=salt or title, css="loglog", label=title, tips=tips)
     # the series' points are not cases: their links go nowhere, keep the titles only

@@ -84,10 +84,12 @@ def scatter_svg(family: Mapping, *, cost_key: str, metric: str) -> Markup:
     return plots.front_plot(front, colours={}, salt=salt, css="scatter")
 
 
-def loglog_svg(series: Sequence[Mapping], *, x_label: str, y_label: str, title: str = "") -> Markup:
-    """A log-log line plot (:func:`reports.plots.loglog_plot`); with no positive value to
-    draw, one line that says so instead of an empty plot."""
+def loglog_svg(
+    series: Sequence[Mapping], *, x_label: str, y_label: str, title: str = "", log_y: bool = True
+) -> Markup:
+    """A log-log line plot (:func:`reports.plots.loglog_plot`; ``log_y=False``: linear y);
+    with no value to draw, one line that says so instead of an empty plot."""
     try:
-        return plots.loglog_plot(series, x_label=x_label, y_label=y_label, title=title)
+        return plots.loglog_plot(series, x_label=x_label, y_label=y_label, title=title, log_y=log_y)
     except plots.EmptyPlotError:
         return Markup('<p class="na">not plotted: no positive value to draw on log axes</p>')

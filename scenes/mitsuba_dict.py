@@ -16,6 +16,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from .base.untrusted import LIMITS, UntrustedError, read_bounded
+from .shading.alpha import ALPHA_ATTRIBUTE
 
 __all__ = ["hash_obj", "to_mitsuba_dict", "xml_dependencies"]
 
@@ -62,6 +63,9 @@ def to_mitsuba_dict(mi, d: dict, meshes: dict) -> dict:
                 tan = np.asarray(tan, np.float32)
                 mesh.add_attribute("vertex_tangent", 3, mi.Float(tan[:, :3].ravel()))
                 mesh.add_attribute("vertex_tangent_w", 1, mi.Float(tan[:, 3].ravel()))
+            if value.get("vertex_alpha") is not None:  # COLOR_0's alpha (MASK materials)
+                va = np.asarray(value["vertex_alpha"], np.float32).ravel()
+                mesh.add_attribute(ALPHA_ATTRIBUTE, 1, mi.Float(va))
             params.update()
             bsdf = mi.load_dict(value["bsdf"])
             mesh.set_bsdf(bsdf)

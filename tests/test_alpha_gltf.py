@@ -245,3 +245,15 @@ def test_shadow_map_depth_pass_discards_or_ignores_the_cutout(tmp_path):
     # that ignores alpha (three.js issues 24995, 31802) casts the whole quad
     assert area["test"] == pytest.approx(2.0, abs=0.15)
     assert area["ignore"] == pytest.approx(4.0, abs=0.15)
+
+
+@pytest.mark.parametrize("technique", ["noaa", "msaa", "acaa"])
+def test_aa_models_sample_the_cut_out_surface(tmp_path, technique):
+    from raster_oracle.raster_models.registry import run
+
+    loaded = scenes.load(_facing_glb(tmp_path / "f.glb"))
+    kw = {} if technique == "noaa" else {"samples": 4}
+    cover = run(technique, loaded, **kw).outputs["coverage"]
+    # the NEAREST checker keeps half the 4 square metres: a model that ignored alpha
+    # would cover all of them
+    assert float(np.sum(cover)) * (SPAN / RES) ** 2 == pytest.approx(2.0, abs=0.1)

@@ -176,3 +176,17 @@ def test_a_cache_that_cannot_be_made_is_skipped_with_one_line(tmp_path, capfd):
     rc = main(["reference", "plate", *SMALL, "--cache-dir", root, "--out", str(out)])
     err = capfd.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "over the 255" in err[0], err
+
+
+def test_a_cache_folder_holding_self_check_verdicts_is_claimed(tmp_path, capfd):
+    """The self-check writes its verdicts into the cache folder before the first reference:
+    that folder is the cache's own (claimed, used), not foreign."""
+    root = tmp_path / "cache"
+    (root / "self-check").mkdir(parents=True)
+    (root / "self-check" / "llvm_ad_rgb-0123.json").write_text("{}")
+    args = ["reference", "plate", *SMALL, "--cache-dir", str(root)]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    assert "warning" not in capfd.readouterr().err
+    assert (root / cache_mod.MARKER).is_file()
+    assert json.loads((tmp_path / "b" / "reference.json").read_text())["cache_status"] == "hit"

@@ -56,6 +56,15 @@ OTHER_QUOTES = {
         "texture filtering [...] However it is designed to provide a substantially higher "
         "quality.",
     ),
+    "alpha-box-mips-lose-foliage": (
+        "issue 44",
+        "box-filtered mips lose more than 50% of the foliage beyond 5 m; coverage-preserving "
+        "mips keep it",
+    ),
+    "alpha-threejs-a2c-shrinks": (
+        "issue 44",
+        "three.js alpha-to-coverage shrinks silhouettes by about half a pixel",
+    ),
     "asvgf-less-lag": (
         "issue 46",
         "gradient-based history rejection reduces lag after a light change compared with SVGF",

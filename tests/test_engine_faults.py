@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from engine_raster import render, write_engine_exr, write_rgb_png
 from raster_oracle.metrics.shift import apply_shift, subpixel_shift
+from raster_oracle.metrics.tonemap import srgb_decode
 from raster_oracle.oracle.cli import main
 
 W, H = 96, 54
@@ -40,6 +41,9 @@ def plate(tmp_path_factory):
     images["pcf_offset"] = render(root / "e", pcf_offset=(-1, 1), **kw)
     images["fresnel"] = render(root / "e", diffuse="fresnel", **kw)
     images["pi"] = render(root / "e", color_scale=math.pi, **kw)
+    # an engine that wrote 2.2-encoded colour into the linear EXR (read as if sRGB-decoded)
+    encoded = srgb_decode(np.power(np.clip(images["pcf"]["color"], 0, 1), 1 / 2.2))
+    images["gamma_in_exr"] = {**images["pcf"], "color": encoded}
     for name, im in images.items():
         write_engine_exr(root / f"{name}.exr", im)
     write_rgb_png(root / "gamma22.png", images["pcf"]["color"], gamma=2.2)
@@ -117,6 +121,10 @@ def test_colour_faults_are_named(plate, tmp_path):
     # gamma 2.2 read as sRGB: named with the option that reads it right
     assert _causes(gamma)[0] == "gamma 2.2 read as sRGB"
     assert "--transfer gamma2.2" in gamma["colour_causes"]["causes"][0]["message"]
+    # the same content in an EXR (which takes no --transfer): write linear radiance (item 8)
+    _, exr = _score(plate, tmp_path, "gamma_in_exr.exr", "--channel", "msaa")
+    message = exr["colour_causes"]["causes"][0]["message"]
+    assert "write linear radiance" in message and "--transfer" not in message.split("(")[0]
     # the per-shape table: every shape seen, worst first, the gain undone beside the raw
     rows = fresnel["materials"]
     assert len(rows) >= 2 and all(r["name"] for r in rows)
@@ -154,3 +162,34 @@ def test_manifest_expect_gates_conformance_per_layer(plate, tmp_path, capsys):
     assert rec["scenes"]["pcf/shadow"]["conformance_misclassified_fraction"] == 0.0
     (case, *_) = json.loads((out / "pcf" / "shadow" / "report.json").read_text())["cases"]
     assert "conformance_edge_displacement_px" in case["metrics"]
+
+
+def test_a_texel_fault_after_baseline_accept_is_named_in_cli_junit_and_markdown(
+    plate, tmp_path, capsys
+):
+    """Issue 43 "must show": the correct PCF accepted as the baseline, then the same engine
+    reading its map one texel over: exit 1 with the conformance regression named in the
+    CLI, the JUnit XML and the Markdown summary (before: not compared, exit 0)."""
+    import xml.etree.ElementTree as ET
+
+    keys = "conformance_misclassified_fraction,conformance_edge_displacement_px"
+    common = ["--channel", "shadow", "--expect", EXPECT, "--baseline-metrics", keys]
+    rc, _ = _score(plate, tmp_path, "pcf.exr", *common)
+    assert rc == 0
+    base = tmp_path / "baselines"
+    argv = ["baseline", "accept", str(tmp_path / "pcf_exr"), "--into", str(base)]
+    assert main([*argv, "--note", "the correct PCF"]) == 0
+    capsys.readouterr()
+    junit, md = tmp_path / "ci.xml", tmp_path / "ci.md"
+    extra = ["--baseline", str(base), "--junit", str(junit), "--summary-md", str(md)]
+    out = tmp_path / "faulty"
+    argv = ["score", str(plate / "e"), "--candidate", str(plate / "pcf_offset.exr")]
+    rc = main([*argv, "--spp", "4", *common, *extra, "--out", str(out)])
+    text = capsys.readouterr().out
+    assert rc == 1
+    assert "REGRESSION conformance_edge_displacement_px" in text
+    failures = [
+        c.get("name") for c in ET.parse(junit).iter("testcase") if c.find("failure") is not None
+    ]
+    assert "baseline conformance_edge_displacement_px" in failures
+    assert "conformance\\_edge\\_displacement\\_px" in md.read_text()

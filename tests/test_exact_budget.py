@@ -166,18 +166,23 @@ def _panes_xml(tmp_path, n=30, size=96):
 def test_the_exact_pass_stops_at_its_deadline_and_says_so(tmp_path, monkeypatch, capsys):
     """A small stack of panes (30 panes, 96 x 96) with a 1 s budget and an estimate that
     says 0 s: the exact pass starts, stops at the deadline, records the decision and its
-    time, claims no pixel exact and says so in one line; the command succeeds."""
+    time, claims no pixel exact and says so in one line; the command succeeds and the
+    reference stays out of the cache."""
     _free_estimate(monkeypatch)
     out = tmp_path / "ref"
     argv = ["reference", str(_panes_xml(tmp_path)), "--out", str(out), "--exact-budget", "1"]
-    assert main([*argv, "--quiet", "--no-cache", "--spp", "2"]) == 0
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    assert main([*argv, "--quiet", *cache, "--spp", "2"]) == 0
+    # cut short by the clock: not what its cache key promises, so not cached
+    said = capsys.readouterr()
+    assert "not cached (exact coverage cut by the budget)" in said.out
     record = json.loads((out / "reference.json").read_text())["coverage_exact"]
     assert record["decision"].startswith("over budget after ")
     assert record["budget_seconds"] == 1.0
     assert 1.0 <= record["seconds"] <= 1.0 + DEADLINE_SLACK_S
     assert record["estimate"]["seconds"] == 0.0  # what the blind estimate said
     assert not read_exr(out / "reference.exr")["coverage_exact_valid"].any()
-    err = [line for line in capsys.readouterr().err.splitlines() if "coverage_exact" in line]
+    err = [line for line in said.err.splitlines() if "coverage_exact" in line]
     assert len(err) == 1 and "stopped" in err[0] and "over budget after" in err[0]
 
 

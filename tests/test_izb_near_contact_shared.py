@@ -18,6 +18,7 @@ import pytest
 from raster_oracle.raster_models.gbuffer import trace_gbuffer
 from raster_oracle.raster_models.izb.geometry import scene_triangles
 from raster_oracle.scenes.geometry.tangent32 import tangent_offsets
+from test_izb_near_contact import _ray_meets
 
 from raster_oracle import raster_models as rm
 from raster_oracle import scenes
@@ -29,18 +30,10 @@ def _shadowed(tris: np.ndarray, points: np.ndarray, to_sun: np.ndarray) -> np.nd
     """Whether each point's exact ray toward the sun meets one of the occluders ``tris``."""
     out = np.zeros(len(points), dtype=bool)
     for tri in tris:
-        e1, e2 = tri[1] - tri[0], tri[2] - tri[0]
-        p = np.cross(to_sun, e2)
-        inv = 1.0 / (p @ e1)
-        s = points - tri[0]
-        u = (s @ p) * inv
-        q = np.cross(s, e1)
-        v = (q @ to_sun) * inv
-        t = (q @ e2) * inv
-        n = np.cross(e1, e2)
+        n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
         n /= np.linalg.norm(n)
-        far = np.abs(s @ n) > 2.0**-20 * (1.0 + np.abs(points @ n))
-        out |= (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & far
+        far = np.abs((points - tri[0]) @ n) > 2.0**-20 * (1.0 + np.abs(points @ n))
+        out |= _ray_meets(tri, points, to_sun) & far
     return out
 
 

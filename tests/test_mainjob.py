@@ -67,7 +67,13 @@ def sections(monkeypatch):
         calls.append({"id": "soft_shadows", "out": out, "quick": quick})
         return real_soft(out, cache=cache, quiet=quiet, quick=quick, size=(32, 18))
 
+    def alpha_foliage(out, *, quick):
+        calls.append({"id": "alpha_foliage", "out": out, "quick": quick})
+        return real_alpha(out, quick=quick, size=(64, 36))
+
     real_soft = mainjob.run_soft_shadows
+    real_alpha = mainjob.run_alpha_foliage
+    monkeypatch.setattr(mainjob, "run_alpha_foliage", alpha_foliage)
     monkeypatch.setattr(mainjob, "run_claims", claims)
     monkeypatch.setattr(mainjob, "run_extremes", extremes)
     monkeypatch.setattr(mainjob, "run_soft_shadows", soft_shadows)
@@ -104,6 +110,7 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
         ("claims", True, out),
         ("extremes", True, out),
         ("soft_shadows", True, out),
+        ("alpha_foliage", True, out),
     ]
     html = (out / "report.html").read_text()
     assert "Claims of the seed documents" in html and "Numerical extremes" in html
@@ -118,6 +125,9 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert "Anti-aliasing ranking" in html
     (soft,) = [s for s in report["sections"] if s["kind"] == "soft_shadows"]
     assert soft["data"]["ranking"]["rows"] and "Light bleeding of moment shadow maps" in html
+    (alpha,) = [s for s in report["sections"] if s["kind"] == "alpha_foliage"]
+    assert set(alpha["data"]["kept"]) == {s["name"] for s in alpha["series"]}
+    assert "coverage kept" in html and "threejs-a2c/box" in html
     assert html.index('id="fronts"') < html.index('id="claims"') < html.index('id="cases"')
     # a second run finds every case in the store
     assert main(["main", "--scenes", "plate,spot,decal", "--out", str(out), *SMALL]) == 0
@@ -136,6 +146,7 @@ MAIN_PHASES = (
     "aa_memory",
     "aa_ranking",
     "soft_shadows",
+    "alpha_foliage",
     "report",
 )
 #: Slack of the phases' sum against the wall time: the phases are disjoint stretches of the
@@ -162,6 +173,7 @@ def test_report_json_holds_every_section_record(tmp_path, sections):
         "aa-memory",
         "aa-ranking",
         "soft-shadows",
+        "alpha-foliage",
     ]
     assert not any(s["failed"] for s in report["sections"])
     soft = found["soft_shadows"]["data"]
@@ -203,6 +215,7 @@ def test_a_failing_section_is_in_the_report_and_the_exit_code(tmp_path, capsys, 
         "aa-memory",
         "aa-ranking",
         "soft-shadows",
+        "alpha-foliage",
     ]
 
 

@@ -224,6 +224,7 @@ def test_family_of_every_technique():
         "taa",
         "soft",
         "rtshadows",
+        "alpha",
     }
     with pytest.raises(rm.ModelError, match=r"unknown technique 'nope'; choose one of shadow-map"):
         rm.family_of("nope")

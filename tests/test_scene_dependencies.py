@@ -6,24 +6,16 @@ from __future__ import annotations
 
 import pytest
 from raster_oracle.oracle.cli import main
+from test_cache import HEAD
 
-SCENE = """<scene version="3.0.0">
-  <sensor type="perspective">
-    <transform name="to_world"><lookat origin="0,3,5" target="0,0,0" up="0,1,0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/>
-    </film>
-  </sensor>
-  <emitter type="directional"><vector name="direction" value="0,-1,-0.2"/></emitter>
-  <shape type="rectangle"/>
-  <shape type="rectangle"><string name="id" value="{ref}"/></shape>
-</scene>
-"""
+#: A plate and a second shape whose ``<string>`` names the file under test.
+BODY = '<shape type="rectangle"/><shape type="rectangle"><string name="id" value="{ref}"/></shape>'
 
 
 def _scene(folder, ref):
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "scene.xml"
-    path.write_text(SCENE.format(ref=ref))
+    path.write_text(HEAD.format(defaults="", body=BODY.format(ref=ref)))
     return path
 
 

@@ -75,8 +75,9 @@ def add_gate_args(p, *, baseline_help: str) -> None:
     p.add_argument(
         "--baseline-strict",
         action="store_true",
-        help="score-folder: a case of the baseline missing from this run, or new in it, "
-        "fails (default: named in a note)",
+        help="a metric that cannot be compared with the baseline (a value or noise floor "
+        "missing) fails (default: named, NOT COMPARED); score-folder: a case of the baseline "
+        "missing from this run, or new in it, fails (default: named in a note)",
     )
     p.add_argument(
         "--junit",
@@ -126,8 +127,9 @@ def baseline_options(args):
 
 
 def add_transfer_args(p) -> None:
-    """``--transfer`` (how a PNG's colour is decoded) and ``--expect`` (the technique the
-    engine claims to implement, scored for conformance)."""
+    """``--transfer`` (how a PNG's colour is decoded), ``--expect`` (the technique the
+    engine claims to implement, scored for conformance) and ``--family`` (the technique
+    family its frames come from: its record decides the passes)."""
     p.add_argument(
         "--transfer",
         choices=["srgb", "gamma2.2", "linear"],
@@ -143,6 +145,14 @@ def add_transfer_args(p) -> None:
         help="what the engine claims to implement (a technique and its --set keys, e.g. "
         "shadow-map:resolution=2048,filter=pcf,pcf_size=3): its model runs too, and the "
         "candidate is scored against it (conformance_* metrics, gateable)",
+    )
+    p.add_argument(
+        "--family",
+        default=None,
+        metavar="FAMILY",
+        help="the technique family the candidate files' frames come from (rtshadows: a "
+        "denoised ray-traced shadow): its record decides the passes (a temporal family's "
+        "sequence gets the temporal metrics, gateable on its channels)",
     )
 
 

@@ -52,6 +52,14 @@ def add_parsers(sub) -> None:
     )
     add_visibility_arg(p)
     add_transfer_args(p)
+    p.add_argument(
+        "--coverage-truth",
+        choices=["any", "front"],
+        default="any",
+        help="what a coverage candidate is scored against: any (the fraction of samples any "
+        "geometry covers) or front (the fraction covered by the surface seen at the pixel: "
+        "an engine's MSAA coverage mask of the front-most primitive)",
+    )
     p.add_argument("--spp", type=A.spp, default=64, help="reference spp (default 64)")
     A.add_exact_budget_arg(p)
     p.add_argument("--seed", type=A.nonneg_int, default=0, help="reference seed (default 0)")
@@ -201,6 +209,8 @@ def cmd_score(args) -> int:
         gate_frames=args.gate_frames,
         transfer=args.transfer,
         expect=args.expect,
+        coverage_truth=args.coverage_truth,
+        family=args.family,
         exact_budget=A.exact_budget(args),
         motion=None
         if args.candidate_motion is None

@@ -100,6 +100,7 @@ def cmd_score_folder(args) -> int:
         "flip_mode": args.flip_mode,
         "transfer": args.transfer,
         "expect": args.expect,
+        "family": args.family,
         "channel": args.channel,
         "kind": args.kind,
         "camera_path": args.camera_path,

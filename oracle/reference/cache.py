@@ -71,6 +71,9 @@ FILES = ("reference.exr", "reference.json")
 #: Every file an entry (or a temporary entry folder) may hold.
 OWN_FILES = (*FILES, "checksums.json")
 
+#: The folder of the backends' self-check verdicts in the cache folder (:mod:`oracle.certify`).
+SELF_CHECK = "self-check"
+
 #: The file that marks a folder as the cache's own; without it nothing there is touched.
 MARKER = ".raster-oracle-cache"
 MARKER_TEXT = b"raster-oracle reference cache: entries <key[:2]>/<key>/\n"
@@ -394,10 +397,19 @@ def remove_own(path: Path) -> bool:
 
 
 def _is_cache_layout(root: Path) -> bool:
-    """Everything in ``root`` is the cache's own: shard folders (not links) named
-    ``[0-9a-f]{2}`` holding only entry folders (``[0-9a-f]{64}``) and temporary folders, each
-    holding only an entry's own files. A cache made before the marker existed is one."""
+    """Everything in ``root`` is the cache's own: the self-check verdicts' folder and shard
+    folders (not links) named ``[0-9a-f]{2}`` holding only entry folders (``[0-9a-f]{64}``)
+    and temporary folders, each holding only an entry's own files. A cache made before the
+    marker existed is one."""
     for shard in _listdir(root):
+        if shard == SELF_CHECK and _real_dir(root / shard):
+            # the backends' self-check verdicts (oracle.certify.verdict): regular files only
+            if any(
+                _real_dir(root / shard / n) or os.path.islink(root / shard / n)
+                for n in _listdir(root / shard)
+            ):
+                return False
+            continue
         if not _SHARD.fullmatch(shard) or not _real_dir(root / shard):
             return False
         for name in _listdir(root / shard):

@@ -147,6 +147,8 @@ class Accumulators:
         self.color = color
         #: :class:`oracle.phases.Phases` of a profiled render (None: no profiling, no syncs)
         self.phases = phases
+        #: rays that stopped at the alpha layer bound (alpha-tested scenes; reference.json)
+        self.alpha_bound_rays = 0
 
     def sample_values(self, res: dict, chunk: np.ndarray, block: int) -> dict:
         out = {}

@@ -42,6 +42,7 @@ import numpy as np
 
 from ...raster_models.drjit import numpy_view
 from ...scenes import backend
+from ...scenes.backend.alpha_hit import MAX_ALPHA_LAYERS
 from ...scenes.backend.raycast import trace_film_dr
 from ..phases import maybe_phase
 from .adaptive import adaptive_stats, binary_stderr, feature_mask, refine_mask
@@ -203,8 +204,9 @@ def _accumulate(loaded, acc: Accumulators, chunk: np.ndarray, x, y, block: int, 
         else:
             res = trace_film_dr(loaded, x, y, color=acc.color, albedo=False)
         sums = acc.sample_values(res, chunk, block)
-        if "light_rays" in res:
-            sums["light_rays"] = (res["light_rays"], dr.ReduceOp.Add)
+        for key in ("light_rays", "alpha_bound"):
+            if key in res:
+                sums[key] = (res[key], dr.ReduceOp.Add)
     return _reduce_and_add(acc, res, sums, chunk, block)
 
 
@@ -247,6 +249,8 @@ def _reduce_and_add(acc: Accumulators, res: dict, sums: dict, chunk, block: int)
         shadow_tested = int(shadow_count[0])
         if "light_rays" in host:  # an area light's shadow rays, not its proxy's
             shadow_tested += int(round(float(host.pop("light_rays").sum())))
+        if "alpha_bound" in host:  # rays stopped at the alpha layer bound
+            acc.alpha_bound_rays += int(round(float(host.pop("alpha_bound").sum())))
     with maybe_phase(ph, "accumulate"):
         if len(chunk) and int(chunk[-1]) - int(chunk[0]) == len(chunk) - 1:
             chunk = slice(int(chunk[0]), int(chunk[-1]) + 1)  # a run of pixels: no fancy indexing
@@ -386,7 +390,7 @@ def render_reference(
     stats = _stats(settings, acc, channels, (primary, shadow), wall, passes, (w, h))
     stats.update(_area_stats(loaded, acc))
     if getattr(loaded, "alpha", None) is not None:  # glTF MASK: what every ray cut out
-        stats["alpha_tested"] = _alpha_record(loaded)
+        stats["alpha_tested"] = _alpha_record(loaded, acc.alpha_bound_rays)
     if "coverage_exact" in groups:
         cov = acc.groups.get("coverage")
         with maybe_phase(phases, "coverage_exact"):
@@ -400,13 +404,19 @@ def render_reference(
     return channels, stats
 
 
-def _alpha_record(loaded) -> dict:
-    """The alpha-tested shapes of ``loaded`` (reference.json): the rule and each mask."""
+def _alpha_record(loaded, bound_rays: int) -> dict:
+    """The alpha-tested shapes of ``loaded`` (reference.json): the rule, each mask and the
+    rays that stopped at the layer bound (``bound_rays``)."""
     table = loaded.alpha
     return {
         "rule": "kept where alpha >= cutoff (glTF 2.0 3.9.6); alpha = baseColorFactor.a x "
         "base colour texture alpha (base level, the sampler's magnification filter and wrap "
         "modes) x vertex alpha; rays go on through cut-out points (scenes.backend.alpha_hit)",
+        "max_layers": MAX_ALPHA_LAYERS,
+        "rays_at_layer_bound": int(bound_rays),
+        "rays_at_layer_bound_counts": "camera rays and the point or sun light's shadow rays "
+        "of every sample (an area light's shadow rays are not counted); such a ray stops on "
+        "the cut-out surface it met last",
         "shapes": {
             loaded.shape_names[i]: table.masks[m].to_json()
             for i, m in enumerate(table.shape_mask)

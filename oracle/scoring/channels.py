@@ -42,6 +42,7 @@ __all__ = [
     "on_receivers",
     "reference_receivers",
     "rgb",
+    "scored_channel",
     "second_reference",
 ]
 
@@ -209,6 +210,16 @@ CHANNEL_METRICS = {
 
 #: Scored channel -> its kind in the metric catalogue.
 CHANNEL_KIND = {channel: kind for channel, (kind, _) in CHANNEL_METRICS.items()}
+
+
+def scored_channel(kind: str, names) -> str:
+    """The channel an engine's image of ``kind`` read from the file channels ``names`` is
+    scored as: the scored channel its one channel is named after (``soft_visibility``,
+    ``shadow.light_fraction``: against the area-light truth) where that channel is of
+    ``kind``, else the kind itself (a mask named ``Y`` or ``shadow.Y`` is ``visibility``)."""
+    names = tuple(names)
+    base = names[0].rsplit(".", 1)[-1] if len(names) == 1 else None
+    return base if base is not None and CHANNEL_KIND.get(base) == kind else kind
 
 
 def on_receivers(channel: str) -> bool:

@@ -14,7 +14,11 @@ engine's image is scored against the model's output beside the truth:
 A correct implementation of the claimed technique scores near 0 on all three while the truth
 metrics show the technique's inherent error (a 3x3 PCF's soft edge against a hard shadow);
 an implementation that reads its shadow map one texel over is displaced. The model is
-deterministic: these metrics have no noise floor (a baseline does not compare them).
+deterministic: these metrics have no noise floor (a baseline compares them with a default
+tolerance). Pixels whose outcome is implementation-defined (a compare within the depth
+format's rounding, another surface a fraction of a pixel away) take the model's value and
+are reported as fractions (:mod:`.conformance_idp`); a non-conforming shadow mask that
+another ``caster_faces`` explains is named as such.
 """
 
 from __future__ import annotations
@@ -24,9 +28,14 @@ import numpy as np
 from ... import metrics as M
 from ... import raster_models
 from ...metrics.shift import subpixel_shift
+from .conformance_idp import claimed_model, faces_diagnosis, idp_section
 from .result import ScoreError
 
 __all__ = ["CONFORMANCE_KEYS", "MIN_DISPLACEMENT_PX", "add_conformance", "parse_expect"]
+
+#: A shadow mask misclassified beyond this against the claim is tried with the other
+#: ``caster_faces`` (the recommended gate's limit).
+FACES_CHECK_ABOVE = 0.001
 
 #: Edges displaced by less than this many pixels are not named.
 MIN_DISPLACEMENT_PX = 0.25
@@ -92,14 +101,17 @@ def add_conformance(
     Returns a note naming the displacement when the edges moved by
     :data:`MIN_DISPLACEMENT_PX` or more."""
     technique, params = parse_expect(expect, kind=kind)
-    per_frame = []
+    per_frame, idp, notes = [], [], []
     for frame, frame_scene in zip(result.frames, scenes_k, strict=True):
-        res = raster_models.run(technique, frame_scene, **params)
-        model = np.asarray(res.outputs[kind], dtype=np.float32)
+        claimed = claimed_model(technique, frame_scene, params, kind)
+        model = claimed["image"]
         cand = frame.candidate
         if frame.receivers is not None:  # a mask is judged on the receivers, as the truth
             model = np.where(frame.receivers, model, frame.reference).astype(np.float32)
             cand = np.where(frame.receivers, cand, frame.reference).astype(np.float32)
+        idp.append(_named_pixels(claimed, frame.receivers))
+        if idp[-1] is not None:  # implementation-defined: named, not counted
+            cand = np.where(idp[-1].pop("mask"), model, cand).astype(np.float32)
         values = _frame_values(
             model,
             cand,
@@ -120,17 +132,50 @@ def add_conformance(
     for key in CONFORMANCE_KEYS:
         vals = [v[key] for v in judged if v.get(key) is not None]
         into[key] = float(np.mean(vals)) if vals else None
+    section = idp_section(idp)
     into["conformance"] = {
         "technique": technique,
-        "params": res.params,
+        "params": claimed["params"],
         "shift_px": [v["conformance_shift"] for v in per_frame],
+        "implementation_defined": section,
     }
+    if section is not None:
+        notes.append(
+            f"conformance: {100 * section['fraction']:.3g} % of receivers implementation-"
+            f"defined, not counted ({100 * section['depth_rounding']:.3g} % decided within "
+            f"the depth format's rounding, {100 * section['other_surface']:.3g} % another "
+            "surface a fraction of a pixel away)"
+        )
+    mis = into.get("conformance_misclassified_fraction") or 0.0
+    if mis > FACES_CHECK_ABOVE and kind == "visibility":
+        frame = result.frames[-1]
+        cand = np.where(frame.receivers, frame.candidate, frame.reference).astype(np.float32)
+        faces = faces_diagnosis(technique, scenes_k[-1], params, cand, frame.receivers, mis)
+        if faces is not None:
+            return [*notes, faces]
     dx, dy = np.mean([v["conformance_shift"] for v in judged], axis=0)
     if np.hypot(dx, dy) < MIN_DISPLACEMENT_PX:
-        return []
+        return notes
     return [
+        *notes,
         f"conformance: the candidate's edges are displaced by ({dx:+.2f}, {dy:+.2f}) px from "
-        f"{technique}'s model (misclassified "
-        f"{into.get('conformance_misclassified_fraction') or 0:.4g} of receivers): "
-        "a filter or lookup that reads the map off by a texel, or another projection"
+        f"{technique}'s model (misclassified {mis:.4g} of receivers): a filter or lookup that "
+        "reads the map off by a texel, or another projection",
     ]
+
+
+def _named_pixels(claimed: dict, receivers) -> dict | None:
+    """The implementation-defined receivers of one frame: ``mask`` and the fractions of the
+    receivers (None where the claim does not model them)."""
+    rounding, other = claimed["depth_rounding"], claimed["other_surface"]
+    if rounding is None or receivers is None:
+        return None
+    rec = np.asarray(receivers, bool)
+    n = max(int(rec.sum()), 1)
+    mask = (rounding | other) & rec
+    return {
+        "mask": mask,
+        "depth_rounding": float((rounding & rec).sum()) / n,
+        "other_surface": float((other & rec).sum()) / n,
+        "fraction": float(mask.sum()) / n,
+    }

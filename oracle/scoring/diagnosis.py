@@ -111,7 +111,10 @@ def explain_colour(
     ref, cand = frame.reference, frame.candidate
     rows = material_rows(ref, cand, ids, flip_map=frame.maps.get("flip"), names=names)
     floor = (record.get("diagnosis") or {}).get("noise_floor") or 0.0
-    found = colour_causes(ref, cand, ids, noise_floor=floor, names=names)
+    # an EXR (no transfer) holds linear values: a transfer-curve cause names the file's content
+    layout = record.get("candidate_layout") or {}
+    linear_file = "transfer" in layout and layout["transfer"] is None
+    found = colour_causes(ref, cand, ids, noise_floor=floor, names=names, linear_file=linear_file)
     exposure = exposure or 0.0
     record["materials"] = rows
     record["colour_causes"] = found

@@ -85,6 +85,26 @@ def _missing_and_new(cases, baselines, source: str, strict: bool):
     return missing, new, extra
 
 
+def check_candidates(cases) -> None:
+    """Every case's candidate frames read and checked (size, NaN, range, by kind) before the
+    first case is scored: a bad value in a later case is one line naming the case, and no
+    reference is rendered nor any case scored first (issue 48)."""
+    from .inputs.frames import frame_file
+    from .inputs.layout import read_candidate
+
+    for case in cases:
+        if case.error is not None or case.pattern is None or case.layout is None:
+            continue
+        shape = (case.loaded.height, case.loaded.width)
+        transfer = case.options.transfer or "srgb"
+        for k in range(case.options.frames or 1):
+            path = frame_file(case.pattern, k)
+            try:
+                read_candidate(path, case.layout, expected_shape=shape, transfer=transfer)
+            except InputError as exc:
+                raise type(exc)(f"case {case.name}: {exc}") from None
+
+
 def score_folder(
     cases,
     *,
@@ -116,6 +136,7 @@ def score_folder(
     out = Path(out)
     for case in cases:  # every case's folder a folder name under out, before anything is written
         case_folder(out, case.name, error=ScoreError)
+    check_candidates(cases)
     combined = {"schema": FOLDER_SCHEMA, "root": root, "scenes": {}, "failed": {}, "errors": {}}
     run = FolderRun(record=combined)
     strict = bool(baseline_options is not None and baseline_options.strict)

@@ -22,6 +22,10 @@ __all__ = ["VISIBILITY_CONVENTIONS", "ScoreOptions"]
 VISIBILITY_CONVENTIONS = ("1-is-lit", "1-is-shadowed")
 
 
+#: ``--coverage-truth`` values (:attr:`ScoreOptions.coverage_truth`).
+COVERAGE_TRUTHS = ("any", "front")
+
+
 @dataclass(frozen=True)
 class ScoreOptions:
     """Options of a :class:`oracle.scoring.request.ScoreRequest`.
@@ -43,6 +47,13 @@ class ScoreOptions:
     expect : ``TECHNIQUE:key=value,...``, what the engine claims to implement: its model is
         scored too, and the candidate against it (``conformance_*`` metrics;
         :mod:`oracle.scoring.conformance`).
+    coverage_truth : what an engine's coverage layer is scored against: ``any`` (the
+        fraction of samples any geometry covers: the reference's ``coverage``) or ``front``
+        (the fraction covered by the surface seen at the pixel, an MSAA coverage mask of
+        the front-most primitive: ``front_coverage``; a ground plane behind a shape makes
+        ``any`` 1 on every pixel, so an all-ones mask would score perfectly against it).
+    family : the technique family (``raster_models.FAMILIES``) an engine's files come from
+        (candidates only; None: none): its record decides the passes as for a model's.
     exact_budget : the references' exact-coverage budget
         (:attr:`oracle.reference.settings.ReferenceSettings.exact_budget`; None: the default).
     """
@@ -60,7 +71,9 @@ class ScoreOptions:
     motion: dict | None = None
     transfer: str | None = None
     expect: str | None = None
+    family: str | None = None
     exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
+    coverage_truth: str = "any"
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of
@@ -77,6 +90,11 @@ class ScoreOptions:
         if self.transfer is not None and self.transfer not in TRANSFERS:
             raise ScoreError(
                 f"--transfer must be one of {', '.join(TRANSFERS)}, got {self.transfer!r}"
+            )
+        if self.coverage_truth not in COVERAGE_TRUTHS:
+            raise ScoreError(
+                f"--coverage-truth must be one of {', '.join(COVERAGE_TRUTHS)}, "
+                f"got {self.coverage_truth!r}"
             )
         frames = self.frames if self.frames and self.frames > 1 else None
         # one exact-coverage budget for every reference of the score (frames, noise floors)

@@ -127,6 +127,8 @@ def _case(
     record = result.record
     # every catalogue metric the record holds (the on-request conformance ones too)
     values = {k: record[k] for k in M.CATALOG if record.get(k) is not None}
+    if not values and record.get("support"):
+        values = {"support": 0}  # nothing was scored (no receiver in view): shown as such
     return reports.make_case(
         name=name,
         scene=scene,
@@ -139,7 +141,7 @@ def _case(
         noise_floor=record.get("noise_floor") or None,
         thresholds={k: v for k, v in thresholds.items() if k in values} or None,
         # the noise floor is judged in each metric's direction (a low SSIM is not "within")
-        directions={k: M.CATALOG[k].direction for k in values},
+        directions={k: M.CATALOG[k].direction for k in values if k in M.CATALOG},
         cost=report_cost(cost, technique),
         technique=technique,
         family=_front(technique, scene),
@@ -175,6 +177,7 @@ def _frame_cases(result: ScoreResult, *, name: str, scene: str, technique, param
             for key, data in frame.maps.items()
         }
         values = {k2: v for k2, v in frame.metrics.items() if k2 in M.CATALOG and v is not None}
+        values = values or {"support": 0}  # nothing scored in this frame
         case = reports.make_case(
             name=f"{name} frame {k}",
             scene=scene,

@@ -17,7 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from ... import raster_models
-from .channels import CHANNEL_KIND, REFERENCE_GROUPS
+from .channels import CHANNEL_KIND, REFERENCE_GROUPS, scored_channel
 from .inputs.frames import file_candidate, frame_file
 from .inputs.layout import CandidateLayout, candidate_layout
 from .options import ScoreOptions
@@ -118,6 +118,23 @@ def _transfer(pattern: str, layout: CandidateLayout, transfer: str | None) -> st
     return None
 
 
+def _family(options: ScoreOptions, channel: str):
+    """The family record an engine's files come from (``--family``; None: none); a family
+    whose models do not produce the scored channel is a :class:`ScoreError`."""
+    if options.family is None:
+        return None
+    try:
+        family = raster_models.family(options.family)
+    except raster_models.ModelError as exc:
+        raise ScoreError(f"--family: {exc}") from None
+    if channel not in family.channels:
+        raise ScoreError(
+            f"--family {options.family} produces {' and '.join(family.channels)}; this "
+            f"candidate is {channel} (--channel names the file's channel)"
+        )
+    return family
+
+
 @dataclass(frozen=True)
 class ScoreRequest:
     """One score: ``candidate`` on ``loaded``'s ``channel``.
@@ -131,7 +148,8 @@ class ScoreRequest:
         FLIP, gate frames, the engine conventions).
     cache, floor_cache : the reference cache, and a dict of noise floors shared between
         requests (a sweep worker's; keyed by reference and scoring options).
-    family : the technique family (:class:`raster_models.Family`) of a model, None for files.
+    family : the technique family (:class:`raster_models.Family`) of a model, or of files
+        (``options.family``; None: none).
     aa_samples : samples per pixel of an anti-aliasing model (its coverage floor).
     coverage_only : a coverage channel scored beside colour: only its coverage metrics.
     """
@@ -205,7 +223,11 @@ class ScoreRequest:
         files = FileCandidate(
             pattern, layout, o.motion, o.visibility, _transfer(pattern, layout, o.transfer)
         )
-        return cls(loaded, layout.kind, files, options=o, cache=cache)
+        channel = scored_channel(layout.kind, layout.names)
+        # an engine's coverage layer against the truth of the same coverage (--coverage-truth)
+        if layout.kind == "coverage" and o.coverage_truth == "front":
+            channel = "front_coverage"
+        return cls(loaded, channel, files, options=o, cache=cache, family=_family(o, channel))
 
     def with_channel(self, channel: str, **changes) -> ScoreRequest:
         """This request on another channel (the same candidate, model runs shared)."""

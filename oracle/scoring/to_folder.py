@@ -11,8 +11,9 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+from .channels import CHANNEL_KIND
 from .ci.checks import Gate, Verdict
-from .ci.gates import applicable_gates, check_applicable, evaluate_gates
+from .ci.gates import applicable_gates, check_applicable, evaluate_gates, support_record
 from .ci.regression import BaselineOptions, check_baseline_scene, compare_baseline
 from .conformance import CONFORMANCE_KEYS, parse_expect
 from .inputs.frames import candidate_name
@@ -31,15 +32,19 @@ def _check_before_rendering(request: ScoreRequest, gates, *, baseline, source) -
     here, before any reference is rendered; returns the gates kept and the notes of the
     profile gates left out."""
     o = request.options
-    kinds = request.family.channels if request.family is not None else (request.channel,)
-    gates, notes = applicable_gates(gates, kinds=kinds)
-    check_applicable(gates, kinds=kinds, frames=o.frames or 1)
+    family = request.family
+    kinds = family.channels if family is not None else (request.channel,)
+    # the gates judge catalogue kinds; a temporal family's sequence has the temporal metrics
+    gate_kinds = tuple(dict.fromkeys(CHANNEL_KIND.get(c, c) for c in kinds))
+    temporal = family is not None and family.temporal and request.sequence
+    gates, notes = applicable_gates(gates, kinds=gate_kinds, temporal=temporal)
+    check_applicable(gates, kinds=gate_kinds, frames=o.frames or 1, temporal=temporal)
     if baseline is not None:
         check_baseline_scene(
             baseline,
             request.loaded,
             frames=o.frames or 1,
-            kinds=kinds,
+            kinds=gate_kinds,
             source=source,
             platform=o.platform,
         )
@@ -63,6 +68,8 @@ def _check_request(request: ScoreRequest) -> None:
             raise ScoreError("--candidate-motion applies to --candidate, not to --technique")
         if o.transfer is not None or o.expect is not None:
             raise ScoreError("--transfer and --expect apply to --candidate, not to --technique")
+        if o.family is not None:
+            raise ScoreError("--family applies to --candidate (a technique has its own)")
     elif not request.is_file:
         raise ScoreError("score: give a technique or a candidate file (one of them)")
 
@@ -118,6 +125,7 @@ def score_to_folder(
         label = candidate_name(
             request.candidate.pattern, frames=o.frames, camera_path=o.camera_path
         )
+    support_record(result.record)  # a metric over an empty set is None, support 0
     verdict = Verdict(scene=request.loaded.name, checks=evaluate_gates(gates, result.record))
     verdict.add(notes=notes + result.notes)
     if baseline is not None:

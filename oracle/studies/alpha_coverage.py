@@ -33,13 +33,17 @@ from ...scenes.shading.alpha import AlphaMask, AlphaTable, AlphaTexture
 
 __all__ = [
     "PRESETS",
+    "REPORT_SIZE",
     "FoliageView",
+    "alpha_report",
     "coverage_by_band",
     "flicker",
     "foliage_view",
     "leaf_closeup",
     "main",
+    "run_alpha_foliage",
     "silhouette_shift",
+    "truth_and_depth",
 ]
 
 #: The rules measured: name -> parameters (MSAA count set by the caller).
@@ -83,7 +87,7 @@ def flicker(
     change of coverage less the truth's (4 x 4 stratified rays a pixel), and the truth's own
     mean ``|t[k+1] - t[k]|`` (``truth_change``)."""
     views = [foliage_view(width, height, n=n, frame=k, frames=frames) for k in range(frames)]
-    truth = np.stack([_truth(v, 4)[0] for v in views])
+    truth = np.stack([truth_and_depth(v, 4)[0] for v in views])
     dt = np.diff(truth, axis=0)
     out = {"truth_change": float(np.abs(dt).mean()), "flicker": {}}
     for name, kw in PRESETS.items():  # five rules
@@ -124,7 +128,7 @@ def _truth_samples(view: FoliageView, k: int) -> np.ndarray:
     return np.array(si.is_valid())
 
 
-def _truth(view: FoliageView, spp_side: int):
+def truth_and_depth(view: FoliageView, spp_side: int):
     """Per pixel: the truth's coverage and the view depth of the first card (alpha ignored;
     0 where none)."""
     import mitsuba as mi
@@ -147,7 +151,7 @@ def coverage_by_band(
     """The study (see the module text): ``{"bands": [[lo, hi], ...], "truth": [per band],
     "pixels": [per band], "kept": {preset: [ratio per band]}}``."""
     view = foliage_view(width, height, n=n)
-    truth, depth = _truth(view, spp_side)
+    truth, depth = truth_and_depth(view, spp_side)
     edges = af.band_edges()
     band = np.searchsorted(edges, depth, side="right") - 1
     out = {
@@ -190,7 +194,7 @@ def silhouette_shift(
     length by Cauchy-Crofton from the truth's ``spp_side``-fold grid (``pi/4`` x the grid's
     transitions x its spacing)."""
     view = leaf_closeup(size, px_per_texel=px_per_texel)
-    truth_cover, _ = _truth(view, spp_side)
+    truth_cover, _ = truth_and_depth(view, spp_side)
     fine = _truth_mask(view, spp_side)
     transitions = np.count_nonzero(np.diff(fine, axis=0)) + np.count_nonzero(np.diff(fine, axis=1))
     length = math.pi / 4 * transitions / spp_side
@@ -208,6 +212,58 @@ def _truth_mask(view: FoliageView, k: int) -> np.ndarray:
     cover_samples = _truth_samples(view, k)
     h, w = view.camera.height, view.camera.width
     return cover_samples.reshape(h, w, k, k).transpose(0, 2, 1, 3).reshape(h * k, w * k)
+
+
+#: Film size of the report's bands (the study's; docs/research.md) and of its close-up.
+REPORT_SIZE = (320, 180)
+
+
+def alpha_report(*, quick: bool = True, size=None) -> dict:
+    """The report's record: coverage kept per distance band by every rule of :data:`PRESETS`
+    (4x MSAA, 1000 cards, truth 4 x 4 rays a pixel; ``size`` overrides :data:`REPORT_SIZE`)
+    and each rule's silhouette shift on a close-up (96 px square when ``quick``, else 192).
+    A band without pixels (tiny films) has ``None`` for its values."""
+    import time
+
+    t0 = time.perf_counter()
+    width, height = size or REPORT_SIZE
+    with np.errstate(invalid="ignore", divide="ignore"):
+        res = coverage_by_band(n=1000, width=width, height=height, samples=4, spp_side=4)
+    close = 96 if quick else 192
+    shifts = {name: silhouette_shift(name, size=close, samples=4)["shift_px"] for name in PRESETS}
+
+    def clean(values):
+        return [None if v is None or not math.isfinite(v) else float(v) for v in values]
+
+    return {
+        "schema": "raster-oracle.studies.alpha-foliage/1",
+        "quick": quick,
+        "resolution": [int(width), int(height)],
+        "cards": 1000,
+        "samples": 4,
+        "truth_rays_per_pixel": 16,
+        "bands": res["bands"],
+        "pixels": res["pixels"],
+        "truth": clean(res["truth"]),
+        "kept": {name: clean(v) for name, v in res["kept"].items()},
+        "closeup_px": close,
+        "silhouette_shift_px": {k: float(v) for k, v in shifts.items()},
+        "wall_seconds": time.perf_counter() - t0,
+    }
+
+
+def run_alpha_foliage(out, *, quick: bool = True, size=None) -> dict:
+    """:func:`alpha_report`, written as ``out/alpha_foliage.json`` and ``.html`` when ``out``
+    is given; returns the record."""
+    from ...reports.sections import alpha_foliage_section
+    from .output import write_study
+
+    data = alpha_report(quick=quick, size=size)
+    if out is not None:
+        section = alpha_foliage_section(data)
+        title = "Alpha-tested foliage"
+        write_study(out, name="alpha_foliage", data=data, section=section, title=title)
+    return data
 
 
 def main(argv=None) -> int:

@@ -13,7 +13,8 @@ every denoiser, so they see the same rays. Per denoiser and scene:
   goes off (within the frames it stays off) and comes back on (judged against the lit steady
   error); the table writes ``>N`` when the error was not back within the N frames judged;
 - ``ghosting``: :func:`metrics.ghosting.ghosting`'s error on pixels disoccluded within the last
-  4 frames (None where nothing is disoccluded);
+  4 frames (None where nothing is disoccluded), ``ghosting_by_age`` the same by disocclusion
+  age 0..3;
 - ``penumbra_bias``: :func:`metrics.denoise.penumbra_width` of the last frame minus the
   truth's (pixels; positive: over-blur);
 - ``added_flicker``: :func:`metrics.temporal.added_flicker` on receivers.
@@ -96,6 +97,7 @@ def _scores(seq: dict, name: str, d: str) -> dict:
         else None,
         "lag_on": event_lag(err, floor, event=FLICKER_ON, steady=lit) if flick else None,
         "ghosting": g["ghosting_error"],
+        "ghosting_by_age": g["error_by_age"],
         "penumbra_bias": None if w_c is None or w_t is None else w_c - w_t,
         "added_flicker": added_flicker(t0, c),
     }

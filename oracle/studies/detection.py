@@ -33,6 +33,7 @@ from ...raster_models.gbuffer import trace_gbuffer
 from ...raster_models.params import make as make_params
 from ...raster_models.shadowmaps import csm as _csm
 from ...raster_models.shadowmaps.engine import execute
+from ..scoring.ci.profiles import CONFORMANCE_LIMITS
 
 __all__ = [
     "BIAS",
@@ -80,12 +81,9 @@ METRICS = (
     "conformance_flip_mean",
 )
 
-#: The recommended conformance gate: a candidate fails when any metric is above its value.
-RECOMMENDED_GATE = {
-    "conformance_misclassified_fraction": 0.001,
-    "conformance_edge_displacement_px": 0.1,
-    "conformance_flip_mean": 0.001,
-}
+#: The recommended conformance gate (the ``conformance`` gate profile): a candidate fails
+#: when any metric is above its value.
+RECOMMENDED_GATE = dict(CONFORMANCE_LIMITS)
 
 #: Params of each fault's faulty engine (on top of the claim; ``None``: not a model param).
 _FAULT_PARAMS = {

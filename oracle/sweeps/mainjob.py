@@ -31,6 +31,7 @@ from pathlib import Path
 from ...reports.sections import (
     aa_memory_section,
     aa_ranking_section,
+    alpha_foliage_section,
     claims_section,
     extremes_section,
     failed_section,
@@ -41,6 +42,7 @@ from ..errors import one_line
 from ..phases import Phases, maybe_phase
 from ..studies.aa_memory import memory_report
 from ..studies.aa_ranking import aa_ranking
+from ..studies.alpha_coverage import run_alpha_foliage
 from ..studies.claims.run import run_claims
 from ..studies.extremes.run import run_extremes
 from ..studies.soft_shadows import run_soft_shadows
@@ -64,6 +66,10 @@ def _soft_shadows(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
     return run_soft_shadows(out, cache=cache, quiet=quiet, quick=quick)
 
 
+def _alpha_foliage(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+    return run_alpha_foliage(out, quick=quick)
+
+
 def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
     return memory_report()
 
@@ -85,6 +91,13 @@ SECTIONS: tuple[tuple[str, str, str, Callable[..., dict], Callable[..., dict]], 
     ("aa_memory", "aa-memory", "Anti-aliasing memory", _aa_memory, aa_memory_section),
     ("aa_ranking", "aa-ranking", "Anti-aliasing ranking", _aa_ranking, aa_ranking_section),
     ("soft_shadows", "soft-shadows", "Soft shadows", _soft_shadows, soft_shadows_section),
+    (
+        "alpha_foliage",
+        "alpha-foliage",
+        "Alpha-tested foliage",
+        _alpha_foliage,
+        alpha_foliage_section,
+    ),
 )
 
 

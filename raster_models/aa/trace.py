@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from ...scenes import backend
+from ...scenes.backend.alpha_hit import loaded_alpha, occluded_alpha, scene_hit
 from ...scenes.backend.raycast import (
     SHADOW_OFFSET,
     SHADOW_OFFSET_MESH,
@@ -195,10 +196,12 @@ def prepass_dr(scene, target, table, ox, oy, pix, n: int, *, normals, group, fra
     y = mi.Float(pix // w) + dr.gather(mi.Float, oy, s)
     ray = camera_rays_dr(cam, x, y)
     nrm = None
-    if normals:
-        si = target.ray_intersect(ray, mi.RayFlags.Minimal, coherent=True)
+    cut = target is scene.mi_scene and loaded_alpha(scene) is not None  # glTF MASK
+    if normals or cut:
+        si = scene_hit(scene, target, ray, mi.RayFlags.Minimal)
         valid, t, prim, shape_ptr = si.is_valid(), si.t, si.prim_index, si.shape
-        nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
+        if normals:
+            nrm = dr.select(valid, facing(si.n, -ray.d), mi.Vector3f(0.0))
     else:
         pi = target.ray_intersect_preliminary(ray, coherent=True)
         valid, t, prim, shape_ptr = pi.is_valid(), pi.t, pi.prim_index, pi.shape
@@ -298,7 +301,7 @@ def attributes_dr(scene, target, sx, sy, cx, cy) -> dict:
 
     cam = scene.camera
     ray_s = camera_rays_dr(cam, sx, sy)
-    si = target.ray_intersect(ray_s, mi.RayFlags.All, coherent=True)
+    si = scene_hit(scene, target, ray_s, mi.RayFlags.All)
     valid = si.is_valid()
     ray_c = camera_rays_dr(cam, cx, cy)
     ng = si.n
@@ -466,7 +469,7 @@ def shade_dr(
     candidate = receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=light)
     if visibility is None:
         ray = shadow_ray_dr(light, p, ng, wl, offset)
-        occ = scene.mi_scene.ray_test(ray, candidate)
+        occ, _ = occluded_alpha(scene.mi_scene, ray, loaded_alpha(scene), active=candidate)
         vis = dr.select(candidate & ~occ, 1.0, 0.0)
     else:
         vis = dr.select(candidate, visibility, 0.0)
@@ -531,7 +534,7 @@ def sample_points_dr(scene, x, y) -> dict:
     import drjit as dr
 
     ray = camera_rays_dr(scene.camera, x, y)
-    si = scene.mi_scene.ray_intersect(ray, mi.RayFlags.All, coherent=True)
+    si = scene_hit(scene, scene.mi_scene, ray, mi.RayFlags.All)
     valid = si.is_valid()
     to_eye = -ray.d
     return {

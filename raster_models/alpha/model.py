@@ -11,7 +11,8 @@ alpha; the alpha is ``baseColorFactor.a`` times the trilinear lookup of the mask
 (:mod:`.rules`) discards the fragment or gives its alpha-to-coverage value, which keeps the
 first ``floor(value N + 1/2)`` samples. A sample whose fragment does not keep it looks
 further along its ray (the next fragment behind it in depth order), up to ``max_layers``
-fragments. Vertex colour alpha is not modelled (taken as 1).
+fragments. A mask that reads vertex colour alpha (glTF ``COLOR_0``) multiplies it in, as
+interpolated at the pixel centre and its neighbours.
 
 Returns per pixel ``coverage`` (fraction of the ``N`` samples on a kept fragment) and
 ``layers`` (the most fragments a sample of the pixel passed).
@@ -68,28 +69,33 @@ class _Chains:
         for m in table.masks:  # materials, not pixels
             cut = m.cutoff if params.cutoff is None else params.cutoff
             t = m.texture
+            va = m.vertex_alpha
             if t is None:
-                self.items.append((None, 1, 1, m.factor, cut, "repeat", "repeat", False))
+                self.items.append((None, 1, 1, m.factor, cut, "repeat", "repeat", False, va))
                 continue
             levels = box_mips(t.alpha) if params.mips == "box" else coverage_mips(t.alpha, cut)
             h, w = t.alpha.shape
-            self.items.append((levels, w, h, m.factor, cut, t.wrap_s, t.wrap_t, t.nearest))
+            self.items.append((levels, w, h, m.factor, cut, t.wrap_s, t.wrap_t, t.nearest, va))
 
     def alpha(self, k, uv_c, uv_x, uv_y):
         """Alpha of mask ``k`` at the pixel centre and its two neighbours (one level of
-        detail for the quad), and the mask's cutoff."""
-        levels, w, h, factor, cut, ws, wt, near = self.items[k]
-        if levels is None:
-            const = np.full(len(uv_c), float(factor))
-            return const, const, const, cut
-        du_x, dv_x = (uv_x - uv_c).T
-        du_y, dv_y = (uv_y - uv_c).T
-        lam = mip_level(du_x, dv_x, du_y, dv_y, width=w, height=h)
-        out = [
-            factor
-            * sample_mips(levels, uv[:, 0], uv[:, 1], lam, wrap_s=ws, wrap_t=wt, mag_nearest=near)
-            for uv in (uv_c, uv_x, uv_y)
-        ]
+        detail for the quad), and the mask's cutoff; ``uv_*`` (N, 3): texture coordinates
+        and the interpolated vertex alpha (multiplied in where the mask reads it)."""
+        levels, w, h, factor, cut, ws, wt, near, va = self.items[k]
+        out = [np.full(len(uv_c), float(factor)) for _ in range(3)]
+        if levels is not None:
+            du_x, dv_x = (uv_x[:, :2] - uv_c[:, :2]).T
+            du_y, dv_y = (uv_y[:, :2] - uv_c[:, :2]).T
+            lam = mip_level(du_x, dv_x, du_y, dv_y, width=w, height=h)
+            out = [
+                o
+                * sample_mips(
+                    levels, uv[:, 0], uv[:, 1], lam, wrap_s=ws, wrap_t=wt, mag_nearest=near
+                )
+                for o, uv in zip(out, (uv_c, uv_x, uv_y), strict=True)
+            ]
+        if va:
+            out = [o * uv[:, 2] for o, uv in zip(out, (uv_c, uv_x, uv_y), strict=True)]
         return out[0], out[1], out[2], cut
 
 

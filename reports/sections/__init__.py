@@ -6,6 +6,7 @@ them. The sweep report's own page view is :mod:`reports.sections.sweep`."""
 from ._record import SECTION_KINDS, SECTION_SCHEMA, failed_section
 from .aa_memory import aa_memory_section
 from .aa_ranking import aa_ranking_section
+from .alpha_foliage import alpha_foliage_section
 from .claims import claims_section
 from .converge import converge_section
 from .extremes import extremes_section
@@ -24,6 +25,7 @@ __all__ = [
     "STUDY_PAGE_SCHEMA",
     "aa_memory_section",
     "aa_ranking_section",
+    "alpha_foliage_section",
     "claims_section",
     "converge_section",
     "extremes_section",

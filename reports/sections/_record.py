@@ -11,7 +11,15 @@ __all__ = ["SECTION_KINDS", "SECTION_SCHEMA", "failed_section", "section_record"
 #: Value of the ``"schema"`` key of every section record.
 SECTION_SCHEMA = "raster-oracle.report-section/1"
 #: Section kinds; each has a template ``section_<kind>.html``.
-SECTION_KINDS = ("claims", "extremes", "converge", "aa_memory", "aa_ranking", "soft_shadows")
+SECTION_KINDS = (
+    "claims",
+    "extremes",
+    "converge",
+    "aa_memory",
+    "aa_ranking",
+    "soft_shadows",
+    "alpha_foliage",
+)
 
 
 def _check_frame(kind: str, section_id: str, title: str) -> None:

@@ -35,6 +35,7 @@ __all__ = [
     "alpha_scene",
     "closest_hit_alpha",
     "loaded_alpha",
+    "scene_hit",
     "occluded_alpha",
 ]
 
@@ -112,6 +113,14 @@ def loaded_alpha(loaded):
     in its ``memo``), or None."""
     table = getattr(loaded, "alpha", None)
     return alpha_scene(loaded.mi_scene, table, getattr(loaded, "memo", None))
+
+
+def scene_hit(loaded, target, ray, flags, *, coherent: bool = True):
+    """Closest hits of ``ray`` on ``target`` (``loaded.mi_scene``, or a sub-scene of some of
+    its shapes): through alpha-tested surfaces when ``target`` is the loaded scene itself (a
+    sub-scene's shapes have other registry ids: plain hits)."""
+    alpha = loaded_alpha(loaded) if target is loaded.mi_scene else None
+    return closest_hit_alpha(target, ray, alpha, flags=flags, coherent=coherent)[0]
 
 
 def _far_side(si, d, boost):

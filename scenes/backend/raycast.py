@@ -138,20 +138,29 @@ def shadow_ray_dr(light, p, ng, wl, offset=SHADOW_OFFSET):
 SELF_HIT_ROUNDS = 3
 
 
-def _test(scene, ray, active, alpha):
+def _test(scene, ray, active, alpha, bound=None):
     """``scene.ray_test``, through alpha-tested surfaces when ``alpha`` (an
-    :class:`.alpha_hit.AlphaScene`) is given."""
+    :class:`.alpha_hit.AlphaScene`) is given; ``bound`` (a list): gets the rays that stopped
+    at the layer bound (Bool)."""
     if alpha is None:
         return scene.ray_test(ray, active)
-    return occluded_alpha(scene, ray, alpha, active=active)[0]
+    blocked, exhausted = occluded_alpha(scene, ray, alpha, active=active)
+    if bound is not None:
+        bound.append(exhausted)
+    return blocked
 
 
-def _closest(scene, ray, flags, coherent, active, alpha):
+def _closest(scene, ray, flags, coherent, active, alpha, bound=None):
     """``scene.ray_intersect``: the closest hit kept by the alpha test when ``alpha`` is
-    given (:func:`.alpha_hit.closest_hit_alpha`)."""
+    given (:func:`.alpha_hit.closest_hit_alpha`); ``bound`` as for :func:`_test`."""
     if alpha is None:
         return scene.ray_intersect(ray, flags, coherent, active)
-    return closest_hit_alpha(scene, ray, alpha, flags=flags, coherent=coherent, active=active)[0]
+    si, _, exhausted = closest_hit_alpha(
+        scene, ray, alpha, flags=flags, coherent=coherent, active=active
+    )
+    if bound is not None:
+        bound.append(exhausted)
+    return si
 
 
 def _has_analytic_shapes(scene) -> bool:
@@ -159,7 +168,7 @@ def _has_analytic_shapes(scene) -> bool:
     return any(not sh.is_mesh() for sh in scene.shapes())
 
 
-def occluded_from_dr(scene, light, p, ng, wl, shape, active, *, alpha=None):
+def occluded_from_dr(scene, light, p, ng, wl, shape, active, *, alpha=None, bound=None):
     """True where the light is blocked from surface points ``p`` (geometric normal ``ng``,
     hit shape ``shape``: a Mitsuba ``ShapePtr``) in direction ``wl`` (Dr.Jit).
 
@@ -172,7 +181,8 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active, *, alpha=None):
     by resuming the ray from that hit. Rays leaving an analytic shape on its inner side
     (inside a sphere or tube) keep the plain test: the far wall may shadow them. With
     ``alpha`` (:func:`.alpha_hit.loaded_alpha`), alpha-tested surfaces block only where
-    their alpha test keeps the point.
+    their alpha test keeps the point; ``bound`` (a list) then gets, per query, the rays that
+    stopped at the layer bound (:data:`.alpha_hit.MAX_ALPHA_LAYERS`).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -181,11 +191,11 @@ def occluded_from_dr(scene, light, p, ng, wl, shape, active, *, alpha=None):
     offset = dr.select(mesh, SHADOW_OFFSET_MESH, SHADOW_OFFSET)
     ray = shadow_ray_dr(light, p, ng, wl, offset)
     if not _has_analytic_shapes(scene):
-        return _test(scene, ray, active, alpha)
+        return _test(scene, ray, active, alpha, bound)
     pending = active & ~mesh & (dr.dot(ng, wl) > 0.0)
-    blocked = _test(scene, ray, active & ~pending, alpha)
+    blocked = _test(scene, ray, active & ~pending, alpha, bound)
     for _ in range(SELF_HIT_ROUNDS):
-        si = _closest(scene, ray, mi.RayFlags.Minimal, False, pending, alpha)
+        si = _closest(scene, ray, mi.RayFlags.Minimal, False, pending, alpha, bound)
         hit = pending & si.is_valid()
         own = hit & (si.shape == shape)
         blocked |= hit & ~own
@@ -254,10 +264,12 @@ def occluded_segment_dr(
     return blocked
 
 
-def shadow_occluded_dr(scene, light, si, wl, active, *, alpha=None):
+def shadow_occluded_dr(scene, light, si, wl, active, *, alpha=None, bound=None):
     """True where the light is blocked from the surface interaction ``si`` (Dr.Jit): see
     :func:`occluded_from_dr`."""
-    return occluded_from_dr(scene, light, si.p, si.n, wl, si.shape, active, alpha=alpha)
+    return occluded_from_dr(
+        scene, light, si.p, si.n, wl, si.shape, active, alpha=alpha, bound=bound
+    )
 
 
 def primary_flags(mi):
@@ -280,7 +292,9 @@ def trace_film_dr(
     ``color`` are both False: tracing the BSDF call costs Python time on every launch even
     when nothing reads it) and, with ``color``, ``color`` (shaded linear RGB, 0 for sky).
     With ``keep_si``, also ``si`` (the primary hits' ``SurfaceInteraction3f``) and ``to_eye``
-    (what an area light's samples start from, :mod:`oracle.reference.soft`).
+    (what an area light's samples start from, :mod:`oracle.reference.soft`). On a scene with
+    alpha-tested shapes, also ``alpha_bound``: the sample's camera and shadow rays that
+    stopped at the layer bound (Float, 0 or more).
     """
     mi = backend.mitsuba()
     import drjit as dr
@@ -296,14 +310,15 @@ def trace_film_dr(
     if pbr is not None and pbr.has_normal_textures:
         flags = mi.RayFlags.All  # dp/du: the normal texture's fallback tangent
     alpha = loaded_alpha(loaded)  # alpha-tested shapes (glTF MASK): cut out for every ray
-    si = _closest(scene, ray, flags, True, True, alpha)
+    bound = []  # rays stopped at the layer bound (alpha-tested scenes)
+    si = _closest(scene, ray, flags, True, True, alpha, bound)
     valid = si.is_valid()
     to_eye = -ray.d
     n = facing(si.sh_frame.n, to_eye)
     wl, dist = light.to_light(si.p)
     cos_l = dr.dot(n, wl)
     candidate = receiver_mask(valid=valid, cos_l=cos_l, to_light=wl, light=light)
-    occluded_ = shadow_occluded_dr(scene, light, si, wl, candidate, alpha=alpha)
+    occluded_ = shadow_occluded_dr(scene, light, si, wl, candidate, alpha=alpha, bound=bound)
     lit = dr.select(valid, candidate & ~occluded_, True)
     fwd = [dr.opaque(mi.Float, float(c)) for c in camera.forward]  # opaque: kernel reuse
     pos = [dr.opaque(mi.Float, float(c)) for c in camera.position]
@@ -327,6 +342,8 @@ def trace_film_dr(
         "cos_l": cos_l,
         "shadow_tested": candidate,
     }
+    if bound:
+        out["alpha_bound"] = sum(dr.select(b, 1.0, 0.0) for b in bound)
     if keep_si:
         out["si"], out["to_eye"] = si, to_eye
     if pbr is not None and (albedo or color):

@@ -161,6 +161,26 @@ def gltf_input(
         raise GltfError(f"{label}: malformed glTF ({type(exc).__name__}: {exc})") from None
 
 
+def _mask_reads_colour(d, alpha_masks: list, slot: int, label: str) -> None:
+    """Material ``slot``'s mask reads ``COLOR_0``'s alpha (a primitive of ``label`` has one);
+    a material that is not ``MASK`` is refused (vertex colours serve the alpha test only)."""
+    mask = alpha_masks[slot]
+    if mask is None:
+        d.fail(
+            f"{label} has COLOR_0 on a material that is not alphaMode MASK; "
+            "vertex colours are read for the alpha test only"
+        )
+    alpha_masks[slot] = replace(mask, vertex_alpha=True)
+
+
+def _colourless_alpha_one(raw: dict, shape_materials: dict, alpha_masks: list) -> None:
+    """A mesh without ``COLOR_0`` whose mask reads it gets a vertex alpha of 1."""
+    for key, slot in shape_materials.items():
+        mask = alpha_masks[slot]
+        if mask is not None and mask.vertex_alpha and "vertex_alpha" not in raw[key]:
+            raw[key]["vertex_alpha"] = np.ones(len(raw[key]["vertices"]), np.float32)
+
+
 def _scene_input(d: GltfDocument, data: bytes, scene, *, width, height, camera, name) -> GltfInput:
     label = d.label
     check_extensions(d)
@@ -205,12 +225,15 @@ def _scene_input(d: GltfDocument, data: bytes, scene, *, width, height, camera, 
                 mat_index[prim.material] = len(materials)
                 materials.append(read_material(d, prim.material, textures))
                 alpha_masks.append(read_alpha(d, prim.material))
+            if "vertex_alpha" in entry:
+                _mask_reads_colour(d, alpha_masks, mat_index[prim.material], label_p)
             mat = materials[mat_index[prim.material]]
             entry["bsdf"] = diffuse(mat.base_color)  # Mitsuba's view (the G-buffer's is ours)
             key = key_for(base if len(prims) == 1 else f"{base}_{p}")
             raw[key], shape_materials[key] = entry, mat_index[prim.material]
     if not shape_materials:
         d.fail("the scene has no triangle mesh")
+    _colourless_alpha_one(raw, shape_materials, alpha_masks)
     if camera is not None:
         if not 0 <= camera < len(doc.cameras or []):
             d.fail(f"camera {camera} out of range: the file has {len(doc.cameras or [])} camera(s)")

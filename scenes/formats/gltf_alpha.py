@@ -4,9 +4,10 @@
 A ``MASK`` material's alpha is ``baseColorFactor[3]`` times the alpha channel of its base
 colour texture (linear: glTF's sRGB transfer applies to RGB only), sampled with the texture's
 sampler: its magnification filter and its wrap modes in ``s`` and ``t``, each on its own
-axis. ``alphaCutoff`` defaults to 0.5. Vertex colours (``COLOR_0``) stay refused by
-:func:`.gltf_parts.primitive_mesh`, so the vertex colour alpha is 1. ``OPAQUE`` materials have
-no mask; ``BLEND`` is refused by :func:`.gltf_parts.read_material`.
+axis. ``alphaCutoff`` defaults to 0.5. The vertex colour's alpha (``COLOR_0``,
+:func:`.gltf_parts.vertex_alpha`) multiplies it: the loader marks a mask read with
+``COLOR_0`` as ``vertex_alpha`` and gives its meshes without one an alpha of 1. ``OPAQUE``
+materials have no mask; ``BLEND`` is refused by :func:`.gltf_parts.read_material`.
 """
 
 from __future__ import annotations

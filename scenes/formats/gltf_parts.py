@@ -3,8 +3,8 @@
 - :func:`walk_nodes`: the node hierarchy (``matrix`` or TRS, composed parent first, every
   transform finite and within :data:`.gltf_document.LIMITS`);
 - :func:`primitive_mesh`: a ``TRIANGLES`` primitive as an ``ro_mesh`` entry in world space
-  (positions in float64 stored as float32, normals by the inverse transpose, ``TEXCOORD_0``
-  and tangents);
+  (positions in float64 stored as float32, normals by the inverse transpose, ``TEXCOORD_0``,
+  tangents and ``COLOR_0``'s alpha, :func:`vertex_alpha`);
 - :class:`Textures` and :func:`read_material`: metallic-roughness materials and their
   textures (:mod:`scenes.shading.materials`), sRGB colour textures decoded to linear;
   ``alphaMode`` OPAQUE or MASK (whose alpha :mod:`.gltf_alpha` reads), BLEND refused;
@@ -32,6 +32,7 @@ from .gltf_document import LIMITS, GltfDocument, GltfError, as_index, as_number,
 from .gltf_write import GL_TO_MI
 
 __all__ = [
+    "vertex_alpha",
     "SUPPORTED_EXTENSIONS",
     "Textures",
     "camera_entry",
@@ -258,9 +259,8 @@ def primitive_mesh(d: GltfDocument, prim, world: np.ndarray, label: str) -> dict
     if mode != 4:
         d.fail(f"{label} has primitive mode {_MODES.get(mode, mode)}; only TRIANGLES is supported")
     attrs = {k: v for k, v in vars(prim.attributes).items() if v is not None}
-    for bad, why in (("COLOR_0", "vertex colours"), ("JOINTS_0", "skinning")):
-        if bad in attrs:
-            d.fail(f"{label} has {bad} ({why}), which is not supported")
+    if "JOINTS_0" in attrs:
+        d.fail(f"{label} has JOINTS_0 (skinning), which is not supported")
     if prim.targets:
         d.fail(f"{label} has morph targets, which are not supported")
     if prim.extensions:  # e.g. KHR_draco_mesh_compression, even when not declared
@@ -304,7 +304,46 @@ def primitive_mesh(d: GltfDocument, prim, world: np.ndarray, label: str) -> dict
         tangents[:, :3] = xyz / np.where(length > 0, length, 1.0)
         tangents[:, 3] = np.sign(t[:, 3] + (t[:, 3] == 0)) * np.sign(np.linalg.det(lin) or 1.0)
     entry["tangents"] = tangents
+    if "COLOR_0" in attrs:
+        entry["vertex_alpha"] = vertex_alpha(d, attrs["COLOR_0"], len(v), f"{label} COLOR_0")
     return entry
+
+
+#: ``COLOR_0`` component types (glTF 2.0 3.7.2.1): float, normalized unsigned byte and short.
+_COLOR_COMPONENTS = {5126: "float", 5121: "unsigned byte", 5123: "unsigned short"}
+#: RGB of ``COLOR_0`` within this of 1 is no tint (an 8-bit step).
+_NO_TINT = 1.0 / 255.0
+
+
+def vertex_alpha(d: GltfDocument, index, n: int, what: str) -> np.ndarray:
+    """The alpha of a ``COLOR_0`` accessor: ``n`` values in [0, 1] (float32; 1 for ``VEC3``).
+
+    As the specification allows: ``VEC3`` or ``VEC4`` of floats, or of unsigned bytes or
+    shorts with ``normalized`` set (read as ``value / max``); float values must lie in
+    [0, 1]. Only the alpha is used (the alpha test of ``MASK`` materials), so an RGB that
+    tints the base colour, which the shading does not model, is refused with one line."""
+    acc = d.doc.accessors[as_index(d, index, d.doc.accessors, f"{what} accessor")]
+    kind = acc.componentType
+    if isinstance(kind, bool) or kind not in _COLOR_COMPONENTS or acc.type not in ("VEC3", "VEC4"):
+        d.fail(
+            f"{what} is {acc.type}/{kind}; expected VEC3 or VEC4 of float (5126), or of "
+            "normalized unsigned byte (5121) or short (5123)"
+        )
+    if kind != 5126 and not acc.normalized:
+        d.fail(f"{what} is {_COLOR_COMPONENTS[kind]} without normalized: true")
+    width = 4 if acc.type == "VEC4" else 3
+    c = d.accessor(index).astype(np.float64)
+    if c.shape != (n, width) or not np.isfinite(c).all():
+        d.fail(f"{what} must be {n} finite rows of {width} (got {c.shape[0]}x{c.shape[1]})")
+    if len(c) and (c.min() < 0.0 or c.max() > 1.0):
+        d.fail(f"{what} has values outside [0, 1] ({c.min():g} to {c.max():g})")
+    if len(c) and np.abs(c[:, :3] - 1.0).max() > _NO_TINT:
+        d.fail(
+            f"{what} tints the base colour (RGB not 1), which the shading does not model; "
+            "only its alpha is read (alphaMode MASK)"
+        )
+    alpha = c[:, 3] if width == 4 else np.ones(n)
+    return alpha.astype(np.float32)
 
 
 def camera_entry(d, cam_index, world, width, height, verts) -> dict:

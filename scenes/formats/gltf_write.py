@@ -64,7 +64,8 @@ class GltfLight:
 @dataclass
 class GltfMesh:
     """One mesh node of one primitive: ``vertices`` (V, 3), ``faces`` (F, 3) and optional
-    ``normals`` (V, 3), ``texcoords`` (V, 2), ``tangents`` (V, 4); ``material`` index."""
+    ``normals`` (V, 3), ``texcoords`` (V, 2), ``tangents`` (V, 4), ``colors`` (``COLOR_0``,
+    (V, 3) or (V, 4): float, or uint8/uint16 written normalized); ``material`` index."""
 
     name: str
     vertices: np.ndarray
@@ -74,6 +75,7 @@ class GltfMesh:
     texcoords: np.ndarray | None = None
     tangents: np.ndarray | None = None
     matrix: np.ndarray | None = None
+    colors: np.ndarray | None = None
 
 
 @dataclass
@@ -93,9 +95,13 @@ class _Blob:
         return len(self.views) - 1
 
     def accessor(self, arr: np.ndarray, kind: str, *, index: bool = False) -> int:
+        normalized = False
         if index:
             arr = np.ascontiguousarray(arr, dtype="<u4").ravel()
             ctype, target = 5125, 34963
+        elif np.asarray(arr).dtype in (np.uint8, np.uint16):  # normalized colours
+            arr = np.ascontiguousarray(arr, dtype=np.asarray(arr).dtype.newbyteorder("<"))
+            ctype, target, normalized = (5121 if arr.dtype.itemsize == 1 else 5123), 34962, True
         else:
             arr = np.ascontiguousarray(arr, dtype="<f4")
             ctype, target = 5126, 34962
@@ -105,7 +111,9 @@ class _Blob:
             "count": int(len(arr)),
             "type": kind,
         }
-        if kind == "VEC3" and not index:
+        if normalized:
+            acc["normalized"] = True
+        if kind == "VEC3" and not index and not normalized:
             acc["min"] = [float(c) for c in arr.min(axis=0)] if len(arr) else [0.0] * 3
             acc["max"] = [float(c) for c in arr.max(axis=0)] if len(arr) else [0.0] * 3
         self.accessors.append(acc)
@@ -193,6 +201,11 @@ def glb_bytes(
             ("NORMAL", mesh.normals, "VEC3"),
             ("TEXCOORD_0", mesh.texcoords, "VEC2"),
             ("TANGENT", mesh.tangents, "VEC4"),
+            (
+                "COLOR_0",
+                mesh.colors,
+                f"VEC{np.shape(mesh.colors)[-1]}" if mesh.colors is not None else "",
+            ),
         ):
             if arr is not None:
                 attrs[key] = blob.accessor(arr, kind)

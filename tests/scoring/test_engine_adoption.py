@@ -66,7 +66,10 @@ def test_no_receiver_in_view_is_null_not_a_traceback(tmp_path, capsys):
     gate = ["--fail-above", "edge_aware_error_fraction=0.005"]
     assert main([*argv, *gate, "--out", str(tmp_path / "g")]) == 2
     err = capsys.readouterr().err
-    assert "edge_aware_error_fraction is null" in err and "Traceback" not in err
+    # no gate on nothing (issue 43 item 3): the case, the metric and the empty set named
+    assert "case plate: edge_aware_error_fraction is computed over the receivers" in err
+    assert "(support: 0)" in err and "Traceback" not in err
+    assert rec["support"]["misclassified_fraction"] == 0 and rec["misclassified_fraction"] is None
 
 
 # 2: --gate-frames judges the motion vectors too --------------------------------------------

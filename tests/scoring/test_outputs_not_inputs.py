@@ -99,3 +99,20 @@ def test_score_folder_output_appears_whole(exports, tmp_path):
     assert _folder_run(exports, tmp_path / "r3", out, plate=1.0, thin=float("nan")) == 2
     assert _snapshot(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "r1", "r2", "r3"]
+
+
+def test_score_folder_checks_every_candidate_before_scoring_any(
+    exports, tmp_path, capfd, monkeypatch
+):
+    """Issue 48: a NaN in the second case was found after the first case was scored."""
+    from raster_oracle.oracle.scoring import to_folder
+
+    def never(*_a, **_k):
+        raise AssertionError("a case was scored before every candidate was checked")
+
+    monkeypatch.setattr(to_folder, "score_to_folder", never)
+    out = tmp_path / "out"
+    assert _folder_run(exports, tmp_path / "r", out, plate=1.0, thin=float("nan")) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "case thin" in err[0] and "NaN" in err[0], err
+    assert not out.exists()

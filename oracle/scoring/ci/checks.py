@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..channels import CHANNEL_KIND
 from ..result import ScoreError
 
 __all__ = [
@@ -82,6 +83,9 @@ class Check:
     floor: float | None = None
     previous: float | None = None
     previous_floor: float | None = None
+    #: False for a baseline check that could not compare (a value or noise floor missing):
+    #: passed unless ``--baseline-strict``, and named in the CLI, JUnit and Markdown
+    compared: bool = True
 
     def as_record(self) -> dict:
         """The JSON record of the check: what ``metrics.json``, the report, the JUnit
@@ -97,6 +101,7 @@ class Check:
             "noise_floor": self.floor,
             "previous": self.previous,
             "previous_noise_floor": self.previous_floor,
+            "compared": self.compared,
         }
 
 
@@ -174,15 +179,21 @@ def format_number(x: float, other: float | None = None) -> str:
         return "n/a"
     for digits in (4, 6, 9):
         text = f"{x:.{digits}g}"
+        # an SSIM floor of 0.99996 is not "1": more digits until a rounded integer is told
+        # apart from the value
+        whole = float(text) == round(float(text)) and float(text) != x
+        if whole and digits < 9:
+            continue
         if other is None or x == other or text != f"{other:.{digits}g}":
             return text
     return repr(x)
 
 
 def scored_kinds(record: dict) -> tuple[str, ...]:
-    """Candidate kinds a ``metrics.json`` record scored: its channel, plus coverage where an
-    anti-aliasing model's coverage was scored beside its colour."""
-    kinds = [record["channel"]]
+    """Candidate kinds (the metric catalogue's) a ``metrics.json`` record scored: its
+    channel's (``soft_visibility`` is ``visibility``), plus coverage where an anti-aliasing
+    model's coverage was scored beside its colour."""
+    kinds = [CHANNEL_KIND.get(record["channel"], record["channel"])]
     if record.get("coverage_reference") is not None and "coverage" not in kinds:
         kinds.append("coverage")
     return tuple(kinds)

@@ -10,7 +10,10 @@ silently: every rule below is an :class:`GateError` (exit 2), never a pass.
   ``info`` metric (a technique's constant) is no score at all;
 - the metric does not apply to the candidate kinds scored (a shadow metric on a colour
   candidate) or to the frame count (``flicker`` needs 2 frames);
-- its value is null or NaN in this run (e.g. no receiver in view).
+- its value is null or NaN in this run;
+- its support is empty (:func:`support_record`: no receiver in view, no edge-band pixel):
+  the message names the case, the metric and the empty set, and the record says
+  ``support: 0`` for it.
 
 Judged gates give one line each, with the value, the limit and the noise floor:
 ``FAIL visibility_mae 0.0719 > 0.02 (noise floor 0.0011)``,
@@ -47,6 +50,7 @@ from .checks import (
 from .regression import BaselineOptions, compare_baseline, load_baseline
 
 __all__ = [
+    "support_record",
     "applicable_gates",
     "check_applicable",
     "evaluate_gates",
@@ -78,13 +82,14 @@ def parse_gates(fail_above=(), fail_below=()) -> list[Gate]:
     return gates
 
 
-def applicable_gates(gates, *, kinds) -> tuple[list, list[str]]:
+def applicable_gates(gates, *, kinds, temporal: bool = False) -> tuple[list, list[str]]:
     """``gates`` without the profile gates (``optional``) whose metric does not apply to the
-    candidate ``kinds``, and a note naming each one left out."""
+    candidate ``kinds`` (of a temporal family's sequence when ``temporal``), and a note naming
+    each one left out."""
     kept, notes = [], []
     for g in gates:
         m = catalog.CATALOG[g.metric]
-        if g.optional and not set(m.kinds) & set(kinds):
+        if g.optional and not m.applies(kinds, temporal=temporal):
             notes.append(
                 f"{g.where}: {g.metric} applies to {' and '.join(m.kinds)} candidates, not "
                 f"{' and '.join(kinds)}: not judged"
@@ -94,12 +99,13 @@ def applicable_gates(gates, *, kinds) -> tuple[list, list[str]]:
     return kept, notes
 
 
-def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
+def check_applicable(gates, *, kinds=None, frames: int = 1, temporal: bool = False) -> None:
     """:class:`GateError` for a gate whose metric does not apply to the candidate ``kinds``
-    (None: not known yet, not checked) or to ``frames`` frames."""
+    (None: not known yet, not checked; ``temporal``: of a temporal family's sequence) or to
+    ``frames`` frames."""
     for g in gates:
         m = catalog.CATALOG[g.metric]
-        if kinds is not None and not set(m.kinds) & set(kinds):
+        if kinds is not None and not m.applies(kinds, temporal=temporal):
             raise GateError(
                 f"{g.where} {g.metric}: {g.metric} applies to {' and '.join(m.kinds)} "
                 f"candidates; this run scores {' and '.join(kinds)} "
@@ -112,7 +118,58 @@ def check_applicable(gates, *, kinds=None, frames: int = 1) -> None:
             )
 
 
+#: The set a shadow mask's metric is computed over: (the record's counter, its name).
+_RECEIVERS = ("receiver_count", "receivers")
+_EDGE_BAND = ("edge_band_count", "edge-band receivers (within 2 px of a shadow edge)")
+
+
+def _support_set(record: dict, key: str) -> tuple[str, str] | None:
+    """``(counter, name)`` of the pixels ``key`` is computed over in ``record``, or None
+    where the metric's support is not counted (colour, coverage: every pixel)."""
+    if record.get("channel") not in ("visibility", "soft_visibility", "light_fraction"):
+        return None
+    if key.startswith("edge_band_"):
+        return _EDGE_BAND
+    return _RECEIVERS  # a shadow mask is judged on the receivers: every metric of it
+
+
+def support_record(record: dict) -> dict:
+    """``{metric: pixels}``: the size of the set each scored metric of ``record`` is computed
+    over (summed over its frames), for the metrics whose support is counted; a metric with
+    support 0 is set to None in ``record`` (and its frames): never a perfect score from
+    nothing. Returns the support (also stored as ``record["support"]``)."""
+    frames = record.get("frames") or [record]
+    support = {}
+    for key in catalog.CATALOG:
+        if key not in record:
+            continue
+        found = _support_set(record, key)
+        if found is None:
+            continue
+        counter = found[0]
+        counts = [f.get(counter) for f in frames]
+        if any(c is None for c in counts):
+            continue
+        n = int(sum(int(c) for c in counts))
+        support[key] = n
+        if n == 0:
+            record[key] = None
+            for f in record.get("frames") or []:
+                f[key] = None
+    record["support"] = support
+    return support
+
+
 def _value(record: dict, key: str, what: str) -> float:
+    n = (record.get("support") or {}).get(key)
+    if n == 0:
+        case = ((record.get("reference") or {}).get("scene") or {}).get("name", "?")
+        found = _support_set(record, key)
+        name = found[1] if found else "pixels"
+        raise GateError(
+            f"{what}: case {case}: {key} is computed over the {name}, and this run has none "
+            "(support: 0): nothing to judge, no gate passes on nothing"
+        )
     value = as_number(record.get(key))
     skipped = ((record.get("temporal_aa") or {}).get("video") or {}).get("skipped")
     if value is None and key == "cvvdp_jod" and skipped:
@@ -126,9 +183,11 @@ def _value(record: dict, key: str, what: str) -> float:
 
 
 def evaluate_gates(gates, record: dict) -> list[Check]:
-    """Judge ``gates`` on a ``metrics.json`` record (applicability is checked first)."""
+    """Judge ``gates`` on a ``metrics.json`` record (applicability is checked first; the
+    temporal metrics apply where the record's temporal pass ran: ``temporal_aa``)."""
     frames = len(record.get("frames") or []) or 1
-    check_applicable(gates, kinds=scored_kinds(record), frames=frames)
+    temporal = record.get("temporal_aa") is not None
+    check_applicable(gates, kinds=scored_kinds(record), frames=frames, temporal=temporal)
     floors = record.get("noise_floor") or {}
     checks = []
     for g in gates:

@@ -32,22 +32,29 @@ def _properties(case, check: Check) -> None:
 def junit_xml(verdicts) -> bytes:
     """JUnit XML of the checks of ``verdicts``: one ``<testsuite>`` with one ``<testcase>`` per
     scene x check (classname = the scene, name = the check's name, its numbers as
-    properties), a ``<failure>`` holding the line of a failed one, and an ``<error>`` case
-    per scene that could not be scored (``Verdict.errors``)."""
+    properties), a ``<failure>`` holding the line of a failed one, a ``<skipped>`` holding
+    the line of a baseline check that could not compare (``Check.compared``; it fails under
+    ``--baseline-strict``), and an ``<error>`` case per scene that could not be scored
+    (``Verdict.errors``)."""
     checks = [(v.scene, c) for v in verdicts for c in v.checks]
     errors = [(v.scene, e) for v in verdicts for e in getattr(v, "errors", [])]
     n_fail = sum(not c.passed for _, c in checks)
+    n_skip = sum(c.passed and not getattr(c, "compared", True) for _, c in checks)
     counts = {
         "tests": str(len(checks) + len(errors)),
         "failures": str(n_fail),
         "errors": str(len(errors)),
-        "skipped": "0",
+        "skipped": str(n_skip),
     }
     root = ET.Element("testsuites", {"name": "raster-oracle", **counts})
     suite = ET.SubElement(root, "testsuite", {"name": "raster-oracle score", **counts})
     for scene, c in checks:
         case = ET.SubElement(suite, "testcase", {"classname": scene, "name": c.name})
         _properties(case, c)
+        if c.passed and not getattr(c, "compared", True):
+            # a baseline check that could not compare: named, not silently passed
+            skipped = ET.SubElement(case, "skipped", {"message": c.line})
+            skipped.text = c.line
         if not c.passed:
             kind = "regression" if c.kind == "baseline" else "threshold"
             failure = ET.SubElement(case, "failure", {"message": c.line, "type": kind})

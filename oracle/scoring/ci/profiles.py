@@ -6,7 +6,11 @@ Profiles (the published defaults of each tool):
 - ``unreal-low``, ``unreal-medium``, ``unreal-high``: Unreal's screenshot comparison at that
   tolerance, global error <= 0.02 and local error <= 0.10;
 - ``unity``: Unity's average JzAzBz delta E <= 0.005 (above 0.001 a pixel);
-- ``edge-aware``: at most 0.5 % of the pixels beyond the edge-aware tolerance.
+- ``edge-aware``: at most 0.5 % of the pixels beyond the edge-aware tolerance;
+- ``conformance`` (with ``--expect``): the recommended conformance gate, which caught every
+  fault of the detection-power table with no correct engine flagged (docs/metrics.md,
+  "Detection power of the conformance gate"): misclassified <= 0.001 of the receivers,
+  edges <= 0.1 px from the model's, FLIP <= 0.001.
 """
 
 from __future__ import annotations
@@ -16,11 +20,19 @@ from dataclasses import replace
 from ....metrics import engine_gates as G
 from .checks import Gate
 
-__all__ = ["EDGE_AWARE_LIMIT", "GATE_PROFILES", "profile_gates"]
+__all__ = ["CONFORMANCE_LIMITS", "EDGE_AWARE_LIMIT", "GATE_PROFILES", "profile_gates"]
 
 #: ``edge-aware`` profile: at most 0.5 % of the scored pixels beyond their tolerance (a
 #: reference's 3-sigma test flags 0.27 % of an exact candidate's Gaussian pixels).
 EDGE_AWARE_LIMIT = 0.005
+
+
+#: ``conformance`` profile (``oracle/studies/detection.py`` measures it: ``bench detection``).
+CONFORMANCE_LIMITS = {
+    "conformance_misclassified_fraction": 0.001,
+    "conformance_edge_displacement_px": 0.1,
+    "conformance_flip_mean": 0.001,
+}
 
 
 def _unreal_profile(level: str) -> tuple[Gate, ...]:
@@ -38,6 +50,7 @@ GATE_PROFILES = {
     "unreal-high": _unreal_profile("high"),
     "unity": (Gate("unity_average_delta_e", "<=", G.UNITY_AVERAGE_THRESHOLD),),
     "edge-aware": (Gate("edge_aware_error_fraction", "<=", EDGE_AWARE_LIMIT),),
+    "conformance": tuple(Gate(k, "<=", v) for k, v in CONFORMANCE_LIMITS.items()),
 }
 
 

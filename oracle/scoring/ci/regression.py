@@ -22,6 +22,7 @@ from .checks import (
 )
 
 __all__ = [
+    "DETERMINISTIC_TOLERANCES",
     "BaselineOptions",
     "check_baseline_scene",
     "compare_baseline",
@@ -149,7 +150,8 @@ class BaselineOptions:
     in both runs; None: the default, the gated metrics (:meth:`for_gates`; all when none is
     gated). ``tolerances``: metric -> ``(t, relative)``: a regression must be worse by
     more than both floors plus ``t`` (error units) or ``t`` times the baseline's error.
-    ``strict``: a case missing from this run or new in it (``score-folder``) fails.
+    ``strict``: a case missing from this run or new in it (``score-folder``) fails, and so
+    does a metric that cannot be compared (a value or noise floor missing).
     """
 
     metrics: tuple[str, ...] | str | None = None
@@ -220,6 +222,38 @@ def _tolerance_text(tol) -> str:
     return f", tolerance {format_limit(t * 100)}%" if relative else f", tolerance {format_limit(t)}"
 
 
+#: Baseline tolerance (error units) of the deterministic metrics, which have no noise floor
+#: (the claimed technique's model is deterministic): a regression must exceed it. A correct
+#: engine's conformance moves by float32 rounding between runs (misclassified < 1e-4,
+#: edges < 0.02 px, FLIP < 1e-4 in the detection table); the smallest fault it catches
+#: (a PCF one tap wider, a half-texel offset) moves them by 10x these or more.
+DETERMINISTIC_TOLERANCES = {
+    "conformance_misclassified_fraction": 0.0005,
+    "conformance_edge_displacement_px": 0.05,
+    "conformance_flip_mean": 0.0005,
+}
+
+
+def _uncompared(key: str, why: str, a, b, strict: bool) -> Check:
+    """A requested metric that cannot be compared: passed unless ``strict``, named."""
+    head = "FAIL baseline" if strict else "NOT COMPARED baseline"
+    line = f"{head} {key}: {why} (--baseline-strict fails it)"
+    return Check(
+        f"baseline {key}", key, not strict, line, "baseline", b, None, None, a, None, False
+    )
+
+
+def _floors(key, floors, old_floors):
+    """This run's and the baseline's noise floor of ``key`` (0 for a deterministic metric
+    without one), or None where one is missing or not finite."""
+    fa, fb = as_number(old_floors.get(key)), as_number(floors.get(key))
+    if key in DETERMINISTIC_TOLERANCES:
+        fa, fb = fa or 0.0, fb or 0.0
+    if not all(v is not None and math.isfinite(v) for v in (fa, fb)):
+        return None
+    return fa, fb
+
+
 def compare_baseline(
     record: dict,
     baseline: dict,
@@ -228,28 +262,41 @@ def compare_baseline(
     options: BaselineOptions | None = None,
 ) -> Verdict:
     """Compare this run's ``record`` with a previous run's; returns a verdict holding one
-    check per compared metric (``options.metrics``; None: every one) with a noise floor in
-    both (a regression, worse by more than both floors and the metric's tolerance, fails
-    it), and a note naming the metrics left out. :class:`GateError` when the runs are not of
-    one scene, resolution, light, candidate kind and frame count."""
+    check per compared metric (``options.metrics``; None: every one): a regression, worse
+    by more than both noise floors and the metric's tolerance (a deterministic metric's
+    floors are 0 and its default tolerance :data:`DETERMINISTIC_TOLERANCES`), fails it. A
+    requested metric that cannot be compared (a value or noise floor missing or not finite)
+    is a check too, ``compared=False``: it passes with a ``NOT COMPARED`` line, and fails
+    with ``options.strict``. :class:`GateError` when the runs are not of one scene,
+    resolution, light, candidate kind and frame count."""
     options = options or BaselineOptions()
     mine = _identity(record)
     _check_same_run(mine, _identity(baseline), source)
     verdict = Verdict(scene=str(mine["scene"]))
     floors = record.get("noise_floor") or {}
     old_floors = baseline.get("noise_floor") or {}
-    skipped: list[str] = []
+    asked = options.metrics if options.metrics not in (None, "all") else ()
     for key, m in catalog.CATALOG.items():
         if options.metrics not in (None, "all") and key not in options.metrics:
             continue
         a, b = as_number(baseline.get(key)), as_number(record.get(key))
-        if m.direction == "info" or a is None or b is None:
+        if m.direction == "info":
             continue
-        fa, fb = as_number(old_floors.get(key)), as_number(floors.get(key))
-        if not all(v is not None and math.isfinite(v) for v in (a, b, fa, fb)):
-            skipped.append(key)
+        if a is None or b is None:
+            if key in asked:
+                side = "this run" if b is None else "the baseline"
+                why = f"no value in {side} (null: not scored, or nothing to score)"
+                verdict.add([_uncompared(key, why, a, b, options.strict)])
             continue
+        both = _floors(key, floors, old_floors)
+        if both is None or not all(math.isfinite(v) for v in (a, b)):
+            why = "a value or noise floor missing or not finite"
+            verdict.add([_uncompared(key, why, a, b, options.strict)])
+            continue
+        fa, fb = both
         tol = options.tolerances.get(key)
+        if tol is None and key in DETERMINISTIC_TOLERANCES:
+            tol = (DETERMINISTIC_TOLERANCES[key], False)
         t, rel = tol or (0.0, False)
         bad = catalog.regressed(key, b, fb, a, fa, tolerance=t, relative=rel)
         line = (
@@ -260,7 +307,4 @@ def compare_baseline(
         )
         check = Check(f"baseline {key}", key, not bad, line, "baseline", b, None, fb, a, fa)
         verdict.add([check])
-    if skipped:
-        why = "a value or noise floor missing or not finite"
-        verdict.add(notes=[f"baseline: not compared ({why}): {', '.join(skipped)}"])
     return verdict

@@ -5,7 +5,8 @@ failed check, its failed gates by name and its regressions counted (an intended 
 moves 20 metrics of one case is one row, not 20); then every failed check with the same name
 as the JUnit case and ``metrics.json``'s ``failed``, with this run's value, the limit or the
 baseline's value and both noise floors; then the scenes that could not be scored, the likely
-causes found (diagnoses), and a count of the passing checks.
+causes found (diagnoses), the metrics not compared with the baseline (named, by scene), and
+the passing checks, each with its scene.
 """
 
 from __future__ import annotations
@@ -70,10 +71,19 @@ def summary_markdown(verdicts, *, records=None, report=None) -> str:
         for d in (rec or {}).get("diagnoses") or []:
             scene = ((rec.get("reference") or {}).get("scene") or {}).get("name", "?")
             lines.append(f"- likely cause in **{_cell(scene)}**: {_cell(d['message'])}")
-    passed = [c for _, c in checks if c.passed]
+    uncompared = [(s, c) for s, c in checks if c.passed and not getattr(c, "compared", True)]
+    if uncompared:
+        lines += [
+            "",
+            f"**{len(uncompared)} metric(s) not compared with the baseline** "
+            "(`--baseline-strict` fails them):",
+            "",
+        ]
+        lines += [f"- **{_cell(s)}** {_cell(c.line)}" for s, c in uncompared]
+    passed = [(s, c) for s, c in checks if c.passed and getattr(c, "compared", True)]
     if passed:
         lines += ["", f"<details><summary>{len(passed)} passing checks</summary>", ""]
-        lines += [f"- {_cell(c.line)}" for c in passed]
+        lines += [f"- **{_cell(s)}** {_cell(c.line)}" for s, c in passed]
         lines += ["", "</details>"]
     if report is not None:
         lines += ["", f"Report: {_cell(report)}"]

@@ -133,6 +133,7 @@ def _discovered(root: Path, fo: FolderOptions, gates, log) -> list[FolderCase]:
             visibility=fo.get("visibility") or "1-is-lit",
             transfer=fo.get("transfer"),
             expect=fo.get("expect"),
+            family=fo.get("family"),
         )
         case = FolderCase(entry.name, entry.name, loaded, entry.pattern, channel, layout, options)
         cases.append(replace(case, gates=tuple(gates), error=error))
@@ -171,6 +172,7 @@ def _manifest(root: Path, path, fo: FolderOptions, gates, log) -> list[FolderCas
             visibility=mc.visibility,
             transfer=fo.pick("transfer", mc.transfer),
             expect=fo.pick("expect", mc.expect),
+            family=fo.pick("family", mc.family),
         )
         case = FolderCase(mc.name, mc.scene_key, loaded, pattern, mc.channel, None, options)
         case = replace(case, gates=tuple(gates) + mc.gates, baseline=mc.baseline)

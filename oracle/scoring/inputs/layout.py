@@ -116,7 +116,17 @@ def _rgb_layout(prefix: str, kind: str | None) -> CandidateLayout:
     return CandidateLayout(kind or "color", names, "channels " + ", ".join(names))
 
 
+#: Grey channel names (or layers) that hold depth, never a mask.
+DEPTH_NAMES = ("depth", "view_depth")
+
+
 def _grey_layout(name: str, kind: str | None) -> CandidateLayout:
+    if kind is None and any(p in DEPTH_NAMES for p in name.lower().split(".")):
+        raise CandidateError(
+            f"channel {name!r} holds depth, not a shadow mask or coverage: this score reads "
+            "visibility, color or coverage (linear view depth is scored by "
+            "metrics.depth.depth_metrics: relative error, the depth buffer's rounding named)"
+        )
     kind = _grey_kind(name, kind)
     if kind == "color":
         return CandidateLayout("color", (name,), f"channel {name!r} (grey, replicated)")

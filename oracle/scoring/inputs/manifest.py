@@ -25,9 +25,10 @@ gates, frames and camera path.
 
 Also at every level: ``transfer`` (``srgb``, ``gamma2.2``, ``linear``: how a PNG's colour
 is decoded), ``expect`` (``"shadow-map:resolution=2048,filter=pcf"``: the technique the
-engine claims, scored for conformance), ``baseline_metrics`` (a list, or ``"all"``) and
-``baseline_tolerance`` (``{ flip_mean = 0.005, ssim = "1%" }``: absolute, or relative to
-the baseline's error).
+engine claims, scored for conformance), ``family`` (``"rtshadows"``: the technique family
+the frames come from, whose record decides the passes), ``baseline_metrics`` (a list, or
+``"all"``) and ``baseline_tolerance`` (``{ flip_mean = 0.005, ssim = "1%" }``: absolute, or
+relative to the baseline's error).
 
 Every key is checked (an unknown key, a wrong type or an unknown metric is a
 :class:`ManifestError` naming it, before anything is scored). The manifest is untrusted
@@ -84,6 +85,7 @@ _COMMON = {
     "flip_mode",
     "transfer",
     "expect",
+    "family",
     "baseline_metrics",
     "baseline_tolerance",
 }
@@ -97,6 +99,7 @@ _CHANNEL_KEYS = {
     "visibility",
     "transfer",
     "expect",
+    "family",
     "baseline_metrics",
     "baseline_tolerance",
 }
@@ -123,6 +126,8 @@ class ManifestCase:
     gates: tuple[Gate, ...]
     transfer: str | None = None
     expect: str | None = None
+    #: the technique family the frames come from (``rtshadows``): its record decides the passes
+    family: str | None = None
     #: ``{"metrics": keys, "all" or None, "tolerances": metric -> (t, relative)}``
     baseline: dict | None = None
 
@@ -301,6 +306,7 @@ def _scene_cases(key: str, table, defaults: dict, ctx: dict) -> list[ManifestCas
                 gates=_merge(ctx["gates"], scene_gates, _gates(ctable, cwhere)),
                 transfer=_opt(cmerged, "transfer", _text, f"{cwhere}.transfer", TRANSFERS),
                 expect=_opt(cmerged, "expect", _text, f"{cwhere}.expect"),
+                family=_opt(cmerged, "family", _text, f"{cwhere}.family"),
                 baseline=_merge_baseline(
                     ctx["baseline"], _baseline(table, where), _baseline(ctable, cwhere)
                 ),

@@ -32,6 +32,7 @@ from ....scenes.base.records import jsonable
 from ...errors import one_line
 from ..output import write_study
 from .aa import ACAA_EQUAL, ACAA_HALF, AGAA_COMPARABLE, AGAA_SAVING, _acaa, _agaa, _coherent
+from .alpha import A2C_SHIFT, KEEP_BOX, KEEP_NVTT, LOSS_BEYOND_M, _a2c_shrink, _mips_loss
 from .base import NOT, PARTLY, REPRODUCED, ClaimContext, summary
 from .denoise import LAG_SCENE, _asvgf_lag
 from .shadow import (
@@ -239,6 +240,32 @@ CLAIMS: tuple[Claim, ...] = (
         "not: otherwise",
         _asvgf_lag,
         scenes=(LAG_SCENE,),
+    ),
+    Claim(
+        "alpha-box-mips-lose-foliage",
+        f"box-filtered mips lose more than {1 - KEEP_BOX:.0%} of the foliage beyond "
+        f"{LOSS_BEYOND_M:g} m; coverage-preserving mips keep it",
+        "issue 44 (alpha-tested foliage), after three.js issue 20522 and I. Castano, "
+        "Computing Alpha Mipmaps (NVTT's coverage-preserving scaling)",
+        ("alpha-test",),
+        f"reproduced: on alpha-foliage, the plain alpha test (4x MSAA) with box-filtered mips "
+        f"keeps under {KEEP_BOX:g} of the truth's coverage in every band beyond "
+        f"{LOSS_BEYOND_M:g} m and with NVTT's mips at least {KEEP_NVTT:g} in the first of them; "
+        "partly: box mips lose it and NVTT's keep more without reaching that; not: otherwise",
+        _mips_loss,
+        scenes=("alpha-foliage",),
+    ),
+    Claim(
+        "alpha-threejs-a2c-shrinks",
+        "three.js alpha-to-coverage shrinks silhouettes by about half a pixel",
+        "issue 44 (alpha-tested foliage), after three.js PR 22172 "
+        "(smoothstep(alphaTest, alphaTest + fwidth(a), a))",
+        ("alpha-threejs-a2c",),
+        f"reproduced: its mean silhouette shift against the cut-out truth lies in "
+        f"[{A2C_SHIFT[0]:g}, {A2C_SHIFT[1]:g}] px (inwards) on a leaf card at 3 px a texel, "
+        "4x MSAA; partly: inwards by another amount; not: not inwards",
+        _a2c_shrink,
+        scenes=("alpha-foliage",),
     ),
 )
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....scenes import backend
+from ....scenes.backend.alpha_hit import loaded_alpha, scene_hit
 from ....scenes.backend.kernels import evaluate_trace
 from ....scenes.backend.raycast import camera_rays_dr, shape_table
 from .. import pixel_dr as _pixel_dr
@@ -64,7 +65,10 @@ def launch_prepass(scene, table, ox, oy, base, count: int, n: int, tests: list, 
     cam = scene.camera
     idx = dr.arange(mi.UInt32, count * n)
     ray = _rays(scene, ox, oy, base, idx, n)
-    pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
+    if loaded_alpha(scene) is not None:  # glTF MASK: the alpha-tested closest hit
+        pi = scene_hit(scene, scene.mi_scene, ray, mi.RayFlags.Minimal)
+    else:
+        pi = scene.mi_scene.ray_intersect_preliminary(ray, coherent=True)
     valid = pi.is_valid()
     p_hit = ray.o + ray.d * pi.t
     depth = dr.select(valid, view_depth(cam, p_hit), 0.0)

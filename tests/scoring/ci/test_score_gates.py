@@ -467,11 +467,11 @@ def test_baseline_values_that_are_not_numbers_are_left_out():
     }
     old = dict(mine, visibility_mae=0.04, ssim={"bad": 1}, flip_mean="nan")
     verdict = compare_baseline(mine, old)
-    assert [c.name for c in verdict.checks] == ["baseline visibility_mae"]
+    assert [c.name for c in verdict.checks] == ["baseline visibility_mae", "baseline flip_mean"]
     assert verdict.failed == ["baseline visibility_mae"]  # 0.05 - 0.04 > 0.001 + 0.001
-    assert verdict.notes == [
-        "baseline: not compared (a value or noise floor missing or not finite): flip_mean"
-    ]
+    # a metric that cannot be compared is a named check (issue 43 item 1), not a note
+    (uncompared,) = [c for c in verdict.checks if not c.compared]
+    assert uncompared.passed and uncompared.line.startswith("NOT COMPARED baseline flip_mean")
 
 
 def test_markdown_summary_first_screen_groups_regressions_by_case():
