@@ -290,3 +290,38 @@ def test_every_preset_runs_a_rotating_object_sequence(preset):
         assert vel < 1e-6
     else:
         assert vel > 0.5  # the pinwheel turns: the model's velocity buffer is not zero
+
+
+def test_the_steady_yardstick_is_kept_for_the_next_case_on_the_same_references(
+    tmp_path, monkeypatch
+):
+    """8x SSAA's error over the judged frames depends on the frames' references alone: a
+    worker's memo (``floor_cache``) keeps it, the second preset runs no SSAA, and the record
+    equals the one scored without a memo."""
+    from raster_oracle.oracle.reference.cache import ReferenceCache
+    from raster_oracle.oracle.scoring.passes import steady
+
+    s = scenes.load("slide", width=48, height=27)
+    cache = ReferenceCache(tmp_path / "cache")
+    options = ScoreOptions(spp=4, seed=0, frames=4, gate_frames=2, camera_path=None)
+    runs = []
+    real = steady.raster_models.run
+
+    def counted(technique, scene, **params):
+        if technique == "ssaa":  # the yardstick (the TAA model runs through here too)
+            runs.append(technique)
+        return real(technique, scene, **params)
+
+    monkeypatch.setattr(steady.raster_models, "run", counted)
+    memo, rec = {}, {}
+    for preset in ("hdrp", "ue4"):
+        req = ScoreRequest.for_model(
+            s, "taa", {"preset": preset}, options=options, cache=cache, floor_cache=memo
+        )
+        rec[preset] = score_model(req).record["temporal_aa"]
+    assert runs == ["ssaa", "ssaa"]  # the two judged frames, once
+    fresh = ScoreRequest.for_model(s, "taa", {"preset": "ue4"}, options=options, cache=cache)
+    alone = score_model(fresh).record["temporal_aa"]
+    assert runs == ["ssaa"] * 4
+    assert rec["ue4"]["ssaa8_error"] == alone["ssaa8_error"] == rec["hdrp"]["ssaa8_error"] > 0
+    assert rec["ue4"]["steady_over_ssaa8"] == alone["steady_over_ssaa8"]

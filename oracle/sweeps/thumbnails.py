@@ -3,6 +3,9 @@ report (the case table's thumbnails, the summary cases' pixel viewers)."""
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
+
 import numpy as np
 
 from ... import metrics as M
@@ -10,7 +13,7 @@ from ...reports import images
 from ...reports.viewer import viewer_record
 from ..reference.exr import ExrError, read_exr
 
-__all__ = ["THUMBNAIL_SIZE", "case_images", "case_viewer"]
+__all__ = ["KEPT_REFERENCES", "THUMBNAIL_SIZE", "case_images", "case_viewer"]
 
 #: Longer side of the thumbnails kept per case, in pixels (the image is reduced by the
 #: smallest integer factor that fits). The pixel viewer's arrays have the same resolution.
@@ -25,13 +28,38 @@ _ERROR_MAPS = {
 }
 
 
+#: Reference-side thumbnail parts a process keeps (the cases of a sweep judged against one
+#: reference share them): the last ``KEPT_REFERENCES``.
+KEPT_REFERENCES = 32
+
+_KEPT: OrderedDict = OrderedDict()
+
+
+def _kept(key, make):
+    """``make()``, kept under ``key`` for the next case (keys name everything it reads)."""
+    if key in _KEPT:
+        _KEPT.move_to_end(key)
+        return _KEPT[key]
+    value = _KEPT[key] = make()
+    while len(_KEPT) > KEPT_REFERENCES:
+        _KEPT.popitem(last=False)
+    return value
+
+
 def _stderr(result, channel: str, shape: tuple[int, ...]) -> np.ndarray | None:
     """The first frame's reference stderr (read back from its EXR), or None when the EXR or
-    the channel is missing (the viewer then shows no stderr; nothing else depends on it)."""
+    the channel is missing (the viewer then shows no stderr; nothing else depends on it).
+    Kept by reference folder (content-addressed: its EXR never changes) and channel."""
     if not result.reference_folders:
         return None
+    folder = result.reference_folders[0]
+    key = ("stderr", str(folder), channel, shape)
+    return _kept(key, lambda: _read_stderr(folder, channel, shape))
+
+
+def _read_stderr(folder, channel: str, shape: tuple[int, ...]) -> np.ndarray | None:
     try:
-        ch = read_exr(result.reference_folders[0] / "reference.exr")
+        ch = read_exr(folder / "reference.exr")
     except ExrError:
         return None
     if len(shape) == 3:
@@ -39,7 +67,10 @@ def _stderr(result, channel: str, shape: tuple[int, ...]) -> np.ndarray | None:
         se = np.stack([ch[n] for n in names], -1) if all(n in ch for n in names) else None
     else:
         se = ch.get(f"{channel}_stderr")
-    return se if se is not None and se.shape == shape else None
+    if se is None or se.shape != shape:
+        return None
+    se.setflags(write=False)  # kept for the next case: nobody writes into it
+    return se
 
 
 def case_viewer(result, *, max_size: int = THUMBNAIL_SIZE) -> dict | None:
@@ -77,6 +108,16 @@ def case_viewer(result, *, max_size: int = THUMBNAIL_SIZE) -> dict | None:
     )
 
 
+def _thumbnail(image: np.ndarray, factor: int, exposure: float) -> str:
+    """One thumbnail: visibility as grey PNG, colour through the shared tone mapper."""
+    if image.ndim == 2:
+        return images.encode_visibility(
+            images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
+        )
+    shown = M.tonemap(image, exposure=exposure)
+    return images.encode_color(images.reduce_image(shown, factor, srgb=True))
+
+
 def case_images(result) -> dict:
     """Thumbnails of a score result as data URIs: ``reference``, ``candidate``, ``error``
     (visibility as grey PNG, colour through the shared tone mapper as WebP/JPEG, the primary
@@ -86,16 +127,12 @@ def case_images(result) -> dict:
     frame = result.frames[0]
     channel = result.record["channel"]
     factor = images.downscale_factor(frame.reference.shape, max_size=THUMBNAIL_SIZE)
-    out = {}
-    for name, image in (("reference", frame.reference), ("candidate", frame.candidate)):
-        if image.ndim == 2:
-            out[name] = images.encode_visibility(
-                images.reduce_image(np.clip(image, 0.0, 1.0), factor, srgb=False)
-            )
-        else:
-            exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
-            shown = M.tonemap(image, exposure=exposure)
-            out[name] = images.encode_color(images.reduce_image(shown, factor, srgb=True))
+    exposure = (result.record.get("tone_mapping") or {}).get("exposure_stops") or 0.0
+    ref = np.ascontiguousarray(frame.reference)
+    digest = hashlib.blake2b(ref.data, digest_size=20).digest()
+    key = ("thumbnail", digest, ref.shape, ref.dtype.str, factor, exposure)
+    out = {"reference": _kept(key, lambda: _thumbnail(ref, factor, exposure))}
+    out["candidate"] = _thumbnail(frame.candidate, factor, exposure)
     key, style, value_range = _ERROR_MAPS[channel]
     if key in frame.maps:
         data = images.reduce_error(np.nan_to_num(frame.maps[key]), factor)

@@ -27,6 +27,29 @@ def applies(request) -> bool:
     )
 
 
+def _frame_error(ctx, k: int, technique: str, params: dict) -> float:
+    """The yardstick's mean absolute error on frame ``k`` against that frame's reference.
+
+    It depends on the frame's scene and reference alone, both named by the reference's
+    content-addressed folder, so a worker keeps it (``floor_cache``) for every case of a
+    sequence judged against the same references (the TAA presets of the main job)."""
+    request = ctx.request
+    memo = request.floor_cache
+    folders = ctx.result.reference_folders
+    key = None
+    if memo is not None and k < len(folders) and folders[k] is not None:
+        key = ("steady yardstick", str(folders[k]), request.channel, technique)
+        key += (tuple(sorted(params.items())),)
+        if key in memo:
+            return memo[key]
+    out = raster_models.run(technique, request.frame_scenes[k], **params).outputs
+    channel = np.asarray(out[request.channel])
+    error = float(np.abs(channel - ctx.result.frames[k].reference).mean())
+    if key is not None:
+        memo[key] = error
+    return error
+
+
 def run(ctx) -> None:
     request = ctx.request
     detail = ctx.sections.get("temporal_aa")
@@ -36,11 +59,7 @@ def run(ctx) -> None:
     technique, params = YARDSTICKS[name]
     frames = request.options.frames
     n = int(request.options.gate_frames or frames)
-    errors = []
-    for k in range(frames - n, frames):
-        out = raster_models.run(technique, request.frame_scenes[k], **params).outputs
-        channel = np.asarray(out[request.channel])
-        errors.append(float(np.abs(channel - ctx.result.frames[k].reference).mean()))
+    errors = [_frame_error(ctx, k, technique, params) for k in range(frames - n, frames)]
     error = float(np.mean(errors))
     detail[f"{name}_error"] = error
     steady = ctx.summary.get("steady_error")
