@@ -41,6 +41,8 @@ MAP_STYLES = {
     "flicker": ("magma", (0.0, 0.1)),
     "conformance_error": ("signed", (-1.0, 1.0)),
     "motion_epe": ("magma", (0.0, 2.0)),
+    # linear view depth (oracle.scoring.channels): relative error, 5 % at full scale
+    "depth_rel_error": ("magma", (0.0, 0.05)),
 }
 
 
@@ -79,7 +81,10 @@ def _viewer(result: ScoreResult, maps: dict) -> dict:
     frames = []
     for k, frame in enumerate(result.frames):
         ch = read_exr(result.reference_folders[k] / "reference.exr")
-        se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1) if color else ch[stderr_key]
+        if color:
+            se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1)
+        else:  # a depth has none: the view depth at the pixel centre is exact
+            se = ch[stderr_key] if stderr_key in ch else np.zeros_like(frame.reference)
         frames.append(
             {
                 "label": f"frame {k + 1}",
