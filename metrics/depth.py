@@ -104,8 +104,12 @@ def depth_metrics(
     if any(given) and not all(given):
         raise MetricError("near, far and bits describe one depth buffer: give all three or none")
     r, c = ref[mask], cand[mask]
-    if np.any(~np.isfinite(c)) or np.any(c <= 0):
-        raise MetricError("candidate depth must be finite and > 0 on valid pixels")
+    bad = ~np.isfinite(c) | (c <= 0)
+    if np.any(bad):
+        raise MetricError(
+            f"candidate depth must be finite and > 0 where the reference sees a surface: "
+            f"{int(bad.sum())} of {c.size} such pixels are not (min {float(np.min(c)):g})"
+        )
     if np.any(~np.isfinite(r)) or np.any(r <= 0):
         raise MetricError("reference depth must be finite and > 0 on valid pixels")
     rel = np.abs(c - r) / r

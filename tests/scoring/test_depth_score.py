@@ -111,3 +111,14 @@ def test_a_depth_gate_over_no_seen_pixel_does_not_pass():
     gates = parse_gates(fail_above=["depth_rel_error_mean=0.01"])
     with pytest.raises(GateError, match="support: 0"):
         evaluate_gates(gates, record)
+
+
+def test_a_depth_missing_where_the_reference_sees_a_surface_is_one_line(plate, tmp_path, capsys):
+    root, depth = plate
+    holed = depth.copy()
+    holed[3, 4], holed[5, 5] = 0.0, -1.0
+    rc, _ = _score(root, tmp_path, {"depth": holed})
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and not (tmp_path / "out").exists()
+    seen = int((depth > 0).sum())
+    assert len(err) == 1 and f"2 of {seen} such pixels are not (min -1)" in err[0]
