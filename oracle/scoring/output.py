@@ -53,7 +53,11 @@ def _png_bytes(image) -> bytes:
 
 
 def _display(result: ScoreResult, image: np.ndarray) -> np.ndarray:
-    """What the report shows: visibility as is, colour through the shared tone mapper."""
+    """What the report shows: visibility as is, colour through the shared tone mapper, a
+    view depth over the reference's farthest (sky 0, the farthest surface 1)."""
+    if result.record["channel"] == "depth":
+        top = float(np.max(result.frames[0].reference))
+        return np.clip(image / top, 0.0, 1.0) if top > 0 else np.zeros_like(image)
     if image.ndim == 2:
         return np.clip(image, 0.0, 1.0)
     tm = result.record.get("tone_mapping") or {}

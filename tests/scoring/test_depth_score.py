@@ -69,6 +69,9 @@ def test_scaled_depth_scores_its_relative_error_and_fails_the_gate(plate, tmp_pa
     assert rc == 1
     assert abs(rec["depth_rel_error_mean"] - 0.01) < 1e-6
     assert abs(rec["depth_rel_error_max"] - 0.01) < 1e-6
+    # the error map is drawn and the report written
+    assert (tmp_path / "out" / "depth_rel_error.png").is_file()
+    assert (tmp_path / "out" / "report.html").is_file()
 
 
 def test_depth_buffer_names_the_near_plane_precision_case(plate, tmp_path):
