@@ -125,3 +125,23 @@ def test_a_depth_missing_where_the_reference_sees_a_surface_is_one_line(plate, t
     assert rc == 2 and not (tmp_path / "out").exists()
     seen = int((depth > 0).sum())
     assert len(err) == 1 and f"2 of {seen} such pixels are not (min -1)" in err[0]
+
+
+def test_a_view_of_the_sky_alone_exits_2_on_a_depth_gate(plate, tmp_path, capsys):
+    """The camera turned away from the plate: the reference sees no surface, any depth is
+    free there, and a gate over no pixel is exit 2, not a pass."""
+    from raster_oracle import scenes
+
+    root, depth = plate
+    cam = scenes.load("plate", width=48, height=27).camera
+    away = np.asarray(cam.to_world, dtype=float).copy()
+    away[:3, 0] *= -1.0
+    away[:3, 2] *= -1.0
+    path = tmp_path / "away.json"
+    path.write_text(json.dumps({"frames": [{"to_world": away.tolist(), "fov_x_deg": cam.fov_x}]}))
+    extra = ["--camera-file", str(path), "--fail-above", "depth_rel_error_mean=0.01"]
+    rc, _ = _score(root, tmp_path, {"depth": np.zeros_like(depth)}, *extra)
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert "depth_rel_error_mean is computed over the pixels where the reference sees" in err
+    assert "support: 0" in err
