@@ -11,8 +11,8 @@ once, with
     What the number counts (``"fraction of receivers"``, ``"dB"``, ...).
 ``kinds``
     The candidate kinds it applies to: ``"visibility"`` (a shadow mask), ``"color"`` (linear
-    radiance), ``"coverage"`` (an anti-aliasing coverage mask). On other kinds the scorer
-    writes ``null``.
+    radiance), ``"coverage"`` (an anti-aliasing coverage mask), ``"depth"`` (linear view
+    depth, :mod:`metrics.depth`). On other kinds the scorer writes ``null``.
 ``min_frames``
     Frames a run must score for the metric to exist (the temporal metrics compare
     consecutive frames: 2).
@@ -41,6 +41,7 @@ from dataclasses import dataclass
 __all__ = [
     "CATALOG",
     "DIRECTIONS",
+    "IMAGE_KINDS",
     "RECORD_KEYS",
     "KINDS",
     "Metric",
@@ -51,13 +52,18 @@ __all__ = [
 ]
 
 #: Candidate kinds a metric can apply to.
-KINDS = ("visibility", "color", "coverage")
+KINDS = ("visibility", "color", "coverage", "depth")
 #: Valid ``Metric.direction`` values.
 DIRECTIONS = ("lower", "higher", "zero", "info")
 
-_ALL = KINDS
+#: The kinds that are images: the display metrics, the edge split, the Z-test and the
+#: diagnoses of a shifted or re-encoded image apply to them; a depth is scored by its
+#: relative error alone.
+IMAGE_KINDS = ("visibility", "color", "coverage")
+_ALL = IMAGE_KINDS
 _VIS = ("visibility",)
 _COV = ("coverage",)
+_DEPTH = ("depth",)
 
 
 @dataclass(frozen=True)
@@ -317,6 +323,23 @@ _ENTRIES = (
         "ratio",
         _COV,
         "edge RMS over the N-sample straight-edge floor (1 = as good as the pattern allows)",
+    ),
+    _m(
+        "depth_rel_error_mean",
+        "lower",
+        "relative error",
+        _DEPTH,
+        "mean |candidate - reference| / reference view depth where the reference sees a surface",
+    ),
+    _m("depth_rel_error_p99", "lower", "relative error", _DEPTH, "99th percentile of it"),
+    _m("depth_rel_error_max", "lower", "relative error", _DEPTH, "largest relative error"),
+    _m("depth_pixels", "info", "pixels", _DEPTH, "pixels scored: the reference sees a surface"),
+    _m(
+        "depth_beyond_precision_fraction",
+        "lower",
+        "fraction of depth pixels",
+        _DEPTH,
+        "pixels whose error exceeds the named depth buffer's rounding (--depth-buffer)",
     ),
 )
 

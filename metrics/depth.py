@@ -25,7 +25,7 @@ import numpy as np
 
 from .validate import MetricError
 
-__all__ = ["DEPTH_KEYS", "depth_metrics", "hyperbolic_rounding"]
+__all__ = ["DEPTH_KEYS", "depth_metrics", "float32_linearization_limit", "hyperbolic_rounding"]
 
 #: The keys :func:`depth_metrics` returns.
 DEPTH_KEYS = (
@@ -54,6 +54,17 @@ def hyperbolic_rounding(z, *, near: float, far: float, bits: int) -> np.ndarray:
     return np.abs(near * far / denom - z) / z
 
 
+def float32_linearization_limit(z, *, near: float, far: float, bits: int) -> np.ndarray:
+    """Largest relative error of linear depth ``z`` read from a ``bits``-bit hyperbolic
+    buffer and linearized in float32, as a shader does: the buffer's rounding
+    (:func:`hyperbolic_rounding`) plus three half-ulps of float32 at the scale of a 24-bit
+    quantum (``d`` held in float32, ``d (far - near)`` rounded, then subtracted from ``far``:
+    each about half a 24-bit quantum of ``d``), plus ``2^-23`` for the division. A 32-bit
+    buffer is no finer than float32 maths: the float32 terms dominate it."""
+    own = hyperbolic_rounding(z, near=near, far=far, bits=bits)
+    return own + 3.0 * hyperbolic_rounding(z, near=near, far=far, bits=24) + 2.0**-23
+
+
 def depth_metrics(
     reference,
     candidate,
@@ -71,8 +82,8 @@ def depth_metrics(
     reference, candidate : ``(H, W)`` linear view depth, scene units (> 0 on valid pixels).
     valid : ``(H, W)`` bool: the pixels scored (the reference sees a surface there).
     near, far, bits : the candidate's depth buffer (all three or none): adds the fraction
-        of valid pixels whose error exceeds that buffer's rounding
-        (:func:`hyperbolic_rounding`, times 2 for the candidate's own float32 maths).
+        of valid pixels whose error exceeds that buffer's rounding and the candidate's own
+        float32 linearization (:func:`float32_linearization_limit`).
     full : also return ``"map"``, the ``(H, W)`` relative error (0 off ``valid``).
 
     Returns
@@ -93,8 +104,12 @@ def depth_metrics(
     if any(given) and not all(given):
         raise MetricError("near, far and bits describe one depth buffer: give all three or none")
     r, c = ref[mask], cand[mask]
-    if np.any(~np.isfinite(c)) or np.any(c <= 0):
-        raise MetricError("candidate depth must be finite and > 0 on valid pixels")
+    bad = ~np.isfinite(c) | (c <= 0)
+    if np.any(bad):
+        raise MetricError(
+            f"candidate depth must be finite and > 0 where the reference sees a surface: "
+            f"{int(bad.sum())} of {c.size} such pixels are not (min {float(np.min(c)):g})"
+        )
     if np.any(~np.isfinite(r)) or np.any(r <= 0):
         raise MetricError("reference depth must be finite and > 0 on valid pixels")
     rel = np.abs(c - r) / r
@@ -105,8 +120,8 @@ def depth_metrics(
         out["depth_rel_error_p99"] = float(np.percentile(rel, 99))
         out["depth_rel_error_max"] = float(rel.max())
         if all(given):
-            limit = 2.0 * hyperbolic_rounding(r, near=near, far=far, bits=bits)
-            out["depth_beyond_precision_fraction"] = float(np.mean(rel > limit + 2.0**-23))
+            limit = float32_linearization_limit(r, near=near, far=far, bits=bits)
+            out["depth_beyond_precision_fraction"] = float(np.mean(rel > limit))
     if full:
         error = np.zeros(ref.shape)
         error[mask] = rel

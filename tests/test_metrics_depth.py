@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from raster_oracle.metrics.depth import depth_metrics, hyperbolic_rounding
+from raster_oracle.metrics.depth import (
+    depth_metrics,
+    float32_linearization_limit,
+    hyperbolic_rounding,
+)
 from raster_oracle.metrics.validate import MetricError
 
 NEAR, FAR = 0.01, 1000.0
@@ -54,3 +58,22 @@ def test_empty_support_and_bad_input():
         depth_metrics(z, -z, valid=z > 0)
     with pytest.raises(MetricError, match="near < far"):
         hyperbolic_rounding(z, near=2.0, far=1.0, bits=24)
+
+
+@pytest.mark.parametrize(
+    "near, far, bits", [(0.01, 1000.0, 24), (0.1, 100.0, 24), (0.1, 1000.0, 16), (0.1, 100.0, 32)]
+)
+def test_a_float32_linearization_stays_within_the_limit(near, far, bits):
+    """An engine linearizes its buffer in float32, which at 24 and 32 bits loses about as
+    much as the buffer's own rounding: that too is precision, not error."""
+    z = np.geomspace(near * 1.001, far * 0.999, 200_000)
+    d = far * (z - near) / (z * (far - near))
+    stored = (np.round(d * (2.0**bits - 1)) / (2.0**bits - 1)).astype(np.float32)
+    lin = np.float32(near * far) / (np.float32(far) - stored * np.float32(far - near))
+    rel = np.abs(lin.astype(np.float64) - z) / z
+    assert np.all(rel <= float32_linearization_limit(z, near=near, far=far, bits=bits))
+    valid = np.ones((1, z.size), bool)
+    got = depth_metrics(z[None], lin[None], valid=valid, near=near, far=far, bits=bits)
+    assert got["depth_beyond_precision_fraction"] == 0.0
+    wrong = depth_metrics(z[None], lin[None] * 1.01, valid=valid, near=near, far=far, bits=bits)
+    assert wrong["depth_beyond_precision_fraction"] > 0.8

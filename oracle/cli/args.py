@@ -36,6 +36,7 @@ __all__ = [
     "nonneg_int",
     "path",
     "positive_float",
+    "depth_buffer",
     "positive_int",
     "reference_cache",
     "spp",
@@ -128,6 +129,20 @@ def frames(text: str) -> int:
     if value > MAX_FRAMES:
         raise argparse.ArgumentTypeError(f"must be <= {MAX_FRAMES}, got {value}")
     return value
+
+
+def depth_buffer(text: str) -> tuple[float, float, int]:
+    """An argparse type: ``NEAR,FAR,BITS``, an engine's hyperbolic depth buffer
+    (``0 < NEAR < FAR``, ``BITS`` 16, 24 or 32)."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"must be NEAR,FAR,BITS (e.g. 0.1,1000,24), got {text!r}")
+    near, far, bits = positive_float(parts[0]), positive_float(parts[1]), positive_int(parts[2])
+    if not near < far:
+        raise argparse.ArgumentTypeError(f"needs NEAR < FAR, got near {near:g}, far {far:g}")
+    if bits not in (16, 24, 32):
+        raise argparse.ArgumentTypeError(f"BITS must be 16, 24 or 32, got {bits}")
+    return near, far, bits
 
 
 def path(text: str) -> Path:

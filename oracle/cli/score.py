@@ -40,13 +40,22 @@ def add_parsers(sub) -> None:
     p.add_argument(
         "--channel",
         default=None,
-        help="what to score: visibility, color or coverage, or for an engine's EXR a channel "
+        help="what to score: visibility, color, coverage or depth (an EXR's linear view depth: "
+        "channel depth, Z, depth.Z or depth.Y), or for an engine's EXR a channel "
         "(msaa.coverage) or layer (shadow); default: a technique's primary channel, or the "
         "candidate file's only image (a grey one is visibility, RGB is color)",
     )
     p.add_argument(
+        "--depth-buffer",
+        type=A.depth_buffer,
+        default=None,
+        metavar="NEAR,FAR,BITS",
+        help="a depth candidate's hyperbolic depth buffer (e.g. 0.01,1000,24): adds "
+        "depth_beyond_precision_fraction, the pixels whose error exceeds its rounding",
+    )
+    p.add_argument(
         "--kind",
-        choices=["visibility", "color", "coverage"],
+        choices=["visibility", "color", "coverage", "depth"],
         default=None,
         help="what a --channel layer or channel holds (default: from its name and contents)",
     )
@@ -210,6 +219,7 @@ def cmd_score(args) -> int:
         transfer=args.transfer,
         expect=args.expect,
         coverage_truth=args.coverage_truth,
+        depth_buffer=args.depth_buffer,
         family=args.family,
         exact_budget=A.exact_budget(args),
         motion=None

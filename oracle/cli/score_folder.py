@@ -52,7 +52,7 @@ def add_parser(sub) -> None:
         "(default: built-in scenes)",
     )
     p.add_argument("--channel", default=None, help="as for `score` (default: inferred)")
-    p.add_argument("--kind", choices=["visibility", "color", "coverage"], default=None)
+    p.add_argument("--kind", choices=["visibility", "color", "coverage", "depth"], default=None)
     p.add_argument(
         "--manifest",
         type=A.path,

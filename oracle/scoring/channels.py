@@ -11,6 +11,11 @@
 - ``color`` (an engine's linear radiance): FLIP (LDR after the shared tone mapper, or HDR with
   the exposure bracket of the reference), SSIM, PSNR, CIEDE2000, edge/interior split and the
   Z-test. Reference channels: color, edge, id.
+- ``depth`` (an engine's linear view depth): relative error against the reference's view
+  depth at the pixel centre, over the pixels where the reference sees a surface (not sky;
+  ``depth_pixels`` counts them), and with the engine's depth buffer named (``depth_buffer``:
+  near, far, bits) the fraction beyond that buffer's rounding (:mod:`metrics.depth`).
+  Reference channels: depth, edge, id.
 - ``coverage`` / ``front_coverage``: coverage error against the N-sample straight-edge floor
   (:func:`metrics.aliasing.coverage_metrics`), against the exact coverage where valid.
 
@@ -24,7 +29,8 @@ import numpy as np
 
 from ... import metrics as M
 from ...metrics.aliasing import coverage_metrics
-from ...metrics.catalog import RECORD_KEYS
+from ...metrics.catalog import IMAGE_KINDS, RECORD_KEYS
+from ...metrics.depth import depth_metrics
 from ...scenes.shading.phong import receiver_mask
 
 __all__ = [
@@ -62,6 +68,7 @@ REFERENCE_GROUPS = {
     # the coverage of each pixel's front-most primitive (oracle.reference.coverage): what the
     # anti-aliasing models are scored on, so that backdrop scenes have coverage edges too
     "front_coverage": ("coverage", "coverage_exact", "edge", "id"),
+    "depth": ("depth", "edge", "id"),
 }
 #: Channels of sample counts (binary samples: binomial noise floor).
 COVERAGE_CHANNELS = ("coverage", "front_coverage")
@@ -197,6 +204,20 @@ def _color_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
     return ref, rgb(ref_ch, "color_stderr"), None, edge, fl
 
 
+def _depth_metrics(ref_ch, cand, *, channel, edge, full, kw, out, maps):
+    """Linear view depth: relative error where the reference sees a surface (its ``id`` >= 0
+    and depth > 0: sky is 0), the named depth buffer's rounding reported beside it."""
+    ref = np.asarray(ref_ch["depth"], dtype=np.float32)
+    seen = (ref_ch["id"] >= 0) & (ref > 0)
+    near, far, bits = kw.get("depth_buffer") or (None, None, None)
+    dm = depth_metrics(ref, cand, valid=seen, near=near, far=far, bits=bits, full=full)
+    if full:
+        maps["depth_rel_error"] = dm.pop("map")
+    out.update(dm)
+    # the reference depth is exact at the pixel centre: no noise, no display metrics
+    return ref, np.zeros_like(ref), None, edge, None
+
+
 #: Scored channel -> (its catalogue kind, the function computing its own metrics).
 CHANNEL_METRICS = {
     "visibility": ("visibility", _visibility_metrics),
@@ -205,6 +226,7 @@ CHANNEL_METRICS = {
     "coverage": ("coverage", _coverage_channel_metrics),
     "front_coverage": ("coverage", _coverage_channel_metrics),
     "color": ("color", _color_metrics),
+    "depth": ("depth", _depth_metrics),
 }
 
 
@@ -244,6 +266,7 @@ def metrics_for(
     samples,
     aa_samples=None,
     coverage_only: bool = False,
+    depth_buffer=None,
 ):
     """Metric values (and, with ``full``, error maps) of one candidate frame: the channel's
     own metrics (:data:`CHANNEL_METRICS`), then those every kind shares; a metric the
@@ -251,7 +274,8 @@ def metrics_for(
 
     ``coverage_only`` (a coverage channel scored beside colour, which keeps only its
     :data:`COVERAGE_KEYS`): FLIP, SSIM and PSNR of the coverage image are not computed
-    (None), FLIP being the most expensive metric of a case."""
+    (None), FLIP being the most expensive metric of a case. ``depth_buffer``: a depth
+    candidate's ``(near, far, bits)`` hyperbolic buffer (None: not named)."""
     out = dict.fromkeys(METRIC_KEYS)
     maps = {}
     kind, own = CHANNEL_METRICS[channel]
@@ -263,6 +287,7 @@ def metrics_for(
         ppd=ppd,
         aa_samples=aa_samples,
         coverage_only=coverage_only,
+        depth_buffer=depth_buffer,
     )
     edge = ref_ch["edge"] > 0.5
     if on_receivers(channel):
@@ -276,8 +301,9 @@ def metrics_for(
         out["flip_mean"], maps["flip"] = fl[0], fl[1]
     else:
         out["flip_mean"] = fl
-    if coverage_only:
-        # beside colour, only the coverage metrics are kept: no edge split, no Z-test
+    if coverage_only or kind not in IMAGE_KINDS:
+        # beside colour, only the coverage metrics are kept; a depth has no noise to test
+        # and no display: no edge split, no Z-test
         keep = {k: finite(v) if k in METRIC_KEYS else v for k, v in out.items()}
         return keep, maps, ref, rec
     ei = M.edge_interior_error(ref, cand, edge_mask=edge)

@@ -52,6 +52,9 @@ class ScoreOptions:
         (the fraction covered by the surface seen at the pixel, an MSAA coverage mask of
         the front-most primitive: ``front_coverage``; a ground plane behind a shape makes
         ``any`` 1 on every pixel, so an all-ones mask would score perfectly against it).
+    depth_buffer : a depth candidate's hyperbolic depth buffer, ``(near, far, bits)``
+        (``--depth-buffer``): adds ``depth_beyond_precision_fraction``, the pixels whose
+        error exceeds that buffer's rounding (None: not named, that metric is null).
     family : the technique family (``raster_models.FAMILIES``) an engine's files come from
         (candidates only; None: none): its record decides the passes as for a model's.
     exact_budget : the references' exact-coverage budget
@@ -74,6 +77,7 @@ class ScoreOptions:
     family: str | None = None
     exact_budget: object = None  # an oracle.reference.settings.ExactBudget, seconds or None
     coverage_truth: str = "any"
+    depth_buffer: tuple | None = None
 
     def validate(self) -> ScoreOptions:
         """The options checked (a :class:`ScoreError` naming a bad one), with ``frames`` of

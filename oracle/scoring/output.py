@@ -41,6 +41,8 @@ MAP_STYLES = {
     "flicker": ("magma", (0.0, 0.1)),
     "conformance_error": ("signed", (-1.0, 1.0)),
     "motion_epe": ("magma", (0.0, 2.0)),
+    # linear view depth (oracle.scoring.channels): relative error, 5 % at full scale
+    "depth_rel_error": ("magma", (0.0, 0.05)),
 }
 
 
@@ -51,7 +53,11 @@ def _png_bytes(image) -> bytes:
 
 
 def _display(result: ScoreResult, image: np.ndarray) -> np.ndarray:
-    """What the report shows: visibility as is, colour through the shared tone mapper."""
+    """What the report shows: visibility as is, colour through the shared tone mapper, a
+    view depth over the reference's farthest (sky 0, the farthest surface 1)."""
+    if result.record["channel"] == "depth":
+        top = float(np.max(result.frames[0].reference))
+        return np.clip(image / top, 0.0, 1.0) if top > 0 else np.zeros_like(image)
     if image.ndim == 2:
         return np.clip(image, 0.0, 1.0)
     tm = result.record.get("tone_mapping") or {}
@@ -79,7 +85,10 @@ def _viewer(result: ScoreResult, maps: dict) -> dict:
     frames = []
     for k, frame in enumerate(result.frames):
         ch = read_exr(result.reference_folders[k] / "reference.exr")
-        se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1) if color else ch[stderr_key]
+        if color:
+            se = np.stack([ch[f"color_stderr.{c}"] for c in "RGB"], -1)
+        else:  # a depth has none: the view depth at the pixel centre is exact
+            se = ch[stderr_key] if stderr_key in ch else np.zeros_like(frame.reference)
         frames.append(
             {
                 "label": f"frame {k + 1}",

@@ -296,6 +296,10 @@ class ScoreRequest:
             raise ScoreError(
                 f"channel must be one of {', '.join(REFERENCE_GROUPS)}, got {self.channel!r}"
             )
+        if o.depth_buffer is not None and self.kind != "depth":
+            raise ScoreError(
+                f"--depth-buffer applies to a depth candidate; this one is {self.kind}"
+            )
         flip_mode = str(o.flip_mode).upper()
         if flip_mode not in ("LDR", "HDR"):
             raise ScoreError(f"flip mode must be LDR or HDR, got {o.flip_mode!r}")

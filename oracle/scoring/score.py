@@ -75,6 +75,7 @@ def _frame_keywords(ctx: ScoreContext, frame_scene, ref_ch) -> dict:
         samples=o.spp,
         aa_samples=request.aa_samples,
         coverage_only=request.coverage_only and request.channel in COVERAGE_CHANNELS,
+        depth_buffer=o.depth_buffer,
     )
 
 

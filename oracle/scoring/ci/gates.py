@@ -120,12 +120,16 @@ def check_applicable(gates, *, kinds=None, frames: int = 1, temporal: bool = Fal
 
 #: The set a shadow mask's metric is computed over: (the record's counter, its name).
 _RECEIVERS = ("receiver_count", "receivers")
+_DEPTH_SEEN = ("depth_pixels", "pixels where the reference sees a surface (not sky)")
 _EDGE_BAND = ("edge_band_count", "edge-band receivers (within 2 px of a shadow edge)")
 
 
 def _support_set(record: dict, key: str) -> tuple[str, str] | None:
     """``(counter, name)`` of the pixels ``key`` is computed over in ``record``, or None
-    where the metric's support is not counted (colour, coverage: every pixel)."""
+    where the metric's support is not counted (colour, coverage: every pixel; a depth's is
+    the pixels the reference sees a surface at)."""
+    if record.get("channel") == "depth":
+        return _DEPTH_SEEN if key.startswith("depth_") else None
     if record.get("channel") not in ("visibility", "soft_visibility", "light_fraction"):
         return None
     if key.startswith("edge_band_"):

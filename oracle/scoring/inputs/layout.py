@@ -2,25 +2,27 @@
 
 An engine writes one EXR with several layers (``color.R/G/B``, ``shadow.Y``,
 ``msaa.coverage``) or a PNG. :func:`candidate_layout` decides, once per file, what is read and
-what *kind* of image it is (``visibility``, ``color`` or ``coverage``: the kind picks the
-reference channels and the metrics), and says so in one line for the log
+what *kind* of image it is (``visibility``, ``color``, ``coverage`` or ``depth``: the kind
+picks the reference channels and the metrics), and says so in one line for the log
 (``candidate shadow.exr: visibility from channel 'shadow.Y'``).
 
 Inference is done only when the answer is unambiguous, because a wrong guess scores a shadow
 mask as colour and every shadow metric silently becomes null:
 
 - an EXR holding a single image: one grey channel (``Y``, ``visibility``, ``shadow.Y``, any
-  lone channel) is ``visibility`` (``coverage`` when its name says coverage); one R/G/B group
+  lone channel) is ``visibility`` (``coverage`` when its name says coverage, ``depth`` when
+  its name or layer is ``depth`` or ``view_depth``); one R/G/B group
   (top level or one layer) is ``color``;
 - a grey (or grey + alpha, 8 or 16 bit) PNG is ``visibility``; an RGB(A) or palette PNG is
   ``color``;
 - anything else (an EXR with several layers, RGB plus a coverage channel, RGB plus depth) is
   an error that names the ``--channel`` values to choose from.
 
-``channel`` addresses what engines write: a kind (``visibility``, ``color``, ``coverage``:
-the kind's usual channel names are looked up), an exact channel (``msaa.coverage``,
-``shadow.Y``) or a layer (``shadow``: its one channel, or its R/G/B group as colour). Alpha
-(``A``, ``<layer>.A``) is never an image. A miss lists the file's channels and layers.
+``channel`` addresses what engines write: a kind (``visibility``, ``color``, ``coverage``,
+``depth``: the kind's usual channel names are looked up; depth: :data:`DEPTH_CHANNELS`), an
+exact channel (``msaa.coverage``, ``shadow.Y``) or a layer (``shadow``: its one channel, or
+its R/G/B group as colour). Alpha (``A``, ``<layer>.A``) is never an image. A miss lists
+the file's channels and layers.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ __all__ = [
 ]
 
 #: What a candidate image can be: it picks the reference channels and the metrics.
-KINDS = ("visibility", "color", "coverage")
+KINDS = ("visibility", "color", "coverage", "depth")
 _RGB = ("R", "G", "B")
 
 
@@ -116,17 +118,15 @@ def _rgb_layout(prefix: str, kind: str | None) -> CandidateLayout:
     return CandidateLayout(kind or "color", names, "channels " + ", ".join(names))
 
 
-#: Grey channel names (or layers) that hold depth, never a mask.
+#: Grey channel names (or layers) that hold depth, never a mask: read as the ``depth`` kind.
 DEPTH_NAMES = ("depth", "view_depth")
+#: What ``--channel depth`` reads, the first present: the engines' usual depth channels.
+DEPTH_CHANNELS = ("depth", "Z", "depth.Z", "depth.Y", "depth.R", "view_depth")
 
 
 def _grey_layout(name: str, kind: str | None) -> CandidateLayout:
     if kind is None and any(p in DEPTH_NAMES for p in name.lower().split(".")):
-        raise CandidateError(
-            f"channel {name!r} holds depth, not a shadow mask or coverage: this score reads "
-            "visibility, color or coverage (linear view depth is scored by "
-            "metrics.depth.depth_metrics: relative error, the depth buffer's rounding named)"
-        )
+        kind = "depth"
     kind = _grey_kind(name, kind)
     if kind == "color":
         return CandidateLayout("color", (name,), f"channel {name!r} (grey, replicated)")
@@ -153,8 +153,16 @@ def _exr_infer(file_name: str, names, kind: str | None) -> CandidateLayout:
 
 
 def _exr_kind(file_name: str, names, kind: str) -> CandidateLayout:
-    """``--channel visibility|color|coverage``: the kind's usual channels, in order."""
+    """``--channel visibility|color|coverage|depth``: the kind's usual channels, in order."""
     groups, greys = _inventory(names)
+    if kind == "depth":
+        for name in DEPTH_CHANNELS:
+            if name in names:
+                return _grey_layout(name, kind)
+        raise MissingChannelError(
+            f"candidate {file_name} has no depth channel ({', '.join(DEPTH_CHANNELS)}); "
+            f"{_listing(names)}"
+        )
     if kind == "color":
         for prefix in ("color.", ""):
             if prefix in groups:
@@ -177,7 +185,7 @@ def _exr_kind(file_name: str, names, kind: str) -> CandidateLayout:
         if len(found) == 1:
             return _grey_layout(found[0], kind)
     # grey channels not named for another kind (a coverage mask is not a shadow mask)
-    other = set(KINDS) - {kind}
+    other = set(KINDS) - {kind, "depth"}
     plain = [n for n in greys if not set(n.lower().split(".")) & other]
     if len(plain) == 1:
         return _grey_layout(plain[0], kind)
@@ -212,10 +220,11 @@ def _exr_named(file_name: str, names, channel: str, kind: str | None) -> Candida
 
 def _png_layout(path: Path, channel: str | None, kind: str | None) -> CandidateLayout:
     want = kind or channel
-    if want is not None and want not in KINDS:
+    if want == "depth" or (want is not None and want not in KINDS):
         raise MissingChannelError(
-            f"candidate {path.name} is a PNG, which has no named channels: --channel must be "
-            f"one of {', '.join(KINDS)}, got {channel!r}"
+            f"candidate {path.name} is a PNG, which has no named channels and no depth: "
+            f"--channel must be one of {', '.join(k for k in KINDS if k != 'depth')}, "
+            f"got {channel!r}"
         )
     grey = png_is_grey(path)
     if want is None:

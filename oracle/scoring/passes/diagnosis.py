@@ -1,11 +1,13 @@
 """The diagnoses of an engine's image (flipped, encoded twice, shifted, a material's gain:
 :mod:`oracle.scoring.diagnosis`) and the notes they make. A model's output is what the
-technique computes, not a file to diagnose: its ``diagnoses`` stay empty."""
+technique computes, not a file to diagnose, and a depth is not an image
+(:data:`metrics.catalog.IMAGE_KINDS`): their ``diagnoses`` stay empty."""
 
 from __future__ import annotations
 
 from collections import ChainMap
 
+from ....metrics.catalog import IMAGE_KINDS
 from ..diagnosis import diagnose_result, explain_colour
 
 NAME = "diagnosis"
@@ -20,7 +22,7 @@ def run(ctx) -> None:
     request = ctx.request
     sections = ctx.sections
     sections["diagnoses"] = []
-    if not request.is_file:
+    if not request.is_file or request.kind not in IMAGE_KINDS:
         return
     found = diagnose_result(ctx.result, channel=request.channel, floors=ctx.floor)
     sections["diagnosis"] = {k: found[k] for k in ("error", "noise_floor", "tried")}
