@@ -164,22 +164,26 @@ def _panes_xml(tmp_path, n=30, size=96):
 
 
 def test_the_exact_pass_stops_at_its_deadline_and_says_so(tmp_path, monkeypatch, capsys):
-    """A small stack of panes (30 panes, 96 x 96) with a 1 s budget and an estimate that
-    says 0 s: the exact pass starts, stops at the deadline, records the decision and its
-    time, claims no pixel exact and says so in one line; the command succeeds and the
-    reference stays out of the cache."""
+    """A small stack of panes (30 panes, 96 x 96) with a 3 s budget and an estimate that
+    says 0 s: the exact pass starts, stops at the command's deadline, records the decision
+    and its time, claims no pixel exact and says so in one line; the command succeeds within
+    the budget and the slack, and the reference stays out of the cache."""
+    import time
+
     _free_estimate(monkeypatch)
     out = tmp_path / "ref"
-    argv = ["reference", str(_panes_xml(tmp_path)), "--out", str(out), "--exact-budget", "1"]
+    argv = ["reference", str(_panes_xml(tmp_path)), "--out", str(out), "--exact-budget", "3"]
     cache = ["--cache-dir", str(tmp_path / "cache")]
+    t0 = time.perf_counter()
     assert main([*argv, "--quiet", *cache, "--spp", "2"]) == 0
+    assert time.perf_counter() - t0 <= 3.0 + DEADLINE_SLACK_S  # the command's deadline
     # cut short by the clock: not what its cache key promises, so not cached
     said = capsys.readouterr()
     assert "not cached (exact coverage cut by the budget)" in said.out
     record = json.loads((out / "reference.json").read_text())["coverage_exact"]
     assert record["decision"].startswith("over budget after ")
-    assert record["budget_seconds"] == 1.0
-    assert 1.0 <= record["seconds"] <= 1.0 + DEADLINE_SLACK_S
+    assert record["budget_seconds"] == 3.0
+    assert 0.0 < record["seconds"] <= 3.0 + DEADLINE_SLACK_S
     assert record["estimate"]["seconds"] == 0.0  # what the blind estimate said
     assert not read_exr(out / "reference.exr")["coverage_exact_valid"].any()
     err = [line for line in said.err.splitlines() if "coverage_exact" in line]
@@ -257,3 +261,18 @@ def test_a_budget_object_is_shared_and_keyed_by_its_seconds():
     assert s.key_record()["exact_budget"] == 5.0 and budget.left() == 3.0
     assert s == ReferenceSettings(spp=4, exact_budget=5.0).validate()
     assert "exact_budget" not in ReferenceSettings(spp=4, exact_budget=ExactBudget()).key_record()
+
+
+def test_a_command_budget_is_a_deadline_from_the_command_start():
+    """``--exact-budget`` is the command's deadline: what is left is the budget less the
+    time since the command started or the exact work spent, whichever is more."""
+    import time
+
+    from raster_oracle.oracle.reference.settings import ExactBudget
+
+    budget = ExactBudget(5.0, since=time.perf_counter() - 4.0)
+    assert 0.9 < budget.left() <= 1.0
+    budget.charge(4.5)  # more work spent than time passed (views in other processes)
+    assert budget.left() == pytest.approx(0.5, abs=1e-9)
+    assert ExactBudget(5.0, since=time.perf_counter() - 6.0).left() == 0.0
+    assert ExactBudget(5.0).left() == 5.0  # no start: only the exact work counts

@@ -277,11 +277,14 @@ def add_reference_args(p: argparse.ArgumentParser, *, default_spp: int = 64) -> 
 def exact_budget(args):
     """The command's one exact-coverage budget (``--exact-budget``, default
     :data:`oracle.reference.settings.EXACT_BUDGET_S`): every reference the command renders
-    holds this object, so their exact work adds up against it."""
+    holds this object, so their exact work adds up against it, and it is the command's
+    deadline (counted from now, when the command starts)."""
+    import time
+
     from ..reference.settings import EXACT_BUDGET_S, ExactBudget
 
     seconds = getattr(args, "exact_budget", None)
-    return ExactBudget(EXACT_BUDGET_S if seconds is None else seconds)
+    return ExactBudget(EXACT_BUDGET_S if seconds is None else seconds, since=time.perf_counter())
 
 
 def add_exact_budget_arg(p: argparse.ArgumentParser) -> None:

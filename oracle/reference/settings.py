@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from dataclasses import asdict, dataclass
 
 from ...scenes import backend
@@ -115,11 +116,18 @@ class ExactBudget:
     settings (all views and frames, the noise floors included), so their exact work adds up
     against it; settings given a number make their own. Two budgets of the same seconds
     compare equal (the cache key holds the seconds, never what was spent).
+
+    ``since`` (a :func:`time.perf_counter` reading, the command's start) makes the budget the
+    command's deadline: what is left is the budget less the exact work spent or the time since
+    the command started, whichever is more, so the exact pass (which runs after a view's Monte
+    Carlo work) stops by ``since + seconds`` and the command returns about then (the CLI's
+    ``--exact-budget``). Without it only the exact work counts (a sweep's cases, the API).
     """
 
-    def __init__(self, seconds: float = EXACT_BUDGET_S):
+    def __init__(self, seconds: float = EXACT_BUDGET_S, *, since: float | None = None):
         self.seconds = float(seconds)
         self.spent = 0.0
+        self.since = since
 
     @classmethod
     def of(cls, budget) -> ExactBudget:
@@ -130,8 +138,11 @@ class ExactBudget:
         return cls(EXACT_BUDGET_S if budget is None else float(budget))
 
     def left(self) -> float:
-        """Seconds not spent yet (0 once the budget is used up)."""
-        return max(0.0, self.seconds - self.spent)
+        """Seconds not spent yet (0 once the budget is used up or the deadline passed)."""
+        used = self.spent
+        if self.since is not None:
+            used = max(used, time.perf_counter() - self.since)
+        return max(0.0, self.seconds - used)
 
     def charge(self, seconds: float) -> None:
         """Count ``seconds`` of exact work against the budget."""
