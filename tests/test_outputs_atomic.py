@@ -101,3 +101,32 @@ def test_reference_stopped_while_publishing_leaves_no_output(tmp_path, monkeypat
     monkeypatch.setattr(store, "atomic_copy", copy)
     assert main(["reference", "plate", *SMALL, "--out", str(tmp_path / "o")]) == 0
     assert sorted(os.listdir(tmp_path / "o")) == ["reference.exr", "reference.json"]
+
+
+def test_an_in_process_stop_is_a_system_exit_even_with_threads_alive(tmp_path, monkeypatch):
+    """``main(argv)`` called in-process (a test, a script) hands a stop back as SystemExit;
+    only the command itself (``main()`` on ``sys.argv``) ends the process at once when other
+    threads are alive (it ended the whole test run with exit 143)."""
+    import threading
+
+    from raster_oracle.oracle.cli import app
+    from raster_oracle.oracle.reference import store
+
+    ended = []
+    monkeypatch.setattr(app, "_exit_now", ended.append)
+    copy = store.atomic_copy
+
+    def copy_then_stop(src, dst):
+        copy(src, dst)
+        raise SystemExit(128 + signal.SIGTERM)
+
+    monkeypatch.setattr(store, "atomic_copy", copy_then_stop)
+    alive = threading.Event()
+    thread = threading.Thread(target=alive.wait, daemon=True)
+    thread.start()
+    try:
+        with pytest.raises(SystemExit):
+            main(["reference", "plate", *SMALL, "--out", str(tmp_path / "o")])
+    finally:
+        alive.set()
+    assert ended == []

@@ -91,7 +91,8 @@ def _exit_now(code: int) -> None:
     """Stopped by a signal, everything cleaned up: exit now rather than wait at interpreter
     shutdown for library threads (Dask's event loop and thread pools, joined at exit, after
     a sweep's cluster was closed in a hurry). Only when another thread is alive; a process
-    of one thread exits the normal way."""
+    of one thread exits the normal way. Only for the command itself (``main()`` reading
+    ``sys.argv``): a caller that passes ``argv`` (a test, a script) gets the ``SystemExit``."""
     if threading.current_thread() is not threading.main_thread():
         return
     if not any(t is not threading.main_thread() for t in threading.enumerate()):
@@ -167,5 +168,5 @@ def main(argv: list[str] | None = None) -> int:
         remove_scratch(mark)
         _stops[0] = None
         stops.remove()
-        if stopped is not None:
+        if stopped is not None and argv is None:  # the command itself, not an in-process call
             _exit_now(stopped)
