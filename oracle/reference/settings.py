@@ -8,11 +8,11 @@ down from the command line or the library call that makes the settings: no proce
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import asdict, dataclass
 
 from ...scenes import backend
+from ...scenes.base.memory import available_memory, gib
 from ..errors import InputError
 
 __all__ = [
@@ -288,10 +288,6 @@ def estimate_memory(
     return _BASE_BYTES + launch * per_sample + pixels * per_pixel
 
 
-def _amount(n: int) -> str:
-    return f"{n / 2**30:.1f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
-
-
 def check_memory(width: int, height: int, settings: ReferenceSettings) -> None:
     """Raise :class:`ReferenceSettingsError` when a ``width x height`` reference with
     ``settings`` (validated) needs more memory than is available (:func:`estimate_memory`)."""
@@ -305,17 +301,6 @@ def check_memory(width: int, height: int, settings: ReferenceSettings) -> None:
     have = available_memory()
     if need > have:
         raise ReferenceSettingsError(
-            f"a {width}x{height} reference at {settings.spp} spp needs about {_amount(need)}; "
-            f"only {_amount(have)} is available"
+            f"a {width}x{height} reference at {settings.spp} spp needs about {gib(need)}; "
+            f"only {gib(have)} is available"
         )
-
-
-def available_memory() -> int:
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
