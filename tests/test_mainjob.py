@@ -42,41 +42,34 @@ def sections(monkeypatch):
     calls = []
     fail: dict = {}
     real_claims, real_extremes = mainjob.run_claims, mainjob.run_extremes
+    real_soft, real_alpha = mainjob.run_soft_shadows, mainjob.run_alpha_foliage
 
-    def claims(out, *, cache, quiet, echo, quick):
-        calls.append({"id": "claims", "out": out, "quick": quick})
-        return real_claims(
-            out, cache=cache, quiet=quiet, echo=echo, quick=quick, only=CLAIMS, size=(32, 18)
-        )
+    def claims(*, out, cache, quick, only):
+        calls.append({"id": "claims", "out": out, "quick": quick, "only": only})
+        return real_claims(out, cache=cache, quick=quick, only=only, size=(32, 18))
 
-    def extremes(out, *, cache, quiet, echo, quick):
-        calls.append({"id": "extremes", "out": out, "quick": quick})
+    def extremes(*, out, cache, quick, extremes):
+        calls.append({"id": "extremes", "out": out, "quick": quick, "only": extremes})
         if fail.get("extremes"):
             raise RuntimeError("extremes <broke>")
         return real_extremes(
-            out,
-            cache=cache,
-            quiet=quiet,
-            echo=echo,
-            quick=quick,
-            extremes=EXTREMES,
-            techniques=EXTREME_MODELS,
+            out, cache=cache, quick=quick, extremes=extremes, techniques=EXTREME_MODELS
         )
 
-    def soft_shadows(out, *, cache, quiet, quick):
+    def soft_shadows(out, *, cache, quick):
         calls.append({"id": "soft_shadows", "out": out, "quick": quick})
-        return real_soft(out, cache=cache, quiet=quiet, quick=quick, size=(32, 18))
+        return real_soft(out, cache=cache, quick=quick, size=(32, 18))
 
     def alpha_foliage(out, *, quick):
         calls.append({"id": "alpha_foliage", "out": out, "quick": quick})
         return real_alpha(out, quick=quick, size=(64, 36))
 
-    real_soft = mainjob.run_soft_shadows
-    real_alpha = mainjob.run_alpha_foliage
     monkeypatch.setattr(mainjob, "run_alpha_foliage", alpha_foliage)
     monkeypatch.setattr(mainjob, "run_claims", claims)
     monkeypatch.setattr(mainjob, "run_extremes", extremes)
     monkeypatch.setattr(mainjob, "run_soft_shadows", soft_shadows)
+    monkeypatch.setattr(mainjob, "CLAIMS", [c for c in mainjob.CLAIMS if c.id in CLAIMS])
+    monkeypatch.setattr(mainjob, "EXTREMES", {k: mainjob.EXTREMES[k] for k in EXTREMES})
     return calls, fail
 
 
@@ -105,13 +98,16 @@ def test_main_job_runs_the_sweep_and_ends_with_one_report(tmp_path, capsys, sect
     assert groups == {("shadow", "plate"), ("soft", "plate"), ("shadow", "spot"), ("aa", "decal")}
     assert all(g["fronts"] for g in report["groups"])
     assert len(report["cases"]) == len(rows)
-    # the claims and extremes ran in their quick form into the main folder
-    assert [(c["id"], c["quick"], c["out"]) for c in calls] == [
-        ("claims", True, out),
-        ("extremes", True, out),
-        ("soft_shadows", True, out),
-        ("alpha_foliage", True, out),
+    # the studies ran in their quick form, a part each (a claim, an extreme), as side tasks
+    # of the sweep; their files are written into the main folder
+    assert [(c["id"], c["quick"], c["out"], c.get("only")) for c in calls] == [
+        ("claims", True, None, CLAIMS),
+        ("extremes", True, None, EXTREMES),
+        ("soft_shadows", True, None, None),
+        ("alpha_foliage", True, None, None),
     ]
+    for name in ("claims", "extremes", "soft_shadows", "alpha_foliage"):
+        assert (out / f"{name}.json").is_file() and (out / f"{name}.html").is_file()
     html = (out / "report.html").read_text()
     assert "Claims of the seed documents" in html and "Numerical extremes" in html
     assert "Anti-aliasing framebuffer memory" in html

@@ -96,8 +96,10 @@ def report_path(tmp_path_factory) -> Path:
 
     out = tmp_path_factory.mktemp("main")
     sections = (
-        ("claims", "claims", "Claims", lambda *a, **k: CLAIMS, claims_section),
-        ("extremes", "extremes", "Extremes", lambda *a, **k: _extremes(), extremes_section),
+        mainjob.Section("claims", "claims", "Claims", claims_section, local=lambda out: CLAIMS),
+        mainjob.Section(
+            "extremes", "extremes", "Extremes", extremes_section, local=lambda out: _extremes()
+        ),
     )
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(mainjob, "SECTIONS", sections)

@@ -34,6 +34,7 @@ __all__ = [
     "render_reference",
     "render_reference_timed",
     "run_case",
+    "run_side_task",
     "sequence_frames",
     "share_cores",
 ]
@@ -257,3 +258,20 @@ def render_reference_timed(job: dict, cache_root: str, variant: str | None) -> d
     t0 = time.perf_counter()
     status = render_reference(job, cache_root, variant)
     return {"status": status, "seconds": time.perf_counter() - t0}
+
+
+def run_side_task(study, kwargs: dict, cache_root: str, variant: str | None) -> dict:
+    """Worker task: one part of a study run beside the cases (the main job's sections,
+    :mod:`oracle.sweeps.mainjob`), ``study(cache=..., **kwargs)``; never raises.
+
+    Returns ``{"value", "error", "seconds"}``: the study's record (None when it raised),
+    the error on one line (None when it did not) and its wall seconds.
+    """
+    t0 = time.perf_counter()
+    try:
+        WORKER_CACHE.ensure_backend(variant)
+        out = {"value": study(cache=ReferenceCache(cache_root), **kwargs), "error": None}
+    except Exception as exc:  # the section reports it; the job goes on
+        out = {"value": None, "error": case_error(exc)}
+    out["seconds"] = time.perf_counter() - t0
+    return out

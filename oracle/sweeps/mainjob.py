@@ -1,5 +1,5 @@
-"""The main job (``raster-oracle main``, ``bin/main.sh``): the built-in default sweep, then the
-extremes and the claims, and one report.
+"""The main job (``raster-oracle main``, ``bin/main.sh``): the built-in default sweep with the
+extremes, the claims and the other studies run on its workers beside its cases, and one report.
 
 1. The sweep of ``oracle/specs/default.toml`` (package data): every registered technique on
    the built-in scenes at 640x360, a few settings each, run on a local Dask cluster into
@@ -10,7 +10,12 @@ extremes and the claims, and one report.
    (:mod:`oracle.studies.aa_memory`), the SMAA ranking from the sweep's rows
    (:mod:`oracle.studies.aa_ranking`) and the soft-shadow study (:mod:`oracle.studies.
    soft_shadows`, quick: PCSS against fixed-width PCF on the area-light truth, contact
-   hardening, moment-map light bleeding): :func:`run_sections`.
+   hardening, moment-map light bleeding) and the alpha-tested foliage study
+   (:mod:`oracle.studies.alpha_coverage`): :data:`SECTIONS`. Their parts (a claim, an
+   extreme, a whole study) are side tasks of the sweep (:func:`section_tasks`), so they fill
+   the workers' idle time instead of running after the sweep on one core;
+   :func:`sections_from` merges their records, writes the studies' files and prints their
+   lines in page order once the sweep is done.
 3. ``OUT/report.html`` (+ ``report.json``, which holds every section record of the page):
    Pareto fronts, parameter sensitivity, best at equal cost, the claims, the extremes, the
    memory table and every case.
@@ -26,6 +31,7 @@ import json
 import time
 import tomllib
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from ...reports.sections import (
@@ -43,38 +49,101 @@ from ..phases import Phases, maybe_phase
 from ..studies.aa_memory import memory_report
 from ..studies.aa_ranking import aa_ranking
 from ..studies.alpha_coverage import run_alpha_foliage
-from ..studies.claims.run import run_claims
-from ..studies.extremes.run import run_extremes
+from ..studies.claims.run import CLAIMS, claim_line, merge_claims, run_claims
+from ..studies.extremes.run import EXTREMES, extreme_line, merge_extremes, run_extremes
+from ..studies.output import write_study
 from ..studies.soft_shadows import run_soft_shadows
+from .run import SideTask
 from .store import SweepStore
 
-__all__ = ["DEFAULT_SPEC", "SECTIONS", "default_spec", "run_main", "run_sections", "timing_record"]
+__all__ = [
+    "DEFAULT_SPEC",
+    "SECTIONS",
+    "Section",
+    "default_spec",
+    "run_main",
+    "section_tasks",
+    "sections_from",
+    "timing_record",
+]
 
 #: The main job's sweep spec (package data).
 DEFAULT_SPEC = "specs/default.toml"
 
 
-def _claims(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
-    return run_claims(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+@dataclass(frozen=True)
+class Section:
+    """A section of the main job's report after the sweep, and how its study runs.
+
+    ``parts(quick)`` lists the study's parts, ``(label, study, kwargs)`` each: a worker of the
+    sweep runs ``study(cache=..., **kwargs)`` beside the cases (:class:`oracle.sweeps.run.
+    SideTask`), so the sections cost no wall time of their own on a busy cluster; ``merge``
+    makes the study's record of its parts' records (in ``parts`` order), ``lines`` what the
+    job prints of it, ``file`` ``(name, title)`` of the study's page and JSON beside the
+    report (None: none), ``section(data, section_id=, title=)`` its section record.
+    ``parts`` None: the study reads the sweep's store, ``local(out)`` runs it after the
+    sweep in this process.
+    """
+
+    kind: str
+    sid: str
+    title: str
+    section: Callable[..., dict]
+    parts: Callable[[bool], list[tuple[str, Callable[..., dict], dict]]] | None = None
+    merge: Callable[[list[dict]], dict] | None = None
+    lines: Callable[[dict], list[str]] | None = None
+    file: tuple[str, str] | None = None
+    local: Callable[[Path], dict] | None = None
 
 
-def _extremes(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
-    return run_extremes(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
+def _whole(kind: str, study: Callable[..., dict]):
+    """``parts`` of a study run whole: one part, ``study(out=None, cache=, quick=)``."""
+
+    def parts(quick: bool) -> list[tuple[str, Callable[..., dict], dict]]:
+        return [(kind, study, {"out": None, "quick": quick})]
+
+    return parts
 
 
-def _soft_shadows(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
-    return run_soft_shadows(out, cache=cache, quiet=quiet, quick=quick)
+def _claims_parts(quick: bool) -> list[tuple[str, Callable[..., dict], dict]]:
+    return [
+        (f"claims {c.id}", run_claims, {"out": None, "quick": quick, "only": [c.id]})
+        for c in CLAIMS
+    ]
 
 
-def _alpha_foliage(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+def _extremes_parts(quick: bool) -> list[tuple[str, Callable[..., dict], dict]]:
+    return [
+        (f"extremes {name}", run_extremes, {"out": None, "quick": quick, "extremes": [name]})
+        for name in EXTREMES
+    ]
+
+
+def _claims_lines(data: dict) -> list[str]:
+    return [claim_line(row) for row in data["claims"]]
+
+
+def _extremes_lines(data: dict) -> list[str]:
+    cells = data["cells"]
+    return [extreme_line(n, [c for c in cells if c["extreme"] == n]) for n in data["extremes"]]
+
+
+def alpha_foliage_study(*, cache=None, out=None, quick: bool = True) -> dict:
+    """The alpha-tested foliage study as a part (it reads no reference cache)."""
     return run_alpha_foliage(out, quick=quick)
 
 
-def _aa_memory(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+def soft_shadows_study(*, cache=None, out=None, quick: bool = True) -> dict:
+    """The soft-shadow study as a part."""
+    return run_soft_shadows(out, cache=cache, quick=quick)
+
+
+def aa_memory_study(*, cache=None, out=None, quick: bool = True) -> dict:
+    """The anti-aliasing memory table as a part (arithmetic: no cache, no size)."""
     return memory_report()
 
 
-def _aa_ranking(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
+def _aa_ranking(out: Path) -> dict:
     db, rows = out / "sweep.db", []
     if db.is_file():
         with SweepStore(db, readonly=True) as store:
@@ -82,23 +151,119 @@ def _aa_ranking(out: Path, *, cache, quiet: bool, echo, quick: bool) -> dict:
     return aa_ranking(rows)
 
 
-#: The report's sections after the sweep, in page order: ``(kind, id, title, study,
-#: section)``: ``study(out, *, cache, quiet, echo, quick)`` measures and returns the study's
-#: record, ``section(data, section_id=, title=)`` makes its section record.
-SECTIONS: tuple[tuple[str, str, str, Callable[..., dict], Callable[..., dict]], ...] = (
-    ("claims", "claims", "Claims", _claims, claims_section),
-    ("extremes", "extremes", "Numerical stability at the extremes", _extremes, extremes_section),
-    ("aa_memory", "aa-memory", "Anti-aliasing memory", _aa_memory, aa_memory_section),
-    ("aa_ranking", "aa-ranking", "Anti-aliasing ranking", _aa_ranking, aa_ranking_section),
-    ("soft_shadows", "soft-shadows", "Soft shadows", _soft_shadows, soft_shadows_section),
-    (
+#: The report's sections after the sweep, in page order.
+SECTIONS: tuple[Section, ...] = (
+    Section(
+        "claims",
+        "claims",
+        "Claims",
+        claims_section,
+        parts=_claims_parts,
+        merge=merge_claims,
+        lines=_claims_lines,
+        file=("claims", "raster-oracle claims"),
+    ),
+    Section(
+        "extremes",
+        "extremes",
+        "Numerical stability at the extremes",
+        extremes_section,
+        parts=_extremes_parts,
+        merge=merge_extremes,
+        lines=_extremes_lines,
+        file=("extremes", "raster-oracle extremes"),
+    ),
+    Section(
+        "aa_memory",
+        "aa-memory",
+        "Anti-aliasing memory",
+        aa_memory_section,
+        parts=_whole("aa_memory", aa_memory_study),
+    ),
+    Section(
+        "aa_ranking", "aa-ranking", "Anti-aliasing ranking", aa_ranking_section, local=_aa_ranking
+    ),
+    Section(
+        "soft_shadows",
+        "soft-shadows",
+        "Soft shadows",
+        soft_shadows_section,
+        parts=_whole("soft_shadows", soft_shadows_study),
+        file=("soft_shadows", "Soft shadows"),
+    ),
+    Section(
         "alpha_foliage",
         "alpha-foliage",
         "Alpha-tested foliage",
-        _alpha_foliage,
         alpha_foliage_section,
+        parts=_whole("alpha_foliage", alpha_foliage_study),
+        file=("alpha_foliage", "Alpha-tested foliage"),
     ),
 )
+
+
+def section_tasks(sections, *, quick: bool) -> list[SideTask]:
+    """The sweep's side tasks that run the parts of ``sections``, named ``"KIND/INDEX"``."""
+    tasks = []
+    for sec in sections:
+        if sec.parts is None:
+            continue
+        for i, (_, study, kwargs) in enumerate(sec.parts(quick)):
+            tasks.append(SideTask(f"{sec.kind}/{i}", study, kwargs))
+    return tasks
+
+
+def sections_from(
+    sections, side: dict, out: Path, *, quick: bool, echo=print, phases=None
+) -> tuple[list[dict], list[str]]:
+    """The section records of ``sections`` from the side tasks' results ``side`` (the sweep
+    summary's, :func:`section_tasks` names), writing each study's files into ``out``; the
+    ids of those that failed.
+
+    A study a part of which failed is reported, not fatal: its record is a failed section
+    (the page shows the error in its place), its id is in the returned list (the main job
+    then exits with status 1) and ``echo`` says so. ``phases``: each study's seconds (its
+    parts' worker seconds, summed) are added under its kind.
+    """
+    records, failed = [], []
+    for sec in sections:
+        try:
+            data = _section_data(sec, side, out, quick=quick, echo=echo, phases=phases)
+            record = sec.section(data, section_id=sec.sid, title=sec.title)
+        except Exception as exc:  # in the page and in the exit status, not fatal
+            error = str(exc) if isinstance(exc, SectionError) else one_line(exc, with_type=True)
+            record = failed_section(kind=sec.kind, section_id=sec.sid, title=sec.title, error=error)
+            echo(f"{sec.sid}: failed: {record['error']}")
+            failed.append(sec.sid)
+        records.append(record)
+    return records, failed
+
+
+class SectionError(RuntimeError):
+    """A part of a section's study failed on a worker (its error, as the worker wrote it)."""
+
+
+def _section_data(sec: Section, side: dict, out: Path, *, quick, echo, phases) -> dict:
+    if sec.parts is None:
+        with maybe_phase(phases, sec.kind):
+            return sec.local(out)
+    results = [side.get(f"{sec.kind}/{i}") for i in range(len(sec.parts(quick)))]
+    if phases is not None:
+        phases.add(sec.kind, sum(float(r.get("seconds") or 0.0) for r in results if r))
+    missing = [i for i, r in enumerate(results) if r is None]
+    if missing:
+        raise SectionError(f"{len(missing)} part(s) did not run")
+    broken = [r["error"] for r in results if r["error"] is not None]
+    if broken:
+        raise SectionError(broken[0])
+    datas = [r["value"] for r in results]
+    data = sec.merge(datas) if sec.merge is not None else datas[0]
+    for line in sec.lines(data) if sec.lines is not None else ():
+        echo(line)
+    if sec.file is not None:
+        name, title = sec.file
+        write_study(out, name=name, data=data, section=sec.section(data), title=title)
+    return data
 
 
 def default_spec() -> dict:
@@ -128,34 +293,6 @@ def _restrict(data: dict, names, spp: int | None, size) -> dict:
         raise SpecError(f"no case of the default sweep runs on {', '.join(names)}")
     data["case"] = kept
     return data
-
-
-def run_sections(
-    out: Path, *, cache, quiet: bool, echo=print, quick: bool = True, phases=None
-) -> tuple[list[dict], list[str]]:
-    """Run the studies of :data:`SECTIONS` into ``out``; their section records, and the ids
-    of those that failed.
-
-    A study that raises is reported, not fatal: its record is a failed section (the page
-    shows the error in its place), its id is in the returned list (the main job then exits
-    with status 1) and ``echo`` says so. Import errors are not caught: the modules are
-    imported with this one. ``phases`` (:class:`oracle.phases.Phases`): each study's wall
-    seconds are added under its kind.
-    """
-    sections, failed = [], []
-    for kind, sid, title, study, section in SECTIONS:
-        try:
-            with maybe_phase(phases, kind):
-                data = study(out, cache=cache, quiet=quiet, echo=echo, quick=quick)
-                record = section(data, section_id=sid, title=title)
-        except Exception as exc:  # in the page and in the exit status, not fatal
-            record = failed_section(
-                kind=kind, section_id=sid, title=title, error=one_line(exc, with_type=True)
-            )
-            echo(f"{sid}: failed: {record['error']}")
-            failed.append(sid)
-        sections.append(record)
-    return sections, failed
 
 
 def run_main(
@@ -194,7 +331,13 @@ def run_main(
     for note in expansion.skipped:
         echo(f"not applicable: {note}")
     summary = run_sweep(
-        expansion, db, cache_root=cache.root, workers=workers, quiet=quiet, echo=echo
+        expansion,
+        db,
+        cache_root=cache.root,
+        workers=workers,
+        quiet=quiet,
+        echo=echo,
+        side=section_tasks(SECTIONS, quick=quick),
     )
     echo(
         f"sweep {expansion.name}: {summary['cases']} cases ({summary['skipped_done']} already "
@@ -203,9 +346,12 @@ def run_main(
     )
     failed = [f"{summary['failed']} sweep case(s)"] if summary["failed"] else []
     phases.merge(summary["phases"])
-    phases.add("sweep", max(0.0, summary["wall_seconds"] - sum(summary["phases"].values())))
-    sections, failed_sections = run_sections(
-        out, cache=cache, quiet=quiet, echo=echo, quick=quick, phases=phases
+    # the sections' parts ran inside the sweep (beside its cases): their seconds are theirs
+    side_seconds = sum(float(r.get("seconds") or 0.0) for r in summary["side"].values())
+    rest = summary["wall_seconds"] - sum(summary["phases"].values()) - side_seconds
+    phases.add("sweep", max(0.0, rest))
+    sections, failed_sections = sections_from(
+        SECTIONS, summary["side"], out, quick=quick, echo=echo, phases=phases
     )
     failed += failed_sections
     report = out / "report.html"

@@ -23,7 +23,9 @@ import os
 import sys
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 from ... import raster_models
 from ...scenes.base.records import package_versions
@@ -36,12 +38,14 @@ from .cases import (
     render_reference,
     render_reference_timed,
     run_case,
+    run_side_task,
     share_cores,
 )
 from .spec import Case, Expansion
 from .store import SweepStore, case_key
 
 __all__ = [
+    "SideTask",
     "SweepError",
     "check_scheduler",
     "completed_while_workers",
@@ -63,6 +67,19 @@ WORKER_POLL_S = 1.0
 
 class SweepError(InputError):
     """A sweep cannot run (no scheduler at the given address)."""
+
+
+class SideTask(NamedTuple):
+    """Work run on the sweep's workers beside its cases (the main job's sections): a worker
+    calls ``study(cache=<the sweep's reference cache>, **kwargs)``; ``study`` and ``kwargs``
+    must pickle. Tasks of higher ``priority`` start first (cases have 0): long tasks given
+    a high one start early and leave no tail. Its result (:func:`oracle.sweeps.cases.
+    run_side_task`) lands in the summary's ``side`` under ``name``."""
+
+    name: str
+    study: Callable[..., dict]
+    kwargs: dict
+    priority: int = 1
 
 
 def _versions(variant: str) -> dict:
@@ -181,6 +198,7 @@ def run_sweep(
     retry_failed: bool = False,
     images: bool = True,
     worker_timeout: float | None = None,
+    side: tuple[SideTask, ...] | list[SideTask] = (),
     echo=print,
 ) -> dict:
     """Run the cases of ``expansion`` not yet in the store ``db``; returns a summary.
@@ -199,12 +217,15 @@ def run_sweep(
     worker_timeout : seconds without any Dask worker (at the start or after all are gone)
         before a :class:`SweepError` "no workers" (None: :data:`NO_WORKERS_TIMEOUT_S`); the
         cases finished until then are kept.
+    side : :class:`SideTask` s run on the same workers, whatever the store holds (inline:
+        after the cases); their results are the summary's ``side`` (name -> ``{"value",
+        "error", "seconds"}``).
 
     Returns
     -------
     dict
         ``{"sweep", "db", "cases", "skipped_done", "ran", "done", "failed", "references",
-        "wall_seconds", "not_applicable"}``.
+        "wall_seconds", "not_applicable", "side"}``.
     """
     from ...scenes import backend
 
@@ -233,16 +254,17 @@ def run_sweep(
         "phases": {"references": 0.0, "models": 0.0, "metrics": 0.0, "images": 0.0},
         # the cases' scoring seconds by score pass (oracle.scoring.passes), summed likewise
         "passes": {},
+        "side": {},
     }
     with SweepStore(db) as store:
         finished = store.finished_keys(include_failed=not retry_failed)
         todo = [(k, rec, row) for k, (rec, row) in unique.items() if k not in finished]
         summary["skipped_done"] = len(unique) - len(todo)
-        if todo:
+        if todo or side:
             run_id = f"{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:8]}"
             if workers == 0 and scheduler is None:
                 results = _run_inline(
-                    todo, cache_root, variant, summary, quiet=quiet, images=images
+                    todo, cache_root, variant, summary, quiet=quiet, images=images, side=side
                 )
             else:
                 results = _run_dask(
@@ -255,6 +277,7 @@ def run_sweep(
                     quiet=quiet,
                     images=images,
                     worker_timeout=worker_timeout,
+                    side=side,
                 )
             for key, rec, row, res in results:
                 store.put(
@@ -279,7 +302,7 @@ def _unique_references(todo) -> dict[str, dict]:
     return refs
 
 
-def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
+def _run_inline(todo, cache_root, variant, summary, *, quiet, images, side=()):
     refs = _unique_references(todo)
     summary["references"] = len(refs)
     failed_refs: dict[str, str] = {}
@@ -306,6 +329,8 @@ def _run_inline(todo, cache_root, variant, summary, *, quiet, images):
                 res = run_case(rec, cache_root, variant, images=images)
             bar.update()
             yield key, rec, row, res
+    for task in side:
+        summary["side"][task.name] = run_side_task(task.study, task.kwargs, cache_root, variant)
 
 
 def store_row(row: dict, *, key: str, rec: dict, res: dict, sweep: str, run_id: str) -> dict:
@@ -346,6 +371,14 @@ def completed_while_workers(client, futures, *, worker_timeout: float, where: st
                 ) from None
             continue
         yield from done
+
+
+def _side_result(fut) -> dict:
+    """A finished side task's result; a worker that died running it is its error."""
+    try:
+        return fut.result()
+    except Exception as exc:  # run_side_task never raises: the worker died
+        return {"value": None, "error": case_error(exc), "seconds": 0.0}
 
 
 def _reference_seconds(futures) -> float:
@@ -398,7 +431,7 @@ def _close_dask(client, cluster, *, quick: bool) -> None:
 
 
 def _run_dask(
-    todo, cache_root, variant, summary, *, workers, scheduler, quiet, images, worker_timeout
+    todo, cache_root, variant, summary, *, workers, scheduler, quiet, images, worker_timeout, side
 ):
     from distributed import Client, LocalCluster
 
@@ -443,10 +476,25 @@ def _run_dask(
                 run_case, rec, cache_root, variant, *deps, images=images, pure=False
             )
             futures[fut] = item
+        sides = {
+            client.submit(
+                run_side_task,
+                task.study,
+                task.kwargs,
+                cache_root,
+                variant,
+                pure=False,
+                priority=task.priority,
+            ): task.name
+            for task in side
+        }
         with _progress(len(futures), quiet=quiet, desc=summary["sweep"]) as bar:
             for fut in completed_while_workers(
-                client, futures, worker_timeout=worker_timeout, where=where
+                client, [*futures, *sides], worker_timeout=worker_timeout, where=where
             ):
+                if fut in sides:
+                    summary["side"][sides.pop(fut)] = _side_result(fut)
+                    continue
                 key, rec, row = futures.pop(fut)
                 try:
                     res = fut.result()

@@ -67,8 +67,12 @@ __all__ = [
     "SHADOW_TOL",
     "Claim",
     "ClaimContext",
+    "claim_line",
+    "claims_record",
+    "merge_claims",
     "run_claims",
     "summary",
+    "write_claims",
 ]
 
 
@@ -331,13 +335,24 @@ def run_claims(
             continue
         row = _measure(claim, ctx)
         rows.append(row)
-        say(
-            f"claim {claim.id:<26} {row['verdict']}"
-            + (f" ({row['seconds']:.1f} s)" if "seconds" in row else "")
-        )
+        say(claim_line(row))
+    data = claims_record(rows, ctx=ctx, wall_seconds=time.perf_counter() - t0)
+    if out is not None:
+        write_claims(out, data)
+    return data
+
+
+def claim_line(row: dict) -> str:
+    """The line a claims run prints for a measured claim: id, verdict, seconds."""
+    seconds = f" ({row['seconds']:.1f} s)" if "seconds" in row else ""
+    return f"claim {row['id']:<26} {row['verdict']}{seconds}"
+
+
+def claims_record(rows: list[dict], *, ctx: ClaimContext, wall_seconds: float) -> dict:
+    """The claims record (``claims.json``) of measured ``rows`` at ``ctx``'s sizes."""
     data = {
         "schema": "raster-oracle.studies.claims.run/1",
-        "quick": quick,
+        "quick": ctx.quick,
         "resolution": [ctx.width, ctx.height],
         "reference_spp": ctx.spp,
         "frames": ctx.frames,
@@ -346,10 +361,30 @@ def run_claims(
             v: sum(1 for r in rows if r["verdict"] == v)
             for v in (REPRODUCED, PARTLY, NOT, "not measured")
         },
-        "wall_seconds": time.perf_counter() - t0,
+        "wall_seconds": float(wall_seconds),
     }
-    data = jsonable(data)
-    if out is not None:
-        section = claims_section(data)
-        write_study(out, name="claims", data=data, section=section, title="raster-oracle claims")
-    return data
+    return jsonable(data)
+
+
+def merge_claims(parts: list[dict]) -> dict:
+    """One claims record from the records of runs over parts of the claims (``only``), each
+    at the same sizes: their rows in :data:`CLAIMS` order, counts over all, seconds summed
+    (the main job measures each claim on a worker of its own, :mod:`oracle.sweeps.mainjob`)."""
+    if not parts:
+        raise ValueError("no claims record to merge")
+    order = {c.id: i for i, c in enumerate(CLAIMS)}
+    rows = sorted((r for p in parts for r in p["claims"]), key=lambda r: order[r["id"]])
+    first = parts[0]
+    sizes = ("quick", "resolution", "reference_spp", "frames")
+    if any(p[k] != first[k] for p in parts for k in sizes):
+        raise ValueError("claims records at different sizes cannot be merged")
+    ctx = ClaimContext(quick=first["quick"])
+    ctx.width, ctx.height = first["resolution"]
+    ctx.spp, ctx.frames = first["reference_spp"], first["frames"]
+    return claims_record(rows, ctx=ctx, wall_seconds=sum(p["wall_seconds"] for p in parts))
+
+
+def write_claims(out: Path, data: dict) -> None:
+    """Write ``out/claims.json`` and its page."""
+    section = claims_section(data)
+    write_study(out, name="claims", data=data, section=section, title="raster-oracle claims")

@@ -51,10 +51,13 @@ __all__ = [
     "GRAZING_DEG",
     "HUGE_BYTES_PER_TEXEL",
     "expectation",
+    "extreme_line",
     "load_extreme",
+    "merge_extremes",
     "reference_channels",
     "run_cell",
     "run_extremes",
+    "write_extremes",
 ]
 
 BASE_SCENE = "plate"
@@ -307,8 +310,7 @@ def run_extremes(
                 if raster_models.TECHNIQUES[t.name].family == fam
             ]
         cells.extend(row)
-        bad = [c["technique"] for c in row if not c["outcome_met"]]
-        say(f"extremes {name:<22} {len(row)} models" + (f"; unexpected: {bad}" if bad else ""))
+        say(extreme_line(name, row))
     data = {
         "schema": "raster-oracle.studies.extremes.run/1",
         "quick": quick,
@@ -321,11 +323,47 @@ def run_extremes(
         "extremes": scenes_info,
         "techniques": [t.name for t in techs],
         "cells": cells,
-        "unexpected": [f"{c['technique']} x {c['extreme']}" for c in cells if not c["outcome_met"]],
+        "unexpected": _unexpected(cells),
         "wall_seconds": time.perf_counter() - t0,
     }
     if out is not None:
-        section = extremes_section(data)
-        title = "raster-oracle extremes"
-        write_study(out, name="extremes", data=data, section=section, title=title)
+        write_extremes(out, data)
     return data
+
+
+def _unexpected(cells: list[dict]) -> list[str]:
+    return [f"{c['technique']} x {c['extreme']}" for c in cells if not c["outcome_met"]]
+
+
+def extreme_line(name: str, cells: list[dict]) -> str:
+    """The line an extremes run prints for one extreme's cells."""
+    bad = [c["technique"] for c in cells if not c["outcome_met"]]
+    return f"extremes {name:<22} {len(cells)} models" + (f"; unexpected: {bad}" if bad else "")
+
+
+def merge_extremes(parts: list[dict]) -> dict:
+    """One extremes record from the records of runs over parts of the extremes
+    (``extremes=``), each at the same sizes and techniques: extremes and cells in the parts'
+    order, seconds summed (the main job runs each extreme on a worker of its own,
+    :mod:`oracle.sweeps.mainjob`)."""
+    if not parts:
+        raise ValueError("no extremes record to merge")
+    first = parts[0]
+    same = ("quick", "resolution", "reference_spp", "cell_map", "huge_map", "techniques")
+    if any(p[k] != first[k] for p in parts for k in same):
+        raise ValueError("extremes records at different sizes cannot be merged")
+    cells = [c for p in parts for c in p["cells"]]
+    data = {k: v for k, v in first.items() if k not in ("extremes", "cells", "unexpected")}
+    data["base_scenes"] = {k: v for p in parts for k, v in p["base_scenes"].items()}
+    data["extremes"] = {k: v for p in parts for k, v in p["extremes"].items()}
+    data["cells"] = cells
+    data["unexpected"] = _unexpected(cells)
+    data["wall_seconds"] = sum(p["wall_seconds"] for p in parts)
+    keys = list(first)  # the key order of a whole run's record
+    return {k: data[k] for k in keys}
+
+
+def write_extremes(out: Path, data: dict) -> None:
+    """Write ``out/extremes.json`` and its page."""
+    section = extremes_section(data)
+    write_study(out, name="extremes", data=data, section=section, title="raster-oracle extremes")
