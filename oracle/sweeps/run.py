@@ -47,6 +47,7 @@ from .store import SweepStore, case_key
 __all__ = [
     "SideTask",
     "SweepError",
+    "case_homes",
     "check_scheduler",
     "completed_while_workers",
     "run_sweep",
@@ -373,6 +374,46 @@ def completed_while_workers(client, futures, *, worker_timeout: float, where: st
         yield from done
 
 
+def _worker_addresses(client) -> list[str]:
+    return sorted(client.scheduler_info()["workers"])
+
+
+def _scene_group(rec: dict) -> tuple:
+    """The cases sharing a worker's memos (loaded scene, noise floors, the reference halves of
+    the metrics): same scene, film, spp, light and path."""
+    return tuple(
+        rec.get(k)
+        for k in ("scene", "width", "height", "spp", "light", "camera_path", "light_path")
+    )
+
+
+def _case_weight(rec: dict) -> float:
+    """A case's expected work, for placing it: its pixels times its frames."""
+    sequence = rec.get("camera_path") or rec.get("light_path")
+    frames = (rec.get("n_frames") or 1) if sequence else 1
+    return float(rec["width"] * rec["height"] * frames)
+
+
+def case_homes(todo, workers: list[str]) -> dict[str, str]:
+    """A preferred worker of each case (key -> address): the cases of a scene group
+    (:func:`_scene_group`) on one worker, so its per-process memos are computed once, the
+    groups spread over the workers by expected work, largest first. Preferences are loose:
+    an idle worker still steals from a busy one. No workers or one: no preferences."""
+    if len(workers) < 2:
+        return {}
+    groups: dict[tuple, list] = {}
+    for key, rec, _ in todo:
+        groups.setdefault(_scene_group(rec), []).append((key, rec))
+    load = dict.fromkeys(workers, 0.0)
+    homes = {}
+    weighed = [(sum(_case_weight(r) for _, r in items), g) for g, items in groups.items()]
+    for weight, group in sorted(weighed, key=lambda wg: (-wg[0], repr(wg[1]))):
+        home = min(workers, key=lambda w: (load[w], w))
+        load[home] += weight
+        homes.update((key, home) for key, _ in groups[group])
+    return homes
+
+
 def _side_result(fut) -> dict:
     """A finished side task's result; a worker that died running it is its error."""
     try:
@@ -469,11 +510,13 @@ def _run_dask(
             for text, job in refs.items()
         }
         futures = {}
+        homes = {} if scheduler is not None else case_homes(todo, _worker_addresses(client))
         for item in todo:
             rec = item[1]
             deps = [ref_futures[json.dumps(j, sort_keys=True)] for j in reference_jobs(rec)]
+            home = {"workers": [homes[item[0]]], "allow_other_workers": True} if homes else {}
             fut = client.submit(
-                run_case, rec, cache_root, variant, *deps, images=images, pure=False
+                run_case, rec, cache_root, variant, *deps, images=images, pure=False, **home
             )
             futures[fut] = item
         sides = {
