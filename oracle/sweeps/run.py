@@ -39,6 +39,7 @@ from .cases import (
     render_reference_timed,
     run_case,
     run_side_task,
+    sequence_frames,
     share_cores,
 )
 from .spec import Case, Expansion
@@ -50,6 +51,7 @@ __all__ = [
     "case_homes",
     "check_scheduler",
     "completed_while_workers",
+    "grouped",
     "run_sweep",
     "store_row",
     "sweep_keys",
@@ -304,6 +306,7 @@ def _unique_references(todo) -> dict[str, dict]:
 
 
 def _run_inline(todo, cache_root, variant, summary, *, quiet, images, side=()):
+    todo = grouped(todo)
     refs = _unique_references(todo)
     summary["references"] = len(refs)
     failed_refs: dict[str, str] = {}
@@ -387,11 +390,29 @@ def _scene_group(rec: dict) -> tuple:
     )
 
 
+def _case_frames(rec: dict) -> int:
+    """Frames a case scores (:func:`oracle.sweeps.cases.sequence_frames`): a sequence's, or
+    1. The base scene is this process's (:func:`sweep_keys` loaded it)."""
+    return sequence_frames(rec, WORKER_CACHE.base_scene(rec)) or 1
+
+
 def _case_weight(rec: dict) -> float:
     """A case's expected work, for placing it: its pixels times its frames."""
-    sequence = rec.get("camera_path") or rec.get("light_path")
-    frames = (rec.get("n_frames") or 1) if sequence else 1
-    return float(rec["width"] * rec["height"] * frames)
+    return float(rec["width"] * rec["height"] * _case_frames(rec))
+
+
+def grouped(todo) -> list:
+    """``todo`` with the cases of a scene group (:func:`_scene_group`) next to each other: a
+    worker then runs a group's cases one after another and its memos (a bounded LRU each)
+    hold while the group lasts. Groups of sequence cases (several frames a case: the
+    costliest) come first, so the sweep does not end on them with one worker idle; the
+    others in order of first appearance."""
+    order: dict[tuple, tuple] = {}
+    for _, rec, _ in todo:
+        group = _scene_group(rec)
+        if group not in order:
+            order[group] = (_case_frames(rec) == 1, len(order))
+    return sorted(todo, key=lambda item: order[_scene_group(item[1])])
 
 
 def case_homes(todo, workers: list[str]) -> dict[str, str]:
@@ -503,6 +524,7 @@ def _run_dask(
                 raise SweepError(
                     f"{where}: no workers connected within {worker_timeout:g} s"
                 ) from None
+        todo = grouped(todo)
         refs = _unique_references(todo)
         summary["references"] = len(refs)
         ref_futures = {
