@@ -37,6 +37,31 @@ def test_tile_spectrum_is_blue(tile):
         assert (low < 0.01) if blue else (low > 0.5)
 
 
+def test_shipped_ranks_are_the_generators_output_byte_for_byte():
+    """The shipped tile is void and cluster's output at the module's constants, not data of
+    its own: regenerated here and compared byte for byte (and its checksum pinned)."""
+    import hashlib
+
+    raw = bluenoise.RANKS_FILE.read_bytes()
+    assert hashlib.sha256(raw).hexdigest() == bluenoise.RANKS_SHA256
+    made = np.stack(
+        [bluenoise.void_and_cluster(bluenoise.TILE, seed=bluenoise.SEED + c) for c in range(2)],
+        axis=-1,
+    )
+    assert made.astype("<u2").tobytes() == raw
+    assert np.array_equal(bluenoise.tile_ranks(), made)
+
+
+def test_a_changed_ranks_file_is_refused(tmp_path, monkeypatch):
+    bad = tmp_path / "bluenoise_ranks.u16"
+    raw = bytearray(bluenoise.RANKS_FILE.read_bytes())
+    raw[0] ^= 1
+    bad.write_bytes(bytes(raw))
+    monkeypatch.setattr(bluenoise, "RANKS_FILE", bad)
+    with pytest.raises(RuntimeError, match="checksum"):
+        bluenoise.tile_ranks()
+
+
 def test_tile_is_reproducible():
     a = bluenoise.void_and_cluster(32, seed=3)
     assert np.array_equal(a, bluenoise.void_and_cluster(32, seed=3))

@@ -11,6 +11,12 @@ value), started from :data:`INITIAL_FRACTION` of the pixels chosen by a seeded
 once (a uniform histogram) and the low spatial frequencies are nearly empty (the spectrum test
 in tests/test_rtshadows_rays.py).
 
+The method takes about 2 s a process, so the package ships its output: ``bluenoise_ranks.u16``
+holds both channels' ranks (``(128, 128, 2)`` little-endian uint16, row-major, SHA-256
+:data:`RANKS_SHA256`), made by this module's :func:`void_and_cluster`; the tests regenerate it
+and compare it with the file byte for byte, so the file is this module's output, not data of
+its own.
+
 References
 ----------
 R. Ulichney, The void-and-cluster method for dither array generation, Proc. SPIE 1913,
@@ -21,11 +27,23 @@ that Distributes Monte Carlo Errors as a Blue Noise in Screen Space, SIGGRAPH Ta
 
 from __future__ import annotations
 
+import hashlib
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["INITIAL_FRACTION", "SEED", "SIGMA", "TILE", "blue_noise_tile", "void_and_cluster"]
+__all__ = [
+    "INITIAL_FRACTION",
+    "RANKS_FILE",
+    "RANKS_SHA256",
+    "SEED",
+    "SIGMA",
+    "TILE",
+    "blue_noise_tile",
+    "tile_ranks",
+    "void_and_cluster",
+]
 
 #: Tile size of AMD's sample (``t2d_blueNoise[pixelCoord % 128]``).
 TILE = 128
@@ -35,6 +53,10 @@ SEED = 46
 SIGMA = 1.5
 #: Fraction of pixels in the initial binary pattern (Ulichney: at most half; 10 % is usual).
 INITIAL_FRACTION = 0.1
+#: The shipped ranks of both channels (package data): :func:`void_and_cluster`'s output.
+RANKS_FILE = Path(__file__).with_name("bluenoise_ranks.u16")
+#: SHA-256 of :data:`RANKS_FILE`.
+RANKS_SHA256 = "707945d1a2a78c8cc7d8588febacd0e28d55733e4486b7db91e3490753d4c38f"
 
 
 def _energy_kernel(n: int, sigma: float) -> np.ndarray:
@@ -91,13 +113,21 @@ def void_and_cluster(n: int = TILE, *, seed: int = SEED, sigma: float = SIGMA) -
     return rank.reshape(n, n)
 
 
+def tile_ranks() -> np.ndarray:
+    """``(128, 128, 2)`` int64 ranks of both channels from :data:`RANKS_FILE` (checked against
+    :data:`RANKS_SHA256`: a changed file is an error, never a different tile)."""
+    raw = RANKS_FILE.read_bytes()
+    if hashlib.sha256(raw).hexdigest() != RANKS_SHA256:
+        raise RuntimeError(f"{RANKS_FILE.name}: not the shipped blue-noise ranks (checksum)")
+    return np.frombuffer(raw, dtype="<u2").reshape(TILE, TILE, 2).astype(np.int64)
+
+
 @lru_cache(maxsize=1)
 def blue_noise_tile() -> np.ndarray:
     """``(128, 128, 2)`` float32 tile, values ``(rank + 0.5) / 16384`` per channel (``r``:
-    :data:`SEED`, ``g``: ``SEED + 1``), row = pixel y modulo 128, column = x modulo 128.
-    Computed once per process (about 10 s on one core)."""
-    chans = [void_and_cluster(TILE, seed=SEED + c) for c in range(2)]
-    out = (np.stack(chans, axis=-1).astype(np.float64) + 0.5) / float(TILE * TILE)
+    :data:`SEED`, ``g``: ``SEED + 1``), row = pixel y modulo 128, column = x modulo 128;
+    the ranks are the shipped :func:`tile_ranks` (the void-and-cluster output)."""
+    out = (tile_ranks().astype(np.float64) + 0.5) / float(TILE * TILE)
     out = out.astype(np.float32)
     out.setflags(write=False)
     return out

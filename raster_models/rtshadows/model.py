@@ -5,7 +5,9 @@ Frame ``k`` of the scene's sequence (camera path, object paths) is the result of
 denoiser from frame 0 to ``k`` on that frame's inputs (:func:`.frames.build_frame`: exact
 motion vectors and disocclusion, one ray a pixel); the state after each frame is kept (keyed
 by the sequence and the technique's parameters) so that scoring frames 0..N-1 in order costs
-one frame each, as the ``taa`` model does.
+one frame each, as the ``taa`` model does. The frames' inputs do not depend on the denoiser:
+they are built once per sequence and process and shared by every denoiser (:data:`_FRAMES`,
+read-only arrays), so the five models on one sequence trace it once.
 
 Outputs: ``soft_visibility`` and ``light_fraction`` (the denoised shadow factor, ``(H, W)``
 float32 in [0, 1], 0 off receivers), ``noisy`` (the frame's one-ray visibility),
@@ -42,6 +44,10 @@ __all__ = [
 
 MAX_SEQUENCES = 8
 _STATES: OrderedDict = OrderedDict()
+#: Frames kept (:func:`.frames.build_frame` inputs, shared by the denoisers), LRU; a 160x90
+#: frame is about 1 MB, a 1080p one about 190 MB, so the bound is in bytes.
+MAX_FRAME_BYTES = 256 << 20
+_FRAMES: OrderedDict = OrderedDict()
 
 
 @dataclass(frozen=True)
@@ -88,7 +94,7 @@ def cost_record(denoiser: str, width: int, height: int) -> dict:
     }
 
 
-def _sequence_key(scene, denoiser: str, p) -> tuple:
+def _scene_key(scene) -> tuple:
     return (
         scene.content_hash,
         scene.camera_path,
@@ -98,9 +104,32 @@ def _sequence_key(scene, denoiser: str, p) -> tuple:
         scene.n_frames,
         scene.width,
         scene.height,
-        denoiser,
-        repr(p),
     )
+
+
+def _sequence_key(scene, denoiser: str, p) -> tuple:
+    return (*_scene_key(scene), denoiser, repr(p))
+
+
+def _frame_bytes(frame) -> int:
+    return sum(v.nbytes for v in vars(frame).values() if isinstance(v, np.ndarray))
+
+
+def shared_frame(scene, j: int, previous):
+    """Frame ``j`` of ``scene``'s sequence (:func:`.frames.build_frame`, ``previous`` frame
+    ``j - 1`` of the same sequence), built once per process: its arrays are read-only."""
+    key = (*_scene_key(scene), j)
+    frame = _FRAMES.get(key)
+    if frame is None:
+        frame = build_frame(_frame_scene(scene, j), j, previous)
+        for value in vars(frame).values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+        _FRAMES[key] = frame
+        while len(_FRAMES) > 1 and sum(map(_frame_bytes, _FRAMES.values())) > MAX_FRAME_BYTES:
+            _FRAMES.popitem(last=False)
+    _FRAMES.move_to_end(key)
+    return frame
 
 
 def _frame_scene(scene, j: int):
@@ -136,7 +165,7 @@ def make_runner(technique: str, denoiser: str):
             start = done + 1
         rays = 0
         for j in range(start, k + 1):
-            prev = build_frame(_frame_scene(scene, j), j, prev)
+            prev = shared_frame(scene, j, prev)
             out, state, _ = denoise_step(denoiser, prev, state, p)
             rays += prev.rays
         _STATES[key] = (k, prev, state, out)
