@@ -48,9 +48,9 @@ from .store import SweepStore, case_key
 __all__ = [
     "SideTask",
     "SweepError",
-    "case_homes",
     "check_scheduler",
     "completed_while_workers",
+    "group_homes",
     "grouped",
     "run_sweep",
     "store_row",
@@ -415,24 +415,32 @@ def grouped(todo) -> list:
     return sorted(todo, key=lambda item: order[_scene_group(item[1])])
 
 
-def case_homes(todo, workers: list[str]) -> dict[str, str]:
-    """A preferred worker of each case (key -> address): the cases of a scene group
-    (:func:`_scene_group`) on one worker, so its per-process memos are computed once, the
-    groups spread over the workers by expected work, largest first. Preferences are loose:
-    an idle worker still steals from a busy one. No workers or one: no preferences."""
+def group_homes(todo, workers: list[str]) -> dict[tuple, str]:
+    """A preferred worker of each scene group (:func:`_scene_group` -> address): a group's
+    references and cases on one worker, so its per-process memos (the loaded scene, the
+    exact coverage both seeds' references share, noise floors, the reference halves of the
+    metrics) are computed once; the groups spread over the workers by expected work,
+    largest first. Preferences are loose: an idle worker still steals from a busy one. No
+    workers or one: no preferences."""
     if len(workers) < 2:
         return {}
-    groups: dict[tuple, list] = {}
-    for key, rec, _ in todo:
-        groups.setdefault(_scene_group(rec), []).append((key, rec))
+    weights: dict[tuple, float] = {}
+    for _, rec, _ in todo:
+        group = _scene_group(rec)
+        weights[group] = weights.get(group, 0.0) + _case_weight(rec)
     load = dict.fromkeys(workers, 0.0)
     homes = {}
-    weighed = [(sum(_case_weight(r) for _, r in items), g) for g, items in groups.items()]
-    for weight, group in sorted(weighed, key=lambda wg: (-wg[0], repr(wg[1]))):
+    for group, weight in sorted(weights.items(), key=lambda gw: (-gw[1], repr(gw[0]))):
         home = min(workers, key=lambda w: (load[w], w))
         load[home] += weight
-        homes.update((key, home) for key, _ in groups[group])
+        homes[group] = home
     return homes
+
+
+def _at_home(homes: dict, record: dict) -> dict:
+    """``client.submit`` keywords placing a task of ``record``'s scene group at its home."""
+    home = homes.get(_scene_group(record))
+    return {"workers": [home], "allow_other_workers": True} if home else {}
 
 
 def _side_result(fut) -> dict:
@@ -527,18 +535,31 @@ def _run_dask(
         todo = grouped(todo)
         refs = _unique_references(todo)
         summary["references"] = len(refs)
+        homes = {} if scheduler is not None else group_homes(todo, _worker_addresses(client))
         ref_futures = {
-            text: client.submit(render_reference_timed, job, cache_root, variant, pure=False)
+            text: client.submit(
+                render_reference_timed,
+                job,
+                cache_root,
+                variant,
+                pure=False,
+                **_at_home(homes, job),
+            )
             for text, job in refs.items()
         }
         futures = {}
-        homes = {} if scheduler is not None else case_homes(todo, _worker_addresses(client))
         for item in todo:
             rec = item[1]
             deps = [ref_futures[json.dumps(j, sort_keys=True)] for j in reference_jobs(rec)]
-            home = {"workers": [homes[item[0]]], "allow_other_workers": True} if homes else {}
             fut = client.submit(
-                run_case, rec, cache_root, variant, *deps, images=images, pure=False, **home
+                run_case,
+                rec,
+                cache_root,
+                variant,
+                *deps,
+                images=images,
+                pure=False,
+                **_at_home(homes, rec),
             )
             futures[fut] = item
         sides = {
