@@ -562,6 +562,12 @@ def _run_dask(
                 **_at_home(homes, rec),
             )
             futures[fut] = item
+        # a local cluster's cases are placed on workers at once (they have homes), so
+        # unplaced side tasks would wait in the scheduler's queue until the cases were done:
+        # placed too (on any worker, loosely), their priority then orders them on a worker
+        anywhere = (
+            {"workers": _worker_addresses(client), "allow_other_workers": True} if homes else {}
+        )
         sides = {
             client.submit(
                 run_side_task,
@@ -571,6 +577,7 @@ def _run_dask(
                 variant,
                 pure=False,
                 priority=task.priority,
+                **anywhere,
             ): task.name
             for task in side
         }
