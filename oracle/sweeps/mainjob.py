@@ -397,11 +397,12 @@ def timing_record(phases: Phases, wall: float, *, inline: bool) -> dict:
     Phases: ``references`` (rendering the sweep's references), ``models`` (the technique
     models' own runs), ``metrics`` (scoring: reading cached references, noise floors,
     metrics), ``images`` (the cases' thumbnails), ``sweep`` (the rest of the sweep: keys,
-    store), then each study after it (``claims``, ``extremes``, ``aa_memory``,
-    ``aa_ranking``, ``soft_shadows``) and ``report`` (writing the page). The sweep's phases
-    are wall seconds in this process when it ran inline (``workers=0``), else seconds summed
-    over the Dask workers (they can add up to more than the wall time); ``sweep`` is then
-    what is left of the sweep's wall time, if anything.
+    store), then each study (``claims``, ``extremes``, ``aa_memory``, ``aa_ranking``,
+    ``soft_shadows``, ``alpha_foliage``) and ``report`` (writing the page). The sweep's
+    phases and the studies' (their parts ran beside the cases) are wall seconds in this
+    process when it ran inline (``workers=0``), else seconds summed over the Dask workers
+    (they can add up to more than the wall time); ``sweep`` is then what is left of the
+    sweep's wall time, if anything.
     """
     return {
         "wall_seconds": float(wall),
