@@ -9,7 +9,8 @@ import os
 from raster_oracle.oracle.studies.claims.run import run_claims
 from raster_oracle.oracle.sweeps.cases import reference_jobs
 from raster_oracle.oracle.sweeps.mainjob import aa_memory_study
-from raster_oracle.oracle.sweeps.run import SideTask, group_homes, grouped, run_sweep
+from raster_oracle.oracle.sweeps.placement import group_homes, grouped
+from raster_oracle.oracle.sweeps.run import SideTask, run_sweep
 from raster_oracle.oracle.sweeps.spec import expand_spec
 from raster_oracle.oracle.sweeps.store import SweepStore
 

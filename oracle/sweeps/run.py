@@ -39,9 +39,9 @@ from .cases import (
     render_reference_timed,
     run_case,
     run_side_task,
-    sequence_frames,
     share_cores,
 )
+from .placement import at_home, group_homes, grouped
 from .spec import Case, Expansion
 from .store import SweepStore, case_key
 
@@ -50,8 +50,6 @@ __all__ = [
     "SweepError",
     "check_scheduler",
     "completed_while_workers",
-    "group_homes",
-    "grouped",
     "run_sweep",
     "store_row",
     "sweep_keys",
@@ -381,68 +379,6 @@ def _worker_addresses(client) -> list[str]:
     return sorted(client.scheduler_info()["workers"])
 
 
-def _scene_group(rec: dict) -> tuple:
-    """The cases sharing a worker's memos (loaded scene, noise floors, the reference halves of
-    the metrics): same scene, film, spp, light and path."""
-    return tuple(
-        rec.get(k)
-        for k in ("scene", "width", "height", "spp", "light", "camera_path", "light_path")
-    )
-
-
-def _case_frames(rec: dict) -> int:
-    """Frames a case scores (:func:`oracle.sweeps.cases.sequence_frames`): a sequence's, or
-    1. The base scene is this process's (:func:`sweep_keys` loaded it)."""
-    return sequence_frames(rec, WORKER_CACHE.base_scene(rec)) or 1
-
-
-def _case_weight(rec: dict) -> float:
-    """A case's expected work, for placing it: its pixels times its frames."""
-    return float(rec["width"] * rec["height"] * _case_frames(rec))
-
-
-def grouped(todo) -> list:
-    """``todo`` with the cases of a scene group (:func:`_scene_group`) next to each other: a
-    worker then runs a group's cases one after another and its memos (a bounded LRU each)
-    hold while the group lasts. Groups of sequence cases (several frames a case: the
-    costliest) come first, so the sweep does not end on them with one worker idle; the
-    others in order of first appearance."""
-    order: dict[tuple, tuple] = {}
-    for _, rec, _ in todo:
-        group = _scene_group(rec)
-        if group not in order:
-            order[group] = (_case_frames(rec) == 1, len(order))
-    return sorted(todo, key=lambda item: order[_scene_group(item[1])])
-
-
-def group_homes(todo, workers: list[str]) -> dict[tuple, str]:
-    """A preferred worker of each scene group (:func:`_scene_group` -> address): a group's
-    references and cases on one worker, so its per-process memos (the loaded scene, the
-    exact coverage both seeds' references share, noise floors, the reference halves of the
-    metrics) are computed once; the groups spread over the workers by expected work,
-    largest first. Preferences are loose: an idle worker still steals from a busy one. No
-    workers or one: no preferences."""
-    if len(workers) < 2:
-        return {}
-    weights: dict[tuple, float] = {}
-    for _, rec, _ in todo:
-        group = _scene_group(rec)
-        weights[group] = weights.get(group, 0.0) + _case_weight(rec)
-    load = dict.fromkeys(workers, 0.0)
-    homes = {}
-    for group, weight in sorted(weights.items(), key=lambda gw: (-gw[1], repr(gw[0]))):
-        home = min(workers, key=lambda w: (load[w], w))
-        load[home] += weight
-        homes[group] = home
-    return homes
-
-
-def _at_home(homes: dict, record: dict) -> dict:
-    """``client.submit`` keywords placing a task of ``record``'s scene group at its home."""
-    home = homes.get(_scene_group(record))
-    return {"workers": [home], "allow_other_workers": True} if home else {}
-
-
 def _side_result(fut) -> dict:
     """A finished side task's result; a worker that died running it is its error."""
     try:
@@ -500,6 +436,56 @@ def _close_dask(client, cluster, *, quick: bool) -> None:
             pass
 
 
+def _submit_cases(client, todo, homes, cache_root, variant, images):
+    """Submit the references of ``todo`` (each once) and its cases, each case depending on
+    its references, both at their scene group's home; ``(reference futures by record text,
+    {case future: todo item})``."""
+    refs = _unique_references(todo)
+    ref_futures = {
+        text: client.submit(
+            render_reference_timed, job, cache_root, variant, pure=False, **at_home(homes, job)
+        )
+        for text, job in refs.items()
+    }
+    futures = {}
+    for item in todo:
+        rec = item[1]
+        deps = [ref_futures[json.dumps(j, sort_keys=True)] for j in reference_jobs(rec)]
+        fut = client.submit(
+            run_case,
+            rec,
+            cache_root,
+            variant,
+            *deps,
+            images=images,
+            pure=False,
+            **at_home(homes, rec),
+        )
+        futures[fut] = item
+    return ref_futures, futures
+
+
+def _submit_sides(client, side, homes, cache_root, variant) -> dict:
+    """Submit the side tasks; ``{future: name}``. A local cluster's cases are placed on
+    workers at once (they have homes), so unplaced side tasks would wait in the scheduler's
+    queue until the cases were done: placed too (on any worker, loosely), their priority
+    then orders them on a worker."""
+    anywhere = {"workers": _worker_addresses(client), "allow_other_workers": True} if homes else {}
+    return {
+        client.submit(
+            run_side_task,
+            task.study,
+            task.kwargs,
+            cache_root,
+            variant,
+            pure=False,
+            priority=task.priority,
+            **anywhere,
+        ): task.name
+        for task in side
+    }
+
+
 def _run_dask(
     todo, cache_root, variant, summary, *, workers, scheduler, quiet, images, worker_timeout, side
 ):
@@ -533,54 +519,10 @@ def _run_dask(
                     f"{where}: no workers connected within {worker_timeout:g} s"
                 ) from None
         todo = grouped(todo)
-        refs = _unique_references(todo)
-        summary["references"] = len(refs)
         homes = {} if scheduler is not None else group_homes(todo, _worker_addresses(client))
-        ref_futures = {
-            text: client.submit(
-                render_reference_timed,
-                job,
-                cache_root,
-                variant,
-                pure=False,
-                **_at_home(homes, job),
-            )
-            for text, job in refs.items()
-        }
-        futures = {}
-        for item in todo:
-            rec = item[1]
-            deps = [ref_futures[json.dumps(j, sort_keys=True)] for j in reference_jobs(rec)]
-            fut = client.submit(
-                run_case,
-                rec,
-                cache_root,
-                variant,
-                *deps,
-                images=images,
-                pure=False,
-                **_at_home(homes, rec),
-            )
-            futures[fut] = item
-        # a local cluster's cases are placed on workers at once (they have homes), so
-        # unplaced side tasks would wait in the scheduler's queue until the cases were done:
-        # placed too (on any worker, loosely), their priority then orders them on a worker
-        anywhere = (
-            {"workers": _worker_addresses(client), "allow_other_workers": True} if homes else {}
-        )
-        sides = {
-            client.submit(
-                run_side_task,
-                task.study,
-                task.kwargs,
-                cache_root,
-                variant,
-                pure=False,
-                priority=task.priority,
-                **anywhere,
-            ): task.name
-            for task in side
-        }
+        ref_futures, futures = _submit_cases(client, todo, homes, cache_root, variant, images)
+        summary["references"] = len(ref_futures)
+        sides = _submit_sides(client, side, homes, cache_root, variant)
         with _progress(len(futures), quiet=quiet, desc=summary["sweep"]) as bar:
             for fut in completed_while_workers(
                 client, [*futures, *sides], worker_timeout=worker_timeout, where=where
