@@ -512,3 +512,25 @@ def test_fronts_of_a_higher_is_better_metric_keep_the_highest_values():
     assert {raw["points"][i]["error"] for i in raw["front"]} == {0.80}
     assert metric_error("psnr_db", 20.0) == pytest.approx(0.01)
     assert metric_error("not_a_metric", 3.0) == 3.0
+
+
+def test_the_page_does_not_depend_on_the_order_cases_finished_in(tmp_path):
+    """On several workers cases finish in a different order each run; the page is made of
+    their content in one order (oracle.sweeps.report.canonical_order), so it is the same."""
+    from raster_oracle.oracle.sweeps.report import sweep_report
+    from raster_oracle.oracle.sweeps.store import SweepStore
+
+    rows = [*ROWS, _row(9, "csm", 2048, 25600, 0.01, scene="city")]
+    pages = []
+    for name, order in (("a", rows), ("b", rows[::-1])):
+        db = tmp_path / name / "sweep.db"
+        db.parent.mkdir()
+        with SweepStore(db) as store:
+            for row in order:  # finished in this order
+                store.put({**row, "sweep": "s", "seed": 0, "run_id": "r"})
+        out = sweep_report(db, tmp_path / name / "report.html", sweep="s", title="t")
+        pages.append(out.read_text().replace(str(db.resolve()), "DB"))
+    assert pages[0] == pages[1]
+    with SweepStore(tmp_path / "b" / "sweep.db", readonly=True) as store:
+        finished = [r["key"] for r in store.rows()]
+    assert finished[0] == rows[-1]["key"]  # the store itself keeps the finishing order

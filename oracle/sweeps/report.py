@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from ... import raster_models
@@ -11,7 +12,7 @@ from ...reports.sweep import with_memory, write_sweep_report
 from .run import SweepError
 from .store import SweepStore
 
-__all__ = ["family_defaults", "metric_error", "sweep_report"]
+__all__ = ["canonical_order", "family_defaults", "metric_error", "sweep_report"]
 
 
 def family_defaults() -> dict:
@@ -32,6 +33,33 @@ def metric_error(metric: str, value: float) -> float:
         return error_of(metric, value)
     except (KeyError, ValueError):
         return value
+
+
+def _param_key(value) -> tuple:
+    """A parameter value as a sort key: numbers by value, before text (JSON of the rest)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return (1, 0.0, json.dumps(value, sort_keys=True))
+    return (0, float(value), "")
+
+
+def canonical_order(rows: list[dict]) -> list[dict]:
+    """``rows`` in an order of their content alone (family, scene, technique, parameters by
+    name then value, frame, film, spp, seed, key), not the order the cases finished in: on
+    several workers that order changes from run to run, and the page (group, technique and
+    colour order) would with it."""
+
+    def key(r: dict) -> tuple:
+        params = r.get("params") or {}
+        return (
+            str(r.get("family")),
+            str(r.get("scene")),
+            str(r.get("technique")),
+            tuple((k, _param_key(params[k])) for k in sorted(params)),
+            *(int(r.get(k) or 0) for k in ("frame", "width", "height", "spp", "seed")),
+            str(r.get("key")),
+        )
+
+    return sorted(rows, key=key)
 
 
 def _check_keys(rows, costs, metrics) -> None:
@@ -75,7 +103,7 @@ def sweep_report(
     """
     with SweepStore(db, readonly=True) as store:
         store.check_integrity()
-        rows = store.rows(sweep=sweep)
+        rows = canonical_order(store.rows(sweep=sweep))
         images = store.images(r["key"] for r in rows if r["status"] == "done")
         _check_keys(rows, costs, metrics)
         # the store stays open for the viewers: only the cases the summary names are read
