@@ -151,55 +151,30 @@ def _aa_ranking(out: Path) -> dict:
     return aa_ranking(rows)
 
 
+def _split(kind: str, title: str, section, parts, merge, lines, page: str) -> Section:
+    """A study measured in parts (one side task each), merged into one record and page."""
+    return Section(kind, kind, title, section, parts, merge, lines, file=(kind, page))
+
+
+def _one(kind: str, title: str, section, study, *, page: bool = False) -> Section:
+    """A study run whole as one side task; ``page``: its page and JSON beside the report."""
+    file = (kind, title) if page else None
+    return Section(kind, kind.replace("_", "-"), title, section, _whole(kind, study), file=file)
+
+
 #: The report's sections after the sweep, in page order.
 SECTIONS: tuple[Section, ...] = (
-    Section(
-        "claims",
-        "claims",
-        "Claims",
-        claims_section,
-        parts=_claims_parts,
-        merge=merge_claims,
-        lines=_claims_lines,
-        file=("claims", "raster-oracle claims"),
-    ),
-    Section(
-        "extremes",
-        "extremes",
-        "Numerical stability at the extremes",
-        extremes_section,
-        parts=_extremes_parts,
-        merge=merge_extremes,
-        lines=_extremes_lines,
-        file=("extremes", "raster-oracle extremes"),
-    ),
-    Section(
-        "aa_memory",
-        "aa-memory",
-        "Anti-aliasing memory",
-        aa_memory_section,
-        parts=_whole("aa_memory", aa_memory_study),
-    ),
-    Section(
-        "aa_ranking", "aa-ranking", "Anti-aliasing ranking", aa_ranking_section, local=_aa_ranking
-    ),
-    Section(
-        "soft_shadows",
-        "soft-shadows",
-        "Soft shadows",
-        soft_shadows_section,
-        parts=_whole("soft_shadows", soft_shadows_study),
-        file=("soft_shadows", "Soft shadows"),
-    ),
-    Section(
-        "alpha_foliage",
-        "alpha-foliage",
-        "Alpha-tested foliage",
-        alpha_foliage_section,
-        parts=_whole("alpha_foliage", alpha_foliage_study),
-        file=("alpha_foliage", "Alpha-tested foliage"),
-    ),
-)
+    _split("claims", "Claims", claims_section, _claims_parts, merge_claims, _claims_lines,
+           "raster-oracle claims"),
+    _split("extremes", "Numerical stability at the extremes", extremes_section, _extremes_parts,
+           merge_extremes, _extremes_lines, "raster-oracle extremes"),
+    _one("aa_memory", "Anti-aliasing memory", aa_memory_section, aa_memory_study),
+    Section("aa_ranking", "aa-ranking", "Anti-aliasing ranking", aa_ranking_section,
+            local=_aa_ranking),
+    _one("soft_shadows", "Soft shadows", soft_shadows_section, soft_shadows_study, page=True),
+    _one("alpha_foliage", "Alpha-tested foliage", alpha_foliage_section, alpha_foliage_study,
+         page=True),
+)  # fmt: skip
 
 
 def section_tasks(sections, *, quick: bool) -> list[SideTask]:
