@@ -12,6 +12,7 @@ from __future__ import annotations
 import pytest
 from raster_oracle.oracle.reference.render import ReferenceSettings, render_reference
 from raster_oracle.raster_models.errors import ModelError
+from raster_oracle.raster_models.rtshadows.model import clear_shared_frames
 from raster_oracle.scenes import backend
 from raster_oracle.scenes.backend import kernels
 
@@ -54,6 +55,7 @@ def test_every_model_traces_one_scene_per_kernel(name):
     loaded = scenes.load(name, width=48, height=27)
     ran = 0
     for technique in (t["name"] for t in rm.list_techniques()):
+        clear_shared_frames()  # each rtshadows model traces its own frames here
         with kernels.audit() as seen:
             try:
                 rm.run(technique, loaded)

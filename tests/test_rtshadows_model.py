@@ -49,6 +49,27 @@ def test_frames_are_cached_and_reproducible():
     assert c.cost["rays_per_pixel"] == 1 and c.cost["shadow_rays"] > 0
 
 
+def test_denoisers_share_the_frames_and_get_what_they_get_alone(monkeypatch):
+    """The frames' inputs are the sequence's, not a denoiser's: built once for the five
+    models (read-only), each model's output equal to its run on freshly built frames."""
+    sc = load("occluder-sun", width=W, height=H, n_frames=4).with_frame(3, n_frames=4)
+    built = []
+    real = model.build_frame
+    monkeypatch.setattr(model, "build_frame", lambda *a: built.append(a[1]) or real(*a))
+    model.clear_shared_frames()
+    shared = {d: model.make_runner(f"rtshadows-{d}", d)(sc) for d in model.DENOISERS}
+    assert built == [0, 1, 2, 3]  # one sequence traced once, whatever the denoisers
+    frame = model.shared_frame(sc, 3, None)
+    with pytest.raises(ValueError, match="read-only"):
+        frame.noisy[0, 0] = 1.0
+    for denoiser, result in shared.items():
+        model.clear_shared_frames()
+        alone = model.make_runner(f"rtshadows-{denoiser}", denoiser)(sc)
+        for key in ("soft_visibility", "noisy", "penumbra"):
+            assert np.array_equal(alone.outputs[key], result.outputs[key]), (denoiser, key)
+    assert len(built) == 4 + 4 * len(model.DENOISERS)
+
+
 def test_flicker_scene_switches_the_light_off_and_on():
     sc = load("flicker-rect", width=W, height=H, n_frames=FLICKER_ON + 1)
     lit = []

@@ -37,6 +37,7 @@ __all__ = [
     "DENOISERS",
     "LIGHTS",
     "NoParams",
+    "clear_shared_frames",
     "cost_record",
     "denoise_step",
     "make_runner",
@@ -113,6 +114,13 @@ def _sequence_key(scene, denoiser: str, p) -> tuple:
 
 def _frame_bytes(frame) -> int:
     return sum(v.nbytes for v in vars(frame).values() if isinstance(v, np.ndarray))
+
+
+def clear_shared_frames() -> None:
+    """Forget the shared frames (and the denoisers' states built on them): the next run
+    traces its sequence again (a test auditing each model's own kernels)."""
+    _FRAMES.clear()
+    _STATES.clear()
 
 
 def shared_frame(scene, j: int, previous):
