@@ -396,12 +396,8 @@ def _reference_seconds(futures) -> float:
     return total
 
 
-#: Seconds the killed local workers get to be reaped when stopping.
+#: Seconds the Dask client and local cluster get to close.
 STOP_TIMEOUT_S = 1.0
-#: Seconds the client and the local cluster each get to close when stopping: their workers
-#: are killed already, so a close has nothing left to wait for but a reply that never comes
-#: (at 1 s each a stop took 2.0 s of the 2 s it may take).
-CLOSE_TIMEOUT_S = 0.25
 
 
 def _end_local_workers() -> None:
@@ -426,8 +422,8 @@ def _end_local_workers() -> None:
 
 
 def _close_dask(client, cluster, *, quick: bool) -> None:
-    """Close the client and the local cluster; ``quick`` (stopping on a signal): at most
-    :data:`CLOSE_TIMEOUT_S` each, and a timeout closing what was killed is no error."""
+    """Close the client and the local cluster; ``quick`` (stopping on a signal): a second
+    each, and a timeout closing what was killed is no error."""
     for closing in (client, cluster):
         if closing is None:
             continue
@@ -435,7 +431,7 @@ def _close_dask(client, cluster, *, quick: bool) -> None:
             closing.close()
             continue
         try:
-            closing.close(timeout=CLOSE_TIMEOUT_S)
+            closing.close(timeout=STOP_TIMEOUT_S)
         except Exception:  # stopping anyway
             pass
 
