@@ -75,7 +75,7 @@ DEFAULT_SPEC = "specs/default.toml"
 class Section:
     """A section of the main job's report after the sweep, and how its study runs.
 
-    ``parts(quick)`` lists the study's parts, ``(label, study, kwargs)`` each: a worker of the
+    ``parts(quick)`` lists the study's parts, ``(study, kwargs)`` each: a worker of the
     sweep runs ``study(cache=..., **kwargs)`` beside the cases (:class:`oracle.sweeps.run.
     SideTask`), so the sections cost no wall time of their own on a busy cluster; ``merge``
     makes the study's record of its parts' records (in ``parts`` order), ``lines`` what the
@@ -89,34 +89,28 @@ class Section:
     sid: str
     title: str
     section: Callable[..., dict]
-    parts: Callable[[bool], list[tuple[str, Callable[..., dict], dict]]] | None = None
+    parts: Callable[[bool], list[tuple[Callable[..., dict], dict]]] | None = None
     merge: Callable[[list[dict]], dict] | None = None
     lines: Callable[[dict], list[str]] | None = None
     file: tuple[str, str] | None = None
     local: Callable[[Path], dict] | None = None
 
 
-def _whole(kind: str, study: Callable[..., dict]):
+def _whole(study: Callable[..., dict]):
     """``parts`` of a study run whole: one part, ``study(out=None, cache=, quick=)``."""
 
-    def parts(quick: bool) -> list[tuple[str, Callable[..., dict], dict]]:
-        return [(kind, study, {"out": None, "quick": quick})]
+    def parts(quick: bool) -> list[tuple[Callable[..., dict], dict]]:
+        return [(study, {"out": None, "quick": quick})]
 
     return parts
 
 
-def _claims_parts(quick: bool) -> list[tuple[str, Callable[..., dict], dict]]:
-    return [
-        (f"claims {c.id}", run_claims, {"out": None, "quick": quick, "only": [c.id]})
-        for c in CLAIMS
-    ]
+def _claims_parts(quick: bool) -> list[tuple[Callable[..., dict], dict]]:
+    return [(run_claims, {"out": None, "quick": quick, "only": [c.id]}) for c in CLAIMS]
 
 
-def _extremes_parts(quick: bool) -> list[tuple[str, Callable[..., dict], dict]]:
-    return [
-        (f"extremes {name}", run_extremes, {"out": None, "quick": quick, "extremes": [name]})
-        for name in EXTREMES
-    ]
+def _extremes_parts(quick: bool) -> list[tuple[Callable[..., dict], dict]]:
+    return [(run_extremes, {"out": None, "quick": quick, "extremes": [n]}) for n in EXTREMES]
 
 
 def _claims_lines(data: dict) -> list[str]:
@@ -159,7 +153,7 @@ def _split(kind: str, title: str, section, parts, merge, lines, page: str) -> Se
 def _one(kind: str, title: str, section, study, *, page: bool = False) -> Section:
     """A study run whole as one side task; ``page``: its page and JSON beside the report."""
     file = (kind, title) if page else None
-    return Section(kind, kind.replace("_", "-"), title, section, _whole(kind, study), file=file)
+    return Section(kind, kind.replace("_", "-"), title, section, _whole(study), file=file)
 
 
 #: The report's sections after the sweep, in page order.
@@ -183,7 +177,7 @@ def section_tasks(sections, *, quick: bool) -> list[SideTask]:
     for sec in sections:
         if sec.parts is None:
             continue
-        for i, (_, study, kwargs) in enumerate(sec.parts(quick)):
+        for i, (study, kwargs) in enumerate(sec.parts(quick)):
             tasks.append(SideTask(f"{sec.kind}/{i}", study, kwargs))
     return tasks
 
